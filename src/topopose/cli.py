@@ -1,0 +1,254 @@
+"""The ``topopose`` command (DESIGN.md, "Command line").
+
+Each sub-command is a thin wrapper over the Python API of one stage.
+Exit status: 0 all frames processed, 1 some frames failed, 2 unusable input.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .errors import InputError
+
+METHODS_THIN = ["d6i1d", "pkd6", "d6u", "d6i2d", "ack3"]
+METHODS_MATCH = ["aha", "ha", "alignment"]
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--size must be WxH, e.g. 640x480, got {text!r}") from None
+    return w, h
+
+
+# --------------------------------------------------------------------------- handlers
+def cmd_demo(a):
+    from .pose.demo import run_demo
+
+    return run_demo(a.dir, frames=a.frames, resolution=a.resolution, seed=a.seed)
+
+
+def cmd_synth(a):
+    from .capture.synth import synthesize
+
+    synthesize(a.out, subject=a.subject, frames=a.frames, seed=a.seed, cameras=a.cameras,
+               size=a.size, noise=a.noise, motion=a.motion, thickness=a.thickness)
+    print(f"wrote {a.out}")
+    return 0
+
+
+def cmd_hull(a):
+    from .capture import load_capture
+    from .hull import visual_hull
+
+    cap = load_capture(a.capture)
+    vol = visual_hull(cap, a.frame, resolution=a.resolution, tolerance=a.tolerance,
+                      refocus=a.refocus)
+    vol.save(a.out)
+    print(f"wrote {a.out}: {int(vol.data.sum())} voxels, grid {vol.data.shape}, voxel {vol.voxel_size:g}")
+    return 0
+
+
+def cmd_skeleton(a):
+    from .hull import Volume
+    from .topology import thin
+
+    vol = Volume.load(a.volume)
+    skel = thin(vol.data, method=a.method)
+    Volume(skel, vol.origin, vol.voxel_size).save(a.out)
+    print(f"wrote {a.out}: {int(skel.sum())} skeleton voxels ({a.method})")
+    return 0
+
+
+def cmd_tree(a):
+    from .hull import Volume
+    from .skeleton import data_tree, tree_stats_cli
+
+    if a.stats:
+        return tree_stats_cli(a.stats, out=a.out)
+    if a.skeleton is None or a.out is None:
+        raise InputError("topopose tree: give SKELETON.npz and --out TREE.json (or --stats CAPTURE)")
+    vol = Volume.load(a.skeleton)
+    tree = data_tree(vol.data, origin=vol.origin, voxel_size=vol.voxel_size, weight=a.weight)
+    tree.save(a.out)
+    print(f"wrote {a.out}: {tree.n_vertices} vertices, {len(tree.edges)} edges")
+    return 0
+
+
+def cmd_match(a):
+    from .match import Tree, align
+    from .pose import load_model
+
+    model = load_model(a.model)
+    data = Tree.load(a.tree)
+    res = align(model, data.normalized(), method=a.method, cut=a.cut)
+    print(res.report() if hasattr(res, "report") else res)
+    return 0
+
+
+def cmd_run(a):
+    from .pose.run import run_cli
+
+    return run_cli(a)
+
+
+def cmd_view(a):
+    from .viz import view_cli
+
+    return view_cli(a)
+
+
+def cmd_evaluate(a):
+    from .pose.quality import evaluate_cli
+
+    return evaluate_cli(a)
+
+
+def cmd_learn_model(a):
+    from .kinematics import learn_model_cli
+
+    return learn_model_cli(a)
+
+
+def cmd_bench(a):
+    import runpy
+
+    here = Path(__file__).resolve()
+    for root in (Path.cwd(), *here.parents):
+        bdir = root / "benchmarks"
+        if bdir.is_dir():
+            break
+    else:
+        raise InputError("topopose bench: no benchmarks/ folder found (run it from a source checkout)")
+    scripts = sorted(p for p in bdir.glob("*.py") if not p.name.startswith("_"))
+    if a.stage:
+        scripts = [p for p in scripts if p.stem.startswith(a.stage)]
+        if not scripts:
+            raise InputError(f"topopose bench: no benchmark named {a.stage!r} in {bdir}")
+    for p in scripts:
+        print(f"== {p.name}", flush=True)
+        sys.argv = [str(p), *(["--quick"] if a.quick else [])]
+        runpy.run_path(str(p), run_name="__main__")
+    return 0
+
+
+# --------------------------------------------------------------------------- parser
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="topopose", description=__doc__.splitlines()[0])
+    from . import __version__
+
+    p.add_argument("--version", action="version", version=f"topopose {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    s = sub.add_parser("demo", help="synthesize captures, run them, write poses and pictures")
+    s.add_argument("dir", nargs="?", default="topopose-demo")
+    s.add_argument("--frames", type=int, default=6)
+    s.add_argument("--resolution", type=int, default=100)
+    s.add_argument("--seed", type=int, default=0)
+    s.set_defaults(func=cmd_demo)
+
+    s = sub.add_parser("synth", help="write a synthetic capture folder with ground truth")
+    s.add_argument("out")
+    s.add_argument("--subject", choices=["human", "hand", "dog", "spider"], default="human")
+    s.add_argument("--frames", type=int, default=10)
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--cameras", type=int, default=8)
+    s.add_argument("--size", type=_size, default=(640, 480), help="image size WxH")
+    s.add_argument("--noise", type=int, default=0, help="silhouette noise level 0-3")
+    s.add_argument("--motion", choices=["random", "walk", "trot", "grasp"], default="random")
+    s.add_argument("--thickness", type=float, default=1.0, help="limb thickness factor (dress, coat)")
+    s.set_defaults(func=cmd_synth)
+
+    s = sub.add_parser("hull", help="volumetric visual hull of one frame")
+    s.add_argument("capture")
+    s.add_argument("--frame", required=True)
+    s.add_argument("--resolution", type=int, default=100)
+    s.add_argument("--tolerance", type=int, default=0, help="keep voxels seen by at least C-k cameras")
+    s.add_argument("--refocus", action="store_true", help="centre the grid on the subject")
+    s.add_argument("--out", required=True)
+    s.set_defaults(func=cmd_hull)
+
+    s = sub.add_parser("skeleton", help="curve skeleton by topology-preserving thinning")
+    s.add_argument("volume")
+    s.add_argument("--method", choices=METHODS_THIN, default="d6i1d")
+    s.add_argument("--out", required=True)
+    s.set_defaults(func=cmd_skeleton)
+
+    s = sub.add_parser("tree", help="data tree of a curve skeleton")
+    s.add_argument("skeleton", nargs="?")
+    s.add_argument("--out")
+    s.add_argument("--weight", choices=["length", "count"], default="length")
+    s.add_argument("--stats", metavar="CAPTURE", help="tree size/degree statistics over a capture")
+    s.set_defaults(func=cmd_tree)
+
+    s = sub.add_parser("match", help="align a model tree with a data tree")
+    s.add_argument("model")
+    s.add_argument("tree")
+    s.add_argument("--method", choices=METHODS_MATCH, default="aha")
+    s.add_argument("--cut", action="store_true")
+    s.set_defaults(func=cmd_match)
+
+    s = sub.add_parser("run", help="estimate the pose in every frame of a capture")
+    s.add_argument("capture")
+    s.add_argument("--model", default="human")
+    s.add_argument("--resolution", type=int, default=100)
+    s.add_argument("--threshold", type=float, default=None)
+    s.add_argument("--output", default="poses.jsonl")
+    s.add_argument("--trc")
+    s.add_argument("--csv")
+    s.add_argument("--c3d")
+    g = s.add_mutually_exclusive_group()
+    g.add_argument("--workers", type=int, default=1)
+    g.add_argument("--scheduler")
+    s.add_argument("--resume", action="store_true")
+    s.add_argument("--rerun", metavar="FILE.rrd")
+    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
+    s.set_defaults(func=cmd_run)
+
+    s = sub.add_parser("view", help="render one frame as a PNG")
+    s.add_argument("capture")
+    s.add_argument("--poses", required=True)
+    s.add_argument("--frame", required=True)
+    s.add_argument("--out", required=True)
+    s.add_argument("--model", default=None)
+    s.add_argument("--resolution", type=int, default=None)
+    s.add_argument("--silhouettes", action="store_true", help="also draw silhouettes with parts reprojected")
+    s.set_defaults(func=cmd_view)
+
+    s = sub.add_parser("evaluate", help="score poses against gt.json")
+    s.add_argument("capture")
+    s.add_argument("--poses", required=True)
+    s.add_argument("--out", default=None, help="folder for the figures")
+    s.add_argument("--tolerance", type=float, default=None)
+    s.set_defaults(func=cmd_evaluate)
+
+    s = sub.add_parser("learn-model", help="learn the model tree from a sequence (Mukasa et al.)")
+    s.add_argument("capture")
+    s.add_argument("--out", required=True)
+    s.add_argument("--resolution", type=int, default=100)
+    s.add_argument("--joints", help="write per-frame joints and segments as JSON Lines")
+    s.set_defaults(func=cmd_learn_model)
+
+    s = sub.add_parser("bench", help="run the benchmarks beside their peers")
+    s.add_argument("stage", nargs="?")
+    s.add_argument("--quick", action="store_true")
+    s.set_defaults(func=cmd_bench)
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except InputError as exc:
+        print(f"topopose: error: {exc}".replace("\n", " "), file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("topopose: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,89 @@
+"""A capture: calibrated cameras, frame names, and silhouettes per camera and frame."""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .camera import Camera
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def axis_vector(axis: str, where: str = "up") -> np.ndarray:
+    """``"+z"`` → (0, 0, 1), ``"-y"`` → (0, -1, 0)."""
+    s = str(axis).strip().lower()
+    sign = -1.0 if s.startswith("-") else 1.0
+    name = s.lstrip("+-")
+    if name not in _AXES:
+        raise InputError(f"{where}: axis {axis!r} must be one of +x, -x, +y, -y, +z, -z")
+    v = np.zeros(3)
+    v[_AXES[name]] = sign
+    return v
+
+
+@dataclass
+class Capture:
+    """Calibrated cameras and their silhouettes.
+
+    A capture is read from a folder by :func:`topopose.load_capture`, or built in
+    memory (``masks``: frame name → list of boolean (h, w) arrays, one per camera).
+    """
+
+    cameras: list
+    frames: list
+    path: Path | None = None
+    up: str = "+z"
+    units: str = "m"
+    fps: float | None = None
+    volume: tuple | None = None          # (min xyz, max xyz) or None: fitted to the silhouettes
+    options: dict = field(default_factory=dict)
+    masks: dict | None = None
+
+    @property
+    def up_vector(self) -> np.ndarray:
+        return axis_vector(self.up, where=f"{self.path or 'capture'}: capture.up")
+
+    def camera(self, name: str) -> Camera:
+        for c in self.cameras:
+            if c.name == name:
+                return c
+        raise InputError(f"{self.path or 'capture'}: no camera named {name!r}")
+
+    def silhouettes(self, frame) -> list:
+        """Boolean silhouettes (h, w) of ``frame``, one per camera, in camera order."""
+        frame = self.frame_name(frame)
+        if self.masks is not None:
+            return [np.asarray(m, dtype=bool) for m in self.masks[frame]]
+        from .io import read_silhouettes
+
+        return read_silhouettes(self, frame)
+
+    def frame_name(self, frame) -> str:
+        """Accept a frame name or an index into :attr:`frames`."""
+        if isinstance(frame, (int, np.integer)) and str(frame) not in self.frames:
+            if not -len(self.frames) <= frame < len(self.frames):
+                raise InputError(f"{self.path or 'capture'}: frame index {frame} out of range "
+                                 f"({len(self.frames)} frames)")
+            return self.frames[frame]
+        frame = str(frame)
+        if frame not in self.frames:
+            raise InputError(f"{self.path or 'capture'}: no frame {frame!r} "
+                             f"(frames {self.frames[0] if self.frames else ''}…)")
+        return frame
+
+    @property
+    def gt(self) -> dict | None:
+        """Ground truth from ``gt.json`` (synthetic captures), or None."""
+        if self.path is None:
+            return self.options.get("gt")
+        p = Path(self.path) / "gt.json"
+        if not p.exists():
+            return None
+        try:
+            return json.loads(p.read_text())
+        except json.JSONDecodeError as exc:
+            raise InputError(f"{p}: not valid JSON ({exc})") from None

@@ -27,15 +27,17 @@ def _size(text: str) -> tuple[int, int]:
 def cmd_demo(a):
     from .pose.demo import run_demo
 
-    return run_demo(a.dir, frames=a.frames, resolution=a.resolution, seed=a.seed)
+    return run_demo(a.dir, frames=a.frames, resolution=a.resolution, seed=a.seed, noise=a.noise,
+                    subjects=a.subjects.split(",") if a.subjects else None)
 
 
 def cmd_synth(a):
     from .capture.synth import synthesize
 
-    synthesize(a.out, subject=a.subject, frames=a.frames, seed=a.seed, cameras=a.cameras,
-               size=a.size, noise=a.noise, motion=a.motion, thickness=a.thickness)
-    print(f"wrote {a.out}")
+    out = synthesize(a.out, subject=a.subject, frames=a.frames, seed=a.seed, cameras=a.cameras,
+                     size=a.size, noise=a.noise, motion=a.motion, thickness=a.thickness,
+                     separated=a.separated, fps=a.fps)
+    print(f"wrote {out}: {a.subject}, {a.frames} frames, {a.cameras} cameras ({a.motion})")
     return 0
 
 
@@ -46,8 +48,13 @@ def cmd_hull(a):
     cap = load_capture(a.capture)
     vol = visual_hull(cap, a.frame, resolution=a.resolution, tolerance=a.tolerance,
                       refocus=a.refocus)
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     vol.save(a.out)
-    print(f"wrote {a.out}: {int(vol.data.sum())} voxels, grid {vol.data.shape}, voxel {vol.voxel_size:g}")
+    d = vol.diagnostics
+    extra = f", {len(d['components_dropped'])} small components dropped" if d.get("components_dropped") else ""
+    border = ", touches the volume border" if d.get("touches_border") else ""
+    print(f"wrote {a.out}: {d.get('voxels', int(vol.data.sum()))} voxels, grid {vol.data.shape}, "
+          f"voxel {vol.voxel_size:g}{extra}{border}")
     return 0
 
 
@@ -67,13 +74,30 @@ def cmd_tree(a):
     from .skeleton import data_tree, tree_stats_cli
 
     if a.stats:
-        return tree_stats_cli(a.stats, out=a.out)
+        try:
+            res = [int(r) for r in a.resolutions.split(",")]
+        except ValueError:
+            raise InputError("--resolutions: expected integers separated by commas, "
+                             f"got {a.resolutions!r}") from None
+        return tree_stats_cli(a.stats, out=a.out, resolutions=res, incomplete=a.border)
     if a.skeleton is None or a.out is None:
         raise InputError("topopose tree: give SKELETON.npz and --out TREE.json (or --stats CAPTURE)")
     vol = Volume.load(a.skeleton)
-    tree = data_tree(vol.data, origin=vol.origin, voxel_size=vol.voxel_size, weight=a.weight)
+    try:
+        tree = data_tree(vol.data, origin=vol.origin, voxel_size=vol.voxel_size, weight=a.weight,
+                         border="grid" if a.border else None)
+    except InputError as exc:
+        raise InputError(f"{a.skeleton}: {exc}") from None
     tree.save(a.out)
-    print(f"wrote {a.out}: {tree.n_vertices} vertices, {len(tree.edges)} edges")
+    d = tree.diagnostics
+    notes = [f"{k.replace('_', ' ')}: {d[k]}" for k in ("cycles_broken", "loops", "small_cycles")
+             if d.get(k)]
+    if d.get("dropped_components"):
+        notes.append(f"dropped components: {d['dropped_components']}")
+    if d.get("border_vertex") is not None:
+        notes.append(f"border vertex: {d['border_vertex']}")
+    print(f"wrote {a.out}: {tree.n_vertices} vertices, {len(tree.edges)} edges, max degree "
+          f"{d['max_degree']}" + (f" ({'; '.join(notes)})" if notes else ""))
     return 0
 
 
@@ -83,8 +107,13 @@ def cmd_match(a):
 
     model = load_model(a.model)
     data = Tree.load(a.tree)
-    res = align(model, data.normalized(), method=a.method, cut=a.cut)
-    print(res.report() if hasattr(res, "report") else res)
+    data_root = data.root
+    if data_root is None and getattr(model, "complete", True) is False:
+        data_root = data.diagnostics.get("border_vertex")   # incomplete model: both rooted (§11.4.2)
+        if data_root is not None and data_root not in set(data.vertices):
+            data_root = None
+    res = align(model.tree.normalized(), data.normalized(), method=a.method, cut=a.cut, data_root=data_root)
+    print(res.report())
     return 0
 
 
@@ -147,6 +176,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--frames", type=int, default=6)
     s.add_argument("--resolution", type=int, default=100)
     s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--noise", type=int, default=0, help="silhouette noise level 0-3")
+    s.add_argument("--subjects", default=None, help="comma-separated, default human,hand,dog,spider")
     s.set_defaults(func=cmd_demo)
 
     s = sub.add_parser("synth", help="write a synthetic capture folder with ground truth")
@@ -159,6 +190,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--noise", type=int, default=0, help="silhouette noise level 0-3")
     s.add_argument("--motion", choices=["random", "walk", "trot", "grasp"], default="random")
     s.add_argument("--thickness", type=float, default=1.0, help="limb thickness factor (dress, coat)")
+    s.add_argument("--separated", action="store_true",
+                   help="random poses only: no two non-adjacent limbs touch")
+    s.add_argument("--fps", type=float, default=25.0, help="frame rate of motion sequences")
     s.set_defaults(func=cmd_synth)
 
     s = sub.add_parser("hull", help="volumetric visual hull of one frame")
@@ -180,7 +214,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("skeleton", nargs="?")
     s.add_argument("--out")
     s.add_argument("--weight", choices=["length", "count"], default="length")
-    s.add_argument("--stats", metavar="CAPTURE", help="tree size/degree statistics over a capture")
+    s.add_argument("--stats", metavar="CAPTURE", help="tree size/degree statistics over a capture "
+                   "(writes --out STATS.png, .md, .json)")
+    s.add_argument("--resolutions", default="50,100,150", help="with --stats: grid resolutions")
+    s.add_argument("--border", action="store_true",
+                   help="incomplete model: ends on the grid border make infinite edges (thesis §7.3.3.1)")
     s.set_defaults(func=cmd_tree)
 
     s = sub.add_parser("match", help="align a model tree with a data tree")
@@ -202,7 +240,11 @@ def build_parser() -> argparse.ArgumentParser:
     g = s.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int, default=1)
     g.add_argument("--scheduler")
-    s.add_argument("--resume", action="store_true")
+    s.add_argument("--resume", action="store_true", help="skip the frames already in --output")
+    s.add_argument("--no-constraints", action="store_true",
+                   help="drop the model's coordinate constraints (acrobatics)")
+    s.add_argument("--tolerance", type=int, default=None,
+                   help="visual hull: keep voxels seen by C-k cameras (default 1 with >= 6 cameras, else 0)")
     s.add_argument("--rerun", metavar="FILE.rrd")
     s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
     s.set_defaults(func=cmd_run)
@@ -229,6 +271,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True)
     s.add_argument("--resolution", type=int, default=100)
     s.add_argument("--joints", help="write per-frame joints and segments as JSON Lines")
+    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
+    s.add_argument("--coherence", choices=["frequent", "human"], default="frequent",
+                   help="coherent-interval rule: the sequence's most frequent tree signature "
+                        "(default) or the paper's human rule")
+    s.add_argument("--criterion", choices=["correlation", "rigidity"], default="correlation",
+                   help="rigid-part clustering: velocity cross-correlation (eq. 5) or distance rigidity")
     s.set_defaults(func=cmd_learn_model)
 
     s = sub.add_parser("bench", help="run the benchmarks beside their peers")

@@ -31,6 +31,10 @@ class Capture:
 
     A capture is read from a folder by :func:`topopose.load_capture`, or built in
     memory (``masks``: frame name → list of boolean (h, w) arrays, one per camera).
+
+    ``options`` (from :func:`~topopose.capture.load_capture`): ``source`` ("silhouettes" or
+    "images"), ``silhouettes`` (background-subtraction parameters), ``incomplete_frames``
+    (frame → cameras lacking it; loading such a frame raises :class:`InputError`).
     """
 
     cameras: list
@@ -42,6 +46,10 @@ class Capture:
     volume: tuple | None = None          # (min xyz, max xyz) or None: fitted to the silhouettes
     options: dict = field(default_factory=dict)
     masks: dict | None = None
+    #: camera name → frame name → image file (set by :func:`topopose.load_capture`)
+    files: dict | None = field(default=None, repr=False)
+    #: per-capture caches (hull carvers per grid, backgrounds, fitted volumes); never saved
+    cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def up_vector(self) -> np.ndarray:
@@ -57,19 +65,36 @@ class Capture:
         """Boolean silhouettes (h, w) of ``frame``, one per camera, in camera order."""
         frame = self.frame_name(frame)
         if self.masks is not None:
-            return [np.asarray(m, dtype=bool) for m in self.masks[frame]]
+            if frame not in self.masks:
+                raise InputError(f"capture: no masks for frame {frame!r}")
+            ms = self.masks[frame]
+            if len(ms) != len(self.cameras):
+                raise InputError(f"capture: frame {frame!r} has {len(ms)} masks for "
+                                 f"{len(self.cameras)} cameras")
+            out = []
+            for cam, m in zip(self.cameras, ms):
+                m = np.asarray(m, dtype=bool)
+                if m.shape != (cam.size[1], cam.size[0]):
+                    raise InputError(f"capture: frame {frame!r} camera {cam.name!r}: mask shape "
+                                     f"{m.shape} differs from the calibration size "
+                                     f"(h, w) = {(cam.size[1], cam.size[0])}")
+                out.append(m)
+            return out
         from .io import read_silhouettes
 
         return read_silhouettes(self, frame)
 
     def frame_name(self, frame) -> str:
-        """Accept a frame name or an index into :attr:`frames`."""
+        """Accept a frame name or an index into :attr:`frames` (also as digits, e.g. ``"3"``,
+        when no frame has that name)."""
         if isinstance(frame, (int, np.integer)) and str(frame) not in self.frames:
             if not -len(self.frames) <= frame < len(self.frames):
                 raise InputError(f"{self.path or 'capture'}: frame index {frame} out of range "
                                  f"({len(self.frames)} frames)")
             return self.frames[frame]
         frame = str(frame)
+        if frame not in self.frames and frame.isdigit() and int(frame) < len(self.frames):
+            return self.frames[int(frame)]          # "3" on the command line: an index
         if frame not in self.frames:
             raise InputError(f"{self.path or 'capture'}: no frame {frame!r} "
                              f"(frames {self.frames[0] if self.frames else ''}…)")

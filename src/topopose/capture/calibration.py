@@ -1,0 +1,209 @@
+"""Reading and checking ``calibration.toml`` and ``capture.toml`` (DESIGN.md, "Capture folder").
+
+``calibration.toml`` follows the Pose2Sim / aniposelib layout: one table per camera with
+``name``, ``size = [w, h]``, ``matrix`` (3×3 K), ``distortions`` (``[k1, k2, p1, p2]`` or with
+``k3``; fisheye: ``[k1, k2, k3, k4]``), ``rotation`` (Rodrigues vector, world → camera; a 3×3
+rotation matrix is also accepted), ``translation`` (world → camera, capture units) and optional
+``fisheye``. Tables named ``metadata`` are ignored. Every problem raises :class:`InputError`
+naming the file, the camera table and the field.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+import warnings
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+from .camera import Camera
+from .capture import axis_vector
+
+IGNORED_TABLES = {"metadata"}
+
+#: Defaults of the ``[silhouettes]`` table of ``capture.toml`` (background subtraction).
+SILHOUETTE_DEFAULTS = {
+    "method": "diff",      # "diff" (colour difference), "mog2" or "knn" (OpenCV subtractors)
+    "threshold": 30.0,     # diff: max channel difference (0-255); mog2/knn: their varThreshold/dist2Threshold
+    "median": 3,           # median filter size (odd, pixels; 0 = none) on image and background: noise
+    "blur": 0.0,           # optional Gaussian sigma (pixels) after the median filter (0 = none)
+    "open": 3,             # opening kernel size (pixels, 0 = none): removes specks
+    "close": 7,            # closing kernel size (pixels, 0 = none): fills small holes and cracks
+    "min_area": 100,       # connected blobs smaller than this (pixels) are dropped
+    "fill_holes": 0,       # holes smaller than this many pixels are filled (0 = none)
+}
+_SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (int, float), "open": int,
+              "close": int, "min_area": int, "fill_holes": int}
+_CAPTURE_KEYS = {"up", "units", "fps", "volume"}
+_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "dm": 0.1, "km": 1000.0, "in": 0.0254, "ft": 0.3048}
+
+
+def _read_toml(path: Path) -> dict:
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a UTF-8 text file (expected TOML)") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{path}: not valid TOML ({exc})") from None
+
+
+def _array(path, where, value, shape, field):
+    """A finite float array of the given shape (``None`` in shape = any length)."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{path}: [{where}] field '{field}' must be numbers, got {value!r}") from None
+    if a.dtype == object or a.ndim != len(shape) or any(
+            s is not None and s != n for s, n in zip(shape, a.shape)):
+        want = "×".join("n" if s is None else str(s) for s in shape)
+        raise InputError(f"{path}: [{where}] field '{field}' must be a {want} array, "
+                         f"got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"{path}: [{where}] field '{field}' has non-finite values ({value!r})")
+    return a
+
+
+def _camera_from_table(path: Path, key: str, t: dict) -> Camera:
+    for field in ("size", "matrix", "distortions", "rotation", "translation"):
+        if field not in t:
+            raise InputError(f"{path}: [{key}] is missing field '{field}' "
+                             f"(expected name, size, matrix, distortions, rotation, translation)")
+    name = t.get("name", key)
+    if isinstance(name, int) and not isinstance(name, bool):
+        name = str(name)
+    if not isinstance(name, str) or not name.strip() or any(c in name for c in "/\\"):
+        raise InputError(f"{path}: [{key}] field 'name' must be a folder name (non-empty text "
+                         f"without slashes), got {name!r}")
+    size = _array(path, key, t["size"], (2,), "size")
+    if np.any(size <= 0) or np.any(size != np.round(size)):
+        raise InputError(f"{path}: [{key}] field 'size' must be two positive integers [w, h], "
+                         f"got {t['size']!r}")
+    K = _array(path, key, t["matrix"], (3, 3), "matrix")
+    if abs(np.linalg.det(K)) < 1e-12 or K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise InputError(f"{path}: [{key}] field 'matrix' is singular or has non-positive focal "
+                         f"lengths (expected [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0)")
+    fisheye = t.get("fisheye", False)
+    if not isinstance(fisheye, bool):
+        raise InputError(f"{path}: [{key}] field 'fisheye' must be true or false, got {fisheye!r}")
+    d = _array(path, key, t["distortions"], (None,), "distortions")
+    if fisheye and d.size != 4:
+        raise InputError(f"{path}: [{key}] field 'distortions' must be [k1, k2, k3, k4] for a "
+                         f"fisheye camera, got {d.size} values")
+    if not fisheye and d.size not in (4, 5):
+        raise InputError(f"{path}: [{key}] field 'distortions' must be [k1, k2, p1, p2] or "
+                         f"[k1, k2, p1, p2, k3], got {d.size} values")
+    rot = np.asarray(t["rotation"], dtype=object)
+    if rot.shape == (3, 3):
+        Rm = _array(path, key, t["rotation"], (3, 3), "rotation")
+        if not np.allclose(Rm @ Rm.T, np.eye(3), atol=1e-5) or np.linalg.det(Rm) < 0:
+            raise InputError(f"{path}: [{key}] field 'rotation' is a 3×3 matrix but not a rotation "
+                             f"(expected a Rodrigues vector or an orthonormal matrix with det +1)")
+        r = cv2.Rodrigues(Rm)[0].ravel()
+    else:
+        r = _array(path, key, t["rotation"], (3,), "rotation")
+    tr = _array(path, key, t["translation"], (3,), "translation")
+    return Camera(name, (int(size[0]), int(size[1])), K, d, r, tr, fisheye)
+
+
+def read_calibration(path) -> list:
+    """Cameras of a ``calibration.toml`` file, in file order.
+
+    Raises
+    ------
+    InputError
+        Missing file, invalid TOML, no camera table, a camera table with a missing or malformed
+        field (named), a singular or non-finite matrix, duplicate camera names.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: calibration file not found (every capture needs calibration.toml)")
+    data = _read_toml(path)
+    cams = []
+    for key, t in data.items():
+        if not isinstance(t, dict) or key.lower() in IGNORED_TABLES:
+            continue
+        cams.append(_camera_from_table(path, key, t))
+    if not cams:
+        raise InputError(f"{path}: no camera table (expected one table per camera, e.g. [cam_01] "
+                         f"with name, size, matrix, distortions, rotation, translation)")
+    names = [c.name for c in cams]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise InputError(f"{path}: camera name(s) {dup} used by more than one table (field 'name')")
+    return cams
+
+
+def read_capture_options(path, cameras=()) -> dict:
+    """Settings of an optional ``capture.toml`` (defaults when it is absent).
+
+    Returns a dict with ``up``, ``units``, ``fps``, ``volume`` ((min, max) or None) and
+    ``silhouettes`` (the background-subtraction parameters, :data:`SILHOUETTE_DEFAULTS` updated).
+    Warns (``warnings.warn``) when the camera centres are more than 100 units from the origin
+    while ``units = "m"`` (probably millimetre translations).
+    """
+    path = Path(path)
+    out = {"up": "+z", "units": "m", "fps": None, "volume": None,
+           "silhouettes": dict(SILHOUETTE_DEFAULTS)}
+    data = _read_toml(path) if path.is_file() else {}
+    c = data.get("capture", {})
+    if not isinstance(c, dict):
+        raise InputError(f"{path}: 'capture' must be a table ([capture])")
+    unknown = set(c) - _CAPTURE_KEYS
+    if unknown:
+        warnings.warn(f"{path}: [capture] ignores unknown field(s) {sorted(unknown)}", stacklevel=3)
+    if "up" in c:
+        if not isinstance(c["up"], str):
+            raise InputError(f"{path}: [capture] field 'up' must be text like \"+z\", got {c['up']!r}")
+        axis_vector(c["up"], where=f"{path}: [capture] field 'up'")
+        out["up"] = c["up"].strip()
+    if "units" in c:
+        u = c["units"]
+        if not isinstance(u, str) or u.strip().lower() not in _UNITS:
+            raise InputError(f"{path}: [capture] field 'units' must be one of {sorted(_UNITS)}, got {u!r}")
+        out["units"] = u.strip().lower()
+    if "fps" in c:
+        f = c["fps"]
+        if isinstance(f, bool) or not isinstance(f, (int, float)) or not math.isfinite(f) or f <= 0:
+            raise InputError(f"{path}: [capture] field 'fps' must be a positive number, got {f!r}")
+        out["fps"] = float(f)
+    if "volume" in c:
+        v = c["volume"]
+        if not isinstance(v, dict) or "min" not in v or "max" not in v:
+            raise InputError(f"{path}: [capture.volume] needs fields 'min' and 'max' ([x, y, z] each)")
+        lo = _array(path, "capture.volume", v["min"], (3,), "min")
+        hi = _array(path, "capture.volume", v["max"], (3,), "max")
+        if np.any(lo >= hi):
+            raise InputError(f"{path}: [capture.volume] field 'min' must be < 'max' on every axis, "
+                             f"got min={lo.tolist()} max={hi.tolist()}")
+        out["volume"] = (lo, hi)
+    s = data.get("silhouettes", {})
+    if not isinstance(s, dict):
+        raise InputError(f"{path}: 'silhouettes' must be a table ([silhouettes])")
+    for k, v in s.items():
+        if k not in _SIL_TYPES:
+            raise InputError(f"{path}: [silhouettes] unknown field '{k}' "
+                             f"(known: {', '.join(sorted(_SIL_TYPES))})")
+        if isinstance(v, bool) or not isinstance(v, _SIL_TYPES[k]):
+            raise InputError(f"{path}: [silhouettes] field '{k}' has the wrong type ({v!r})")
+        if k != "method" and v < 0:
+            raise InputError(f"{path}: [silhouettes] field '{k}' must be ≥ 0, got {v!r}")
+        out["silhouettes"][k] = v
+    if out["silhouettes"]["median"] > 1 and out["silhouettes"]["median"] % 2 == 0:
+        raise InputError(f"{path}: [silhouettes] field 'median' must be an odd size (or 0), "
+                         f"got {out['silhouettes']['median']}")
+    if out["silhouettes"]["method"] not in ("diff", "mog2", "knn"):
+        raise InputError(f"{path}: [silhouettes] field 'method' must be \"diff\", \"mog2\" or \"knn\", "
+                         f"got {out['silhouettes']['method']!r}")
+    if cameras:
+        far = max(float(np.linalg.norm(cam.center)) for cam in cameras)
+        if out["units"] == "m" and far > 100:
+            warnings.warn(f"{path}: units = \"m\" but a camera centre is {far:.0f} units from the "
+                          f"origin: are the calibration translations in millimetres? "
+                          f"(set [capture] units = \"mm\")", stacklevel=3)
+    return out

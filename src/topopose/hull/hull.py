@@ -1,0 +1,442 @@
+"""The volumetric visual hull of one frame (thesis §2.3.2.2) and its voxel grid.
+
+Grid: ``resolution`` voxels along the longest side of the capture volume. The capture volume is
+
+1. the ``volume=`` argument, else ``[capture.volume]`` of ``capture.toml``: the grid covers it
+   exactly (voxel centres at the centres of the N cells along the longest side); a subject
+   crossing its border is cut there (the border voxels are then part of the hull);
+2. else **fitted to the silhouettes** (:func:`fit_box`): the axis-aligned bounding box of the
+   intersection of the cameras' silhouette-bounding-rectangle cones (a convex polytope, six
+   linear programs), then shrunk by two conservative coarse passes (a 32³ grid over the box keeps
+   every cell whose projected bounding rectangle meets the silhouette in enough cameras, so no
+   part of the hull can be lost however thin). The capture's fitted volume is the union of the
+   fitted boxes of up to 32 evenly spaced frames (all frames when there are fewer), computed once
+   and cached on the capture. A fitted grid keeps one empty voxel all round (N − 2 voxels span
+   the fitted box).
+
+``refocus=True`` (thesis §13.2.2.1: "refocus the grid on the subject at each frame") fits the
+box of each frame (three conservative coarse passes over the capture volume — a fitted one is
+enlarged by a quarter on each side) and puts a grid on it with a voxel size fixed for the whole
+capture: the largest side of the fitted boxes of the sampled frames divided by N − 2. Grid
+origins are snapped to multiples of the voxel size, so voxel centres lie on one world lattice in
+every frame; the grid keeps a one-voxel empty margin (clipped to the capture volume when one is
+set). Each new grid builds its carver (tables) in that frame, so refocusing costs the fit and
+the setup per frame (see ``benchmarks/hull.py`` for the setup times).
+
+The hull's largest 26-connected component is kept by default; the others are reported in
+``Volume.diagnostics``.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+import time
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+from . import hull_kernels as K
+from .carver import HullCarver, camera_geometry, camera_intrinsics
+from .volume import Volume
+
+_FIT_RES = 32
+_SAMPLE = 32
+_MAX_CARVERS = 4
+
+
+# --------------------------------------------------------------------------- fitting
+def _silhouette_planes(cam, mask) -> np.ndarray | None:
+    """Half-spaces ``A @ X + b >= 0`` (4, 4) bounding camera ``cam``'s silhouette cone."""
+    ys, xs = np.nonzero(mask)
+    if xs.size == 0:
+        return None
+    x0, x1, y0, y1 = xs.min() - 0.5, xs.max() + 0.5, ys.min() - 0.5, ys.max() + 0.5
+    if np.any(cam.distortions != 0):
+        # undistort the silhouette's outline (pixel corners of its boundary pixels)
+        m8 = np.ascontiguousarray(mask, dtype=np.uint8)
+        contours, _ = cv2.findContours(m8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        pts = np.concatenate([c.reshape(-1, 2) for c in contours]).astype(float)
+        pts = np.concatenate([pts + d for d in ([-.5, -.5], [.5, -.5], [-.5, .5], [.5, .5])])
+        if cam.fisheye:
+            nrm = cv2.fisheye.undistortPoints(pts.reshape(-1, 1, 2), cam.matrix,
+                                              cam.distortions[:4]).reshape(-1, 2)
+        else:
+            nrm = cv2.undistortPointsIter(pts.reshape(-1, 1, 2), cam.matrix, cam.distortions,
+                                          None, None, (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS,
+                                                       50, 1e-9)).reshape(-1, 2)
+        a0, b0 = nrm.min(axis=0)
+        a1, b1 = nrm.max(axis=0)
+        # a little slack for the iterative undistortion
+        da, db = 1e-3 * (a1 - a0 + 1e-3), 1e-3 * (b1 - b0 + 1e-3)
+        a0, a1, b0, b1 = a0 - da, a1 + da, b0 - db, b1 + db
+    else:
+        Ki = np.linalg.inv(cam.matrix)
+        c = Ki @ np.array([[x0, x1, x0, x1], [y0, y0, y1, y1], [1, 1, 1, 1]])
+        a0, a1 = c[0].min(), c[0].max()
+        b0, b1 = c[1].min(), c[1].max()
+    R, t = cam.R, cam.translation
+    rows = []
+    for coef, k, sign in ((a0, 0, 1), (a1, 0, -1), (b0, 1, 1), (b1, 1, -1)):
+        # sign * (x_k - coef * z) >= 0 in camera coordinates
+        A = sign * (R[k] - coef * R[2])
+        b = sign * (t[k] - coef * t[2])
+        rows.append(np.r_[A, b])
+    return np.array(rows)
+
+
+def _lp_box(planes: list, fallback: tuple) -> tuple | None:
+    """Bounding box of ``{X : A X + b >= 0 for all planes}`` by six linear programs."""
+    from scipy.optimize import linprog
+
+    P = np.concatenate(planes)
+    A_ub, b_ub = -P[:, :3], P[:, 3]
+    lo, hi = np.empty(3), np.empty(3)
+    for ax in range(3):
+        for sgn, dst in ((1.0, lo), (-1.0, hi)):
+            c = np.zeros(3)
+            c[ax] = sgn
+            r = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=[(None, None)] * 3, method="highs")
+            if r.status == 2:           # infeasible: the cones do not meet
+                return None
+            if r.status == 0:
+                dst[ax] = r.x[ax]
+            else:                       # unbounded (or numerical trouble): fall back
+                dst[ax] = fallback[0][ax] if sgn > 0 else fallback[1][ax]
+    return lo, hi
+
+
+def _fallback_box(cameras) -> tuple:
+    c = np.array([cam.center for cam in cameras])
+    lo, hi = c.min(axis=0), c.max(axis=0)
+    pad = max(float(np.linalg.norm(hi - lo)), 1e-6)
+    return lo - pad, hi + pad
+
+
+def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None):
+    """Shrink a box to the cells of a coarse grid that may hold hull points (conservative):
+    a cell is dropped when its projected bounding rectangle (one-pixel margin) misses the
+    silhouette in more than ``tolerance`` cameras."""
+    ext = hi - lo
+    vs = float(ext.max()) / res
+    if not vs > 0:
+        return lo, hi
+    shape = [max(1, int(math.ceil(e / vs - 1e-9))) for e in ext]
+    origin = lo + vs / 2
+    if intr is None:
+        intr = np.stack([camera_intrinsics(c) for c in cameras])
+    geo = camera_geometry(cameras, origin, vs)
+    misses = np.zeros(shape, dtype=np.int32)
+    r = np.empty(tuple(shape) + (4,), dtype=np.int64)
+    for q, m in enumerate(masks):
+        K.block_rects(geo, intr, q, 1.0, shape[0], shape[1], shape[2], 1, float(1 << 24), r)
+        sat = cv2.integral(np.ascontiguousarray(m, dtype=np.uint8))
+        inv = r[..., 0] == K.INVALID
+        h, w = m.shape
+        x0 = np.clip(r[..., 0], 0, w - 1)
+        x1 = np.clip(r[..., 2], 0, w - 1)
+        y0 = np.clip(r[..., 1], 0, h - 1)
+        y1 = np.clip(r[..., 3], 0, h - 1)
+        empty_rect = (r[..., 0] > w - 1) | (r[..., 2] < 0) | (r[..., 1] > h - 1) | (r[..., 3] < 0)
+        s = sat[y1 + 1, x1 + 1] - sat[y0, x1 + 1] - sat[y1 + 1, x0] + sat[y0, x0]
+        misses += ((s == 0) | empty_rect) & ~inv
+    keep = misses <= tolerance
+    if not keep.any():
+        return None
+    kmin = np.array([np.flatnonzero(keep.any(axis=tuple(b for b in range(3) if b != a)))[0]
+                     for a in range(3)])
+    kmax = np.array([np.flatnonzero(keep.any(axis=tuple(b for b in range(3) if b != a)))[-1]
+                     for a in range(3)])
+    nlo = origin + (kmin - 0.5) * vs
+    nhi = origin + (kmax + 0.5) * vs
+    return np.maximum(nlo, lo), np.minimum(nhi, hi)
+
+
+def fit_box(cameras, masks, tolerance: int = 0, within=None) -> tuple | None:
+    """World box (lo, hi) that contains the visual hull of one frame, or None when it is empty.
+
+    The box of the intersection of the silhouette-bounding-rectangle cones (exact, by linear
+    programming; with ``tolerance = k``, the union over every choice of k cameras left out),
+    shrunk by two conservative coarse passes (see the module docstring). With ``within`` (a box
+    known to contain the part of the hull of interest, e.g. the capture volume) the linear
+    programs are skipped and the coarse passes start from that box (``refocus`` does this).
+    """
+    if within is not None:
+        lo, hi = (np.asarray(v, dtype=float) for v in within)
+        passes = 3
+    else:
+        b = _cone_box(cameras, masks, tolerance)
+        if b is None:
+            return None
+        lo, hi = b
+        passes = 2
+    intr = np.stack([camera_intrinsics(c) for c in cameras])
+    for _ in range(passes):
+        r = _coarse_shrink(cameras, masks, lo, hi, tolerance, intr=intr)
+        if r is None:
+            return None
+        lo, hi = r
+    return lo, hi
+
+
+def _cone_box(cameras, masks, tolerance):
+    planes = [_silhouette_planes(c, m) for c, m in zip(cameras, masks)]
+    C = len(cameras)
+    fb = _fallback_box(cameras)
+    boxes = []
+    for drop in itertools.combinations(range(C), tolerance):
+        pl = [p for q, p in enumerate(planes) if q not in drop]
+        if any(p is None for p in pl):
+            continue
+        b = _lp_box(pl, fb) if pl else fb
+        if b is not None:
+            boxes.append(b)
+    if not boxes:
+        return None
+    lo = np.min([b[0] for b in boxes], axis=0)
+    hi = np.max([b[1] for b in boxes], axis=0)
+    pad = 1e-6 * max(float((hi - lo).max()), 1e-9)
+    return lo - pad, hi + pad
+
+
+def _sample_frames(frames: list) -> list:
+    if len(frames) <= _SAMPLE:
+        return list(frames)
+    idx = np.unique(np.round(np.linspace(0, len(frames) - 1, _SAMPLE)).astype(int))
+    return [frames[i] for i in idx]
+
+
+def _sampled_boxes(cap, tolerance) -> list:
+    key = ("fitted_boxes", tolerance)
+    if key not in cap.cache:
+        boxes = []
+        for f in _sample_frames(cap.frames):
+            try:
+                masks = cap.silhouettes(f)
+            except InputError:          # a broken frame is reported when it is processed
+                continue
+            b = fit_box(cap.cameras, masks, tolerance)
+            if b is not None:
+                boxes.append(b)
+        cap.cache[key] = boxes
+    return cap.cache[key]
+
+
+def capture_box(cap, tolerance: int = 0) -> tuple:
+    """The capture volume (lo, hi): ``cap.volume`` or fitted to sampled frames (cached)."""
+    if cap.volume is not None:
+        lo, hi = (np.asarray(v, dtype=float) for v in cap.volume)
+        return lo, hi
+    boxes = _sampled_boxes(cap, tolerance)
+    if not boxes:
+        raise InputError(f"{cap.path or 'capture'}: cannot fit a capture volume: no sampled frame "
+                         f"has a subject seen by the cameras (set [capture.volume] in capture.toml)")
+    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+
+
+def grid_for_box(lo, hi, resolution: int, margin: bool) -> tuple:
+    """(origin, voxel_size, shape) of a grid with ``resolution`` voxels along the box's longest side.
+
+    ``margin=True``: the box spans N − 2 voxels and one empty voxel is added on each side.
+    """
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    ext = hi - lo
+    n = resolution - 2 if margin else resolution
+    vs = float(ext.max()) / n
+    shape = np.maximum(1, np.ceil(ext / vs - 1e-6).astype(int))
+    if margin:
+        shape = shape + 2
+    centre = (lo + hi) / 2
+    origin = centre - (shape - 1) / 2 * vs
+    return origin, vs, tuple(int(s) for s in shape)
+
+
+def _check_volume_arg(volume) -> tuple:
+    try:
+        lo, hi = (np.asarray(v, dtype=float).reshape(3) for v in volume)
+    except (TypeError, ValueError):
+        raise InputError(f"visual_hull: argument volume must be (min xyz, max xyz), got {volume!r}") from None
+    if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))) or np.any(lo >= hi):
+        raise InputError(f"visual_hull: argument volume needs finite min < max on every axis, "
+                         f"got {volume!r}")
+    return lo, hi
+
+
+def get_carver(cap, origin, voxel_size, shape) -> HullCarver:
+    """The :class:`HullCarver` of a grid, cached on the capture (a few grids at most)."""
+    key = ("carver", tuple(np.round(np.asarray(origin) / voxel_size, 6)), round(voxel_size, 12),
+           tuple(shape))
+    store = cap.cache.setdefault("carvers", {})
+    if key in store:
+        store[key] = store.pop(key)         # most recently used last
+        return store[key]
+    carver = HullCarver(cap.cameras, origin, voxel_size, shape)
+    store[key] = carver
+    while len(store) > _MAX_CARVERS:
+        store.pop(next(iter(store)))
+    return carver
+
+
+# --------------------------------------------------------------------------- main entry
+def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: bool = False,
+                keep_largest: bool = True, volume=None, masks=None) -> Volume:
+    """Volumetric visual hull of one frame (thesis §2.3.2.2).
+
+    Parameters
+    ----------
+    cap : Capture
+    frame : str or int
+        Frame name or index.
+    resolution : int
+        Voxels along the longest side of the capture volume (or of the subject with ``refocus``).
+    tolerance : int
+        Keep a voxel seen as subject by at least C − ``tolerance`` cameras (robustness to bad
+        masks). A voxel whose centre projects outside an image is not seen as subject there.
+    refocus : bool
+        Grid refocused on the subject every frame, fixed voxel size (thesis §13.2.2.1).
+    keep_largest : bool
+        Keep only the largest 26-connected component (the others are listed in diagnostics).
+    volume : (min xyz, max xyz), optional
+        Capture volume overriding ``cap.volume`` / the fitted one.
+    masks : list of bool arrays, optional
+        Silhouettes to use instead of ``cap.silhouettes(frame)``.
+
+    Returns
+    -------
+    Volume
+        ``diagnostics``: ``components_dropped`` (sizes of the dropped components, largest
+        first), ``voxels``, ``touches_border``, ``grid`` ("fixed" or "refocus"),
+        ``timings_ms`` (silhouettes, fit, setup, carve, components), ``work`` (kernel counters).
+
+    Raises
+    ------
+    InputError
+        Bad arguments, or a frame that cannot be read (see ``Capture.silhouettes``).
+    """
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) or resolution < 4:
+        raise InputError(f"visual_hull: argument resolution must be an integer ≥ 4, got {resolution!r}")
+    C = len(cap.cameras)
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, np.integer)) or not 0 <= tolerance < C:
+        raise InputError(f"visual_hull: argument tolerance must be an integer in 0..{C - 1}, "
+                         f"got {tolerance!r}")
+    resolution, tolerance = int(resolution), int(tolerance)
+    t = {}
+    t0 = time.perf_counter()
+    name = cap.frame_name(frame)
+    if masks is None:
+        masks = cap.silhouettes(name)
+    t["silhouettes"] = (time.perf_counter() - t0) * 1e3
+    t0 = time.perf_counter()
+    user_box = _check_volume_arg(volume) if volume is not None else None
+    if user_box is None and cap.volume is not None:
+        user_box = _check_volume_arg(cap.volume)
+    empty = False
+    if refocus:
+        vs = _refocus_voxel_size(cap, resolution, tolerance, user_box)
+        # the subject's box: coarse passes over the capture volume (given, or fitted to the
+        # sampled frames and enlarged by a quarter on each side for frames outside the sample)
+        if user_box is not None:
+            within = user_box
+        else:
+            glo, ghi = capture_box(cap, tolerance)
+            grow = 0.25 * (ghi - glo)
+            within = (glo - grow, ghi + grow)
+        box = fit_box(cap.cameras, masks, tolerance, within=within)
+        if box is not None and user_box is not None:
+            box = (np.maximum(box[0], user_box[0]), np.minimum(box[1], user_box[1]))
+            if np.any(box[0] >= box[1]):
+                box = None
+        if box is None:
+            empty = True
+            c = np.mean(user_box, axis=0) if user_box is not None else np.mean(
+                [cam.center for cam in cap.cameras], axis=0)
+            box = (c - vs, c + vs)
+        ilo = np.floor(box[0] / vs + 0.5).astype(int) - 1
+        ihi = np.ceil(box[1] / vs - 0.5).astype(int) + 1
+        if user_box is not None:            # no margin beyond the capture volume
+            ulo = np.ceil(user_box[0] / vs - 0.5 - 1e-9).astype(int)
+            uhi = np.floor(user_box[1] / vs - 0.5 + 1e-9).astype(int)
+            ilo, ihi = np.maximum(ilo, ulo), np.minimum(ihi, np.maximum(uhi, ulo))
+        shape = tuple(int(s) for s in np.maximum(ihi - ilo + 1, 1))
+        origin = ilo * vs
+    else:
+        if user_box is not None:
+            origin, vs, shape = grid_for_box(*user_box, resolution, margin=False)
+        else:
+            origin, vs, shape = grid_for_box(*capture_box(cap, tolerance), resolution, margin=True)
+    t["fit"] = (time.perf_counter() - t0) * 1e3
+    t0 = time.perf_counter()
+    carver = get_carver(cap, origin, vs, shape)
+    t["setup"] = (time.perf_counter() - t0) * 1e3
+    t0 = time.perf_counter()
+    occ = carver.carve(masks, tolerance)
+    st = carver.stats.copy()
+    t["carve"] = (time.perf_counter() - t0) * 1e3
+    t0 = time.perf_counter()
+    dropped, nvox, touches = [], 0, False
+    if st[9] >= st[6]:
+        lo_i, hi_i = st[6:9].astype(int), st[9:12].astype(int)
+        bb = tuple(slice(int(a), int(b) + 1) for a, b in zip(lo_i, hi_i))
+        if keep_largest:
+            dropped = keep_largest_component(occ, bb)
+        sub = occ[bb]
+        nvox = int(np.count_nonzero(sub))
+        if dropped:                     # the kept component's own bounding box
+            for ax in range(3):
+                other = tuple(a for a in range(3) if a != ax)
+                nz = np.flatnonzero(sub.any(axis=other))
+                lo_i[ax], hi_i[ax] = lo_i[ax] + nz[0], lo_i[ax] + nz[-1]
+        touches = bool(np.any(lo_i == 0) or np.any(hi_i == np.array(shape) - 1))
+    else:
+        empty = True
+    t["components"] = (time.perf_counter() - t0) * 1e3
+    diag = {"frame": name, "voxels": nvox,
+            "components_dropped": dropped, "touches_border": touches,
+            "grid": "refocus" if refocus else "fixed", "tolerance": tolerance,
+            "empty": empty, "timings_ms": t,
+            "work": {"blocks": int(st[0]), "voxel_tests": int(st[1]), "projections": int(st[2]),
+                     "full_blocks": int(st[3]), "empty_blocks": int(st[4])}}
+    return Volume(occ, origin, vs, diag)
+
+
+def keep_largest_component(occ: np.ndarray, bbox=None) -> list:
+    """Keep the largest 26-connected component of ``occ`` in place; sizes of the others.
+
+    Labelling runs on the bounding box ``bbox`` (slices) of the occupied voxels when given.
+    """
+    from scipy import ndimage
+
+    sub = occ[bbox] if bbox is not None else occ
+    try:
+        import cc3d
+
+        lab = cc3d.connected_components(sub.view(np.uint8), connectivity=26)
+        n = int(lab.max())
+    except ImportError:
+        lab, n = ndimage.label(sub, structure=np.ones((3, 3, 3), bool))
+    if n <= 1:
+        return []
+    sizes = np.bincount(lab.ravel())
+    sizes[0] = 0
+    best = int(np.argmax(sizes))
+    sub &= lab == best
+    others = np.delete(sizes, [0, best])
+    return sorted((int(s) for s in others if s > 0), reverse=True)
+
+
+def _refocus_voxel_size(cap, resolution, tolerance, user_box) -> float:
+    key = ("refocus_voxel", resolution, tolerance)
+    if key not in cap.cache:
+        boxes = _sampled_boxes(cap, tolerance)
+        if user_box is not None:
+            boxes = [(np.maximum(b[0], user_box[0]), np.minimum(b[1], user_box[1])) for b in boxes]
+            boxes = [b for b in boxes if np.all(b[0] < b[1])]
+        if boxes:
+            ext = max(float((b[1] - b[0]).max()) for b in boxes)
+        elif user_box is not None:
+            ext = float((user_box[1] - user_box[0]).max())
+        else:
+            raise InputError(f"{cap.path or 'capture'}: cannot size the refocused grid: no sampled "
+                             f"frame has a subject seen by the cameras")
+        cap.cache[key] = ext / (resolution - 2)
+    return cap.cache[key]

@@ -1,0 +1,1065 @@
+"""Numba kernels of the tree alignments α, η (HA) and η⃗ (AHA) (thesis ch. 8–10).
+
+Everything is iterated bottom-up over arrays; subsets of children are bitmasks.
+
+Trees are described by *nodes*. A node is a vertex ``v`` seen with a parent
+neighbour ``u`` (its children are then the other neighbours) or with no parent
+(a root node, all neighbours are children):
+
+* a rooted tree has one node per vertex (thesis §9.3);
+* an unrooted tree has one node per directed edge plus one root node per vertex
+  — the "adapted order of navigation" of Alg. 15, which lets every rooted
+  version of the tree share its sub-results (Alg. 16–17, §10.4).
+
+Nodes are numbered children first. An *item* is an arc, possibly a merged
+chain, from an upper vertex ``a`` down to the vertex of a node: the pruned tree
+``T(v, a)`` of §9.3.1. With merging, every ancestor (rooted) or every vertex on
+the parent side (unrooted) is an upper vertex; without it, only the parent.
+
+Tables (all float64):
+
+* ``F[poff[p] + A, doff[d] + B]`` = alignment cost of the forest A ⊆ F(P, p)
+  with the forest B ⊆ F(D, d) (Prop. 21 / 28);
+* ``T[pi, di]`` = cost of the pruned trees of pattern item ``pi`` and data item
+  ``di`` (Prop. 20 / 27).
+
+``mode``: 0 = α (§8.8), 1 = η (Prop. 18–24), 2 = η⃗ / AHA (Prop. 25–28).
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+ALPHA, ETA, AHA = 0, 1, 2
+
+# event codes of a traceback (see align.py)
+EV_MATCH, EV_PDEL, EV_DDEL, EV_PDELF, EV_DDELF, EV_PARC, EV_DARC, EV_MAP = range(8)
+# state kinds
+ST_F, ST_T, ST_TOP = 0, 1, 2
+
+
+@njit(cache=True)
+def _tz(x):
+    """Index of the lowest set bit of x > 0."""
+    t = 0
+    while (x & 1) == 0:
+        x >>= 1
+        t += 1
+    return t
+
+
+@njit(cache=True)
+def build_struct(n, eu, ev, ew, root, merge):
+    """Node/item description of a tree with ``n`` vertices (indices 0..n-1).
+
+    Parameters
+    ----------
+    eu, ev : int64 arrays, ew : float64 array — the edges.
+    root : vertex index, or -1 for an unrooted tree.
+    merge : allow merged chains as items (η on both sides, AHA on the data side).
+
+    Returns
+    -------
+    tuple (node_v, node_par, ch_ptr, ch_idx, soff, it_ptr, it_node, it_up, it_w,
+    item_of, base_item, roots, nxt)
+    """
+    m = eu.shape[0]
+    deg = np.zeros(n, np.int64)
+    for e in range(m):
+        deg[eu[e]] += 1
+        deg[ev[e]] += 1
+    aptr = np.zeros(n + 1, np.int64)
+    for v in range(n):
+        aptr[v + 1] = aptr[v] + deg[v]
+    fill = aptr[:n].copy()
+    adj = np.empty(2 * m, np.int64)
+    adjw = np.empty(2 * m, np.float64)
+    for e in range(m):
+        a = eu[e]
+        b = ev[e]
+        adj[fill[a]] = b
+        adjw[fill[a]] = ew[e]
+        fill[a] += 1
+        adj[fill[b]] = a
+        adjw[fill[b]] = ew[e]
+        fill[b] += 1
+    # next hop and path weight between every pair of vertices
+    nxt = np.full((n, n), -1, np.int64)
+    dist = np.zeros((n, n), np.float64)
+    queue = np.empty(n, np.int64)
+    par = np.empty(n, np.int64)
+    for s in range(n):
+        par[:] = -2
+        par[s] = -1
+        queue[0] = s
+        head = 0
+        tail = 1
+        while head < tail:
+            x = queue[head]
+            head += 1
+            for q in range(aptr[x], aptr[x + 1]):
+                y = adj[q]
+                if par[y] == -2:
+                    par[y] = x
+                    nxt[y, s] = x
+                    dist[s, y] = dist[s, x] + adjw[q]
+                    queue[tail] = y
+                    tail += 1
+    # nodes
+    if root >= 0:
+        nn = n
+        # BFS order from the root; nodes = reversed BFS order (children first)
+        par[:] = -2
+        par[root] = -1
+        queue[0] = root
+        head = 0
+        tail = 1
+        while head < tail:
+            x = queue[head]
+            head += 1
+            for q in range(aptr[x], aptr[x + 1]):
+                y = adj[q]
+                if par[y] == -2:
+                    par[y] = x
+                    queue[tail] = y
+                    tail += 1
+        node_v = np.empty(nn, np.int64)
+        node_par = np.empty(nn, np.int64)
+        nid = np.empty(n, np.int64)
+        for k in range(nn):
+            v = queue[n - 1 - k]
+            node_v[k] = v
+            node_par[k] = par[v]
+            nid[v] = k
+        nch = np.zeros(nn, np.int64)
+        for k in range(nn):
+            v = node_v[k]
+            nch[k] = deg[v] - (1 if node_par[k] >= 0 else 0)
+        ch_ptr = np.zeros(nn + 1, np.int64)
+        for k in range(nn):
+            ch_ptr[k + 1] = ch_ptr[k] + nch[k]
+        ch_idx = np.empty(ch_ptr[nn], np.int64)
+        for k in range(nn):
+            v = node_v[k]
+            c = ch_ptr[k]
+            for q in range(aptr[v], aptr[v + 1]):
+                y = adj[q]
+                if y != node_par[k]:
+                    ch_idx[c] = nid[y]
+                    c += 1
+        roots = np.empty(1, np.int64)
+        roots[0] = nid[root]
+    else:
+        nn = 2 * m + n
+        # subtree sizes when rooted at vertex 0
+        par[:] = -2
+        par[0] = -1
+        queue[0] = 0
+        head = 0
+        tail = 1
+        while head < tail:
+            x = queue[head]
+            head += 1
+            for q in range(aptr[x], aptr[x + 1]):
+                y = adj[q]
+                if par[y] == -2:
+                    par[y] = x
+                    queue[tail] = y
+                    tail += 1
+        sz = np.ones(n, np.int64)
+        for t in range(n - 1, 0, -1):
+            x = queue[t]
+            sz[par[x]] += sz[x]
+        tv = np.empty(nn, np.int64)
+        tp = np.empty(nn, np.int64)
+        size = np.empty(nn, np.int64)
+        k = 0
+        for v in range(n):
+            for q in range(aptr[v], aptr[v + 1]):
+                u = adj[q]
+                tv[k] = v
+                tp[k] = u
+                if par[v] == u:
+                    size[k] = sz[v]
+                else:
+                    size[k] = n - sz[u]
+                k += 1
+        for v in range(n):
+            tv[k] = v
+            tp[k] = -1
+            size[k] = n + 1
+            k += 1
+        # stable counting sort by subtree size: children before parents
+        cnt = np.zeros(n + 3, np.int64)
+        for k in range(nn):
+            cnt[size[k] + 1] += 1
+        for t in range(1, n + 3):
+            cnt[t] += cnt[t - 1]
+        order = np.empty(nn, np.int64)
+        for k in range(nn):
+            order[cnt[size[k]]] = k
+            cnt[size[k]] += 1
+        node_v = np.empty(nn, np.int64)
+        node_par = np.empty(nn, np.int64)
+        ed_id = np.full((n, n), -1, np.int64)
+        rt_id = np.empty(n, np.int64)
+        for k in range(nn):
+            o = order[k]
+            node_v[k] = tv[o]
+            node_par[k] = tp[o]
+            if tp[o] >= 0:
+                ed_id[tv[o], tp[o]] = k
+            else:
+                rt_id[tv[o]] = k
+        nch = np.zeros(nn, np.int64)
+        for k in range(nn):
+            nch[k] = deg[node_v[k]] - (1 if node_par[k] >= 0 else 0)
+        ch_ptr = np.zeros(nn + 1, np.int64)
+        for k in range(nn):
+            ch_ptr[k + 1] = ch_ptr[k] + nch[k]
+        ch_idx = np.empty(ch_ptr[nn], np.int64)
+        for k in range(nn):
+            v = node_v[k]
+            c = ch_ptr[k]
+            for q in range(aptr[v], aptr[v + 1]):
+                y = adj[q]
+                if y != node_par[k]:
+                    ch_idx[c] = ed_id[y, v]
+                    c += 1
+        roots = rt_id.copy()
+    soff = np.zeros(nn + 1, np.int64)
+    for k in range(nn):
+        soff[k + 1] = soff[k] + (np.int64(1) << (ch_ptr[k + 1] - ch_ptr[k]))
+    # items
+    it_ptr = np.zeros(nn + 1, np.int64)
+    for k in range(nn):
+        cnt = 0
+        if node_par[k] >= 0:
+            if not merge:
+                cnt = 1
+            elif root >= 0:
+                a = node_par[k]
+                while a >= 0:
+                    cnt += 1
+                    a = par[a]
+            else:
+                v = node_v[k]
+                for a in range(n):
+                    if a != v and nxt[v, a] == node_par[k]:
+                        cnt += 1
+        it_ptr[k + 1] = it_ptr[k] + cnt
+    ni = it_ptr[nn]
+    it_node = np.empty(ni, np.int64)
+    it_up = np.empty(ni, np.int64)
+    it_w = np.empty(ni, np.float64)
+    item_of = np.full((nn, n), -1, np.int64)
+    base_item = np.full(nn, -1, np.int64)
+    for k in range(nn):
+        if node_par[k] < 0:
+            continue
+        v = node_v[k]
+        c = it_ptr[k]
+        if not merge:
+            it_up[c] = node_par[k]
+            c += 1
+        elif root >= 0:
+            a = node_par[k]
+            while a >= 0:
+                it_up[c] = a
+                c += 1
+                a = par[a]
+        else:
+            for a in range(n):
+                if a != v and nxt[v, a] == node_par[k]:
+                    it_up[c] = a
+                    c += 1
+        for c in range(it_ptr[k], it_ptr[k + 1]):
+            it_node[c] = k
+            it_w[c] = dist[it_up[c], v]
+            item_of[k, it_up[c]] = c
+        base_item[k] = item_of[k, node_par[k]]
+    return node_v, node_par, ch_ptr, ch_idx, soff, it_ptr, it_node, it_up, it_w, item_of, base_item, roots, nxt
+
+
+@njit(cache=True)
+def deletion_costs(ch_ptr, ch_idx, soff, it_ptr, base_item, delarc, zero):
+    """Cost of deleting each pruned tree (item) and each sub-forest (Prop. 19 / 24 / 26).
+
+    ``zero``: every deletion is free (data side with the cut operation, Prop. 24).
+    """
+    nn = ch_ptr.shape[0] - 1
+    ni = it_ptr[nn]
+    delsub = np.zeros(ni, np.float64)
+    delfor = np.zeros(soff[nn], np.float64)
+    if zero:
+        return delsub, delfor
+    for k in range(nn):
+        c0 = ch_ptr[k]
+        nc = ch_ptr[k + 1] - c0
+        o = soff[k]
+        for mask in range(1, np.int64(1) << nc):
+            low = mask & -mask
+            t = _tz(low)
+            delfor[o + mask] = delfor[o + (mask ^ low)] + delsub[base_item[ch_idx[c0 + t]]]
+        full = delfor[o + (np.int64(1) << nc) - 1]
+        for it in range(it_ptr[k], it_ptr[k + 1]):
+            delsub[it] = delarc[it] + full
+    return delsub, delfor
+
+
+@njit(cache=True)
+def forward(mode,
+            p_ch_ptr, p_ch_idx, p_soff, p_it_ptr, p_it_up, p_item_of, p_base, p_delarc, p_delsub, p_delfor,
+            d_ch_ptr, d_ch_idx, d_soff, d_it_ptr, d_it_up, d_item_of, d_base, d_delarc, d_delsub, d_delfor,
+            R, tie):
+    """Fill the forest table F and the pruned-tree table T bottom-up (Alg. 14, 16, 17, 18).
+
+    Also returns the decision tables FD, TD (the cheapest option of every cell,
+    matches preferred on ties) that :func:`traceback` follows. Codes:
+    F: 0 = A empty, 1 = a deleted, 2 = a aligned with child b (bit s),
+    3 = b's arc deleted and A' = sub | a aligned with F(D, b), 4 = a's arc deleted
+    and F(P, a) aligned with B' = sub; code = opt | s << 4 | sub << 8.
+    T: 1 = resize, 2 = data child s (merge; α: data arc deleted), 3 = pattern
+    child s (η: merge; AHA/α: pattern arc deleted), 4 = both deleted.
+
+    ``tie``: an option replaces an earlier one only when cheaper by more than
+    ``tie`` (a round-off margin), so that exact ties go to the options tried
+    first — resize before merge before deletion — and not to rounding noise
+    (|w − (w + s)| may come out below s).
+    """
+    pn = p_ch_ptr.shape[0] - 1
+    dn = d_ch_ptr.shape[0] - 1
+    F = np.empty((p_soff[pn], d_soff[dn]), np.float64)
+    T = np.empty((p_it_ptr[pn], d_it_ptr[dn]), np.float64)
+    FD = np.zeros((p_soff[pn], d_soff[dn]), np.int64)
+    TD = np.zeros((p_it_ptr[pn], d_it_ptr[dn]), np.int64)
+    for p in range(pn):
+        pc0 = p_ch_ptr[p]
+        npc = p_ch_ptr[p + 1] - pc0
+        fp = p_soff[p]
+        fullA = (np.int64(1) << npc) - 1
+        for d in range(dn):
+            dc0 = d_ch_ptr[d]
+            ndc = d_ch_ptr[d + 1] - dc0
+            fd = d_soff[d]
+            nB = np.int64(1) << ndc
+            fullB = nB - 1
+            for B in range(nB):
+                F[fp, fd + B] = d_delfor[fd + B]
+            for A in range(1, fullA + 1):
+                low = A & -A
+                a = p_ch_idx[pc0 + _tz(low)]
+                arest = A ^ low
+                ai = p_base[a]
+                fa = p_soff[a]
+                full_a = (np.int64(1) << (p_ch_ptr[a + 1] - p_ch_ptr[a])) - 1
+                dela = p_delsub[ai]
+                darc = p_delarc[ai]
+                rowr = fp + arest
+                for B in range(nB):
+                    best = np.inf
+                    code = 0
+                    bb = B
+                    while bb:
+                        lb = bb & -bb
+                        s = _tz(lb)
+                        b = d_ch_idx[dc0 + s]
+                        bi = d_base[b]
+                        v = F[rowr, fd + (B ^ lb)] + T[ai, bi]          # a aligned with b (line 3)
+                        if v < best - tie:
+                            best = v
+                            code = 2 | (s << 4)
+                        bb ^= lb
+                    bb = B
+                    while bb:
+                        lb = bb & -bb
+                        s = _tz(lb)
+                        b = d_ch_idx[dc0 + s]
+                        bi = d_base[b]
+                        bb ^= lb
+                        if d_ch_ptr[b + 1] == d_ch_ptr[b]:
+                            continue    # b is a leaf: line 5 equals deleting b and A' (lines 1-2)
+                        # b's arc deleted, A' ∋ a aligned with F(D, b) (line 5)
+                        fb = d_soff[b] + (np.int64(1) << (d_ch_ptr[b + 1] - d_ch_ptr[b])) - 1
+                        dbarc = d_delarc[bi]
+                        sub = arest
+                        while True:
+                            v = F[fp + (arest ^ sub), fd + (B ^ lb)] + F[fp + (sub | low), fb] + dbarc
+                            if v < best - tie:
+                                best = v
+                                code = 3 | (s << 4) | (sub << 8)
+                            if sub == 0:
+                                break
+                            sub = (sub - 1) & arest
+                    # a's arc deleted, F(P, a) aligned with B' ⊆ B (line 4); a leaf: same as line 2
+                    sub = B if full_a != 0 else 0
+                    while sub:
+                        v = F[rowr, fd + (B ^ sub)] + F[fa + full_a, fd + sub] + darc
+                        if v < best - tie:
+                            best = v
+                            code = 4 | (sub << 8)
+                        sub = (sub - 1) & B
+                    v = F[rowr, fd + B] + dela                          # a deleted (line 2)
+                    if v < best - tie:
+                        best = v
+                        code = 1
+                    F[fp + A, fd + B] = best
+                    FD[fp + A, fd + B] = code
+            # pruned trees (Prop. 20 / 27)
+            ffull = F[fp + fullA, fd + fullB]
+            for pi in range(p_it_ptr[p], p_it_ptr[p + 1]):
+                pup = p_it_up[pi]
+                for di in range(d_it_ptr[d], d_it_ptr[d + 1]):
+                    best = R[pi, di] + ffull                            # line 2
+                    code = 1
+                    dup = d_it_up[di]
+                    for s in range(ndc):                                # line 3
+                        c = d_ch_idx[dc0 + s]
+                        rest = d_delfor[fd + (fullB ^ (np.int64(1) << s))]
+                        if mode == 0:
+                            v = d_delarc[di] + T[pi, d_base[c]] + rest
+                        else:
+                            v = T[pi, d_item_of[c, dup]] + rest
+                        if v < best - tie:
+                            best = v
+                            code = 2 | (s << 4)
+                    for s in range(npc):                                # line 4
+                        c = p_ch_idx[pc0 + s]
+                        rest = p_delfor[fp + (fullA ^ (np.int64(1) << s))]
+                        if mode == 1:
+                            v = T[p_item_of[c, pup], di] + rest
+                        else:
+                            v = p_delarc[pi] + T[p_base[c], di] + rest
+                        if v < best - tie:
+                            best = v
+                            code = 3 | (s << 4)
+                    v = p_delsub[pi] + d_delsub[di]                     # line 1
+                    if v < best - tie:
+                        best = v
+                        code = 4
+                    T[pi, di] = best
+                    TD[pi, di] = code
+    return F, T, FD, TD
+
+
+@njit(cache=True)
+def _full(ch_ptr, soff, k):
+    return soff[k] + (np.int64(1) << (ch_ptr[k + 1] - ch_ptr[k])) - 1
+
+
+@njit(cache=True)
+def top_value(p_ch_ptr, p_soff, p_roots, d_ch_ptr, d_soff, d_roots, F, tie):
+    """min over the root pairs (Prop. 18, 22, 23, 25); ties (within ``tie``) to the first pair."""
+    best = np.inf
+    bp = p_roots[0]
+    bd = d_roots[0]
+    for pr in p_roots:
+        for dr in d_roots:
+            v = F[_full(p_ch_ptr, p_soff, pr), _full(d_ch_ptr, d_soff, dr)]
+            if v < best - tie:
+                best = v
+                bp = pr
+                bd = dr
+    return best, bp, bd
+
+
+@njit(cache=True)
+def expand(kind, s1, s2, s3, s4, limit, mode,
+           p_node_v, p_ch_ptr, p_ch_idx, p_soff, p_it_ptr, p_it_node, p_it_up, p_item_of, p_base,
+           p_delarc, p_delsub, p_delfor, p_roots,
+           d_node_v, d_ch_ptr, d_ch_idx, d_soff, d_it_ptr, d_it_node, d_it_up, d_item_of, d_base,
+           d_delarc, d_delsub, d_delfor, d_roots,
+           R, F, T, cost, nsub, sub_, nev, ev):
+    """Every option of one state whose cost is <= ``limit``.
+
+    A state is (kind, s1, s2, s3, s4): F state (p, A, d, B), T state (pi, di, 0, 0)
+    or the top state. Writes into the buffers (cost, nsub, sub[., 2, 5], nev,
+    ev[., 3, 3]) — sized by :func:`max_options` — each option's cost, its
+    sub-states and the events it emits (codes EV_*); returns the number of
+    options. The recurrences are those of :func:`forward`, term for term.
+    """
+    nsub[:] = 0
+    nev[:] = 0
+    m = 0
+    if kind == ST_TOP:
+        for pr in p_roots:
+            for dr in d_roots:
+                fa = _full(p_ch_ptr, p_soff, pr) - p_soff[pr]
+                fb = _full(d_ch_ptr, d_soff, dr) - d_soff[dr]
+                v = F[p_soff[pr] + fa, d_soff[dr] + fb]
+                if v <= limit:
+                    cost[m] = v
+                    nsub[m] = 1
+                    sub_[m, 0, 0] = ST_F
+                    sub_[m, 0, 1] = pr
+                    sub_[m, 0, 2] = fa
+                    sub_[m, 0, 3] = dr
+                    sub_[m, 0, 4] = fb
+                    nev[m] = 1
+                    ev[m, 0, 0] = EV_MAP
+                    ev[m, 0, 1] = p_node_v[pr]
+                    ev[m, 0, 2] = d_node_v[dr]
+                    m += 1
+        return m
+    if kind == ST_F:
+        p = s1
+        A = s2
+        d = s3
+        B = s4
+        fp = p_soff[p]
+        fd = d_soff[d]
+        pc0 = p_ch_ptr[p]
+        dc0 = d_ch_ptr[d]
+        if A == 0:
+            v = d_delfor[fd + B]
+            if v <= limit:
+                cost[m] = v
+                if B != 0:
+                    nev[m] = 1
+                    ev[m, 0, 0] = EV_DDELF
+                    ev[m, 0, 1] = d
+                    ev[m, 0, 2] = B
+                m += 1
+            return m
+        low = A & -A
+        a = p_ch_idx[pc0 + _tz(low)]
+        arest = A ^ low
+        ai = p_base[a]
+        fa = p_soff[a]
+        full_a = (np.int64(1) << (p_ch_ptr[a + 1] - p_ch_ptr[a])) - 1
+        rowr = fp + arest
+        # line 2: a deleted
+        v = F[rowr, fd + B] + p_delsub[ai]
+        if v <= limit:
+            cost[m] = v
+            nsub[m] = 1
+            sub_[m, 0, 0] = ST_F
+            sub_[m, 0, 1] = p
+            sub_[m, 0, 2] = arest
+            sub_[m, 0, 3] = d
+            sub_[m, 0, 4] = B
+            nev[m] = 1
+            ev[m, 0, 0] = EV_PDEL
+            ev[m, 0, 1] = ai
+            m += 1
+        bb = B
+        while bb:
+            lb = bb & -bb
+            b = d_ch_idx[dc0 + _tz(lb)]
+            bi = d_base[b]
+            v = F[rowr, fd + (B ^ lb)] + T[ai, bi]
+            if v <= limit:
+                cost[m] = v
+                nsub[m] = 2
+                sub_[m, 0, 0] = ST_F
+                sub_[m, 0, 1] = p
+                sub_[m, 0, 2] = arest
+                sub_[m, 0, 3] = d
+                sub_[m, 0, 4] = B ^ lb
+                sub_[m, 1, 0] = ST_T
+                sub_[m, 1, 1] = ai
+                sub_[m, 1, 2] = bi
+                m += 1
+            fbm = (np.int64(1) << (d_ch_ptr[b + 1] - d_ch_ptr[b])) - 1
+            sb = arest
+            while fbm != 0:     # b a leaf: line 5 equals lines 1-2 (skipped, as in forward)
+                v = F[fp + (arest ^ sb), fd + (B ^ lb)] + F[fp + (sb | low), d_soff[b] + fbm] + d_delarc[bi]
+                if v <= limit:
+                    cost[m] = v
+                    nsub[m] = 2
+                    sub_[m, 0, 0] = ST_F
+                    sub_[m, 0, 1] = p
+                    sub_[m, 0, 2] = arest ^ sb
+                    sub_[m, 0, 3] = d
+                    sub_[m, 0, 4] = B ^ lb
+                    sub_[m, 1, 0] = ST_F
+                    sub_[m, 1, 1] = p
+                    sub_[m, 1, 2] = sb | low
+                    sub_[m, 1, 3] = b
+                    sub_[m, 1, 4] = fbm
+                    nev[m] = 1
+                    ev[m, 0, 0] = EV_DARC
+                    ev[m, 0, 1] = bi
+                    m += 1
+                if sb == 0:
+                    break
+                sb = (sb - 1) & arest
+            bb ^= lb
+        sb = B if full_a != 0 else 0
+        while sb:
+            v = F[rowr, fd + (B ^ sb)] + F[fa + full_a, fd + sb] + p_delarc[ai]
+            if v <= limit:
+                cost[m] = v
+                nsub[m] = 2
+                sub_[m, 0, 0] = ST_F
+                sub_[m, 0, 1] = p
+                sub_[m, 0, 2] = arest
+                sub_[m, 0, 3] = d
+                sub_[m, 0, 4] = B ^ sb
+                sub_[m, 1, 0] = ST_F
+                sub_[m, 1, 1] = a
+                sub_[m, 1, 2] = full_a
+                sub_[m, 1, 3] = d
+                sub_[m, 1, 4] = sb
+                nev[m] = 2
+                ev[m, 0, 0] = EV_PARC
+                ev[m, 0, 1] = ai
+                ev[m, 1, 0] = EV_MAP
+                ev[m, 1, 1] = p_node_v[a]
+                ev[m, 1, 2] = d_node_v[d]
+                m += 1
+            sb = (sb - 1) & B
+        return m
+    # T state
+    pi = s1
+    di = s2
+    p = p_it_node[pi]
+    d = d_it_node[di]
+    pc0 = p_ch_ptr[p]
+    npc = p_ch_ptr[p + 1] - pc0
+    dc0 = d_ch_ptr[d]
+    ndc = d_ch_ptr[d + 1] - dc0
+    fp = p_soff[p]
+    fd = d_soff[d]
+    fullA = (np.int64(1) << npc) - 1
+    fullB = (np.int64(1) << ndc) - 1
+    v = R[pi, di] + F[fp + fullA, fd + fullB]
+    if v <= limit:
+        cost[m] = v
+        nsub[m] = 1
+        sub_[m, 0, 0] = ST_F
+        sub_[m, 0, 1] = p
+        sub_[m, 0, 2] = fullA
+        sub_[m, 0, 3] = d
+        sub_[m, 0, 4] = fullB
+        nev[m] = 2
+        ev[m, 0, 0] = EV_MATCH
+        ev[m, 0, 1] = pi
+        ev[m, 0, 2] = di
+        ev[m, 1, 0] = EV_MAP
+        ev[m, 1, 1] = p_node_v[p]
+        ev[m, 1, 2] = d_node_v[d]
+        m += 1
+    dup = d_it_up[di]
+    pup = p_it_up[pi]
+    for s in range(ndc):
+        c = d_ch_idx[dc0 + s]
+        rest = fullB ^ (np.int64(1) << s)
+        if mode == 0:
+            tgt = d_base[c]
+            v = d_delarc[di] + T[pi, tgt] + d_delfor[fd + rest]
+        else:
+            tgt = d_item_of[c, dup]
+            v = T[pi, tgt] + d_delfor[fd + rest]
+        if v <= limit:
+            cost[m] = v
+            nsub[m] = 1
+            sub_[m, 0, 0] = ST_T
+            sub_[m, 0, 1] = pi
+            sub_[m, 0, 2] = tgt
+            k = 0
+            if rest != 0:
+                ev[m, k, 0] = EV_DDELF
+                ev[m, k, 1] = d
+                ev[m, k, 2] = rest
+                k += 1
+            if mode == 0:
+                ev[m, k, 0] = EV_DARC
+                ev[m, k, 1] = di
+                k += 1
+            nev[m] = k
+            m += 1
+    for s in range(npc):
+        c = p_ch_idx[pc0 + s]
+        rest = fullA ^ (np.int64(1) << s)
+        if mode == 1:
+            tgt = p_item_of[c, pup]
+            v = T[tgt, di] + p_delfor[fp + rest]
+        else:
+            tgt = p_base[c]
+            v = p_delarc[pi] + T[tgt, di] + p_delfor[fp + rest]
+        if v <= limit:
+            cost[m] = v
+            nsub[m] = 1
+            sub_[m, 0, 0] = ST_T
+            sub_[m, 0, 1] = tgt
+            sub_[m, 0, 2] = di
+            k = 0
+            if rest != 0:
+                ev[m, k, 0] = EV_PDELF
+                ev[m, k, 1] = p
+                ev[m, k, 2] = rest
+                k += 1
+            if mode != 1:
+                ev[m, k, 0] = EV_PARC
+                ev[m, k, 1] = pi
+                k += 1
+                ev[m, k, 0] = EV_MAP
+                ev[m, k, 1] = p_node_v[p]
+                ev[m, k, 2] = dup
+                k += 1
+            nev[m] = k
+            m += 1
+    v = p_delsub[pi] + d_delsub[di]
+    if v <= limit:
+        cost[m] = v
+        nev[m] = 2
+        ev[m, 0, 0] = EV_PDEL
+        ev[m, 0, 1] = pi
+        ev[m, 1, 0] = EV_DDEL
+        ev[m, 1, 1] = di
+        m += 1
+    return m
+
+
+@njit(cache=True)
+def max_options(p_ch_ptr, p_roots, d_ch_ptr, d_roots):
+    """Buffer size for :func:`expand`: the most options any state can have."""
+    mp = 0
+    for k in range(p_ch_ptr.shape[0] - 1):
+        mp = max(mp, p_ch_ptr[k + 1] - p_ch_ptr[k])
+    md = 0
+    for k in range(d_ch_ptr.shape[0] - 1):
+        md = max(md, d_ch_ptr[k + 1] - d_ch_ptr[k])
+    a = 2 + md + md * (np.int64(1) << max(mp - 1, 0)) + (np.int64(1) << md)
+    b = 2 + md + mp
+    c = p_roots.shape[0] * d_roots.shape[0]
+    return max(a, max(b, c))
+
+
+@njit(cache=True)
+def option_buffers(maxo):
+    return (np.empty(maxo, np.float64), np.zeros(maxo, np.int64), np.zeros((maxo, 2, 5), np.int64),
+            np.zeros(maxo, np.int64), np.zeros((maxo, 3, 3), np.int64))
+
+
+@njit(cache=True)
+def state_value(kind, s1, s2, s3, s4, p_soff, d_soff, F, T, top):
+    if kind == ST_F:
+        return F[p_soff[s1] + s2, d_soff[s3] + s4]
+    if kind == ST_T:
+        return T[s1, s2]
+    return top
+
+
+@njit(cache=True)
+def traceback(mode, cut, n_p, n_d, FD, TD, top_pr, top_dr,
+              p_node_v, p_ch_ptr, p_ch_idx, p_soff, p_it_node, p_it_up, p_item_of, p_base,
+              d_node_v, d_ch_ptr, d_ch_idx, d_soff, d_it_node, d_it_up, d_item_of, d_base):
+    """One optimal alignment, following the decision tables of :func:`forward`.
+
+    Returns events[k, 3] (codes EV_*), the same events that :func:`expand`
+    emits for the chosen options.
+    """
+    # every state consumes a pattern or data edge (at most twice each), so these bounds hold
+    cap = 8 * (n_p + n_d) + 16
+    events = np.empty((2 * cap, 3), np.int64)
+    ne = 0
+    stack = np.empty((cap, 5), np.int64)
+    # top: the chosen root pair
+    events[0, 0] = EV_MAP
+    events[0, 1] = p_node_v[top_pr]
+    events[0, 2] = d_node_v[top_dr]
+    ne = 1
+    stack[0, 0] = ST_F
+    stack[0, 1] = top_pr
+    stack[0, 2] = (np.int64(1) << (p_ch_ptr[top_pr + 1] - p_ch_ptr[top_pr])) - 1
+    stack[0, 3] = top_dr
+    stack[0, 4] = (np.int64(1) << (d_ch_ptr[top_dr + 1] - d_ch_ptr[top_dr])) - 1
+    sp = 1
+    while sp > 0:
+        if sp + 2 >= cap or ne + 4 >= 2 * cap:
+            events[0, 0] = -1       # cannot happen (see the bound above); reported as an error
+            return events[:1]
+        sp -= 1
+        kind = stack[sp, 0]
+        if kind == ST_F:
+            p = stack[sp, 1]
+            A = stack[sp, 2]
+            d = stack[sp, 3]
+            B = stack[sp, 4]
+            if A == 0:
+                if B != 0:
+                    events[ne, 0] = EV_DDELF
+                    events[ne, 1] = d
+                    events[ne, 2] = B
+                    ne += 1
+                continue
+            code = FD[p_soff[p] + A, d_soff[d] + B]
+            opt = code & 15
+            s = (code >> 4) & 15
+            sub = code >> 8
+            low = A & -A
+            a = p_ch_idx[p_ch_ptr[p] + _tz(low)]
+            arest = A ^ low
+            ai = p_base[a]
+            if opt == 1:
+                stack[sp, 0] = ST_F
+                stack[sp, 1] = p
+                stack[sp, 2] = arest
+                stack[sp, 3] = d
+                stack[sp, 4] = B
+                sp += 1
+                events[ne, 0] = EV_PDEL
+                events[ne, 1] = ai
+                ne += 1
+            elif opt == 2:
+                lb = np.int64(1) << s
+                b = d_ch_idx[d_ch_ptr[d] + s]
+                stack[sp, 0] = ST_F
+                stack[sp, 1] = p
+                stack[sp, 2] = arest
+                stack[sp, 3] = d
+                stack[sp, 4] = B ^ lb
+                stack[sp + 1, 0] = ST_T
+                stack[sp + 1, 1] = ai
+                stack[sp + 1, 2] = d_base[b]
+                sp += 2
+            elif opt == 3:
+                lb = np.int64(1) << s
+                b = d_ch_idx[d_ch_ptr[d] + s]
+                stack[sp, 0] = ST_F
+                stack[sp, 1] = p
+                stack[sp, 2] = arest ^ sub
+                stack[sp, 3] = d
+                stack[sp, 4] = B ^ lb
+                stack[sp + 1, 0] = ST_F
+                stack[sp + 1, 1] = p
+                stack[sp + 1, 2] = sub | low
+                stack[sp + 1, 3] = b
+                stack[sp + 1, 4] = (np.int64(1) << (d_ch_ptr[b + 1] - d_ch_ptr[b])) - 1
+                sp += 2
+                events[ne, 0] = EV_DARC
+                events[ne, 1] = d_base[b]
+                ne += 1
+            else:
+                stack[sp, 0] = ST_F
+                stack[sp, 1] = p
+                stack[sp, 2] = arest
+                stack[sp, 3] = d
+                stack[sp, 4] = B ^ sub
+                stack[sp + 1, 0] = ST_F
+                stack[sp + 1, 1] = a
+                stack[sp + 1, 2] = (np.int64(1) << (p_ch_ptr[a + 1] - p_ch_ptr[a])) - 1
+                stack[sp + 1, 3] = d
+                stack[sp + 1, 4] = sub
+                sp += 2
+                events[ne, 0] = EV_PARC
+                events[ne, 1] = ai
+                events[ne + 1, 0] = EV_MAP
+                events[ne + 1, 1] = p_node_v[a]
+                events[ne + 1, 2] = d_node_v[d]
+                ne += 2
+        else:
+            pi = stack[sp, 1]
+            di = stack[sp, 2]
+            code = TD[pi, di]
+            opt = code & 15
+            s = code >> 4
+            p = p_it_node[pi]
+            d = d_it_node[di]
+            npc = p_ch_ptr[p + 1] - p_ch_ptr[p]
+            ndc = d_ch_ptr[d + 1] - d_ch_ptr[d]
+            fullA = (np.int64(1) << npc) - 1
+            fullB = (np.int64(1) << ndc) - 1
+            if opt == 1:
+                stack[sp, 0] = ST_F
+                stack[sp, 1] = p
+                stack[sp, 2] = fullA
+                stack[sp, 3] = d
+                stack[sp, 4] = fullB
+                sp += 1
+                events[ne, 0] = EV_MATCH
+                events[ne, 1] = pi
+                events[ne, 2] = di
+                events[ne + 1, 0] = EV_MAP
+                events[ne + 1, 1] = p_node_v[p]
+                events[ne + 1, 2] = d_node_v[d]
+                ne += 2
+            elif opt == 2:
+                c = d_ch_idx[d_ch_ptr[d] + s]
+                rest = fullB ^ (np.int64(1) << s)
+                stack[sp, 0] = ST_T
+                stack[sp, 1] = pi
+                stack[sp, 2] = d_base[c] if mode == 0 else d_item_of[c, d_it_up[di]]
+                sp += 1
+                if rest != 0:
+                    events[ne, 0] = EV_DDELF
+                    events[ne, 1] = d
+                    events[ne, 2] = rest
+                    ne += 1
+                if mode == 0:
+                    events[ne, 0] = EV_DARC
+                    events[ne, 1] = di
+                    ne += 1
+            elif opt == 3:
+                c = p_ch_idx[p_ch_ptr[p] + s]
+                rest = fullA ^ (np.int64(1) << s)
+                stack[sp, 0] = ST_T
+                stack[sp, 1] = p_item_of[c, p_it_up[pi]] if mode == 1 else p_base[c]
+                stack[sp, 2] = di
+                sp += 1
+                if rest != 0:
+                    events[ne, 0] = EV_PDELF
+                    events[ne, 1] = p
+                    events[ne, 2] = rest
+                    ne += 1
+                if mode != 1:
+                    events[ne, 0] = EV_PARC
+                    events[ne, 1] = pi
+                    events[ne + 1, 0] = EV_MAP
+                    events[ne + 1, 1] = p_node_v[p]
+                    events[ne + 1, 2] = d_it_up[di]
+                    ne += 2
+            else:
+                events[ne, 0] = EV_PDEL
+                events[ne, 1] = pi
+                events[ne + 1, 0] = EV_DDEL
+                events[ne + 1, 1] = di
+                ne += 2
+    return events[:ne]
+
+
+@njit(cache=True)
+def cooptimal_pairs(mode, tol, n_p, n_d,
+                    p_node_v, p_ch_ptr, p_ch_idx, p_soff, p_it_ptr, p_it_node, p_it_up, p_item_of, p_base,
+                    p_delarc, p_delsub, p_delfor, p_roots,
+                    d_node_v, d_ch_ptr, d_ch_idx, d_soff, d_it_ptr, d_it_node, d_it_up, d_item_of, d_base,
+                    d_delarc, d_delsub, d_delfor, d_roots,
+                    R, F, T, top):
+    """Every (pattern vertex, data vertex) pair that some co-optimal alignment maps.
+
+    Walks the graph of states reachable from the top through options whose
+    cost is within ``tol`` (relative) of the state's value; returns
+    (alt[n_p, n_d] bool, matched[n_p] bool) where ``matched`` marks pattern
+    vertices that end a matched arc in the walk.
+    """
+    pn = p_ch_ptr.shape[0] - 1
+    seenF = np.zeros(F.shape, np.bool_)
+    seenT = np.zeros(T.shape, np.bool_)
+    alt = np.zeros((n_p, n_d), np.bool_)
+    matched = np.zeros(n_p, np.bool_)
+    cost, nsub, sub_, nev, ev = option_buffers(max_options(p_ch_ptr, p_roots, d_ch_ptr, d_roots))
+    cap = F.shape[0] * F.shape[1] + T.shape[0] * T.shape[1] + 2   # every state is pushed once at most
+    stack = np.empty((cap, 5), np.int64)
+    stack[0, 0] = ST_TOP
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        kind = stack[sp, 0]
+        s1 = stack[sp, 1]
+        s2 = stack[sp, 2]
+        s3 = stack[sp, 3]
+        s4 = stack[sp, 4]
+        val = state_value(kind, s1, s2, s3, s4, p_soff, d_soff, F, T, top)
+        limit = val + tol * max(1.0, abs(val)) if val < np.inf else np.inf
+        nopt = expand(
+            kind, s1, s2, s3, s4, limit, mode,
+            p_node_v, p_ch_ptr, p_ch_idx, p_soff, p_it_ptr, p_it_node, p_it_up, p_item_of, p_base,
+            p_delarc, p_delsub, p_delfor, p_roots,
+            d_node_v, d_ch_ptr, d_ch_idx, d_soff, d_it_ptr, d_it_node, d_it_up, d_item_of, d_base,
+            d_delarc, d_delsub, d_delfor, d_roots, R, F, T, cost, nsub, sub_, nev, ev)
+        for o in range(nopt):
+            for e in range(nev[o]):
+                if ev[o, e, 0] == EV_MAP:
+                    alt[ev[o, e, 1], ev[o, e, 2]] = True
+                elif ev[o, e, 0] == EV_MATCH:
+                    pi = ev[o, e, 1]
+                    matched[p_node_v[p_it_node[pi]]] = True
+                    matched[p_it_up[pi]] = True
+            for s in range(nsub[o]):
+                k = sub_[o, s, 0]
+                if k == ST_F:
+                    r = p_soff[sub_[o, s, 1]] + sub_[o, s, 2]
+                    c = d_soff[sub_[o, s, 3]] + sub_[o, s, 4]
+                    if seenF[r, c]:
+                        continue
+                    seenF[r, c] = True
+                else:
+                    if seenT[sub_[o, s, 1], sub_[o, s, 2]]:
+                        continue
+                    seenT[sub_[o, s, 1], sub_[o, s, 2]] = True
+                for t in range(5):
+                    stack[sp, t] = sub_[o, s, t]
+                sp += 1
+    return alt, matched
+
+
+@njit(cache=True)
+def gamma_code(code, x, y):
+    """γ for the built-in codes: 0 = |x − y|, 1 = (x − y)²; γ(inf, inf) = 0, γ(inf, finite) = inf."""
+    if x == np.inf:
+        return 0.0 if y == np.inf else np.inf
+    if y == np.inf:
+        return np.inf
+    d = abs(x - y)
+    return d if code == 0 else d * d
+
+
+@njit(cache=True)
+def resize_matrix(code, p_it_w, d_it_w):
+    R = np.empty((p_it_w.shape[0], d_it_w.shape[0]), np.float64)
+    for i in range(p_it_w.shape[0]):
+        for j in range(d_it_w.shape[0]):
+            R[i, j] = gamma_code(code, p_it_w[i], d_it_w[j])
+    return R
+
+
+@njit(cache=True)
+def apply_constraints(R, c_ptr, c_items, c_signs, c_up, pos, d_it_up, d_it_node, d_node_v):
+    """Resize cost +inf where a data path's end positions violate a constraint (§12.2.1).
+
+    Constraint k covers pattern items c_items[c_ptr[k]:c_ptr[k+1]] with signs
+    c_signs (+1: the image of the chain's upper end must be higher along c_up[k]).
+    """
+    nd = d_it_up.shape[0]
+    for k in range(c_ptr.shape[0] - 1):
+        h = np.empty(pos.shape[0], np.float64)
+        for v in range(pos.shape[0]):
+            h[v] = pos[v, 0] * c_up[k, 0] + pos[v, 1] * c_up[k, 1] + pos[v, 2] * c_up[k, 2]
+        for q in range(c_ptr[k], c_ptr[k + 1]):
+            pi = c_items[q]
+            s = c_signs[q]
+            for di in range(nd):
+                if s * (h[d_it_up[di]] - h[d_node_v[d_it_node[di]]]) <= 0.0:
+                    R[pi, di] = np.inf
+
+
+@njit(cache=True)
+def data_side(mode, cut, code, n, eu, ev, ew, root, p_it_w, c_ptr, c_items, c_signs, c_up, pos):
+    """Data tree structure, deletion costs and resize costs for a built-in γ."""
+    st = build_struct(n, eu, ev, ew, root, mode != ALPHA)
+    d_it_w = st[8]
+    ni = d_it_w.shape[0]
+    d_delarc = np.empty(ni, np.float64)
+    for i in range(ni):
+        d_delarc[i] = gamma_code(code, 0.0, d_it_w[i])
+    d_delsub, d_delfor = deletion_costs(st[2], st[3], st[4], st[5], st[10], d_delarc, cut)
+    R = resize_matrix(code, p_it_w, d_it_w)
+    if c_ptr.shape[0] > 1:
+        apply_constraints(R, c_ptr, c_items, c_signs, c_up, pos, st[7], st[6], st[0])
+    return st, d_delarc, d_delsub, d_delfor, R
+
+
+@njit(cache=True)
+def align_data(mode, cut, code, tie, n, eu, ev, ew, root,
+               p_node_v, p_ch_ptr, p_ch_idx, p_soff, p_it_ptr, p_it_node, p_it_up, p_item_of, p_base,
+               p_delarc, p_delsub, p_delfor, p_roots, p_it_w,
+               c_ptr, c_items, c_signs, c_up, pos):
+    """All the data-dependent work of one alignment in one call (built-in γ).
+
+    Returns (top, events) — see :func:`traceback`.
+    """
+    st, d_delarc, d_delsub, d_delfor, R = data_side(mode, cut, code, n, eu, ev, ew, root, p_it_w,
+                                                    c_ptr, c_items, c_signs, c_up, pos)
+    (d_node_v, d_node_par, d_ch_ptr, d_ch_idx, d_soff, d_it_ptr, d_it_node, d_it_up, d_it_w,
+     d_item_of, d_base, d_roots, d_nxt) = st
+    F, T, FD, TD = forward(mode, p_ch_ptr, p_ch_idx, p_soff, p_it_ptr, p_it_up, p_item_of, p_base,
+                           p_delarc, p_delsub, p_delfor,
+                           d_ch_ptr, d_ch_idx, d_soff, d_it_ptr, d_it_up, d_item_of, d_base,
+                           d_delarc, d_delsub, d_delfor, R, tie)
+    top, pr, dr = top_value(p_ch_ptr, p_soff, p_roots, d_ch_ptr, d_soff, d_roots, F, tie)
+    events = traceback(mode, cut, p_node_v.shape[0], n, FD, TD, pr, dr,
+                       p_node_v, p_ch_ptr, p_ch_idx, p_soff, p_it_node, p_it_up, p_item_of, p_base,
+                       d_node_v, d_ch_ptr, d_ch_idx, d_soff, d_it_node, d_it_up, d_item_of, d_base)
+    return top, events

@@ -1,0 +1,294 @@
+"""Pose initialization of one frame (thesis §12.1, Fig. 12.8).
+
+silhouettes → visual hull → D6I1D curve skeleton (border constraint for incomplete models)
+→ data tree → weight normalization → AHA of the model tree into the data tree, rooted as
+§12.1.1 prescribes → threshold T_d → betweenness constraints → part positions.
+
+:class:`FrameEstimator` holds everything that does not change between frames (the model,
+its :class:`~topopose.match.Matcher` precomputation, the hull's projection tables for the
+capture and resolution); :func:`estimate_pose` is the one-frame convenience wrapper.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from .model import Model, load_model
+from .pose import Pose
+
+STAGES = ("hull", "thinning", "tree", "alignment")
+
+
+class FrameError(Exception):
+    """A frame that cannot be processed (reported as status "failed", the run goes on)."""
+
+
+@dataclass
+class FrameDetail:
+    """Intermediate results of one frame (for pictures and debugging)."""
+
+    volume: object = None          # topopose.Volume (the visual hull)
+    skeleton: np.ndarray | None = None
+    data: object = None            # data Tree (normalized weights)
+    alignment: object = None
+
+
+def _border_vertex(data):
+    bv = data.diagnostics.get("border_vertex") if data.diagnostics else None
+    if isinstance(bv, (list, tuple)):
+        bv = bv[0] if len(bv) == 1 else None
+    return bv
+
+
+class FrameEstimator:
+    """Pose initialization for the frames of one capture with one model (thesis §12.1).
+
+    Builds once what every frame shares: the normalized, rooted model tree and its
+    :class:`~topopose.match.Matcher`, and the visual-hull carver of the capture's grid.
+
+    Parameters
+    ----------
+    cap : Capture
+    model : Model or str
+        A :class:`Model`, a built-in name or a TOML path.
+    resolution : int
+        Voxels along the longest side of the capture volume (thesis: 100 is the compromise).
+    threshold : float, optional
+        T_d; default the model's own (None in the model: 2, i.e. reject nothing).
+    constraints : bool
+        False drops coordinate constraints (acrobatics).
+    betweenness : bool
+        Apply the model's betweenness constraints (§12.2.2.3).
+    max_missing : int
+        A matching with more unmatched parts than this is rejected (the partial and
+        no-matching classes of §13.2.2, which the method detects itself).
+    thinning : str
+        Thinning method (D6I1D, the thesis' choice for the pipeline, §12.1).
+    relation : str, optional
+        Betweenness relation overriding the model's (``"b"`` or ``"i"``, §13.2.2.2).
+    fill : bool
+        Fill the hull's cavities (background pockets enclosed by the subject) before thinning.
+        A solid subject has none; they come from silhouette noise and would force closed
+        surfaces into the curve skeleton (topology preservation keeps every cavity).
+    tolerance : int or None
+        Visual-hull tolerance: keep the voxels seen as subject by at least C − tolerance cameras.
+        None (default): 1 with 6 cameras or more, else 0 — one camera's silhouette error (a
+        hole, a missed limb) then no longer carves tunnels through the hull, which would give
+        the skeleton spurious loops (measured in ``benchmarks/quality.py``).
+    """
+
+    def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
+                 betweenness=True, max_missing=1, thinning="d6i1d", tolerance=None,
+                 relation=None, fill=True):
+        from ..match import Matcher
+
+        self.cap = cap
+        self.model: Model = load_model(model, constraints=constraints)
+        self.resolution = int(resolution)
+        if self.resolution < 8:
+            raise InputError(f"--resolution: {resolution} is too small (at least 8 voxels)")
+        self.threshold = (float(threshold) if threshold is not None
+                          else (self.model.threshold if self.model.threshold is not None else 2.0))
+        self.betweenness = betweenness
+        self.relation = relation
+        self.max_missing = int(max_missing)
+        self.thinning = thinning
+        self.tolerance = default_tolerance(cap) if tolerance is None else int(tolerance)
+        self.fill = bool(fill)
+        self.pattern = self.model.pattern()
+        self.up = np.asarray(cap.up_vector, dtype=float)
+        self.matcher = Matcher(self.pattern, method="aha", cut=False, up=self.up)
+
+    # ------------------------------------------------------------------ stages
+    def hull(self, frame):
+        """Visual hull of ``frame`` on the capture's grid.
+
+        :func:`topopose.visual_hull` caches the grid's projection tables on the capture, so
+        they are built once per capture and resolution (per process).
+        """
+        from ..hull import visual_hull
+
+        return visual_hull(self.cap, frame, resolution=self.resolution, tolerance=self.tolerance)
+
+    def estimate(self, frame, detail: bool = False):
+        """Pose of one frame; never raises for a frame-level problem (status "failed").
+
+        Returns a :class:`Pose`, or ``(Pose, FrameDetail)`` when ``detail`` is true.
+        """
+        from ..match import apply_betweenness
+        from ..skeleton import data_tree
+        from ..topology import border_constraint, thin
+
+        name = self.cap.frame_name(frame)
+        timings = {}
+        det = FrameDetail()
+        stage = "hull"
+        t_all = time.perf_counter()
+        try:
+            t0 = time.perf_counter()
+            vol = self.hull(name)
+            timings["hull"] = (time.perf_counter() - t0) * 1e3
+            det.volume = vol
+            n_vox = vol.diagnostics.get("voxels")
+            if n_vox is None:
+                n_vox = int(np.count_nonzero(vol.data))
+            if n_vox == 0:
+                raise FrameError("empty visual hull: no voxel lies inside every silhouette "
+                                 "(empty silhouette, or the subject is outside the capture volume)")
+            touches = vol.diagnostics.get("touches_border")
+            if touches is None:
+                touches = _touches_border(vol.data)
+            if self.model.complete and touches:
+                raise FrameError("the subject crosses the border of the capture volume "
+                                 "(visual hull touches the grid side); enlarge [capture.volume] "
+                                 "or use an incomplete model")
+            stage = "thinning"
+            if self.fill:
+                t0 = time.perf_counter()
+                vol = fill_cavities(vol)
+                det.volume = vol
+                timings["fill"] = (time.perf_counter() - t0) * 1e3
+            t0 = time.perf_counter()
+            keep = None if self.model.complete else border_constraint(vol)
+            skel = thin(vol, method=self.thinning, keep=keep)
+            timings["thinning"] = (time.perf_counter() - t0) * 1e3
+            det.skeleton = skel
+            stage = "tree"
+            t0 = time.perf_counter()
+            data = data_tree(skel, origin=vol.origin, voxel_size=vol.voxel_size,
+                             border=None if self.model.complete else "grid")
+            data_root = None
+            if not self.model.complete:
+                data_root = _border_vertex(data)
+                if data_root is None:
+                    raise FrameError("no skeleton branch crosses the capture border, but the "
+                                     f"model {self.model.name!r} is incomplete (its "
+                                     f"{self.model.infinite_edge[0]!r} limb must leave the volume)")
+            data = data.normalized()
+            data.root = data_root
+            timings["tree"] = (time.perf_counter() - t0) * 1e3
+            det.data = data
+            stage = "alignment"
+            t0 = time.perf_counter()
+            al = self.matcher.align(data, data_root=data_root)
+            unordered = []
+            if self.betweenness:
+                for c in self.model.constraints:
+                    if c.kind == "between":
+                        if self.relation is not None:
+                            from ..match.tree import Constraint
+                            c = Constraint(c.kind, c.parts, c.axis, self.relation)
+                        al = apply_betweenness(al, self.pattern, data, c)
+                        if (al.diagnostics or {}).get("betweenness") == "unsatisfied":
+                            # no co-optimal order satisfies it: those parts stay unplaced, a
+                            # partial matching the method rejects (§13.2.2.2, R_b)
+                            unordered.extend(c.parts)
+                            al.diagnostics.pop("betweenness", None)
+            timings["alignment"] = (time.perf_counter() - t0) * 1e3
+            det.alignment = al
+        except FrameError as exc:
+            pose = self._failed(name, f"{stage}: {exc}", timings, t_all)
+            return (pose, det) if detail else pose
+        except InputError as exc:
+            pose = self._failed(name, f"{stage}: {exc}", timings, t_all)
+            return (pose, det) if detail else pose
+        except Exception as exc:  # a frame never stops a run
+            pose = self._failed(name, f"{stage}: {type(exc).__name__}: {exc}", timings, t_all)
+            return (pose, det) if detail else pose
+
+        dist = float(al.distance)
+        parts = {}
+        for p in self.model.parts:
+            v = al.mapping.get(p)
+            pos = None if v is None else data.positions.get(v)
+            parts[p] = None if pos is None or p in unordered else np.asarray(pos, dtype=float)
+        missing = [p for p, x in parts.items() if x is None]
+        status, error = "matched", None
+        if not math.isfinite(dist) or dist > self.threshold:
+            status = "rejected"
+            error = f"AHA distance {dist:.3f} above threshold T_d = {self.threshold:g}"
+        elif len(missing) > self.max_missing:
+            status = "rejected"
+            error = f"{len(missing)} parts unmatched ({', '.join(missing)})"
+            if unordered:
+                error += "; no co-optimal alignment satisfies the betweenness constraint"
+        timings["total"] = (time.perf_counter() - t_all) * 1e3
+        diag = {"model": self.model.name, "resolution": self.resolution,
+                "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
+                "skeleton_voxels": int(data.diagnostics.get("n_voxels", -1)),
+                "data_vertices": data.n_vertices, "missing": missing}
+        if unordered:
+            diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
+        pose = Pose(name, status, dist, parts, error, timings, diag)
+        return (pose, det) if detail else pose
+
+    def _failed(self, name, reason, timings, t_all):
+        timings["total"] = (time.perf_counter() - t_all) * 1e3
+        return Pose(name, "failed", None, {p: None for p in self.model.parts}, reason, timings,
+                    {"model": self.model.name, "resolution": self.resolution,
+                     "hull_tolerance": self.tolerance})
+
+
+def fill_cavities(vol):
+    """Fill the volume's cavities, in place: background components (6-adjacency, the dual of
+    the object's 26-adjacency) that do not reach the outside become object. Returns ``vol``."""
+    import cc3d
+
+    a = vol.data
+    box = _bbox(a)
+    if box is None:
+        return vol
+    bg = np.pad(~a[box], 1, constant_values=True)
+    lab, n = cc3d.connected_components(bg, connectivity=6, return_N=True)
+    if n <= 1:
+        return vol
+    a[box] |= lab[1:-1, 1:-1, 1:-1] != lab[0, 0, 0]       # in place: the frame's own hull
+    vol.diagnostics["cavities_filled"] = int(n - 1)
+    return vol
+
+
+def _bbox(a: np.ndarray):
+    """Slices of the bounding box of the True voxels, or None (two passes over the array)."""
+    pxy = a.any(axis=2)
+    xs = np.flatnonzero(pxy.any(axis=1))
+    if xs.size == 0:
+        return None
+    ys = np.flatnonzero(pxy.any(axis=0))
+    bx, by = slice(int(xs[0]), int(xs[-1]) + 1), slice(int(ys[0]), int(ys[-1]) + 1)
+    zs = np.flatnonzero(a[bx, by].any(axis=(0, 1)))
+    return bx, by, slice(int(zs[0]), int(zs[-1]) + 1)
+
+
+def default_tolerance(cap) -> int:
+    """Visual-hull tolerance used by default: 1 with ≥ 6 cameras, else 0."""
+    return 1 if len(cap.cameras) >= 6 else 0
+
+
+def _touches_border(a: np.ndarray) -> bool:
+    return bool(a[0].any() or a[-1].any() or a[:, 0].any() or a[:, -1].any()
+                or a[:, :, 0].any() or a[:, :, -1].any())
+
+
+def estimate_pose(cap, frame, model="human", resolution=100, threshold=None, *,
+                  constraints=True, betweenness=True, max_missing=1, thinning="d6i1d",
+                  tolerance=None) -> Pose:
+    """Estimate the pose of one frame (thesis §12.1, Fig. 12.8).
+
+    For many frames build one :class:`FrameEstimator` (or use :func:`topopose.run`): it
+    reuses the model precomputation and the hull's projection tables.
+
+    Examples
+    --------
+    >>> import topopose as tp                                        # doctest: +SKIP
+    >>> cap = tp.load_capture("CAPTURE")                             # doctest: +SKIP
+    >>> pose = tp.estimate_pose(cap, "000012", "human")              # doctest: +SKIP
+    >>> pose.status, pose.parts["head"]                              # doctest: +SKIP
+    """
+    est = FrameEstimator(cap, model, resolution, threshold, constraints=constraints,
+                         betweenness=betweenness, max_missing=max_missing, thinning=thinning,
+                         tolerance=tolerance)
+    return est.estimate(frame)

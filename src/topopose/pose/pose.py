@@ -1,0 +1,141 @@
+"""The per-frame result of pose initialization and its JSON Lines file (DESIGN.md "Poses")."""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+STATUSES = ("matched", "rejected", "failed")
+
+
+@dataclass
+class Pose:
+    """Pose of one frame.
+
+    Attributes
+    ----------
+    frame : str
+    status : str
+        ``"matched"`` (distance ≤ T_d and enough parts), ``"rejected"`` (distance above T_d,
+        or too few parts placed: the partial / no-matching classes of §13.2.2 that the method
+        detects itself) or ``"failed"`` (the frame could not be processed; see ``error``).
+    distance : float or None
+        AHA distance between the normalized model and data trees (§12.1.1).
+    parts : dict part -> ndarray (3,) or None
+        World position of each model part; None when the alignment left it unmatched. Rejected
+        frames keep the positions the alignment proposed (for the quality study), flagged by
+        their status: use only matched frames.
+    error : str or None
+        Why a frame failed (or was rejected).
+    timings_ms : dict
+        Per-stage times: hull, thinning, tree, alignment, total.
+    diagnostics : dict
+        Small JSON-able facts (data tree size, hull voxels, ...).
+    """
+
+    frame: str
+    status: str
+    distance: float | None = None
+    parts: dict = field(default_factory=dict)
+    error: str | None = None
+    timings_ms: dict = field(default_factory=dict)
+    diagnostics: dict = field(default_factory=dict)
+
+    @property
+    def matched(self) -> bool:
+        return self.status == "matched"
+
+    def to_dict(self) -> dict:
+        d = {"frame": str(self.frame), "status": self.status,
+             "distance": None if self.distance is None or not math.isfinite(self.distance)
+             else float(self.distance),
+             "parts": {str(k): (None if v is None else [float(x) for x in np.asarray(v).ravel()])
+                       for k, v in self.parts.items()},
+             "error": self.error,
+             "timings_ms": {k: round(float(v), 3) for k, v in self.timings_ms.items()}}
+        if self.diagnostics:
+            d["diagnostics"] = _jsonable(self.diagnostics)
+        return d
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), separators=(",", ":"))
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "poses") -> "Pose":
+        if not isinstance(d, dict) or "frame" not in d or "status" not in d:
+            raise InputError(f"{source}: expected an object with 'frame' and 'status'")
+        if d["status"] not in STATUSES:
+            raise InputError(f"{source}: status {d['status']!r} must be one of {STATUSES}")
+        parts = {}
+        for k, v in (d.get("parts") or {}).items():
+            if v is None:
+                parts[k] = None
+            else:
+                a = np.asarray(v, dtype=float)
+                if a.shape != (3,):
+                    raise InputError(f"{source}: parts.{k} must be [x, y, z] or null")
+                parts[k] = a
+        dist = d.get("distance")
+        return cls(frame=str(d["frame"]), status=d["status"],
+                   distance=None if dist is None else float(dist), parts=parts,
+                   error=d.get("error"), timings_ms=dict(d.get("timings_ms") or {}),
+                   diagnostics=dict(d.get("diagnostics") or {}))
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    if isinstance(x, (str, int, float, bool)) or x is None:
+        return x
+    return str(x)
+
+
+def read_poses(path, strict: bool = True) -> list:
+    """Read a poses ``.jsonl`` file (one :class:`Pose` per line), sorted by frame.
+
+    ``strict=False`` skips an unreadable *last* line (a run interrupted mid-write).
+    Later lines win when a frame appears twice.
+    """
+    path = Path(path)
+    try:
+        lines = path.read_text().splitlines()
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such poses file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read poses ({exc})") from None
+    poses = {}
+    for i, line in enumerate(lines):
+        if not line.strip():
+            continue
+        try:
+            d = json.loads(line)
+        except json.JSONDecodeError as exc:
+            if not strict and i == len(lines) - 1:
+                break
+            raise InputError(f"{path}: line {i + 1} is not JSON ({exc})") from None
+        p = Pose.from_dict(d, source=f"{path}: line {i + 1}")
+        poses[p.frame] = p
+    return [poses[k] for k in sorted(poses)]
+
+
+def write_poses(path, poses) -> None:
+    """Write poses as JSON Lines, sorted by frame (atomic replace)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w") as fh:
+        for p in sorted(poses, key=lambda p: p.frame):
+            fh.write(p.to_json() + "\n")
+    tmp.replace(path)

@@ -1,0 +1,169 @@
+"""Numba kernels: connectivity numbers on 27-bit words and the 2^26 look-up tables.
+
+Connectivity numbers (thesis §4.1.1.3) are computed with bit-parallel flood fills on
+the 27-bit word of the 3×3×3 cube (bit ``k = 9(dx+1) + 3(dy+1) + (dz+1)``): a dilation
+is a handful of shifts and masks, so one T26 / T̄6 pair costs well under a microsecond.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+FULL27 = (1 << 27) - 1
+CENTRE_BIT = 1 << 13
+
+
+def _mask27(pred):
+    m = 0
+    for k in range(27):
+        a, b, c = k // 9, (k // 3) % 3, k % 3
+        if pred(a, b, c):
+            m |= 1 << k
+    return m
+
+
+# positions whose coordinate is not 0 / not 2 (to stop shifts wrapping around)
+_NOT_A0 = _mask27(lambda a, b, c: a != 0)
+_NOT_A2 = _mask27(lambda a, b, c: a != 2)
+_NOT_B0 = _mask27(lambda a, b, c: b != 0)
+_NOT_B2 = _mask27(lambda a, b, c: b != 2)
+_NOT_C0 = _mask27(lambda a, b, c: c != 0)
+_NOT_C2 = _mask27(lambda a, b, c: c != 2)
+#: face neighbours (N6*) and N18* in the 27-bit word
+N6_27 = _mask27(lambda a, b, c: abs(a - 1) + abs(b - 1) + abs(c - 1) == 1)
+N18_27 = _mask27(lambda a, b, c: abs(a - 1) + abs(b - 1) + abs(c - 1) in (1, 2))
+
+
+@njit(cache=True, inline="always")
+def expand26(cfg):
+    """26-bit configuration index -> 27-bit word (centre bit clear)."""
+    return (cfg & 0x1FFF) | ((cfg >> 13) << 14)
+
+
+@njit(cache=True, inline="always")
+def compress27(w):
+    """27-bit word -> 26-bit configuration index (centre dropped)."""
+    return (w & 0x1FFF) | ((w >> 14) << 13)
+
+
+@njit(cache=True, inline="always")
+def _dil6(w):
+    return (w | ((w << 1) & _NOT_C0) | ((w >> 1) & _NOT_C2) | ((w << 3) & _NOT_B0)
+            | ((w >> 3) & _NOT_B2) | ((w << 9) & _NOT_A0) | ((w >> 9) & _NOT_A2)) & FULL27
+
+
+@njit(cache=True, inline="always")
+def _dil26(w):
+    w = w | ((w << 1) & _NOT_C0) | ((w >> 1) & _NOT_C2)
+    w = w | ((w << 3) & _NOT_B0) | ((w >> 3) & _NOT_B2)
+    w = w | ((w << 9) & _NOT_A0) | ((w >> 9) & _NOT_A2)
+    return w & FULL27
+
+
+@njit(cache=True)
+def t26_word(w):
+    """T26(p, X): number of 26-components of X ∩ N26*(p) (27-bit word, centre ignored)."""
+    s = w & (FULL27 ^ CENTRE_BIT)
+    n = 0
+    while s:
+        comp = s & (-s)
+        while True:
+            nxt = _dil26(comp) & s
+            if nxt == comp:
+                break
+            comp = nxt
+        s &= ~comp
+        n += 1
+    return n
+
+
+@njit(cache=True)
+def t6bar_word(w):
+    """T̄6 = T6(p, X̄): 6-components of the 6-geodesic neighbourhood G6(p, X̄) (§4.1.1.3).
+
+    G6(p, X̄) = N6²(p, X̄): the background 6-neighbours of ``p`` plus their background
+    6-neighbours inside N26*(p); its 6-components are the 6-components of X̄ ∩ N18*(p)
+    that contain a 6-neighbour of ``p``.
+    """
+    s = (~w) & N18_27
+    seeds = s & N6_27
+    n = 0
+    while seeds:
+        comp = seeds & (-seeds)
+        while True:
+            nxt = _dil6(comp) & s
+            if nxt == comp:
+                break
+            comp = nxt
+        s &= ~comp
+        seeds &= ~comp
+        n += 1
+    return n
+
+
+@njit(cache=True, inline="always")
+def match_set(cfg, templates, d, count):
+    """True when ``cfg`` matches one template of set ``d`` (``templates[d, :count]``)."""
+    for m in range(count):
+        ones = templates[d, m, 0]
+        if cfg & ones != ones:
+            continue
+        if cfg & templates[d, m, 1]:
+            continue
+        xs = templates[d, m, 2]
+        if xs != 0 and (cfg & xs) == 0:
+            continue
+        return True
+    return False
+
+
+# plane numbers of the packed table
+PLANE_PKD6 = 0      # 0..5: PKD6 deletable in U, D, N, S, E, W
+PLANE_D6 = 6        # 6..11: deletable by the D6I1D masks M'_d
+PLANE_SIMPLE = 12
+PLANE_ISTHMUS1D = 13
+PLANE_ISTHMUS2D = 14
+N_PLANES = 15
+
+
+@njit(cache=True, parallel=True)
+def build_tables(pk_t, pk_n, d6_t, d6_n, dir_bits):
+    """All 15 bit planes of the 2^26 table, shape (15, 2^23) uint8 (bit ``c & 7`` of byte ``c >> 3``)."""
+    nbytes = 1 << 23
+    out = np.zeros((N_PLANES, nbytes), dtype=np.uint8)
+    for j in prange(nbytes):
+        lo = np.int64(0)   # planes 0..7, 8 bits each
+        hi = np.int64(0)   # planes 8..14
+        for b in range(8):
+            cfg = np.int64(j * 8 + b)
+            w = expand26(cfg)
+            v = np.int64(0)
+            t26 = t26_word(w)
+            t6 = t6bar_word(w)
+            if t26 == 1 and t6 == 1:
+                v |= 1 << PLANE_SIMPLE
+            if t26 >= 2:
+                v |= 1 << PLANE_ISTHMUS1D
+            if t6 >= 2:
+                v |= 1 << PLANE_ISTHMUS2D
+            for d in range(6):
+                if (cfg >> dir_bits[d]) & 1:
+                    continue  # every mask of direction d needs its d-neighbour in the background
+                if match_set(cfg, pk_t, d, pk_n[d]):
+                    v |= 1 << (PLANE_PKD6 + d)
+                if match_set(cfg, d6_t, d, d6_n[d]):
+                    v |= 1 << (PLANE_D6 + d)
+            for p in range(8):
+                lo |= ((v >> p) & 1) << (8 * p + b)
+            for p in range(8, N_PLANES):
+                hi |= ((v >> p) & 1) << (8 * (p - 8) + b)
+        for p in range(8):
+            out[p, j] = np.uint8((lo >> (8 * p)) & 0xFF)
+        for p in range(8, N_PLANES):
+            out[p, j] = np.uint8((hi >> (8 * (p - 8))) & 0xFF)
+    return out
+
+
+@njit(cache=True, inline="always")
+def table_bit(tables, plane, cfg):
+    return (tables[plane, cfg >> 3] >> (cfg & 7)) & 1

@@ -1,0 +1,620 @@
+"""Numba kernels of the thinning algorithms (thesis ch. 5–6).
+
+All kernels work in place on a flat ``uint8`` copy of the volume padded with a
+one-voxel background frame (ALGORITHMS.md §5), so ``p + offset`` never leaves the array
+for an object voxel ``p``.  Options (thesis §5.1–5.3):
+
+* ``border_list``: test only voxels of the border list (object voxels 6-adjacent to the
+  background); when a voxel is deleted its object 6-neighbours join the list (§5.1.1).
+  Without it, every object voxel is tested in every subiteration.
+* ``lut``: one read of the 2^26 bit tables replaces the mask test / the component
+  counting (§5.1.2, §5.2).
+* ``ccsu`` (configuration computation speed-up, §5.3), an int mode: 0 gathers the 26
+  neighbours at every test; 1 ("rows") keeps, in bits 5–7 of every voxel's state
+  byte, the object bits of its z-triplet (z−1, z, z+1), updated by 3 writes per
+  deletion, so a configuration is assembled from 9 bytes; 2 ("full", the thesis'
+  variant) keeps each listed voxel's whole 26-bit word, updated in its 26
+  neighbours at every deletion.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .tables_kernels import (
+    PLANE_ISTHMUS1D,
+    PLANE_ISTHMUS2D,
+    PLANE_SIMPLE,
+    expand26,
+    match_set,
+    t6bar_word,
+    t26_word,
+    table_bit,
+)
+
+
+# state bits of the flat padded volume handled by the kernels
+OBJ = 1      # object voxel
+LISTED = 2   # has entered the candidate (border) list
+KEPT = 4     # in the constraint set K
+INS = 8      # ACK3: in S (simple, not in K, not kept by a crucial clique yet)
+QUEUED = 16  # sequential completion: on the stack
+R3 = 5       # bits 5..7: the z-triplet (z-1, z, z+1) of OBJ bits around the voxel
+R3_LO = np.uint8(1 << R3)
+R3_MID = np.uint8(2 << R3)
+R3_HI = np.uint8(4 << R3)
+
+
+@njit(cache=True, inline="always")
+def gather26(vol, p, offs):
+    """26-bit configuration index of voxel ``p`` (flat index): 26 byte loads."""
+    c = np.int64(0)
+    for i in range(26):
+        c |= np.int64(vol[p + offs[i]] & OBJ) << i
+    return c
+
+
+@njit(cache=True, inline="always")
+def gather(vol, p, offs):
+    """26-bit configuration index of voxel ``p`` from the z-triplet words.
+
+    ``offs[26 + r]`` (r = 0..8) are the flat offsets of the 9 rows (dx, dy) of the
+    3×3×3 cube; each voxel's bits 5–7 hold the OBJ bits of its z-triplet (kept up to
+    date on deletion), so one byte per row (9 loads instead of 26) builds the word.
+    """
+    w = np.int64(0)
+    for r in range(9):
+        w |= np.int64(vol[p + offs[26 + r]] >> R3) << (3 * r)
+    return (w & 0x1FFF) | ((w >> 14) << 13)
+
+
+@njit(cache=True, inline="always")
+def _cfg(vol, p, offs, words, mode):
+    """Configuration of ``p``: mode 0 gathers 26 voxels, 1 the 9 z-triplet words (row
+    CCSU), 2 reads the full per-voxel word (the thesis' CCSU, §5.3)."""
+    if mode == 2:
+        return np.int64(words[p])
+    if mode == 1:
+        return gather(vol, p, offs)
+    return gather26(vol, p, offs)
+
+
+@njit(cache=True, inline="always")
+def _clear(vol, p):
+    """Delete voxel ``p``: clear OBJ and its bit in the z-triplets of p-1, p, p+1."""
+    vol[p] &= ~(np.uint8(OBJ) | R3_MID)
+    vol[p - 1] &= ~R3_HI
+    vol[p + 1] &= ~R3_LO
+
+
+@njit(cache=True, inline="always")
+def _isthmus(cfg, psi, tables, lut):
+    if psi == 1:
+        if lut:
+            return table_bit(tables, PLANE_ISTHMUS1D, cfg) != 0
+        return t26_word(expand26(cfg)) >= 2
+    if psi == 2:
+        if lut:
+            return table_bit(tables, PLANE_ISTHMUS2D, cfg) != 0
+        return t6bar_word(expand26(cfg)) >= 2
+    return False
+
+
+@njit(cache=True, inline="always")
+def _simple(cfg, tables, lut):
+    if lut:
+        return table_bit(tables, PLANE_SIMPLE, cfg) != 0
+    w = expand26(cfg)
+    return t26_word(w) == 1 and t6bar_word(w) == 1
+
+
+@njit(cache=True)
+def _init_list(vol, offs, off6, border_list, ccsu, words, n_obj):
+    """Initial candidate list: border voxels not in K (or every such object voxel).
+
+    ``n_obj`` < 0: the z-triplet bits are not set yet; compute them and count the
+    object voxels here (else :func:`fill_state` did).  The scans skip empty 8-byte
+    words of the volume.  Listed voxels get the LISTED bit (and their word).
+    """
+    n8 = vol.size // 8
+    v64 = vol[: n8 * 8].view(np.uint64)
+    last = vol.size - 1
+    if n_obj < 0:
+        n_obj = 0
+        for w in range(n8 + 1):
+            if w < n8 and v64[w] == 0:
+                continue
+            for p in range(max(8 * w - 1, 1), min(8 * w + 9, last)):
+                t = (vol[p - 1] & OBJ) | ((vol[p] & OBJ) << 1) | ((vol[p + 1] & OBJ) << 2)
+                vol[p] = (vol[p] & 31) | (t << R3)
+            for p in range(8 * w, min(8 * w + 8, vol.size)):
+                n_obj += vol[p] & OBJ
+    lst = np.empty(max(n_obj, 1), dtype=np.int64)
+    n = 0
+    for w in range(n8 + 1):
+        if w < n8 and v64[w] == 0:
+            continue
+        for p in range(8 * w, min(8 * w + 8, vol.size)):
+            if vol[p] & (OBJ | KEPT) != OBJ:
+                continue
+            ok = True
+            if border_list:
+                a = np.uint8(OBJ)
+                for k in range(6):
+                    a &= vol[p + off6[k]]
+                ok = a == 0
+            if ok:
+                lst[n] = p
+                vol[p] |= LISTED
+                n += 1
+                if ccsu == 2:
+                    words[p] = gather(vol, p, offs)
+    return lst, n
+
+
+@njit(cache=True)
+def _delete(vol, dl, ndel, lst, n, offs, opp, off6, border_list, ccsu, words):
+    """Delete the collected voxels at once; update words and the border list. Returns new n."""
+    for j in range(ndel):
+        _clear(vol, dl[j])
+    for j in range(ndel):
+        p = dl[j]
+        if ccsu == 2:
+            for i in range(26):
+                q = p + offs[i]
+                if vol[q] & LISTED:  # only listed voxels hold a word
+                    words[q] &= ~(np.uint32(1) << np.uint32(opp[i]))
+        if border_list:
+            for k in range(6):
+                q = p + off6[k]
+                if vol[q] & (OBJ | LISTED | KEPT) == OBJ:
+                    vol[q] |= LISTED
+                    lst[n] = q
+                    n += 1
+                    if ccsu == 2:
+                        words[q] = gather(vol, q, offs)
+    return n
+
+
+@njit(cache=True, inline="always")
+def _popcount(c):
+    n = 0
+    while c:
+        c &= c - 1
+        n += 1
+    return n
+
+
+@njit(cache=True)
+def sequential_completion(vol, lst, n, offs, tables, lut, keep_end_points):
+    """Delete, one at a time, the simple voxels not in K the directional masks left.
+
+    Sequential deletion of simple points (thesis §4.3.1, Alg. 1 with the inhibitor set
+    W = K, plus the curve end points when ``keep_end_points``) always preserves
+    topology.  The masks of PKD6 / M'_d do not match every simple configuration
+    (e.g. staircase-like ones), so a few such voxels can survive the parallel phase;
+    this pass makes the result thin: no voxel is simple unless it is in K or (for
+    curve skeletons) an end point.  Candidates are the listed voxels and, after each
+    deletion, its object neighbours (depth first, so the order is fixed by the
+    volume alone).  Returns the number of voxels deleted.
+    """
+    stack = np.empty(max(lst.size, 1), dtype=np.int64)
+    top = 0
+    # start from the voxels simple now, in decreasing index order (popped increasing), so
+    # the result does not depend on the order of the list (border list or full scan)
+    for i in range(n):
+        p = lst[i]
+        if vol[p] & (OBJ | KEPT | QUEUED) == OBJ and _simple(gather(vol, p, offs), tables, lut):
+            vol[p] |= QUEUED
+            stack[top] = p
+            top += 1
+    stack[:top] = np.sort(stack[:top])[::-1]
+    deleted = 0
+    while top > 0:
+        top -= 1
+        p = stack[top]
+        vol[p] &= ~np.uint8(QUEUED)
+        if vol[p] & (OBJ | KEPT) != OBJ:
+            continue
+        cfg = gather(vol, p, offs)
+        if not _simple(cfg, tables, lut):
+            continue
+        if keep_end_points and _popcount(cfg) == 1:
+            continue
+        _clear(vol, p)
+        deleted += 1
+        for i in range(26):
+            q = p + offs[i]
+            if vol[q] & (OBJ | KEPT | QUEUED) == OBJ and top < stack.size:
+                vol[q] |= QUEUED
+                stack[top] = q
+                top += 1
+    return deleted
+
+
+@njit(cache=True, inline="always")
+def _delete_directional(vol, dl, ndel, lst, n, offs, opp, off6, opp6, border_list, ccsu, words,
+                        bk, nbk, d):
+    """Delete the collected voxels of subiteration ``d`` at once.
+
+    Updates the z-triplet bits (and the CCSU words), appends new border voxels to the
+    list, and pushes every object 6-neighbour that the deletion exposes in a direction
+    still to come in this iteration into that direction's bucket.  Returns the new n.
+    """
+    for j in range(ndel):
+        _clear(vol, dl[j])
+    for j in range(ndel):
+        p = dl[j]
+        if ccsu == 2:
+            for i in range(26):
+                q = p + offs[i]
+                if vol[q] & LISTED:  # only listed voxels hold a word
+                    words[q] &= ~(np.uint32(1) << np.uint32(opp[i]))
+        for k in range(6):
+            q = p + off6[k]
+            st = vol[q]
+            if st & (OBJ | KEPT) != OBJ:
+                continue
+            e = opp6[k]  # p is q's neighbour in direction e: q is now exposed in e
+            if e > d:
+                bk[e, nbk[e]] = q
+                nbk[e] += 1
+            if border_list and st & LISTED == 0:
+                vol[q] = st | LISTED
+                lst[n] = q
+                n += 1
+                if ccsu == 2:
+                    words[q] = gather(vol, q, offs)
+    return n
+
+
+def make_directional_thin(lut=None, ccsu=None):
+    """Kernel of the 6-directional thinnings, specialized for (lut, ccsu).
+
+    Given values become compile-time constants of the returned kernel (a closure;
+    Numba caches each specialization on disk): tested at run time inside the hot
+    loops they cost a factor 2–3.  With ``None`` the kernel reads them from its last
+    two arguments (one generic kernel serves every combination).  Signature:
+    ``(vol, offs, opp, off6, tables, plane0, templates, tcount, psi, border_list,
+    finish, stats, lut, ccsu, n_obj) -> (iterations, deleted)``; see
+    :func:`_directional_body` (``n_obj`` < 0 when :func:`fill_state` was not used).
+    """
+    if lut is None or ccsu is None:
+        @njit(cache=True)
+        def directional_generic(vol, offs, opp, off6, tables, plane0, templates, tcount, psi,
+                                border_list, finish, stats, lut_, ccsu_, n_obj):
+            return _directional_body(vol, offs, opp, off6, tables, plane0, templates, tcount, psi,
+                                     border_list, lut_, ccsu_, finish, stats, n_obj)
+
+        return directional_generic
+    lut = bool(lut)
+
+    @njit(cache=True)
+    def directional_thin(vol, offs, opp, off6, tables, plane0, templates, tcount, psi,
+                         border_list, finish, stats, lut_, ccsu_, n_obj):
+        return _directional_body(vol, offs, opp, off6, tables, plane0, templates, tcount, psi,
+                                 border_list, lut, ccsu, finish, stats, n_obj)
+
+    return directional_thin
+
+
+@njit(cache=True, inline="always")
+def _directional_body(vol, offs, opp, off6, tables, plane0, templates, tcount,
+                      psi, border_list, lut, ccsu, finish, stats, n_obj):
+    """6-directional thinning: PKD6 (Alg. 10) or D6I1D/D6U/D6I2D (Alg. 11–12).
+
+    ``vol`` is the state array (bit OBJ object, bit KEPT the constraint set K on input;
+    both updated in place).  ``plane0``/``templates`` select the mask sets (PKD6's M_d
+    or the M'_d of §6.2.2); ``psi`` the constraint function: 0 none (PKD6, D6U), 1 the
+    1D isthmuses (D6I1D), 2 the 2D isthmuses (D6I2D).
+    Each iteration first passes over the list (dropping deleted voxels, adding the
+    isthmuses to K) and sorts the voxels into six buckets by the directions in which
+    they are exposed (their neighbour is background); subiteration d then tests only
+    bucket d — every mask of direction d needs the d-neighbour in the background —
+    plus the voxels that earlier subiterations of the iteration exposed in d.
+    ``finish``: 0 none, 1 :func:`sequential_completion` keeping end points (curve
+    skeletons), 2 without keeping them (ultimate skeletons).
+    ``stats`` (int64, 5) receives the number of list visits, of deletion tests, of
+    isthmus tests, the initial list size and the voxels deleted by the completion.
+    Returns (iterations, deleted voxels).
+    """
+    words = np.empty(vol.size if ccsu == 2 else 1, dtype=np.uint32)
+    lst, n = _init_list(vol, offs, off6, border_list, ccsu, words, n_obj)
+    stats[3] = n
+    cap = lst.size
+    dl = np.empty(cap, dtype=np.int64)
+    bk = np.empty((6, cap), dtype=np.int64)
+    nbk = np.zeros(6, dtype=np.int64)
+    opp6 = np.array([1, 0, 3, 2, 5, 4])
+    fbit = np.empty(6, dtype=np.int64)  # bit of the face neighbour of each direction
+    for d in range(6):
+        for i in range(26):
+            if offs[i] == off6[d]:
+                fbit[d] = i
+    visits = 0
+    tests = 0
+    itests = 0
+    iterations = 0
+    total = 0
+    while True:
+        iterations += 1
+        visits += n
+        for d in range(6):
+            nbk[d] = 0
+        m = 0
+        ndel = 0
+        for i in range(n):
+            p = lst[i]
+            if vol[p] & OBJ == 0:
+                continue
+            cfg = _cfg(vol, p, offs, words, ccsu)
+            if psi != 0:
+                itests += 1
+                if _isthmus(cfg, psi, tables, lut):
+                    vol[p] |= KEPT  # constrained voxels leave the list for good
+                    continue
+            lst[m] = p
+            m += 1
+            # subiteration U (d = 0) is tested here, on the same configuration: nothing
+            # has been deleted yet in this iteration
+            if (cfg >> fbit[0]) & 1 == 0:
+                tests += 1
+                if lut:
+                    ok = table_bit(tables, plane0, cfg) != 0
+                else:
+                    ok = match_set(cfg, templates, 0, tcount[0])
+                if ok:
+                    dl[ndel] = p
+                    ndel += 1
+            for d in range(1, 6):
+                if (cfg >> fbit[d]) & 1 == 0:
+                    bk[d, nbk[d]] = p
+                    nbk[d] += 1
+        n = m
+        deleted = 0
+        for d in range(6):
+            nb = nbk[d] if d > 0 else 0
+            tests += nb
+            if d > 0:
+                ndel = 0
+            for i in range(nb):
+                p = bk[d, i]
+                if vol[p] & OBJ == 0:
+                    continue
+                cfg = _cfg(vol, p, offs, words, ccsu)
+                if lut:
+                    ok = table_bit(tables, plane0 + d, cfg) != 0
+                else:
+                    ok = match_set(cfg, templates, d, tcount[d])
+                if ok:
+                    dl[ndel] = p
+                    ndel += 1
+            if ndel:
+                n = _delete_directional(vol, dl, ndel, lst, n, offs, opp, off6, opp6, border_list,
+                                        ccsu, words, bk, nbk, d)
+                deleted += ndel
+        total += deleted
+        if deleted == 0:
+            break
+    stats[0] = visits
+    stats[1] = tests
+    stats[2] = itests
+    if finish:
+        stats[4] = sequential_completion(vol, lst, n, offs, tables, lut, finish == 1)
+        total += stats[4]
+    return iterations, total
+
+
+# ----------------------------------------------------------------------------- ACK3
+def make_ack3_thin(lut=None, ccsu=None):
+    """ACK3 kernel specialized for (lut, ccsu), or generic with ``None`` (see
+    :func:`make_directional_thin`); signature ``(vol, offs, opp, off6, tables, psi,
+    border_list, c2_a, c2_b, nonsimple2d, e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff,
+    k_bits, k_span, k_ooff, lut, ccsu, n_obj) -> (iterations, deleted)``."""
+    if lut is None or ccsu is None:
+        @njit(cache=True)
+        def ack3_generic(vol, offs, opp, off6, tables, psi, border_list, c2_a, c2_b, nonsimple2d,
+                         e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff, k_bits, k_span, k_ooff,
+                         lut_, ccsu_, n_obj):
+            return _ack3_body(vol, offs, opp, off6, tables, psi, border_list, lut_, ccsu_, c2_a,
+                              c2_b, nonsimple2d, e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff,
+                              k_bits, k_span, k_ooff, n_obj)
+
+        return ack3_generic
+    lut = bool(lut)
+
+    @njit(cache=True)
+    def ack3_thin(vol, offs, opp, off6, tables, psi, border_list, c2_a, c2_b, nonsimple2d,
+                  e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff, k_bits, k_span, k_ooff,
+                  lut_, ccsu_, n_obj):
+        return _ack3_body(vol, offs, opp, off6, tables, psi, border_list, lut, ccsu, c2_a, c2_b,
+                          nonsimple2d, e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff, k_bits,
+                          k_span, k_ooff, n_obj)
+
+    return ack3_thin
+
+
+@njit(cache=True, inline="always")
+def _ack3_body(vol, offs, opp, off6, tables, psi, border_list, lut, ccsu,
+               c2_a, c2_b, nonsimple2d,
+               e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff,
+               k_bits, k_span, k_ooff, n_obj):
+    """Asymmetric critical-kernel thinning ACK3 (thesis Alg. 7 / Alg. 8, §5.2).
+
+    Per iteration: K ← K ∪ Ψ(X); S ← simple voxels of X not in K; then, visiting the
+    voxels of S in list order and updating S in place (Alg. 8), a voxel that is the
+    first visited member of a critical 2-clique (both voxels in S, R non-simple in the
+    2D section), then of a critical 1-clique (M = X ∩ {E,F,G,H} ⊆ S with a diagonal
+    pair, U and V both hit or both missed), then of a critical 0-clique (M = X ∩ cube ⊆ S
+    essential: voxels on both sides of the vertex along x, y and z) leaves S (is kept);
+    finally X ← X minus S.  Every critical clique of X keeps a voxel, so the critical
+    kernel theorem (Bertrand 2007) guarantees that topology is preserved.
+
+    Note: the 0-clique condition is the exact criticality of an essential vertex (its
+    core is empty), not Def. 3's "contains an antipodal pair", which misses e.g. the
+    4-voxel tripod {(1,0,0), (0,0,0), (1,1,0), (1,0,1)} (a voxel with three pairwise
+    orthogonal face neighbours, all four simple, no crucial 2- or 1-clique) and lets a
+    whole component vanish; found by the random-volume tests.
+
+    ``c2_a/c2_b`` (6, 8): bits of the column voxels C_i (p's layer) and D_i (the
+    neighbour's layer) of each direction; ``nonsimple2d`` (256): R non-simple (8/4) for
+    the 8-bit section.  ``e_*`` (12 edges): bits of the two face neighbours and the edge
+    neighbour around the edge, masks of U and V, bits and flat offsets of the other 3
+    voxels.  ``k_*`` (8 cubes): bits of the 7 other voxels, (3,) masks of the voxels
+    beyond the vertex along x, y, z, flat offsets of the 7 others.
+    Returns (iterations, deleted voxels).
+    """
+    words = np.empty(vol.size if ccsu == 2 else 1, dtype=np.uint32)
+    lst, n = _init_list(vol, offs, off6, border_list, ccsu, words, n_obj)
+    dl = np.empty(lst.size, dtype=np.int64)
+    cf = np.empty(lst.size, dtype=np.int64)
+    iterations = 0
+    total = 0
+    while True:
+        iterations += 1
+        m = 0
+        for i in range(n):
+            p = lst[i]
+            if vol[p] & OBJ == 0:
+                continue
+            cfg = _cfg(vol, p, offs, words, ccsu)
+            if psi != 0 and _isthmus(cfg, psi, tables, lut):
+                vol[p] |= KEPT
+                continue
+            lst[m] = p
+            cf[m] = cfg
+            m += 1
+            if _simple(cfg, tables, lut):
+                vol[p] |= INS
+        n = m
+        # 2-cliques
+        for i in range(n):
+            p = lst[i]
+            if vol[p] & INS == 0:
+                continue
+            cfg = cf[i]
+            for d in range(6):
+                if vol[p + off6[d]] & INS == 0:
+                    continue
+                s8 = 0
+                for k in range(8):
+                    if ((cfg >> c2_a[d, k]) | (cfg >> c2_b[d, k])) & 1:
+                        s8 |= 1 << k
+                if nonsimple2d[s8]:
+                    vol[p] &= ~np.uint8(INS)
+                    break
+        # 1-cliques
+        for i in range(n):
+            p = lst[i]
+            if vol[p] & INS == 0:
+                continue
+            cfg = cf[i]
+            for e in range(12):
+                diag = ((cfg >> e_ed[e]) & 1) or (((cfg >> e_f1[e]) & 1) and ((cfg >> e_f2[e]) & 1))
+                if not diag:
+                    continue
+                hu = (cfg & e_u[e]) != 0
+                hv = (cfg & e_v[e]) != 0
+                if hu != hv:
+                    continue
+                inside = True
+                for k in range(3):
+                    if (cfg >> e_others[e, k]) & 1 and vol[p + e_ooff[e, k]] & INS == 0:
+                        inside = False
+                        break
+                if inside:
+                    vol[p] &= ~np.uint8(INS)
+                    break
+        # 0-cliques
+        for i in range(n):
+            p = lst[i]
+            if vol[p] & INS == 0:
+                continue
+            cfg = cf[i]
+            for c in range(8):
+                # essential 0-clique: M has voxels on both sides of the vertex along x, y and z
+                if (cfg & k_span[c, 0]) == 0 or (cfg & k_span[c, 1]) == 0 or (cfg & k_span[c, 2]) == 0:
+                    continue
+                inside = True
+                for k in range(7):
+                    if (cfg >> k_bits[c, k]) & 1 and vol[p + k_ooff[c, k]] & INS == 0:
+                        inside = False
+                        break
+                if inside:
+                    vol[p] &= ~np.uint8(INS)
+                    break
+        ndel = 0
+        for i in range(n):
+            p = lst[i]
+            if vol[p] & INS:
+                dl[ndel] = p
+                ndel += 1
+                vol[p] &= ~np.uint8(INS)
+        if ndel:
+            n = _delete(vol, dl, ndel, lst, n, offs, opp, off6, border_list, ccsu, words)
+        total += ndel
+        if ndel == 0:
+            break
+    return iterations, total
+
+
+@njit(cache=True)
+def fill_state(data, keep, lo, hi, rows):
+    """Padded state array of ``data[lo:hi+1]`` (3D uint8 views of bool arrays).
+
+    One pass writes, for every voxel of the crop framed by one background voxel, the
+    OBJ bit, the KEPT bit (``keep`` of the same shape as ``data``, or size 0) and the
+    z-triplet bits; ``rows[x, y]`` (over the crop) tells which rows hold object voxels
+    (the others stay zero).  Returns (flat state array, its shape, object voxels).
+    """
+    nx = hi[0] - lo[0] + 1
+    ny = hi[1] - lo[1] + 1
+    nz = hi[2] - lo[2] + 1
+    sx, sy, sz = nx + 2, ny + 2, nz + 2
+    vol = np.zeros(sx * sy * sz, dtype=np.uint8)
+    has_keep = keep.size > 0
+    n_obj = 0
+    for x in range(nx):
+        for y in range(ny):
+            if not rows[x, y]:
+                continue
+            src = data[lo[0] + x, lo[1] + y, lo[2]:lo[2] + nz]
+            base = ((x + 1) * sy + (y + 1)) * sz + 1
+            prev = np.uint8(0)
+            cur = src[0] & 1
+            for z in range(nz):
+                nxt = (src[z + 1] & 1) if z + 1 < nz else np.uint8(0)
+                st = cur | ((prev | (cur << 1) | (nxt << 2)) << R3)
+                if has_keep and cur and keep[lo[0] + x, lo[1] + y, lo[2] + z]:
+                    st |= KEPT
+                vol[base + z] = st
+                n_obj += cur
+                prev = cur
+                cur = nxt
+    return vol, np.array([sx, sy, sz]), n_obj
+
+
+@njit(cache=True)
+def bounding_box_rows(vol, rows):
+    """(lo, hi) bounds of the nonzero voxels of a 3D uint8 array, given ``rows[x, y]``
+    = row (x, y) holds a nonzero voxel (only those rows are scanned); lo > hi if none."""
+    nx, ny, nz = vol.shape
+    lo = np.array([nx, ny, nz], dtype=np.int64)
+    hi = np.array([-1, -1, -1], dtype=np.int64)
+    for x in range(nx):
+        for y in range(ny):
+            if not rows[x, y]:
+                continue
+            lo[0] = min(lo[0], x)
+            hi[0] = max(hi[0], x)
+            lo[1] = min(lo[1], y)
+            hi[1] = max(hi[1], y)
+            z = 0
+            while z < lo[2] and vol[x, y, z] == 0:
+                z += 1
+            lo[2] = min(lo[2], z)
+            z = nz - 1
+            while z > hi[2] and vol[x, y, z] == 0:
+                z -= 1
+            hi[2] = max(hi[2], z)
+    return lo, hi

@@ -1,0 +1,172 @@
+"""Coordinate constraints inside the recurrences (§12.2.1) and betweenness (§12.2.2)."""
+import math
+
+import numpy as np
+import pytest
+
+from match_reference import alignment_cost, check_alignment, memo_distance, random_tree
+from topopose import InputError
+from topopose.match import Constraint, Tree, align, apply_betweenness, betweenness
+
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def _resize_ok(cons, pos):
+    """Oracle: a pattern chain containing a constrained edge must keep its ends' order along +z."""
+    def ok(chain, ja, j):
+        for kind, a, b in cons:
+            for x, y in zip(chain[:-1], chain[1:]):
+                if {x, y} == {a, b}:
+                    hu, hl = pos[ja][2], pos[j][2]
+                    want = (hu > hl) if x == a else (hl > hu)
+                    if kind == "below":
+                        want = (hu < hl) if x == a else (hl < hu)
+                    if not want:
+                        return False
+        return True
+    return ok
+
+
+def test_coordinate_constraints_match_the_oracle():
+    rng = np.random.default_rng(99)
+    configs = [(m, r, c) for m in ("aha", "ha", "alignment") for r in ((0, 0), (0, None), (None, None))
+               for c in (False, True)]
+    for k in range(180):
+        P = random_tree(rng, int(rng.integers(2, 6)))
+        D = random_tree(rng, int(rng.integers(2, 8)))
+        pos = {v: rng.normal(size=3) for v in range(7)}
+        cons = []
+        for u, v, _ in P:
+            if rng.random() < 0.6:
+                cons.append((("above", "below")[int(rng.integers(2))], u, v) if rng.random() < 0.5
+                            else (("above", "below")[int(rng.integers(2))], v, u))
+        method, (pr, dr), cut = configs[k % len(configs)]
+        Pt = Tree(P, root=pr, constraints=[Constraint(kind, (a, b)) for kind, a, b in cons])
+        Dt = Tree(D, positions={v: pos[v] for v in range(len(D) + 1)}, root=dr)
+        al = align(Pt, Dt, method=method, cut=cut)
+        ref = memo_distance(P, D, method, pr, dr, cut, resize_ok=_resize_ok(cons, pos))
+        assert al.distance == pytest.approx(ref, abs=1e-9) or (al.distance == ref == math.inf)
+        if math.isfinite(al.distance):
+            assert alignment_cost(al, P, D) == pytest.approx(al.distance, abs=1e-9)
+            check_alignment(al, P, D, method, pr, dr)
+            for pc, dp in al.pairs:     # every matched chain respects its constraints
+                assert _resize_ok(cons, pos)(pc, dp[0], dp[-1])
+
+
+def test_head_above_torso_fixes_a_swap():
+    """A short leg-like branch up and a long head-like branch down: the constraint decides (§12.2.1)."""
+    P = [("torso", "head", 0.2), ("torso", "hand", 0.5), ("torso", "foot", 0.3)]
+    D = Tree([(0, 1, 0.3), (0, 2, 0.5), (0, 3, 0.2)],
+             positions={0: [0, 0, 1.0], 1: [0, 0, 1.3], 2: [0.5, 0, 1.0], 3: [0, 0, 0.8]})
+    free = align(Tree(P, root="torso"), D)
+    assert free.mapping["head"] == 3
+    con = align(Tree(P, root="torso", constraints=[Constraint("above", ("head", "torso"))]), D)
+    assert con.mapping["head"] == 1 and con.mapping["foot"] == 3
+    assert con.distance == pytest.approx(0.2)
+    # an explicit axis and the up argument
+    down = align(Tree(P, root="torso", constraints=[Constraint("above", ("head", "torso"), axis="-z")]), D)
+    assert down.mapping["head"] == 3
+    tilted = align(Tree(P, root="torso", constraints=[Constraint("below", ("head", "torso"))]), D,
+                   up=(0, 0, -1))
+    assert tilted.mapping["head"] == 1
+
+
+# ---------------------------------------------------------------------- betweenness relations
+def test_betweenness_relations_by_definition():
+    a, c = np.array([0.0, 0, 0]), np.array([2.0, 0, 0])
+    assert betweenness(a, c, [1, 0, 0], "c") and not betweenness(a, c, [1, 0.1, 0], "c")
+    assert betweenness(a, c, [1.5, 3, 0], "p") and not betweenness(a, c, [2.5, 0.1, 0], "p")
+    assert betweenness(a, c, [1, 0.9, 0], "b") and not betweenness(a, c, [1, 1.1, 0], "b")
+    assert not betweenness(a, c, [1, 1.0, 0], "b")          # on the sphere: excluded
+    assert not betweenness(a, a, [1, 0, 0], "b")            # coincident points
+    # R_i, condition 1 and 2; R_u
+    assert betweenness(a, c, [1, 1.5, 0], "i")              # ac longest side
+    assert betweenness(a, [4.0, 0, 0], [2, 5, 0], "i")      # isosceles apex
+    assert not betweenness(a, c, [1, math.sqrt(3), 0], "i")  # equilateral
+    assert betweenness(a, c, [1, 0.2, 0], "u")
+    with pytest.raises(InputError, match="relation"):
+        betweenness(a, c, [1, 0, 0], "z")
+
+
+def test_betweenness_postulates_on_random_triangles():
+    rng = np.random.default_rng(4)
+    for _ in range(2000):
+        p = rng.normal(size=(3, 3))
+        for rel in "cpbui":
+            # postulate A: symmetry in the two ends
+            assert betweenness(p[0], p[1], p[2], rel) == betweenness(p[1], p[0], p[2], rel)
+        for rel in "bui":
+            # postulate C: at most one of the three points is between the two others
+            n = sum(betweenness(p[i], p[j], p[k], rel) for i, j, k in ((0, 1, 2), (0, 2, 1), (1, 2, 0)))
+            assert n <= 1
+        for rel in "ui":
+            # postulate B': at least one of them (distinct, not equidistant)
+            n = sum(betweenness(p[i], p[j], p[k], rel) for i, j, k in ((0, 1, 2), (0, 2, 1), (1, 2, 0)))
+            assert n == 1
+        # inclusions R_c ⊂ R_b ⊂ R_p, and postulate I for R_i
+        if betweenness(p[0], p[1], p[2], "b"):
+            assert betweenness(p[0], p[1], p[2], "p")
+        if betweenness(p[0], p[1], p[2], "i"):
+            assert betweenness(p[0], p[1], p[2], "p")
+
+
+def _hand(perm_x, lengths):
+    """Incomplete hand data tree: fingers at x = perm_x, similar lengths."""
+    pos = {0: [0.0, -1.0, 0.0], 1: [0.0, 0.0, 0.0]}
+    edges = [(0, 1, math.inf)]
+    for k, (x, w) in enumerate(zip(perm_x, lengths)):
+        edges.append((1, 2 + k, w))
+        pos[2 + k] = [float(x), 1.0, 0.0]
+    return Tree(edges, positions=pos, root=0)
+
+
+FINGERS = ("thumb", "index", "middle", "ring", "little")
+
+
+def test_apply_betweenness_orders_similar_fingers():
+    model = Tree([("arm", "palm", math.inf)] + [("palm", f, 1.0) for f in FINGERS], root="arm")
+    between = Constraint("between", FINGERS, relation="b")
+    rng = np.random.default_rng(0)
+    for trial in range(12):
+        xs = rng.permutation(5).astype(float)
+        D = _hand(xs, 1.0 + 0.05 * rng.random(5))
+        al = align(model, D, method="aha")
+        fixed = apply_betweenness(al, model, D, between)
+        assert fixed.distance == pytest.approx(al.distance)
+        got = [D.positions[fixed.mapping[f]][0] for f in FINGERS]
+        assert got == sorted(got) or got == sorted(got, reverse=True)
+        # the model's own constraint does the same inside align()
+        m2 = Tree(model.edges, root="arm", constraints=[between])
+        auto = align(m2, D, method="aha")
+        got2 = [D.positions[auto.mapping[f]][0] for f in FINGERS]
+        assert got2 == sorted(got2) or got2 == sorted(got2, reverse=True)
+        # every finger's alternatives are the five fingertips
+        assert all(set(al.alternatives[f]) == {2, 3, 4, 5, 6} for f in FINGERS)
+
+
+def test_apply_betweenness_keeps_a_satisfied_alignment_and_reports_failure():
+    model = Tree([("arm", "palm", math.inf)] + [("palm", f, 1.0) for f in FINGERS[:3]], root="arm")
+    D = _hand([0, 1, 2], [1.0, 1.0, 1.0])
+    al = align(model, D)
+    c = Constraint("between", FINGERS[:3])
+    out = apply_betweenness(al, model, D, c)
+    got = [D.positions[out.mapping[f]][0] for f in FINGERS[:3]]
+    assert got in ([0, 1, 2], [2, 1, 0])
+    # fingers of different lengths: only one co-optimal assignment, which may not satisfy it
+    D2 = Tree([(0, 1, math.inf), (1, 2, 1.0), (1, 3, 2.0), (1, 4, 3.0)],
+              positions={0: [0, -1, 0], 1: [0, 0, 0], 2: [0, 1, 0], 3: [1, 1, 0], 4: [2, 1, 0]}, root=0)
+    model2 = Tree([("arm", "palm", math.inf), ("palm", "a", 1.0), ("palm", "b", 3.0), ("palm", "c", 2.0)],
+                  root="arm")
+    res = apply_betweenness(align(model2, D2), model2, D2, Constraint("between", ("a", "b", "c")))
+    assert res.diagnostics.get("betweenness") == "unsatisfied"
+    with pytest.raises(InputError):
+        apply_betweenness(al, model, D, Constraint("above", ("arm", "palm")))
+
+
+def test_permutations_of_identical_limbs_are_all_alternatives():
+    """Four identical limbs: each maps to every data limb in some co-optimal alignment (§12.2.2)."""
+    P = Tree([("c", f"l{k}", 1.0) for k in range(4)], root="c")
+    D = [(0, k, 1.0 + 0.01 * k) for k in range(1, 5)]
+    al = align(P, D)
+    for k in range(4):
+        assert set(al.alternatives[f"l{k}"]) == {1, 2, 3, 4}

@@ -1,0 +1,224 @@
+"""Batch runs end to end on a synthetic capture folder: incremental output, resume, failures
+with reasons (corrupt PNG, missing frame, empty silhouette, subject leaving the volume), exit
+statuses, exports, Dask workers, pictures."""
+import json
+import re
+
+import cv2
+import numpy as np
+import pytest
+
+from topopose.cli import main
+from topopose.pose import read_poses, run
+from topopose.pose.export import read_trc
+
+FRAMES = 6
+
+
+def _volume_cutting_one_frame(gt, lo, hi):
+    """A capture volume (lo', hi') that cuts the subject of exactly one frame, else None."""
+    ext = {}
+    for f, fr in gt["frames"].items():
+        pts = np.array(list(fr["parts"].values()) + list(fr["joints"].values()))
+        ext[f] = (pts.min(0) - 0.12, pts.max(0) + 0.12)          # + limb radius
+    for f in ext:
+        for ax in (0, 1):
+            others_hi = max(ext[g][1][ax] for g in ext if g != f)
+            if ext[f][1][ax] - others_hi > 0.15:
+                hi2 = np.array(hi, float)
+                hi2[ax] = (ext[f][1][ax] + others_hi) / 2
+                return f, lo, hi2
+            others_lo = min(ext[g][0][ax] for g in ext if g != f)
+            if others_lo - ext[f][0][ax] > 0.15:
+                lo2 = np.array(lo, float)
+                lo2[ax] = (ext[f][0][ax] + others_lo) / 2
+                return f, lo2, hi
+    return None
+
+
+@pytest.fixture(scope="module")
+def capture_dir(tmp_path_factory):
+    from topopose.capture import synthesize
+
+    out = tmp_path_factory.mktemp("cap") / "human"
+    synthesize(out, subject="human", frames=FRAMES, seed=3, cameras=8, size=(320, 240),
+               noise=0, separated=True)
+    return out
+
+
+@pytest.fixture(scope="module")
+def broken_dir(capture_dir, tmp_path_factory):
+    """The same capture with one problem per frame 1–4."""
+    import shutil
+
+    out = tmp_path_factory.mktemp("broken") / "human"
+    shutil.copytree(capture_dir, out)
+    gt = json.loads((out / "gt.json").read_text())
+    cut = _volume_cutting_one_frame(gt, [-1.25, -1.25, -0.05], [1.25, 1.25, 2.3])
+    assert cut is not None, "seed 3 should give a frame far from the others"
+    leaving, lo, hi = cut
+    toml = (out / "capture.toml").read_text()
+    toml = re.sub(r"min = \[.*\]", f"min = [{lo[0]}, {lo[1]}, {lo[2]}]", toml)
+    toml = re.sub(r"max = \[.*\]", f"max = [{hi[0]}, {hi[1]}, {hi[2]}]", toml)
+    (out / "capture.toml").write_text(toml)
+    others = [f"{i:06d}" for i in range(FRAMES) if f"{i:06d}" != leaving]
+    corrupt, missing, empty = others[1:4]
+    (out / "silhouettes" / "cam_01" / f"{corrupt}.png").write_bytes(b"\x89PNG\r\n\x1a\n garbage")
+    (out / "silhouettes" / "cam_02" / f"{missing}.png").unlink()
+    cv2.imwrite(str(out / "silhouettes" / "cam_03" / f"{empty}.png"), np.zeros((240, 320), np.uint8))
+    return out, {"corrupt": corrupt, "missing": missing, "empty": empty, "leaving": leaving}
+
+
+def test_run_good_capture_writes_poses_and_exports(capture_dir, tmp_path, capsys):
+    out = tmp_path / "poses.jsonl"
+    trc, csvp = tmp_path / "p.trc", tmp_path / "p.csv"
+    code = main(["run", str(capture_dir), "--model", "human", "--resolution", "80",
+                 "--output", str(out), "--trc", str(trc), "--csv", str(csvp)])
+    assert code == 0
+    poses = read_poses(out)
+    assert [p.frame for p in poses] == [f"{i:06d}" for i in range(FRAMES)]
+    assert all(p.status in ("matched", "rejected") for p in poses)
+    for p in poses:
+        assert set(p.timings_ms) >= {"hull", "thinning", "tree", "alignment", "total"}
+    printed = capsys.readouterr().out
+    assert f"{FRAMES} frames" in printed and "matched" in printed
+    names, times, a = read_trc(trc)
+    assert names[0] == "head" and len(times) == FRAMES
+    m = [i for i, p in enumerate(poses) if p.status == "matched"]
+    assert m, "at least one matched frame"
+    i = m[0]
+    # TRC is y-up metres: its y is the capture's z
+    assert np.isclose(a[i, 0, 1], poses[i].parts["head"][2], atol=1e-5)
+    assert len(csvp.read_text().splitlines()) == FRAMES + 1
+
+
+def test_bad_input_frames_fail_with_reasons_and_run_completes(broken_dir, tmp_path, capsys):
+    folder, bad = broken_dir
+    out = tmp_path / "poses.jsonl"
+    # strict hull (tolerance 0): the empty silhouette empties the hull
+    code = main(["run", str(folder), "--resolution", "64", "--output", str(out), "--tolerance", "0"])
+    assert code == 1
+    poses = {p.frame: p for p in read_poses(out)}
+    assert len(poses) == FRAMES
+    failed = {f for f, p in poses.items() if p.status == "failed"}
+    assert failed == set(bad.values())
+    assert "cam_01" in poses[bad["corrupt"]].error and poses[bad["corrupt"]].error.startswith("hull")
+    assert "cam_02" in poses[bad["missing"]].error
+    assert "empty visual hull" in poses[bad["empty"]].error
+    assert "border of the capture volume" in poses[bad["leaving"]].error
+    assert all(v is None for v in poses[bad["empty"]].parts.values())
+    printed = capsys.readouterr().out
+    assert "4 failed" in printed and bad["corrupt"] in printed
+    # default tolerance (1 with 8 cameras): one camera's empty silhouette no longer matters
+    again = run(folder, "human", resolution=64, frames=[bad["empty"]], progress=False)
+    assert again.poses[0].status != "failed"
+
+
+def test_incremental_output_and_resume(capture_dir, tmp_path):
+    out = tmp_path / "poses.jsonl"
+    seen = []
+
+    def check(pose):                       # each finished frame is already on disk
+        seen.append(pose.frame)
+        lines = out.read_text().splitlines()
+        assert len(lines) == len(seen) and json.loads(lines[-1])["frame"] == pose.frame
+
+    r1 = run(capture_dir, "human", resolution=64, output=out, frames="0:3", progress=False,
+             on_pose=check)
+    assert r1.computed == 3 and len(seen) == 3
+    with open(out, "a") as fh:              # interrupted while writing the 4th frame
+        fh.write('{"frame": "000003", "status": "matc')
+    seen.clear()
+    r2 = run(capture_dir, "human", resolution=64, output=out, resume=True, progress=False)
+    assert r2.skipped == 3 and r2.computed == FRAMES - 3
+    poses = read_poses(out)
+    assert [p.frame for p in poses] == [f"{i:06d}" for i in range(FRAMES)]
+    assert len(out.read_text().splitlines()) == FRAMES
+    # the resumed frames equal a fresh run's
+    fresh = run(capture_dir, "human", resolution=64, output=None, progress=False)
+    for a, b in zip(poses, fresh.poses):
+        assert a.status == b.status and a.distance == pytest.approx(b.distance)
+
+
+def test_dask_workers_same_results(capture_dir, tmp_path):
+    seq = run(capture_dir, "human", resolution=64, frames="0:4", progress=False)
+    par = run(capture_dir, "human", resolution=64, frames="0:4", workers=2, progress=False,
+              output=tmp_path / "p.jsonl")
+    assert [p.frame for p in par.poses] == [p.frame for p in seq.poses]
+    for a, b in zip(par.poses, seq.poses):
+        assert a.status == b.status and a.distance == pytest.approx(b.distance)
+        for k in a.parts:
+            assert (a.parts[k] is None) == (b.parts[k] is None)
+    assert len(read_poses(tmp_path / "p.jsonl")) == 4
+    # a running cluster, by address (the same code path as --scheduler tcp://host:8786)
+    from dask.distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        by_addr = run(capture_dir, "human", resolution=64, frames="0:2",
+                      scheduler=cluster.scheduler_address, progress=False)
+    for a, b in zip(by_addr.poses, seq.poses[:2]):
+        assert a.frame == b.frame and a.distance == pytest.approx(b.distance)
+
+
+def test_malformed_calibration_and_model_exit_2(capture_dir, tmp_path, capsys):
+    import shutil
+
+    bad = tmp_path / "cap"
+    shutil.copytree(capture_dir, bad)
+    cal = (bad / "calibration.toml").read_text()
+    cal = re.sub(r"matrix = \[\[.*\]\]", "matrix = [[1.0, 2.0], [3.0]]", cal, count=1)
+    (bad / "calibration.toml").write_text(cal)
+    assert main(["run", str(bad), "--output", str(tmp_path / "p.jsonl")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "calibration.toml" in err[0] and "matrix" in err[0]
+    model = tmp_path / "m.toml"
+    model.write_text('[model]\nname = "x"\n[[edge]]\nparts = ["a", "b"]\nlenght = 1\n')
+    assert main(["run", str(capture_dir), "--model", str(model)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "m.toml" in err[0] and "lenght" in err[0]
+
+
+def test_view_and_evaluate_cli(capture_dir, tmp_path, capsys):
+    out = tmp_path / "poses.jsonl"
+    assert main(["run", str(capture_dir), "--resolution", "64", "--output", str(out),
+                 "--frames", "0:2"]) == 0
+    png = tmp_path / "frame.png"
+    assert main(["view", str(capture_dir), "--poses", str(out), "--frame", "000001",
+                 "--out", str(png), "--silhouettes"]) == 0
+    img = cv2.imread(str(png))
+    assert img is not None and img.shape[0] > 600 and img.shape[1] > 900
+    assert img.std() > 10                   # not a blank picture
+    assert main(["evaluate", str(capture_dir), "--poses", str(out), "--out", str(tmp_path)]) == 0
+    text = capsys.readouterr().out
+    assert "classes:" in text and "threshold" in text
+    assert (tmp_path / "poses_quality.png").exists()
+
+
+def test_rerun_recording_or_clear_message(capture_dir, tmp_path, capsys):
+    rrd = tmp_path / "run.rrd"
+    args = ["run", str(capture_dir), "--resolution", "64", "--frames", "0:2",
+            "--output", str(tmp_path / "p.jsonl"), "--rerun", str(rrd)]
+    try:
+        import rerun  # noqa: F401
+    except ImportError:
+        assert main(args) == 2
+        assert "pip install topopose[rerun]" in capsys.readouterr().err
+    else:
+        assert main(args) == 0
+        assert rrd.stat().st_size > 5000
+
+
+def test_demo_writes_what_it_says(tmp_path):
+    from topopose.pose.demo import run_demo
+
+    lines = []
+    code = run_demo(tmp_path / "demo", frames=2, resolution=64, subjects=["human"],
+                    size=(320, 240), progress=False, print_fn=lines.append)
+    text = "\n".join(lines)
+    assert code in (0, 1) and "human" in text and "good" in text
+    d = tmp_path / "demo" / "human"
+    for name in ("poses.jsonl", "poses.trc", "poses.csv", "distances.png", "quality.png",
+                 "gt.json", "calibration.toml"):
+        assert (d / name).exists(), name
+    assert list(d.glob("frame_*.png")) and str(d) in text

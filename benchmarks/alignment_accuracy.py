@@ -30,34 +30,18 @@ import os
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
-import subprocess  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
 from topopose.match import Matcher, Tree  # noqa: E402
+from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
 
 RESULTS = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
 METHODS = (("alignment", "α"), ("ha", "η"), ("aha", "AHA"))
 SPURIOUS = 0.1      # spurious branch weights U(0, 0.1): shorter than a tenth of any limb (>= 1)
-
-
-def machine() -> dict:
-    model = platform.processor() or ""
-    try:
-        for line in subprocess.run(["lscpu"], capture_output=True, text=True).stdout.splitlines():
-            if line.startswith("Model name"):
-                model = line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return {"cpu": model, "cores": os.cpu_count(), "python": platform.python_version(),
-            "numba": numba.__version__,
-            "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
 
 
 def random_pattern(rng, n, max_deg=4):

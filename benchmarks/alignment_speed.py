@@ -31,16 +31,12 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
-import platform  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
 from topopose.match import Matcher, Tree  # noqa: E402
@@ -48,6 +44,7 @@ from topopose.match import Matcher, Tree  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 from match_reference import memo_distance  # noqa: E402
+from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
 
 RESULTS = ROOT / "benchmarks" / "results"
 
@@ -55,20 +52,6 @@ HUMAN = [("torso", "head", 0.15), ("torso", "hand_1", 0.7), ("torso", "hand_2", 
          ("torso", "crotch", 0.5), ("crotch", "foot_1", 0.9), ("crotch", "foot_2", 0.9)]
 HAND = [("arm", "palm", math.inf), ("palm", "thumb", 0.7), ("palm", "index", 1.0), ("palm", "middle", 1.1),
         ("palm", "ring", 1.0), ("palm", "little", 0.8)]
-
-
-def machine() -> dict:
-    model = platform.processor() or ""
-    try:
-        out = subprocess.run(["lscpu"], capture_output=True, text=True).stdout
-        for line in out.splitlines():
-            if line.startswith("Model name"):
-                model = line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return {"cpu": model, "cores": os.cpu_count(), "python": platform.python_version(),
-            "numba": numba.__version__, "numpy": np.__version__,
-            "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
 
 
 def random_tree(rng, n, max_deg, exact=True, normalize=True):

@@ -30,40 +30,22 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
-import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
 import topopose as tp  # noqa: E402
 from topopose.capture import Camera, Capture  # noqa: E402
 from topopose.hull import HullCarver  # noqa: E402
 from topopose.hull.hull import get_carver  # noqa: E402
+from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
 
 cv2.setNumThreads(1)
 HERE = Path(__file__).resolve().parent
-
-
-def machine() -> dict:
-    model = platform.processor()
-    try:
-        out = subprocess.run(["lscpu"], capture_output=True, text=True).stdout
-        for line in out.splitlines():
-            if line.startswith("Model name"):
-                model = line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return {"cpu": model, "cores": os.cpu_count(), "python": platform.python_version(),
-            "numpy": np.__version__, "numba": numba.__version__, "opencv": cv2.__version__,
-            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-            "threads": "1 (NUMBA_NUM_THREADS=1, cv2.setNumThreads(1))"}
 
 
 # --------------------------------------------------------------------------- scene
@@ -269,7 +251,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     resolutions = [64, 100] if a.quick else [64, 100, 128, 200, 256]
     frames = a.frames or (3 if a.quick else 8)
-    mach = machine()
+    mach = machine(threads="1 (NUMBA_NUM_THREADS=1, cv2.setNumThreads(1))", opencv=cv2.__version__)
     print(f"visual hull benchmark — {mach['cpu']}, {mach['cores']} cores, single-threaded, "
           f"python {mach['python']}, numba {mach['numba']}, {mach['date']}")
     print("   N             grid  ours ms  carve ms setup ms  numpy ms   LUT ms  vs numpy  vs LUT  Gvox/s  same")

@@ -18,11 +18,8 @@ Writes benchmarks/results/kinematics.md and .json. ``--quick``: fewer frames (< 
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import os
-import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -30,23 +27,9 @@ from pathlib import Path
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
+from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
 
 HERE = Path(__file__).resolve().parent
-
-
-def machine() -> dict:
-    import numba
-
-    model = platform.processor() or ""
-    try:
-        out = subprocess.run(["lscpu"], capture_output=True, text=True).stdout
-        for line in out.splitlines():
-            if line.lower().startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return {"cpu": model, "cores": os.cpu_count(), "python": platform.python_version(),
-            "numba": numba.__version__, "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="minutes")}
 
 
 def metrics(res, truth_joints, height):

@@ -18,36 +18,17 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
 
 STAGES = ("hull", "fill", "thinning", "tree", "alignment")
 THESIS_FPS = {"reference": "thesis Fig. 13.2: 25 frames/s reached below 100^3 (C++, GPU hull, "
                            "Core 2 Quad Q8200 2.33 GHz)"}
-
-
-def machine() -> dict:
-    import numba
-
-    model = platform.processor()
-    try:
-        out = subprocess.run(["lscpu"], capture_output=True, text=True).stdout
-        for line in out.splitlines():
-            if line.startswith("Model name"):
-                model = line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return {"cpu": model, "cores": os.cpu_count(), "python": platform.python_version(),
-            "numba": numba.__version__, "numpy": np.__version__,
-            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-            "threads": "NUMBA_NUM_THREADS=" + os.environ.get("NUMBA_NUM_THREADS", "?")}
 
 
 def measure(cap, subject, resolution, repeats):

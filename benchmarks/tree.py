@@ -41,22 +41,19 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import itertools  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
-import platform  # noqa: E402
-import subprocess  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import networkx as nx  # noqa: E402
-import numba  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
 import topopose as tp  # noqa: E402
 from topopose.capture.synth import synthetic_capture  # noqa: E402
+from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
 
 HERE = Path(__file__).resolve().parent
 OFFS = np.array([d for d in itertools.product((-1, 0, 1), repeat=3) if d != (0, 0, 0)])
@@ -65,21 +62,6 @@ KERNEL[1, 1, 1] = 0
 STRUCT = np.ones((3, 3, 3), bool)
 MODEL_EDGES = [("torso", "head"), ("torso", "hand_1"), ("torso", "hand_2"), ("torso", "crotch"),
                ("crotch", "foot_1"), ("crotch", "foot_2")]
-
-
-def machine() -> dict:
-    model = platform.processor()
-    try:
-        out = subprocess.run(["lscpu"], capture_output=True, text=True).stdout
-        for line in out.splitlines():
-            if line.startswith("Model name"):
-                model = line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return {"cpu": model, "cores": os.cpu_count(), "python": platform.python_version(),
-            "numba": numba.__version__, "numpy": np.__version__,
-            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-            "threads": "1 (NUMBA_NUM_THREADS=1)"}
 
 
 # --------------------------------------------------------------------------- the straightforward peer
@@ -328,7 +310,7 @@ def main():
         res, frames, repeat = [64, 100], a.frames or 4, a.repeat or 5
     else:
         res, frames, repeat = [50, 64, 100, 150, 200], a.frames or 20, a.repeat or 15
-    mach = machine()
+    mach = machine(threads="1 (NUMBA_NUM_THREADS=1)")
     rows, weights = run(res, frames, repeat)
     report(rows, weight_summary(weights), mach, a.quick)
 

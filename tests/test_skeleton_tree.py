@@ -241,6 +241,22 @@ def test_tip_touching_a_limb_is_cut_at_the_contact():
     assert t.degree(cut["detached_from"]) == 2 and t.degree(keep) == 4 and t.degree(leaf) == 1
 
 
+def test_small_loop_bubble_is_dropped_whatever_the_total_length():
+    # a short line (total ~ 46 voxels) with a diamond bubble of perimeter 4·√2 ≈ 5.7 voxels:
+    # above 3 % of the total (1.4), at most small_loop = 8 voxels, so a bubble all the same
+    s = draw((40, 12, 3), [(0, 5), (20, 5), (21, 6), (22, 5), (39, 5)],
+             [(20, 5), (21, 4), (22, 5)], z=1)
+    t = data_tree(s)
+    d = t.diagnostics
+    assert d["small_cycles"] == 1 and d["cuts"] == [] and t.n_vertices == 4
+    assert d["dropped_branches"] == [pytest.approx(2 * R2)]
+    t0 = data_tree(s, small_loop=0)               # relative rule only: detached, a spurious leaf
+    assert t0.diagnostics["small_cycles"] == 0 and len(t0.diagnostics["cuts"]) == 1
+    assert t0.n_vertices == 5
+    with pytest.raises(InputError, match="small_loop"):
+        data_tree(s, small_loop=-1)
+
+
 def test_small_cycle_bubble_is_dropped_not_detached():
     # a long line with a diamond bubble: J1=(30,5) and J2=(34,5) joined by two paths of 4√2
     s = draw((500, 12, 3), [(0, 5), (30, 5), (32, 7), (34, 5), (499, 5)],

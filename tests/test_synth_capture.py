@@ -119,6 +119,36 @@ def test_separated_sampling(subject):
         assert body.min_gap() >= body.margin
 
 
+def test_limb_margin_separates_distinct_limbs_only():
+    """``margin=``: distinct limbs keep the wide clearance, one limb's bones (parent/child,
+    grandparent/grandchild links) keep the subject's anatomical one; recorded in gt.json."""
+    cap = synthetic_capture("human", frames=3, seed=4, cameras=2, size=(96, 72), separated=True,
+                            margin=0.075)
+    assert cap.gt["synth"]["limb_margin"] == 0.075 and cap.gt["synth"]["margin"] == 0.02
+    for f, body in zip(cap.frames, cap.options["bodies"]):
+        g = cap.gt["frames"][f]
+        assert g["separated"] is True and g["limb_gap"] >= 0.075 and g["gap"] >= 0.02
+        for gap, a, b in body.clearances():        # an independent check of every pair
+            assert gap >= body.required_margin(a, b) - 1e-9, (a, b, gap)
+    body = cap.options["bodies"][0]
+    assert body.required_margin("chest", "upperarm_l") == 0.02          # parent/child
+    assert body.required_margin("chest", "head") == 0.02                # grandparent (neck)
+    assert body.required_margin("hand_l", "head") == 0.075              # distinct limbs
+    assert body.required_margin("thigh_l", "thigh_r") == 0.075          # siblings
+    # the default is unchanged: every non-adjacent pair against the anatomical margin
+    plain = human({})
+    assert plain.limb_margin is None and plain.required_margin("hand_l", "head") == plain.margin
+    # the wide margin decides at the closest pair of distinct limbs, and only there
+    g = body.limb_gap()
+    assert g == min(c for c, a, b in body.clearances() if body.required_margin(a, b) > 0.02)
+    body.limb_margin = g - 1e-3
+    assert body.separated()
+    body.limb_margin = g + 1e-3
+    assert not body.separated()
+    with pytest.raises(InputError, match="margin"):
+        synthetic_capture("human", frames=1, cameras=2, size=(96, 72), separated=True, margin=-1)
+
+
 def test_folder_layout_and_calibration(tmp_path):
     out = synthesize(tmp_path / "cap", "human", frames=2, seed=3, cameras=3, size=(160, 120))
     files = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())

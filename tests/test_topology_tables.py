@@ -243,9 +243,116 @@ def test_encoding_round_trip_and_examples():
 def test_cache_on_disk_and_fast_reload(tables):
     path = cache_dir() / f"luts-{table_key()}.npy"
     assert path.exists()
-    code = ("import time; t=time.perf_counter(); from topopose.topology.tables import load_tables; "
+    code = ("import time, numpy; t=time.perf_counter(); from topopose.topology.tables import load_tables; "
             "t2=load_tables(); print(time.perf_counter()-t, int(t2[12, 12345]))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     dt, val = out.stdout.split()
     assert float(dt) < 1.0
     assert int(val) == int(tables[12, 12345])
+
+
+# ----------------------------------------------------------------------------- byte tables
+def test_byte_tables_match_bit_planes(tables):
+    """The packed byte tables (one read per configuration) equal the bit planes they pack."""
+    from topopose.topology.tables import BYTE_PLANES, load_byte_table, lookup
+
+    rng = np.random.default_rng(7)
+    idx = np.concatenate([rng.integers(0, 1 << 26, 400_000), np.arange(1 << 13),
+                          (1 << 26) - 1 - np.arange(1 << 13)])
+    for kind in ("d6", "pkd6"):
+        btab = load_byte_table(kind)
+        assert btab.shape == (1 << 26,) and btab.dtype == np.uint8
+        for k, plane in enumerate(BYTE_PLANES[kind]):
+            assert np.array_equal((btab[idx] >> k) & 1, lookup(plane, idx).astype(np.uint8)), (kind, k)
+
+
+def _ncomp2d(cells, adj):
+    cells, n = set(cells), 0
+    while cells:
+        stack = [cells.pop()]
+        n += 1
+        while stack:
+            a = stack.pop()
+            for b in [b for b in cells if adj(a, b)]:
+                cells.discard(b)
+                stack.append(b)
+    return n
+
+
+def _ack3_oracle(cfg):
+    """ACK3 byte and edge bits of one configuration from the coordinates (thesis §5.2.1,
+    ALGORITHMS.md §4): no shared code with the table builders."""
+    c = nb.config_cube(cfg)
+    at = lambda o: bool(c[o[0] + 1, o[1] + 1, o[2] + 1])  # noqa: E731
+    byte = 0
+    ring = [(u, v) for u in (-1, 0, 1) for v in (-1, 0, 1) if (u, v) != (0, 0)]
+    a8 = lambda a, b: max(abs(a[0] - b[0]), abs(a[1] - b[1])) == 1  # noqa: E731
+    a4 = lambda a, b: abs(a[0] - b[0]) + abs(a[1] - b[1]) == 1  # noqa: E731
+    for d, a in enumerate(nb.DIRECTIONS):
+        if not at(a):
+            continue
+        ax = int(np.flatnonzero(a)[0])
+        e1, e2 = (np.eye(3, dtype=int)[i] for i in range(3) if i != ax)
+        q = {(u, v): at(u * e1 + v * e2) or at(a + u * e1 + v * e2) for u, v in ring}
+        obj = [r for r in ring if q[r]]
+        bg = [r for r in ring if not q[r]]
+        t8 = _ncomp2d(obj, a8)
+        t4 = sum(1 for comp in _components(bg, a4) if any(abs(u) + abs(v) == 1 for u, v in comp))
+        if not (t8 == 1 and t4 == 1):
+            byte |= 1 << d
+    edges = 0
+    e = 0
+    for ax in range(3):
+        b1, b2 = (i for i in range(3) if i != ax)
+        for s1 in (1, -1):
+            for s2 in (1, -1):
+                f1 = np.zeros(3, int)
+                f1[b1] = s1
+                f2 = np.zeros(3, int)
+                f2[b2] = s2
+                axis = np.zeros(3, int)
+                axis[ax] = 1
+                quad = [np.zeros(3, int), f1, f2, f1 + f2]
+                diag = at(f1 + f2) or (at(f1) and at(f2))
+                hu = any(at(r + axis) for r in quad)
+                hv = any(at(r - axis) for r in quad)
+                if diag and hu == hv:
+                    edges |= 1 << e
+                e += 1
+    return byte, edges
+
+
+def _components(cells, adj):
+    cells, out = set(cells), []
+    while cells:
+        stack = [cells.pop()]
+        comp = set(stack)
+        while stack:
+            a = stack.pop()
+            for b in [b for b in cells if adj(a, b)]:
+                cells.discard(b)
+                comp.add(b)
+                stack.append(b)
+        out.append(comp)
+    return out
+
+
+def test_ack3_tables_match_definitions(tables):
+    """ACK3's byte table (2-clique geometry, simple, 1D isthmus) and 1-clique edge table
+    equal a coordinate-level transcription of the clique definitions on random
+    configurations (dense and sparse ones)."""
+    from topopose.topology.tables import load_ack3_edge_table, load_byte_table, lookup
+
+    btab = load_byte_table("ack3")
+    etab = load_ack3_edge_table()
+    rng = np.random.default_rng(11)
+    cfgs = [int(x) for x in rng.integers(0, 1 << 26, 300)]
+    for density in (0.2, 0.5, 0.8):
+        bits = rng.random((300, 26)) < density
+        cfgs += [int((b * (1 << np.arange(26))).sum()) for b in bits]
+    for cfg in cfgs:
+        byte, edges = _ack3_oracle(cfg)
+        assert int(btab[cfg]) & 63 == byte, cfg
+        assert (int(btab[cfg]) >> 6) & 1 == int(lookup(12, cfg)), cfg
+        assert (int(btab[cfg]) >> 7) & 1 == int(lookup(13, cfg)), cfg
+        assert int(etab[cfg]) == edges, cfg

@@ -156,6 +156,7 @@ def cmd_bench(a):
         scripts = [p for p in scripts if p.stem.startswith(a.stage)]
         if not scripts:
             raise InputError(f"topopose bench: no benchmark named {a.stage!r} in {bdir}")
+    sys.path.insert(0, str(bdir))  # the scripts share benchmarks/_machine.py
     for p in scripts:
         print(f"== {p.name}", flush=True)
         sys.argv = [str(p), *(["--quick"] if a.quick else [])]

@@ -27,6 +27,9 @@ The folder written by :func:`synthesize` is a capture folder exactly as DESIGN.m
 * ``separated``: no two limbs that do not share a joint come closer than the subject's margin
   (human, dog 2 cm; spider 8 mm; hand 4 mm); near a shared joint adjacent limbs are allowed to
   touch (:meth:`.synth_subjects.Body.clearances`). ``gap`` is the smallest such clearance (m).
+  With ``margin=`` (the limbs of ``separated`` poses at least that far apart, e.g. 3 voxels of
+  the working grid), ``separated`` tests distinct limbs against it and ``limb_gap`` is their
+  smallest clearance; ``synth.limb_margin`` records it.
 
 ``gt["synth"]`` records the generator's arguments.
 """
@@ -52,8 +55,10 @@ VOLUMES = {
     "hand": ((-0.15, -0.15, 0.85), (0.15, 0.15, 1.15), 0.012),
 }
 _MAX_TRIES = 400
-# flat subjects are seen from above (a ring at the subject's height sees a spider edge-on)
-ELEVATION = {"spider": 35.0}
+# flat subjects are seen from above (a ring at the subject's height sees a spider edge-on; a
+# hand, palm down at the cameras' height, is seen edge-on too: its visual hull was a blob with
+# fused fingers, its skeleton a web with no finger ends — hand captures look down at the hand)
+ELEVATION = {"spider": 35.0, "hand": 40.0}
 
 
 # ----------------------------------------------------------------------------- cameras
@@ -222,7 +227,7 @@ def _set_arm_part(body, vlo, vhi):
     return body
 
 
-def _random_frames(subject, n, rng, thickness, separated, vlo, vhi, margin):
+def _random_frames(subject, n, rng, thickness, separated, vlo, vhi, margin, limb_margin=None):
     build, sample = BUILD[subject], RANDOM[subject]
     axes = (0, 1, 2) if subject == "hand" else (0, 1)
     skip = ("forearm",) if subject == "hand" else ()
@@ -230,6 +235,7 @@ def _random_frames(subject, n, rng, thickness, separated, vlo, vhi, margin):
     for f in range(n):
         for _ in range(_MAX_TRIES):
             body = build(sample(rng), thickness)
+            body.limb_margin = limb_margin
             if separated and not body.separated():
                 continue
             body = _grounded(body.transformed(_orientation(subject, rng), np.zeros(3)), subject)
@@ -294,7 +300,8 @@ def _l(x):
 
 
 def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 480), noise=0,
-                      motion="random", thickness=1.0, separated=False, fps=25, out=None) -> Capture:
+                      motion="random", thickness=1.0, separated=False, fps=25, out=None, *,
+                      margin=None) -> Capture:
     """Synthetic capture in memory (``masks`` set, ``options["gt"]`` = the gt.json dict,
     ``options["bodies"]`` = the posed :class:`.synth_subjects.Body` of each frame, ``path`` None).
 
@@ -319,17 +326,30 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
         Random poses only: rejection-sample poses whose non-adjacent limbs keep clear of each
         other by the subject's margin (human 2 cm).
     fps : float
+    margin : float, optional
+        Clearance (m) that ``separated`` demands between distinct limbs (links that are not
+        parent/child or grandparent/grandchild; :meth:`.synth_subjects.Body.required_margin`),
+        instead of the subject's anatomical margin. The thesis' "limbs separated" (§13.2.2.1)
+        means separated *in the visual hull at the working resolution*: a 2 cm clearance is one
+        voxel at 100³ for a human, and touching hull voxels merge the limbs (and a hull is
+        larger than the body), so quality studies ask for a few voxels, e.g. ``3 × voxel size``
+        (``benchmarks/quality.py``). Recorded in gt.json (``synth.limb_margin``; per frame
+        ``limb_gap``, the smallest such clearance).
     out : path or None
         When given, the capture is also written there (as :func:`synthesize`).
     """
     _check_args(subject, frames, cameras, size, noise, motion, thickness, fps, separated)
     rng = np.random.default_rng(seed)
-    vlo, vhi, margin = (np.array(v, float) if i < 2 else v for i, v in enumerate(VOLUMES[subject]))
+    if margin is not None and not float(margin) >= 0:
+        raise InputError(f"synth: margin must be a clearance ≥ 0 in metres (got {margin})")
+    limb_margin = None if margin is None else float(margin)
+    vlo, vhi, place = (np.array(v, float) if i < 2 else v for i, v in enumerate(VOLUMES[subject]))
     if motion == "random":
-        bodies = _random_frames(subject, int(frames), rng, thickness, separated, vlo, vhi, margin)
+        bodies = _random_frames(subject, int(frames), rng, thickness, separated, vlo, vhi, place,
+                                limb_margin)
     else:
         bodies, vlo, vhi = _motion_frames(subject, motion, int(frames), float(fps), rng, thickness,
-                                          vlo, vhi, margin)
+                                          vlo, vhi, place)
     if subject == "hand":
         bodies = [_set_arm_part(b, vlo, vhi) for b in bodies]
     cams = camera_ring((vlo, vhi), int(cameras), (int(size[0]), int(size[1])), rng,
@@ -350,15 +370,19 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
             "parts": {k: _l(body.parts[k]) for k in PARTS[subject]},
             "segments": {k: [_l(body.segments[k][0]), _l(body.segments[k][1])] for k in PARTS[subject]},
             "joints": {k: _l(v) for k, v in body.joints.items()},
-            "separated": bool(gap >= body.margin),
+            "separated": bool(body.separated()),
             "gap": round(float(gap), 6),
         }
+        if body.limb_margin is not None:
+            gframes[name]["limb_gap"] = round(float(body.limb_gap()), 6)
     gt = {"subject": subject, "units": "m", "up": "+z",
           "height": round(subject_height(subject, thickness), 6),
           "parts": list(PARTS[subject]), "frames": gframes,
           "synth": {"seed": int(seed), "motion": motion, "noise": int(noise),
                     "thickness": float(thickness), "separated": bool(separated), "fps": float(fps),
-                    "margin": float(bodies[0].margin)}}
+                    "margin": float(bodies[0].margin),
+                    "limb_margin": None if bodies[0].limb_margin is None
+                    else float(bodies[0].limb_margin)}}
     cap = Capture(cams, names, None, "+z", "m", float(fps), (vlo.copy(), vhi.copy()),
                   {"gt": gt, "bodies": bodies}, masks)
     if out is not None:
@@ -367,13 +391,13 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
 
 
 def synthesize(out, subject="human", frames=10, seed=0, cameras=8, size=(640, 480), noise=0,
-               motion="random", thickness=1.0, separated=False, fps=25) -> Path:
+               motion="random", thickness=1.0, separated=False, fps=25, *, margin=None) -> Path:
     """Write a synthetic capture folder (DESIGN.md layout + gt.json) and return its path.
 
     Arguments as :func:`synthetic_capture`.
     """
     cap = synthetic_capture(subject, frames, seed, cameras, size, noise, motion, thickness,
-                            separated, fps)
+                            separated, fps, margin=margin)
     return write_capture(cap, out)
 
 

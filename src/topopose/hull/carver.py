@@ -263,12 +263,18 @@ class HullCarver:
             if not np.shares_memory(r, dst):
                 dst[...] = r
 
-    def carve(self, masks=None, tolerance: int = 0) -> np.ndarray:
+    def carve(self, masks=None, tolerance: int = 0, levels: bool = False) -> np.ndarray:
         """Boolean occupancy (nx, ny, nz) of the visual hull for the given silhouettes.
 
         ``masks=None`` reuses the silhouettes of the last :meth:`load_masks`. ``self.stats``
-        then holds the work counters and the bounding box of the result (see
-        :func:`.hull_kernels.carve`).
+        then holds the work counters, the number of set voxels and the bounding box of the
+        result (see :func:`.hull_kernels.carve`).
+
+        ``levels=True`` returns uint8 labels instead, from the same single pass: 2 for the
+        voxels all C cameras see as subject (the strict hull, tolerance 0), 1 for those seen by
+        C − ``tolerance`` … C − 1 cameras, 0 otherwise — so ``labels >= 1`` is the hull of
+        ``tolerance`` and ``labels == 2`` the strict one, for the price of one carve (used by
+        the consensus hull, :func:`topopose.hull.visual_hull` ``consensus=``).
         """
         if masks is not None:
             self.load_masks(masks)
@@ -280,8 +286,8 @@ class HullCarver:
         self.stats[:] = 0
         K.carve(self.shape[0], self.shape[1], self.shape[2], self.geo, self.intr, self._mflat,
                 self.moff, self._sflat, self.soff, self.rects, self.loff, self.ldims, self.lmin,
-                self.lmax, tolerance, out, self.stats)
-        return out.view(bool)
+                self.lmax, tolerance, bool(levels), out, self.stats)
+        return out if levels else out.view(bool)
 
     def project_voxels(self, ijk) -> np.ndarray:
         """Flat pixel index (row · w + column, or -1) of voxel centres ``ijk`` (n, 3) per camera."""

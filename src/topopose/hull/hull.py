@@ -279,7 +279,8 @@ def get_carver(cap, origin, voxel_size, shape) -> HullCarver:
 
 # --------------------------------------------------------------------------- main entry
 def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: bool = False,
-                keep_largest: bool = True, volume=None, masks=None) -> Volume:
+                keep_largest: bool = True, volume=None, masks=None, consensus: int | None = None,
+                max_removed: float = 0.2) -> Volume:
     """Volumetric visual hull of one frame (thesis §2.3.2.2).
 
     Parameters
@@ -300,13 +301,28 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
         Capture volume overriding ``cap.volume`` / the fitted one.
     masks : list of bool arrays, optional
         Silhouettes to use instead of ``cap.silhouettes(frame)``.
+    consensus : int, optional
+        The *consensus hull* (with ``tolerance`` > 0; ignored at 0): keep a tolerant voxel
+        only within ``consensus`` voxels (steps in the 26-neighbourhood; 0: the strict hull
+        itself) of the strict hull (tolerance 0) of the same grid, then the largest
+        26-component. See :func:`consensus_hull_labels` for the reason and the algorithm (one
+        carve gives both hulls). None: off.
+    max_removed : float
+        With ``consensus``: when the restriction would remove more than this fraction of the
+        tolerant hull's largest component, that component is kept as it is (one camera lost the
+        subject or much of it — what the tolerance is for; ``consensus_skipped`` in the
+        diagnostics).
 
     Returns
     -------
     Volume
-        ``diagnostics``: ``components_dropped`` (sizes of the dropped components, largest
-        first), ``voxels``, ``touches_border``, ``grid`` ("fixed" or "refocus"),
-        ``timings_ms`` (silhouettes, fit, setup, carve, components), ``work`` (kernel counters).
+        ``diagnostics``: ``components_dropped`` (sizes of the dropped components of the
+        (tolerant) hull, largest first), ``voxels``, ``touches_border``, ``grid`` ("fixed" or
+        "refocus"), ``timings_ms`` (silhouettes, fit, setup, carve, components — the latter
+        includes the consensus), ``work`` (kernel counters); with ``consensus``:
+        ``consensus_removed`` (voxels the restriction removed) or ``consensus_skipped``
+        (voxels it would have removed), and ``consensus`` (``repair``, ``strict_voxels``,
+        ``tolerant_voxels`` of the whole grid, ``path``: "one-pass" or "labelled").
 
     Raises
     ------
@@ -320,6 +336,14 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
         raise InputError(f"visual_hull: argument tolerance must be an integer in 0..{C - 1}, "
                          f"got {tolerance!r}")
     resolution, tolerance = int(resolution), int(tolerance)
+    if consensus is not None:
+        if isinstance(consensus, bool) or not isinstance(consensus, (int, np.integer)) or consensus < 0:
+            raise InputError(f"visual_hull: argument consensus must be None or an integer ≥ 0, "
+                             f"got {consensus!r}")
+        if not 0.0 <= float(max_removed) <= 1.0:
+            raise InputError(f"visual_hull: argument max_removed must be in [0, 1], got {max_removed!r}")
+        if tolerance == 0:
+            consensus = None            # the strict hull is its own consensus
     t = {}
     t0 = time.perf_counter()
     name = cap.frame_name(frame)
@@ -369,12 +393,23 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
     carver = get_carver(cap, origin, vs, shape)
     t["setup"] = (time.perf_counter() - t0) * 1e3
     t0 = time.perf_counter()
-    occ = carver.carve(masks, tolerance)
+    occ = carver.carve(masks, tolerance, levels=consensus is not None)
     st = carver.stats.copy()
     t["carve"] = (time.perf_counter() - t0) * 1e3
     t0 = time.perf_counter()
     dropped, nvox, touches = [], 0, False
-    if st[9] >= st[6]:
+    cdiag = {}
+    if consensus is not None:
+        if st[9] >= st[6]:
+            dropped, nvox, lo_i, hi_i, cdiag = consensus_hull_labels(
+                occ, st[6:9], st[9:12], int(consensus), float(max_removed), int(st[5]))
+            touches = bool(np.any(lo_i == 0) or np.any(hi_i == np.array(shape) - 1))
+        else:
+            empty = True
+            cdiag = {"consensus": {"repair": int(consensus), "strict_voxels": 0,
+                                   "tolerant_voxels": 0, "path": "one-pass"}}
+        occ = occ.view(bool)
+    elif st[9] >= st[6]:
         lo_i, hi_i = st[6:9].astype(int), st[9:12].astype(int)
         bb = tuple(slice(int(a), int(b) + 1) for a, b in zip(lo_i, hi_i))
         if keep_largest:
@@ -395,8 +430,114 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
             "grid": "refocus" if refocus else "fixed", "tolerance": tolerance,
             "empty": empty, "timings_ms": t,
             "work": {"blocks": int(st[0]), "voxel_tests": int(st[1]), "projections": int(st[2]),
-                     "full_blocks": int(st[3]), "empty_blocks": int(st[4])}}
+                     "full_blocks": int(st[3]), "empty_blocks": int(st[4])}, **cdiag}
     return Volume(occ, origin, vs, diag)
+
+
+def _label26(sub: np.ndarray) -> tuple:
+    """26-connected labels of a boolean / uint8 array and their number (cc3d, else scipy)."""
+    try:
+        import cc3d
+
+        return cc3d.connected_components(sub, connectivity=26, return_N=True)
+    except ImportError:
+        from scipy import ndimage
+
+        return ndimage.label(sub, structure=np.ones((3, 3, 3), bool))
+
+
+def consensus_hull_labels(lab: np.ndarray, lo, hi, repair: int = 1, max_removed: float = 0.2,
+                          ntol: int | None = None) -> tuple:
+    """The consensus hull from one carve's labels, in place (thesis §2.3.2.2).
+
+    A visual hull with tolerance k keeps the voxels seen as subject by C − k cameras
+    (§2.3.2.2): it survives a hole or an eroded border in one silhouette, but it also keeps the
+    *phantom volume* that only C − k cameras fail to carve — with a ring of cameras, regions
+    sticking out of the subject by up to ~20 cm that become skeleton branches matched as a head
+    or a hand (measured in ``benchmarks/quality.py``; see ``FrameEstimator``'s ``repair``). The
+    consensus hull keeps a tolerant voxel only within ``repair`` voxels (26-neighbourhood
+    steps) of the strict hull (tolerance 0) of the same grid — the strict hull's tunnels and
+    gaps of up to about 2 × ``repair`` voxels are mended, protrusions are not — and then the
+    largest 26-component T ∩ near of the tolerant hull's largest component T. When that would
+    remove more than ``max_removed`` of T, one camera lost the subject (or much of it): that is
+    what the tolerance is for, T is kept (phantom volume is a few percent of a hull, 2–5 % on
+    synthetic humans at 100³).
+
+    One carve (:meth:`HullCarver.carve` with ``levels=True``) labels both hulls (2 strict, 1
+    tolerant only); here, on the labels' bounding box only: a kernel marks the tolerant voxels
+    with a strict voxel within ``repair`` (:func:`.hull_kernels.consensus_near`), one
+    26-labelling (cc3d) gives its largest component L, and when |L| is more than half the
+    tolerant voxels L provably lies in T, whose size and other components follow from a
+    breadth-first grouping of the few tolerant voxels outside L
+    (:func:`.hull_kernels.consensus_select`). Otherwise (rare: the tolerant hull is split into
+    comparable pieces, or a silhouette is empty so the strict hull is) T is labelled
+    explicitly. Same result as carving both hulls, keeping T, dilating the strict hull in T's
+    bounding box and labelling again (tested); the dilation here is not limited to that box,
+    which only matters for ``repair`` ≥ 2.
+
+    Parameters
+    ----------
+    lab : uint8 array (nx, ny, nz)
+        Labels of the carve; overwritten with the result (0 / 1).
+    lo, hi : (3,) ints
+        Inclusive bounding box of the labelled voxels (``HullCarver.stats[6:12]``).
+    ntol : int, optional
+        Number of labelled voxels (``HullCarver.stats[5]``).
+
+    Returns
+    -------
+    (dropped, voxels, lo, hi, diagnostics)
+        Sizes of the tolerant hull's other components (largest first), voxels kept, the kept
+        voxels' bounding box, and the diagnostics entries (see :func:`visual_hull`).
+    """
+    lo = np.asarray(lo, dtype=np.int64)
+    hi = np.asarray(hi, dtype=np.int64)
+    box = tuple(slice(int(a), int(b) + 1) for a, b in zip(lo, hi))
+    sub = np.empty(tuple(int(b - a + 1) for a, b in zip(lo, hi)), dtype=np.uint8)
+    ntol_box, nstrict = K.consensus_near(lab, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2],
+                                         int(repair), sub)
+    ntol = int(ntol_box) if ntol is None else int(ntol)
+    info = {"repair": int(repair), "strict_voxels": int(nstrict), "tolerant_voxels": ntol}
+    cl, n = _label26(sub)
+    res = np.zeros(12, dtype=np.int64)
+    drop = np.empty(max(ntol, 1), dtype=np.int64)
+    K.consensus_select(lab, cl, int(n), lo[0], lo[1], lo[2], ntol, float(max_removed), sub, res,
+                       drop)
+    if res[0] == 0:
+        info["path"] = "one-pass"
+        dropped = sorted((int(x) for x in drop[: res[5]]), reverse=True)
+        nvox = int(res[1] if not res[4] else res[2])
+        removed, skipped = int(res[3]), bool(res[4])
+        nlo, nhi = res[6:9].copy(), res[9:12].copy()
+    else:                               # label the tolerant hull itself
+        info["path"] = "labelled"
+        view = lab[box]
+        tol = view != 0
+        near = sub.view(bool) if sub.dtype == np.uint8 else sub.astype(bool)
+        dropped = keep_largest_component(tol)
+        n_t = int(np.count_nonzero(tol))
+        keep = tol & near
+        if keep.any():
+            lab2, n2 = _label26(keep)
+            if n2 > 1:
+                sizes = np.bincount(lab2.ravel())
+                sizes[0] = 0
+                keep = lab2 == int(np.argmax(sizes))
+        n_k = int(np.count_nonzero(keep))
+        removed = n_t - n_k
+        skipped = removed > max_removed * n_t
+        out = tol if skipped else keep
+        view[...] = out
+        nvox = n_t if skipped else n_k
+        nlo, nhi = lo.copy(), hi.copy()
+        for ax in range(3):
+            other = tuple(a for a in range(3) if a != ax)
+            nz = np.flatnonzero(out.any(axis=other))
+            if nz.size:
+                nlo[ax], nhi[ax] = lo[ax] + nz[0], lo[ax] + nz[-1]
+    diag = {"consensus": info}
+    diag["consensus_skipped" if skipped else "consensus_removed"] = int(removed)
+    return dropped, nvox, nlo, nhi, diag
 
 
 def keep_largest_component(occ: np.ndarray, bbox=None) -> list:

@@ -109,18 +109,21 @@ def _rect_state(rects, row, sflat, soff, w, h, W):
 
 @njit(cache=True)
 def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, lmin, lmax,
-          tolerance, out, stats):
+          tolerance, levels, out, stats):
     """Hierarchical carving of the volumetric visual hull (thesis §2.3.2.2).
 
     A voxel is set in ``out`` (uint8, zeroed by the caller) when its centre projects inside the
-    silhouette in at least C − ``tolerance`` cameras. Blocks of 2^l voxels are classified per
+    silhouette in at least C − ``tolerance`` cameras: to 1, or with ``levels`` to 2 when all C
+    cameras see it as subject (the strict hull, tolerance 0) and 1 otherwise — the strict and
+    the tolerant hull in one pass (an all-inside block's miss count is exact; an undecided
+    voxel counts its misses exactly up to the early exit at ``tolerance + 1``). Blocks of 2^l voxels are classified per
     camera by their projected bounding rectangle against the summed-area table: all-outside
     (the camera rejects every voxel of the block), all-inside (it accepts every voxel), or
     undecided; undecided blocks are split in 8 down to level ``lmin``, whose voxels are tested
     one by one by exact projection (distortion included) with early exit.
 
-    ``stats`` (int64, ≥ 6): block tests, voxel tests, projections, full blocks, empty blocks,
-    and the bounding box of set voxels is written to ``stats[6:12]`` (imin, jmin, kmin, imax,
+    ``stats`` (int64, 12): block tests, voxel tests, projections, full blocks, empty blocks,
+    set voxels, and the bounding box of set voxels is written to ``stats[6:12]`` (imin, jmin, kmin, imax,
     jmax, kmax; imin > imax when nothing is set).
     """
     C = geo.shape[0]
@@ -157,6 +160,7 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
     nproj = 0
     nfull = 0
     nempty = 0
+    nset = 0
     bmin0 = nx
     bmin1 = ny
     bmin2 = nz
@@ -198,10 +202,12 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
         k1 = min(k0 + size, nz)
         if act == 0:
             nfull += 1
+            val = 2 if (levels and miss == 0) else 1
+            nset += (i1 - i0) * (j1 - j0) * (k1 - k0)
             for i in range(i0, i1):
                 for j in range(j0, j1):
                     for k in range(k0, k1):
-                        out[i, j, k] = 1
+                        out[i, j, k] = val
             bmin0 = min(bmin0, i0)
             bmin1 = min(bmin1, j0)
             bmin2 = min(bmin2, k0)
@@ -243,7 +249,8 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
                                 if m > tolerance:
                                     break
                     if m <= tolerance:
-                        out[i, j, k] = 1
+                        out[i, j, k] = 2 if (levels and m == 0) else 1
+                        nset += 1
                         bmin0 = min(bmin0, i)
                         bmin1 = min(bmin1, j)
                         bmin2 = min(bmin2, k)
@@ -255,6 +262,7 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
     stats[2] = nproj
     stats[3] = nfull
     stats[4] = nempty
+    stats[5] = nset
     stats[6] = bmin0
     stats[7] = bmin1
     stats[8] = bmin2
@@ -402,3 +410,167 @@ def union_up(r):
                         out[a, b, cc, q, 2] = x1
                         out[a, b, cc, q, 3] = y1
     return out
+
+
+@njit(cache=True)
+def consensus_near(lab, lo0, lo1, lo2, hi0, hi1, hi2, r, sub):
+    """Tolerant voxels near the strict hull, in the box ``lo..hi`` (inclusive) of ``lab``.
+
+    ``lab`` holds the labels of :func:`carve` with ``levels`` (2 strict, 1 tolerant only).
+    ``sub`` (box-shaped uint8) gets 1 where ``lab >= 1`` and some voxel within Chebyshev
+    distance ``r`` (``r`` steps in the 26-neighbourhood; clipped to the box, which holds every
+    labelled voxel) has label 2. Returns (tolerant voxels, strict voxels) of the box.
+    """
+    ntol = 0
+    nstrict = 0
+    for i in range(lo0, hi0 + 1):
+        for j in range(lo1, hi1 + 1):
+            for k in range(lo2, hi2 + 1):
+                v = lab[i, j, k]
+                if v == 0:
+                    sub[i - lo0, j - lo1, k - lo2] = 0
+                    continue
+                ntol += 1
+                if v == 2:
+                    nstrict += 1
+                    sub[i - lo0, j - lo1, k - lo2] = 1
+                    continue
+                near = 0
+                for a in range(max(i - r, lo0), min(i + r, hi0) + 1):
+                    for b in range(max(j - r, lo1), min(j + r, hi1) + 1):
+                        for c in range(max(k - r, lo2), min(k + r, hi2) + 1):
+                            if lab[a, b, c] == 2:
+                                near = 1
+                                break
+                        if near:
+                            break
+                    if near:
+                        break
+                sub[i - lo0, j - lo1, k - lo2] = near
+    return ntol, nstrict
+
+
+@njit(cache=True)
+def consensus_select(lab, cl, ncomp, lo0, lo1, lo2, ntol, max_removed, state, res, dropped):
+    """Largest 26-component of the consensus, and the tolerant hull's largest component,
+    written back into ``lab`` (box at ``lo``, shape of ``cl``) as 1 / 0.
+
+    ``cl``: 26-connected labels (1..``ncomp``) of tolerant-and-near voxels in the box;
+    ``state``: a box-shaped uint8 scratch array. Let L be the largest component of ``cl``
+    (lowest label among equals). When |L| > ``ntol`` / 2, L lies in the largest 26-component T
+    of the whole tolerant hull (the component holding L has more than half of its voxels) and
+    is therefore the largest component of T ∩ near. The tolerant voxels outside L are then
+    grouped into 26-components (breadth-first, over those voxels only): the groups adjacent to
+    L make up T \\ L, the others are exactly the tolerant hull's other components. So |T|
+    follows without labelling the tolerant hull. When more than ``max_removed`` · |T| voxels
+    would go, T is written instead of L (skipped).
+
+    ``res`` (int64, 12): status (0 done, -1 the shortcut does not apply: ``lab`` untouched),
+    |L|, |T|, removed, skipped, number of ``dropped`` sizes (the other tolerant components,
+    unsorted), the bounding box of the written voxels (imin, jmin, kmin, imax, jmax, kmax).
+    """
+    s0, s1, s2 = cl.shape
+    sizes = np.zeros(ncomp + 1, np.int64)
+    for i in range(s0):
+        for j in range(s1):
+            for k in range(s2):
+                sizes[cl[i, j, k]] += 1
+    best = 0
+    nL = 0
+    for q in range(1, ncomp + 1):
+        if sizes[q] > nL:
+            nL = sizes[q]
+            best = q
+    res[:] = 0
+    if 2 * nL <= ntol:
+        res[0] = -1
+        return
+    # state: 2 = L, 1 = other tolerant voxel (unvisited), 3 = visited, 0 = background
+    nR = 0
+    for i in range(s0):
+        for j in range(s1):
+            for k in range(s2):
+                if best > 0 and cl[i, j, k] == best:
+                    state[i, j, k] = 2
+                elif lab[lo0 + i, lo1 + j, lo2 + k] != 0:
+                    state[i, j, k] = 1
+                    nR += 1
+                else:
+                    state[i, j, k] = 0
+    order = np.empty(max(nR, 1), np.int64)
+    cstart = np.empty(nR + 1, np.int64)
+    ctouch = np.zeros(nR + 1, np.bool_)
+    ncomp_r = 0
+    tail = 0
+    nT = nL
+    nd = 0
+    for i in range(s0):
+        for j in range(s1):
+            for k in range(s2):
+                if state[i, j, k] != 1:
+                    continue
+                start = tail
+                state[i, j, k] = 3
+                order[tail] = (i * s1 + j) * s2 + k
+                tail += 1
+                head = start
+                touch = False
+                while head < tail:
+                    f = order[head]
+                    head += 1
+                    x = f // (s1 * s2)
+                    y = (f // s2) % s1
+                    z = f % s2
+                    for a in range(max(x - 1, 0), min(x + 1, s0 - 1) + 1):
+                        for b in range(max(y - 1, 0), min(y + 1, s1 - 1) + 1):
+                            for c in range(max(z - 1, 0), min(z + 1, s2 - 1) + 1):
+                                t = state[a, b, c]
+                                if t == 2:
+                                    touch = True
+                                elif t == 1:
+                                    state[a, b, c] = 3
+                                    order[tail] = (a * s1 + b) * s2 + c
+                                    tail += 1
+                cstart[ncomp_r] = start
+                ctouch[ncomp_r] = touch
+                ncomp_r += 1
+                if touch:
+                    nT += tail - start
+                else:
+                    dropped[nd] = tail - start
+                    nd += 1
+    cstart[ncomp_r] = tail
+    removed = nT - nL
+    skipped = removed > max_removed * nT
+    if skipped:
+        for q in range(ncomp_r):
+            if ctouch[q]:
+                for p in range(cstart[q], cstart[q + 1]):
+                    f = order[p]
+                    state[f // (s1 * s2), (f // s2) % s1, f % s2] = 2
+    bmin0, bmin1, bmin2 = s0, s1, s2
+    bmax0, bmax1, bmax2 = -1, -1, -1
+    for i in range(s0):
+        for j in range(s1):
+            for k in range(s2):
+                if state[i, j, k] == 2:
+                    lab[lo0 + i, lo1 + j, lo2 + k] = 1
+                    bmin0 = min(bmin0, i)
+                    bmin1 = min(bmin1, j)
+                    bmin2 = min(bmin2, k)
+                    bmax0 = max(bmax0, i)
+                    bmax1 = max(bmax1, j)
+                    bmax2 = max(bmax2, k)
+                else:
+                    lab[lo0 + i, lo1 + j, lo2 + k] = 0
+    res[1] = nL
+    res[2] = nT
+    res[3] = removed
+    res[4] = 1 if skipped else 0
+    res[5] = nd
+    res[6] = lo0 + bmin0
+    res[7] = lo1 + bmin1
+    res[8] = lo2 + bmin2
+    res[9] = lo0 + bmax0
+    res[10] = lo1 + bmax1
+    res[11] = lo2 + bmax2

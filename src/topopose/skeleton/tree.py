@@ -245,7 +245,7 @@ def _open_closed_loop(coords, nbr, comp_voxels):
 
 # --------------------------------------------------------------------------- main entry
 def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, weight="length",
-              *, small_cycle=0.03, labelling="voxels") -> Tree:
+              *, small_cycle=0.03, small_loop=8.0, labelling="voxels") -> Tree:
     """Build the data tree of a curve skeleton (thesis §7.3.3, Alg. 13).
 
     Parameters
@@ -272,6 +272,13 @@ def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, wei
         at a junction), not limbs touching: its longest branch is dropped
         instead of detached (``diagnostics["small_cycles"]``).  0 detaches all.
         Default 0.03 (see the module docstring for the measurement).
+    small_loop : float
+        A cycle whose perimeter is at most this many voxels is a bubble too,
+        whatever the skeleton's total length (0: off).  Eight voxels enclose a
+        tunnel under three voxels wide: two limbs touching enclose at least the
+        limbs' own length, while noisy visual hulls at 100³ hold tunnels of 6–7
+        voxels round that, detached, became two spurious leaves 3–4 voxels long
+        matched as a head or a hand (``benchmarks/quality.py``, human, noise 1).
     labelling : "voxels" or "ndimage"
         Component labelling by union-find on the voxel list (fast, default)
         or by :func:`scipy.ndimage.label` on the full grid; the results agree.
@@ -318,6 +325,9 @@ def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, wei
     origin, vs, border = _check_params(origin, voxel_size, border, weight, skel.shape)
     if not (isinstance(small_cycle, (int, float)) and 0 <= small_cycle <= 1):
         raise InputError(f"small_cycle: expected a fraction in [0, 1], got {small_cycle!r}")
+    if not (isinstance(small_loop, (int, float)) and not isinstance(small_loop, bool)
+            and 0 <= small_loop < math.inf):
+        raise InputError(f"small_loop: expected a number of voxels ≥ 0, got {small_loop!r}")
     if labelling not in ("voxels", "ndimage"):
         raise InputError(f"labelling: expected \"voxels\" or \"ndimage\", got {labelling!r}")
     shape = skel.shape
@@ -461,7 +471,7 @@ def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, wei
                 perimeter = length + float(np.linalg.norm(coords[eu] - coords[ev]))
             else:
                 perimeter = length + _tree_distances(nv, adj, u)[v]
-            if perimeter < small_cycle * total:
+            if perimeter < small_cycle * total or perimeter <= small_loop:
                 # a skeleton bubble (a small tunnel of the hull): two parallel paths for one
                 # stretch of limb; the longer one is dropped, nothing is detached
                 diag["small_cycles"] += 1

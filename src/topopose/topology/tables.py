@@ -31,7 +31,7 @@ import numpy as np
 
 from . import neighbourhood as nb
 
-TABLE_VERSION = 1
+TABLE_VERSION = 1  # bump when the encoding, the masks or the byte tables' layout change
 TABLE_SHAPE = (15, 1 << 23)
 
 
@@ -90,6 +90,87 @@ def load_tables() -> np.ndarray:
         os.replace(tmp, path)
     except OSError:
         pass  # read-only cache: keep the table in memory only
+    tab.setflags(write=False)
+    return tab
+
+
+#: bit planes packed into the byte tables (bit k of the byte = plane BYTE_PLANES[kind][k])
+BYTE_PLANES = {
+    "d6": (6, 7, 8, 9, 10, 11, 13, 14),    # M'_d for U..W, 1D isthmus, 2D isthmus
+    "pkd6": (0, 1, 2, 3, 4, 5, 12, 13),    # PKD6 M_d for U..W, simple, 1D isthmus
+}
+
+
+@lru_cache(maxsize=1)
+def load_ack3_edge_table() -> np.ndarray:
+    """ACK3 1-clique geometry, one uint16 per configuration (2^26, 128 MB; thesis §5.2.2,
+    Alg. 8 / Table 5.1): bit ``e`` = edge ``e`` of the voxel's cube has a diagonal pair
+    in X and its sets U and V both hit or both missed
+    (:func:`~topopose.topology.tables_kernels.build_ack3_edge_table`).  Cached beside
+    the bit planes (``luts-<key>-ack3e.npy``, memory-mapped).
+    """
+    path = cache_dir() / f"luts-{table_key()}-ack3e.npy"
+    if path.exists():
+        try:
+            arr = np.load(path, mmap_mode="r")
+            if arr.shape == (1 << 26,) and arr.dtype == np.uint16:
+                return np.asarray(arr)
+        except (OSError, ValueError):
+            pass
+    from .engine import _ack_bits
+    from .tables_kernels import build_ack3_edge_table
+
+    _, _, _, e_f1, e_f2, e_ed, e_u, e_v = _ack_bits()[:8]
+    tab = build_ack3_edge_table(e_f1, e_f2, e_ed, e_u, e_v)
+    _save(path, tab)
+    tab.setflags(write=False)
+    return tab
+
+
+def _save(path, tab):
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+        with open(tmp, "wb") as f:
+            np.save(f, tab)
+        os.replace(tmp, path)
+    except OSError:
+        pass  # read-only cache: keep the table in memory only
+
+
+@lru_cache(maxsize=None)
+def load_byte_table(kind: str) -> np.ndarray:
+    """Byte table of ``kind`` ("d6", "pkd6" or "ack3"): one uint8 per configuration (2^26, 64 MB).
+
+    For "d6" and "pkd6", bit ``k`` of entry ``c`` is plane ``BYTE_PLANES[kind][k]`` of
+    :func:`load_tables` for configuration ``c``: the six directional tests in bits 0–5
+    and two more in bits 6–7, so a single read serves every subiteration of a voxel
+    whose configuration has not changed (thesis §5.1.2; ALGORITHMS.md §5).  For
+    "ack3": bits 0–5 the 2-clique geometry of each face neighbour, bit 6 simple, bit 7
+    1D isthmus (:func:`~topopose.topology.tables_kernels.build_ack3_byte_table`, thesis
+    §5.2.2).  Derived from the bit planes and cached beside them
+    (``luts-<key>-<kind>.npy``, memory-mapped).
+    """
+    path = cache_dir() / f"luts-{table_key()}-{kind}.npy"
+    if path.exists():
+        try:
+            arr = np.load(path, mmap_mode="r")
+            if arr.shape == (1 << 26,) and arr.dtype == np.uint8:
+                return np.asarray(arr)
+        except (OSError, ValueError):
+            pass
+    if kind == "ack3":
+        from .engine import _ack_bits
+        from .tables_kernels import build_ack3_byte_table
+
+        c2_a, c2_b, ns2d = _ack_bits()[:3]
+        dir_bits = np.array([nb.bit_of(d) for d in nb.DIRECTIONS], dtype=np.int64)
+        tab = build_ack3_byte_table(load_tables(), c2_a, c2_b, ns2d, dir_bits)
+    else:
+        from .tables_kernels import pack_byte_table
+
+        tab = pack_byte_table(load_tables(), np.array(BYTE_PLANES[kind], dtype=np.int64))
+    _save(path, tab)
     tab.setflags(write=False)
     return tab
 

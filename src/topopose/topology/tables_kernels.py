@@ -167,3 +167,72 @@ def build_tables(pk_t, pk_n, d6_t, d6_n, dir_bits):
 @njit(cache=True, inline="always")
 def table_bit(tables, plane, cfg):
     return (tables[plane, cfg >> 3] >> (cfg & 7)) & 1
+
+
+@njit(cache=True, parallel=True)
+def pack_byte_table(tables, planes):
+    """One byte per configuration: bit ``k`` = plane ``planes[k]`` of the bit table.
+
+    ``tables`` (15, 2^23) bit planes; ``planes`` (8,) plane numbers.  Returns a 2^26
+    uint8 array, so one read answers the eight tests of a configuration (ALGORITHMS.md
+    §5, the packed-byte design).
+    """
+    nbytes = tables.shape[1]
+    out = np.empty(nbytes * 8, dtype=np.uint8)
+    for j in prange(nbytes):
+        for b in range(8):
+            v = 0
+            for k in range(8):
+                v |= ((tables[planes[k], j] >> b) & 1) << k
+            out[j * 8 + b] = np.uint8(v)
+    return out
+
+
+@njit(cache=True, parallel=True)
+def build_ack3_byte_table(tables, c2_a, c2_b, nonsimple2d, dir_bits):
+    """ACK3 byte table (thesis §5.2.2, Alg. 8; ALGORITHMS.md §4), one uint8 per configuration.
+
+    Bit ``d`` (0–5): the d-neighbour is an object voxel and R, the centre column of the
+    3×3×2 block around the face shared with it, is not simple in the 2D section
+    (``nonsimple2d`` of the 8-bit section, ``c2_a/c2_b`` the bits of its columns): the
+    2-clique {p, p + d} is critical when both its voxels are simple and unconstrained.
+    Bit 6: simple (plane 12 of ``tables``); bit 7: 1D isthmus (plane 13).
+    """
+    n = tables.shape[1] * 8
+    out = np.empty(n, dtype=np.uint8)
+    for c in prange(n):
+        cfg = np.int64(c)
+        v = 0
+        for d in range(6):
+            if (cfg >> dir_bits[d]) & 1 == 0:
+                continue
+            s8 = 0
+            for k in range(8):
+                if ((cfg >> c2_a[d, k]) | (cfg >> c2_b[d, k])) & 1:
+                    s8 |= 1 << k
+            if nonsimple2d[s8]:
+                v |= 1 << d
+        v |= ((tables[12, c >> 3] >> (c & 7)) & 1) << 6
+        v |= ((tables[13, c >> 3] >> (c & 7)) & 1) << 7
+        out[c] = np.uint8(v)
+    return out
+
+
+@njit(cache=True, parallel=True)
+def build_ack3_edge_table(e_f1, e_f2, e_ed, e_u, e_v):
+    """ACK3 1-clique geometry (thesis §5.2.1, Def. 3; ALGORITHMS.md §4), one uint16 per
+    configuration: bit ``e`` (0–11) when, around edge ``e`` of p's cube, X ∩ {E, F, G, H}
+    holds a diagonal pair (p and the edge neighbour, or the two face neighbours) and
+    the voxel sets U and V on either side are both hit or both missed by X.
+    """
+    n = 1 << 26
+    out = np.empty(n, dtype=np.uint16)
+    for c in prange(n):
+        cfg = np.int64(c)
+        v = 0
+        for e in range(12):
+            diag = ((cfg >> e_ed[e]) & 1) | ((cfg >> e_f1[e]) & (cfg >> e_f2[e]) & 1)
+            if diag and ((cfg & e_u[e]) != 0) == ((cfg & e_v[e]) != 0):
+                v |= 1 << e
+        out[c] = np.uint16(v)
+    return out

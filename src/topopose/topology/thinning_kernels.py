@@ -7,8 +7,11 @@ for an object voxel ``p``.  Options (thesis §5.1–5.3):
 * ``border_list``: test only voxels of the border list (object voxels 6-adjacent to the
   background); when a voxel is deleted its object 6-neighbours join the list (§5.1.1).
   Without it, every object voxel is tested in every subiteration.
-* ``lut``: one read of the 2^26 bit tables replaces the mask test / the component
-  counting (§5.1.2, §5.2).
+* ``lut``: table reads replace the mask test / the component counting (§5.1.2, §5.2):
+  one read of a 2^26-entry byte table (:func:`topopose.topology.tables.load_byte_table`)
+  answers, for a configuration, the six directional tests and the isthmus test (or, for
+  ACK3, the simple and isthmus tests and the 2-clique geometry; its 1-clique geometry
+  is a uint16 table); the sequential completion reads the simple bit plane.
 * ``ccsu`` (configuration computation speed-up, §5.3), an int mode: 0 gathers the 26
   neighbours at every test; 1 ("rows") keeps, in bits 5–7 of every voxel's state
   byte, the object bits of its z-triplet (z−1, z, z+1), updated by 3 writes per
@@ -177,6 +180,15 @@ def _delete(vol, dl, ndel, lst, n, offs, opp, off6, border_list, ccsu, words):
 
 
 @njit(cache=True, inline="always")
+def _lowbit(g):
+    """Index of the lowest set bit of ``g`` > 0."""
+    k = 0
+    while (g >> k) & 1 == 0:
+        k += 1
+    return k
+
+
+@njit(cache=True, inline="always")
 def _popcount(c):
     n = 0
     while c:
@@ -233,8 +245,8 @@ def sequential_completion(vol, lst, n, offs, tables, lut, keep_end_points):
 
 
 @njit(cache=True, inline="always")
-def _delete_directional(vol, dl, ndel, lst, n, offs, opp, off6, opp6, border_list, ccsu, words,
-                        bk, nbk, d):
+def _delete_directional(vol, dl, ndel, lst, lcf, n, offs, opp, off6, opp6, border_list, ccsu,
+                        words, bk, bkv, nbk, d):
     """Delete the collected voxels of subiteration ``d`` at once.
 
     Updates the z-triplet bits (and the CCSU words), appends new border voxels to the
@@ -258,10 +270,12 @@ def _delete_directional(vol, dl, ndel, lst, n, offs, opp, off6, opp6, border_lis
             e = opp6[k]  # p is q's neighbour in direction e: q is now exposed in e
             if e > d:
                 bk[e, nbk[e]] = q
+                bkv[e, nbk[e]] = -1  # configuration not read yet
                 nbk[e] += 1
             if border_list and st & LISTED == 0:
                 vol[q] = st | LISTED
                 lst[n] = q
+                lcf[n] = -1  # not tested yet
                 n += 1
                 if ccsu == 2:
                     words[q] = gather(vol, q, offs)
@@ -275,31 +289,31 @@ def make_directional_thin(lut=None, ccsu=None):
     Numba caches each specialization on disk): tested at run time inside the hot
     loops they cost a factor 2–3.  With ``None`` the kernel reads them from its last
     two arguments (one generic kernel serves every combination).  Signature:
-    ``(vol, offs, opp, off6, tables, plane0, templates, tcount, psi, border_list,
+    ``(vol, offs, opp, off6, tables, btab, plane0, templates, tcount, psi, border_list,
     finish, stats, lut, ccsu, n_obj) -> (iterations, deleted)``; see
     :func:`_directional_body` (``n_obj`` < 0 when :func:`fill_state` was not used).
     """
     if lut is None or ccsu is None:
         @njit(cache=True)
-        def directional_generic(vol, offs, opp, off6, tables, plane0, templates, tcount, psi,
-                                border_list, finish, stats, lut_, ccsu_, n_obj):
-            return _directional_body(vol, offs, opp, off6, tables, plane0, templates, tcount, psi,
-                                     border_list, lut_, ccsu_, finish, stats, n_obj)
+        def directional_generic(vol, offs, opp, off6, tables, btab, plane0, templates, tcount,
+                                psi, border_list, finish, stats, lut_, ccsu_, n_obj):
+            return _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tcount,
+                                     psi, border_list, lut_, ccsu_, finish, stats, n_obj)
 
         return directional_generic
     lut = bool(lut)
 
     @njit(cache=True)
-    def directional_thin(vol, offs, opp, off6, tables, plane0, templates, tcount, psi,
+    def directional_thin(vol, offs, opp, off6, tables, btab, plane0, templates, tcount, psi,
                          border_list, finish, stats, lut_, ccsu_, n_obj):
-        return _directional_body(vol, offs, opp, off6, tables, plane0, templates, tcount, psi,
-                                 border_list, lut, ccsu, finish, stats, n_obj)
+        return _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tcount,
+                                 psi, border_list, lut, ccsu, finish, stats, n_obj)
 
     return directional_thin
 
 
 @njit(cache=True, inline="always")
-def _directional_body(vol, offs, opp, off6, tables, plane0, templates, tcount,
+def _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tcount,
                       psi, border_list, lut, ccsu, finish, stats, n_obj):
     """6-directional thinning: PKD6 (Alg. 10) or D6I1D/D6U/D6I2D (Alg. 11–12).
 
@@ -312,8 +326,16 @@ def _directional_body(vol, offs, opp, off6, tables, plane0, templates, tcount,
     they are exposed (their neighbour is background); subiteration d then tests only
     bucket d — every mask of direction d needs the d-neighbour in the background —
     plus the voxels that earlier subiterations of the iteration exposed in d.
+    The list also keeps each voxel's configuration and byte of the previous
+    iteration, so an unchanged configuration is not looked up again.
     ``finish``: 0 none, 1 :func:`sequential_completion` keeping end points (curve
     skeletons), 2 without keeping them (ultimate skeletons).
+    With ``lut`` the tests read ``btab``, the byte table of the mask set
+    (:func:`topopose.topology.tables.load_byte_table`: bits 0–5 the six directions,
+    bit 5 + psi the isthmus test): one read per configuration gives the isthmus test
+    and all six directional answers, and each bucket entry keeps the configuration and
+    byte read in the first pass, so a later subiteration re-reads the table only when
+    a deletion has changed the voxel's configuration.
     ``stats`` (int64, 5) receives the number of list visits, of deletion tests, of
     isthmus tests, the initial list size and the voxels deleted by the completion.
     Returns (iterations, deleted voxels).
@@ -324,6 +346,9 @@ def _directional_body(vol, offs, opp, off6, tables, plane0, templates, tcount,
     cap = lst.size
     dl = np.empty(cap, dtype=np.int64)
     bk = np.empty((6, cap), dtype=np.int64)
+    bkv = np.empty((6, cap), dtype=np.int64)  # configuration | byte << 32 (-1: unknown)
+    lcf = np.empty(cap, dtype=np.int64)  # configuration | byte << 32 at the last first pass
+    lcf[:n] = -1  # (the rest is written when voxels join the list)
     nbk = np.zeros(6, dtype=np.int64)
     opp6 = np.array([1, 0, 3, 2, 5, 4])
     fbit = np.empty(6, dtype=np.int64)  # bit of the face neighbour of each direction
@@ -348,27 +373,38 @@ def _directional_body(vol, offs, opp, off6, tables, plane0, templates, tcount,
             if vol[p] & OBJ == 0:
                 continue
             cfg = _cfg(vol, p, offs, words, ccsu)
+            b = np.int64(0)
+            if lut:
+                cb = lcf[i]  # configuration | byte << 32 of the previous iteration
+                b = (cb >> 32) if (cb & 0xFFFFFFFF) == cfg else np.int64(btab[cfg])
             if psi != 0:
                 itests += 1
-                if _isthmus(cfg, psi, tables, lut):
+                if lut:
+                    isth = (b >> (5 + psi)) & 1 != 0
+                else:
+                    isth = _isthmus(cfg, psi, tables, lut)
+                if isth:
                     vol[p] |= KEPT  # constrained voxels leave the list for good
                     continue
             lst[m] = p
+            lcf[m] = cfg | (b << 32)
             m += 1
             # subiteration U (d = 0) is tested here, on the same configuration: nothing
             # has been deleted yet in this iteration
             if (cfg >> fbit[0]) & 1 == 0:
                 tests += 1
                 if lut:
-                    ok = table_bit(tables, plane0, cfg) != 0
+                    ok = b & 1 != 0
                 else:
                     ok = match_set(cfg, templates, 0, tcount[0])
                 if ok:
                     dl[ndel] = p
                     ndel += 1
+            cb = cfg | (b << 32)
             for d in range(1, 6):
                 if (cfg >> fbit[d]) & 1 == 0:
                     bk[d, nbk[d]] = p
+                    bkv[d, nbk[d]] = cb
                     nbk[d] += 1
         n = m
         deleted = 0
@@ -383,15 +419,17 @@ def _directional_body(vol, offs, opp, off6, tables, plane0, templates, tcount,
                     continue
                 cfg = _cfg(vol, p, offs, words, ccsu)
                 if lut:
-                    ok = table_bit(tables, plane0 + d, cfg) != 0
+                    cb = bkv[d, i]
+                    b = (cb >> 32) if (cb & 0xFFFFFFFF) == cfg else np.int64(btab[cfg])
+                    ok = (b >> d) & 1 != 0
                 else:
                     ok = match_set(cfg, templates, d, tcount[d])
                 if ok:
                     dl[ndel] = p
                     ndel += 1
             if ndel:
-                n = _delete_directional(vol, dl, ndel, lst, n, offs, opp, off6, opp6, border_list,
-                                        ccsu, words, bk, nbk, d)
+                n = _delete_directional(vol, dl, ndel, lst, lcf, n, offs, opp, off6, opp6,
+                                        border_list, ccsu, words, bk, bkv, nbk, d)
                 deleted += ndel
         total += deleted
         if deleted == 0:
@@ -408,15 +446,15 @@ def _directional_body(vol, offs, opp, off6, tables, plane0, templates, tcount,
 # ----------------------------------------------------------------------------- ACK3
 def make_ack3_thin(lut=None, ccsu=None):
     """ACK3 kernel specialized for (lut, ccsu), or generic with ``None`` (see
-    :func:`make_directional_thin`); signature ``(vol, offs, opp, off6, tables, psi,
+    :func:`make_directional_thin`); signature ``(vol, offs, opp, off6, tables, btab, etab, psi,
     border_list, c2_a, c2_b, nonsimple2d, e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff,
     k_bits, k_span, k_ooff, lut, ccsu, n_obj) -> (iterations, deleted)``."""
     if lut is None or ccsu is None:
         @njit(cache=True)
-        def ack3_generic(vol, offs, opp, off6, tables, psi, border_list, c2_a, c2_b, nonsimple2d,
+        def ack3_generic(vol, offs, opp, off6, tables, btab, etab, psi, border_list, c2_a, c2_b, nonsimple2d,
                          e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff, k_bits, k_span, k_ooff,
                          lut_, ccsu_, n_obj):
-            return _ack3_body(vol, offs, opp, off6, tables, psi, border_list, lut_, ccsu_, c2_a,
+            return _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut_, ccsu_, c2_a,
                               c2_b, nonsimple2d, e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff,
                               k_bits, k_span, k_ooff, n_obj)
 
@@ -424,10 +462,10 @@ def make_ack3_thin(lut=None, ccsu=None):
     lut = bool(lut)
 
     @njit(cache=True)
-    def ack3_thin(vol, offs, opp, off6, tables, psi, border_list, c2_a, c2_b, nonsimple2d,
+    def ack3_thin(vol, offs, opp, off6, tables, btab, etab, psi, border_list, c2_a, c2_b, nonsimple2d,
                   e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff, k_bits, k_span, k_ooff,
                   lut_, ccsu_, n_obj):
-        return _ack3_body(vol, offs, opp, off6, tables, psi, border_list, lut, ccsu, c2_a, c2_b,
+        return _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, ccsu, c2_a, c2_b,
                           nonsimple2d, e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff, k_bits,
                           k_span, k_ooff, n_obj)
 
@@ -435,7 +473,7 @@ def make_ack3_thin(lut=None, ccsu=None):
 
 
 @njit(cache=True, inline="always")
-def _ack3_body(vol, offs, opp, off6, tables, psi, border_list, lut, ccsu,
+def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, ccsu,
                c2_a, c2_b, nonsimple2d,
                e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff,
                k_bits, k_span, k_ooff, n_obj):
@@ -462,6 +500,13 @@ def _ack3_body(vol, offs, opp, off6, tables, psi, border_list, lut, ccsu,
     neighbour around the edge, masks of U and V, bits and flat offsets of the other 3
     voxels.  ``k_*`` (8 cubes): bits of the 7 other voxels, (3,) masks of the voxels
     beyond the vertex along x, y, z, flat offsets of the 7 others.
+    With ``lut``, one read of ``btab``, the ACK3 byte table
+    (:func:`topopose.topology.tables.load_byte_table`), gives the simple and 1D-isthmus
+    tests and the 2-clique geometry towards the six face neighbours (bits 0–5), so the
+    2-clique pass only checks which of those neighbours are in S; one read of
+    ``etab`` (:func:`topopose.topology.tables.load_ack3_edge_table`) gives the edges
+    whose 1-clique has the critical geometry, so the 1-clique pass only checks that
+    their voxels are in S.
     Returns (iterations, deleted voxels).
     """
     words = np.empty(vol.size if ccsu == 2 else 1, dtype=np.uint32)
@@ -478,13 +523,22 @@ def _ack3_body(vol, offs, opp, off6, tables, psi, border_list, lut, ccsu,
             if vol[p] & OBJ == 0:
                 continue
             cfg = _cfg(vol, p, offs, words, ccsu)
-            if psi != 0 and _isthmus(cfg, psi, tables, lut):
+            if lut:  # one read of the ACK3 byte table: bit 6 simple, bit 7 1D isthmus
+                b = btab[cfg]
+                cf[m] = cfg | (np.int64(b) << 32)
+                isth = (b >> 7) & 1 != 0 if psi == 1 else _isthmus(cfg, psi, tables, lut)
+                simple = (b >> 6) & 1 != 0
+            else:
+                isth = psi != 0 and _isthmus(cfg, psi, tables, lut)
+                simple = _simple(cfg, tables, lut)
+            if isth:
                 vol[p] |= KEPT
                 continue
             lst[m] = p
-            cf[m] = cfg
+            if not lut:
+                cf[m] = cfg
             m += 1
-            if _simple(cfg, tables, lut):
+            if simple:
                 vol[p] |= INS
         n = m
         # 2-cliques
@@ -493,6 +547,15 @@ def _ack3_body(vol, offs, opp, off6, tables, psi, border_list, lut, ccsu,
             if vol[p] & INS == 0:
                 continue
             cfg = cf[i]
+            if lut:  # bits 0-5 of the byte: the 2-clique towards d has R non-simple
+                g = (cfg >> 32) & 63
+                while g:
+                    d = _lowbit(g)
+                    g &= g - 1
+                    if vol[p + off6[d]] & INS:
+                        vol[p] &= ~np.uint8(INS)
+                        break
+                continue
             for d in range(6):
                 if vol[p + off6[d]] & INS == 0:
                     continue
@@ -508,15 +571,19 @@ def _ack3_body(vol, offs, opp, off6, tables, psi, border_list, lut, ccsu,
             p = lst[i]
             if vol[p] & INS == 0:
                 continue
-            cfg = cf[i]
-            for e in range(12):
-                diag = ((cfg >> e_ed[e]) & 1) or (((cfg >> e_f1[e]) & 1) and ((cfg >> e_f2[e]) & 1))
-                if not diag:
-                    continue
-                hu = (cfg & e_u[e]) != 0
-                hv = (cfg & e_v[e]) != 0
-                if hu != hv:
-                    continue
+            cfg = cf[i] & 0x3FFFFFF
+            g = np.int64(etab[cfg]) if lut else np.int64(0xFFF)
+            while g:
+                e = _lowbit(g)
+                g &= g - 1
+                if not lut:
+                    diag = ((cfg >> e_ed[e]) & 1) or (((cfg >> e_f1[e]) & 1) and ((cfg >> e_f2[e]) & 1))
+                    if not diag:
+                        continue
+                    hu = (cfg & e_u[e]) != 0
+                    hv = (cfg & e_v[e]) != 0
+                    if hu != hv:
+                        continue
                 inside = True
                 for k in range(3):
                     if (cfg >> e_others[e, k]) & 1 and vol[p + e_ooff[e, k]] & INS == 0:
@@ -530,7 +597,7 @@ def _ack3_body(vol, offs, opp, off6, tables, psi, border_list, lut, ccsu,
             p = lst[i]
             if vol[p] & INS == 0:
                 continue
-            cfg = cf[i]
+            cfg = cf[i] & 0x3FFFFFF
             for c in range(8):
                 # essential 0-clique: M has voxels on both sides of the vertex along x, y and z
                 if (cfg & k_span[c, 0]) == 0 or (cfg & k_span[c, 1]) == 0 or (cfg & k_span[c, 2]) == 0:
@@ -618,3 +685,113 @@ def bounding_box_rows(vol, rows):
                 z -= 1
             hi[2] = max(hi[2], z)
     return lo, hi
+
+
+@njit(cache=True)
+def bounding_box(data):
+    """(lo, hi, rows) of the nonzero voxels of a 3D uint8 array: bounds (lo > hi if
+    none) and ``rows[x, y]`` = 1 when row (x, y) holds a nonzero voxel.
+
+    Every row is first tested with a branch-free OR reduction (vectorized), and only
+    the nonzero rows are searched for their first and last voxel beyond the current
+    bounds, so the pass costs about one cycle per 16–32 voxels.
+    """
+    nx, ny, nz = data.shape
+    rows = np.zeros((nx, ny), dtype=np.uint8)
+    lo = np.array([nx, ny, nz], dtype=np.int64)
+    hi = np.array([-1, -1, -1], dtype=np.int64)
+    for x in range(nx):
+        for y in range(ny):
+            row = data[x, y]
+            acc = np.uint8(0)
+            for z in range(nz):
+                acc |= row[z]
+            if acc == 0:
+                continue
+            rows[x, y] = 1
+            lo[0] = min(lo[0], x)
+            hi[0] = max(hi[0], x)
+            lo[1] = min(lo[1], y)
+            hi[1] = max(hi[1], y)
+            z = 0
+            while z < lo[2] and row[z] == 0:
+                z += 1
+            lo[2] = min(lo[2], z)
+            z = nz - 1
+            while z > hi[2] and row[z] == 0:
+                z -= 1
+            hi[2] = max(hi[2], z)
+    return lo, hi, rows
+
+
+@njit(cache=True)
+def fill_state_rows(data, keep, lo, hi, rows, vol):
+    """Fill ``vol``, the padded state array of ``data[lo:hi+1]`` (3D uint8 views of
+    bool arrays; ``vol`` flat, zero, of size (hi - lo + 3).prod()).
+
+    As :func:`fill_state` (same result), with branch-free row loops: each object row
+    is copied once into a zero-framed buffer, from which the OBJ bit and the z-triplet
+    bits of the whole row are written in one vectorizable loop; rows without object
+    voxels are not touched.  Returns (``vol``, its shape, object voxels).
+    """
+    nx = hi[0] - lo[0] + 1
+    ny = hi[1] - lo[1] + 1
+    nz = hi[2] - lo[2] + 1
+    sx, sy, sz = nx + 2, ny + 2, nz + 2
+    has_keep = keep.size > 0
+    buf = np.zeros(nz + 2, dtype=np.uint8)
+    n_obj = 0
+    for x in range(nx):
+        for y in range(ny):
+            if not rows[lo[0] + x, lo[1] + y]:
+                continue
+            src = data[lo[0] + x, lo[1] + y, lo[2]:lo[2] + nz]
+            cnt = 0
+            for z in range(nz):
+                b = src[z] & 1
+                buf[z + 1] = b
+                cnt += b
+            n_obj += cnt
+            base = ((x + 1) * sy + (y + 1)) * sz + 1
+            for z in range(nz):
+                vol[base + z] = buf[z + 1] | ((buf[z] | (buf[z + 1] << 1) | (buf[z + 2] << 2)) << R3)
+            if has_keep:
+                ks = keep[lo[0] + x, lo[1] + y, lo[2]:lo[2] + nz]
+                for z in range(nz):
+                    if buf[z + 1] and ks[z]:
+                        vol[base + z] |= KEPT
+    return vol, np.array([sx, sy, sz]), n_obj
+
+
+@njit(cache=True)
+def extract(vol, shape, lo, out, kout):
+    """Write the result back: ``out[lo + (x, y, z)] = 1`` for the object voxels of the
+    padded state array ``vol`` (flat, ``shape``) and ``kout`` for those also in K.
+
+    ``out`` and ``kout`` are zero uint8 views of the full-size results; the scan skips
+    8-byte words without an OBJ bit, and only the (few) surviving voxels are written,
+    so the untouched pages of the outputs are never faulted in.
+    Returns the number of object voxels.
+    """
+    sx, sy, sz = shape[0], shape[1], shape[2]
+    n8 = vol.size // 8
+    v64 = vol[: n8 * 8].view(np.uint64)
+    objm = np.uint64(0x0101010101010101)
+    cnt = 0
+    for w in range(n8 + 1):
+        if w < n8 and v64[w] & objm == 0:
+            continue
+        for p in range(8 * w, min(8 * w + 8, vol.size)):
+            st = vol[p]
+            if st & OBJ == 0:
+                continue
+            x = p // (sy * sz)
+            r = p - x * (sy * sz)
+            y = r // sz
+            z = r - y * sz
+            i, j, k = lo[0] + x - 1, lo[1] + y - 1, lo[2] + z - 1
+            out[i, j, k] = 1
+            if st & KEPT:
+                kout[i, j, k] = 1
+            cnt += 1
+    return cnt

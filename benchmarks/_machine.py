@@ -1,0 +1,30 @@
+"""The machine a benchmark ran on, recorded beside its figures."""
+import datetime
+import os
+import platform
+import subprocess
+
+
+def machine(**extra) -> dict:
+    """CPU model, cores, load, library versions and date; ``extra`` items are added as given."""
+    import numba
+    import numpy as np
+
+    model = platform.processor() or ""
+    try:
+        out = subprocess.run(["lscpu"], capture_output=True, text=True).stdout
+        for line in out.splitlines():
+            if line.startswith("Model name"):
+                model = line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    try:
+        load = round(os.getloadavg()[0], 2)
+    except OSError:
+        load = None
+    info = {"cpu": model, "cores": os.cpu_count(), "load_average": load,
+            "python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
+            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+            "threads": "NUMBA_NUM_THREADS=" + os.environ.get("NUMBA_NUM_THREADS", "unset")}
+    info.update(extra)
+    return info

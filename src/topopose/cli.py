@@ -36,7 +36,7 @@ def cmd_synth(a):
 
     out = synthesize(a.out, subject=a.subject, frames=a.frames, seed=a.seed, cameras=a.cameras,
                      size=a.size, noise=a.noise, motion=a.motion, thickness=a.thickness,
-                     separated=a.separated, fps=a.fps)
+                     separated=a.separated, fps=a.fps, margin=a.margin)
     print(f"wrote {out}: {a.subject}, {a.frames} frames, {a.cameras} cameras ({a.motion})")
     return 0
 
@@ -194,6 +194,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--separated", action="store_true",
                    help="random poses only: no two non-adjacent limbs touch")
     s.add_argument("--fps", type=float, default=25.0, help="frame rate of motion sequences")
+    s.add_argument("--margin", type=float, default=None,
+                   help="with --separated: smallest gap between limbs, in metres (e.g. 3 voxels)")
     s.set_defaults(func=cmd_synth)
 
     s = sub.add_parser("hull", help="volumetric visual hull of one frame")

@@ -494,15 +494,16 @@ def consensus_hull_labels(lab: np.ndarray, lo, hi, repair: int = 1, max_removed:
     hi = np.asarray(hi, dtype=np.int64)
     box = tuple(slice(int(a), int(b) + 1) for a, b in zip(lo, hi))
     sub = np.empty(tuple(int(b - a + 1) for a, b in zip(lo, hi)), dtype=np.uint8)
-    ntol_box, nstrict = K.consensus_near(lab, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2],
-                                         int(repair), sub)
-    ntol = int(ntol_box) if ntol is None else int(ntol)
+    idx = np.empty(sub.size if ntol is None else max(int(ntol), 1), dtype=np.int64)
+    ntol, nstrict = K.consensus_near(lab, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], int(repair),
+                                     sub, idx)
+    ntol = int(ntol)
     info = {"repair": int(repair), "strict_voxels": int(nstrict), "tolerant_voxels": ntol}
     cl, n = _label26(sub)
     res = np.zeros(12, dtype=np.int64)
     drop = np.empty(max(ntol, 1), dtype=np.int64)
-    K.consensus_select(lab, cl, int(n), lo[0], lo[1], lo[2], ntol, float(max_removed), sub, res,
-                       drop)
+    K.consensus_select(lab, cl, int(n), lo[0], lo[1], lo[2], idx, ntol, float(max_removed), sub,
+                       res, drop)
     if res[0] == 0:
         info["path"] = "one-pass"
         dropped = sorted((int(x) for x in drop[: res[5]]), reverse=True)

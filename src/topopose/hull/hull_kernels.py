@@ -413,23 +413,28 @@ def union_up(r):
 
 
 @njit(cache=True)
-def consensus_near(lab, lo0, lo1, lo2, hi0, hi1, hi2, r, sub):
+def consensus_near(lab, lo0, lo1, lo2, hi0, hi1, hi2, r, sub, idx):
     """Tolerant voxels near the strict hull, in the box ``lo..hi`` (inclusive) of ``lab``.
 
     ``lab`` holds the labels of :func:`carve` with ``levels`` (2 strict, 1 tolerant only).
     ``sub`` (box-shaped uint8) gets 1 where ``lab >= 1`` and some voxel within Chebyshev
     distance ``r`` (``r`` steps in the 26-neighbourhood; clipped to the box, which holds every
-    labelled voxel) has label 2. Returns (tolerant voxels, strict voxels) of the box.
+    labelled voxel) has label 2, else 0. The flat box indices of the labelled voxels go to
+    ``idx`` (at least as long as their number). Returns (tolerant voxels, strict voxels).
     """
     ntol = 0
     nstrict = 0
+    s1 = hi1 - lo1 + 1
+    s2 = hi2 - lo2 + 1
     for i in range(lo0, hi0 + 1):
         for j in range(lo1, hi1 + 1):
+            rowf = ((i - lo0) * s1 + (j - lo1)) * s2
             for k in range(lo2, hi2 + 1):
                 v = lab[i, j, k]
                 if v == 0:
                     sub[i - lo0, j - lo1, k - lo2] = 0
                     continue
+                idx[ntol] = rowf + k - lo2
                 ntol += 1
                 if v == 2:
                     nstrict += 1
@@ -451,30 +456,33 @@ def consensus_near(lab, lo0, lo1, lo2, hi0, hi1, hi2, r, sub):
 
 
 @njit(cache=True)
-def consensus_select(lab, cl, ncomp, lo0, lo1, lo2, ntol, max_removed, state, res, dropped):
+def consensus_select(lab, cl, ncomp, lo0, lo1, lo2, idx, ntol, max_removed, state, res, dropped):
     """Largest 26-component of the consensus, and the tolerant hull's largest component,
     written back into ``lab`` (box at ``lo``, shape of ``cl``) as 1 / 0.
 
-    ``cl``: 26-connected labels (1..``ncomp``) of tolerant-and-near voxels in the box;
-    ``state``: a box-shaped uint8 scratch array. Let L be the largest component of ``cl``
-    (lowest label among equals). When |L| > ``ntol`` / 2, L lies in the largest 26-component T
-    of the whole tolerant hull (the component holding L has more than half of its voxels) and
-    is therefore the largest component of T ∩ near. The tolerant voxels outside L are then
-    grouped into 26-components (breadth-first, over those voxels only): the groups adjacent to
-    L make up T \\ L, the others are exactly the tolerant hull's other components. So |T|
+    ``cl``: 26-connected labels (1..``ncomp``) of the tolerant-and-near voxels in the box;
+    ``idx[:ntol]``: flat box indices of the tolerant voxels (:func:`consensus_near`);
+    ``state``: the box-shaped uint8 array ``sub`` of :func:`consensus_near` (0 at every
+    non-tolerant voxel; reused as scratch). Let L be the largest component of ``cl`` (lowest
+    label among equals). When |L| > ``ntol`` / 2, L lies in the largest 26-component T of the
+    whole tolerant hull (the component holding L has more than half of its voxels) and is
+    therefore the largest component of T ∩ near. The tolerant voxels outside L are then
+    grouped into 26-components (breadth-first, over those voxels only): the groups adjacent
+    to L make up T \ L, the others are exactly the tolerant hull's other components. So |T|
     follows without labelling the tolerant hull. When more than ``max_removed`` · |T| voxels
-    would go, T is written instead of L (skipped).
+    would go, T is written instead of L (skipped). Work: O(tolerant voxels).
 
-    ``res`` (int64, 12): status (0 done, -1 the shortcut does not apply: ``lab`` untouched),
-    |L|, |T|, removed, skipped, number of ``dropped`` sizes (the other tolerant components,
-    unsorted), the bounding box of the written voxels (imin, jmin, kmin, imax, jmax, kmax).
+    ``res`` (int64, 12): status (0 done, -1 the shortcut does not apply: ``lab`` and
+    ``state`` untouched), |L|, |T|, removed, skipped, number of ``dropped`` sizes (the other
+    tolerant components, unsorted), the bounding box of the written voxels (imin, jmin, kmin,
+    imax, jmax, kmax).
     """
     s0, s1, s2 = cl.shape
+    clf = cl.reshape(-1)
+    stf = state.reshape(-1)
     sizes = np.zeros(ncomp + 1, np.int64)
-    for i in range(s0):
-        for j in range(s1):
-            for k in range(s2):
-                sizes[cl[i, j, k]] += 1
+    for p in range(ntol):
+        sizes[clf[idx[p]]] += 1
     best = 0
     nL = 0
     for q in range(1, ncomp + 1):
@@ -486,17 +494,10 @@ def consensus_select(lab, cl, ncomp, lo0, lo1, lo2, ntol, max_removed, state, re
         res[0] = -1
         return
     # state: 2 = L, 1 = other tolerant voxel (unvisited), 3 = visited, 0 = background
-    nR = 0
-    for i in range(s0):
-        for j in range(s1):
-            for k in range(s2):
-                if best > 0 and cl[i, j, k] == best:
-                    state[i, j, k] = 2
-                elif lab[lo0 + i, lo1 + j, lo2 + k] != 0:
-                    state[i, j, k] = 1
-                    nR += 1
-                else:
-                    state[i, j, k] = 0
+    for p in range(ntol):
+        f = idx[p]
+        stf[f] = 2 if clf[f] == best else 1
+    nR = ntol - nL
     order = np.empty(max(nR, 1), np.int64)
     cstart = np.empty(nR + 1, np.int64)
     ctouch = np.zeros(nR + 1, np.bool_)
@@ -504,41 +505,40 @@ def consensus_select(lab, cl, ncomp, lo0, lo1, lo2, ntol, max_removed, state, re
     tail = 0
     nT = nL
     nd = 0
-    for i in range(s0):
-        for j in range(s1):
-            for k in range(s2):
-                if state[i, j, k] != 1:
-                    continue
-                start = tail
-                state[i, j, k] = 3
-                order[tail] = (i * s1 + j) * s2 + k
-                tail += 1
-                head = start
-                touch = False
-                while head < tail:
-                    f = order[head]
-                    head += 1
-                    x = f // (s1 * s2)
-                    y = (f // s2) % s1
-                    z = f % s2
-                    for a in range(max(x - 1, 0), min(x + 1, s0 - 1) + 1):
-                        for b in range(max(y - 1, 0), min(y + 1, s1 - 1) + 1):
-                            for c in range(max(z - 1, 0), min(z + 1, s2 - 1) + 1):
-                                t = state[a, b, c]
-                                if t == 2:
-                                    touch = True
-                                elif t == 1:
-                                    state[a, b, c] = 3
-                                    order[tail] = (a * s1 + b) * s2 + c
-                                    tail += 1
-                cstart[ncomp_r] = start
-                ctouch[ncomp_r] = touch
-                ncomp_r += 1
-                if touch:
-                    nT += tail - start
-                else:
-                    dropped[nd] = tail - start
-                    nd += 1
+    for p in range(ntol):
+        f0 = idx[p]
+        if stf[f0] != 1:
+            continue
+        start = tail
+        stf[f0] = 3
+        order[tail] = f0
+        tail += 1
+        head = start
+        touch = False
+        while head < tail:
+            f = order[head]
+            head += 1
+            x = f // (s1 * s2)
+            y = (f // s2) % s1
+            z = f % s2
+            for a in range(max(x - 1, 0), min(x + 1, s0 - 1) + 1):
+                for b in range(max(y - 1, 0), min(y + 1, s1 - 1) + 1):
+                    for c in range(max(z - 1, 0), min(z + 1, s2 - 1) + 1):
+                        t = state[a, b, c]
+                        if t == 2:
+                            touch = True
+                        elif t == 1:
+                            state[a, b, c] = 3
+                            order[tail] = (a * s1 + b) * s2 + c
+                            tail += 1
+        cstart[ncomp_r] = start
+        ctouch[ncomp_r] = touch
+        ncomp_r += 1
+        if touch:
+            nT += tail - start
+        else:
+            dropped[nd] = tail - start
+            nd += 1
     cstart[ncomp_r] = tail
     removed = nT - nL
     skipped = removed > max_removed * nT
@@ -546,23 +546,24 @@ def consensus_select(lab, cl, ncomp, lo0, lo1, lo2, ntol, max_removed, state, re
         for q in range(ncomp_r):
             if ctouch[q]:
                 for p in range(cstart[q], cstart[q + 1]):
-                    f = order[p]
-                    state[f // (s1 * s2), (f // s2) % s1, f % s2] = 2
+                    stf[order[p]] = 2
     bmin0, bmin1, bmin2 = s0, s1, s2
     bmax0, bmax1, bmax2 = -1, -1, -1
-    for i in range(s0):
-        for j in range(s1):
-            for k in range(s2):
-                if state[i, j, k] == 2:
-                    lab[lo0 + i, lo1 + j, lo2 + k] = 1
-                    bmin0 = min(bmin0, i)
-                    bmin1 = min(bmin1, j)
-                    bmin2 = min(bmin2, k)
-                    bmax0 = max(bmax0, i)
-                    bmax1 = max(bmax1, j)
-                    bmax2 = max(bmax2, k)
-                else:
-                    lab[lo0 + i, lo1 + j, lo2 + k] = 0
+    for p in range(ntol):
+        f = idx[p]
+        x = f // (s1 * s2)
+        y = (f // s2) % s1
+        z = f % s2
+        if stf[f] == 2:
+            lab[lo0 + x, lo1 + y, lo2 + z] = 1
+            bmin0 = min(bmin0, x)
+            bmin1 = min(bmin1, y)
+            bmin2 = min(bmin2, z)
+            bmax0 = max(bmax0, x)
+            bmax1 = max(bmax1, y)
+            bmax2 = max(bmax2, z)
+        else:
+            lab[lo0 + x, lo1 + y, lo2 + z] = 0
     res[1] = nL
     res[2] = nT
     res[3] = removed

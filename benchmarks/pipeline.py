@@ -68,6 +68,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     from topopose.capture import synthetic_capture
 
+    load0 = os.getloadavg()[0]
     resolutions = [50, 100, 200] if a.quick else [50, 75, 100, 125, 150, 175, 200]
     frames = 6 if a.quick else a.frames
     repeats = 1 if a.quick else a.repeats
@@ -100,15 +101,19 @@ def main(argv=None):
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     name = "pipeline_quick" if a.quick else "pipeline"
-    data = {"machine": mach, "subject": a.subject, "noise": a.noise, "frames": frames,
+    data = {"machine": mach, "load_average_start": round(load0, 2), "subject": a.subject, "noise": a.noise, "frames": frames,
             "repeats": repeats, "results": res, "fit": fit, "targets": targets, **THESIS_FPS}
     (out / f"{name}.json").write_text(json.dumps(data, indent=1))
     lines = [f"# Pipeline speed ({a.subject}, 8 cameras, one core)", "",
              f"Machine: {mach['cpu']}, {mach['cores']} cores (shared, loaded), Python "
-             f"{mach['python']}, Numba {mach['numba']}, {mach['threads']}; {mach['date']}.", "",
+             f"{mach['python']}, Numba {mach['numba']}, {mach['threads']}; {mach['date']}; "
+             f"1-minute load average {load0:.2f} at the start, {mach['load_average']} at the end "
+             f"(other jobs share the cores).", "",
              f"{frames} synthetic frames (noise {a.noise}, limbs separated), silhouettes "
              f"{cap.cameras[0].size[0]}×{cap.cameras[0].size[1]} in memory; each stage timed per "
-             f"frame, minimum of {repeats} repeats, mean over frames.", "",
+             f"frame, minimum of {repeats} repeats, mean over frames. Default pipeline settings: "
+             f"hull = consensus hull (tolerance 1 restricted to 1 voxel around the strict hull, "
+             f"both from one carve), cavity fill, D6I1D thinning, data tree, AHA.", "",
              "| resolution | grid voxels | hull ms | cavity fill ms | thinning ms | tree ms | alignment ms | total ms | frames/s |",
              "|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for m in res:

@@ -135,8 +135,8 @@ def skeleton_stats(s):
 
 
 #: each timing keeps calling until this much CPU time is spent (at most MAX_RUNS calls)
-BUDGET_S = 0.3
-MAX_RUNS = 60
+BUDGET_S = 0.5
+MAX_RUNS = 1000
 
 
 def timed(fn, repeat):

@@ -177,3 +177,23 @@ def test_labels_against_scipy_oracle(seed):
     assert ("consensus_skipped" in diag) == wskip
     wz = np.argwhere(want)
     assert np.array_equal(lo, wz.min(0)) and np.array_equal(hi, wz.max(0))
+
+
+def test_refocused_grid_and_arguments(human):
+    """On a refocused grid both hulls still come from the same carve (the two-call reference
+    could not compare grids fitted with different tolerances); bad arguments are named."""
+    from topopose.errors import InputError
+
+    f = human.frames[0]
+    cons = visual_hull(human, f, resolution=80, tolerance=1, consensus=1, refocus=True)
+    tol = visual_hull(human, f, resolution=80, tolerance=1, refocus=True)
+    assert cons.data.shape == tol.data.shape and not (cons.data & ~tol.data).any()
+    d = cons.diagnostics
+    assert d["voxels"] == int(cons.data.sum()) == int(tol.data.sum()) - d["consensus_removed"]
+    assert d["consensus"]["strict_voxels"] < d["consensus"]["tolerant_voxels"]
+    assert "consensus" not in visual_hull(human, f, resolution=40, consensus=1).diagnostics
+    for bad in (-1, True, 1.5):
+        with pytest.raises(InputError, match="consensus"):
+            visual_hull(human, f, resolution=40, tolerance=1, consensus=bad)
+    with pytest.raises(InputError, match="max_removed"):
+        visual_hull(human, f, resolution=40, tolerance=1, consensus=1, max_removed=2)

@@ -297,7 +297,7 @@ def _ack3_oracle(cfg):
         obj = [r for r in ring if q[r]]
         bg = [r for r in ring if not q[r]]
         t8 = _ncomp2d(obj, a8)
-        t4 = sum(1 for comp in _components(bg, a4) if any(abs(u) + abs(v) == 1 for u, v in comp))
+        t4 = sum(1 for comp in _components2d(bg, a4) if any(abs(u) + abs(v) == 1 for u, v in comp))
         if not (t8 == 1 and t4 == 1):
             byte |= 1 << d
     edges = 0
@@ -322,7 +322,7 @@ def _ack3_oracle(cfg):
     return byte, edges
 
 
-def _components(cells, adj):
+def _components2d(cells, adj):
     cells, out = set(cells), []
     while cells:
         stack = [cells.pop()]

@@ -1,7 +1,8 @@
 """Volumetric visual hull (thesis §2.3.2.2)."""
 from .volume import Volume
 from .carver import HullCarver
-from .hull import visual_hull, fit_box, capture_box, grid_for_box, keep_largest_component
+from .hull import (visual_hull, fit_box, capture_box, grid_for_box, keep_largest_component,
+                   fill_cavities)
 
 __all__ = ["Volume", "HullCarver", "visual_hull", "fit_box", "capture_box", "grid_for_box",
-           "keep_largest_component"]
+           "keep_largest_component", "fill_cavities"]

@@ -158,7 +158,6 @@ def _union_up(r: np.ndarray) -> np.ndarray:
     """Rectangles of the parent level: union of the (up to) 8 children."""
     n = r.shape[:3]
     m = tuple((x + 1) // 2 for x in n)
-    pad = [(0, 2 * mm - nn) for mm, nn in zip(m, n)] + [(0, 0), (0, 0)]
     # padding children are neutral: empty rectangles (x0 huge, x1 tiny)
     neutral = np.array([_CLAMP * 4, _CLAMP * 4, -_CLAMP * 4, -_CLAMP * 4])
     rp = np.empty(tuple(2 * mm for mm in m) + r.shape[3:], dtype=np.int64)

@@ -317,7 +317,9 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
     -------
     Volume
         ``diagnostics``: ``components_dropped`` (sizes of the dropped components of the
-        (tolerant) hull, largest first), ``voxels``, ``touches_border``, ``grid`` ("fixed" or
+        (tolerant) hull, largest first), ``voxels``, ``bbox`` (inclusive voxel index box
+        ``([imin, jmin, kmin], [imax, jmax, kmax])`` holding every voxel of ``data``, or None
+        when empty), ``touches_border``, ``grid`` ("fixed" or
         "refocus"), ``timings_ms`` (silhouettes, fit, setup, carve, components — the latter
         includes the consensus), ``work`` (kernel counters); with ``consensus``:
         ``consensus_removed`` (voxels the restriction removed) or ``consensus_skipped``
@@ -398,11 +400,12 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
     t["carve"] = (time.perf_counter() - t0) * 1e3
     t0 = time.perf_counter()
     dropped, nvox, touches = [], 0, False
+    lo_i = hi_i = None
     cdiag = {}
     if consensus is not None:
         if st[9] >= st[6]:
             dropped, nvox, lo_i, hi_i, cdiag = consensus_hull_labels(
-                occ, st[6:9], st[9:12], int(consensus), float(max_removed), int(st[5]))
+                occ, st[6:9], st[9:12], int(consensus), float(max_removed))
             touches = bool(np.any(lo_i == 0) or np.any(hi_i == np.array(shape) - 1))
         else:
             empty = True
@@ -425,7 +428,8 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
     else:
         empty = True
     t["components"] = (time.perf_counter() - t0) * 1e3
-    diag = {"frame": name, "voxels": nvox,
+    bbox = None if lo_i is None or nvox == 0 else ([int(x) for x in lo_i], [int(x) for x in hi_i])
+    diag = {"frame": name, "voxels": nvox, "bbox": bbox,
             "components_dropped": dropped, "touches_border": touches,
             "grid": "refocus" if refocus else "fixed", "tolerance": tolerance,
             "empty": empty, "timings_ms": t,
@@ -446,8 +450,8 @@ def _label26(sub: np.ndarray) -> tuple:
         return ndimage.label(sub, structure=np.ones((3, 3, 3), bool))
 
 
-def consensus_hull_labels(lab: np.ndarray, lo, hi, repair: int = 1, max_removed: float = 0.2,
-                          ntol: int | None = None) -> tuple:
+def consensus_hull_labels(lab: np.ndarray, lo, hi, repair: int = 1,
+                          max_removed: float = 0.2) -> tuple:
     """The consensus hull from one carve's labels, in place (thesis §2.3.2.2).
 
     A visual hull with tolerance k keeps the voxels seen as subject by C − k cameras
@@ -481,8 +485,6 @@ def consensus_hull_labels(lab: np.ndarray, lo, hi, repair: int = 1, max_removed:
         Labels of the carve; overwritten with the result (0 / 1).
     lo, hi : (3,) ints
         Inclusive bounding box of the labelled voxels (``HullCarver.stats[6:12]``).
-    ntol : int, optional
-        Number of labelled voxels (``HullCarver.stats[5]``).
 
     Returns
     -------
@@ -494,7 +496,7 @@ def consensus_hull_labels(lab: np.ndarray, lo, hi, repair: int = 1, max_removed:
     hi = np.asarray(hi, dtype=np.int64)
     box = tuple(slice(int(a), int(b) + 1) for a, b in zip(lo, hi))
     sub = np.empty(tuple(int(b - a + 1) for a, b in zip(lo, hi)), dtype=np.uint8)
-    idx = np.empty(sub.size if ntol is None else max(int(ntol), 1), dtype=np.int64)
+    idx = np.empty(sub.size, dtype=np.int64)      # only the tolerant voxels' pages get touched
     ntol, nstrict = K.consensus_near(lab, lo[0], lo[1], lo[2], hi[0], hi[1], hi[2], int(repair),
                                      sub, idx)
     ntol = int(ntol)
@@ -582,3 +584,39 @@ def _refocus_voxel_size(cap, resolution, tolerance, user_box) -> float:
                              f"frame has a subject seen by the cameras")
         cap.cache[key] = ext / (resolution - 2)
     return cap.cache[key]
+
+
+def fill_cavities(occ: np.ndarray, bbox=None) -> tuple:
+    """Fill the cavities of a boolean volume in place; returns (cavities, voxels filled).
+
+    A cavity is a background component (6-adjacency, the dual of the object's 26-adjacency)
+    that does not reach the outside — for a visual hull, a pocket of silhouette noise enclosed
+    by the subject, which topology-preserving thinning would have to keep as a closed surface.
+    Same result as ``scipy.ndimage.binary_fill_holes`` (tested), in one pass over the rows of
+    the object's bounding box plus a search of the few background voxels lying between object
+    voxels of their row (:func:`.hull_kernels.fill_cavities`).
+
+    Parameters
+    ----------
+    occ : bool array (nx, ny, nz), C-contiguous
+    bbox : ([imin, jmin, kmin], [imax, jmax, kmax]), optional
+        An inclusive voxel box holding every True voxel (``Volume.diagnostics["bbox"]`` of
+        :func:`visual_hull`); computed when omitted.
+    """
+    if occ.dtype != bool or occ.ndim != 3 or not occ.flags.c_contiguous:
+        raise InputError(f"fill_cavities: argument occ must be a C-contiguous 3D bool array, got "
+                         f"{occ.dtype} {occ.shape}")
+    if bbox is None:
+        pxy = occ.any(axis=2)
+        xs = np.flatnonzero(pxy.any(axis=1))
+        if xs.size == 0:
+            return 0, 0
+        ys = np.flatnonzero(pxy.any(axis=0))
+        zs = np.flatnonzero(occ[xs[0]: xs[-1] + 1, ys[0]: ys[-1] + 1].any(axis=(0, 1)))
+        lo, hi = (xs[0], ys[0], zs[0]), (xs[-1], ys[-1], zs[-1])
+    else:
+        lo, hi = (np.clip(np.asarray(b, dtype=np.int64).reshape(3), 0, np.array(occ.shape) - 1)
+                  for b in bbox)
+    n, filled = K.fill_cavities(occ.view(np.uint8), int(lo[0]), int(lo[1]), int(lo[2]),
+                                int(hi[0]), int(hi[1]), int(hi[2]))
+    return int(n), int(filled)

@@ -468,7 +468,7 @@ def consensus_select(lab, cl, ncomp, lo0, lo1, lo2, idx, ntol, max_removed, stat
     whole tolerant hull (the component holding L has more than half of its voxels) and is
     therefore the largest component of T ∩ near. The tolerant voxels outside L are then
     grouped into 26-components (breadth-first, over those voxels only): the groups adjacent
-    to L make up T \ L, the others are exactly the tolerant hull's other components. So |T|
+    to L make up T minus L, the others are exactly the tolerant hull's other components. So |T|
     follows without labelling the tolerant hull. When more than ``max_removed`` · |T| voxels
     would go, T is written instead of L (skipped). Work: O(tolerant voxels).
 
@@ -575,3 +575,117 @@ def consensus_select(lab, cl, ncomp, lo0, lo1, lo2, idx, ntol, max_removed, stat
     res[9] = lo0 + bmax0
     res[10] = lo1 + bmax1
     res[11] = lo2 + bmax2
+
+
+@njit(cache=True)
+def fill_cavities(occ, lo0, lo1, lo2, hi0, hi1, hi2):
+    """Fill the cavities of ``occ`` (uint8 0 / 1) in place; returns (cavities, voxels filled).
+
+    A cavity is a background component (6-adjacency, the dual of the object's 26-adjacency)
+    that does not reach the outside of the box ``lo..hi`` (inclusive), which must hold every
+    object voxel. A background voxel with no object voxel on one side of its k-row (the
+    contiguous axis) reaches the box face straight along k, so only the *candidates* — those
+    between the first and the last object voxel of their k-row — can be in a cavity. Their
+    6-components (over candidates only) are searched breadth-first: one with a background
+    non-candidate 6-neighbour, or on an i / j face of the box, reaches the outside; the others
+    are exactly the cavities. Work: one pass over the box's rows plus O(candidates).
+    """
+    s0 = hi0 - lo0 + 1
+    s1 = hi1 - lo1 + 1
+    s2 = hi2 - lo2 + 1
+    # per row: first / last object k (box coordinates), -1 when the row is empty
+    first = np.full((s0, s1), -1, np.int64)
+    last = np.full((s0, s1), -1, np.int64)
+    ncand = 0
+    for i in range(s0):
+        for j in range(s1):
+            f = -1
+            for k in range(s2):
+                if occ[lo0 + i, lo1 + j, lo2 + k]:
+                    f = k
+                    break
+            if f < 0:
+                continue
+            l = f
+            for k in range(s2 - 1, f, -1):
+                if occ[lo0 + i, lo1 + j, lo2 + k]:
+                    l = k
+                    break
+            first[i, j] = f
+            last[i, j] = l
+            for k in range(f + 1, l):
+                if not occ[lo0 + i, lo1 + j, lo2 + k]:
+                    ncand += 1
+    if ncand == 0:
+        return 0, 0
+    # candidate positions and a visited mark, as flat box indices in a dict-free way: the
+    # candidates of row (i, j) are found again from first / last; visited marks go to occ
+    # itself as value 2 (outside) / 3 (being searched)
+    queue = np.empty(ncand, np.int64)
+    ncav = 0
+    nfill = 0
+    for i0 in range(s0):
+        for j0 in range(s1):
+            if first[i0, j0] < 0:
+                continue
+            for k0 in range(first[i0, j0] + 1, last[i0, j0]):
+                if occ[lo0 + i0, lo1 + j0, lo2 + k0] != 0:
+                    continue
+                # new candidate component
+                occ[lo0 + i0, lo1 + j0, lo2 + k0] = 3
+                queue[0] = (i0 * s1 + j0) * s2 + k0
+                tail = 1
+                head = 0
+                outside = False
+                while head < tail:
+                    fl = queue[head]
+                    head += 1
+                    x = fl // (s1 * s2)
+                    y = (fl // s2) % s1
+                    z = fl % s2
+                    for d in range(6):
+                        a, b, c = x, y, z
+                        if d == 0:
+                            a = x - 1
+                        elif d == 1:
+                            a = x + 1
+                        elif d == 2:
+                            b = y - 1
+                        elif d == 3:
+                            b = y + 1
+                        elif d == 4:
+                            c = z - 1
+                        else:
+                            c = z + 1
+                        if a < 0 or a >= s0 or b < 0 or b >= s1:
+                            outside = True
+                            continue
+                        v = occ[lo0 + a, lo1 + b, lo2 + c]
+                        if v == 1 or v == 3:
+                            continue
+                        if v == 2:
+                            outside = True
+                            continue
+                        # background, unvisited: a candidate iff strictly inside its row's span
+                        if first[a, b] < 0 or c <= first[a, b] or c >= last[a, b]:
+                            outside = True
+                            continue
+                        occ[lo0 + a, lo1 + b, lo2 + c] = 3
+                        queue[tail] = (a * s1 + b) * s2 + c
+                        tail += 1
+                mark = 2 if outside else 1
+                for p in range(tail):
+                    fl = queue[p]
+                    occ[lo0 + fl // (s1 * s2), lo1 + (fl // s2) % s1, lo2 + fl % s2] = mark
+                if not outside:
+                    ncav += 1
+                    nfill += tail
+    # clear the outside marks
+    for i in range(s0):
+        for j in range(s1):
+            if first[i, j] < 0:
+                continue
+            for k in range(first[i, j] + 1, last[i, j]):
+                if occ[lo0 + i, lo1 + j, lo2 + k] == 2:
+                    occ[lo0 + i, lo1 + j, lo2 + k] = 0
+    return ncav, nfill

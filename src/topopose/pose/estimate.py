@@ -413,32 +413,19 @@ def junction_position(al, data, part, v):
 
 def fill_cavities(vol):
     """Fill the volume's cavities, in place: background components (6-adjacency, the dual of
-    the object's 26-adjacency) that do not reach the outside become object. Returns ``vol``."""
-    import cc3d
+    the object's 26-adjacency) that do not reach the outside become object. Returns ``vol``.
 
-    a = vol.data
-    box = _bbox(a)
-    if box is None:
-        return vol
-    bg = np.pad(~a[box], 1, constant_values=True)
-    lab, n = cc3d.connected_components(bg, connectivity=6, return_N=True)
-    if n <= 1:
-        return vol
-    a[box] |= lab[1:-1, 1:-1, 1:-1] != lab[0, 0, 0]       # in place: the frame's own hull
-    vol.diagnostics["cavities_filled"] = int(n - 1)
+    :func:`topopose.hull.fill_cavities` (same result as ``scipy.ndimage.binary_fill_holes``)
+    on the hull's bounding box ``vol.diagnostics["bbox"]`` when :func:`topopose.visual_hull`
+    left one (it must still hold every voxel), else on the box it computes."""
+    from ..hull import fill_cavities as fill
+
+    if not vol.data.flags.c_contiguous:
+        vol.data = np.ascontiguousarray(vol.data)
+    n, _ = fill(vol.data, (vol.diagnostics or {}).get("bbox"))     # in place: the frame's own hull
+    if n:
+        vol.diagnostics["cavities_filled"] = n
     return vol
-
-
-def _bbox(a: np.ndarray):
-    """Slices of the bounding box of the True voxels, or None (two passes over the array)."""
-    pxy = a.any(axis=2)
-    xs = np.flatnonzero(pxy.any(axis=1))
-    if xs.size == 0:
-        return None
-    ys = np.flatnonzero(pxy.any(axis=0))
-    bx, by = slice(int(xs[0]), int(xs[-1]) + 1), slice(int(ys[0]), int(ys[-1]) + 1)
-    zs = np.flatnonzero(a[bx, by].any(axis=(0, 1)))
-    return bx, by, slice(int(zs[0]), int(zs[-1]) + 1)
 
 
 def default_tolerance(cap) -> int:

@@ -92,9 +92,12 @@ def _zeros(shape, dtype=bool) -> np.ndarray:
     array across the grid takes a few 2 MB page faults instead of thousands of 4 kB
     ones (the kernels write these arrays sparsely; measured: the page faults were a
     sixth of D6I1D's time on the 800k-voxel body)."""
-    nbytes = int(np.prod(shape)) * np.dtype(dtype).itemsize
-    if nbytes < (4 << 20) or not hasattr(mmap, "MADV_HUGEPAGE"):
+    n = 1
+    for s in shape:
+        n *= int(s)
+    if n < (4 << 20) or not hasattr(mmap, "MADV_HUGEPAGE"):  # (bool and uint8: 1 byte each)
         return np.zeros(shape, dtype=dtype)
+    nbytes = n * np.dtype(dtype).itemsize
     try:
         buf = mmap.mmap(-1, nbytes + _HUGE, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
         buf.madvise(mmap.MADV_HUGEPAGE)
@@ -208,9 +211,12 @@ def _ack_bits():
 
 def _bbox(data):
     """(lo, hi, rows): bounds of the object and which (x, y) rows hold object voxels."""
-    from .thinning_kernels import bounding_box
+    from .thinning_kernels import bounding_box, bounding_box_flat
 
-    return bounding_box(data.view(np.uint8))
+    u = data.view(np.uint8)
+    if u.flags.c_contiguous:
+        return bounding_box_flat(u.reshape(-1), *u.shape)
+    return bounding_box(u)
 
 
 def thinning(volume, method: str = "d6i1d", keep=None, *, border_list: bool = True,
@@ -243,7 +249,11 @@ def thinning(volume, method: str = "d6i1d", keep=None, *, border_list: bool = Tr
     from .thinning_kernels import extract, fill_state_rows
 
     kin = keep.view(np.uint8) if keep is not None else np.zeros((0, 0, 0), dtype=np.uint8)
-    vf = _zeros((int(np.prod(hi - lo + 3)),), np.uint8)
+    size = int((hi[0] - lo[0] + 3) * (hi[1] - lo[1] + 3) * (hi[2] - lo[2] + 3))
+    if size >= 1 << 31:
+        raise InputError(f"volume: the object's bounding box (+1 voxel frame) holds {size} voxels; "
+                         "the thinning kernels index voxels with 32-bit integers (at most 2^31 - 1)")
+    vf = _zeros((size,), np.uint8)
     vf, shp, n_obj = fill_state_rows(data.view(np.uint8), kin, lo, hi, rows_any, vf)
     shape = tuple(int(v) for v in shp)
     tables = _tables() if lut else _no_tables()

@@ -46,6 +46,7 @@ R3 = 5       # bits 5..7: the z-triplet (z-1, z, z+1) of OBJ bits around the vox
 R3_LO = np.uint8(1 << R3)
 R3_MID = np.uint8(2 << R3)
 R3_HI = np.uint8(4 << R3)
+KNOWN = 1 << 30  # bucket entry holds the configuration and test of the first pass
 
 
 @njit(cache=True, inline="always")
@@ -116,7 +117,7 @@ def _init_list(vol, offs, off6, border_list, ccsu, words, n_obj):
     """Initial candidate list: border voxels not in K (or every such object voxel).
 
     ``n_obj`` < 0: the z-triplet bits are not set yet; compute them and count the
-    object voxels here (else :func:`fill_state` did).  The scans skip empty 8-byte
+    object voxels here (else :func:`fill_state_rows` did).  The scans skip empty 8-byte
     words of the volume.  Listed voxels get the LISTED bit (and their word).
     """
     n8 = vol.size // 8
@@ -132,7 +133,7 @@ def _init_list(vol, offs, off6, border_list, ccsu, words, n_obj):
                 vol[p] = (vol[p] & 31) | (t << R3)
             for p in range(8 * w, min(8 * w + 8, vol.size)):
                 n_obj += vol[p] & OBJ
-    lst = np.empty(max(n_obj, 1), dtype=np.int64)
+    lst = np.empty(max(n_obj, 1), dtype=np.int32)  # flat indices (the state array has < 2^31 voxels)
     n = 0
     for w in range(n8 + 1):
         if w < n8 and v64[w] == 0:
@@ -141,11 +142,9 @@ def _init_list(vol, offs, off6, border_list, ccsu, words, n_obj):
             if vol[p] & (OBJ | KEPT) != OBJ:
                 continue
             ok = True
-            if border_list:
-                a = np.uint8(OBJ)
-                for k in range(6):
-                    a &= vol[p + off6[k]]
-                ok = a == 0
+            if border_list:  # z-neighbours from the z-triplet bits, then the 4 others
+                ok = (vol[p] >> R3) != 7 or (vol[p + off6[2]] & vol[p + off6[3]] & vol[p + off6[4]]
+                                             & vol[p + off6[5]] & OBJ) == 0
             if ok:
                 lst[n] = p
                 vol[p] |= LISTED
@@ -270,7 +269,7 @@ def _delete_directional(vol, dl, ndel, lst, lcf, n, offs, opp, off6, opp6, borde
             e = opp6[k]  # p is q's neighbour in direction e: q is now exposed in e
             if e > d:
                 bk[e, nbk[e]] = q
-                bkv[e, nbk[e]] = -1  # configuration not read yet
+                bkv[e, nbk[e]] = 0  # configuration not read yet
                 nbk[e] += 1
             if border_list and st & LISTED == 0:
                 vol[q] = st | LISTED
@@ -291,7 +290,7 @@ def make_directional_thin(lut=None, ccsu=None):
     two arguments (one generic kernel serves every combination).  Signature:
     ``(vol, offs, opp, off6, tables, btab, plane0, templates, tcount, psi, border_list,
     finish, stats, lut, ccsu, n_obj) -> (iterations, deleted)``; see
-    :func:`_directional_body` (``n_obj`` < 0 when :func:`fill_state` was not used).
+    :func:`_directional_body` (``n_obj`` < 0 when :func:`fill_state_rows` was not used).
     """
     if lut is None or ccsu is None:
         @njit(cache=True)
@@ -344,10 +343,15 @@ def _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tco
     lst, n = _init_list(vol, offs, off6, border_list, ccsu, words, n_obj)
     stats[3] = n
     cap = lst.size
-    dl = np.empty(cap, dtype=np.int64)
-    bk = np.empty((6, cap), dtype=np.int64)
-    bkv = np.empty((6, cap), dtype=np.int64)  # configuration | byte << 32 (-1: unknown)
-    lcf = np.empty(cap, dtype=np.int64)  # configuration | byte << 32 at the last first pass
+    # one block for the deletion list and the buckets: fewer, larger allocations are
+    # reused by the allocator from call to call instead of being faulted in anew
+    work = np.empty(15 * cap, dtype=np.int32)
+    lcf = work[: 2 * cap].view(np.int64)  # configuration | byte << 32 at the last first pass
+    dl = work[2 * cap:3 * cap]
+    bk = work[3 * cap:9 * cap].reshape((6, cap))
+    # KNOWN | (test of that bucket's direction) << 26 | configuration, from the first
+    # pass; 0 when unknown (voxel pushed by a deletion)
+    bkv = work[9 * cap:].reshape((6, cap))
     lcf[:n] = -1  # (the rest is written when voxels join the list)
     nbk = np.zeros(6, dtype=np.int64)
     opp6 = np.array([1, 0, 3, 2, 5, 4])
@@ -400,11 +404,10 @@ def _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tco
                 if ok:
                     dl[ndel] = p
                     ndel += 1
-            cb = cfg | (b << 32)
             for d in range(1, 6):
                 if (cfg >> fbit[d]) & 1 == 0:
                     bk[d, nbk[d]] = p
-                    bkv[d, nbk[d]] = cb
+                    bkv[d, nbk[d]] = KNOWN | (((b >> d) & 1) << 26) | cfg
                     nbk[d] += 1
         n = m
         deleted = 0
@@ -419,9 +422,11 @@ def _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tco
                     continue
                 cfg = _cfg(vol, p, offs, words, ccsu)
                 if lut:
-                    cb = bkv[d, i]
-                    b = (cb >> 32) if (cb & 0xFFFFFFFF) == cfg else np.int64(btab[cfg])
-                    ok = (b >> d) & 1 != 0
+                    cb = np.int64(bkv[d, i])
+                    if cb & KNOWN and (cb & 0x3FFFFFF) == cfg:
+                        ok = (cb >> 26) & 1 != 0
+                    else:
+                        ok = (np.int64(btab[cfg]) >> d) & 1 != 0
                 else:
                     ok = match_set(cfg, templates, d, tcount[d])
                 if ok:
@@ -511,21 +516,25 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
     """
     words = np.empty(vol.size if ccsu == 2 else 1, dtype=np.uint32)
     lst, n = _init_list(vol, offs, off6, border_list, ccsu, words, n_obj)
-    dl = np.empty(lst.size, dtype=np.int64)
-    cf = np.empty(lst.size, dtype=np.int64)
+    # one block (fewer, larger allocations are reused from call to call, not faulted in)
+    work = np.empty(2 * lst.size, dtype=np.int64)
+    cf = work[: lst.size]  # configuration (| byte << 32) of the voxels of S
+    sp = work[lst.size:]  # the voxels of S in list order, then those deleted
     iterations = 0
     total = 0
     while True:
         iterations += 1
         m = 0
+        ns = 0
         for i in range(n):
             p = lst[i]
             if vol[p] & OBJ == 0:
                 continue
             cfg = _cfg(vol, p, offs, words, ccsu)
+            cv = cfg
             if lut:  # one read of the ACK3 byte table: bit 6 simple, bit 7 1D isthmus
                 b = btab[cfg]
-                cf[m] = cfg | (np.int64(b) << 32)
+                cv = cfg | (np.int64(b) << 32)
                 isth = (b >> 7) & 1 != 0 if psi == 1 else _isthmus(cfg, psi, tables, lut)
                 simple = (b >> 6) & 1 != 0
             else:
@@ -535,15 +544,17 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
                 vol[p] |= KEPT
                 continue
             lst[m] = p
-            if not lut:
-                cf[m] = cfg
             m += 1
             if simple:
                 vol[p] |= INS
+                sp[ns] = p
+                cf[ns] = cv
+                ns += 1
         n = m
+        # the clique passes and the deletion visit S only (in list order, as Alg. 8)
         # 2-cliques
-        for i in range(n):
-            p = lst[i]
+        for i in range(ns):
+            p = sp[i]
             if vol[p] & INS == 0:
                 continue
             cfg = cf[i]
@@ -567,8 +578,8 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
                     vol[p] &= ~np.uint8(INS)
                     break
         # 1-cliques
-        for i in range(n):
-            p = lst[i]
+        for i in range(ns):
+            p = sp[i]
             if vol[p] & INS == 0:
                 continue
             cfg = cf[i] & 0x3FFFFFF
@@ -593,8 +604,8 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
                     vol[p] &= ~np.uint8(INS)
                     break
         # 0-cliques
-        for i in range(n):
-            p = lst[i]
+        for i in range(ns):
+            p = sp[i]
             if vol[p] & INS == 0:
                 continue
             cfg = cf[i] & 0x3FFFFFF
@@ -611,14 +622,14 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
                     vol[p] &= ~np.uint8(INS)
                     break
         ndel = 0
-        for i in range(n):
-            p = lst[i]
+        for i in range(ns):
+            p = sp[i]
             if vol[p] & INS:
-                dl[ndel] = p
+                sp[ndel] = p  # (ndel <= i: compacts S in place into the deletion list)
                 ndel += 1
                 vol[p] &= ~np.uint8(INS)
         if ndel:
-            n = _delete(vol, dl, ndel, lst, n, offs, opp, off6, border_list, ccsu, words)
+            n = _delete(vol, sp, ndel, lst, n, offs, opp, off6, border_list, ccsu, words)
         total += ndel
         if ndel == 0:
             break
@@ -626,65 +637,61 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
 
 
 @njit(cache=True)
-def fill_state(data, keep, lo, hi, rows):
-    """Padded state array of ``data[lo:hi+1]`` (3D uint8 views of bool arrays).
+def bounding_box_flat(flat, nx, ny, nz):
+    """:func:`bounding_box` of a C-contiguous array given flat (uint8, size nx·ny·nz).
 
-    One pass writes, for every voxel of the crop framed by one background voxel, the
-    OBJ bit, the KEPT bit (``keep`` of the same shape as ``data``, or size 0) and the
-    z-triplet bits; ``rows[x, y]`` (over the crop) tells which rows hold object voxels
-    (the others stay zero).  Returns (flat state array, its shape, object voxels).
+    Scans 8-byte words, skipping the zero ones, with a running (row, z) position; a
+    nonzero word inside one row and inside the z range found so far only marks its
+    row, the others are walked byte by byte.
     """
-    nx = hi[0] - lo[0] + 1
-    ny = hi[1] - lo[1] + 1
-    nz = hi[2] - lo[2] + 1
-    sx, sy, sz = nx + 2, ny + 2, nz + 2
-    vol = np.zeros(sx * sy * sz, dtype=np.uint8)
-    has_keep = keep.size > 0
-    n_obj = 0
+    rows = np.zeros((nx, ny), dtype=np.uint8)
+    rflat = rows.reshape(-1)
+    zlo = nz
+    zhi = -1
+    size = flat.size
+    n8 = size // 8
+    w64 = flat[: n8 * 8].view(np.uint64)
+    r = 0  # (row, z) of byte 8·wpos, advanced incrementally (no division per word)
+    z = 0
+    wpos = 0
+    for w in range(n8 + 1):
+        if w < n8 and w64[w] == 0:
+            continue
+        z += 8 * (w - wpos)
+        wpos = w
+        while z >= nz:
+            z -= nz
+            r += 1
+        p = 8 * w
+        if w < n8 and z + 8 <= nz and z >= zlo and z + 7 <= zhi:
+            rflat[r] = 1  # the word lies in one row, inside the z range found so far
+            continue
+        end = min(p + 8, size)
+        rr = r
+        z0 = z
+        while p < end:
+            if flat[p]:
+                rflat[rr] = 1
+                zlo = min(zlo, z0)
+                zhi = max(zhi, z0)
+            p += 1
+            z0 += 1
+            if z0 == nz:
+                z0 = 0
+                rr += 1
+    lo = np.array([nx, ny, zlo], dtype=np.int64)
+    hi = np.array([-1, -1, zhi], dtype=np.int64)
     for x in range(nx):
         for y in range(ny):
-            if not rows[x, y]:
-                continue
-            src = data[lo[0] + x, lo[1] + y, lo[2]:lo[2] + nz]
-            base = ((x + 1) * sy + (y + 1)) * sz + 1
-            prev = np.uint8(0)
-            cur = src[0] & 1
-            for z in range(nz):
-                nxt = (src[z + 1] & 1) if z + 1 < nz else np.uint8(0)
-                st = cur | ((prev | (cur << 1) | (nxt << 2)) << R3)
-                if has_keep and cur and keep[lo[0] + x, lo[1] + y, lo[2] + z]:
-                    st |= KEPT
-                vol[base + z] = st
-                n_obj += cur
-                prev = cur
-                cur = nxt
-    return vol, np.array([sx, sy, sz]), n_obj
-
-
-@njit(cache=True)
-def bounding_box_rows(vol, rows):
-    """(lo, hi) bounds of the nonzero voxels of a 3D uint8 array, given ``rows[x, y]``
-    = row (x, y) holds a nonzero voxel (only those rows are scanned); lo > hi if none."""
-    nx, ny, nz = vol.shape
-    lo = np.array([nx, ny, nz], dtype=np.int64)
-    hi = np.array([-1, -1, -1], dtype=np.int64)
-    for x in range(nx):
-        for y in range(ny):
-            if not rows[x, y]:
-                continue
-            lo[0] = min(lo[0], x)
-            hi[0] = max(hi[0], x)
-            lo[1] = min(lo[1], y)
-            hi[1] = max(hi[1], y)
-            z = 0
-            while z < lo[2] and vol[x, y, z] == 0:
-                z += 1
-            lo[2] = min(lo[2], z)
-            z = nz - 1
-            while z > hi[2] and vol[x, y, z] == 0:
-                z -= 1
-            hi[2] = max(hi[2], z)
-    return lo, hi
+            if rows[x, y]:
+                lo[0] = min(lo[0], x)
+                hi[0] = max(hi[0], x)
+                lo[1] = min(lo[1], y)
+                hi[1] = max(hi[1], y)
+    if hi[0] < 0:
+        lo[2] = nz
+        hi[2] = -1
+    return lo, hi, rows
 
 
 @njit(cache=True)
@@ -692,9 +699,9 @@ def bounding_box(data):
     """(lo, hi, rows) of the nonzero voxels of a 3D uint8 array: bounds (lo > hi if
     none) and ``rows[x, y]`` = 1 when row (x, y) holds a nonzero voxel.
 
-    Every row is first tested with a branch-free OR reduction (vectorized), and only
-    the nonzero rows are searched for their first and last voxel beyond the current
-    bounds, so the pass costs about one cycle per 16–32 voxels.
+    Any memory layout (the engine uses :func:`bounding_box_flat` for C-contiguous
+    arrays).  Every row is first tested with a branch-free OR reduction, and only the
+    nonzero rows are searched for their first and last voxel beyond the current bounds.
     """
     nx, ny, nz = data.shape
     rows = np.zeros((nx, ny), dtype=np.uint8)
@@ -729,10 +736,12 @@ def fill_state_rows(data, keep, lo, hi, rows, vol):
     """Fill ``vol``, the padded state array of ``data[lo:hi+1]`` (3D uint8 views of
     bool arrays; ``vol`` flat, zero, of size (hi - lo + 3).prod()).
 
-    As :func:`fill_state` (same result), with branch-free row loops: each object row
-    is copied once into a zero-framed buffer, from which the OBJ bit and the z-triplet
-    bits of the whole row are written in one vectorizable loop; rows without object
-    voxels are not touched.  Returns (``vol``, its shape, object voxels).
+    One pass writes, for every voxel of the crop framed by one background voxel, the
+    OBJ bit, the KEPT bit (``keep`` of the same shape as ``data``, or size 0) and the
+    z-triplet bits, with branch-free row loops: each object row (``rows[x, y]`` over the
+    whole array) is copied once into a zero-framed buffer, from which the OBJ bit and
+    the z-triplet bits of the whole row are written in one vectorizable loop; rows
+    without object voxels are not touched.  Returns (``vol``, its shape, object voxels).
     """
     nx = hi[0] - lo[0] + 1
     ny = hi[1] - lo[1] + 1

@@ -33,17 +33,14 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
-import datetime  # noqa: E402
 import json  # noqa: E402
-import platform  # noqa: E402
-import subprocess  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-import numba  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
+from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
 from topopose.topology import thinning  # noqa: E402
 from topopose.topology.tables import load_ack3_edge_table, load_byte_table, load_tables  # noqa: E402
 
@@ -59,27 +56,6 @@ VARIANTS = {  # name: (border_list, lut, ccsu)
     "no_border_list": (False, True, True),
 }
 ALL_VARIANTS = {"pkd6", "ack3", "d6i1d"}
-
-
-def machine() -> dict:
-    model = platform.processor()
-    try:
-        out = subprocess.run(["lscpu"], capture_output=True, text=True).stdout
-        for line in out.splitlines():
-            if line.startswith("Model name"):
-                model = line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    try:
-        load = os.getloadavg()[0]
-    except OSError:
-        load = None
-    import skimage
-
-    return {"cpu": model, "cores": os.cpu_count(), "python": platform.python_version(),
-            "numpy": np.__version__, "numba": numba.__version__, "skimage": skimage.__version__,
-            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-            "threads": "1 (NUMBA_NUM_THREADS=1)", "load_average_at_start": load}
 
 
 # --------------------------------------------------------------------------- volumes
@@ -237,7 +213,7 @@ def run(quick=False, repeat=5):
               f"d6i1d {d['ms']:7.2f} ms (x{rec['skimage']['ms'] / d['ms']:.1f})  "
               f"pkd6 {rec['methods']['pkd6']['default']['ms']:7.2f}  ack3 {rec['methods']['ack3']['default']['ms']:7.2f}",
               flush=True)
-    return {"machine": machine(), "table_load_s": t_tables, "hull_source": hull_source,
+    return {"machine": machine(threads="1 (NUMBA_NUM_THREADS=1)", skimage=__import__("skimage").__version__), "table_load_s": t_tables, "hull_source": hull_source,
             "noisy": noisy_names, "rows": rows, "quick": quick, "repeat": repeat}
 
 
@@ -258,7 +234,7 @@ def report(res) -> str:
     mc = res["machine"]
     L = ["# Thinning benchmark (thesis ch. 5–6)", "",
          f"Machine: {mc['cpu']}, {mc['cores']} cores (shared with other jobs; load average at start "
-         f"{mc['load_average_at_start']}), Python {mc['python']}, numba {mc['numba']}, "
+         f"{mc['load_average']}), Python {mc['python']}, numba {mc['numba']}, "
          f"scikit-image {mc['skimage']}, {mc['date']}, {mc['threads']}. "
          f"Times: CPU time (process time, one thread) of the whole API call, minimum of "
          f"at least {res['repeat']} runs (more while they total under {BUDGET_S} s, at most {MAX_RUNS}) "

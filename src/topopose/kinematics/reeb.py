@@ -444,7 +444,6 @@ def perg(data: np.ndarray, origin=(0, 0, 0), voxel_size: float = 1.0, *, coarse:
         for (r, i) in bad:
             active.discard((r, i))
             active.update((r + 1, c) for c in children[r][i])
-    t3 = time.perf_counter()
     mu_node = np.bincount(key, weights=w * atoms.mu, minlength=k) / np.maximum(wsum, 1e-300)
     lvl = np.array([2 ** a[0] for a in act])
     g = PERG(pos, E.astype(np.int64), mu_node, lvl)

@@ -934,7 +934,6 @@ def cooptimal_pairs(mode, tol, n_p, n_d,
     (alt[n_p, n_d] bool, matched[n_p] bool) where ``matched`` marks pattern
     vertices that end a matched arc in the walk.
     """
-    pn = p_ch_ptr.shape[0] - 1
     seenF = np.zeros(F.shape, np.bool_)
     seenT = np.zeros(T.shape, np.bool_)
     alt = np.zeros((n_p, n_d), np.bool_)

@@ -270,17 +270,20 @@ class Tree:
 
 
 def _jsonable(x):
+    """Plain JSON types: arrays to lists, numpy scalars to Python, non-finite floats to \"inf\"/null."""
     if isinstance(x, dict):
         return {str(k): _jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
         return [_jsonable(v) for v in x]
     if isinstance(x, np.ndarray):
-        return x.tolist()
+        return _jsonable(x.tolist())
     if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, float) and math.isinf(x):
-        return "inf"
-    return x
+        x = x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    if isinstance(x, (str, int, float, bool)) or x is None:
+        return x
+    return str(x)
 
 
 def as_tree(obj, root=None, name="tree") -> Tree:

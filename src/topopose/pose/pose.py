@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..match.tree import _jsonable
+
 from ..errors import InputError
 
 STATUSES = ("matched", "rejected", "failed")
@@ -85,22 +87,6 @@ class Pose:
                    distance=None if dist is None else float(dist), parts=parts,
                    error=d.get("error"), timings_ms=dict(d.get("timings_ms") or {}),
                    diagnostics=dict(d.get("diagnostics") or {}))
-
-
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, np.generic):
-        x = x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None if math.isnan(x) else ("inf" if x > 0 else "-inf")
-    if isinstance(x, (str, int, float, bool)) or x is None:
-        return x
-    return str(x)
 
 
 def read_poses(path, strict: bool = True) -> list:

@@ -782,7 +782,7 @@ def extract(vol, shape, lo, out, kout):
     so the untouched pages of the outputs are never faulted in.
     Returns the number of object voxels.
     """
-    sx, sy, sz = shape[0], shape[1], shape[2]
+    sy, sz = shape[1], shape[2]
     n8 = vol.size // 8
     v64 = vol[: n8 * 8].view(np.uint64)
     objm = np.uint64(0x0101010101010101)

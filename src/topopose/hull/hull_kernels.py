@@ -26,6 +26,32 @@ INVALID = -(2**31)
 
 
 @njit(cache=True, inline="always")
+def _distort(a, b, r2, intr, c):
+    """Lens distortion of normalized coordinates (a, b), r2 = a² + b², for camera c:
+    ``intr[c, 10]`` = 0 none, 1 OpenCV radial-tangential (k1, k2, p1, p2, k3 in ``intr[c, 5:10]``),
+    2 fisheye (k1..k4 in ``intr[c, 5:9]``) — the model of ``Camera.project``."""
+    model = intr[c, 10]
+    if model == 1.0:
+        k1 = intr[c, 5]
+        k2 = intr[c, 6]
+        p1 = intr[c, 7]
+        p2 = intr[c, 8]
+        k3 = intr[c, 9]
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        return (a * radial + 2.0 * p1 * a * b + p2 * (r2 + 2.0 * a * a),
+                b * radial + p1 * (r2 + 2.0 * b * b) + 2.0 * p2 * a * b)
+    if model == 2.0:
+        r = math.sqrt(r2)
+        if r > 1e-12:
+            th = math.atan(r)
+            t2 = th * th
+            thd = th * (1.0 + t2 * (intr[c, 5] + t2 * (intr[c, 6] + t2 * (intr[c, 7] + t2 * intr[c, 8]))))
+            s = thd / r
+            return a * s, b * s
+    return a, b
+
+
+@njit(cache=True, inline="always")
 def _pixel(geo, intr, c, fi, fj, fk):
     """Pixel index (row · S + column) of voxel (fi, fj, fk)'s centre in camera c, or -1 when not
     in the image."""
@@ -40,27 +66,7 @@ def _pixel(geo, intr, c, fi, fj, fk):
     r2 = a * a + b * b
     if r2 > intr[c, 11]:
         return -1
-    model = intr[c, 10]
-    if model == 1.0:
-        k1 = intr[c, 5]
-        k2 = intr[c, 6]
-        p1 = intr[c, 7]
-        p2 = intr[c, 8]
-        k3 = intr[c, 9]
-        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        ad = a * radial + 2.0 * p1 * a * b + p2 * (r2 + 2.0 * a * a)
-        bd = b * radial + p1 * (r2 + 2.0 * b * b) + 2.0 * p2 * a * b
-        a = ad
-        b = bd
-    elif model == 2.0:
-        r = math.sqrt(r2)
-        if r > 1e-12:
-            th = math.atan(r)
-            t2 = th * th
-            thd = th * (1.0 + t2 * (intr[c, 5] + t2 * (intr[c, 6] + t2 * (intr[c, 7] + t2 * intr[c, 8]))))
-            s = thd / r
-            a = a * s
-            b = b * s
+    a, b = _distort(a, b, r2, intr, c)
     u = intr[c, 0] * a + intr[c, 4] * b + intr[c, 2] + 0.5
     v = intr[c, 1] * b + intr[c, 3] + 0.5
     w = intr[c, 12]
@@ -286,27 +292,7 @@ def _uv(geo, intr, c, fi, fj, fk, out2):
     r2 = a * a + b * b
     if r2 > intr[c, 11]:
         return False
-    model = intr[c, 10]
-    if model == 1.0:
-        k1 = intr[c, 5]
-        k2 = intr[c, 6]
-        p1 = intr[c, 7]
-        p2 = intr[c, 8]
-        k3 = intr[c, 9]
-        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        ad = a * radial + 2.0 * p1 * a * b + p2 * (r2 + 2.0 * a * a)
-        bd = b * radial + p1 * (r2 + 2.0 * b * b) + 2.0 * p2 * a * b
-        a = ad
-        b = bd
-    elif model == 2.0:
-        r = math.sqrt(r2)
-        if r > 1e-12:
-            th = math.atan(r)
-            t2 = th * th
-            thd = th * (1.0 + t2 * (intr[c, 5] + t2 * (intr[c, 6] + t2 * (intr[c, 7] + t2 * intr[c, 8]))))
-            s = thd / r
-            a = a * s
-            b = b * s
+    a, b = _distort(a, b, r2, intr, c)
     out2[0] = intr[c, 0] * a + intr[c, 4] * b + intr[c, 2]
     out2[1] = intr[c, 1] * b + intr[c, 3]
     return True

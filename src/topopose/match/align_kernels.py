@@ -49,6 +49,29 @@ def _tz(x):
 
 
 @njit(cache=True)
+def _bfs(s, aptr, adj, adjw, par, parw, queue):
+    """Breadth-first search from ``s`` over the CSR adjacency (aptr, adj, adjw): ``queue`` gets
+    the visit order, ``par`` / ``parw`` each vertex's parent and parent-edge weight (-1 at ``s``).
+    Returns the number of vertices reached."""
+    par[:] = -2
+    par[s] = -1
+    queue[0] = s
+    head = 0
+    tail = 1
+    while head < tail:
+        x = queue[head]
+        head += 1
+        for q in range(aptr[x], aptr[x + 1]):
+            y = adj[q]
+            if par[y] == -2:
+                par[y] = x
+                parw[y] = adjw[q]
+                queue[tail] = y
+                tail += 1
+    return tail
+
+
+@njit(cache=True)
 def build_struct(n, eu, ev, ew, root, merge):
     """Node/item description of a tree with ``n`` vertices (indices 0..n-1).
 
@@ -88,41 +111,18 @@ def build_struct(n, eu, ev, ew, root, merge):
     dist = np.zeros((n, n), np.float64)
     queue = np.empty(n, np.int64)
     par = np.empty(n, np.int64)
+    parw = np.empty(n, np.float64)
     for s in range(n):
-        par[:] = -2
-        par[s] = -1
-        queue[0] = s
-        head = 0
-        tail = 1
-        while head < tail:
-            x = queue[head]
-            head += 1
-            for q in range(aptr[x], aptr[x + 1]):
-                y = adj[q]
-                if par[y] == -2:
-                    par[y] = x
-                    nxt[y, s] = x
-                    dist[s, y] = dist[s, x] + adjw[q]
-                    queue[tail] = y
-                    tail += 1
+        tail = _bfs(s, aptr, adj, adjw, par, parw, queue)
+        for k in range(1, tail):      # BFS order: a vertex's parent comes before it
+            y = queue[k]
+            nxt[y, s] = par[y]
+            dist[s, y] = dist[s, par[y]] + parw[y]
     # nodes
     if root >= 0:
         nn = n
         # BFS order from the root; nodes = reversed BFS order (children first)
-        par[:] = -2
-        par[root] = -1
-        queue[0] = root
-        head = 0
-        tail = 1
-        while head < tail:
-            x = queue[head]
-            head += 1
-            for q in range(aptr[x], aptr[x + 1]):
-                y = adj[q]
-                if par[y] == -2:
-                    par[y] = x
-                    queue[tail] = y
-                    tail += 1
+        _bfs(root, aptr, adj, adjw, par, parw, queue)
         node_v = np.empty(nn, np.int64)
         node_par = np.empty(nn, np.int64)
         nid = np.empty(n, np.int64)

@@ -88,14 +88,7 @@ def load_tables() -> np.ndarray:
         except (OSError, ValueError):
             pass
     tab = generate_tables()
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
-        with open(tmp, "wb") as f:
-            np.save(f, tab)
-        os.replace(tmp, path)
-    except OSError:
-        pass  # read-only cache: keep the table in memory only
+    _save(path, tab)
     tab.setflags(write=False)
     return tab
 
@@ -134,6 +127,7 @@ def load_ack3_edge_table() -> np.ndarray:
 
 
 def _save(path, tab):
+    """Write ``tab`` to ``path`` atomically (temporary file + rename); a read-only cache is fine."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")

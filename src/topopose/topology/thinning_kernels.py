@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from numba.cpython.unsafe.numbers import trailing_zeros
 
 from .tables_kernels import (
     PLANE_ISTHMUS1D,
@@ -46,7 +47,6 @@ R3 = 5       # bits 5..7: the z-triplet (z-1, z, z+1) of OBJ bits around the vox
 R3_LO = np.uint8(1 << R3)
 R3_MID = np.uint8(2 << R3)
 R3_HI = np.uint8(4 << R3)
-KNOWN = 1 << 30  # bucket entry holds the configuration and test of the first pass
 
 
 @njit(cache=True, inline="always")
@@ -68,7 +68,7 @@ def gather(vol, p, offs):
     """
     w = np.int64(0)
     for r in range(9):
-        w |= np.int64(vol[p + offs[26 + r]] >> R3) << (3 * r)
+        w |= np.int64(vol[np.uint64(np.int64(p) + offs[26 + r])] >> R3) << (3 * r)
     return (w & 0x1FFF) | ((w >> 14) << 13)
 
 
@@ -86,9 +86,10 @@ def _cfg(vol, p, offs, words, mode):
 @njit(cache=True, inline="always")
 def _clear(vol, p):
     """Delete voxel ``p``: clear OBJ and its bit in the z-triplets of p-1, p, p+1."""
-    vol[p] &= ~(np.uint8(OBJ) | R3_MID)
-    vol[p - 1] &= ~R3_HI
-    vol[p + 1] &= ~R3_LO
+    q = np.uint64(p)  # (unsigned indices: no wrap-around fix)
+    vol[q] &= ~(np.uint8(OBJ) | R3_MID)
+    vol[q - np.uint64(1)] &= ~R3_HI
+    vol[q + np.uint64(1)] &= ~R3_LO
 
 
 @njit(cache=True, inline="always")
@@ -133,7 +134,9 @@ def _init_list(vol, offs, off6, border_list, ccsu, words, n_obj):
                 vol[p] = (vol[p] & 31) | (t << R3)
             for p in range(8 * w, min(8 * w + 8, vol.size)):
                 n_obj += vol[p] & OBJ
-    lst = np.empty(max(n_obj, 1), dtype=np.int32)  # flat indices (the state array has < 2^31 voxels)
+    # flat indices (the state array has < 2^31 voxels), unsigned: an unsigned index
+    # needs no wrap-around fix in the hot loops
+    lst = np.empty(max(n_obj, 1), dtype=np.uint32)
     n = 0
     for w in range(n8 + 1):
         if w < n8 and v64[w] == 0:
@@ -163,36 +166,18 @@ def _delete(vol, dl, ndel, lst, n, offs, opp, off6, border_list, ccsu, words):
         p = dl[j]
         if ccsu == 2:
             for i in range(26):
-                q = p + offs[i]
+                q = np.uint64(p + offs[i])
                 if vol[q] & LISTED:  # only listed voxels hold a word
                     words[q] &= ~(np.uint32(1) << np.uint32(opp[i]))
         if border_list:
             for k in range(6):
-                q = p + off6[k]
+                q = np.uint64(p + off6[k])
                 if vol[q] & (OBJ | LISTED | KEPT) == OBJ:
                     vol[q] |= LISTED
                     lst[n] = q
                     n += 1
                     if ccsu == 2:
                         words[q] = gather(vol, q, offs)
-    return n
-
-
-@njit(cache=True, inline="always")
-def _lowbit(g):
-    """Index of the lowest set bit of ``g`` > 0."""
-    k = 0
-    while (g >> k) & 1 == 0:
-        k += 1
-    return k
-
-
-@njit(cache=True, inline="always")
-def _popcount(c):
-    n = 0
-    while c:
-        c &= c - 1
-        n += 1
     return n
 
 
@@ -230,7 +215,7 @@ def sequential_completion(vol, lst, n, offs, tables, lut, keep_end_points):
         cfg = gather(vol, p, offs)
         if not _simple(cfg, tables, lut):
             continue
-        if keep_end_points and _popcount(cfg) == 1:
+        if keep_end_points and cfg & (cfg - 1) == 0:  # one neighbour: an end point
             continue
         _clear(vol, p)
         deleted += 1
@@ -244,8 +229,8 @@ def sequential_completion(vol, lst, n, offs, tables, lut, keep_end_points):
 
 
 @njit(cache=True, inline="always")
-def _delete_directional(vol, dl, ndel, lst, lcf, n, offs, opp, off6, opp6, border_list, ccsu,
-                        words, bk, bkv, nbk, d):
+def _delete_directional(vol, dl, ndel, lst, n, offs, opp, off6, opp6, border_list, ccsu,
+                        words, bk, nbk, d):
     """Delete the collected voxels of subiteration ``d`` at once.
 
     Updates the z-triplet bits (and the CCSU words), appends new border voxels to the
@@ -262,19 +247,17 @@ def _delete_directional(vol, dl, ndel, lst, lcf, n, offs, opp, off6, opp6, borde
                 if vol[q] & LISTED:  # only listed voxels hold a word
                     words[q] &= ~(np.uint32(1) << np.uint32(opp[i]))
         for k in range(6):
-            q = p + off6[k]
+            q = np.uint64(p + off6[k])
             st = vol[q]
             if st & (OBJ | KEPT) != OBJ:
                 continue
             e = opp6[k]  # p is q's neighbour in direction e: q is now exposed in e
             if e > d:
                 bk[e, nbk[e]] = q
-                bkv[e, nbk[e]] = 0  # configuration not read yet
                 nbk[e] += 1
             if border_list and st & LISTED == 0:
                 vol[q] = st | LISTED
                 lst[n] = q
-                lcf[n] = -1  # not tested yet
                 n += 1
                 if ccsu == 2:
                     words[q] = gather(vol, q, offs)
@@ -325,16 +308,18 @@ def _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tco
     they are exposed (their neighbour is background); subiteration d then tests only
     bucket d — every mask of direction d needs the d-neighbour in the background —
     plus the voxels that earlier subiterations of the iteration exposed in d.
-    The list also keeps each voxel's configuration and byte of the previous
-    iteration, so an unchanged configuration is not looked up again.
+    Each pass first gathers the configurations of its voxels, then reads the table
+    for all of them, and collects the deletions and bucket entries with
+    unconditional stores (the counts advance by the tests): no data-dependent branch
+    to mispredict, and the indices are unsigned (no wrap-around fix per load).
     ``finish``: 0 none, 1 :func:`sequential_completion` keeping end points (curve
     skeletons), 2 without keeping them (ultimate skeletons).
     With ``lut`` the tests read ``btab``, the byte table of the mask set
     (:func:`topopose.topology.tables.load_byte_table`: bits 0–5 the six directions,
     bit 5 + psi the isthmus test): one read per configuration gives the isthmus test
-    and all six directional answers, and each bucket entry keeps the configuration and
-    byte read in the first pass, so a later subiteration re-reads the table only when
-    a deletion has changed the voxel's configuration.
+    and the first subiteration's answer (a later subiteration reads the table again:
+    deletions may have changed the configuration, and a re-read costs less than
+    keeping and checking the first one).
     ``stats`` (int64, 5) receives the number of list visits, of deletion tests, of
     isthmus tests, the initial list size and the voxels deleted by the completion.
     Returns (iterations, deleted voxels).
@@ -342,17 +327,13 @@ def _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tco
     words = np.empty(vol.size if ccsu == 2 else 1, dtype=np.uint32)
     lst, n = _init_list(vol, offs, off6, border_list, ccsu, words, n_obj)
     stats[3] = n
-    cap = lst.size
-    # one block for the deletion list and the buckets: fewer, larger allocations are
-    # reused by the allocator from call to call instead of being faulted in anew
-    work = np.empty(15 * cap, dtype=np.int32)
-    lcf = work[: 2 * cap].view(np.int64)  # configuration | byte << 32 at the last first pass
-    dl = work[2 * cap:3 * cap]
-    bk = work[3 * cap:9 * cap].reshape((6, cap))
-    # KNOWN | (test of that bucket's direction) << 26 | configuration, from the first
-    # pass; 0 when unknown (voxel pushed by a deletion)
-    bkv = work[9 * cap:].reshape((6, cap))
-    lcf[:n] = -1  # (the rest is written when voxels join the list)
+    cap = lst.size + 1  # (+1: the loops below store one entry past the last kept one)
+    # one block for the deletion list and the six buckets: fewer, larger allocations
+    # are reused by the allocator from call to call instead of being faulted in anew
+    work = np.empty(8 * cap, dtype=np.uint32)
+    dl = work[:cap]
+    cf = work[cap:2 * cap]  # configurations of a pass, gathered before the table reads
+    bk = work[2 * cap:].reshape((6, cap))
     nbk = np.zeros(6, dtype=np.int64)
     opp6 = np.array([1, 0, 3, 2, 5, 4])
     fbit = np.empty(6, dtype=np.int64)  # bit of the face neighbour of each direction
@@ -370,71 +351,66 @@ def _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tco
         visits += n
         for d in range(6):
             nbk[d] = 0
+        # two loops: the first gathers the configurations (and drops the deleted voxels),
+        # the second reads the table, so that the table reads, mostly cache misses, are
+        # not queued behind the gathers and many are in flight at once
+        m = 0
+        for i in range(n):
+            p = lst[i]
+            lst[m] = p
+            cf[m] = _cfg(vol, p, offs, words, ccsu)
+            m += vol[p] & OBJ
+        n = m
         m = 0
         ndel = 0
         for i in range(n):
             p = lst[i]
-            if vol[p] & OBJ == 0:
-                continue
-            cfg = _cfg(vol, p, offs, words, ccsu)
-            b = np.int64(0)
-            if lut:
-                cb = lcf[i]  # configuration | byte << 32 of the previous iteration
-                b = (cb >> 32) if (cb & 0xFFFFFFFF) == cfg else np.int64(btab[cfg])
+            cfg = np.int64(cf[i])
+            b = np.int64(btab[cf[i]]) if lut else np.int64(0)
             if psi != 0:
                 itests += 1
-                if lut:
-                    isth = (b >> (5 + psi)) & 1 != 0
-                else:
-                    isth = _isthmus(cfg, psi, tables, lut)
+                isth = (b >> (5 + psi)) & 1 != 0 if lut else _isthmus(cfg, psi, tables, lut)
                 if isth:
                     vol[p] |= KEPT  # constrained voxels leave the list for good
                     continue
             lst[m] = p
-            lcf[m] = cfg | (b << 32)
             m += 1
             # subiteration U (d = 0) is tested here, on the same configuration: nothing
-            # has been deleted yet in this iteration
-            if (cfg >> fbit[0]) & 1 == 0:
-                tests += 1
-                if lut:
-                    ok = b & 1 != 0
-                else:
-                    ok = match_set(cfg, templates, 0, tcount[0])
-                if ok:
-                    dl[ndel] = p
-                    ndel += 1
+            # has been deleted yet in this iteration.  The stores below are unconditional
+            # (the counts advance by the test): no branch to mispredict.
+            free = ~cfg
+            if lut:
+                ok = b & 1
+            else:
+                ok = np.int64((free >> fbit[0]) & 1 != 0 and match_set(cfg, templates, 0, tcount[0]))
+            tests += (free >> fbit[0]) & 1
+            dl[ndel] = p
+            ndel += ok
             for d in range(1, 6):
-                if (cfg >> fbit[d]) & 1 == 0:
-                    bk[d, nbk[d]] = p
-                    bkv[d, nbk[d]] = KNOWN | (((b >> d) & 1) << 26) | cfg
-                    nbk[d] += 1
+                bk[d, nbk[d]] = p
+                nbk[d] += (free >> fbit[d]) & 1
         n = m
         deleted = 0
         for d in range(6):
-            nb = nbk[d] if d > 0 else 0
-            tests += nb
             if d > 0:
+                nb = nbk[d]
+                tests += nb
                 ndel = 0
-            for i in range(nb):
-                p = bk[d, i]
-                if vol[p] & OBJ == 0:
-                    continue
-                cfg = _cfg(vol, p, offs, words, ccsu)
-                if lut:
-                    cb = np.int64(bkv[d, i])
-                    if cb & KNOWN and (cb & 0x3FFFFFF) == cfg:
-                        ok = (cb >> 26) & 1 != 0
+                if lut:  # (two loops, as in the first pass)
+                    for i in range(nb):
+                        cf[i] = _cfg(vol, bk[d, i], offs, words, ccsu)
+                for i in range(nb):
+                    p = bk[d, i]
+                    if lut:
+                        ok = (np.int64(btab[cf[i]]) >> d) & (vol[p] & OBJ)
                     else:
-                        ok = (np.int64(btab[cfg]) >> d) & 1 != 0
-                else:
-                    ok = match_set(cfg, templates, d, tcount[d])
-                if ok:
+                        ok = np.int64(vol[p] & OBJ != 0
+                                      and match_set(_cfg(vol, p, offs, words, ccsu), templates, d, tcount[d]))
                     dl[ndel] = p
-                    ndel += 1
+                    ndel += ok
             if ndel:
-                n = _delete_directional(vol, dl, ndel, lst, lcf, n, offs, opp, off6, opp6,
-                                        border_list, ccsu, words, bk, bkv, nbk, d)
+                n = _delete_directional(vol, dl, ndel, lst, n, offs, opp, off6, opp6,
+                                        border_list, ccsu, words, bk, nbk, d)
                 deleted += ndel
         total += deleted
         if deleted == 0:
@@ -517,9 +493,9 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
     words = np.empty(vol.size if ccsu == 2 else 1, dtype=np.uint32)
     lst, n = _init_list(vol, offs, off6, border_list, ccsu, words, n_obj)
     # one block (fewer, larger allocations are reused from call to call, not faulted in)
-    work = np.empty(2 * lst.size, dtype=np.int64)
-    cf = work[: lst.size]  # configuration (| byte << 32) of the voxels of S
-    sp = work[lst.size:]  # the voxels of S in list order, then those deleted
+    work = np.empty(3 * lst.size, dtype=np.uint32)
+    cf = work[: 2 * lst.size].view(np.int64)  # configuration (| byte << 32) of the voxels of S
+    sp = work[2 * lst.size:]  # the voxels of S in list order, then those deleted
     iterations = 0
     total = 0
     while True:
@@ -533,7 +509,7 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
             cfg = _cfg(vol, p, offs, words, ccsu)
             cv = cfg
             if lut:  # one read of the ACK3 byte table: bit 6 simple, bit 7 1D isthmus
-                b = btab[cfg]
+                b = btab[np.uint64(cfg)]
                 cv = cfg | (np.int64(b) << 32)
                 isth = (b >> 7) & 1 != 0 if psi == 1 else _isthmus(cfg, psi, tables, lut)
                 simple = (b >> 6) & 1 != 0
@@ -545,11 +521,11 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
                 continue
             lst[m] = p
             m += 1
-            if simple:
-                vol[p] |= INS
-                sp[ns] = p
-                cf[ns] = cv
-                ns += 1
+            # (unconditional stores, the count advances by the test: no branch)
+            vol[p] |= np.uint8(INS * simple)
+            sp[ns] = p
+            cf[ns] = cv
+            ns += simple
         n = m
         # the clique passes and the deletion visit S only (in list order, as Alg. 8)
         # 2-cliques
@@ -561,14 +537,14 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
             if lut:  # bits 0-5 of the byte: the 2-clique towards d has R non-simple
                 g = (cfg >> 32) & 63
                 while g:
-                    d = _lowbit(g)
+                    d = trailing_zeros(g)
                     g &= g - 1
-                    if vol[p + off6[d]] & INS:
+                    if vol[np.uint64(p + off6[d])] & INS:
                         vol[p] &= ~np.uint8(INS)
                         break
                 continue
             for d in range(6):
-                if vol[p + off6[d]] & INS == 0:
+                if vol[np.uint64(p + off6[d])] & INS == 0:
                     continue
                 s8 = 0
                 for k in range(8):
@@ -583,9 +559,9 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
             if vol[p] & INS == 0:
                 continue
             cfg = cf[i] & 0x3FFFFFF
-            g = np.int64(etab[cfg]) if lut else np.int64(0xFFF)
+            g = np.int64(etab[np.uint64(cfg)]) if lut else np.int64(0xFFF)
             while g:
-                e = _lowbit(g)
+                e = trailing_zeros(g)
                 g &= g - 1
                 if not lut:
                     diag = ((cfg >> e_ed[e]) & 1) or (((cfg >> e_f1[e]) & 1) and ((cfg >> e_f2[e]) & 1))
@@ -597,7 +573,7 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
                         continue
                 inside = True
                 for k in range(3):
-                    if (cfg >> e_others[e, k]) & 1 and vol[p + e_ooff[e, k]] & INS == 0:
+                    if (cfg >> e_others[e, k]) & 1 and vol[np.uint64(p + e_ooff[e, k])] & INS == 0:
                         inside = False
                         break
                 if inside:
@@ -609,13 +585,18 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
             if vol[p] & INS == 0:
                 continue
             cfg = cf[i] & 0x3FFFFFF
+            # essential 0-cliques: M has voxels on both sides of the vertex along x, y
+            # and z (the eight cubes tested without a branch, then visited by set bit)
+            g = np.int64(0)
             for c in range(8):
-                # essential 0-clique: M has voxels on both sides of the vertex along x, y and z
-                if (cfg & k_span[c, 0]) == 0 or (cfg & k_span[c, 1]) == 0 or (cfg & k_span[c, 2]) == 0:
-                    continue
+                ess = ((cfg & k_span[c, 0]) != 0) & ((cfg & k_span[c, 1]) != 0) & ((cfg & k_span[c, 2]) != 0)
+                g |= np.int64(ess) << c
+            while g:
+                c = trailing_zeros(g)
+                g &= g - 1
                 inside = True
                 for k in range(7):
-                    if (cfg >> k_bits[c, k]) & 1 and vol[p + k_ooff[c, k]] & INS == 0:
+                    if (cfg >> k_bits[c, k]) & 1 and vol[np.uint64(p + k_ooff[c, k])] & INS == 0:
                         inside = False
                         break
                 if inside:

@@ -117,23 +117,12 @@ def _simple(cfg, tables, lut):
 def _init_list(vol, offs, off6, border_list, ccsu, words, n_obj):
     """Initial candidate list: border voxels not in K (or every such object voxel).
 
-    ``n_obj`` < 0: the z-triplet bits are not set yet; compute them and count the
-    object voxels here (else :func:`fill_state_rows` did).  The scans skip empty 8-byte
-    words of the volume.  Listed voxels get the LISTED bit (and their word).
+    ``vol`` comes from :func:`fill_state_rows` (z-triplet bits set, ``n_obj`` object
+    voxels).  The scan skips empty 8-byte words of the volume.  Listed voxels get the
+    LISTED bit (and their word).
     """
     n8 = vol.size // 8
     v64 = vol[: n8 * 8].view(np.uint64)
-    last = vol.size - 1
-    if n_obj < 0:
-        n_obj = 0
-        for w in range(n8 + 1):
-            if w < n8 and v64[w] == 0:
-                continue
-            for p in range(max(8 * w - 1, 1), min(8 * w + 9, last)):
-                t = (vol[p - 1] & OBJ) | ((vol[p] & OBJ) << 1) | ((vol[p + 1] & OBJ) << 2)
-                vol[p] = (vol[p] & 31) | (t << R3)
-            for p in range(8 * w, min(8 * w + 8, vol.size)):
-                n_obj += vol[p] & OBJ
     # flat indices (the state array has < 2^31 voxels), unsigned: an unsigned index
     # needs no wrap-around fix in the hot loops
     lst = np.empty(max(n_obj, 1), dtype=np.uint32)
@@ -273,7 +262,7 @@ def make_directional_thin(lut=None, ccsu=None):
     two arguments (one generic kernel serves every combination).  Signature:
     ``(vol, offs, opp, off6, tables, btab, plane0, templates, tcount, psi, border_list,
     finish, stats, lut, ccsu, n_obj) -> (iterations, deleted)``; see
-    :func:`_directional_body` (``n_obj`` < 0 when :func:`fill_state_rows` was not used).
+    :func:`_directional_body` (``n_obj``: the object voxels :func:`fill_state_rows` counted).
     """
     if lut is None or ccsu is None:
         @njit(cache=True)

@@ -188,6 +188,26 @@ def pack_byte_table(tables, planes):
     return out
 
 
+@njit(cache=True, inline="always")
+def section2d(cfg, c2_a, c2_b, d):
+    """8-bit 2D section of the 2-clique {p, p + d} (ACK3, thesis §5.2.2): bit k set
+    when column k of R (``c2_a[d, k]`` in p's layer or ``c2_b[d, k]`` in the
+    neighbour's) holds an object voxel."""
+    s8 = 0
+    for k in range(8):
+        if ((cfg >> c2_a[d, k]) | (cfg >> c2_b[d, k])) & 1:
+            s8 |= 1 << k
+    return s8
+
+
+@njit(cache=True, inline="always")
+def edge_critical(cfg, e, e_f1, e_f2, e_ed, e_u, e_v):
+    """1-clique geometry around edge ``e`` (thesis §5.2.1, Def. 3): X ∩ {E, F, G, H}
+    holds a diagonal pair and the sets U and V are both hit or both missed."""
+    diag = ((cfg >> e_ed[e]) & 1) | ((cfg >> e_f1[e]) & (cfg >> e_f2[e]) & 1)
+    return diag != 0 and ((cfg & e_u[e]) != 0) == ((cfg & e_v[e]) != 0)
+
+
 @njit(cache=True, parallel=True)
 def build_ack3_byte_table(tables, c2_a, c2_b, nonsimple2d, dir_bits):
     """ACK3 byte table (thesis §5.2.2, Alg. 8; ALGORITHMS.md §4), one uint8 per configuration.
@@ -206,11 +226,7 @@ def build_ack3_byte_table(tables, c2_a, c2_b, nonsimple2d, dir_bits):
         for d in range(6):
             if (cfg >> dir_bits[d]) & 1 == 0:
                 continue
-            s8 = 0
-            for k in range(8):
-                if ((cfg >> c2_a[d, k]) | (cfg >> c2_b[d, k])) & 1:
-                    s8 |= 1 << k
-            if nonsimple2d[s8]:
+            if nonsimple2d[section2d(cfg, c2_a, c2_b, d)]:
                 v |= 1 << d
         v |= ((tables[12, c >> 3] >> (c & 7)) & 1) << 6
         v |= ((tables[13, c >> 3] >> (c & 7)) & 1) << 7
@@ -231,8 +247,7 @@ def build_ack3_edge_table(e_f1, e_f2, e_ed, e_u, e_v):
         cfg = np.int64(c)
         v = 0
         for e in range(12):
-            diag = ((cfg >> e_ed[e]) & 1) | ((cfg >> e_f1[e]) & (cfg >> e_f2[e]) & 1)
-            if diag and ((cfg & e_u[e]) != 0) == ((cfg & e_v[e]) != 0):
+            if edge_critical(cfg, e, e_f1, e_f2, e_ed, e_u, e_v):
                 v |= 1 << e
         out[c] = np.uint16(v)
     return out

@@ -29,8 +29,10 @@ from .tables_kernels import (
     PLANE_ISTHMUS1D,
     PLANE_ISTHMUS2D,
     PLANE_SIMPLE,
+    edge_critical,
     expand26,
     match_set,
+    section2d,
     t6bar_word,
     t26_word,
     table_bit,
@@ -413,6 +415,16 @@ def _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tco
     return iterations, total
 
 
+@njit(cache=True, inline="always")
+def _clique_in_s(vol, p, cfg, bits, offs, c, n):
+    """True when every voxel of clique ``c`` around ``p`` that is in X (configuration
+    bit ``bits[c, k]``, flat offset ``offs[c, k]``, k < n) is also in S (ACK3, Alg. 8)."""
+    k = 0
+    while k < n and ((cfg >> bits[c, k]) & 1 == 0 or vol[np.uint64(p + offs[c, k])] & INS):
+        k += 1
+    return k == n
+
+
 # ----------------------------------------------------------------------------- ACK3
 def make_ack3_thin(lut=None, ccsu=None):
     """ACK3 kernel specialized for (lut, ccsu), or generic with ``None`` (see
@@ -535,11 +547,7 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
             for d in range(6):
                 if vol[np.uint64(p + off6[d])] & INS == 0:
                     continue
-                s8 = 0
-                for k in range(8):
-                    if ((cfg >> c2_a[d, k]) | (cfg >> c2_b[d, k])) & 1:
-                        s8 |= 1 << k
-                if nonsimple2d[s8]:
+                if nonsimple2d[section2d(cfg, c2_a, c2_b, d)]:
                     vol[p] &= ~np.uint8(INS)
                     break
         # 1-cliques
@@ -552,20 +560,9 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
             while g:
                 e = trailing_zeros(g)
                 g &= g - 1
-                if not lut:
-                    diag = ((cfg >> e_ed[e]) & 1) or (((cfg >> e_f1[e]) & 1) and ((cfg >> e_f2[e]) & 1))
-                    if not diag:
-                        continue
-                    hu = (cfg & e_u[e]) != 0
-                    hv = (cfg & e_v[e]) != 0
-                    if hu != hv:
-                        continue
-                inside = True
-                for k in range(3):
-                    if (cfg >> e_others[e, k]) & 1 and vol[np.uint64(p + e_ooff[e, k])] & INS == 0:
-                        inside = False
-                        break
-                if inside:
+                if not lut and not edge_critical(cfg, e, e_f1, e_f2, e_ed, e_u, e_v):
+                    continue
+                if _clique_in_s(vol, p, cfg, e_others, e_ooff, e, 3):
                     vol[p] &= ~np.uint8(INS)
                     break
         # 0-cliques
@@ -583,12 +580,7 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
             while g:
                 c = trailing_zeros(g)
                 g &= g - 1
-                inside = True
-                for k in range(7):
-                    if (cfg >> k_bits[c, k]) & 1 and vol[np.uint64(p + k_ooff[c, k])] & INS == 0:
-                        inside = False
-                        break
-                if inside:
+                if _clique_in_s(vol, p, cfg, k_bits, k_ooff, c, 7):
                     vol[p] &= ~np.uint8(INS)
                     break
         ndel = 0

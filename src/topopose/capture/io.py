@@ -18,6 +18,7 @@ import numpy as np
 from ..errors import InputError
 from .calibration import read_calibration, read_capture_options
 from .capture import Capture
+from .background import SEQUENCE_METHODS
 from .silhouettes import extract_silhouette
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
@@ -79,7 +80,8 @@ def load_capture(path) -> Capture:
             raise InputError(f"{folder}: folder of camera {cam.name!r} (calibration.toml) not found")
         files[cam.name] = _list_images(folder)
     backgrounds = {}
-    if source == "images":
+    sequence = opts["silhouettes"]["method"] in SEQUENCE_METHODS
+    if source == "images" and not sequence:
         bdir = root / "backgrounds"
         for cam in cameras:
             cands = [bdir / f"{cam.name}{e}" for e in IMAGE_EXTENSIONS] if bdir.is_dir() else []
@@ -141,6 +143,9 @@ def read_silhouettes(cap: Capture, frame: str) -> list:
         raise InputError(f"{cap.path or 'capture'}: no silhouette files nor in-memory masks")
     out = []
     source = cap.options.get("source", "silhouettes")
+    if source == "images" and cap.options["silhouettes"]["method"] in SEQUENCE_METHODS:
+        from .background import foreground_maps, masks_from_maps
+        return masks_from_maps(cap, foreground_maps(cap, frame))
     for cam in cap.cameras:
         p = cap.files[cam.name].get(frame)
         if p is None:
@@ -165,4 +170,27 @@ def read_silhouettes(cap: Capture, frame: str) -> list:
             img = _imread(p, cv2.IMREAD_COLOR)
             _check_size(p, img, cam)
             out.append(extract_silhouette(img, bg, cap.options.get("silhouettes")))
+    return out
+
+
+def read_images(cap: Capture, frame: str) -> list:
+    """Colour images (h, w, 3) uint8 BGR of one frame, one per camera (``images/`` source).
+
+    Raises
+    ------
+    InputError
+        The frame is missing for a camera, an image is unreadable, or its size differs from
+        the calibration's ``size``.
+    """
+    if cap.files is None or cap.options.get("source") != "images":
+        raise InputError(f"{cap.path or 'capture'}: no colour images (images/ folder) to read")
+    out = []
+    for cam in cap.cameras:
+        p = cap.files[cam.name].get(frame)
+        if p is None:
+            raise InputError(f"{Path(cap.path) / 'images' / cam.name}: frame {frame!r} missing for "
+                             f"camera {cam.name!r} (other cameras have it)")
+        img = _imread(p, cv2.IMREAD_COLOR)
+        _check_size(p, img, cam)
+        out.append(img)
     return out

@@ -249,6 +249,13 @@ def _soft_carve(cap, pix, maps, shape):
     p = cap.options["silhouettes"]
     occ, n = soft_carve(pix, maps, shape, float(p["p_detect"]), float(p["p_false"]),
                         float(p["occupancy"]))
+    k = int(p.get("open3d", 0))
+    if k > 0 and n:
+        # opening by a (2k + 1)³ cube: removes the hairs a noisy surface gives the
+        # skeleton as spurious branches
+        from scipy import ndimage
+        occ = ndimage.binary_opening(occ.view(bool), np.ones((2 * k + 1,) * 3, bool)).view(np.uint8)
+        n = int(np.count_nonzero(occ))
     st = np.zeros(12, dtype=np.int64)
     st[9:12] = -1
     if n:

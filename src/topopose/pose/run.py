@@ -124,7 +124,7 @@ def _progress(total, enabled, desc):
 def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
-        tolerance=None, on_pose=None) -> RunResult:
+        tolerance=None, on_pose=None, gate=True) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -152,6 +152,10 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         cameras, else 0 (see :class:`FrameEstimator`).
     on_pose : callable, optional
         Called with each :class:`Pose` as it finishes (e.g. a live viewer).
+    gate : bool
+        ``matched`` also needs the frame's confidence (:mod:`.confidence`, with the time
+        factors computed over the run at the end) above its minimum; False: the confidence is
+        reported only.
 
     Returns
     -------
@@ -163,7 +167,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     m = load_model(model, constraints=constraints)
     cap = capture if isinstance(capture, Capture) else load_capture(capture)
     options = {"betweenness": betweenness, "relation": relation, "max_missing": max_missing,
-               "thinning": thinning, "tolerance": tolerance}
+               "thinning": thinning, "tolerance": tolerance, "gate": gate}
     todo = select_frames(cap, frames)
     if workers is None or workers < 1:
         raise InputError(f"--workers: must be at least 1, got {workers}")
@@ -214,6 +218,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         if fh is not None:
             fh.close()
     seconds = time.perf_counter() - t0
+    from .confidence import temporal_confidence
+    temporal_confidence(list(results.values()), {f: i for i, f in enumerate(cap.frames)},
+                        gate=gate)
     if out is not None:
         write_poses(out, results.values())
     poses = [results[k] for k in sorted(results)]
@@ -277,7 +284,7 @@ def run_cli(a) -> int:
               c3d=getattr(a, "c3d", None),
               constraints=not getattr(a, "no_constraints", False),
               tolerance=getattr(a, "tolerance", None),
-              on_pose=None)
+              on_pose=None, gate=not getattr(a, "no_confidence_gate", False))
     if getattr(a, "rerun", None):
         from ..viz.rerun import record_run
         record_run(a.rerun, a.capture, res.poses, model=a.model, resolution=a.resolution,

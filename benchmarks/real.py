@@ -1,0 +1,287 @@
+"""A real recording: Pose2Sim's balancing trial, from its 4 videos and Calib.toml as shipped.
+
+    python benchmarks/real.py [RECORDING] [--methods sequence,sequence+selfie] [--frames N]
+
+RECORDING (default ``benchmarks/data/pose2sim_balancing/``): ``videos/cam01.mp4`` …,
+``Calib.toml`` (tables ``cam_01`` …), ``reference/pose2sim_3d.trc`` (Pose2Sim's own 3D result,
+TRC axes (X, Y, Z) = world (y, z, x)). No hand-made masks, no 2D keypoints: silhouettes come
+from the sequence itself (``[silhouettes] method``, see ``topopose.capture.background``).
+
+Scores (all frames, best guesses of rejected frames included; a failed frame counts as wrong):
+
+- head: distance to the TRC ``Head`` marker;
+- hands: distance to the segment from the wrist to 0.1 m beyond it along elbow → wrist
+  (the hand: the model's hand is the end of the arm's skeleton branch, beyond the wrist);
+- feet: distance to the segment ankle → big toe;
+- ``hand_1``/``hand_2`` (and feet) are paired to left/right per frame to minimize the sum;
+- a frame is *right* when head, both hands and both feet are within 0.15 m;
+- precision of ``matched``: right frames among matched ones.
+
+Speed: end to end from the videos (decoding included), one process, resolution 100; the set-up
+(learning the background from 25 sampled frames + the capture volume + tables) is reported
+apart as the first frame's extra cost. Until video input is in topopose (issue 12 part 1), the
+videos are decoded here into a temporary capture folder (JPEG, quality 95): decoding is timed
+on its own and the run then reads those images.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+DEFAULT = HERE / "data" / "pose2sim_balancing"
+RIGHT = 0.15            # metres
+HAND_EXT = 0.10         # metres beyond the wrist
+
+
+def read_trc(path: Path) -> dict:
+    """marker → (frames, 3) world coordinates (TRC (X, Y, Z) = world (y, z, x))."""
+    lines = Path(path).read_text().splitlines()
+    names = [x for x in lines[3].split("\t")[2:] if x.strip()]
+    rows = [np.array([float(v) for v in ln.split("\t")[2:2 + 3 * len(names)]])
+            for ln in lines[5:] if ln.strip()]
+    a = np.array(rows).reshape(len(rows), len(names), 3)
+    world = a[:, :, [2, 0, 1]]
+    return {n: world[:, i] for i, n in enumerate(names)}
+
+
+def seg_dist(p, a, b) -> float:
+    if p is None:
+        return float("inf")
+    p, a, b = (np.asarray(x, float) for x in (p, a, b))
+    ab = b - a
+    t = np.clip(np.dot(p - a, ab) / max(np.dot(ab, ab), 1e-12), 0, 1)
+    return float(np.linalg.norm(p - (a + t * ab)))
+
+
+def frame_errors(parts: dict, ref: dict, i: int) -> dict:
+    """Errors of one frame's head, hands, feet against the reference (metres)."""
+    g = {k: v[i] for k, v in ref.items()}
+    out = {"head": float("inf") if parts.get("head") is None
+           else float(np.linalg.norm(np.asarray(parts["head"]) - g["Head"]))}
+    hands = {}
+    for side in "LR":
+        w, e = g[f"{side}Wrist"], g[f"{side}Elbow"]
+        d = (w - e) / max(np.linalg.norm(w - e), 1e-9)
+        hands[side] = (w, w + HAND_EXT * d)
+    feet = {side: (g[f"{side}Ankle"], g[f"{side}BigToe"]) for side in "LR"}
+    for kind, segs in (("hand", hands), ("foot", feet)):
+        a, b = parts.get(f"{kind}_1"), parts.get(f"{kind}_2")
+        s1 = [seg_dist(a, *segs["L"]), seg_dist(b, *segs["R"])]
+        s2 = [seg_dist(a, *segs["R"]), seg_dist(b, *segs["L"])]
+        best = s1 if sum(min(x, 1e9) for x in s1) <= sum(min(x, 1e9) for x in s2) else s2
+        out[f"{kind}_L"], out[f"{kind}_R"] = best
+    return out
+
+
+def decode_to_capture(rec: Path, out: Path, method: str, extra: str = "") -> float:
+    """Decode the videos into ``out/images/<camera>/<frame>.jpg`` (padded to the calibration
+    width), write ``calibration.toml`` (tables renamed cam_01 → cam01) and ``capture.toml``.
+    Returns the decoding time (s) alone."""
+    import cv2
+    import tomllib
+
+    calib = tomllib.loads((rec / "Calib.toml").read_text())
+    text = (rec / "Calib.toml").read_text()
+    vids = sorted((rec / "videos").glob("*.mp4"))
+    dec = 0.0
+    for v in vids:
+        name = v.stem
+        key = [k for k in calib if k.replace("_", "") == name][0]
+        text = text.replace(f"[{key}]", f"[{name}]").replace(f'"{key}"', f'"{name}"')
+        W = int(calib[key]["size"][0])
+        d = out / "images" / name
+        d.mkdir(parents=True, exist_ok=True)
+        vc = cv2.VideoCapture(str(v))
+        i = 0
+        while True:
+            t0 = time.perf_counter()
+            ok, f = vc.read()
+            dec += time.perf_counter() - t0
+            if not ok:
+                break
+            if f.shape[1] < W:
+                f = cv2.copyMakeBorder(f, 0, 0, 0, W - f.shape[1], cv2.BORDER_CONSTANT, value=0)
+            cv2.imwrite(str(d / f"{i:04d}.jpg"), f, [cv2.IMWRITE_JPEG_QUALITY, 95])
+            i += 1
+    (out / "calibration.toml").write_text(text)
+    (out / "capture.toml").write_text(
+        f'[capture]\nup = "+z"\nunits = "m"\nfps = 60\n\n[silhouettes]\nmethod = "{method}"\n{extra}')
+    return dec
+
+
+def summarize(poses, ref, frames_index) -> dict:
+    errs, right, matched_right, matched = [], 0, 0, 0
+    per = {k: [] for k in ("head", "hand", "foot")}
+    rows = []
+    for p in poses:
+        i = frames_index[p.frame]
+        e = frame_errors(p.parts, ref, i) if p.status != "failed" else None
+        ok = e is not None and all(v <= RIGHT for v in e.values())
+        right += ok
+        if p.status == "matched":
+            matched += 1
+            matched_right += ok
+        if e is not None:
+            per["head"].append(e["head"])
+            per["hand"] += [e["hand_L"], e["hand_R"]]
+            per["foot"] += [e["foot_L"], e["foot_R"]]
+        rows.append({"frame": p.frame, "status": p.status, "right": bool(ok),
+                     "confidence": p.diagnostics.get("confidence"), "distance": p.distance,
+                     "errors": None if e is None else {k: round(v, 3) for k, v in e.items()},
+                     "error": p.error})
+    n = len(poses)
+    stats = {}
+    for k, v in per.items():
+        v = np.asarray(v, float)
+        v = v[np.isfinite(v)] if v.size else v
+        stats[k] = {"median": round(float(np.median(v)), 3) if v.size else None,
+                    "p90": round(float(np.percentile(v, 90)), 3) if v.size else None,
+                    "placed": int(v.size)}
+    return {"frames": n, "matched": matched, "matched_share": round(matched / n, 3),
+            "right": right, "right_share": round(right / n, 3),
+            "matched_precision": round(matched_right / matched, 3) if matched else None,
+            "failed": sum(p.status == "failed" for p in poses), "errors": stats, "rows": rows}
+
+
+def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None):
+    import topopose as tp
+    from topopose.pose.confidence import temporal_confidence
+    from topopose.pose.estimate import FrameEstimator
+
+    cdir = work / method.replace("+", "_")
+    if cdir.exists():
+        shutil.rmtree(cdir)
+    dec = decode_to_capture(rec, cdir, method)
+    cap = tp.load_capture(cdir)
+    frames = cap.frames[:nframes] if nframes else cap.frames
+    t0 = time.perf_counter()
+    est = FrameEstimator(cap, "human", resolution)
+    poses = [est.estimate(frames[0])]
+    t_first = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    for f in frames[1:]:
+        poses.append(est.estimate(f))
+    t_rest = time.perf_counter() - t1
+    temporal_confidence(poses, {f: i for i, f in enumerate(cap.frames)})
+    idx = {f: i for i, f in enumerate(cap.frames)}
+    res = summarize(poses, ref, idx)
+    stages = {}
+    for p in poses[1:]:
+        for k, v in p.timings_ms.items():
+            stages.setdefault(k, []).append(v)
+    res["speed"] = {
+        "decode_ms_per_frame": round(1000 * dec / len(cap.frames), 2),
+        "first_frame_s": round(t_first, 3),
+        "per_frame_ms": round(1000 * t_rest / max(len(frames) - 1, 1), 2),
+        "stages_median_ms": {k: round(float(np.median(v)), 2) for k, v in stages.items()},
+    }
+    sp = res["speed"]
+    sp["end_to_end_fps"] = round(1000 / (sp["per_frame_ms"] + sp["decode_ms_per_frame"]), 2)
+    sil = [p.timings_ms.get("hull", 0) for p in poses[1:]]
+    res["method"] = method
+    if picture is not None:
+        _picture(cap, est, poses, res, picture)
+    return res, poses
+
+
+def _picture(cap, est, poses, res, path):
+    """Silhouettes with the reprojected parts and the hull/skeleton of a matched, right frame
+    (else the best-confidence one), and of a wrong one."""
+    from topopose.viz.view import render_frame
+
+    rows = {r["frame"]: r for r in res["rows"]}
+    good = [p for p in poses if p.status == "matched" and rows[p.frame]["right"]]
+    pick = good[len(good) // 2] if good else max(
+        (p for p in poses if p.status != "failed"), key=lambda p: p.diagnostics.get("confidence", 0))
+    pose, det = est.estimate(pick.frame, detail=True)
+    pose = pick
+    render_frame(str(path), est.model, pose, det, cap=cap, silhouettes=True, up=cap.up_vector,
+                 title=f"Pose2Sim balancing, frame {pick.frame}: {pick.status}, confidence "
+                       f"{pick.diagnostics.get('confidence')}, "
+                       f"{'right' if rows[pick.frame]['right'] else 'wrong'} (≤ 0.15 m)")
+    return pick.frame
+
+
+def main(argv=None):
+    from _machine import machine
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("recording", nargs="?", default=str(DEFAULT))
+    ap.add_argument("--methods", default="sequence,sequence+selfie")
+    ap.add_argument("--resolution", type=int, default=100)
+    ap.add_argument("--frames", type=int, default=0, help="first N frames only (0: all)")
+    ap.add_argument("--out", default=str(HERE / "results" / "real"))
+    a = ap.parse_args(argv)
+    rec = Path(a.recording)
+    if not (rec / "videos").is_dir() or not (rec / "Calib.toml").is_file():
+        print(f"{rec}: recording not found (needs videos/ and Calib.toml); pass its path")
+        return 2
+    ref = read_trc(rec / "reference" / "pose2sim_3d.trc")
+    methods = [m for m in a.methods.split(",") if m]
+    if "selfie" in a.methods:
+        try:
+            import mediapipe  # noqa: F401
+        except ImportError:
+            print("mediapipe not installed: the selfie methods are skipped")
+            methods = [m for m in methods if "selfie" not in m]
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    results = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for m in methods:
+            pic = out.parent / f"real_{m.replace('+', '_')}_frame.png"
+            res, poses = run_method(rec, m, a.resolution, a.frames, Path(tmp), ref, picture=pic)
+            res["picture"] = pic.name
+            results[m] = res
+            print(m, {k: res[k] for k in ("matched_share", "right_share", "matched_precision")},
+                  res["errors"], res["speed"])
+    doc = {"recording": str(rec), "machine": machine(), "resolution": a.resolution,
+           "right_within_m": RIGHT, "hand_extension_m": HAND_EXT, "methods": results}
+    out.with_suffix(".json").write_text(json.dumps(doc, indent=1))
+    out.with_suffix(".md").write_text(report(doc))
+    print(f"wrote {out}.md / .json")
+    return 0
+
+
+def report(doc) -> str:
+    m = doc["machine"]
+    L = ["# Real recording: Pose2Sim balancing trial (4 phone cameras, 100 frames)", "",
+         f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
+         f"Resolution {doc['resolution']}³. Written by `benchmarks/real.py`.", "",
+         "A frame is *right* when head, both hands and both feet are within "
+         f"{doc['right_within_m']} m of Pose2Sim's 3D result (hands: wrist → "
+         f"{doc['hand_extension_m']} m beyond it; feet: ankle → big toe). Errors in metres over "
+         "all processed frames (rejected frames' best guesses included).", "",
+         "| silhouettes | matched | right (target ≥ 70 %) | precision of matched (target ≥ 95 %) "
+         "| head med / p90 | hands med / p90 | feet med / p90 | failed |",
+         "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for name, r in doc["methods"].items():
+        e = r["errors"]
+        f = lambda k: f"{e[k]['median']} / {e[k]['p90']}"
+        prec = "—" if r["matched_precision"] is None else f"{100 * r['matched_precision']:.0f} %"
+        L.append(f"| {name} | {r['matched']}/{r['frames']} | {100 * r['right_share']:.0f} % | "
+                 f"{prec} | {f('head')} | {f('hand')} | {f('foot')} | {r['failed']} |")
+    L += ["", "## Speed (one process)", "",
+          "| silhouettes | decoding ms/frame (4 videos) | pipeline ms/frame | end-to-end frames/s "
+          "(target ≥ 20) | first frame s (target ≤ 2) | stage medians ms |",
+          "| --- | --- | --- | --- | --- | --- |"]
+    for name, r in doc["methods"].items():
+        s = r["speed"]
+        st = ", ".join(f"{k} {v}" for k, v in s["stages_median_ms"].items())
+        L.append(f"| {name} | {s['decode_ms_per_frame']} | {s['per_frame_ms']} | "
+                 f"{s['end_to_end_fps']} | {s['first_frame_s']} | {st} |")
+    L += ["", "Pictures: " + ", ".join(f"`{r['picture']}`" for r in doc["methods"].values()), ""]
+    return "\n".join(L)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

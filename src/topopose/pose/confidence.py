@@ -1,0 +1,106 @@
+"""A per-frame confidence that says whether to trust a pose (issue 12, part 5).
+
+The AHA distance alone does not separate right from wrong poses on real recordings (a wrong
+frame can align closely: a hull that lost its legs is still a tree). The confidence combines
+what each stage knows, as a product of factors in [0, 1]:
+
+- **alignment**: f_d = 2^(−(d / T_d)²) (½ at the threshold T_d);
+- **hull**: f_h = clip((s − s_min) / (0.95 − s_min), 0, 1) where s is the share of the hull's
+  voxels in its largest component (what was dropped, part 4) and ``s_min`` = ``min_share``;
+- **skeleton**: f_b = 0.8^e, e = data-tree leaves beyond the model's (spurious branches);
+- **placement**: f_m = 0.5^m, m = parts left unmatched;
+- **time** (batch runs, :func:`temporal_confidence`): f_t = 2^(−(δ / (0.1 H))²) with δ the
+  median displacement of the parts since the previous frame (numbered parts paired
+  optimally), per frame of gap, and H the hull's extent along the up axis; frames whose hull
+  volume departs from the run's median by more than a factor 1.5 get f_v = ½.
+
+``matched`` then also needs confidence ≥ ``min_confidence`` (``FrameEstimator(gate=True)``,
+``topopose run --no-confidence-gate`` to switch off). The constants were set by hand, and
+``min_confidence`` chosen on synthetic captures only (``benchmarks/real.py --calibrate``:
+capsule human, several seeds); the real recording is used to check it, not to tune it.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+MIN_CONFIDENCE = 0.35
+
+
+def leaf_count(tree) -> int:
+    deg = {}
+    for e in tree.edges:
+        a, b = e[0], e[1]
+        deg[a] = deg.get(a, 0) + 1
+        deg[b] = deg.get(b, 0) + 1
+    return sum(1 for v in deg.values() if v == 1)
+
+
+def frame_confidence(distance, threshold, share, extra_leaves, missing, min_share=0.8) -> dict:
+    """Factors and product (see the module docstring) of one frame, without the time term."""
+    fd = 0.0 if distance is None or not math.isfinite(distance) else 2.0 ** (-(distance / threshold) ** 2)
+    fh = float(np.clip((share - min_share) / max(0.95 - min_share, 1e-9), 0.0, 1.0))
+    fb = 0.8 ** max(0, int(extra_leaves))
+    fm = 0.5 ** max(0, int(missing))
+    return {"alignment": round(fd, 4), "hull": round(fh, 4), "skeleton": round(fb, 4),
+            "placement": round(fm, 4), "confidence": round(fd * fh * fb * fm, 4)}
+
+
+def _group(part: str) -> str:
+    head, _, tail = part.rpartition("_")
+    return head if tail.isdigit() and head else part
+
+
+def part_displacement(a: dict, b: dict) -> float | None:
+    """Median distance between the parts of two poses, numbered parts (``hand_1``, ``hand_2``)
+    paired optimally within their group."""
+    groups = {}
+    for p in a:
+        groups.setdefault(_group(p), []).append(p)
+    ds = []
+    for g, ps in groups.items():
+        xa = [a.get(p) for p in ps]
+        xb = [b.get(p) for p in ps]
+        best = None
+        for perm in itertools.permutations(range(len(ps))):
+            d = [float(np.linalg.norm(np.asarray(xa[i]) - np.asarray(xb[j])))
+                 for i, j in zip(range(len(ps)), perm) if xa[i] is not None and xb[j] is not None]
+            if d and (best is None or sum(d) < sum(best)):
+                best = d
+            if len(ps) > 4:
+                break
+        if best:
+            ds.extend(best)
+    return float(np.median(ds)) if ds else None
+
+
+def temporal_confidence(poses, frame_index, gate=True, min_confidence=MIN_CONFIDENCE) -> None:
+    """Multiply the time factors into each pose's confidence, in place (module docstring), and
+    re-decide ``matched`` when ``gate``. ``frame_index``: frame name → index in the capture."""
+    done = [p for p in poses if p.status != "failed" and "confidence" in p.diagnostics]
+    vols = [p.diagnostics.get("hull_voxels") for p in done if p.diagnostics.get("hull_voxels")]
+    vmed = float(np.median(vols)) if vols else None
+    by_idx = {frame_index[p.frame]: p for p in done if p.frame in frame_index}
+    for i, p in sorted(by_idx.items()):
+        diag = p.diagnostics
+        if "time" in diag.get("confidence_factors", {}):
+            continue                       # a resumed frame: already done
+        ft = 1.0
+        prev = by_idx.get(i - 1)
+        H = diag.get("height")
+        if prev is not None and H:
+            d = part_displacement(p.parts, prev.parts)
+            if d is not None:
+                ft = 2.0 ** (-(d / (0.1 * H)) ** 2)
+        fv = 1.0
+        v = diag.get("hull_voxels")
+        if vmed and v and not (vmed / 1.5 <= v <= vmed * 1.5):
+            fv = 0.5
+        diag["confidence_factors"]["time"] = round(ft, 4)
+        diag["confidence_factors"]["volume"] = fv
+        diag["confidence"] = round(diag["confidence"] * ft * fv, 4)
+        if gate and p.status == "matched" and diag["confidence"] < min_confidence:
+            p.status = "rejected"
+            p.error = f"confidence {diag['confidence']:.2f} below {min_confidence:g}"

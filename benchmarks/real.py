@@ -152,7 +152,7 @@ def summarize(poses, ref, frames_index) -> dict:
             "failed": sum(p.status == "failed" for p in poses), "errors": stats, "rows": rows}
 
 
-def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None):
+def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, extra=""):
     import topopose as tp
     from topopose.pose.confidence import temporal_confidence
     from topopose.pose.estimate import FrameEstimator
@@ -160,7 +160,7 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None):
     cdir = work / method.replace("+", "_")
     if cdir.exists():
         shutil.rmtree(cdir)
-    dec = decode_to_capture(rec, cdir, method)
+    dec = decode_to_capture(rec, cdir, method, extra)
     cap = tp.load_capture(cdir)
     frames = cap.frames[:nframes] if nframes else cap.frames
     t0 = time.perf_counter()
@@ -220,6 +220,8 @@ def main(argv=None):
     ap.add_argument("--resolution", type=int, default=100)
     ap.add_argument("--frames", type=int, default=0, help="first N frames only (0: all)")
     ap.add_argument("--out", default=str(HERE / "results" / "real"))
+    ap.add_argument("--set", action="append", default=[],
+                    help="extra [silhouettes] field, e.g. --set occupancy=0.9 (TOML value)")
     a = ap.parse_args(argv)
     rec = Path(a.recording)
     if not (rec / "videos").is_dir() or not (rec / "Calib.toml").is_file():
@@ -239,12 +241,14 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         for m in methods:
             pic = out.parent / f"real_{m.replace('+', '_')}_frame.png"
-            res, poses = run_method(rec, m, a.resolution, a.frames, Path(tmp), ref, picture=pic)
+            res, poses = run_method(rec, m, a.resolution, a.frames, Path(tmp), ref, picture=pic,
+                                    extra="".join(x + "\n" for x in a.set))
             res["picture"] = pic.name
             results[m] = res
             print(m, {k: res[k] for k in ("matched_share", "right_share", "matched_precision")},
                   res["errors"], res["speed"])
     doc = {"recording": str(rec), "machine": machine(), "resolution": a.resolution,
+           "silhouette_settings": a.set,
            "right_within_m": RIGHT, "hand_extension_m": HAND_EXT, "methods": results}
     out.with_suffix(".json").write_text(json.dumps(doc, indent=1))
     out.with_suffix(".md").write_text(report(doc))

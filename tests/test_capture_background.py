@@ -131,3 +131,27 @@ def test_two_piece_hull_is_flagged():
     pose = est.estimate("0")
     assert pose.status == "rejected" and "hull split" in pose.error, (pose.status, pose.error)
     assert pose.diagnostics["largest_share"] < 0.8
+
+
+def test_colour_probability_kernel_matches_the_formula():
+    """The kernel against the brightness / chromaticity distortion written out in numpy."""
+    from topopose.capture.background import SequenceBackground
+
+    rng = np.random.default_rng(5)
+    img = rng.integers(0, 256, (9, 7, 3), dtype=np.uint8)
+    bgi = rng.integers(0, 256, (9, 7, 3), dtype=np.uint8)
+    bgi[0] = img[0]                                   # identical: background
+    img[1] = (bgi[1] * 0.8).astype(np.uint8)                 # shadow
+    known = rng.random((9, 7)) > 0.3
+    p = dict(SILHOUETTE_DEFAULTS, method="sequence", median=0)
+    q = foreground_probability(img, SequenceBackground(bgi, known, None, None), p)
+    I, B = img.astype(float), bgi.astype(float) + 1
+    a = (I * B).sum(2) / (B * B).sum(2)
+    cd = np.linalg.norm(I - a[..., None] * B, axis=2)
+    nb = np.linalg.norm(B, axis=2)
+    bd = np.where(a > 1, (a - 1) * nb, np.where(a >= p["shadow"], 0, (p["shadow"] - a) * nb))
+    d = np.hypot(cd, bd)
+    pr = 1 / (1 + np.exp(-np.clip((d - p["threshold"]) / (p["threshold"] / 4), -30, 30)))
+    pr = np.where(known, pr, 0.5 + (pr - 0.5) * p["uncertain"])
+    assert np.abs(q.astype(int) - np.floor(pr * 255 + 0.5)).max() <= 1
+    assert q[0][known[0]].max() < 30 and q[1][known[1]].max() < 60

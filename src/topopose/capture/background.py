@@ -10,9 +10,9 @@ capture from ``samples`` frames spread over the sequence, at ``scale`` of the im
 2. **Where the subject is, in 3D** (multi-view reasoning): the motion masks of each sample are
    carved into a coarse grid around the point the optical axes converge to (all cameras must
    agree, so people moving behind the subject in one view do not count); the union over the
-   samples, largest 26-component, gives the box the subject sweeps, grown by ``zone_margin``
-   (and down to the floor along the up axis). Its projection into each camera is the *subject
-   zone* — the pixels whose ray passes through the subject's 3D region.
+   samples, largest 26-component, dilated, is the region the subject sweeps. Its projection
+   into each camera (holes filled) is the *subject zone* — the pixels whose ray passes through
+   the subject's 3D region; its box, grown by ``zone_margin``, is the capture volume.
 3. Outside the zone the background is ``M``. Inside, the median may hold the subject, so the
    background there is first *guessed* by inpainting ``M`` from the zone's surroundings
    (OpenCV's Telea inpainting); then, per pixel, the sample closest to that guess is taken when
@@ -31,7 +31,8 @@ p = 1 / (1 + exp(−(d − threshold) / (threshold / 4))). Pixels that were neve
 
 ``"selfie"`` uses MediaPipe's selfie-segmentation network (an optional dependency whose model
 ships inside the wheel, see :mod:`.segment`) on the zone's bounding rectangle;
-``"sequence+selfie"`` averages both probabilities.
+``"sequence+selfie"`` takes the network's probability, raised to the background model's where that
+one is sure of the subject (p > 0.8) on a background it has seen (the network misses caps).
 """
 from __future__ import annotations
 
@@ -210,32 +211,16 @@ def learn_backgrounds(samples, cameras, params, unit) -> tuple:
 
 def foreground_probability(img: np.ndarray, bg: SequenceBackground, params) -> np.ndarray:
     """uint8 (h, w) foreground probability (× 255) of a downscaled image (module docstring)."""
-    thr = float(params["threshold"])
-    I = img.astype(np.float32)
-    B = bg.image.astype(np.float32) + 1.0
-    bb = (B * B).sum(axis=2)
-    alpha = (I * B).sum(axis=2) / bb
-    cd = np.sqrt(((I - alpha[:, :, None] * B) ** 2).sum(axis=2))
-    nb = np.sqrt(bb)
-    shadow = float(params["shadow"])
-    bd = np.where(alpha > 1.0, (alpha - 1.0) * nb,
-                  np.where(alpha >= shadow, 0.0, (shadow - alpha) * nb))
-    d = np.sqrt(cd * cd + bd * bd)
-    z = np.clip((d - thr) / (thr / 4.0), -30, 30)
-    p = 1.0 / (1.0 + np.exp(-z))
-    if not bg.known.all():
-        u = float(params["uncertain"])
-        p = np.where(bg.known, p, 0.5 + (p - 0.5) * u)
-    q = np.clip(p * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    from .background_kernels import colour_probability
+
+    q = np.empty(img.shape[:2], dtype=np.uint8)
+    colour_probability(np.ascontiguousarray(img[:, :, :3]), bg.image, bg.known,
+                       float(params["threshold"]), float(params["shadow"]),
+                       float(params["uncertain"]), q)
     k = int(params["median"])
     if k > 1:
         q = cv2.medianBlur(q, k | 1)
     return q
-
-
-def combine(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Mean of two uint8 probability maps."""
-    return ((a.astype(np.uint16) + b.astype(np.uint16) + 1) // 2).astype(np.uint8)
 
 
 def sample_frames(frames, n: int) -> list:
@@ -309,10 +294,11 @@ def foreground_maps(cap, frame, images=None) -> list:
             q = foreground_probability(img, bg, p)
         if method in ("selfie", "sequence+selfie"):
             from .segment import selfie_probability
-            q2 = selfie_probability(img, bg.zone)
-            # the mean of both where the background is known; the network alone where the
-            # background was never revealed (the sequence has no information there)
-            q = q2 if q is None else np.where(bg.known, combine(q, q2), q2)
+            q2 = selfie_probability(img, bg.zone, stream=(id(cap), c))
+            # the network, raised to the background model's probability where that one is
+            # sure of the subject (p > 0.8) on a background it has seen (the network misses
+            # caps, hair, held objects); the other cameras carve what is wrong
+            q = q2 if q is None else np.where(bg.known & (q > 204), np.maximum(q, q2), q2)
         out.append(q)
     cap.cache["foreground_last"] = (ck, out)
     return out

@@ -42,7 +42,7 @@ SILHOUETTE_DEFAULTS = {
     "uncertain": 0.5,      # weight of the vote of pixels whose background was never revealed
     "zone_margin": 0.15,   # growth (metres) of the 3D box the subject sweeps
     "fusion": "soft",      # "soft": Franco & Boyer occupancy grid from probabilities; "hard": p > 0.5 masks
-    "p_detect": 0.9,       # soft fusion: P(pixel foreground | voxel occupied)
+    "p_detect": 0.99,      # soft fusion: P(pixel foreground | voxel occupied)
     "p_false": 0.4,        # soft fusion: P(pixel foreground | voxel empty)
     "occupancy": 0.5,      # soft fusion: posterior occupancy above which a voxel is in the hull
     "open3d": 1,           # soft fusion: 3D opening of the hull by a (2k + 1)³ cube (0: none)

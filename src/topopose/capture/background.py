@@ -295,10 +295,19 @@ def foreground_maps(cap, frame, images=None) -> list:
         if method in ("selfie", "sequence+selfie"):
             from .segment import selfie_probability
             q2 = selfie_probability(img, bg.zone, stream=(id(cap), c))
-            # the network, raised to the background model's probability where that one is
-            # sure of the subject (p > 0.8) on a background it has seen (the network misses
-            # caps, hair, held objects); the other cameras carve what is wrong
-            q = q2 if q is None else np.where(bg.known & (q > 204), np.maximum(q, q2), q2)
+            # the network misses limbs: its "background" is a weak vote (floor), so that the
+            # other cameras decide there
+            fl = int(round(255 * float(p["selfie_floor"])))
+            if fl > 0:
+                q2 = np.maximum(q2, fl).astype(np.uint8)
+            if q is not None:
+                # where the background model has seen the background: raised to its probability
+                # where it is sure of the subject (the network misses caps, held objects),
+                # lowered where it is sure of the background
+                q = np.where(bg.known & (q > 204), np.maximum(q, q2),
+                             np.where(bg.known & (q < 13), np.minimum(q, q2), q2))
+            else:
+                q = q2
         out.append(q)
     cap.cache["foreground_last"] = (ck, out)
     return out

@@ -46,12 +46,14 @@ SILHOUETTE_DEFAULTS = {
     "p_false": 0.4,        # soft fusion: P(pixel foreground | voxel empty)
     "occupancy": 0.5,      # soft fusion: posterior occupancy above which a voxel is in the hull
     "open3d": 1,           # soft fusion: 3D opening of the hull by a (2k + 1)³ cube (0: none)
+    "selfie_floor": 0.0,   # selfie: the network's probability is raised to at least this (a weak "no")
 }
 _SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (int, float), "open": int,
               "close": int, "min_area": int, "fill_holes": int, "scale": (int, float),
               "samples": int, "reveal": (int, float), "shadow": (int, float), "uncertain": (int, float),
               "zone_margin": (int, float), "fusion": str, "p_detect": (int, float),
-              "p_false": (int, float), "occupancy": (int, float), "open3d": int}
+              "p_false": (int, float), "occupancy": (int, float), "open3d": int,
+              "selfie_floor": (int, float)}
 _CAPTURE_KEYS = {"up", "units", "fps", "volume"}
 _UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "dm": 0.1, "km": 1000.0, "in": 0.0254, "ft": 0.3048}
 

@@ -27,8 +27,8 @@ ones, as for the capsule human):
 * foot_k: ankle (``Foot`` head) → toe tip (the foot vertex farthest along ankle → toe bone tip);
   part: the toe tip minus the foot's radius.
 * torso: the chest segment, neck base → ``Spine1`` head (mid-chest); part: the neck base.
-* crotch: the pelvis, hip centre − 4 cm → ``LowerBack`` head along the pelvis axis; part: the
-  hip centre (mean of the two ``UpLeg`` heads).
+* crotch: the pelvis, hip centre − 4 cm → + 7 cm along the pelvis axis (``Hips`` bone, scaled
+  with the height); part: the hip centre (mean of the two ``UpLeg`` heads).
 * joints: every rig bone's ``<name>_head`` and ``<name>_tail``, and ``crown``, ``fingertip_l``,
   ``fingertip_r``, ``toe_l``, ``toe_r``.
 
@@ -430,7 +430,7 @@ def pose_body(pose: dict | None, build: dict, margin: float = 0.02) -> MeshBody:
     hipc = 0.5 * (pts["j:LeftUpLeg_head"] + pts["j:RightUpLeg_head"])
     pts["p:crotch"] = hipc
     pelvis_axis = _unit(u)
-    pts["s:crotch"] = (hipc - 0.04 * scale * pelvis_axis, pts["j:LowerBack_head"])
+    pts["s:crotch"] = (hipc - 0.04 * scale * pelvis_axis, hipc + 0.07 * scale * pelvis_axis)
     for S, s, k in (("Left", "l", "1"), ("Right", "r", "2")):
         wrist, tip = pts[f"j:{S}Hand_head"], pts[f"j:fingertip_{s}"]
         pts[f"p:hand_{k}"] = tip - r.radii["hand"] * scale * _unit(tip - wrist)

@@ -171,3 +171,23 @@ def test_cli_synth_body_and_pipeline_run(tmp_path):
                  "--output", str(poses)]) in (0, 1)
     assert len(poses.read_text().splitlines()) == 2
     assert main(["synth", str(tmp_path / "x"), "--subject", "human", "--build", "child"]) == 2
+
+
+def test_silhouettes_with_triangles_crossing_the_camera_plane():
+    """A camera beside the body, looking along it: triangles behind it and crossing its plane."""
+    import cv2
+
+    rng = np.random.default_rng(3)
+    body = pose_body(body_random(rng), make_build("average", rng))
+    C = np.array([0.35, 0.0, 0.0])                 # in front of the pelvis, looking left (+y)
+    f = np.array([0.0, 1.0, 0.0])
+    right = np.cross(f, [0.0, 0.0, 1.0])
+    R = np.stack([right, np.cross(f, right), f])
+    K = np.array([[20.0, 0, 19.5], [0, 20.0, 14.5], [0, 0, 1]])
+    for dist in (np.zeros(4), np.array([-0.05, 0.01, 5e-4, -3e-4])):
+        cam = Camera("side", (40, 30), K, dist, cv2.Rodrigues(R)[0].ravel(), -R @ C)
+        z = (body.vertices @ cam.R.T + cam.translation)[body.faces][:, :, 2]
+        assert np.sum((z.min(1) <= 0) & (z.max(1) > 0)) > 20
+        ref = brute_force_silhouette(cam, body.vertices, body.faces)
+        assert ref.sum() > 100
+        assert np.array_equal(body.render(cam, ray_table(cam)), ref)

@@ -1,7 +1,8 @@
 """Synthetic captures with exact silhouettes and ground truth (``topopose synth``).
 
 The test data of every stage and of ``topopose demo``: no download anywhere. A subject
-(:mod:`.synth_subjects`: human, hand, dog, spider) is posed — random plausible poses per frame, or
+(:mod:`.synth_subjects`: human, hand, dog, spider; :mod:`.synth_body`: body, the MakeHuman mesh
+posed by skinning, rasterized exactly) is posed — random plausible poses per frame, or
 a smooth gait (``walk``, ``trot``, ``grasp``) — placed in the capture volume, and seen by a ring
 of calibrated cameras. Silhouettes are exact images of the union of round cones and ellipsoids,
 lens distortion included (:mod:`.synth_geometry`). Optional silhouette noise (levels 1–3: border
@@ -291,7 +292,11 @@ def _motion_frames(subject, motion, n, fps, rng, thickness, vlo, vhi, margin, bu
 
 
 def subject_height(subject, thickness=1.0) -> float:
-    """The normalizing height of gt.json: human standing height, others their largest extent."""
+    """The normalizing height of gt.json: human standing height, others their largest extent
+    (body: the height of its ``average`` build; a body capture records its own build's height)."""
+    if subject == "body":
+        from .synth_body import BUILDS
+        return float(BUILDS["average"]["height"])
     body = BUILD[subject]({}, 1.0)
     if subject == "hand":
         lo, hi = body.extent(skip=("forearm",))

@@ -34,8 +34,8 @@ ones, as for the capsule human):
 
 Crown, fingertips and toe tips are mesh vertices (on the surface); every other point of the
 segments lies inside the mesh (tests). ``separated`` is measured on the mesh: vertex-to-vertex
-distances (an over-estimate of the surface gap by at most half an edge, ≤ 1.5 cm for 95 % of
-the edges) between the distal arm (forearm, hand and the lower half of the upper arm) and the
+distances (an over-estimate of the surface gap by up to half an edge: median edge 6 mm, 95 % of
+the edges under 3 cm, at the rest scale) between the distal arm (forearm, hand and the lower half of the upper arm) and the
 trunk, the legs and the other arm, and between the lower legs (lower half of the thigh, shin,
 foot) and each other and the trunk.
 

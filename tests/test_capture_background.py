@@ -155,3 +155,40 @@ def test_colour_probability_kernel_matches_the_formula():
     pr = np.where(known, pr, 0.5 + (pr - 0.5) * p["uncertain"])
     assert np.abs(q.astype(int) - np.floor(pr * 255 + 0.5)).max() <= 1
     assert q[0][known[0]].max() < 30 and q[1][known[1]].max() < 60
+
+
+def test_confidence_factors_and_time_only_on_coherent_sequences():
+    """Hand-computed factors; the time factor applies to a coherent sequence and not to
+    independent poses, and gates 'matched'."""
+    from topopose.pose.confidence import frame_confidence, temporal_confidence
+    from topopose.pose.pose import Pose
+
+    c = frame_confidence(0.4, 0.4, 0.9, 2, 1, 0.8, fatness=0.05)
+    assert c["alignment"] == pytest.approx(0.5) and c["skeleton"] == pytest.approx(0.64)
+    assert c["hull"] == pytest.approx(2 / 3, abs=1e-4) and c["placement"] == 0.5
+    assert c["fat"] == pytest.approx(0.5)
+    assert c["confidence"] == pytest.approx(0.5 * 0.64 * (2 / 3) * 0.5 * 0.5, abs=1e-4)
+    assert frame_confidence(None, 0.4, 1.0, 0, 0)["confidence"] == 0.0
+
+    def poses(step, jump_at=None):
+        out = []
+        for i in range(10):
+            x = i * step + (1.0 if i == jump_at else 0.0)
+            parts = {"head": np.array([x, 0, 1.7]), "hand_1": np.array([x, -0.5, 1.0]),
+                     "hand_2": np.array([x, 0.5, 1.0])}
+            out.append(Pose(f"{i:02d}", "matched", 0.1, parts, None, {},
+                            {"confidence": 0.9, "confidence_factors": {}, "height": 1.7,
+                             "hull_voxels": 1000}))
+        return out
+
+    ps = poses(0.01, jump_at=5)                     # coherent, one frame jumps 1 m
+    temporal_confidence(ps, {p.frame: i for i, p in enumerate(ps)})
+    assert ps[5].status == "rejected" and "confidence" in ps[5].error
+    assert ps[6].status == "rejected"               # its predecessor was far
+    assert all(ps[i].status == "matched" for i in (1, 2, 3, 4, 7, 8, 9))
+    assert ps[3].diagnostics["confidence_factors"]["time"] == pytest.approx(
+        2 ** -((0.01 / 0.17) ** 2), abs=1e-4)
+    ps = poses(0.5)                                 # independent poses: no time factor
+    temporal_confidence(ps, {p.frame: i for i, p in enumerate(ps)})
+    assert all(p.status == "matched" for p in ps)
+    assert ps[3].diagnostics["confidence_factors"]["time"] is None

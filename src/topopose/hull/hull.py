@@ -242,27 +242,39 @@ def _soft_table(cap, origin, vs, shape):
     return cap.cache[key]
 
 
+def _bbox(occ) -> np.ndarray:
+    """Carver-style stats of an occupancy: [6:9] inclusive min, [9:12] max (-1: empty)."""
+    st = np.zeros(12, dtype=np.int64)
+    st[9:12] = -1
+    for ax in range(3):
+        other = tuple(a for a in range(3) if a != ax)
+        nz = np.flatnonzero(occ.any(axis=other))
+        if nz.size == 0:
+            return st
+        st[6 + ax], st[9 + ax] = nz[0], nz[-1]
+    return st
+
+
 def _soft_carve(cap, pix, maps, shape):
-    """Soft hull of one frame and the carver-style stats (voxel count, inclusive bbox)."""
+    """Soft hull of one frame (:mod:`.soft`), opened by ``open3d``, and its bounding box."""
+    from scipy import ndimage
+
     from .soft import soft_carve
 
     p = cap.options["silhouettes"]
     occ, n = soft_carve(pix, maps, shape, float(p["p_detect"]), float(p["p_false"]),
                         float(p["occupancy"]))
+    st = _bbox(occ)
     k = int(p.get("open3d", 0))
     if k > 0 and n:
-        # opening by a (2k + 1)³ cube: removes the hairs a noisy surface gives the
-        # skeleton as spurious branches
-        from scipy import ndimage
-        occ = ndimage.binary_opening(occ.view(bool), np.ones((2 * k + 1,) * 3, bool)).view(np.uint8)
-        n = int(np.count_nonzero(occ))
-    st = np.zeros(12, dtype=np.int64)
-    st[9:12] = -1
-    if n:
-        for ax in range(3):
-            other = tuple(a for a in range(3) if a != ax)
-            nz = np.flatnonzero(occ.any(axis=other))
-            st[6 + ax], st[9 + ax] = nz[0], nz[-1]
+        # opening by a (2k + 1)³ cube (minimum then maximum filter, separable, on the bounding
+        # box): removes the hairs a noisy surface gives the skeleton as spurious branches
+        bb = tuple(slice(int(a), int(b) + 1) for a, b in zip(st[6:9], st[9:12]))
+        sub = np.pad(occ[bb], k)
+        sub = ndimage.maximum_filter(ndimage.minimum_filter(sub, 2 * k + 1, mode="constant"),
+                                     2 * k + 1, mode="constant")[k:-k, k:-k, k:-k]
+        occ[bb] = sub
+        st = _bbox(occ)
     return occ.view(bool), st
 
 

@@ -265,8 +265,13 @@ class FrameEstimator:
         dropped = vd.get("components_dropped") or []
         leaves = leaf_count(data)
         model_leaves = leaf_count(self.model.tree)
+        up = np.abs(self.up)
+        ax = int(np.argmax(up))
+        bb = vd.get("bbox")
+        height = (None if not bb else float((bb[1][ax] - bb[0][ax] + 1) * vol.voxel_size))
+        fat = None if not height else n_vox * vol.voxel_size ** 3 / height ** 3
         conf = frame_confidence(dist, self.threshold, share, leaves - model_leaves, len(missing),
-                                self.min_share)
+                                self.min_share, fat if self.model.name in ("human", "body") else None)
         if status == "matched" and share < self.min_share:
             status = "rejected"
             total = n_vox + sum(dropped)
@@ -277,10 +282,6 @@ class FrameEstimator:
         elif status == "matched" and self.gate and conf["confidence"] < self.min_confidence:
             status = "rejected"
             error = f"confidence {conf['confidence']:.2f} below {self.min_confidence:g}"
-        up = np.abs(self.up)
-        ax = int(np.argmax(up))
-        bb = vd.get("bbox")
-        height = (None if not bb else float((bb[1][ax] - bb[0][ax] + 1) * vol.voxel_size))
         timings["total"] = (time.perf_counter() - t_all) * 1e3
         diag = {"model": self.model.name, "resolution": self.resolution,
                 "hull_tolerance": self.tolerance, "hull_voxels": n_vox,

@@ -193,6 +193,58 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     return res, poses
 
 
+def time_breakdown(rec: Path, n: int = 20) -> dict:
+    """Where the time goes, per frame of 4 cameras (process CPU time and wall time):
+    decoding the videos, resizing, the colour probability at several scales (full resolution
+    vs downscaled; against a stand-in background of the right size: timing only), the
+    selfie network, reading a JPEG frame."""
+    import cv2
+
+    from topopose.capture.background import SequenceBackground, foreground_probability
+    from topopose.capture.calibration import SILHOUETTE_DEFAULTS
+
+    vids = sorted((rec / "videos").glob("*.mp4"))
+    frames = [[] for _ in vids]
+    out = {}
+    t0, c0 = time.perf_counter(), time.process_time()
+    for k, v in enumerate(vids):
+        vc = cv2.VideoCapture(str(v))
+        for _ in range(n):
+            ok, f = vc.read()
+            if not ok:
+                break
+            frames[k].append(f)
+    out["decode 4 videos"] = ((time.perf_counter() - t0) / n, (time.process_time() - c0) / n)
+    p = dict(SILHOUETTE_DEFAULTS, method="sequence")
+
+    def clock(name, fn):
+        t0, c0 = time.perf_counter(), time.process_time()
+        for i in range(n):
+            for k in range(len(vids)):
+                fn(frames[k][i])
+        out[name] = ((time.perf_counter() - t0) / n, (time.process_time() - c0) / n)
+
+    for s in (1.0, 0.5, 0.25, 0.125):
+        h, w = (int(round(x * s)) for x in frames[0][0].shape[:2])
+        bg = SequenceBackground(np.full((h, w, 3), 90, np.uint8), np.ones((h, w), bool), None, None)
+        if s < 1:
+            clock(f"resize to {s}", lambda f, w=w, h=h: cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA))
+        clock(f"colour probability at {s}",
+              lambda f, w=w, h=h, bg=bg: foreground_probability(
+                  f if s == 1 else cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA), bg, p))
+    try:
+        from topopose.capture.segment import selfie_probability
+        zone = np.zeros((480, 272), bool)
+        zone[100:400, 60:220] = True
+        clock("selfie network (zone crop at 0.25)",
+              lambda f: selfie_probability(cv2.resize(f, (272, 480)), zone, stream="timing"))
+    except Exception:                      # noqa: BLE001  (mediapipe absent)
+        pass
+    enc = cv2.imencode(".jpg", frames[0][0], [cv2.IMWRITE_JPEG_QUALITY, 95])[1]
+    clock("read a JPEG frame (as images/)", lambda f: cv2.imdecode(enc, cv2.IMREAD_COLOR))
+    return {k: {"wall_ms": round(1000 * a, 2), "cpu_ms": round(1000 * b, 2)} for k, (a, b) in out.items()}
+
+
 def _picture(cap, est, poses, res, path):
     """Silhouettes with the reprojected parts and the hull/skeleton of a matched, right frame
     (else the best-confidence one), and of a wrong one."""
@@ -247,7 +299,9 @@ def main(argv=None):
             results[m] = res
             print(m, {k: res[k] for k in ("matched_share", "right_share", "matched_precision")},
                   res["errors"], res["speed"])
+    breakdown = time_breakdown(rec)
     doc = {"recording": str(rec), "machine": machine(), "resolution": a.resolution,
+           "time_breakdown_per_frame": breakdown,
            "silhouette_settings": a.set,
            "right_within_m": RIGHT, "hand_extension_m": HAND_EXT, "methods": results}
     out.with_suffix(".json").write_text(json.dumps(doc, indent=1))
@@ -283,6 +337,10 @@ def report(doc) -> str:
         st = ", ".join(f"{k} {v}" for k, v in s["stages_median_ms"].items())
         L.append(f"| {name} | {s['decode_ms_per_frame']} | {s['per_frame_ms']} | "
                  f"{s['end_to_end_fps']} | {s['first_frame_s']} | {st} |")
+    L += ["", "## Where the time goes (per frame of 4 cameras)", "",
+          "| step | wall ms | CPU ms |", "| --- | --- | --- |"]
+    for k, v in doc["time_breakdown_per_frame"].items():
+        L.append(f"| {k} | {v['wall_ms']} | {v['cpu_ms']} |")
     L += ["", "Pictures: " + ", ".join(f"`{r['picture']}`" for r in doc["methods"].values()), ""]
     return "\n".join(L)
 

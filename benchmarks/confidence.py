@@ -35,26 +35,25 @@ def main(argv=None):
     rows = []
     for subject in a.subjects.split(","):
         for cams, motion, seed in itertools.product((4, 8), ("walk", "random"), range(a.seeds)):
-            if True:
-                cap = synthetic_capture(subject, frames=a.frames, seed=seed, cameras=cams,
-                                        noise=1, motion=motion)
-                est = FrameEstimator(cap, "human", 100, gate=False)
-                poses = [est.estimate(f) for f in cap.frames]
-                temporal_confidence(poses, {f: i for i, f in enumerate(cap.frames)}, gate=False)
-                ev = evaluate(cap.gt, poses, model=est.model)
-                for p, s in zip(poses, ev.frames):
-                    if p.status == "failed":
-                        continue
-                    dg = p.diagnostics
-                    rows.append({"subject": subject, "cameras": cams, "motion": motion,
-                                 "seed": seed, "frame": p.frame,
-                                 "status": p.status, "good": s.quality == "good",
-                                 "quality": s.quality, "distance": p.distance,
-                                 "confidence": dg.get("confidence", 0.0),
-                                 "factors": dg.get("confidence_factors"),
-                                 "litres": dg.get("hull_litres"), "height": dg.get("height"),
-                                 "leaves": dg.get("data_leaves"),
-                                 "share": dg.get("largest_share")})
+            cap = synthetic_capture(subject, frames=a.frames, seed=seed, cameras=cams,
+                                    noise=1, motion=motion)
+            est = FrameEstimator(cap, "human", 100, gate=False)
+            poses = [est.estimate(f) for f in cap.frames]
+            temporal_confidence(poses, {f: i for i, f in enumerate(cap.frames)}, gate=False)
+            ev = evaluate(cap.gt, poses, model=est.model)
+            for p, s in zip(poses, ev.frames):
+                if p.status == "failed":
+                    continue
+                dg = p.diagnostics
+                rows.append({"subject": subject, "cameras": cams, "motion": motion,
+                             "seed": seed, "frame": p.frame,
+                             "status": p.status, "good": s.quality == "good",
+                             "quality": s.quality, "distance": p.distance,
+                             "confidence": dg.get("confidence", 0.0),
+                             "factors": dg.get("confidence_factors"),
+                             "litres": dg.get("hull_litres"), "height": dg.get("height"),
+                             "leaves": dg.get("data_leaves"),
+                             "share": dg.get("largest_share")})
     out = {"machine": machine(), "frames": len(rows), "table": [], "rows": rows}
     half = max(1, a.seeds // 2)
     for part, sel in (("calibration (seeds < %d)" % half, lambda r: r["seed"] < half),

@@ -1,9 +1,10 @@
 """Calibrate the minimum confidence that decides ``matched`` (topopose.pose.confidence) on
-synthetic captures only: the capsule human and the anatomical ``body``, 4 and 8 cameras, silhouette noise 1, walking and
-random poses, several seeds. For each candidate minimum: precision of ``matched`` (share of
-matched frames whose quality is "good", every part within tolerance) and share matched.
+synthetic captures only: the capsule human and the anatomical ``body``, 4 and 8 cameras,
+silhouette noise 1, walking and random poses. The first half of the seeds chose the constants
+(calibration), the second half checks them. For each candidate minimum: precision of
+``matched`` (share of matched frames whose quality is "good", every part within tolerance).
 
-    python benchmarks/confidence.py [--frames 20] [--seeds 2]
+    python benchmarks/confidence.py [--frames 15] [--seeds 4]
 """
 from __future__ import annotations
 
@@ -28,8 +29,8 @@ def main(argv=None):
     from topopose.pose.quality import evaluate
 
     ap = argparse.ArgumentParser()
-    ap.add_argument("--frames", type=int, default=20)
-    ap.add_argument("--seeds", type=int, default=2)
+    ap.add_argument("--frames", type=int, default=15)
+    ap.add_argument("--seeds", type=int, default=4)
     ap.add_argument("--subjects", default="human,body")
     a = ap.parse_args(argv)
     rows = []

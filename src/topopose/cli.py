@@ -249,7 +249,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--tolerance", type=int, default=None,
                    help="visual hull: keep voxels seen by C-k cameras (default 1 with >= 6 cameras, else 0)")
     s.add_argument("--rerun", metavar="FILE.rrd")
-    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
+    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007, or times "
+                   "in seconds, e.g. 0.5s:1.2s")
+    s.add_argument("--refocus", action="store_true",
+                   help="visual hull on a grid refocused on the subject every frame")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("view", help="render one frame as a PNG")
@@ -274,7 +277,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True)
     s.add_argument("--resolution", type=int, default=100)
     s.add_argument("--joints", help="write per-frame joints and segments as JSON Lines")
-    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
+    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007, or times "
+                   "in seconds, e.g. 0.5s:1.2s")
     s.add_argument("--coherence", choices=["frequent", "human"], default="frequent",
                    help="coherent-interval rule: the sequence's most frequent tree signature "
                         "(default) or the paper's human rule")

@@ -87,6 +87,7 @@ class _Decoder:
         self.path = path
         self.vc = None
         self.pos = 0
+        self.failed_at = None                # frame at which decoding failed (then reopened)
 
     def _open(self):
         self.vc = cv2.VideoCapture(str(self.path))
@@ -116,12 +117,14 @@ class _Decoder:
                     self._open()
         while self.pos < i:
             if not self.vc.grab():
+                self.failed_at = self.pos
                 self.close()
                 raise InputError(f"{self.path}: frame {i} cannot be decoded (the video ends or is "
                                  f"corrupt at frame {self.pos})")
             self.pos += 1
         ok, img = self.vc.read()
         if not ok or img is None:
+            self.failed_at = i
             self.close()
             raise InputError(f"{self.path}: frame {i} cannot be decoded (corrupt or truncated video)")
         self.pos += 1
@@ -167,6 +170,7 @@ class VideoSource:
         self.count = max(self.counts.values(), default=0)
         self.frames = [video_frame_name(i) for i in range(self.count)]
         self._index = {f: i for i, f in enumerate(self.frames)}
+        self._bad = {}                       # camera → first frame that failed to decode
         self._random = {}
         self._lock = threading.Lock()
 
@@ -189,10 +193,20 @@ class VideoSource:
         why = self.missing(camera, i)
         if why is not None:
             raise InputError(why)
+        bad = self._bad.get(camera)
+        if bad is not None and i >= bad[0]:  # fail fast: do not decode up to the damage again
+            raise InputError(bad[1])
         dec = decoders.get(camera)
         if dec is None:
             dec = decoders[camera] = _Decoder(self.videos[camera])
-        return dec.get(i)
+        try:
+            return dec.get(i)
+        except InputError as exc:
+            at = dec.failed_at
+            if at is not None and (bad is None or at < bad[0]):
+                self._bad[camera] = (at, f"{self.videos[camera]}: frame {i} cannot be decoded "
+                                         f"(the video is corrupt or truncated from frame {at} on)")
+            raise exc from None
 
     def read(self, camera: str, frame: str) -> np.ndarray:
         """Random access (seeks only when far from the decoder's position)."""

@@ -48,7 +48,7 @@ class RunResult:
         return 1 if self.failed else 0
 
 
-def _frame_bound(cap, text: str, whole: str, is_stop: bool):
+def _frame_bound(cap, text: str, whole: str):
     """One bound of ``--frames a:b``: an index, or a time ``1.5s`` (frame i is at i / fps)."""
     t = text.strip()
     if not t:
@@ -78,8 +78,10 @@ def select_frames(cap, frames) -> list:
             try:
                 if len(bits) > 3:
                     raise ValueError
-                sl = slice(*[_frame_bound(cap, b, frames, k == 1) if k < 2
+                sl = slice(*[_frame_bound(cap, b, frames) if k < 2
                              else (int(b) if b.strip() else None) for k, b in enumerate(bits)])
+            except InputError:
+                raise
             except (ValueError, TypeError):
                 raise InputError(f"--frames: {frames!r} must be START:STOP[:STEP] (indices, or "
                                  "times like 0.5s:1.2s) or a comma-separated list of frame "

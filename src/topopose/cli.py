@@ -141,6 +141,12 @@ def cmd_learn_model(a):
     return learn_model_cli(a)
 
 
+def cmd_calib(a):
+    from .capture.calib_import import calib_import_cli
+
+    return calib_import_cli(a)
+
+
 def cmd_bench(a):
     import runpy
 
@@ -285,6 +291,20 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--criterion", choices=["correlation", "rigidity"], default="correlation",
                    help="rigid-part clustering: velocity cross-correlation (eq. 5) or distance rigidity")
     s.set_defaults(func=cmd_learn_model)
+
+    s = sub.add_parser("calib", help="calibration tools: import Qualisys, EasyMocap, OpenCV, "
+                       "P-matrix calibrations")
+    calib = s.add_subparsers(dest="calib_command", required=True, metavar="ACTION")
+    c = calib.add_parser("import", help="convert calibration files to calibration.toml")
+    c.add_argument("files", nargs="+", metavar="FILE")
+    c.add_argument("--format", choices=["qualisys", "easymocap", "opencv", "pmatrix"],
+                   default=None, help="default: detected from the files")
+    c.add_argument("--out", required=True, help="calibration.toml to write")
+    g = c.add_mutually_exclusive_group()
+    g.add_argument("--size", type=_size, default=None,
+                   help="image size WxH when the files give none (P matrices)")
+    g.add_argument("--image", default=None, help="an image of the cameras: its size")
+    c.set_defaults(func=cmd_calib)
 
     s = sub.add_parser("bench", help="run the benchmarks beside their peers")
     s.add_argument("stage", nargs="?")

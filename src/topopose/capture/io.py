@@ -128,7 +128,7 @@ def _scaled_camera(cam: Camera, size) -> Camera:
 def _first_size(src, camera, frames) -> tuple | None:
     """(w, h) of the camera's first readable frame (None when there is none)."""
     for f in frames:
-        p = src.path(camera, f) if hasattr(src, "path") else src[camera].get(f)
+        p = src.path(camera, f)
         if p is None:
             continue
         img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)

@@ -141,6 +141,12 @@ def cmd_learn_model(a):
     return learn_model_cli(a)
 
 
+def cmd_calib(a):
+    from .capture.calib_import import calib_import_cli
+
+    return calib_import_cli(a)
+
+
 def cmd_bench(a):
     import runpy
 
@@ -254,7 +260,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--tolerance", type=int, default=None,
                    help="visual hull: keep voxels seen by C-k cameras (default 1 with >= 6 cameras, else 0)")
     s.add_argument("--rerun", metavar="FILE.rrd")
-    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
+    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007, or times "
+                   "in seconds, e.g. 0.5s:1.2s")
+    s.add_argument("--refocus", action="store_true",
+                   help="visual hull on a grid refocused on the subject every frame")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("view", help="render one frame as a PNG")
@@ -279,13 +288,28 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True)
     s.add_argument("--resolution", type=int, default=100)
     s.add_argument("--joints", help="write per-frame joints and segments as JSON Lines")
-    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
+    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007, or times "
+                   "in seconds, e.g. 0.5s:1.2s")
     s.add_argument("--coherence", choices=["frequent", "human"], default="frequent",
                    help="coherent-interval rule: the sequence's most frequent tree signature "
                         "(default) or the paper's human rule")
     s.add_argument("--criterion", choices=["correlation", "rigidity"], default="correlation",
                    help="rigid-part clustering: velocity cross-correlation (eq. 5) or distance rigidity")
     s.set_defaults(func=cmd_learn_model)
+
+    s = sub.add_parser("calib", help="calibration tools: import Qualisys, EasyMocap, OpenCV, "
+                       "P-matrix calibrations")
+    calib = s.add_subparsers(dest="calib_command", required=True, metavar="ACTION")
+    c = calib.add_parser("import", help="convert calibration files to calibration.toml")
+    c.add_argument("files", nargs="+", metavar="FILE")
+    c.add_argument("--format", choices=["qualisys", "easymocap", "opencv", "pmatrix"],
+                   default=None, help="default: detected from the files")
+    c.add_argument("--out", required=True, help="calibration.toml to write")
+    g = c.add_mutually_exclusive_group()
+    g.add_argument("--size", type=_size, default=None,
+                   help="image size WxH when the files give none (P matrices)")
+    g.add_argument("--image", default=None, help="an image of the cameras: its size")
+    c.set_defaults(func=cmd_calib)
 
     s = sub.add_parser("bench", help="run the benchmarks beside their peers")
     s.add_argument("stage", nargs="?")

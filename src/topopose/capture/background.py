@@ -279,6 +279,12 @@ def foreground_maps(cap, frame, images=None) -> list:
     hit = cap.cache.get("foreground_last")
     if hit is not None and hit[0] == ck:
         return hit[1]
+    pf = cap.cache.get("prefetch")
+    if images is None and pf is not None:       # computed ahead by the reader thread
+        ok, maps = pf.take(frame)
+        if ok:
+            cap.cache["foreground_last"] = (ck, maps)
+            return maps
     p = cap.options["silhouettes"]
     method = p["method"]
     s = float(p["scale"])

@@ -13,7 +13,7 @@ capture from ``samples`` frames spread over the sequence, at ``scale`` of the im
    agree, so people moving behind the subject in one view do not count); the union over the
    samples, largest 26-component, dilated, is the region the subject sweeps. Its projection
    into each camera (holes filled) is the *subject zone* — the pixels whose ray passes through
-   the subject's 3D region; its box, grown by ``zone_margin``, is the capture volume.
+   the subject's 3D region; its box, grown by 2 × ``zone_margin``, is the capture volume.
 3. Outside the zone the background is ``M``. Inside, the median may hold the subject, so the
    background there is first *guessed* by inpainting ``M`` from the zone's surroundings
    (OpenCV's Telea inpainting); then, per pixel, the sample closest to that guess is taken when
@@ -261,14 +261,14 @@ def capture_backgrounds(cap) -> list:
     box = None
     if region is not None:
         pts, vs = region
-        m = float(p["zone_margin"]) * unit
+        m = 2 * float(p["zone_margin"]) * unit      # the hull may reach beyond the motion
         box = (pts.min(axis=0) - vs / 2 - m, pts.max(axis=0) + vs / 2 + m)
     cap.cache[("subject_box",)] = box
     return models
 
 
 def subject_box(cap):
-    """(lo, hi) of the 3D region the subject sweeps, grown by ``zone_margin`` (or None)."""
+    """(lo, hi) of the 3D region the subject sweeps, grown by 2 × ``zone_margin`` (or None)."""
     capture_backgrounds(cap)
     return cap.cache[("subject_box",)]
 

@@ -58,6 +58,52 @@ def frame_confidence(distance, threshold, share, extra_leaves, missing, min_shar
             "confidence": round(fd * fh * fb * fm * fv, 4)}
 
 
+def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
+                min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m") -> tuple:
+    """Status, reason and diagnostics of one frame from what the stages know.
+
+    A ``matched`` frame becomes ``rejected`` when the hull's largest component holds less than
+    ``min_share`` of its voxels (the dropped components are named with their sizes and shares),
+    or when its confidence is below ``min_confidence`` (None: no gate).
+
+    Returns
+    -------
+    (status, error, diagnostics) with ``hull_litres``, ``largest_share``,
+    ``components_dropped`` (the five largest), ``data_leaves``, ``height`` (hull extent along
+    the up axis), ``confidence`` and ``confidence_factors``.
+    """
+    from ..capture.calibration import _UNITS
+
+    vd = vol.diagnostics or {}
+    share = float(vd.get("largest_share", 1.0))
+    dropped = vd.get("components_dropped") or []
+    leaves = leaf_count(data)
+    ax = int(np.argmax(np.abs(up)))
+    bb = vd.get("bbox")
+    height = None if not bb else float((bb[1][ax] - bb[0][ax] + 1) * vol.voxel_size)
+    fat = None
+    if height and model.name == "human":        # the fat-hull factor is the human model's
+        fat = n_vox * vol.voxel_size ** 3 / height ** 3
+    conf = frame_confidence(distance, threshold, share, leaves - leaf_count(model.tree),
+                            missing, min_share, fat)
+    if status == "matched" and share < min_share:
+        status = "rejected"
+        total = n_vox + sum(dropped)
+        error = (f"hull split: the largest component holds {100 * share:.0f} % of the {total} "
+                 f"hull voxels; dropped: "
+                 + ", ".join(f"{d} ({100 * d / total:.0f} %)" for d in dropped[:3])
+                 + (f" and {len(dropped) - 3} smaller" if len(dropped) > 3 else ""))
+    elif status == "matched" and min_confidence is not None and conf["confidence"] < min_confidence:
+        status = "rejected"
+        error = f"confidence {conf['confidence']:.2f} below {min_confidence:g}"
+    metre = _UNITS.get(units, 1.0)
+    diag = {"hull_litres": round(n_vox * (vol.voxel_size * metre) ** 3 * 1000.0, 2),
+            "largest_share": round(share, 4), "components_dropped": dropped[:5],
+            "data_leaves": leaves, "height": height,
+            "confidence": conf.pop("confidence"), "confidence_factors": conf}
+    return status, error, diag
+
+
 def _group(part: str) -> str:
     head, _, tail = part.rpartition("_")
     return head if tail.isdigit() and head else part

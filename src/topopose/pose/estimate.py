@@ -261,40 +261,17 @@ class FrameEstimator:
             error = f"{len(missing)} parts unmatched ({', '.join(missing)})"
             if unordered:
                 error += "; no co-optimal alignment satisfies the betweenness constraint"
-        # what the hull lost (part 4) and the frame's confidence (part 5)
-        from .confidence import frame_confidence, leaf_count
+        # what the hull lost and how far to trust the frame (topopose.pose.confidence)
+        from .confidence import judge_frame
 
-        vd = vol.diagnostics or {}
-        share = float(vd.get("largest_share", 1.0))
-        dropped = vd.get("components_dropped") or []
-        leaves = leaf_count(data)
-        model_leaves = leaf_count(self.model.tree)
-        up = np.abs(self.up)
-        ax = int(np.argmax(up))
-        bb = vd.get("bbox")
-        height = (None if not bb else float((bb[1][ax] - bb[0][ax] + 1) * vol.voxel_size))
-        fat = None if not height else n_vox * vol.voxel_size ** 3 / height ** 3
-        conf = frame_confidence(dist, self.threshold, share, leaves - model_leaves, len(missing),
-                                self.min_share, fat if self.model.name in ("human", "body") else None)
-        if status == "matched" and share < self.min_share:
-            status = "rejected"
-            total = n_vox + sum(dropped)
-            error = (f"hull split: the largest component holds {100 * share:.0f} % of the "
-                     f"{total} hull voxels; dropped: " + ", ".join(
-                         f"{d} ({100 * d / total:.0f} %)" for d in dropped[:3])
-                     + (f" and {len(dropped) - 3} smaller" if len(dropped) > 3 else ""))
-        elif status == "matched" and self.gate and conf["confidence"] < self.min_confidence:
-            status = "rejected"
-            error = f"confidence {conf['confidence']:.2f} below {self.min_confidence:g}"
+        status, error, extra = judge_frame(
+            vol, n_vox, data, self.model, self.up, dist, self.threshold, len(missing), status,
+            error, self.min_share, self.min_confidence if self.gate else None, self.cap.units)
         timings["total"] = (time.perf_counter() - t_all) * 1e3
         diag = {"model": self.model.name, "resolution": self.resolution,
                 "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
                 "skeleton_voxels": int(data.diagnostics.get("n_voxels", -1)),
-                "data_vertices": data.n_vertices, "missing": missing,
-                "hull_litres": round(n_vox * vol.voxel_size ** 3 * 1000.0, 2),
-                "largest_share": round(share, 4),
-                "components_dropped": dropped[:5], "data_leaves": leaves, "height": height,
-                "confidence": conf.pop("confidence"), "confidence_factors": conf}
+                "data_vertices": data.n_vertices, "missing": missing, **extra}
         if unordered:
             diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
         pose = Pose(name, status, dist, parts, error, timings, diag)

@@ -1,6 +1,6 @@
 """A real recording: Pose2Sim's balancing trial, from its 4 videos and Calib.toml as shipped.
 
-    python benchmarks/real.py [RECORDING] [--methods sequence,sequence+selfie] [--frames N]
+    python benchmarks/real.py [RECORDING] [--methods sequence,selfie,sequence+selfie] [--frames N]
 
 RECORDING (default ``benchmarks/data/pose2sim_balancing/``): ``videos/cam01.mp4`` …,
 ``Calib.toml`` (tables ``cam_01`` …), ``reference/pose2sim_3d.trc`` (Pose2Sim's own 3D result,
@@ -255,7 +255,7 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
-    ap.add_argument("--methods", default="sequence,sequence+selfie")
+    ap.add_argument("--methods", default="sequence,selfie,sequence+selfie")
     ap.add_argument("--resolution", type=int, default=100)
     ap.add_argument("--frames", type=int, default=0, help="first N frames only (0: all)")
     ap.add_argument("--out", default=str(HERE / "results" / "real"))

@@ -28,7 +28,7 @@ with α = (I·B)/(B·B), the chromaticity distortion ‖I − αB‖ and the bri
 p = 1 / (1 + exp(−(d − threshold) / (threshold / 4))). Pixels that were never revealed get
 ``p = 0.5 + (p − 0.5) · uncertain`` (a weaker vote either way). Probabilities are uint8
 (0-255), at ``scale`` of the image size, and fused into the hull by
-:func:`topopose.hull.soft_hull` (Franco & Boyer's occupancy grid).
+:func:`topopose.hull.soft.soft_carve` (Franco & Boyer's occupancy grid).
 
 ``"selfie"`` uses MediaPipe's selfie-segmentation network (an optional dependency whose model
 ships inside the wheel, see :mod:`.segment`) on the zone's bounding rectangle;

@@ -537,7 +537,11 @@ def detect_cli(a) -> int:
         expr = library[a.pose.lower()].expr
     else:
         expr = a.expr
-    node = parse(expr)
+    try:
+        node = parse(expr)
+    except ExpressionError as exc:
+        print(f"topopose: error: {exc}", file=sys.stderr)       # keep the caret's line
+        return 2
     poses, header = read_poses_file(a.poses)
     up = a.up or header_up(header) or "+z"
     res = detect(poses, node, up=up, aliases=aliases)

@@ -301,7 +301,7 @@ def camera_masks(cap, labels, origin, voxel_size, silhouettes=None) -> list:
         w, h = cam.size
         img = np.zeros(h * w, np.uint8)
         order = np.argsort(-np.linalg.norm(world - cam.center, axis=1))
-        p = pix[c][order]
+        p = pix[order, c]
         ok = p >= 0
         img[p[ok]] = lab[order][ok]
         img = img.reshape(h, w)
@@ -312,6 +312,59 @@ def camera_masks(cap, labels, origin, voxel_size, silhouettes=None) -> list:
                 img = np.where(sil, img[ii, jj], 0).astype(np.uint8)
         out.append(img)
     return out
+
+
+def segmentation_figure(path, cap, frame, model, detail, up=(0, 0, 1), max_points=15000) -> None:
+    """Picture of a frame's segmentation: the hull's surface voxels coloured by body part (3D)
+    beside the label masks of up to four cameras."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    from scipy import ndimage
+
+    from ..viz.view import _up_rotation
+
+    if detail is None or detail.alignment is None:
+        raise InputError(f"segment: frame {frame!r} has no alignment to segment with")
+    names = arc_names(model)
+    labels, _ = segment(detail.volume, detail.skeleton, detail.alignment, detail.data, names=names)
+    vol = detail.volume
+    cols = label_colours(len(names))
+    surf = labels * (labels > 0) * (~ndimage.binary_erosion(labels > 0))
+    ijk = np.argwhere(surf > 0)
+    if len(ijk) > max_points:
+        ijk = ijk[np.random.default_rng(0).choice(len(ijk), max_points, replace=False)]
+    w = vol.world(ijk) @ _up_rotation(up).T
+    lab = labels[tuple(ijk.T)]
+    ncam = min(4, len(cap.cameras))
+    fig = plt.figure(figsize=(4 + 2.4 * ncam, 4.4), dpi=80)
+    gs = fig.add_gridspec(1, 1 + ncam, width_ratios=[1.6] + [1] * ncam)
+    ax = fig.add_subplot(gs[0, 0], projection="3d")
+    ax.scatter(w[:, 0], w[:, 1], w[:, 2], s=3, c=cols[lab] / 255.0, depthshade=False)
+    span = (w.max(0) - w.min(0)).max() / 2 if len(w) else 1
+    mid = (w.max(0) + w.min(0)) / 2 if len(w) else np.zeros(3)
+    for setl, m in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), mid):
+        setl(m - span, m + span)
+    ax.set_title(f"frame {frame}", fontsize=9)
+    for i, n in enumerate(names):
+        ax.plot([], [], "s", color=cols[i + 1] / 255.0, label=n)
+    ax.legend(fontsize=6, loc="upper left")
+    sils = cap.silhouettes(frame)
+    masks = camera_masks(cap, labels, vol.origin, vol.voxel_size, sils)
+    for c in range(ncam):
+        a = fig.add_subplot(gs[0, 1 + c])
+        img = masks[c]
+        ys, xs = np.nonzero(img)
+        a.imshow(cols[img])
+        if len(ys):
+            a.set_xlim(xs.min() - 10, xs.max() + 10)
+            a.set_ylim(ys.max() + 10, ys.min() - 10)
+        a.set_title(cap.cameras[c].name, fontsize=8)
+        a.axis("off")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
 
 
 def synthetic_truth(volume, body, names, subject="human") -> np.ndarray:

@@ -330,8 +330,8 @@ def build_parser() -> argparse.ArgumentParser:
     g = s.add_mutually_exclusive_group()
     g.add_argument("--clusters", type=int, help="number of clusters")
     g.add_argument("--threshold", type=float, help="cut at this distance 1 - similarity")
-    s.add_argument("--auto", choices=["gap", "silhouette"], default="gap",
-                   help="automatic cut: largest gap between merge heights (default) or silhouette")
+    s.add_argument("--auto", choices=["silhouette", "gap"], default="silhouette",
+                   help="automatic cut: best mean silhouette (default) or largest gap between merge heights")
     s.add_argument("--figure", help="PNG: medoid poses and the timeline coloured by cluster")
     s.add_argument("--up", help="up axis for the figure (default: the poses header's, else +z)")
     s.set_defaults(func=cmd_cluster)

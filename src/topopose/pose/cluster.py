@@ -13,9 +13,9 @@ cardinality of their union)."
   base name) when there are at most ``max_renumberings`` of them (human: 2! × 2! = 4), and the
   plain one otherwise.
 * :func:`cluster_poses`: average-linkage hierarchical clustering (SciPy) of 1 − similarity;
-  cut at ``threshold``, at ``clusters`` clusters, or automatically at the largest gap between
-  successive merge heights (``auto="gap"``, default) or at the best mean silhouette
-  (``auto="silhouette"``); one medoid frame per cluster.
+  cut at ``threshold``, at ``clusters`` clusters, or automatically at the best mean silhouette
+  (``auto="silhouette"``, default) or at the largest gap between successive merge heights
+  (``auto="gap"``); one medoid frame per cluster.
 * :func:`adjusted_rand_index`: Hubert & Arabie's ARI from the contingency table.
 """
 from __future__ import annotations
@@ -191,7 +191,7 @@ class Clustering:
     used: list = field(default_factory=list)
 
 
-def cluster_poses(poses, *, clusters=None, threshold=None, auto="gap", relation="b",
+def cluster_poses(poses, *, clusters=None, threshold=None, auto="silhouette", relation="b",
                   parts=None, max_renumberings=24, matched_only=True) -> Clustering:
     """Cluster the frames of a sequence by their betweenness relation sets (thesis §13.3.2.2).
 
@@ -202,9 +202,11 @@ def cluster_poses(poses, *, clusters=None, threshold=None, auto="gap", relation=
         Number of clusters (SciPy ``fcluster`` criterion ``maxclust``).
     threshold : float, optional
         Cut the average-linkage dendrogram at this distance 1 − similarity.
-    auto : "gap" or "silhouette"
-        Without ``clusters`` and ``threshold``: cut in the middle of the largest gap between
-        successive merge heights, or at the K in 2..min(20, n−1) of best mean silhouette.
+    auto : "silhouette" or "gap"
+        Without ``clusters`` and ``threshold``: cut at the K in 2..min(20, n−1) of best mean
+        silhouette (default), or in the middle of the largest gap between successive merge
+        heights. Measured in ``benchmarks/applications.py``: the gap rule often stops at two
+        clusters when one group of poses stands apart; the silhouette finds K within ±1.
     relation : betweenness relation (R_b by default, the thesis' choice)
     parts : the parts to use (default: those of the first pose)
     """

@@ -36,7 +36,7 @@ def cmd_synth(a):
 
     out = synthesize(a.out, subject=a.subject, frames=a.frames, seed=a.seed, cameras=a.cameras,
                      size=a.size, noise=a.noise, motion=a.motion, thickness=a.thickness,
-                     separated=a.separated, fps=a.fps, margin=a.margin)
+                     separated=a.separated, fps=a.fps, margin=a.margin, build=a.build)
     print(f"wrote {out}: {a.subject}, {a.frames} frames, {a.cameras} cameras ({a.motion})")
     return 0
 
@@ -196,12 +196,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--resolution", type=int, default=100)
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--noise", type=int, default=0, help="silhouette noise level 0-3")
-    s.add_argument("--subjects", default=None, help="comma-separated, default human,hand,dog,spider")
+    s.add_argument("--subjects", default=None,
+                   help="comma-separated, default human,hand,dog,spider (also: body)")
     s.set_defaults(func=cmd_demo)
 
     s = sub.add_parser("synth", help="write a synthetic capture folder with ground truth")
     s.add_argument("out")
-    s.add_argument("--subject", choices=["human", "hand", "dog", "spider"], default="human")
+    s.add_argument("--subject", choices=["human", "hand", "dog", "spider", "body"], default="human")
     s.add_argument("--frames", type=int, default=10)
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--cameras", type=int, default=8)
@@ -214,6 +215,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--fps", type=float, default=25.0, help="frame rate of motion sequences")
     s.add_argument("--margin", type=float, default=None,
                    help="with --separated: smallest gap between limbs, in metres (e.g. 3 voxels)")
+    s.add_argument("--build", choices=["average", "heavy", "child", "lean", "random"], default=None,
+                   help="body subject: proportions (default random, drawn from the seed)")
     s.set_defaults(func=cmd_synth)
 
     s = sub.add_parser("hull", help="volumetric visual hull of one frame")

@@ -45,6 +45,23 @@ SYNTH_LINK_ARCS = {
 }
 
 
+
+def body_bone_arc(bone: str) -> str:
+    """The human model's arc of a bone of the ``body`` subject's rig (``cmu_mb``): head and neck →
+    torso-head; the arm from the upper arm down (the clavicle ``*Shoulder`` stays in the trunk)
+    → torso-hand_k; the leg from the thigh down (the ``*HipJoint`` stays in the trunk) →
+    crotch-foot_k; the rest (hips, back, spine, clavicles, hip joints) → torso-crotch.
+    Left is 1, as in gt.json."""
+    if bone.startswith(("Neck", "Head")):
+        return "torso-head"
+    k = "1" if bone.startswith("L") else "2"
+    if any(x in bone for x in ("Arm", "Hand", "Thumb", "Finger")):
+        return f"torso-hand_{k}"
+    if any(x in bone for x in ("UpLeg", "Leg", "Foot", "Toe")) and "Hip" not in bone:
+        return f"crotch-foot_{k}"
+    return "torso-crotch"
+
+
 def arc_names(model) -> list:
     """Label names of a model: ``"u-v"`` per model edge, in the model's edge order (label i+1)."""
     tree = model.tree if hasattr(model, "tree") else model
@@ -145,7 +162,7 @@ def _box(mask, bbox=None):
 
 
 def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", bbox=None,
-                 delay: float = 2.0):
+                 delay: float = 1.5):
     """Flood ``mask`` from the labelled voxels of ``seeds`` (step 2 of §13.3.1.1).
 
     ``weighting="none"``: each voxel of ``mask`` connected to a seed gets the label of its
@@ -155,8 +172,9 @@ def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", b
     seeds of their number of steps to the hull's border (the part's radius, by
     :func:`.segment_kernels.depth`) and D the largest r_L: thick parts start first, so the
     spine of a thick trunk keeps the trunk against the thin limbs whose skeleton starts beside
-    it, inside the trunk. ``delay = 2`` was chosen on 16 synthetic human frames (seed 1 of
-    ``benchmarks/applications.py``; voxel accuracy 0.875 / 0.907 / 0.887 for 1 / 2 / 3; the
+    it, inside the trunk. ``delay = 1.5`` was chosen on seed 1 of ``benchmarks/applications.py``
+    (voxel accuracy, capsule human, 16 frames: 0.875 / 0.904 / 0.907 / 0.887 for delay 1 / 1.5 /
+    2 / 3; body, 12 frames: 0.849 / 0.845 / 0.839 / 0.789; plain flooding 0.78 / 0.79); the
     benchmark measures on other seeds). Runs on the
     mask's bounding box (``bbox``: ([x0, y0, z0], [x1, y1, z1]) inclusive, as
     ``Volume.diagnostics["bbox"]``, or computed) with
@@ -200,7 +218,7 @@ def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", b
 
 
 def segment(volume, skeleton, alignment, data=None, *, names=None, connectivity: int = 26,
-            weighting: str = "part", delay: float = 2.0):
+            weighting: str = "part", delay: float = 1.5):
     """Body-part segmentation of a visual hull (thesis §13.3.1.1).
 
     Parameters
@@ -213,7 +231,7 @@ def segment(volume, skeleton, alignment, data=None, *, names=None, connectivity:
         vertex ids are deterministic, so they are the alignment's)
     names : label names (default ``"u-v"`` per pattern arc of the alignment)
     connectivity : 26 (default) or 6
-    weighting, delay : ``"part"`` (default; delay 2) or ``"none"`` (the thesis' plain
+    weighting, delay : ``"part"`` (default; delay 1.5) or ``"none"`` (the thesis' plain
         flooding), see :func:`flood_labels`
 
     Returns
@@ -371,22 +389,37 @@ def segmentation_figure(path, cap, frame, model, detail, up=(0, 0, 1), max_point
 
 
 def synthetic_truth(volume, body, names, subject="human") -> np.ndarray:
-    """Ground-truth labels of a hull of a synthetic subject: each hull voxel takes the arc of
-    the nearest primitive's link (signed distance, :func:`~topopose.capture.synth_geometry.sdf`),
-    grouped by :data:`SYNTH_LINK_ARCS`; 0 outside the hull."""
-    from ..capture.synth_geometry import sdf
+    """Ground-truth labels of a hull of a synthetic subject; 0 outside the hull.
 
+    Capsule subjects: each hull voxel takes the arc of the nearest primitive's link (signed
+    distance, :func:`~topopose.capture.synth_geometry.sdf`), grouped by
+    :data:`SYNTH_LINK_ARCS`. The ``body`` subject (a :class:`~topopose.capture.synth_body.MeshBody`):
+    the dominant bone (largest skinning weight) of the nearest posed mesh vertex, grouped by
+    :func:`body_bone_arc`.
+    """
     hull = volume.data
     ijk = np.argwhere(hull)
     X = np.asarray(volume.origin, float) + ijk * float(volume.voxel_size)
-    arcs = SYNTH_LINK_ARCS[subject]
     index = {n: i + 1 for i, n in enumerate(names)}
     for n in list(index):
         u, v = n.split("-", 1)
         index.setdefault(f"{v}-{u}", index[n])
+    out = np.zeros(hull.shape, np.int32)
+    if hasattr(body, "vertices") and not hasattr(body, "prims"):
+        from scipy.spatial import cKDTree
+
+        from ..capture.synth_body import dominant_bones
+
+        dom, bones = dominant_bones()
+        lab_of_bone = np.array([index[body_bone_arc(b)] for b in bones], np.int32)
+        _, nearest = cKDTree(body.vertices).query(X, k=1)
+        out[tuple(ijk.T)] = lab_of_bone[dom[nearest]]
+        return out
+    from ..capture.synth_geometry import sdf
+
+    arcs = SYNTH_LINK_ARCS[subject]
     D = np.stack([sdf(p, X) for p in body.prims], 1)
     lab_of_prim = np.array([index[arcs[p.link]] for p in body.prims], np.int32)
-    out = np.zeros(hull.shape, np.int32)
     out[tuple(ijk.T)] = lab_of_prim[np.argmin(D, 1)]
     return out
 

@@ -308,7 +308,7 @@ def bench_clustering(K, n_frames, seeds, log, figure=None):
                              "K_true": len({truth[i] for i in idx}), "K_found": res.k,
                              "ari": adjusted_rand_index(lab, [truth[i] for i in idx]),
                              "ms": ms})
-                if figure and source == "pipeline" and auto == "gap" and seed == seeds[0]:
+                if figure and source == "pipeline" and auto == "silhouette" and seed == seeds[0]:
                     cluster_figure(ps, res, figure)
         log(f"clustering seed {seed}: {len(m)}/{len(poses)} matched")
     return rows
@@ -321,12 +321,12 @@ def _mean(x):
 
 
 def segmentation_figure(path):
-    """One segmented frame (the README picture)."""
-    from topopose.capture.synth_subjects import human_random
+    """One segmented frame of the body subject (the README picture)."""
+    from topopose.capture.synth import synthetic_capture
     from topopose.pose.estimate import FrameEstimator
     from topopose.pose.segment import segmentation_figure as fig
 
-    cap = capture(lambda rng: human_random(rng), 3, 5)
+    cap = synthetic_capture("body", frames=3, seed=5, noise=1, separated=True, margin=MARGIN)
     est = FrameEstimator(cap, "human", RES)
     for f in cap.frames:
         pose, det = est.estimate(f, detail=True)

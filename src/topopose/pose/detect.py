@@ -39,7 +39,6 @@ case-insensitively; numbered and sided names resolve to each other (``hand_1`` â
 from __future__ import annotations
 
 import json
-import math
 import re
 import tomllib
 from dataclasses import dataclass

@@ -391,3 +391,27 @@ def test_cluster_cli(tmp_path):
     assert res[0]["cluster"] is None
     assert C.adjusted_rand_index([r["cluster"] for r in res[1:]], truth[1:]) == 1.0
     assert (tmp_path / "c.png").stat().st_size > 1000
+
+
+def test_body_bones_group_into_the_human_arcs():
+    bones = ('Hips', 'LHipJoint', 'LeftUpLeg', 'LowerBack', 'RHipJoint', 'RightUpLeg', 'Spine',
+             'Spine1', 'LeftLeg', 'LeftShoulder', 'Neck', 'Neck1', 'RightLeg', 'RightShoulder',
+             'Head', 'LeftArm', 'LeftFoot', 'LeftForeArm', 'LeftHand', 'LeftToeBase', 'RightArm',
+             'RightFoot', 'RightForeArm', 'RightHand', 'RightToeBase', 'LThumb', 'LeftFingerBase',
+             'LeftHandFinger1', 'RThumb', 'RightFingerBase', 'RightHandFinger1')
+    want = {"torso-head": {"Neck", "Neck1", "Head"},
+            "torso-crotch": {"Hips", "LHipJoint", "RHipJoint", "LowerBack", "Spine", "Spine1",
+                             "LeftShoulder", "RightShoulder"},
+            "torso-hand_1": {"LeftArm", "LeftForeArm", "LeftHand", "LThumb", "LeftFingerBase",
+                             "LeftHandFinger1"},
+            "torso-hand_2": {"RightArm", "RightForeArm", "RightHand", "RThumb", "RightFingerBase",
+                             "RightHandFinger1"},
+            "crotch-foot_1": {"LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase"},
+            "crotch-foot_2": {"RightUpLeg", "RightLeg", "RightFoot", "RightToeBase"}}
+    got = {}
+    for b in bones:
+        got.setdefault(S.body_bone_arc(b), set()).add(b)
+    assert got == want
+    from topopose.pose.model import load_model
+
+    assert set(want) == set(S.arc_names(load_model("human")))

@@ -163,12 +163,11 @@ def test_confidence_factors_and_time_only_on_coherent_sequences():
     from topopose.pose.confidence import frame_confidence, temporal_confidence
     from topopose.pose.pose import Pose
 
-    c = frame_confidence(0.4, 0.4, 0.9, 2, 1, 0.8, fatness=0.05)
-    assert c["alignment"] == pytest.approx(0.5) and c["skeleton"] == pytest.approx(0.64)
-    assert c["hull"] == pytest.approx(2 / 3, abs=1e-4) and c["placement"] == 0.5
-    assert c["fat"] == pytest.approx(0.5)
-    assert c["confidence"] == pytest.approx(0.5 * 0.64 * (2 / 3) * 0.5 * 0.5, abs=1e-4)
-    assert frame_confidence(None, 0.4, 1.0, 0, 0)["confidence"] == 0.0
+    c = frame_confidence(0.4, 0.4, 0.9, 1, 0.8, fatness=0.05)
+    assert c["alignment"] == pytest.approx(0.5) and c["placement"] == 0.5
+    assert c["hull"] == pytest.approx(2 / 3, abs=1e-4) and c["fat"] == pytest.approx(0.5)
+    assert c["confidence"] == pytest.approx(0.5 * (2 / 3) * 0.5 * 0.5, abs=1e-4)
+    assert frame_confidence(None, 0.4, 1.0, 0)["confidence"] == 0.0
 
     def poses(step, jump_at=None):
         out = []

@@ -17,8 +17,10 @@ what each stage knows, as a product of factors in [0, 1]:
   1.5 get ½. Applied only when the run is a coherent sequence (median δ / H over consecutive
   frames ≤ 0.1): independent poses (synthetic "random" captures) get no time factor.
 
-``matched`` then also needs confidence ≥ ``min_confidence`` (``FrameEstimator(gate=True)``,
-``topopose run --no-confidence-gate`` to switch off). The form of f_d, the factor bases and
+For the human model, ``matched`` then also needs confidence ≥ ``min_confidence``
+(``FrameEstimator(gate=True)``, ``topopose run --no-confidence-gate`` to switch off); other
+models report the confidence without gating (it was calibrated on human subjects only; give
+``FrameEstimator(min_confidence=…)`` to gate them). The form of f_d, the factor bases and
 ``min_confidence`` = 0.7 were chosen on synthetic captures only (a factor 0.8 per spurious
 skeleton branch beyond the model's leaves was tried and dropped: it halved the matched frames
 for no gain in precision; ``data_leaves`` stays in the diagnostics) (``benchmarks/confidence.py``:

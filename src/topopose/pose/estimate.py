@@ -111,10 +111,12 @@ class FrameEstimator:
 
         self.min_share = float(min_share)
         self.gate = bool(gate)
-        self.min_confidence = MIN_CONFIDENCE if min_confidence is None else float(min_confidence)
+        self.min_confidence = None if min_confidence is None else float(min_confidence)
 
         self.cap = cap
         self.model: Model = load_model(model, constraints=constraints)
+        if self.min_confidence is None and self.model.name == "human":
+            self.min_confidence = MIN_CONFIDENCE   # calibrated for the human model only
         self.resolution = int(resolution)
         if self.resolution < 8:
             raise InputError(f"--resolution: {resolution} is too small (at least 8 voxels)")

@@ -254,7 +254,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     seconds = time.perf_counter() - t0
     from .confidence import temporal_confidence
     temporal_confidence(list(results.values()), {f: i for i, f in enumerate(cap.frames)},
-                        gate=gate)
+                        gate=gate and m.name == "human")
     if out is not None:
         write_poses(out, results.values())
     poses = [results[k] for k in sorted(results)]

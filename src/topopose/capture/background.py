@@ -24,7 +24,8 @@ capture from ``samples`` frames spread over the sequence, at ``scale`` of the im
 The foreground probability of a pixel (:func:`foreground_probability`) compares it with the
 background by brightness and chromaticity distortion (Horprasert et al., ICCV FRAME-RATE 1999):
 with α = (I·B)/(B·B), the chromaticity distortion ‖I − αB‖ and the brightness distortion
-(α − 1)‖B‖ — zero for a *shadow* (``shadow`` ≤ α ≤ 1: darker, same colour); their norm d gives
+(α − 1)‖B‖ above α = 1, (``shadow`` − α)‖B‖ below ``shadow``, zero between (a *shadow*:
+darker, same colour); their norm d gives
 p = 1 / (1 + exp(−(d − threshold) / (threshold / 4))). Pixels that were never revealed get
 ``p = 0.5 + (p − 0.5) · uncertain`` (a weaker vote either way). Probabilities are uint8
 (0-255), at ``scale`` of the image size, and fused into the hull by
@@ -32,8 +33,9 @@ p = 1 / (1 + exp(−(d − threshold) / (threshold / 4))). Pixels that were neve
 
 ``"selfie"`` uses MediaPipe's selfie-segmentation network (an optional dependency whose model
 ships inside the wheel, see :mod:`.segment`) on the zone's bounding rectangle;
-``"sequence+selfie"`` takes the network's probability, raised to the background model's where that
-one is sure of the subject (p > 0.8) on a background it has seen (the network misses caps).
+``"sequence+selfie"`` takes the network's probability, raised to the background model's where
+that one is sure of the subject (p > 0.8) on a background it has seen (the network misses
+caps), lowered where it is sure of the background (p < 0.05).
 """
 from __future__ import annotations
 
@@ -117,7 +119,7 @@ def subject_region(cameras_small, motion, unit: float):
     occ = acc >= 2
     if not occ.any():
         return None
-    lab, nl = cc3d.connected_components(occ, connectivity=26, return_N=True)
+    lab = cc3d.connected_components(occ, connectivity=26)
     sizes = np.bincount(lab.ravel())
     sizes[0] = 0
     occ = ndimage.binary_dilation(lab == int(np.argmax(sizes)), np.ones((3, 3, 3), bool))

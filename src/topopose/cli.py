@@ -269,7 +269,16 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("capture")
     s.add_argument("--poses", required=True)
     s.add_argument("--out", default=None, help="folder for the figures")
-    s.add_argument("--tolerance", type=float, default=None)
+    g = s.add_mutually_exclusive_group()
+    g.add_argument("--tolerance", type=float, default=None,
+                   help="a part is right within this fraction of the subject height (gt.json "
+                        "'height') of its gt segment, the same for every part (default: 0.1, "
+                        "junctions 1.5x: the thesis study)")
+    g.add_argument("--tolerance-m", type=float, default=None,
+                   help="the same as an absolute distance in capture units (metres)")
+    s.add_argument("--junction-factor", type=float, default=None,
+                   help="junction parts (torso, crotch) get this times the tolerance (default 1 "
+                        "with --tolerance/--tolerance-m, else 1.5)")
     s.set_defaults(func=cmd_evaluate)
 
     s = sub.add_parser("learn-model", help="learn the model tree from a sequence (Mukasa et al.)")

@@ -98,7 +98,7 @@ class FrameEstimator:
         (1.0); 0: off. A head is thick, a hand thin: a bent arm as short as the neck+head branch
         no longer takes the head. It chooses the alignment; the reported AHA distance (judged
         by T_d) is without it (``diagnostics["thickness_cost"]``). Measured in
-        :data:`THICKNESS`; cost about 1 ms a frame at 100³.
+        :data:`THICKNESS`; cost 1–3 ms a frame at 100³ (×1.2, ``benchmarks/quality.py``).
     thickness_profile : dict, optional
         ``{part stem: (lo, hi)}`` relative radii overriding the model's.
     junction_centroid : bool or None
@@ -383,8 +383,8 @@ def betweenness_by_lengths(al, pattern, data, constraint):
 
 
 # Relative thickness of each part of a built-in model (thesis §12.3 gives lengths only): the
-# hull's inscribed-ball radius (taxicab distance transform, 0.5 ms a frame at 100³; the exact
-# EDT took 9 ms for the same figures) at the part's data vertex — the largest within
+# hull's inscribed-ball radius (taxicab distance transform on the hull's box, 0.5 ms at 100³;
+# the exact EDT took 9 ms for about the same figures) at the part's data vertex — the largest within
 # ±THICKNESS_REACH × resolution voxels (2 at 100³: a skeleton end lies at the crown, the head's
 # centre is a few voxels in) — over the largest radius of the hull (the chest). Ranges
 # (lo, hi) = 5–95 % of the correctly placed parts of `body` frames (5 builds × 2 seeds, 400

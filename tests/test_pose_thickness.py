@@ -129,3 +129,16 @@ def test_matched_arc_cost_is_the_distance_part_paid():
     assert paid == pytest.approx(sum(extra[(p[0], p[-1], d[0], d[-1])] for p, d in al.pairs))
     # what is left is the plain length cost of the same alignment: never below the optimum
     assert al.distance - paid >= mt.align(D, data_root=0).distance - 1e-12
+
+
+def test_run_thickness_switch():
+    """``run(thickness=0)`` (``topopose run --thickness 0``) turns the term off; by default the
+    human model pays it (``diagnostics["thickness_cost"]``) and T_d judges the length part."""
+    from topopose.capture import synthetic_capture
+    from topopose.pose import run
+
+    cap = synthetic_capture(subject="body", frames=2, seed=2, noise=0, cameras=8, build="average")
+    on = run(cap, "human", 48, progress=False).poses
+    off = run(cap, "human", 48, progress=False, thickness=0).poses
+    assert all("thickness_cost" in p.diagnostics for p in on if p.status != "failed")
+    assert not any("thickness_cost" in p.diagnostics for p in off)

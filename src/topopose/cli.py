@@ -253,6 +253,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="visual hull: keep voxels seen by C-k cameras (default 1 with >= 6 cameras, else 0)")
     s.add_argument("--rerun", metavar="FILE.rrd")
     s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
+    s.add_argument("--thickness", type=float, default=None,
+                   help="weight of the parts' thickness in the arc cost (human model; default 1, "
+                        "0: off)")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("view", help="render one frame as a PNG")

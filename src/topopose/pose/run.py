@@ -124,7 +124,7 @@ def _progress(total, enabled, desc):
 def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
-        tolerance=None, on_pose=None) -> RunResult:
+        tolerance=None, on_pose=None, thickness=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -152,6 +152,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         cameras, else 0 (see :class:`FrameEstimator`).
     on_pose : callable, optional
         Called with each :class:`Pose` as it finishes (e.g. a live viewer).
+    thickness : float or None
+        Weight of the thickness term of the arc cost (see :class:`FrameEstimator`); 0: off.
 
     Returns
     -------
@@ -164,6 +166,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     cap = capture if isinstance(capture, Capture) else load_capture(capture)
     options = {"betweenness": betweenness, "relation": relation, "max_missing": max_missing,
                "thinning": thinning, "tolerance": tolerance}
+    if thickness is not None:
+        options["thickness"] = float(thickness)
     todo = select_frames(cap, frames)
     if workers is None or workers < 1:
         raise InputError(f"--workers: must be at least 1, got {workers}")
@@ -277,7 +281,7 @@ def run_cli(a) -> int:
               c3d=getattr(a, "c3d", None),
               constraints=not getattr(a, "no_constraints", False),
               tolerance=getattr(a, "tolerance", None),
-              on_pose=None)
+              on_pose=None, thickness=getattr(a, "thickness", None))
     if getattr(a, "rerun", None):
         from ..viz.rerun import record_run
         record_run(a.rerun, a.capture, res.poses, model=a.model, resolution=a.resolution,

@@ -416,10 +416,11 @@ THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the large
 
 
 def vertex_radii(vol, data, reach: int = 0) -> dict:
-    """Inscribed-ball radius of the hull at every data vertex, relative to the hull's largest
-    (:func:`scipy.ndimage.distance_transform_edt` on the hull's bounding box; a vertex whose
-    voxel is background — an I-component centroid off the hull — takes the largest radius of
-    its 3×3×3 neighbourhood)."""
+    """Inscribed-ball radius of the hull at every data vertex, relative to the hull's largest:
+    the taxicab distance transform (:func:`scipy.ndimage.distance_transform_cdt`, 20× faster
+    than the exact EDT) on the hull's bounding box, its largest value within ``reach`` voxels
+    of the vertex (0: at the vertex; a vertex whose voxel is background — an I-component
+    centroid off the hull — takes the largest of its 3×3×3 neighbourhood)."""
     from scipy import ndimage
 
     a = vol.data
@@ -454,10 +455,11 @@ def thickness_arc_cost(radii: dict, profile: dict, weight: float, cap: float = 1
     """Arc cost term (:meth:`topopose.match.Matcher.align`) of the parts' thickness.
 
     Resizing the model arc that ends at part ``p`` (its lower end, away from the root) to a
-    data path ending at vertex ``v`` costs ``weight × min(|log(r(v) / ρ(p))|, cap)``, with
-    ``r`` the relative radius of :func:`vertex_radii` and ``ρ`` the part's expected one
-    (``profile``, by name stem, e.g. :data:`THICKNESS`); the arc ``root`` → ``root_arc`` also
-    pays for the root's own thickness at its upper end. A head is thick, a hand thin: a bent
+    data path ending at vertex ``v`` costs ``weight × min(max(0, log(lo / r), log(r / hi)),
+    cap)``, with ``r`` the relative radius of :func:`vertex_radii` at ``v`` and ``(lo, hi)``
+    the part's range (``profile``, by name stem, e.g. :data:`THICKNESS`; parts without one pay
+    nothing): nothing inside the range, the log of the excess outside. The arc ``root`` →
+    ``root_arc`` also pays for the root's own thickness at its upper end. A head is thick, a hand thin: a bent
     arm whose branch is as short as the neck+head branch no longer takes the head.
     """
     def stem(p):

@@ -117,7 +117,7 @@ def body_captures(separated, noise, seeds, frames, builds=BODY_BUILDS):
     return caps
 
 
-def body_study(caps, resolution, **options):
+def body_study(caps, resolution, two_pass=False, **options):
     """Run every body capture with the human model and score at ``BODY_TOLERANCE`` × height,
     the same for every part: the run's own T_d decides (status), FP/match = FP / (TP + FP)."""
     from topopose.pose import FrameEstimator, load_model
@@ -129,7 +129,12 @@ def body_study(caps, resolution, **options):
         est = FrameEstimator(cap, "human", resolution, **options)
         est.estimate(cap.frames[0])         # the capture's projection tables, built once
         t0 = time.perf_counter()
-        poses = [est.estimate(f) for f in cap.frames]
+        if two_pass:       # the subject's own lengths from its confident frames (pose.subject)
+            from topopose.pose.subject import two_pass as run_two_pass
+
+            poses, _ = run_two_pass(cap, cap.frames, "human", resolution, **options)
+        else:
+            poses = [est.estimate(f) for f in cap.frames]
         secs += time.perf_counter() - t0
         n += len(poses)
         align_ms += [p.timings_ms["alignment"] for p in poses if "alignment" in p.timings_ms]
@@ -183,6 +188,8 @@ def body_rows(quick, out, suffix):
     row("body separated noise1 no-thickness", *body_study(sep, 100, thickness=0))
     row("body all-poses noise1", *body_study(allp, 100))
     row("body all-poses noise1 no-thickness", *body_study(allp, 100, thickness=0))
+    row("body separated noise1 two-pass", *body_study(sep, 100, two_pass=True))
+    row("body all-poses noise1 two-pass", *body_study(allp, 100, two_pass=True))
     if not quick:
         for noise in (0, 2):
             c = body_captures(True, noise, seeds[:1], n, builds)
@@ -195,7 +202,9 @@ def body_rows(quick, out, suffix):
          "missing limb) / frames, FP/match = (misplaced + bad) / (TP + FP) over matched frames; "
          "errors: median distance to the gt segment in cm (all parts of the matched frames of a "
          "class). *separated*: distinct limbs at least 7.5 cm apart. *no-thickness*: "
-         "`FrameEstimator(thickness=0)`, the peer of the thickness term.", "",
+         "`FrameEstimator(thickness=0)`, the peer of the thickness term; *two-pass*: "
+         "`topopose.pose.subject.two_pass` per capture (one subject), the subject's own lengths "
+         "from its confident frames.", "",
          "| configuration | res | frames | TP rate | FP/match | good | miss1 | partial | misplaced "
          "| bad | none | err good (cm) | err misplaced (cm) | ms/frame | alignment stage ms (median) |",
          "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]

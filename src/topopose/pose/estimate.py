@@ -98,7 +98,7 @@ class FrameEstimator:
         (1.0); 0: off. A head is thick, a hand thin: a bent arm as short as the neck+head branch
         no longer takes the head. It chooses the alignment; the reported AHA distance (judged
         by T_d) is without it (``diagnostics["thickness_cost"]``). Measured in
-        :data:`THICKNESS`; cost 1–3 ms a frame at 100³ (×1.3, ``benchmarks/quality.py``).
+        :data:`THICKNESS`; cost 1–3 ms a frame at 100³ (×1.3–1.4, ``benchmarks/quality.py``).
     thickness_profile : dict, optional
         ``{part stem: (lo, hi)}`` relative radii overriding the model's.
     junction_centroid : bool or None

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from .model import Model
+from .model import Model, model_from_dict
 
 __all__ = ["edge_lengths", "subject_model", "two_pass"]
 
@@ -65,7 +65,6 @@ def subject_model(model: Model, samples, min_frames: int = 5) -> Model | None:
         for (u, v), x in s.items():
             if x is not None and math.isfinite(x):
                 pooled.setdefault(_group_key(model, u, v), []).append(x)
-    edges = []
     total_old = sum(w for _, _, w in model.tree.edges if math.isfinite(w))
     new = {}
     for u, v, w in model.tree.edges:
@@ -77,10 +76,7 @@ def subject_model(model: Model, samples, min_frames: int = 5) -> Model | None:
     for e in d["edge"]:
         w = new[tuple(e["parts"])]
         e["length"] = "inf" if math.isinf(w) else float(w) * scale
-    from .model import model_from_dict
-
-    out = model_from_dict(d, source=f"{model.name} (subject lengths)")
-    return out
+    return model_from_dict(d, source=f"{model.name} (subject lengths)")
 
 
 def two_pass(cap, frames, model="human", resolution=100, *, confident=0.25, min_frames=5,

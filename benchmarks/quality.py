@@ -16,7 +16,11 @@ Reference (peer): the thesis' figures — dancer: T_d = 0.4 gives good matchings
 frames with a fail rate < 5 %; children (no coordinate constraints): T_d = 0.2 gives 15–20 %;
 hand (4 poor cameras): T_d = 3.5 (unnormalized scale) gives 10–20 %.
 
-    python benchmarks/quality.py [--quick] [--frames N] [--only human,dog,spider]
+    python benchmarks/quality.py [--quick] [--frames N] [--only human,dog,spider,body]
+
+- body (the MakeHuman mesh, issue 11): builds × seeds, separated and all poses, noise 0–2,
+  50/100/150³, the thickness term on and off, scored at 0.08 × height for every part
+  (benchmarks/results/quality_body.{md,json}).
 
 "Limbs separated" (the thesis' dancer study: "each limb is clearly separated from others" in the
 visual hull, §13.2.2.1) is made a property of the hull at the study's working resolution: the
@@ -95,6 +99,143 @@ def study(cap, model, resolution, relation=None, constraints=True, tolerance=Non
     }
 
 
+BODY_BUILDS = ("average", "heavy", "child", "lean", "random")
+BODY_TOLERANCE = 0.08          # × subject height, the same for every part (issue 11)
+BODY_MARGIN = 0.075            # separated: 3 voxels of the 100³ grid, as for the capsule human
+
+
+def body_captures(separated, noise, seeds, frames, builds=BODY_BUILDS):
+    """The ``body`` captures of one configuration: every build × seed (MakeHuman mesh)."""
+    from topopose.capture import synthetic_capture
+
+    caps = []
+    for b in builds:
+        for s in seeds:
+            caps.append(synthetic_capture(subject="body", frames=frames, seed=s, noise=noise,
+                                          separated=separated, cameras=8, build=b,
+                                          margin=BODY_MARGIN if separated else None))
+    return caps
+
+
+def body_study(caps, resolution, two_pass=False, **options):
+    """Run every body capture with the human model and score at ``BODY_TOLERANCE`` × height,
+    the same for every part: the run's own T_d decides (status), FP/match = FP / (TP + FP)."""
+    from topopose.pose import FrameEstimator, load_model
+    from topopose.pose.quality import Evaluation, evaluate
+
+    model = load_model("human")
+    frames, secs, n, thick, align_ms = [], 0.0, 0, [], []
+    for cap in caps:
+        est = FrameEstimator(cap, "human", resolution, **options)
+        est.estimate(cap.frames[0])         # the capture's projection tables, built once
+        t0 = time.perf_counter()
+        if two_pass:       # the subject's own lengths from its confident frames (pose.subject)
+            from topopose.pose.subject import two_pass as run_two_pass
+
+            poses, _ = run_two_pass(cap, cap.frames, "human", resolution, **options)
+        else:
+            poses = [est.estimate(f) for f in cap.frames]
+        secs += time.perf_counter() - t0
+        n += len(poses)
+        align_ms += [p.timings_ms["alignment"] for p in poses if "alignment" in p.timings_ms]
+        thick += [p.diagnostics.get("thickness_cost", 0.0) > 0 for p in poses
+                  if p.status != "failed"]
+        h = cap.gt["height"]
+        ev = evaluate(cap.gt, poses, model=model, tolerance=BODY_TOLERANCE * h,
+                      junction_factor=1.0)
+        for f in ev.frames:                 # errors in cm, whatever the subject's height
+            f.errors = {p: 100.0 * e for p, e in f.errors.items()}
+        frames += ev.frames
+    ev = Evaluation(frames, list(model.parts), BODY_TOLERANCE)
+    s = ev.at_status()
+    per_class = {}
+    for c in ("good", "missing limb", "misplaced", "bad"):
+        e = [x for f in frames if f.quality == c and f.status == "matched" for x in f.errors.values()]
+        per_class[c] = float(np.median(e)) if e else None
+    return ev, {"resolution": resolution, "frames": n, "counts": ev.counts,
+                "tp_rate": s["tp_rate"], "fp_per_match": s["fp_per_match"],
+                "matched": s["matched"], "ms_per_frame": 1e3 * secs / max(n, 1),
+                "alignment_ms_median": float(np.median(align_ms)) if align_ms else None,
+                "median_error_cm_per_class": per_class,
+                "median_error_cm_per_part": ev.part_errors(),
+                "frames_paying_thickness": float(np.mean(thick)) if thick else 0.0,
+                "options": {k: v for k, v in options.items()}}
+
+
+def body_rows(quick, out, suffix):
+    """The ``body`` rows (issue 11): builds × seeds, separated / all frames, noise 0–2,
+    50/100/150³, and the thickness term off (its peer)."""
+    seeds = (21,) if quick else (21, 22)
+    n = 6 if quick else 12
+    builds = ("average", "heavy", "child", "random") if quick else BODY_BUILDS
+    rows = []
+
+    def row(name, ev, r):
+        r = {"config": name, **r}
+        rows.append(r)
+        c = r["counts"]
+        print(f"{name:34} {r['resolution']:4d}³  {r['frames']} frames  TP {r['tp_rate']:.2f}  "
+              f"FP/match {r['fp_per_match']:.3f}  classes {c}  {r['ms_per_frame']:.1f} ms/frame",
+              flush=True)
+
+    t0 = time.perf_counter()
+    sep = body_captures(True, 1, seeds, n, builds)
+    allp = body_captures(False, 1, seeds, n, builds)
+    print(f"  [body: {2 * len(sep) * n} frames synthesized in {time.perf_counter() - t0:.0f} s]",
+          flush=True)
+    for res in ((100,) if quick else (50, 100, 150)):
+        row("body separated noise1", *body_study(sep, res))
+    row("body separated noise1 no-thickness", *body_study(sep, 100, thickness=0))
+    row("body all-poses noise1", *body_study(allp, 100))
+    row("body all-poses noise1 no-thickness", *body_study(allp, 100, thickness=0))
+    row("body separated noise1 two-pass", *body_study(sep, 100, two_pass=True))
+    row("body all-poses noise1 two-pass", *body_study(allp, 100, two_pass=True))
+    if not quick:
+        for noise in (0, 2):
+            c = body_captures(True, noise, seeds[:1], n, builds)
+            row(f"body separated noise{noise}", *body_study(c, 100))
+    L = ["", "## body (MakeHuman mesh, issue 11)", "",
+         f"Builds {', '.join(builds)} × seeds {', '.join(map(str, seeds))} × {n} frames per row "
+         f"(noise rows: seed {seeds[0]}), 8 cameras 640×480, `run --model human`, the run's own "
+         f"T_d (0.4). A part is right within {BODY_TOLERANCE} × the subject height of its gt "
+         "segment, the same for every part (`evaluate --tolerance 0.08`). TP rate = (good + "
+         "missing limb) / frames, FP/match = (misplaced + bad) / (TP + FP) over matched frames; "
+         "errors: median distance to the gt segment in cm (all parts of the matched frames of a "
+         "class). *separated*: distinct limbs at least 7.5 cm apart. *no-thickness*: "
+         "`FrameEstimator(thickness=0)`, the peer of the thickness term; *two-pass*: "
+         "`topopose.pose.subject.two_pass` per capture (one subject), the subject's own lengths "
+         "from its confident frames.", "",
+         "| configuration | res | frames | TP rate | FP/match | good | miss1 | partial | misplaced "
+         "| bad | none | err good (cm) | err misplaced (cm) | ms/frame | alignment stage ms (median) |",
+         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        c, e = r["counts"], r["median_error_cm_per_class"]
+
+        def f(x):
+            return "—" if x is None else f"{x:.1f}"
+        L.append(f"| {r['config']} | {r['resolution']} | {r['frames']} | {r['tp_rate']:.2f} | "
+                 f"{r['fp_per_match']:.3f} | {c['good']} | {c['missing limb']} | {c['partial']} | "
+                 f"{c['misplaced']} | {c['bad']} | {c['none']} | {f(e['good'])} | "
+                 f"{f(e['misplaced'])} | {r['ms_per_frame']:.1f} | "
+                 f"{'—' if r['alignment_ms_median'] is None else format(r['alignment_ms_median'], '.2f')} |")
+    L += ["", "Median error per part (cm), matched frames:", "",
+          "| configuration | res | " + " | ".join(rows[0]["median_error_cm_per_part"]) + " |",
+          "|---|---:|" + "---:|" * len(rows[0]["median_error_cm_per_part"])]
+    for r in rows:
+        L.append(f"| {r['config']} | {r['resolution']} | " + " | ".join(
+            "—" if v is None else f"{v:.1f}" for v in r["median_error_cm_per_part"].values()) + " |")
+    mach = machine()
+    (out / f"quality_body{suffix}.json").write_text(json.dumps(
+        {"machine": mach, "frames_per_capture": n, "seeds": seeds, "builds": builds,
+         "tolerance_height": BODY_TOLERANCE, "rows": rows}, indent=1, default=str))
+    L[1:1] = ["", f"Machine: {mach['cpu']}, {mach['cores']} cores; {mach['date']} (shared: "
+                  "ms/frame are only indicative)."]
+    (out / f"quality_body{suffix}.md").write_text("# Quality of pose initialization on the body "
+                                                  "subject" + "\n".join(L) + "\n")
+    print(f"wrote {out / f'quality_body{suffix}.md'}")
+    return rows
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="8 frames, 100³ only, fewer configs")
@@ -102,12 +243,13 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=11)
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
     ap.add_argument("--only", default=None,
-                    help="comma list of subjects (human, hand, dog, spider) to re-run; the rows "
+                    help="comma list of subjects (human, hand, dog, spider, body) to re-run; the rows "
                          "of the others are kept from the existing results")
     a = ap.parse_args(argv)
     only = None if a.only is None else {x.strip() for x in a.only.split(",") if x.strip()}
-    if only is not None and not only <= {"human", "hand", "dog", "spider"}:
-        ap.error(f"--only: unknown subject(s) {sorted(only - {'human', 'hand', 'dog', 'spider'})}")
+    known = {"human", "hand", "dog", "spider", "body"}
+    if only is not None and not only <= known:
+        ap.error(f"--only: unknown subject(s) {sorted(only - known)}")
     from topopose.capture import synthetic_capture
     from topopose.viz.figures import plot_quality
 
@@ -215,6 +357,11 @@ def main(argv=None):
     if figs:
         plot_quality(figs, out / f"quality_animals{suffix}.png",
                      suptitle="dog and spider, noise 1, 100³")
+
+    if want("body"):
+        body_rows(a.quick, out, suffix)
+        if only == {"body"}:
+            return
 
     if only is not None:     # keep the other subjects' rows of the last full run
         old = out / f"quality{suffix}.json"

@@ -163,3 +163,31 @@ def test_model_interchangeable_groups_used_for_dog():
     dog = load_model("dog")
     groups = dog.interchangeable()
     assert ["paw_1", "paw_2"] in groups and ["paw_3", "paw_4"] in groups
+
+
+def test_evaluate_tolerance_relative_absolute_and_junctions(tmp_path, capsys):
+    """--tolerance is a fraction of gt height, the same for every part; --tolerance-m is
+    absolute; the thesis default (0.1 × height, junctions 1.5×) stays without either."""
+    from topopose.pose.quality import evaluation_tolerance
+
+    gt = _gt(1)                                  # height 1.75
+    assert evaluation_tolerance(gt, 0.08) == pytest.approx((0.14, 1.0))
+    assert evaluation_tolerance(gt, None, 0.05) == pytest.approx((0.05, 1.0))
+    assert evaluation_tolerance(gt) == pytest.approx((0.175, 1.5))
+    assert evaluation_tolerance(gt, 0.08, junction_factor=2) == pytest.approx((0.14, 2.0))
+    with pytest.raises(InputError):
+        evaluation_tolerance(gt, 0.08, 0.05)
+    with pytest.raises(InputError):
+        evaluation_tolerance({"frames": {}}, 0.08)
+    # the head 0.12 beyond its segment end, the torso 0.16 off its segment
+    pts = dict(GT_PTS, head=[0, 0, 1.8 + 0.12], torso=[0.16, 0, 1.4])
+    pose = [_pose("000000", pts)]
+    for (rel, ab, jf), want in {(0.08, None, None): {"head": True, "torso": False},
+                                (0.06, None, None): {"head": False, "torso": False},
+                                (None, 0.13, None): {"head": True, "torso": False},
+                                (None, 0.11, None): {"head": False, "torso": False},
+                                (0.08, None, 1.5): {"head": True, "torso": True},
+                                (None, None, None): {"head": True, "torso": True}}.items():
+        tol, f = evaluation_tolerance(gt, rel, ab, jf)
+        fs = evaluate(gt, pose, tolerance=tol, junction_factor=f).frames[0]
+        assert {p: fs.right[p] for p in want} == want, (rel, ab, jf)

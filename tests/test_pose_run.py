@@ -193,6 +193,13 @@ def test_view_and_evaluate_cli(capture_dir, tmp_path, capsys):
     text = capsys.readouterr().out
     assert "classes:" in text and "threshold" in text
     assert (tmp_path / "poses_quality.png").exists()
+    assert main(["evaluate", str(capture_dir), "--poses", str(out), "--out", str(tmp_path),
+                 "--tolerance", "0.08"]) == 0
+    assert "= 0.08 x height, junctions x 1" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exc:          # argparse: mutually exclusive options
+        main(["evaluate", str(capture_dir), "--poses", str(out), "--tolerance", "0.08",
+              "--tolerance-m", "0.1"])
+    assert exc.value.code == 2
 
 
 def test_rerun_recording_or_clear_message(capture_dir, tmp_path, capsys):

@@ -282,6 +282,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "in seconds, e.g. 0.5s:1.2s")
     s.add_argument("--refocus", action="store_true",
                    help="visual hull on a grid refocused on the subject every frame")
+    s.add_argument("--thickness", type=float, default=None,
+                   help="weight of the parts' thickness in the arc cost (human model; default 1, "
+                        "0: off)")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("view", help="render one frame as a PNG")
@@ -300,7 +303,16 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("capture")
     s.add_argument("--poses", required=True)
     s.add_argument("--out", default=None, help="folder for the figures")
-    s.add_argument("--tolerance", type=float, default=None)
+    g = s.add_mutually_exclusive_group()
+    g.add_argument("--tolerance", type=float, default=None,
+                   help="a part is right within this fraction of the subject height (gt.json "
+                        "'height') of its gt segment, the same for every part (default: 0.1, "
+                        "junctions 1.5x: the thesis study)")
+    g.add_argument("--tolerance-m", type=float, default=None,
+                   help="the same as an absolute distance in capture units (metres)")
+    s.add_argument("--junction-factor", type=float, default=None,
+                   help="junction parts (torso, crotch) get this times the tolerance (default 1 "
+                        "with --tolerance/--tolerance-m, else 1.5)")
     s.set_defaults(func=cmd_evaluate)
 
     s = sub.add_parser("learn-model", help="learn the model tree from a sequence (Mukasa et al.)")

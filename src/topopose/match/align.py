@@ -337,11 +337,12 @@ class _Context:
     time they are asked for.
     """
 
-    def __init__(self, matcher, tree, root, arrays):
+    def __init__(self, matcher, tree, root, arrays, arc_cost=None):
         self.matcher = matcher
         self.tree = tree
         self.root = root
         self.arrays = arrays        # ids, index, n, eu, ev, ew
+        self.arc_cost = arc_cost    # extra resize cost (Matcher.align)
         self.D = None
 
     # -------------------------------------------------------------- full tables
@@ -383,6 +384,8 @@ class _Context:
                 m._c_up, pos)
             (D.node_v, D.node_par, D.ch_ptr, D.ch_idx, D.soff, D.it_ptr, D.it_node, D.it_up, D.it_w,
              D.item_of, D.base, D.roots, D.nxt) = st
+        if self.arc_cost is not None:
+            R = R + arc_cost_matrix(self.arc_cost, P, D)
         self.F, self.T, self.FD, self.TD = K.forward(
             m.mode, P.ch_ptr, P.ch_idx, P.soff, P.it_ptr, P.it_up, P.item_of, P.base,
             P.delarc, P.delsub, P.delfor,
@@ -697,8 +700,16 @@ class Matcher:
                 R[items] = sub
         return R
 
-    def align(self, data, data_root=None) -> Alignment:
-        """Align the pattern with ``data`` (Tree or edge list); ``data_root`` None: the tree's own root."""
+    def align(self, data, data_root=None, arc_cost=None) -> Alignment:
+        """Align the pattern with ``data`` (Tree or edge list); ``data_root`` None: the tree's own root.
+
+        ``arc_cost``, optional: a callable ``f(p_up, p_low, d_up, d_low)`` — the vertex ids of
+        the upper and lower end of every pattern arc (``p_*``, length m) and of every data path
+        (``d_*``, length n) — returning an (m, n) array of non-negative costs added to γ when
+        that pattern arc is resized to that data path (e.g. a thickness term,
+        :func:`topopose.pose.estimate.thickness_arc_cost`); +inf forbids. The distance then
+        includes it.
+        """
         tree = data if isinstance(data, Tree) else as_tree(data, name="data")
         root = data_root if data_root is not None else tree.root
         ids = tree.vertices
@@ -715,8 +726,8 @@ class Matcher:
             if deg.max() > MAX_DEGREE:
                 raise InputError(f"data: vertex {ids[int(deg.argmax())]!r} has degree {int(deg.max())}; "
                                  f"the alignments handle degree <= {MAX_DEGREE}")
-        ctx = _Context(self, tree, root, (ids, index, n, eu, ev, ew))
-        if self._gcode is None:        # user γ: the tables are built in several steps
+        ctx = _Context(self, tree, root, (ids, index, n, eu, ev, ew), arc_cost)
+        if self._gcode is None or arc_cost is not None:   # the tables are built in several steps
             events = ctx.traceback()
             top = ctx.top
         else:
@@ -749,6 +760,19 @@ class Matcher:
                                  "constraints need data positions")
             pos[i] = p
         return pos
+
+
+def arc_cost_matrix(arc_cost, P, D) -> np.ndarray:
+    """The (pattern items × data items) matrix of a user ``arc_cost`` (:meth:`Matcher.align`)."""
+    p_up = [P.ids[i] for i in P.it_up]
+    p_low = [P.ids[i] for i in P.node_v[P.it_node]]
+    d_up = [D.ids[i] for i in D.it_up]
+    d_low = [D.ids[i] for i in D.node_v[D.it_node]]
+    C = np.asarray(arc_cost(p_up, p_low, d_up, d_low), dtype=float)
+    if C.shape != (len(p_up), len(d_up)):
+        raise InputError(f"align: arc_cost returned shape {C.shape}, expected "
+                         f"{(len(p_up), len(d_up))} (pattern arcs × data paths)")
+    return C
 
 
 def align(pattern, data, method: str = "aha", pattern_root=None, data_root=None, cut: bool = False,

@@ -212,7 +212,8 @@ class Evaluation:
         return out
 
 
-def evaluate(gt: dict, poses, model=None, tolerance=None, max_missing=1, groups=()) -> Evaluation:
+def evaluate(gt: dict, poses, model=None, tolerance=None, max_missing=1, groups=(),
+             junction_factor=JUNCTION_FACTOR) -> Evaluation:
     """Score poses against a ground-truth dict (the content of ``gt.json``).
 
     Parameters
@@ -229,7 +230,9 @@ def evaluate(gt: dict, poses, model=None, tolerance=None, max_missing=1, groups=
         More interchangeable groups, paired optimally too (e.g. the fingertips, to score
         a hand up to finger order).
 
-    Junction parts (degree > 1 in the model) get ``JUNCTION_FACTOR`` × the tolerance.
+    junction_factor : float
+        Junction parts (degree > 1 in the model) are right within ``junction_factor`` × the
+        tolerance (default ``JUNCTION_FACTOR``; 1: the same tolerance for every part).
     """
     if not isinstance(gt, dict) or "frames" not in gt:
         raise InputError("gt.json: expected an object with 'frames'")
@@ -256,8 +259,35 @@ def evaluate(gt: dict, poses, model=None, tolerance=None, max_missing=1, groups=
         g = gt["frames"].get(p.frame)
         if g is None:
             raise InputError(f"gt.json: no ground truth for frame {p.frame!r}")
-        frames.append(score_frame(p, g, parts, float(tolerance), model, groups, junctions))
+        frames.append(score_frame(p, g, parts, float(tolerance), model, groups, junctions,
+                                  junction_factor))
     return Evaluation(frames, parts, float(tolerance), max_missing)
+
+
+def evaluation_tolerance(gt: dict, relative=None, absolute=None, junction_factor=None):
+    """``(tolerance in capture units, junction factor)`` of ``topopose evaluate``.
+
+    ``relative``: a fraction of the subject height ``gt["height"]`` (e.g. 0.08, so that figures
+    compare across subjects and with published ones); ``absolute``: capture units. Either one
+    applies to every part alike (junction factor 1 unless given). Neither: the thesis study's
+    default, 0.1 × height with junctions at ``JUNCTION_FACTOR`` × that.
+    """
+    if relative is not None and absolute is not None:
+        raise InputError("evaluate: give --tolerance (fraction of the height) or --tolerance-m, "
+                         "not both")
+    for name, x in (("--tolerance", relative), ("--tolerance-m", absolute),
+                    ("--junction-factor", junction_factor)):
+        if x is not None and not x > 0:
+            raise InputError(f"evaluate: {name} must be > 0 (got {x})")
+    if absolute is not None:
+        return float(absolute), 1.0 if junction_factor is None else float(junction_factor)
+    h = gt.get("height")
+    if not h:
+        raise InputError("gt.json: field 'height' is missing; give --tolerance-m")
+    if relative is None:
+        return (DEFAULT_RELATIVE_TOLERANCE * float(h),
+                JUNCTION_FACTOR if junction_factor is None else float(junction_factor))
+    return float(relative) * float(h), 1.0 if junction_factor is None else float(junction_factor)
 
 
 def summary_table(ev: Evaluation, thresholds=(0.1, 0.2, 0.3, 0.4, 0.6, 2.0)) -> str:
@@ -275,7 +305,8 @@ def summary_table(ev: Evaluation, thresholds=(0.1, 0.2, 0.3, 0.4, 0.6, 2.0)) -> 
 
 
 def evaluate_cli(a) -> int:
-    """``topopose evaluate CAPTURE --poses POSES.jsonl [--out DIR] [--tolerance T]``."""
+    """``topopose evaluate CAPTURE --poses POSES.jsonl [--out DIR] [--tolerance T | --tolerance-m D]
+    [--junction-factor F]``."""
     from ..capture import load_capture
     from .pose import read_poses
 
@@ -285,7 +316,12 @@ def evaluate_cli(a) -> int:
         raise InputError(f"{a.capture}: no gt.json; evaluation needs ground truth "
                          "(synthetic captures from `topopose synth` have it)")
     poses = read_poses(a.poses)
-    ev = evaluate(gt, poses, tolerance=a.tolerance)
+    tol, jf = evaluation_tolerance(gt, getattr(a, "tolerance", None), getattr(a, "tolerance_m", None),
+                                   getattr(a, "junction_factor", None))
+    ev = evaluate(gt, poses, tolerance=tol, junction_factor=jf)
+    h = gt.get("height")
+    print(f"tolerance {tol:.4g} capture units" + (f" = {tol / float(h):.3g} x height" if h else "")
+          + f", junctions x {jf:g}")
     print(summary_table(ev))
     out = Path(a.out) if a.out else Path(a.poses).resolve().parent
     out.mkdir(parents=True, exist_ok=True)

@@ -150,7 +150,7 @@ def _progress(total, enabled, desc):
 def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
-        tolerance=None, refocus=False, on_pose=None, gate=True) -> RunResult:
+        tolerance=None, refocus=False, on_pose=None, gate=True, thickness=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -185,6 +185,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         ``matched`` also needs the frame's confidence (:mod:`.confidence`, with the time
         factors computed over the run at the end) above its minimum; False: the confidence is
         reported only.
+    thickness : float or None
+        Weight of the thickness term of the arc cost (see :class:`FrameEstimator`); 0: off.
 
     Returns
     -------
@@ -199,6 +201,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
                "thinning": thinning, "tolerance": tolerance, "gate": gate}
     if refocus:
         options["refocus"] = True
+    if thickness is not None:
+        options["thickness"] = float(thickness)
     todo = select_frames(cap, frames)
     if workers is None or workers < 1:
         raise InputError(f"--workers: must be at least 1, got {workers}")
@@ -319,7 +323,8 @@ def run_cli(a) -> int:
               constraints=not getattr(a, "no_constraints", False),
               tolerance=getattr(a, "tolerance", None),
               refocus=getattr(a, "refocus", False),
-              on_pose=None, gate=not getattr(a, "no_confidence_gate", False))
+              on_pose=None, gate=not getattr(a, "no_confidence_gate", False),
+              thickness=getattr(a, "thickness", None))
     if getattr(a, "rerun", None):
         from ..viz.rerun import record_run
         record_run(a.rerun, a.capture, res.poses, model=a.model, resolution=a.resolution,

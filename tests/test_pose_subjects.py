@@ -14,7 +14,7 @@ MARGIN = {"human": 0.075, "dog": 0.054, "spider": 0.027}
 
 
 def _run(subject, noise, tolerance=None, resolution=100, seed=11, threshold=None, margin=None,
-         gate=True):
+         gate=False):
     from topopose.capture import synthetic_capture
 
     cap = synthetic_capture(subject=subject, frames=FRAMES, seed=seed, noise=noise,

@@ -114,7 +114,7 @@ class FrameEstimator:
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
                  betweenness=True, max_missing=1, thinning="d6i1d", tolerance=None,
                  relation=None, fill=True, repair=None, junction_centroid=None, refocus=False,
-                 min_share=0.8, gate=True, min_confidence=None, thickness=None,
+                 min_share=0.8, gate=False, min_confidence=None, thickness=None,
                  thickness_profile=None):
         from ..match import Matcher
         from .confidence import MIN_CONFIDENCE

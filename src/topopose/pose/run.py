@@ -150,7 +150,7 @@ def _progress(total, enabled, desc):
 def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
-        tolerance=None, refocus=False, on_pose=None, gate=True, thickness=None) -> RunResult:
+        tolerance=None, refocus=False, on_pose=None, gate=False, thickness=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -323,7 +323,7 @@ def run_cli(a) -> int:
               constraints=not getattr(a, "no_constraints", False),
               tolerance=getattr(a, "tolerance", None),
               refocus=getattr(a, "refocus", False),
-              on_pose=None, gate=not getattr(a, "no_confidence_gate", False),
+              on_pose=None, gate=getattr(a, "confidence_gate", False),
               thickness=getattr(a, "thickness", None))
     if getattr(a, "rerun", None):
         from ..viz.rerun import record_run

@@ -415,3 +415,36 @@ def test_body_bones_group_into_the_human_arcs():
     from topopose.pose.model import load_model
 
     assert set(want) == set(S.arc_names(load_model("human")))
+
+
+def test_margin_band_matches_brute_force_shifts():
+    """Oracle: a relation is undecided iff some part moved by the margin along ±x, ±y, ±z (brute
+    force over all shifts, with the plain evaluator) changes its value; Kleene logic on top."""
+    rng = np.random.default_rng(3)
+    names = ("head", "hand_1", "hand_2", "torso")
+    rels = ["z-greatest hand_1 head", "x-least hand_2 torso", "near hand_1 hand_2 0.5",
+            "far head torso 0.3", "order hand_1 torso hand_2"]
+    shifts = [s * e for e in np.eye(3) for s in (1, -1)]
+    n_und = 0
+    for _ in range(150):
+        P = {n: rng.normal(0, 0.3, 3) for n in names}
+        m = 0.08
+        for r in rels:
+            v = D.evaluate(r, P)
+            flips = any(D.evaluate(r, {**P, p: P[p] + m * d}) != v
+                        for p in D.parts_of(D.parse(r)) for d in shifts)
+            got = D.evaluate(r, P, margin=m)
+            assert got == (None if flips else v), (r, P)
+            n_und += got is None
+    assert 20 < n_und < 600                     # the band is exercised, not everywhere
+    # Kleene: false and undecided -> false; true or undecided -> true; xor/not undecided -> null
+    P = {"head": (0, 0, 1.70), "hand_1": (0, 0, 1.72), "hand_2": (0, 0, 1.0)}
+    assert D.evaluate("above hand_1 head", P) is True
+    assert D.evaluate("above hand_1 head", P, margin=0.05) is None
+    assert D.evaluate("above hand_1 head and above hand_2 head", P, margin=0.05) is False
+    assert D.evaluate("above hand_1 head or below hand_2 head", P, margin=0.05) is True
+    assert D.evaluate("above hand_1 head xor above hand_2 head", P, margin=0.05) is None
+    assert D.evaluate("not above hand_1 head", P, margin=0.05) is None
+    assert D.evaluate("above hand_1 head", P, margin=0.01) is True
+    res = D.detect([{"frame": "0", "parts": P}], "above hand_1 head", margin=0.05)
+    assert res == [{"frame": "0", "value": None}]

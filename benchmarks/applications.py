@@ -490,9 +490,14 @@ def main(argv=None):
         clu = bench_clustering(5, 60, [1, 2, 3], log, out / f"applications_clusters{suffix}.png")
     segmentation_figure(out / f"applications_segmentation{suffix}.png")
     mach = machine(resolution=RES, wall_s=round(time.time() - t0, 1))
+    sets = [(f"human {k}", d["rows"]) for k, d in det.items()] + [("body", bdet["rows"])]
+    margin_counts = {label: {n: {f"{m:g}": detection_counts(rows, n, m) for m in DETECT_MARGINS}
+                             for n in (rows[0]["detect"] if rows else {})} for label, rows in sets}
     (out / f"applications{suffix}.json").write_text(json.dumps(
-        {"machine": mach, "segmentation": seg, "detection": det, "detection_body": bdet,
-         "clustering": clu}, indent=1))
+        {"machine": mach, "segmentation": seg,
+         "detection": {k: {kk: v for kk, v in d.items() if kk != "rows"} for k, d in det.items()},
+         "detection_body": {k: v for k, v in bdet.items() if k != "rows"},
+         "detection_margins": margin_counts, "clustering": clu}, indent=1))
 
 
     L = [f"# Applications (thesis §13.3){' — quick run' if a.quick else ''}", "",
@@ -575,11 +580,10 @@ def main(argv=None):
           "precision and recall, their share is given.", "",
           "| subject | pose | margin (m) | decided / matched | undecided | missing | TP | FP | FN | "
           "precision | recall |", "|---|---|---|---|---|---|---|---|---|---|---|"]
-    sets = [(f"human {k}", d["rows"]) for k, d in det.items()] + [("body", bdet["rows"])]
     for label, rows in sets:
-        for n in (rows[0]["detect"] if rows else {}):
+        for n, per_margin in margin_counts[label].items():
             for m in DETECT_MARGINS:
-                c = detection_counts(rows, n, m)
+                c = per_margin[f"{m:g}"]
                 dec = c["tp"] + c["fp"] + c["fn"] + c["tn"]
                 L.append(f"| {label} | {n} | {m:g} | {dec} / {len(rows)} | "
                          f"{c['undecided'] / max(1, len(rows)):.0%} | "

@@ -202,6 +202,8 @@ def test_renumbered_accuracy_forgives_swapped_numbers():
     pred = np.array([2, 2, 1, 1, 3, 3])
     assert S.renumbered_accuracy(pred, truth, names) == 1.0
     assert S.renumbered_accuracy(np.array([2, 2, 1, 3, 3, 3]), truth, names) == 0.8
+    acc, m = S.renumbered_accuracy(pred, truth, names, return_mapping=True)
+    assert acc == 1.0 and m[pred[truth > 0]].tolist() == truth[truth > 0].tolist()
 
 
 # ============================================================================ detection
@@ -415,3 +417,79 @@ def test_body_bones_group_into_the_human_arcs():
     from topopose.pose.model import load_model
 
     assert set(want) == set(S.arc_names(load_model("human")))
+
+
+def test_margin_band_matches_brute_force_shifts():
+    """Oracle: a relation is undecided iff some part moved by the margin along ±x, ±y, ±z (brute
+    force over all shifts, with the plain evaluator) changes its value; Kleene logic on top."""
+    rng = np.random.default_rng(3)
+    names = ("head", "hand_1", "hand_2", "torso")
+    rels = ["z-greatest hand_1 head", "x-least hand_2 torso", "near hand_1 hand_2 0.5",
+            "far head torso 0.3", "order hand_1 torso hand_2"]
+    shifts = [s * e for e in np.eye(3) for s in (1, -1)]
+    n_und = 0
+    for _ in range(150):
+        P = {n: rng.normal(0, 0.3, 3) for n in names}
+        m = 0.08
+        for r in rels:
+            v = D.evaluate(r, P)
+            flips = any(D.evaluate(r, {**P, p: P[p] + m * d}) != v
+                        for p in D.parts_of(D.parse(r)) for d in shifts)
+            got = D.evaluate(r, P, margin=m)
+            assert got == (None if flips else v), (r, P)
+            n_und += got is None
+    assert 20 < n_und < 600                     # the band is exercised, not everywhere
+    # Kleene: false and undecided -> false; true or undecided -> true; xor/not undecided -> null
+    P = {"head": (0, 0, 1.70), "hand_1": (0, 0, 1.72), "hand_2": (0, 0, 1.0)}
+    assert D.evaluate("above hand_1 head", P) is True
+    assert D.evaluate("above hand_1 head", P, margin=0.05) is None
+    assert D.evaluate("above hand_1 head and above hand_2 head", P, margin=0.05) is False
+    assert D.evaluate("above hand_1 head or below hand_2 head", P, margin=0.05) is True
+    assert D.evaluate("above hand_1 head xor above hand_2 head", P, margin=0.05) is None
+    assert D.evaluate("not above hand_1 head", P, margin=0.05) is None
+    assert D.evaluate("above hand_1 head", P, margin=0.01) is True
+    res = D.detect([{"frame": "0", "parts": P}], "above hand_1 head", margin=0.05)
+    assert res == [{"frame": "0", "value": None}]
+
+
+def test_detect_cli_margin(tmp_path):
+    from topopose.cli import main
+
+    frames = [{"frame": f"{i}", "status": "matched", "distance": 0.1,
+               "parts": {"head": [0, 0, 1.7], "hand_1": [0, 0, z]}}
+              for i, z in enumerate((1.72, 1.9, 1.5, 1.68))]
+    f = tmp_path / "poses.jsonl"
+    f.write_text("".join(json.dumps(d) + "\n" for d in frames))
+    out = tmp_path / "o.jsonl"
+    assert main(["detect", str(f), "above hand_1 head", "--output", str(out)]) == 0
+    assert [json.loads(x)["value"] for x in out.read_text().splitlines()] == [True, True, False, False]
+    assert main(["detect", str(f), "above hand_1 head", "--margin", "0.05", "--output", str(out)]) == 0
+    assert [json.loads(x)["value"] for x in out.read_text().splitlines()] == [None, True, False, None]
+
+
+def test_body_truth_groups_the_nearest_vertex_bone():
+    """Oracle: on voxels placed at mesh vertices, the truth is the vertex's dominant bone's arc;
+    ``bone_arc`` replaces the grouping."""
+    from scipy.spatial.distance import cdist
+
+    from topopose.capture.synth_body import BUILDS, dominant_bones, pose_body
+    from topopose.hull.volume import Volume
+    from topopose.pose.model import load_model
+
+    body = pose_body({}, BUILDS["average"])
+    names = S.arc_names(load_model("human"))
+    vs = 0.05
+    lo = body.vertices.min(0) - vs
+    ijk = np.round((body.vertices - lo) / vs).astype(int)
+    grid = np.zeros(ijk.max(0) + 2, bool)
+    grid[tuple(ijk.T)] = True
+    vol = Volume(grid, lo, vs)
+    truth = S.synthetic_truth(vol, body, names)
+    dom, bones = dominant_bones()
+    X = lo + np.argwhere(grid) * vs
+    near = np.argmin(cdist(X, body.vertices), 1)                                # brute force
+    want = [names.index(S.body_bone_arc(bones[dom[i]])) + 1 for i in near]
+    assert truth[grid].tolist() == want
+    assert set(np.unique(truth[grid])) == set(range(1, 7))
+    alt = S.synthetic_truth(vol, body, names, bone_arc=lambda b: "torso-head")
+    assert np.all(alt[grid] == 1) and np.all(alt[~grid] == 0)

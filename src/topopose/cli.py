@@ -365,6 +365,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--output", help="JSON Lines {frame, value} (default: standard output)")
     s.add_argument("--csv", help="also write frame,value as CSV")
     s.add_argument("--up", help="the capture's up axis (default: the poses header's, else +z)")
+    s.add_argument("--margin", type=float, default=0.0,
+                   help="position uncertainty (capture units): a relation that moving one of its "
+                        "parts this far flips is undecided (value null); default 0 (off)")
     s.set_defaults(func=cmd_detect)
 
     s = sub.add_parser("cluster", help="cluster frames by betweenness relations (thesis §13.3.2.2)")

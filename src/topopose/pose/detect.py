@@ -337,8 +337,9 @@ def resolve(name: str, parts: dict, aliases: dict | None = None):
     return None
 
 
-def evaluate(node, parts: dict, up="+z", aliases: dict | None = None):
-    """Value of an expression on one pose: True, False or None (a part it needs is missing).
+def evaluate(node, parts: dict, up="+z", aliases: dict | None = None, margin: float = 0.0):
+    """Value of an expression on one pose: True, False or None (a part it needs is missing, or
+    the pose is within ``margin`` of a decision boundary).
 
     Parameters
     ----------
@@ -346,12 +347,19 @@ def evaluate(node, parts: dict, up="+z", aliases: dict | None = None):
     parts : dict part name -> (3,) position or None
     up : the capture's up axis (``"+z"``, ``"-y"``, ... or a vector): the thesis' z axis
     aliases : dict alias (lower case) -> part name
+    margin : the parts' position uncertainty (capture units; 0: off). A relation is
+        *undecided* (None) when moving one of its parts by ``margin`` along one of the thesis'
+        axes changes its value; ``and``, ``or``, ``not`` follow Kleene's three-valued logic
+        (``false and None`` is false, ``true or None`` is true) and ``xor`` of an undecided
+        operand is undecided.
 
     Examples
     --------
     >>> evaluate("above hand_1 head", {"hand_1": (0, 0, 2), "head": (0, 0, 1.7)})
     True
     >>> evaluate("above hand_1 head", {"hand_1": None, "head": (0, 0, 1.7)}) is None
+    True
+    >>> evaluate("above hand_1 head", {"hand_1": (0, 0, 1.75), "head": (0, 0, 1.7)}, margin=0.1) is None
     True
     """
     if isinstance(node, str):
@@ -367,19 +375,16 @@ def evaluate(node, parts: dict, up="+z", aliases: dict | None = None):
             return None
         pos[name] = p
     R = up_frame(up)
-    return bool(_eval(node, {k: R @ v for k, v in pos.items()}))
+    v = _eval(node, {k: R @ v for k, v in pos.items()}, float(margin))
+    return None if v is None else bool(v)
 
 
-def _eval(node, pos):
+_SHIFTS = np.vstack([np.eye(3), -np.eye(3)])
+
+
+def _relation(node, pos):
     from ..match.betweenness import betweenness
 
-    if isinstance(node, Const):
-        return node.value
-    if isinstance(node, Not):
-        return not _eval(node.arg, pos)
-    if isinstance(node, BinOp):
-        a, b = _eval(node.left, pos), _eval(node.right, pos)
-        return (a and b) if node.op == "and" else (a or b) if node.op == "or" else (a != b)
     P = [pos[p] for p in node.parts]
     if node.op == "greatest":
         return P[0][node.axis] > P[1][node.axis]
@@ -389,6 +394,28 @@ def _eval(node, pos):
         return all(betweenness(P[i - 1], P[i + 1], P[i], node.relation) for i in range(1, len(P) - 1))
     d = float(np.linalg.norm(P[0] - P[1]))
     return d < node.value if node.op == "near" else d > node.value
+
+
+def _eval(node, pos, margin=0.0):
+    if isinstance(node, Const):
+        return node.value
+    if isinstance(node, Not):
+        a = _eval(node.arg, pos, margin)
+        return None if a is None else not a
+    if isinstance(node, BinOp):
+        a, b = _eval(node.left, pos, margin), _eval(node.right, pos, margin)
+        if node.op == "and":
+            return False if a is False or b is False else None if a is None or b is None else True
+        if node.op == "or":
+            return True if a is True or b is True else None if a is None or b is None else False
+        return None if a is None or b is None else a != b
+    v = bool(_relation(node, pos))
+    if margin > 0:
+        for p in set(node.parts):
+            for d in _SHIFTS:
+                if bool(_relation(node, {**pos, p: pos[p] + margin * d})) != v:
+                    return None
+    return v
 
 
 # ----------------------------------------------------------------------------- library
@@ -481,11 +508,12 @@ def header_up(header: dict):
     return None
 
 
-def detect(poses, expr, up="+z", aliases=None, matched_only=True) -> list:
+def detect(poses, expr, up="+z", aliases=None, matched_only=True, margin: float = 0.0) -> list:
     """Evaluate a description on every pose: a list of ``{"frame", "value"}`` dicts.
 
     ``poses``: :class:`~topopose.pose.Pose` objects or dicts frame/parts(/status).
-    ``value`` is None for frames that are not matched (``matched_only``) or lack a part.
+    ``value`` is None for frames that are not matched (``matched_only``), lack a part, or are
+    undecided within ``margin`` (:func:`evaluate`).
     """
     node = parse(expr) if isinstance(expr, str) else expr
     if aliases is None:
@@ -495,7 +523,7 @@ def detect(poses, expr, up="+z", aliases=None, matched_only=True) -> list:
         frame = p.frame if hasattr(p, "frame") else p["frame"]
         status = p.status if hasattr(p, "status") else p.get("status", "matched")
         parts = p.parts if hasattr(p, "parts") else p["parts"]
-        val = None if (matched_only and status != "matched") else evaluate(node, parts, up, aliases)
+        val = None if (matched_only and status != "matched") else evaluate(node, parts, up, aliases, margin)
         out.append({"frame": frame, "value": val})
     return out
 
@@ -543,7 +571,7 @@ def detect_cli(a) -> int:
         return 2
     poses, header = read_poses_file(a.poses)
     up = a.up or header_up(header) or "+z"
-    res = detect(poses, node, up=up, aliases=aliases)
+    res = detect(poses, node, up=up, aliases=aliases, margin=getattr(a, "margin", 0.0) or 0.0)
     if a.output:
         Path(a.output).write_text("".join(json.dumps(r) + "\n" for r in res))
     else:

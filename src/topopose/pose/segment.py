@@ -51,7 +51,16 @@ def body_bone_arc(bone: str) -> str:
     torso-head; the arm from the upper arm down (the clavicle ``*Shoulder`` stays in the trunk)
     → torso-hand_k; the leg from the thigh down (the ``*HipJoint`` stays in the trunk) →
     crotch-foot_k; the rest (hips, back, spine, clavicles, hip joints) → torso-crotch.
-    Left is 1, as in gt.json."""
+    Left is 1, as in gt.json.
+
+    Anatomy: the ``UpLeg`` bone's skin covers the thigh and the gluteal region (buttock and
+    lateral hip up to about the iliac crest, above the crotch): regional anatomy counts the
+    gluteal region in the lower limb, so it is the leg's. The neck has no part of its own in the
+    model, whose torso point is the neck base (gt.json): it lies on the torso–head arc. The
+    clavicle and hip-joint bones (40 and 29 of 13,380 vertices) skin the root of the neck above
+    the clavicle and the groin, trunk regions in surface anatomy, so they stay in the trunk;
+    ``benchmarks/applications.py`` also measures the other choice (the bones lie on the model's
+    torso→hand and crotch→foot arcs)."""
     if bone.startswith(("Neck", "Head")):
         return "torso-head"
     k = "1" if bone.startswith("L") else "2"
@@ -388,14 +397,14 @@ def segmentation_figure(path, cap, frame, model, detail, up=(0, 0, 1), max_point
     plt.close(fig)
 
 
-def synthetic_truth(volume, body, names, subject="human") -> np.ndarray:
+def synthetic_truth(volume, body, names, subject="human", bone_arc=None) -> np.ndarray:
     """Ground-truth labels of a hull of a synthetic subject; 0 outside the hull.
 
     Capsule subjects: each hull voxel takes the arc of the nearest primitive's link (signed
     distance, :func:`~topopose.capture.synth_geometry.sdf`), grouped by
     :data:`SYNTH_LINK_ARCS`. The ``body`` subject (a :class:`~topopose.capture.synth_body.MeshBody`):
     the dominant bone (largest skinning weight) of the nearest posed mesh vertex, grouped by
-    :func:`body_bone_arc`.
+    :func:`body_bone_arc` (or ``bone_arc``: bone name → arc name).
     """
     hull = volume.data
     ijk = np.argwhere(hull)
@@ -411,7 +420,7 @@ def synthetic_truth(volume, body, names, subject="human") -> np.ndarray:
         from ..capture.synth_body import dominant_bones
 
         dom, bones = dominant_bones()
-        lab_of_bone = np.array([index[body_bone_arc(b)] for b in bones], np.int32)
+        lab_of_bone = np.array([index[(bone_arc or body_bone_arc)(b)] for b in bones], np.int32)
         _, nearest = cKDTree(body.vertices).query(X, k=1)
         out[tuple(ijk.T)] = lab_of_bone[dom[nearest]]
         return out
@@ -424,9 +433,10 @@ def synthetic_truth(volume, body, names, subject="human") -> np.ndarray:
     return out
 
 
-def renumbered_accuracy(pred, truth, names) -> float:
+def renumbered_accuracy(pred, truth, names, return_mapping=False):
     """Voxel accuracy over the voxels labelled in ``truth``, best over the renumberings of
-    numbered parts (a tree cannot tell hand_1 from hand_2: the pipeline numbers them freely)."""
+    numbered parts (a tree cannot tell hand_1 from hand_2: the pipeline numbers them freely).
+    With ``return_mapping``: also the label map (array, predicted label → truth label)."""
     from .cluster import renumberings
 
     parts = sorted({p for n in names for p in n.split("-", 1)})
@@ -434,8 +444,8 @@ def renumbered_accuracy(pred, truth, names) -> float:
     sel = truth > 0
     t, p = truth[sel], pred[sel]
     if t.size == 0:
-        return math.nan
-    best = 0.0
+        return (math.nan, np.arange(len(names) + 1)) if return_mapping else math.nan
+    best, best_m = -1.0, None
     for perm in renumberings(parts):
         ren = {a: parts[perm[i]] for i, a in enumerate(parts)}
         m = np.arange(len(names) + 1)
@@ -444,8 +454,10 @@ def renumbered_accuracy(pred, truth, names) -> float:
             j = index.get(f"{ren[u]}-{ren[v]}") or index.get(f"{ren[v]}-{ren[u]}")
             if j is not None:
                 m[i] = j
-        best = max(best, float(np.mean(m[p] == t)))
-    return best
+        acc = float(np.mean(m[p] == t))
+        if acc > best:
+            best, best_m = acc, m
+    return (best, best_m) if return_mapping else best
 
 
 def segment_cli(a) -> int:

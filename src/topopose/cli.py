@@ -289,6 +289,18 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _quiet_broken_pipe() -> int:
+    """stdout closed early (``topopose evaluate ... | head``): exit quietly, as Unix tools do."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())      # no second error when Python flushes stdout
+    except (OSError, ValueError):
+        pass
+    return 141
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
@@ -296,9 +308,16 @@ def main(argv=None) -> int:
     except InputError as exc:
         print(f"topopose: error: {exc}".replace("\n", " "), file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        return _quiet_broken_pipe()
     except KeyboardInterrupt:
         print("topopose: interrupted", file=sys.stderr)
         return 130
+    except (PermissionError, IsADirectoryError, NotADirectoryError, FileNotFoundError) as exc:
+        # a path the user gave that a handler did not check up front: still one line, exit 2
+        where = exc.filename if exc.filename is not None else ""
+        print(f"topopose: error: {where}: {exc.strerror or exc}".replace("\n", " "), file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -51,6 +51,7 @@ def select_frames(cap, frames) -> list:
     """Frame names from None (all), a list, or a text ``"a:b"`` / ``"a:b:s"`` / ``"f1,f2"``."""
     if frames is None:
         return list(cap.frames)
+    given = frames
     if isinstance(frames, str):
         text = frames.strip()
         if ":" in text:
@@ -64,7 +65,9 @@ def select_frames(cap, frames) -> list:
             if not out:
                 raise InputError(f"--frames: {frames!r} selects no frame ({len(cap.frames)} frames)")
             return out
-        frames = [f for f in text.split(",") if f.strip()]
+        frames = [f.strip() for f in text.split(",") if f.strip()]
+    if not frames:
+        raise InputError(f"--frames: {given!r} selects no frame")
     out = [cap.frame_name(int(f) if isinstance(f, str) and f.isdigit() and f not in cap.frames
                           else f) for f in frames]
     return out
@@ -158,36 +161,53 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     RunResult
         ``.exit_status`` is 1 when some frames failed.
     """
+    from .. import _paths
     from ..capture import Capture, load_capture
 
+    # ---- every argument and output checked before any work or any write
+    if workers is None or isinstance(workers, bool) or int(workers) < 1:
+        raise InputError(f"--workers: must be at least 1, got {workers}")
+    resolution = _paths.check_resolution(resolution)
+    threshold = _paths.check_threshold(threshold)
     m = load_model(model, constraints=constraints)
     cap = capture if isinstance(capture, Capture) else load_capture(capture)
+    tolerance = _paths.check_tolerance(tolerance, len(cap.cameras))
     options = {"betweenness": betweenness, "relation": relation, "max_missing": max_missing,
                "thinning": thinning, "tolerance": tolerance}
     todo = select_frames(cap, frames)
-    if workers is None or workers < 1:
-        raise InputError(f"--workers: must be at least 1, got {workers}")
     if c3d is not None:
         from .export import require_c3d
         require_c3d()
-
+    if trc is not None or c3d is not None:
+        from .export import metres_per_unit
+        metres_per_unit(cap.units)
+    exports = {k: _paths.writable_output(v, f"--{k}") for k, v in
+               (("trc", trc), ("csv", csv), ("c3d", c3d)) if v is not None}
+    out = _paths.writable_output(output, "--output") if output is not None else None
+    header = run_header(cap, m, resolution, threshold, options)
     done = {}
-    out = Path(output) if output is not None else None
-    if out is not None:
-        if out.parent and not out.parent.exists():
-            out.parent.mkdir(parents=True, exist_ok=True)
-        if resume and out.exists():
-            for p in read_poses(out, strict=False):
-                done[p.frame] = p
-            write_poses(out, done.values())       # drops a half-written last line
-        elif out.exists():
-            out.unlink()
+    partial = out.with_name(out.name + ".partial") if out is not None else None
+    if out is not None and resume:
+        for f in (out, partial):         # the .partial file of a killed run holds its frames
+            if f.exists():
+                check_resume(f, header, m)
+                for p in read_poses(f, strict=False):
+                    done[p.frame] = p
     skipped = [f for f in todo if f in done]
     todo = [f for f in todo if f not in done]
 
+    # ---- the run: frames appended (and flushed) to a temporary file beside the output, which
+    # replaces the output at the end — also on Ctrl-C or an error, so nothing computed is lost;
+    # a killed process leaves the existing output as it was (and the partial file beside it)
     results = dict(done)
     t0 = time.perf_counter()
-    fh = open(out, "a") if out is not None else None
+    fh = None
+    if partial is not None:
+        fh = open(partial, "w")
+        fh.write(json.dumps(header, separators=(",", ":")) + "\n")
+        for p in sorted(done.values(), key=lambda p: p.frame):
+            fh.write(p.to_json() + "\n")
+        fh.flush()
     bar = _progress(len(todo), progress and len(todo) > 0, f"{m.name} @ {resolution}³")
 
     def finish(pose: Pose):
@@ -213,25 +233,73 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
             bar.close()
         if fh is not None:
             fh.close()
+            if len(results) > len(done) or not out.exists() or resume:
+                write_poses(out, results.values(), header)   # sorted, atomic replace
+            partial.unlink(missing_ok=True)
     seconds = time.perf_counter() - t0
-    if out is not None:
-        write_poses(out, results.values())
     poses = [results[k] for k in sorted(results)]
     counts = {s: sum(p.status == s for p in poses) for s in ("matched", "rejected", "failed")}
     res = RunResult(poses, out, computed=len(todo), skipped=len(skipped), seconds=seconds,
                     counts=counts)
     units = cap.units
     fps = cap.fps or 25.0
-    if trc is not None:
-        from .export import write_trc
-        write_trc(trc, poses, m.parts, fps=fps, units=units, up=cap.up)
-    if csv is not None:
-        from .export import write_csv
-        write_csv(csv, poses, m.parts)
-    if c3d is not None:
-        from .export import write_c3d
-        write_c3d(c3d, poses, m.parts, fps=fps, units=units)
+    from .export import write_c3d, write_csv, write_trc
+    writers = {"trc": lambda t: write_trc(t, poses, m.parts, fps=fps, units=units, up=cap.up),
+               "csv": lambda t: write_csv(t, poses, m.parts),
+               "c3d": lambda t: write_c3d(t, poses, m.parts, fps=fps, units=units)}
+    for k, path in exports.items():
+        with _paths.atomic_output(path) as t:
+            writers[k](t)
     return res
+
+
+def _hash(obj) -> str:
+    import hashlib
+
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def run_header(cap, model, resolution, threshold, options) -> dict:
+    """The poses file's first line: what made it (``--resume`` refuses another model,
+    resolution, capture or setting)."""
+    from .. import __version__
+
+    calib = None
+    if cap.path is not None:
+        f = Path(cap.path) / "calibration.toml"
+        if f.is_file():
+            import hashlib
+            calib = hashlib.sha256(f.read_bytes()).hexdigest()[:16]
+    return {"topopose": __version__, "model": model.name, "model_hash": _hash(model.to_dict()),
+            "resolution": int(resolution),
+            "capture": str(Path(cap.path).resolve()) if cap.path is not None else None,
+            "calibration_hash": calib, "threshold": threshold,
+            "settings": {k: v for k, v in sorted(options.items())}}
+
+
+def check_resume(out, header, model):
+    """Refuse to resume ``out`` when it was made with another model, resolution, capture or
+    setting (its header says so; a file without a header must at least hold the model's parts)."""
+    from .pose import read_header
+
+    old = read_header(out)
+    if old is None:
+        for p in read_poses(out, strict=False)[:1]:
+            if set(p.parts) != set(model.parts):
+                raise InputError(f"--resume: {out} holds poses of other parts "
+                                 f"({', '.join(sorted(p.parts))}), not of model {model.name!r}; "
+                                 "use another --output")
+        return
+    for key, name in (("model_hash", "model"), ("resolution", "resolution"),
+                      ("capture", "capture"), ("calibration_hash", "calibration"),
+                      ("threshold", "threshold"), ("settings", "settings")):
+        a, b = old.get(key), header.get(key)
+        if key == "capture" and (a is None or b is None):
+            continue
+        if a != b:
+            shown = {"model_hash": (old.get("model"), header.get("model"))}.get(key, (a, b))
+            raise InputError(f"--resume: {out} was made with another {name} ({shown[0]!r}, now "
+                             f"{shown[1]!r}); use another --output or run without --resume")
 
 
 def _run_dask(cap, model, resolution, threshold, options, todo, workers, scheduler, finish):
@@ -269,8 +337,10 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
 def run_cli(a) -> int:
     """``topopose run``: prints a summary; exit 1 when some frames failed."""
     if getattr(a, "rerun", None):
+        from .._paths import writable_output
         from ..viz.rerun import require_rerun
         require_rerun()                      # fail before the run, not after
+        writable_output(a.rerun, "--rerun")
     res = run(a.capture, model=a.model, resolution=a.resolution, threshold=a.threshold,
               output=a.output, frames=getattr(a, "frames", None), workers=a.workers,
               scheduler=a.scheduler, resume=a.resume, progress=True, trc=a.trc, csv=a.csv,
@@ -299,11 +369,14 @@ def summary_text(res: RunResult) -> str:
     n = len(res.poses)
     comp = [p for p in res.poses if p.status != "failed" and p.timings_ms.get("total")]
     fps = ""
-    if comp:
-        import numpy as np
+    if res.computed and res.seconds > 0:      # the real rate: frames over wall time
+        fps = f" ({res.computed / res.seconds:.1f} frames/s"
+        if comp:
+            import numpy as np
 
-        t = float(np.median([p.timings_ms["total"] for p in comp]))
-        fps = f"; median {t:.1f} ms/frame ({1000 / t:.0f} frames/s per core)"
+            t = float(np.median([p.timings_ms["total"] for p in comp]))
+            fps += f"; median {t:.1f} ms/frame in the estimator"
+        fps += ")"
     where = f" → {res.output}" if res.output else ""
     skipped = f" ({res.skipped} resumed)" if res.skipped else ""
     return (f"{n} frames{skipped}: {c.get('matched', 0)} matched, {c.get('rejected', 0)} rejected, "

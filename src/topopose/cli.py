@@ -9,6 +9,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from . import _paths
 from .errors import InputError
 
 METHODS_THIN = ["d6i1d", "pkd6", "d6u", "d6i2d", "ack3"]
@@ -23,9 +24,18 @@ def _size(text: str) -> tuple[int, int]:
     return w, h
 
 
+def _npz(path) -> Path:
+    """Volume files end in .npz (numpy adds it otherwise)."""
+    p = Path(path)
+    return p if p.suffix == ".npz" or p.is_dir() else p.with_name(p.name + ".npz")
+
+
 # --------------------------------------------------------------------------- handlers
 def cmd_demo(a):
     from .pose.demo import run_demo
+
+    _paths.writable_folder(a.dir, "DIR")
+    _paths.check_resolution(a.resolution)
 
     return run_demo(a.dir, frames=a.frames, resolution=a.resolution, seed=a.seed, noise=a.noise,
                     subjects=a.subjects.split(",") if a.subjects else None)
@@ -34,6 +44,11 @@ def cmd_demo(a):
 def cmd_synth(a):
     from .capture.synth import synthesize
 
+    _paths.writable_folder(a.out, "OUT")
+    old = [p for p in ("calibration.toml", "silhouettes", "images", "gt.json") if (Path(a.out) / p).exists()]
+    if old and not a.force:
+        raise InputError(f"synth: {a.out} already holds a capture ({', '.join(old)}); "
+                         "give --force to replace it, or another folder")
     out = synthesize(a.out, subject=a.subject, frames=a.frames, seed=a.seed, cameras=a.cameras,
                      size=a.size, noise=a.noise, motion=a.motion, thickness=a.thickness,
                      separated=a.separated, fps=a.fps, margin=a.margin)
@@ -45,11 +60,14 @@ def cmd_hull(a):
     from .capture import load_capture
     from .hull import visual_hull
 
+    _paths.check_resolution(a.resolution)
+    out = _paths.writable_output(_npz(a.out), "--out")
     cap = load_capture(a.capture)
-    vol = visual_hull(cap, a.frame, resolution=a.resolution, tolerance=a.tolerance,
+    tolerance = _paths.check_tolerance(a.tolerance, len(cap.cameras))
+    vol = visual_hull(cap, a.frame, resolution=a.resolution, tolerance=tolerance,
                       refocus=a.refocus)
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    vol.save(a.out)
+    with _paths.atomic_output(out) as tmp:
+        vol.save(tmp)
     d = vol.diagnostics
     extra = f", {len(d['components_dropped'])} small components dropped" if d.get("components_dropped") else ""
     border = ", touches the volume border" if d.get("touches_border") else ""
@@ -62,9 +80,11 @@ def cmd_skeleton(a):
     from .hull import Volume
     from .topology import thin
 
+    out = _paths.writable_output(_npz(a.out), "--out")
     vol = Volume.load(a.volume)
     skel = thin(vol.data, method=a.method)
-    Volume(skel, vol.origin, vol.voxel_size).save(a.out)
+    with _paths.atomic_output(out) as tmp:
+        Volume(skel, vol.origin, vol.voxel_size).save(tmp)
     print(f"wrote {a.out}: {int(skel.sum())} skeleton voxels ({a.method})")
     return 0
 
@@ -79,16 +99,20 @@ def cmd_tree(a):
         except ValueError:
             raise InputError("--resolutions: expected integers separated by commas, "
                              f"got {a.resolutions!r}") from None
+        if a.out is not None:
+            _paths.writable_output(a.out, "--out")
         return tree_stats_cli(a.stats, out=a.out, resolutions=res, incomplete=a.border)
     if a.skeleton is None or a.out is None:
         raise InputError("topopose tree: give SKELETON.npz and --out TREE.json (or --stats CAPTURE)")
+    _paths.writable_output(a.out, "--out")
     vol = Volume.load(a.skeleton)
     try:
         tree = data_tree(vol.data, origin=vol.origin, voxel_size=vol.voxel_size, weight=a.weight,
                          border="grid" if a.border else None)
     except InputError as exc:
         raise InputError(f"{a.skeleton}: {exc}") from None
-    tree.save(a.out)
+    with _paths.atomic_output(a.out) as tmp:
+        tree.save(tmp)
     d = tree.diagnostics
     notes = [f"{k.replace('_', ' ')}: {d[k]}" for k in ("cycles_broken", "loops", "small_cycles")
              if d.get(k)]
@@ -126,17 +150,27 @@ def cmd_run(a):
 def cmd_view(a):
     from .viz import view_cli
 
+    _paths.writable_output(a.out, "--out")
+
     return view_cli(a)
 
 
 def cmd_evaluate(a):
     from .pose.quality import evaluate_cli
 
+    if a.out:
+        _paths.writable_folder(a.out, "--out")
+
     return evaluate_cli(a)
 
 
 def cmd_learn_model(a):
     from .kinematics import learn_model_cli
+
+    _paths.check_resolution(a.resolution)
+    _paths.writable_output(a.out, "--out")
+    if a.joints:
+        _paths.writable_output(a.joints, "--joints")
 
     return learn_model_cli(a)
 
@@ -196,6 +230,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--fps", type=float, default=25.0, help="frame rate of motion sequences")
     s.add_argument("--margin", type=float, default=None,
                    help="with --separated: smallest gap between limbs, in metres (e.g. 3 voxels)")
+    s.add_argument("--force", "--overwrite", dest="force", action="store_true",
+                   help="replace the capture already in OUT (its frames are deleted first)")
     s.set_defaults(func=cmd_synth)
 
     s = sub.add_parser("hull", help="volumetric visual hull of one frame")

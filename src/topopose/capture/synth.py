@@ -438,10 +438,18 @@ def _toml(d, prefix=""):
 
 
 def write_capture(cap: Capture, out) -> Path:
-    """Write an in-memory capture (masks set) as a capture folder."""
+    """Write an in-memory capture (masks set) as a capture folder; a capture already there is
+    replaced (its frame folders deleted first, so no stale frame stays beside the new
+    calibration; ``topopose synth`` asks for ``--force`` before that)."""
+    import shutil
+
     out = Path(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
+        for sub in ("silhouettes", "images", "backgrounds"):
+            if (out / sub).is_dir():
+                shutil.rmtree(out / sub)
+        (out / "gt.json").unlink(missing_ok=True)
     except OSError as exc:
         raise InputError(f"{out}: cannot create the output folder ({exc})") from None
     calib = {}

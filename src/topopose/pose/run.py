@@ -314,8 +314,17 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
             raise InputError(f"--scheduler: cannot reach Dask scheduler {scheduler!r} ({exc})") from None
         cluster = None
     else:
-        cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=40)
+        # the worker processes ignore Ctrl-C (inherited SIG_IGN): only this process gets the
+        # KeyboardInterrupt, and closes the cluster quietly, instead of every worker and nanny
+        # printing its own traceback
+        import signal
+
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=40)
+        finally:
+            signal.signal(signal.SIGINT, old)
         client = Client(cluster)
     try:
         spec_f = client.scatter([spec], broadcast=True)[0] if "capture" in spec else spec
@@ -328,10 +337,19 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
                 pose = Pose(frame, "failed", None, {p: None for p in model.parts},
                             f"worker: {type(exc).__name__}: {exc}")
             finish(pose)
+    except KeyboardInterrupt:
+        import logging
+
+        for name in ("distributed", "tornado", "asyncio"):   # shutting down mid-task: quiet
+            logging.getLogger(name).setLevel(logging.CRITICAL)
+        raise
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        try:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        except Exception:       # noqa: BLE001  a cluster closing mid-task may complain
+            pass
 
 
 def run_cli(a) -> int:

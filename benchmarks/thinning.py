@@ -40,7 +40,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
-from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
+from _machine import machine, results_dir  # noqa: E402  (benchmarks/_machine.py)
 from topopose.topology import thinning  # noqa: E402
 from topopose.topology.tables import load_ack3_edge_table, load_byte_table, load_tables  # noqa: E402
 
@@ -361,7 +361,7 @@ def main():
     res = run(quick=a.quick, repeat=2 if a.quick else a.repeat)
     text = report(res)
     print(text)
-    out = HERE / "results"
+    out = results_dir()
     out.mkdir(exist_ok=True)
     stem = "thinning_quick" if a.quick else "thinning"
     (out / f"{stem}.md").write_text(text)

@@ -186,3 +186,34 @@ def test_closed_stdout_exits_quietly(cap, poses):
     p.wait(timeout=120)
     assert "Traceback" not in err and "BrokenPipe" not in err, err
     assert p.returncode in (0, 141)
+
+
+def test_every_option_has_help():
+    import argparse
+
+    from topopose.cli import build_parser
+
+    p = build_parser()
+    assert "DESIGN.md" not in p.format_help()
+    sub = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
+    missing = [f"{name} {a.option_strings[0] if a.option_strings else a.dest}"
+               for name, sp in sub.choices.items() for a in sp._actions
+               if not a.help and not isinstance(a, argparse._HelpAction)]
+    assert not missing, missing
+    for name, sp in sub.choices.items():
+        assert "DESIGN.md" not in sp.format_help()      # every help renders (no bad %-format)
+
+
+def test_bench_runs_every_stage_into_an_untracked_folder(tmp_path, monkeypatch, capsys):
+    b = tmp_path / "benchmarks"
+    b.mkdir()
+    (b / "a_stops.py").write_text("import sys\nprint('a ran')\nsys.exit(3)\n")
+    (b / "b_writes.py").write_text(
+        "import os, pathlib\npathlib.Path(os.environ['TOPOPOSE_BENCH_RESULTS'], 'b.md').write_text('x')\n")
+    monkeypatch.chdir(tmp_path)
+    assert main(["bench", "--quick"]) == 1                  # a failed, b still ran
+    out = capsys.readouterr().out
+    assert "a_stops (exit 3)" in out and "1/2 benchmarks ran" in out
+    assert (b / "results" / "quick" / "b.md").exists() and not (b / "results" / "b.md").exists()
+    assert main(["bench", "b", "--save"]) == 0 and (b / "results" / "b.md").exists()
+    one_line_exit_2(capsys, ["bench", "zz"], "zz")

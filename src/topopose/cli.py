@@ -1,4 +1,4 @@
-"""The ``topopose`` command (DESIGN.md, "Command line").
+"""topopose: markerless pose initialization from multi-camera silhouettes (visual hull, thinning, tree alignment).
 
 Each sub-command is a thin wrapper over the Python API of one stage.
 Exit status: 0 all frames processed, 1 some frames failed, 2 unusable input.
@@ -176,7 +176,8 @@ def cmd_learn_model(a):
 
 
 def cmd_bench(a):
-    import runpy
+    import os
+    import subprocess
 
     here = Path(__file__).resolve()
     for root in (Path.cwd(), *here.parents):
@@ -190,12 +191,91 @@ def cmd_bench(a):
         scripts = [p for p in scripts if p.stem.startswith(a.stage)]
         if not scripts:
             raise InputError(f"topopose bench: no benchmark named {a.stage!r} in {bdir}")
-    sys.path.insert(0, str(bdir))  # the scripts share benchmarks/_machine.py
-    for p in scripts:
-        print(f"== {p.name}", flush=True)
-        sys.argv = [str(p), *(["--quick"] if a.quick else [])]
-        runpy.run_path(str(p), run_name="__main__")
-    return 0
+    # results go to the tracked benchmarks/results/ only with --save; else to an untracked
+    # folder (benchmarks/results/quick/ is ignored by git)
+    out = bdir / "results" if a.save else bdir / "results" / "quick"
+    _paths.writable_folder(out, "benchmarks/results")
+    env = dict(os.environ, TOPOPOSE_BENCH_RESULTS=str(out))
+    src = str(here.parents[1])               # the package the scripts import: this one
+    env["PYTHONPATH"] = src + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    failed = []
+    for p in scripts:                        # each in its own process: one failing (or calling
+        print(f"== {p.name}", flush=True)    # sys.exit) does not stop the others
+        r = subprocess.run([sys.executable, str(p), *(["--quick"] if a.quick else [])], env=env,
+                           cwd=str(bdir.parent))
+        if r.returncode != 0:
+            failed.append(f"{p.stem} (exit {r.returncode})")
+    print(f"bench: {len(scripts) - len(failed)}/{len(scripts)} benchmarks ran; results in {out}"
+          + (f"; failed: {', '.join(failed)}" if failed else ""))
+    return 1 if failed else 0
+
+
+# --------------------------------------------------------------------------- help texts
+#: help of the options declared without one, per (sub-command, option); options shared by many
+#: sub-commands under (None, option). Filled in by build_parser (so the parser blocks stay short).
+HELP = {
+    (None, "capture"): "capture folder (calibration.toml, silhouettes/ or images/, optional capture.toml)",
+    (None, "--frames"): "frame range (START:STOP[:STEP], indices) or comma-separated frame names",
+    (None, "--resolution"): "voxels along the longest side of the capture volume (default %(default)s)",
+    (None, "--seed"): "random seed (default %(default)s)",
+    (None, "--out"): "output file",
+    (None, "--frame"): "frame name, or its index in the capture",
+    (None, "--model"): "model tree: human, hand, dog, spider or a model TOML file",
+    (None, "--poses"): "poses file written by `topopose run` (JSON Lines)",
+    (None, "--method"): "algorithm (default %(default)s)",
+    ("demo", "dir"): "output folder (default %(default)s); each subject's capture, poses and pictures",
+    ("demo", "--frames"): "frames per subject (default %(default)s)",
+    ("synth", "out"): "capture folder to write (refused if it already holds a capture, see --force)",
+    ("synth", "--subject"): "synthetic subject (default %(default)s)",
+    ("synth", "--frames"): "number of frames (default %(default)s)",
+    ("synth", "--cameras"): "number of cameras on a ring around the volume (default %(default)s)",
+    ("synth", "--motion"): "random poses, or a smooth gait (walk: human, dog, spider; trot: dog; "
+                           "grasp: hand)",
+    ("hull", "--out"): "volume file to write (.npz)",
+    ("skeleton", "volume"): "volume file (.npz) written by `topopose hull`",
+    ("skeleton", "--method"): "thinning: d6i1d (curve skeleton, the pipeline's), pkd6, d6u "
+                              "(ultimate), d6i2d (surface), ack3 (default %(default)s)",
+    ("skeleton", "--out"): "skeleton file to write (.npz)",
+    ("tree", "skeleton"): "skeleton file (.npz) written by `topopose skeleton`",
+    ("tree", "--out"): "tree file to write (.json); with --stats: the figure STATS.png (.md, .json beside)",
+    ("tree", "--weight"): "edge weight: branch length in capture units, or voxel count "
+                          "(default %(default)s)",
+    ("match", "model"): "model tree: human, hand, dog, spider or a model TOML file",
+    ("match", "tree"): "data tree (.json) written by `topopose tree`",
+    ("match", "--method"): "aha (asymmetric homeomorphic alignment), ha (homeomorphic) or "
+                           "alignment (default %(default)s)",
+    ("match", "--cut"): "allow free removal of data subtrees (thesis §9.6)",
+    ("run", "--threshold"): "AHA distance threshold T_d above which a frame is rejected "
+                            "(default: the model's)",
+    ("run", "--output"): "poses file (JSON Lines, one header line then one line per frame; "
+                         "written to OUTPUT.partial and renamed at the end) (default %(default)s)",
+    ("run", "--trc"): "also export the matched frames as TRC (OpenSim, metres, Y up)",
+    ("run", "--csv"): "also export the matched frames as a wide CSV (<part>_x, _y, _z)",
+    ("run", "--c3d"): "also export the matched frames as C3D (pip install topopose[c3d])",
+    ("run", "--workers"): "run the frames in N local worker processes (default %(default)s)",
+    ("run", "--scheduler"): "address of a Dask scheduler (tcp://HOST:8786) to run the frames on",
+    ("run", "--rerun"): "record the run for the rerun viewer (pip install topopose[rerun])",
+    ("view", "--out"): "picture to write (.png)",
+    ("view", "--resolution"): "hull grid (default: the one recorded in the poses)",
+    ("view", "--model"): "model tree (default: guessed from the poses' parts)",
+    ("evaluate", "--out"): "folder for the figures (default: beside the poses file)",
+    ("evaluate", "--tolerance"): "distance within which a part is right (default 0.1 × the "
+                                 "subject's height)",
+    ("learn-model", "--out"): "model file to write (.toml); MODEL.joints.toml is written beside",
+    ("bench", "stage"): "benchmark to run (hull, thinning, tree, alignment_speed, ...; default all)",
+    ("bench", "--quick"): "small inputs, a few minutes in all",
+}
+
+
+def _fill_help(parser: argparse.ArgumentParser) -> None:
+    """Give every option of every sub-command a help text (from HELP when it has none)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sp in action.choices.items():
+                for a in sp._actions:
+                    if a.help is None and not isinstance(a, argparse._HelpAction):
+                        key = a.option_strings[0] if a.option_strings else a.dest
+                        a.help = HELP.get((name, key), HELP.get((None, key)))
 
 
 # --------------------------------------------------------------------------- parser
@@ -321,7 +401,11 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("bench", help="run the benchmarks beside their peers")
     s.add_argument("stage", nargs="?")
     s.add_argument("--quick", action="store_true")
+    s.add_argument("--save", action="store_true",
+                   help="write to the tracked benchmarks/results/ (default: benchmarks/results/quick/, "
+                        "ignored by git)")
     s.set_defaults(func=cmd_bench)
+    _fill_help(p)
     return p
 
 

@@ -120,8 +120,9 @@ def _progress(total, enabled, desc):
         return None
     from tqdm import tqdm
 
+    # smoothing 0: the rate is frames over time since the end of the first frame (see run)
     return tqdm(total=total, unit="frame", desc=desc, dynamic_ncols=True, file=sys.stderr,
-                smoothing=0.1)
+                smoothing=0)
 
 
 def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
@@ -209,6 +210,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
             fh.write(p.to_json() + "\n")
         fh.flush()
     bar = _progress(len(todo), progress and len(todo) > 0, f"{m.name} @ {resolution}³")
+    first = [True]
 
     def finish(pose: Pose):
         results[pose.frame] = pose
@@ -217,17 +219,33 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
             fh.flush()
         if bar is not None:
             bar.update(1)
+            if first[0]:        # the ETA counts from the end of the first frame, which pays
+                first[0] = False          # the first run's compilation and tables
+                bar.start_t = bar.last_print_t = bar._time()
+                bar.initial = bar.n
             bar.set_postfix(status=pose.status[:7], refresh=False)
         if on_pose is not None:
             on_pose(pose)
 
+    def note(message):
+        if bar is not None:
+            bar.set_postfix_str(message)
+
+    from .. import _coldstart
+
     try:
-        if todo and (workers > 1 or scheduler):
-            _run_dask(cap, m, resolution, threshold, options, todo, workers, scheduler, finish)
-        elif todo:
-            est = FrameEstimator(cap, m, resolution, threshold, **options)
-            for f in todo:
-                finish(est.estimate(f))
+        with _coldstart.notices(note):
+            if todo and (workers > 1 or scheduler):
+                _run_dask(cap, m, resolution, threshold, options, todo, workers, scheduler, finish)
+            elif todo:
+                warm = _coldstart.start_warmup()     # first run: a helper process
+                try:
+                    est = FrameEstimator(cap, m, resolution, threshold, **options)
+                    est.warmup = warm
+                    for f in todo:
+                        finish(est.estimate(f))
+                finally:
+                    warm.close()
     finally:
         if bar is not None:
             bar.close()
@@ -388,7 +406,8 @@ def summary_text(res: RunResult) -> str:
     comp = [p for p in res.poses if p.status != "failed" and p.timings_ms.get("total")]
     fps = ""
     if res.computed and res.seconds > 0:      # the real rate: frames over wall time
-        fps = f" ({res.computed / res.seconds:.1f} frames/s"
+        rate = res.computed / res.seconds
+        fps = f" ({rate:.{1 if rate >= 1 else 3}f} frames/s"
         if comp:
             import numpy as np
 

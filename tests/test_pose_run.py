@@ -226,4 +226,4 @@ def test_demo_writes_what_it_says(tmp_path):
     for name in ("poses.jsonl", "poses.trc", "poses.csv", "distances.png", "quality.png",
                  "gt.json", "calibration.toml"):
         assert (d / name).exists(), name
-    assert list(d.glob("frame_*.png")) and str(d) in text
+    assert list(d.glob("frame_*_typical.png")) and str(d) in text

@@ -217,3 +217,17 @@ def test_bench_runs_every_stage_into_an_untracked_folder(tmp_path, monkeypatch, 
     assert (b / "results" / "quick" / "b.md").exists() and not (b / "results" / "b.md").exists()
     assert main(["bench", "b", "--save"]) == 0 and (b / "results" / "b.md").exists()
     one_line_exit_2(capsys, ["bench", "zz"], "zz")
+
+
+def test_learn_model_refuses_random_poses_and_warns_on_short_sequences(cap, tmp_path, capsys):
+    # `cap` holds independent random poses: nothing to learn the rigid parts from
+    one_line_exit_2(capsys, ["learn-model", str(cap), "--out", str(tmp_path / "m.toml")],
+                    "random poses")
+    assert not (tmp_path / "m.toml").exists()
+    walk = tmp_path / "walk"
+    assert main(["synth", str(walk), "--motion", "walk", "--frames", "6", "--cameras", "6",
+                 "--size", "200x150"]) == 0
+    capsys.readouterr()
+    main(["learn-model", str(walk), "--out", str(tmp_path / "w.toml"), "--resolution", "60"])
+    err = capsys.readouterr().err
+    assert "too short" in err or "no topologically coherent interval" in err, err

@@ -231,3 +231,14 @@ def test_learn_model_refuses_random_poses_and_warns_on_short_sequences(cap, tmp_
     main(["learn-model", str(walk), "--out", str(tmp_path / "w.toml"), "--resolution", "60"])
     err = capsys.readouterr().err
     assert "too short" in err or "no topologically coherent interval" in err, err
+
+
+def test_few_frames_with_workers_run_in_one_process(cap, tmp_path, capsys, monkeypatch):
+    import topopose.pose.run as R
+
+    monkeypatch.setattr(R, "_run_dask", lambda *a, **k: (_ for _ in ()).throw(AssertionError("dask")))
+    out = tmp_path / "p.jsonl"
+    assert main(["run", str(cap), "--resolution", "40", "--workers", "2", "--output", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "faster in this process" in captured.err
+    assert "frames/s" in captured.out and len(R.read_poses(out)) == 3

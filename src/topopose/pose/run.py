@@ -370,15 +370,31 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
             pass
 
 
+#: ``topopose run --workers N`` uses N local processes only for at least this many frames per
+#: worker: starting a cluster and loading the kernels in every worker costs seconds, more than
+#: the frames save below that (benchmarks/workers.py; a 100³ frame takes ~30 ms)
+MIN_FRAMES_PER_WORKER = 100
+
+
 def run_cli(a) -> int:
     """``topopose run``: prints a summary; exit 1 when some frames failed."""
+    workers = a.workers
+    if workers and workers > 1 and not a.scheduler:
+        from ..capture import load_capture
+
+        n = len(select_frames(load_capture(a.capture), getattr(a, "frames", None)))
+        if n < MIN_FRAMES_PER_WORKER * workers:
+            print(f"topopose: note: --workers {workers}: {n} frames run faster in this process "
+                  f"(starting {workers} worker processes costs more than they save below "
+                  f"{MIN_FRAMES_PER_WORKER * workers} frames)", file=sys.stderr)
+            workers = 1
     if getattr(a, "rerun", None):
         from .._paths import writable_output
         from ..viz.rerun import require_rerun
         require_rerun()                      # fail before the run, not after
         writable_output(a.rerun, "--rerun")
     res = run(a.capture, model=a.model, resolution=a.resolution, threshold=a.threshold,
-              output=a.output, frames=getattr(a, "frames", None), workers=a.workers,
+              output=a.output, frames=getattr(a, "frames", None), workers=workers,
               scheduler=a.scheduler, resume=a.resume, progress=True, trc=a.trc, csv=a.csv,
               c3d=getattr(a, "c3d", None),
               constraints=not getattr(a, "no_constraints", False),

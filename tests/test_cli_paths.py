@@ -234,7 +234,9 @@ def test_learn_model_refuses_random_poses_and_warns_on_short_sequences(cap, tmp_
 
 
 def test_few_frames_with_workers_run_in_one_process(cap, tmp_path, capsys, monkeypatch):
-    import topopose.pose.run as R
+    import importlib
+
+    R = importlib.import_module("topopose.pose.run")
 
     monkeypatch.setattr(R, "_run_dask", lambda *a, **k: (_ for _ in ()).throw(AssertionError("dask")))
     out = tmp_path / "p.jsonl"

@@ -116,8 +116,15 @@ class Warmup:
             self.proc = None
 
 
+_RUNNING: Warmup | None = None
+
+
 def start_warmup(force: bool = False) -> Warmup:
-    """Start the helper process when the caches are cold (see the module docstring)."""
+    """Start the helper process when the caches are cold (see the module docstring); a helper
+    already running (e.g. started by ``topopose demo`` before it synthesizes) is shared."""
+    global _RUNNING
+    if _RUNNING is not None and _RUNNING.proc is not None and _RUNNING.proc.poll() is None:
+        return _RUNNING
     tcold, kcold = tables_cold(), kernels_cold()
     if not force and not (tcold or kcold):
         return Warmup(None)
@@ -139,7 +146,8 @@ def start_warmup(force: bool = False) -> Warmup:
         return Warmup(None)
     finally:
         signal.signal(signal.SIGINT, old)
-    return Warmup(proc)
+    _RUNNING = Warmup(proc)
+    return _RUNNING
 
 
 def _stick_figure():

@@ -36,7 +36,9 @@ def run_demo(out="topopose-demo", frames=6, resolution=100, seed=0, subjects=Non
     t_start = time.perf_counter()
     from .. import _coldstart
 
-    _coldstart.start_warmup()     # first run: tables and kernels built while the capture is made
+    if _coldstart.start_warmup().proc is not None:   # first run: built while the capture is made
+        print_fn("first run: compiling kernels and building the thinning look-up tables "
+                 "(once; cached on disk)…")
     print_fn(f"topopose demo: {len(subjects)} synthetic subjects ({', '.join(subjects)}) × {frames} "
              f"frames, {cameras} cameras {size[0]}×{size[1]}, silhouette noise {noise}, grid "
              f"{resolution}³ → {out.resolve()}")

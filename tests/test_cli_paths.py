@@ -195,13 +195,16 @@ def test_every_option_has_help():
 
     p = build_parser()
     assert "DESIGN.md" not in p.format_help()
-    sub = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
-    missing = [f"{name} {a.option_strings[0] if a.option_strings else a.dest}"
-               for name, sp in sub.choices.items() for a in sp._actions
-               if not a.help and not isinstance(a, argparse._HelpAction)]
+    missing, todo = [], [("", p)]
+    while todo:                                     # every (nested) sub-command
+        name, parser = todo.pop()
+        assert "DESIGN.md" not in parser.format_help()     # renders (no bad %-format)
+        for a in parser._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                todo += [(f"{name} {k}".strip(), sp) for k, sp in a.choices.items()]
+            if name and not a.help and not isinstance(a, argparse._HelpAction):
+                missing.append(f"{name} {a.option_strings[0] if a.option_strings else a.dest}")
     assert not missing, missing
-    for name, sp in sub.choices.items():
-        assert "DESIGN.md" not in sp.format_help()      # every help renders (no bad %-format)
 
 
 def test_bench_runs_every_stage_into_an_untracked_folder(tmp_path, monkeypatch, capsys):

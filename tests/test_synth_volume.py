@@ -15,6 +15,18 @@ from topopose.capture.synth_subjects import GAIT
 HAND_OUT = {"elbow", "arm", "arm_border", "shoulder"}
 
 
+def _make(subject, rng):
+    """The builder synthetic_capture uses (the body subject: a random build of the mesh)."""
+    if subject != "body":
+        return None
+    props = synth.make_build(None, rng, 1.0)
+    return lambda pose, _t: synth.pose_body(pose, props)
+
+
+def _runs(subject):
+    return (2, 4) if subject == "body" else (6, 10)     # (seeds, frames): the mesh is slower
+
+
 def _inside(subject, bodies, vlo, vhi, where):
     skip = ("forearm",) if subject == "hand" else ()
     eps = 1e-9
@@ -36,9 +48,11 @@ def _inside(subject, bodies, vlo, vhi, where):
 def test_random_poses_stay_in_volume(subject, separated):
     vlo, vhi, place = (np.array(v, float) if i < 2 else v
                        for i, v in enumerate(synth.VOLUMES[subject]))
-    for seed in range(6):
+    seeds, frames = _runs(subject)
+    for seed in range(seeds):
         rng = np.random.default_rng(seed)
-        bodies = synth._random_frames(subject, 10, rng, 1.0, separated, vlo, vhi, place)
+        bodies = synth._random_frames(subject, frames, rng, 1.0, separated, vlo, vhi, place,
+                                      build=_make(subject, rng))
         _inside(subject, bodies, vlo, vhi, f"seed {seed}")
 
 
@@ -46,10 +60,12 @@ def test_random_poses_stay_in_volume(subject, separated):
 def test_motions_stay_in_volume(subject, motion):
     v0lo, v0hi, place = (np.array(v, float) if i < 2 else v
                          for i, v in enumerate(synth.VOLUMES[subject]))
-    for seed in range(6):
+    seeds, _ = _runs(subject)
+    for seed in range(seeds):
         rng = np.random.default_rng(seed)
         bodies, vlo, vhi = synth._motion_frames(subject, motion, 40, 25.0, rng, 1.0,
-                                                v0lo.copy(), v0hi.copy(), place)
+                                                v0lo.copy(), v0hi.copy(), place,
+                                                build=_make(subject, rng))
         _inside(subject, bodies, vlo, vhi, f"{motion} seed {seed}")
 
 

@@ -110,8 +110,7 @@ def check_resolution(resolution, what: str = "--resolution", *, minimum: int = R
     """Grid resolution (voxels along the longest side of the capture volume): an integer in
     ``minimum..RESOLUTION_MAX`` whose N³ grid fits in the available memory (refused with the
     size named); a note on stderr when it takes more than 2 GB."""
-    if isinstance(resolution, bool) or not isinstance(resolution, (int,)) and not (
-            hasattr(resolution, "__index__")):
+    if isinstance(resolution, bool) or not hasattr(resolution, "__index__"):
         raise InputError(f"{what}: expected an integer, got {resolution!r}")
     n = int(resolution)
     need = float(n) ** 3 * BYTES_PER_VOXEL

@@ -51,7 +51,7 @@ def cmd_synth(a):
                          "give --force to replace it, or another folder")
     out = synthesize(a.out, subject=a.subject, frames=a.frames, seed=a.seed, cameras=a.cameras,
                      size=a.size, noise=a.noise, motion=a.motion, thickness=a.thickness,
-                     separated=a.separated, fps=a.fps, margin=a.margin)
+                     separated=a.separated, fps=a.fps, margin=a.margin, build=a.build)
     print(f"wrote {out}: {a.subject}, {a.frames} frames, {a.cameras} cameras ({a.motion})")
     return 0
 
@@ -175,6 +175,12 @@ def cmd_learn_model(a):
     return learn_model_cli(a)
 
 
+def cmd_calib(a):
+    from .capture.calib_import import calib_import_cli
+
+    return calib_import_cli(a)
+
+
 def cmd_bench(a):
     import os
     import subprocess
@@ -262,20 +268,25 @@ HELP = {
     ("evaluate", "--tolerance"): "distance within which a part is right (default 0.1 × the "
                                  "subject's height)",
     ("learn-model", "--out"): "model file to write (.toml); MODEL.joints.toml is written beside",
+    ("calib import", "files"): "calibration files to convert (Qualisys .qca.txt, EasyMocap "
+                               "intri/extri.yml, OpenCV FileStorage, P matrices)",
     ("bench", "stage"): "benchmark to run (hull, thinning, tree, alignment_speed, ...; default all)",
     ("bench", "--quick"): "small inputs, a few minutes in all",
 }
 
 
-def _fill_help(parser: argparse.ArgumentParser) -> None:
-    """Give every option of every sub-command a help text (from HELP when it has none)."""
-    for action in parser._actions:
-        if isinstance(action, argparse._SubParsersAction):
-            for name, sp in action.choices.items():
-                for a in sp._actions:
-                    if a.help is None and not isinstance(a, argparse._HelpAction):
-                        key = a.option_strings[0] if a.option_strings else a.dest
-                        a.help = HELP.get((name, key), HELP.get((None, key)))
+def _fill_help(parser: argparse.ArgumentParser, name=None) -> None:
+    """Give every option of every sub-command (nested ones too) a help text, from HELP when it
+    has none (``name``: the sub-command, e.g. "run" or "calib import")."""
+    for a in parser._actions:
+        if name is not None and a.help is None and not isinstance(a, argparse._HelpAction):
+            key = a.option_strings[0] if a.option_strings else a.dest
+            a.help = HELP.get((name, key), HELP.get((None, key)))
+            if a.help is None and isinstance(a, argparse._SubParsersAction):
+                a.help = "one of: " + ", ".join(a.choices)
+        if isinstance(a, argparse._SubParsersAction):
+            for sub, sp in a.choices.items():
+                _fill_help(sp, sub if name is None else f"{name} {sub}")
 
 
 # --------------------------------------------------------------------------- parser
@@ -292,12 +303,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--resolution", type=int, default=100)
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--noise", type=int, default=0, help="silhouette noise level 0-3")
-    s.add_argument("--subjects", default=None, help="comma-separated, default human,hand,dog,spider")
+    s.add_argument("--subjects", default=None,
+                   help="comma-separated, default human,hand,dog,spider (also: body)")
     s.set_defaults(func=cmd_demo)
 
     s = sub.add_parser("synth", help="write a synthetic capture folder with ground truth")
     s.add_argument("out")
-    s.add_argument("--subject", choices=["human", "hand", "dog", "spider"], default="human")
+    s.add_argument("--subject", choices=["human", "hand", "dog", "spider", "body"], default="human")
     s.add_argument("--frames", type=int, default=10)
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--cameras", type=int, default=8)
@@ -310,6 +322,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--fps", type=float, default=25.0, help="frame rate of motion sequences")
     s.add_argument("--margin", type=float, default=None,
                    help="with --separated: smallest gap between limbs, in metres (e.g. 3 voxels)")
+    s.add_argument("--build", choices=["average", "heavy", "child", "lean", "random"], default=None,
+                   help="body subject: proportions (default random, drawn from the seed)")
     s.add_argument("--force", "--overwrite", dest="force", action="store_true",
                    help="replace the capture already in OUT (its frames are deleted first)")
     s.set_defaults(func=cmd_synth)
@@ -365,7 +379,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--tolerance", type=int, default=None,
                    help="visual hull: keep voxels seen by C-k cameras (default 1 with >= 6 cameras, else 0)")
     s.add_argument("--rerun", metavar="FILE.rrd")
-    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
+    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007, or times "
+                   "in seconds, e.g. 0.5s:1.2s")
+    s.add_argument("--refocus", action="store_true",
+                   help="visual hull on a grid refocused on the subject every frame")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("view", help="render one frame as a PNG")
@@ -390,13 +407,28 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True)
     s.add_argument("--resolution", type=int, default=100)
     s.add_argument("--joints", help="write per-frame joints and segments as JSON Lines")
-    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
+    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007, or times "
+                   "in seconds, e.g. 0.5s:1.2s")
     s.add_argument("--coherence", choices=["frequent", "human"], default="frequent",
                    help="coherent-interval rule: the sequence's most frequent tree signature "
                         "(default) or the paper's human rule")
     s.add_argument("--criterion", choices=["correlation", "rigidity"], default="correlation",
                    help="rigid-part clustering: velocity cross-correlation (eq. 5) or distance rigidity")
     s.set_defaults(func=cmd_learn_model)
+
+    s = sub.add_parser("calib", help="calibration tools: import Qualisys, EasyMocap, OpenCV, "
+                       "P-matrix calibrations")
+    calib = s.add_subparsers(dest="calib_command", required=True, metavar="ACTION")
+    c = calib.add_parser("import", help="convert calibration files to calibration.toml")
+    c.add_argument("files", nargs="+", metavar="FILE")
+    c.add_argument("--format", choices=["qualisys", "easymocap", "opencv", "pmatrix"],
+                   default=None, help="default: detected from the files")
+    c.add_argument("--out", required=True, help="calibration.toml to write")
+    g = c.add_mutually_exclusive_group()
+    g.add_argument("--size", type=_size, default=None,
+                   help="image size WxH when the files give none (P matrices)")
+    g.add_argument("--image", default=None, help="an image of the cameras: its size")
+    c.set_defaults(func=cmd_calib)
 
     s = sub.add_parser("bench", help="run the benchmarks beside their peers")
     s.add_argument("stage", nargs="?")

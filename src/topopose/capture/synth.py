@@ -1,7 +1,8 @@
 """Synthetic captures with exact silhouettes and ground truth (``topopose synth``).
 
 The test data of every stage and of ``topopose demo``: no download anywhere. A subject
-(:mod:`.synth_subjects`: human, hand, dog, spider) is posed — random plausible poses per frame, or
+(:mod:`.synth_subjects`: human, hand, dog, spider; :mod:`.synth_body`: body, the MakeHuman mesh
+posed by skinning, rasterized exactly) is posed — random plausible poses per frame, or
 a smooth gait (``walk``, ``trot``, ``grasp``) — placed in the capture volume, and seen by a ring
 of calibrated cameras. Silhouettes are exact images of the union of round cones and ellipsoids,
 lens distortion included (:mod:`.synth_geometry`). Optional silhouette noise (levels 1–3: border
@@ -45,7 +46,13 @@ from ..errors import InputError
 from .camera import Camera
 from .capture import Capture
 from .synth_geometry import ray_table, render
-from .synth_subjects import BUILD, GAIT, MOTIONS, PARTS, RANDOM, SUBJECTS, rz, ry
+from .synth_body import MeshBody, body_random, make_build, pose_body
+from .synth_subjects import BUILD, GAIT, MOTIONS, PARTS, RANDOM, SUBJECTS, human_walk, rz, ry
+
+# the body subject (:mod:`.synth_body`) poses the MakeHuman mesh with the capsule human's angles;
+# its build (proportions) is chosen per capture, see synthetic_capture
+RANDOM["body"] = body_random
+GAIT[("body", "walk")] = human_walk
 
 # default capture volume (min, max) and placement margin per subject (metres)
 VOLUMES = {
@@ -53,6 +60,7 @@ VOLUMES = {
     "dog": ((-0.90, -0.90, -0.04), (0.90, 0.90, 1.10), 0.05),
     "spider": ((-0.45, -0.45, -0.02), (0.45, 0.45, 0.35), 0.02),
     "hand": ((-0.15, -0.15, 0.85), (0.15, 0.15, 1.15), 0.012),
+    "body": ((-1.25, -1.25, -0.05), (1.25, 1.25, 2.45), 0.06),   # up to 2.0 m, arms raised
 }
 _MAX_TRIES = 400
 # flat subjects are seen from above (a ring at the subject's height sees a spider edge-on; a
@@ -232,8 +240,9 @@ def _set_arm_part(body, vlo, vhi):
     return body
 
 
-def _random_frames(subject, n, rng, thickness, separated, vlo, vhi, margin, limb_margin=None):
-    build, sample = BUILD[subject], RANDOM[subject]
+def _random_frames(subject, n, rng, thickness, separated, vlo, vhi, margin, limb_margin=None,
+                   build=None):
+    build, sample = build or BUILD[subject], RANDOM[subject]
     axes = (0, 1, 2) if subject == "hand" else (0, 1)
     skip = ("forearm",) if subject == "hand" else ()
     bodies = []
@@ -256,9 +265,9 @@ def _random_frames(subject, n, rng, thickness, separated, vlo, vhi, margin, limb
     return bodies
 
 
-def _motion_frames(subject, motion, n, fps, rng, thickness, vlo, vhi, margin):
+def _motion_frames(subject, motion, n, fps, rng, thickness, vlo, vhi, margin, build=None):
     gait = GAIT[(subject, motion)]
-    build = BUILD[subject]
+    build = build or BUILD[subject]
     R = _orientation(subject, rng)
     heading = R @ np.array([1.0, 0.0, 0.0])
     heading[2] = 0.0
@@ -288,7 +297,11 @@ def _motion_frames(subject, motion, n, fps, rng, thickness, vlo, vhi, margin):
 
 
 def subject_height(subject, thickness=1.0) -> float:
-    """The normalizing height of gt.json: human standing height, others their largest extent."""
+    """The normalizing height of gt.json: human standing height, others their largest extent
+    (body: the height of its ``average`` build; a body capture records its own build's height)."""
+    if subject == "body":
+        from .synth_body import BUILDS
+        return float(BUILDS["average"]["height"])
     body = BUILD[subject]({}, 1.0)
     if subject == "hand":
         lo, hi = body.extent(skip=("forearm",))
@@ -306,13 +319,14 @@ def _l(x):
 
 def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 480), noise=0,
                       motion="random", thickness=1.0, separated=False, fps=25, out=None, *,
-                      margin=None) -> Capture:
+                      margin=None, build=None) -> Capture:
     """Synthetic capture in memory (``masks`` set, ``options["gt"]`` = the gt.json dict,
     ``options["bodies"]`` = the posed :class:`.synth_subjects.Body` of each frame, ``path`` None).
 
     Parameters
     ----------
-    subject : "human" | "hand" | "dog" | "spider"
+    subject : "human" | "hand" | "dog" | "spider" | "body"
+        ``body``: the anatomically real MakeHuman mesh posed by skinning (:mod:`.synth_body`).
     frames : int
     seed : int
         Same seed, same capture (poses, placement, cameras, noise).
@@ -342,19 +356,31 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
         ``limb_gap``, the smallest such clearance).
     out : path or None
         When given, the capture is also written there (as :func:`synthesize`).
+    build : str or dict, optional
+        ``body`` only: its proportions, a preset (``average``, ``heavy``, ``child``, ``lean``),
+        ``random`` (the default: height 1.1–2.0 m, lengths and girths drawn from the seed) or a
+        dict of :data:`.synth_body.BUILDS` keys. ``thickness`` multiplies its girths. Recorded
+        in ``gt["synth"]["build"]``; per frame ``pose`` and ``placement`` re-pose the exact
+        mesh (:func:`.synth_body.body_mesh`).
     """
     _check_args(subject, frames, cameras, size, noise, motion, thickness, fps, separated)
     rng = np.random.default_rng(seed)
     if margin is not None and not float(margin) >= 0:
         raise InputError(f"synth: margin must be a clearance ≥ 0 in metres (got {margin})")
     limb_margin = None if margin is None else float(margin)
+    if build is not None and subject != "body":
+        raise InputError(f"synth: --build applies to the body subject only (got --subject {subject})")
     vlo, vhi, place = (np.array(v, float) if i < 2 else v for i, v in enumerate(VOLUMES[subject]))
+    make = None
+    if subject == "body":
+        props = make_build(build, rng, thickness)
+        make = lambda pose, _thickness: pose_body(pose, props)  # noqa: E731
     if motion == "random":
         bodies = _random_frames(subject, int(frames), rng, thickness, separated, vlo, vhi, place,
-                                limb_margin)
+                                limb_margin, build=make)
     else:
         bodies, vlo, vhi = _motion_frames(subject, motion, int(frames), float(fps), rng, thickness,
-                                          vlo, vhi, place)
+                                          vlo, vhi, place, build=make)
     if subject == "hand":
         bodies = [_set_arm_part(b, vlo, vhi) for b in bodies]
     cams = camera_ring((vlo, vhi), int(cameras), (int(size[0]), int(size[1])), rng,
@@ -365,7 +391,7 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
     for fi, (name, body) in enumerate(zip(names, bodies)):
         ms = []
         for ci, (cam, tab) in enumerate(zip(cams, tables)):
-            m = render(cam, tab, body.prims)
+            m = body.render(cam, tab) if isinstance(body, MeshBody) else render(cam, tab, body.prims)
             if noise:
                 m = add_noise(m, int(noise), np.random.default_rng([int(seed), 7, fi, ci]))
             ms.append(m)
@@ -380,14 +406,20 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
         }
         if body.limb_margin is not None:
             gframes[name]["limb_gap"] = round(float(body.limb_gap()), 6)
+        if isinstance(body, MeshBody):         # full precision: re-posing gives the exact mesh
+            gframes[name]["pose"] = {k: float(v) for k, v in body.pose.items()}
+            gframes[name]["placement"] = {"R": body.R.tolist(), "t": body.t.tolist()}
+    height = bodies[0].height if subject == "body" else subject_height(subject, thickness)
     gt = {"subject": subject, "units": "m", "up": "+z",
-          "height": round(subject_height(subject, thickness), 6),
+          "height": round(height, 6),
           "parts": list(PARTS[subject]), "frames": gframes,
           "synth": {"seed": int(seed), "motion": motion, "noise": int(noise),
                     "thickness": float(thickness), "separated": bool(separated), "fps": float(fps),
                     "margin": float(bodies[0].margin),
                     "limb_margin": None if bodies[0].limb_margin is None
                     else float(bodies[0].limb_margin)}}
+    if subject == "body":
+        gt["synth"]["build"] = bodies[0].build
     cap = Capture(cams, names, None, "+z", "m", float(fps), (vlo.copy(), vhi.copy()),
                   {"gt": gt, "bodies": bodies}, masks)
     if out is not None:
@@ -396,13 +428,14 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
 
 
 def synthesize(out, subject="human", frames=10, seed=0, cameras=8, size=(640, 480), noise=0,
-               motion="random", thickness=1.0, separated=False, fps=25, *, margin=None) -> Path:
+               motion="random", thickness=1.0, separated=False, fps=25, *, margin=None,
+               build=None) -> Path:
     """Write a synthetic capture folder (DESIGN.md layout + gt.json) and return its path.
 
     Arguments as :func:`synthetic_capture`.
     """
     cap = synthetic_capture(subject, frames, seed, cameras, size, noise, motion, thickness,
-                            separated, fps, margin=margin)
+                            separated, fps, margin=margin, build=build)
     return write_capture(cap, out)
 
 

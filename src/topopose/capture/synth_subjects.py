@@ -21,17 +21,19 @@ import numpy as np
 
 from .synth_geometry import Prim, clearance
 
-SUBJECTS = ("human", "hand", "dog", "spider")
+SUBJECTS = ("human", "hand", "dog", "spider", "body")   # body: MakeHuman mesh (.synth_body)
 
 PARTS = {
     "human": ["head", "torso", "crotch", "hand_1", "hand_2", "foot_1", "foot_2"],
     "hand": ["arm", "palm", "thumb", "index", "middle", "ring", "little"],
     "dog": ["head", "shoulders", "hips", "tail", "paw_1", "paw_2", "paw_3", "paw_4"],
     "spider": ["cephalothorax", "abdomen"] + [f"leg_{i}" for i in range(1, 9)],
+    "body": ["head", "torso", "crotch", "hand_1", "hand_2", "foot_1", "foot_2"],
 }
 
 # the motions each subject can perform (besides "random")
-MOTIONS = {"human": ("walk",), "dog": ("trot", "walk"), "spider": ("walk",), "hand": ("grasp",)}
+MOTIONS = {"human": ("walk",), "dog": ("trot", "walk"), "spider": ("walk",), "hand": ("grasp",),
+           "body": ("walk",)}
 
 
 def rx(deg):

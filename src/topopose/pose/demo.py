@@ -15,6 +15,10 @@ from .model import BUILTIN, load_model
 DEMO_SIZE = (480, 360)
 
 
+# synthetic subjects without a model of their own (body: the MakeHuman mesh, a human)
+_MODEL_OF = {"body": "human"}
+
+
 def run_demo(out="topopose-demo", frames=6, resolution=100, seed=0, subjects=None,
              cameras=8, noise=0, size=DEMO_SIZE, progress=True, print_fn=print) -> int:
     """Run the demo; returns 0 (or 1 if some frame failed)."""
@@ -22,8 +26,9 @@ def run_demo(out="topopose-demo", frames=6, resolution=100, seed=0, subjects=Non
 
     subjects = list(subjects or BUILTIN)
     for s in subjects:
-        if s not in BUILTIN:
-            raise InputError(f"--subjects: {s!r} is not a built-in subject ({', '.join(BUILTIN)})")
+        if s not in BUILTIN and s not in _MODEL_OF:
+            raise InputError(f"--subjects: {s!r} is not a built-in subject "
+                             f"({', '.join(BUILTIN + tuple(_MODEL_OF))})")
     from ..capture import load_capture, synthesize
     from ..viz.figures import plot_distances, plot_quality
     from ..viz.view import render_frame
@@ -50,7 +55,7 @@ def run_demo(out="topopose-demo", frames=6, resolution=100, seed=0, subjects=Non
                    size=size, noise=noise, separated=True)
         t_synth = time.perf_counter() - t0
         cap = load_capture(cap_dir)
-        model = load_model(subject)
+        model = load_model(_MODEL_OF.get(subject, subject))
         res = run(cap, model=model, resolution=resolution, output=cap_dir / "poses.jsonl",
                   trc=cap_dir / "poses.trc", csv=cap_dir / "poses.csv", progress=progress)
         status = max(status, res.exit_status)

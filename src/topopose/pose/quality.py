@@ -235,8 +235,9 @@ def evaluate(gt: dict, poses, model=None, tolerance=None, max_missing=1, groups=
         raise InputError("gt.json: expected an object with 'frames'")
     if model is None and gt.get("subject"):
         from .model import BUILTIN, load_model
-        if gt["subject"] in BUILTIN:
-            model = load_model(gt["subject"])
+        name = {"body": "human"}.get(gt["subject"], gt["subject"])   # body: the MakeHuman mesh
+        if name in BUILTIN:
+            model = load_model(name)
     parts = list(model.parts) if model is not None else list(gt.get("parts") or [])
     if not parts:
         raise InputError("gt.json: field 'parts' is missing (and no model was given)")

@@ -268,6 +268,9 @@ def view_cli(a) -> int:
     tol = pose.diagnostics.get("hull_tolerance")
     est = FrameEstimator(cap, model, res, tolerance=None if tol is None else int(tol))
     _, det = est.estimate(frame, detail=True)
-    render_frame(a.out, model, pose, det, cap=cap, silhouettes=a.silhouettes, up=cap.up_vector)
+    from .._paths import atomic_output
+
+    with atomic_output(a.out) as tmp:      # an existing picture is replaced only when done
+        render_frame(tmp, model, pose, det, cap=cap, silhouettes=a.silhouettes, up=cap.up_vector)
     print(f"wrote {a.out}")
     return 0

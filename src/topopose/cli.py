@@ -164,6 +164,24 @@ def cmd_evaluate(a):
     return evaluate_cli(a)
 
 
+def cmd_segment(a):
+    from .pose.segment import segment_cli
+
+    return segment_cli(a)
+
+
+def cmd_detect(a):
+    from .pose.detect import detect_cli
+
+    return detect_cli(a)
+
+
+def cmd_cluster(a):
+    from .pose.cluster import cluster_cli
+
+    return cluster_cli(a)
+
+
 def cmd_learn_model(a):
     from .kinematics import learn_model_cli
 
@@ -270,6 +288,7 @@ HELP = {
     ("learn-model", "--out"): "model file to write (.toml); MODEL.joints.toml is written beside",
     ("calib import", "files"): "calibration files to convert (Qualisys .qca.txt, EasyMocap "
                                "intri/extri.yml, OpenCV FileStorage, P matrices)",
+    (None, "poses"): "poses file written by `topopose run` (JSON Lines)",
     ("bench", "stage"): "benchmark to run (hull, thinning, tree, alignment_speed, ...; default all)",
     ("bench", "--quick"): "small inputs, a few minutes in all",
 }
@@ -393,6 +412,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--model", default=None)
     s.add_argument("--resolution", type=int, default=None)
     s.add_argument("--silhouettes", action="store_true", help="also draw silhouettes with parts reprojected")
+    s.add_argument("--segmentation", action="store_true",
+                   help="draw the hull segmented by body part (thesis §13.3.1.1) instead")
     s.set_defaults(func=cmd_view)
 
     s = sub.add_parser("evaluate", help="score poses against gt.json")
@@ -429,6 +450,40 @@ def build_parser() -> argparse.ArgumentParser:
                    help="image size WxH when the files give none (P matrices)")
     g.add_argument("--image", default=None, help="an image of the cameras: its size")
     c.set_defaults(func=cmd_calib)
+
+    s = sub.add_parser("segment", help="label the visual hull by body part (thesis §13.3.1.1)")
+    s.add_argument("capture")
+    s.add_argument("--poses", required=True)
+    s.add_argument("--out", required=True, help="folder: per matched frame labels .npz, mesh .ply, "
+                                                "per-camera label .png")
+    s.add_argument("--frames", help="comma-separated frames (default: every matched frame)")
+    s.add_argument("--model", default=None)
+    s.add_argument("--resolution", type=int, default=None)
+    s.set_defaults(func=cmd_segment)
+
+    s = sub.add_parser("detect", help="detect a described pose in every frame (thesis §13.3.2.1)")
+    s.add_argument("poses")
+    s.add_argument("expr", nargs="?", help='e.g. "(z-greatest hand_1 head) XOR (z-greatest hand_2 head)"')
+    s.add_argument("--pose", help="a named pose of the library (hands-up, ask-a-question, "
+                                  "wide-spread-arms, acrobatic)")
+    s.add_argument("--library", help="a TOML pose library adding to the built-in one")
+    s.add_argument("--list", action="store_true", help="list the library's poses")
+    s.add_argument("--output", help="JSON Lines {frame, value} (default: standard output)")
+    s.add_argument("--csv", help="also write frame,value as CSV")
+    s.add_argument("--up", help="the capture's up axis (default: the poses header's, else +z)")
+    s.set_defaults(func=cmd_detect)
+
+    s = sub.add_parser("cluster", help="cluster frames by betweenness relations (thesis §13.3.2.2)")
+    s.add_argument("poses")
+    s.add_argument("--output", help="JSON Lines {frame, cluster} (default: standard output)")
+    g = s.add_mutually_exclusive_group()
+    g.add_argument("--clusters", type=int, help="number of clusters")
+    g.add_argument("--threshold", type=float, help="cut at this distance 1 - similarity")
+    s.add_argument("--auto", choices=["silhouette", "gap"], default="silhouette",
+                   help="automatic cut: best mean silhouette (default) or largest gap between merge heights")
+    s.add_argument("--figure", help="PNG: medoid poses and the timeline coloured by cluster")
+    s.add_argument("--up", help="up axis for the figure (default: the poses header's, else +z)")
+    s.set_defaults(func=cmd_cluster)
 
     s = sub.add_parser("bench", help="run the benchmarks beside their peers")
     s.add_argument("stage", nargs="?")

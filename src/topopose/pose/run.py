@@ -325,7 +325,7 @@ def run_header(cap, model, resolution, threshold, options) -> dict:
     return {"topopose": __version__, "model": model.name, "model_hash": _hash(model.to_dict()),
             "resolution": int(resolution),
             "capture": str(Path(cap.path).resolve()) if cap.path is not None else None,
-            "calibration_hash": calib, "threshold": threshold,
+            "calibration_hash": calib, "up": cap.up, "threshold": threshold,
             "settings": {k: v for k, v in sorted(options.items())}}
 
 

@@ -271,6 +271,12 @@ def view_cli(a) -> int:
     from .._paths import atomic_output
 
     with atomic_output(a.out) as tmp:      # an existing picture is replaced only when done
-        render_frame(tmp, model, pose, det, cap=cap, silhouettes=a.silhouettes, up=cap.up_vector)
+        if getattr(a, "segmentation", False):
+            from ..pose.segment import segmentation_figure
+
+            segmentation_figure(tmp, cap, frame, model, det, up=cap.up_vector)
+        else:
+            render_frame(tmp, model, pose, det, cap=cap, silhouettes=a.silhouettes,
+                         up=cap.up_vector)
     print(f"wrote {a.out}")
     return 0

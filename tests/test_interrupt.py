@@ -12,8 +12,8 @@ import pytest
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 
 DRIVER = r"""
-import sys
-import topopose.pose.run as R
+import importlib, sys
+R = importlib.import_module("topopose.pose.run")
 R.MIN_FRAMES_PER_WORKER = 0            # use the workers even for this small capture
 from topopose.cli import main
 sys.exit(main(sys.argv[1:]))
@@ -34,7 +34,7 @@ def test_ctrl_c_with_workers_is_one_line(tmp_path):
     partial = tmp_path / "p.jsonl.partial"
     t0 = time.time()
     while time.time() - t0 < 120:          # wait for the first frames (cluster up and working)
-        if partial.exists() and len(partial.read_text().splitlines()) >= 3:
+        if partial.exists() and len(partial.read_text().splitlines()) >= 2:   # header + a frame
             break
         if p.poll() is not None:
             break
@@ -43,9 +43,10 @@ def test_ctrl_c_with_workers_is_one_line(tmp_path):
     os.killpg(p.pid, signal.SIGINT)        # Ctrl-C reaches the whole process group
     _, err = p.communicate(timeout=120)
     err = err.decode().replace("\r", "\n")
-    lines = [x for x in err.splitlines() if x.strip() and "frame" not in x]
+    assert "faster in this process" not in err               # the Dask workers did run
+    lines = [x for x in err.splitlines() if x.strip() and "frame/s" not in x and "/40 [" not in x]
     assert p.returncode == 130, err[-2000:]
     assert "Traceback" not in err and lines == ["topopose: interrupted"], err[-2000:]
     from topopose.pose import read_poses
 
-    assert len(read_poses(out)) >= 2 and not partial.exists()      # nothing computed is lost
+    assert len(read_poses(out)) >= 1 and not partial.exists()      # nothing computed is lost

@@ -405,11 +405,11 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
 
 
 #: ``topopose run --workers N`` uses N local processes only for at least this many frames per
-#: worker: starting a cluster and loading the kernels in every worker costs ~7 s, more than the
-#: frames save below that (benchmarks/workers.py: a 100³ frame takes ~30 ms, so two workers can
-#: only win from ~2 × 7 s / 30 ms ≈ 470 frames; measured on the shared 2-core machine, 40 and 200
-#: frames ran 6× and 2× slower with two workers)
-MIN_FRAMES_PER_WORKER = 250
+#: worker. benchmarks/workers.py (2 cores, load ~2, 100³): one process 10 ms per frame (its
+#: prefetch thread already uses the second core); two workers cost ~1.5 s to start and then run
+#: at ~9.6 ms per frame, so they win only from ~2,500 frames (40 frames: 4× slower, 200: 1.6×).
+#: Workers pay off with more cores or on a cluster (``--scheduler``).
+MIN_FRAMES_PER_WORKER = 1000
 
 
 def run_cli(a) -> int:

@@ -3,6 +3,14 @@ import datetime
 import os
 import platform
 import subprocess
+from pathlib import Path
+
+
+def results_dir() -> Path:
+    """Where the benchmarks write: ``$TOPOPOSE_BENCH_RESULTS`` (``topopose bench`` points it
+    to the untracked ``benchmarks/results/quick/`` unless ``--save``), else ``benchmarks/results``."""
+    env = os.environ.get("TOPOPOSE_BENCH_RESULTS")
+    return Path(env) if env else Path(__file__).resolve().parent / "results"
 
 
 def machine(**extra) -> dict:

@@ -37,9 +37,9 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from topopose.match import Matcher, Tree  # noqa: E402
-from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
+from _machine import machine, results_dir  # noqa: E402  (benchmarks/_machine.py)
 
-RESULTS = Path(__file__).resolve().parents[1] / "benchmarks" / "results"
+RESULTS = results_dir()
 METHODS = (("alignment", "α"), ("ha", "η"), ("aha", "AHA"))
 SPURIOUS = 0.1      # spurious branch weights U(0, 0.1): shorter than a tenth of any limb (>= 1)
 

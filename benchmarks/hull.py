@@ -42,7 +42,7 @@ import topopose as tp  # noqa: E402
 from topopose.capture import Camera, Capture  # noqa: E402
 from topopose.hull import HullCarver  # noqa: E402
 from topopose.hull.hull import get_carver  # noqa: E402
-from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
+from _machine import machine, results_dir  # noqa: E402  (benchmarks/_machine.py)
 
 cv2.setNumThreads(1)
 HERE = Path(__file__).resolve().parent
@@ -263,7 +263,7 @@ def main(argv=None):
     res = {"machine": mach, "scene": scene_name, "frames": frames, "cameras": len(cap.cameras),
            "image_size": list(cap.cameras[0].size), "rows": rows, "ablation_lmin": abl,
            "quick": a.quick}
-    out = HERE / "results"
+    out = results_dir()
     out.mkdir(exist_ok=True)
     name = "hull_quick" if a.quick else "hull"
     (out / f"{name}.json").write_text(json.dumps(res, indent=2))

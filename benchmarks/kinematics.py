@@ -27,7 +27,7 @@ from pathlib import Path
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
+from _machine import machine, results_dir  # noqa: E402  (benchmarks/_machine.py)
 
 HERE = Path(__file__).resolve().parent
 
@@ -269,7 +269,7 @@ def main(argv=None):
             f"Machine: {mach['cpu']}, {mach['cores']} cores, Python {mach['python']}, numba {mach['numba']}, "
             f"{mach['date']}. Shared machine: timings are noisy (best of 2 for μ).\n"]
     text = "\n".join(head + lines)
-    outdir = HERE / "results"
+    outdir = results_dir()
     outdir.mkdir(exist_ok=True)
     name = "kinematics_quick" if a.quick else "kinematics"
     (outdir / f"{name}.md").write_text(text)

@@ -24,7 +24,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
+from _machine import machine, results_dir  # noqa: E402  (benchmarks/_machine.py)
 
 STAGES = ("hull", "fill", "thinning", "tree", "alignment")
 THESIS_FPS = {"reference": "thesis Fig. 13.2: 25 frames/s reached below 100^3 (C++, GPU hull, "
@@ -64,7 +64,7 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--subject", default="human")
     ap.add_argument("--noise", type=int, default=1)
-    ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
+    ap.add_argument("--out", default=str(results_dir()))
     a = ap.parse_args(argv)
     from topopose.capture import synthetic_capture
 

@@ -46,6 +46,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from pipeline import machine  # noqa: E402
+from _machine import results_dir  # noqa: E402
 
 TARGET_FP_PER_MATCH = 0.02
 MARGIN_VOXELS = 3          # separated limbs: clearance in voxels of the 100³ grid
@@ -241,7 +242,7 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="8 frames, 100³ only, fewer configs")
     ap.add_argument("--frames", type=int, default=40)
     ap.add_argument("--seed", type=int, default=11)
-    ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
+    ap.add_argument("--out", default=str(results_dir()))
     ap.add_argument("--only", default=None,
                     help="comma list of subjects (human, hand, dog, spider, body) to re-run; the rows "
                          "of the others are kept from the existing results")

@@ -1,6 +1,6 @@
 """Thinning benchmark: PKD6, D6I1D, D6U, D6I2D, ACK3 against scikit-image and kimimaro.
 
-Volumes: the real body volumes ``../shared/data/body_tpose_N.npz`` (4k–800k voxels), visual
+Volumes: the real body volumes ``tests/data/body_tpose_N.npz`` (4k–800k voxels), visual
 hulls of the synthetic human (``topopose.capture.synth.synthetic_capture`` +
 ``topopose.visual_hull``) at 64, 128 and 256 voxels along the capture volume, and "noisy"
 bodies (random bumps and pits on the surface) for the skeleton-quality comparison.
@@ -40,12 +40,12 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
-from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
+from _machine import machine, results_dir  # noqa: E402  (benchmarks/_machine.py)
 from topopose.topology import thinning  # noqa: E402
 from topopose.topology.tables import load_ack3_edge_table, load_byte_table, load_tables  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-SHARED = HERE.parent.parent / "shared"
+DATA = HERE.parent / "tests" / "data"   # body volumes shipped with the repository
 METHODS = ("pkd6", "d6i1d", "d6u", "d6i2d", "ack3")
 VARIANTS = {  # name: (border_list, lut, ccsu)
     "default": (True, True, True),
@@ -60,7 +60,7 @@ ALL_VARIANTS = {"pkd6", "ack3", "d6i1d"}
 
 # --------------------------------------------------------------------------- volumes
 def body(n):
-    return np.load(SHARED / "data" / f"body_tpose_{n}.npz")["volume"]
+    return np.load(DATA / f"body_tpose_{n}.npz")["volume"]
 
 
 def noisy(v, seed=0, amount=0.08):
@@ -361,7 +361,7 @@ def main():
     res = run(quick=a.quick, repeat=2 if a.quick else a.repeat)
     text = report(res)
     print(text)
-    out = HERE / "results"
+    out = results_dir()
     out.mkdir(exist_ok=True)
     stem = "thinning_quick" if a.quick else "thinning"
     (out / f"{stem}.md").write_text(text)

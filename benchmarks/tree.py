@@ -53,7 +53,7 @@ from scipy import ndimage  # noqa: E402
 
 import topopose as tp  # noqa: E402
 from topopose.capture.synth import synthetic_capture  # noqa: E402
-from _machine import machine  # noqa: E402  (benchmarks/_machine.py)
+from _machine import machine, results_dir  # noqa: E402  (benchmarks/_machine.py)
 
 HERE = Path(__file__).resolve().parent
 OFFS = np.array([d for d in itertools.product((-1, 0, 1), repeat=3) if d != (0, 0, 0)])
@@ -293,7 +293,7 @@ def report(rows, wsum, mach, quick):
               "limb's direction: the pipeline uses `weight=\"length\"`.",
               f"Limb samples: {wsum['n']}."]
     text = "\n".join(lines) + "\n"
-    out = HERE / "results"
+    out = results_dir()
     out.mkdir(exist_ok=True)
     (out / f"{name}.md").write_text(text)
     (out / f"{name}.json").write_text(json.dumps({"machine": mach, "rows": rows, "weights": wsum}, indent=1))

@@ -116,24 +116,29 @@ def test_bad_input_frames_fail_with_reasons_and_run_completes(broken_dir, tmp_pa
 
 def test_incremental_output_and_resume(capture_dir, tmp_path):
     out = tmp_path / "poses.jsonl"
+    partial = tmp_path / "poses.jsonl.partial"
     seen = []
 
-    def check(pose):                       # each finished frame is already on disk
+    def check(pose):                       # each finished frame is already on disk (partial file)
         seen.append(pose.frame)
-        lines = out.read_text().splitlines()
-        assert len(lines) == len(seen) and json.loads(lines[-1])["frame"] == pose.frame
+        lines = partial.read_text().splitlines()
+        assert "topopose" in json.loads(lines[0])                  # header line first
+        assert len(lines) == 1 + len(seen) and json.loads(lines[-1])["frame"] == pose.frame
 
-    r1 = run(capture_dir, "human", resolution=64, output=out, frames="0:3", progress=False,
+    r1 = run(capture_dir, "human", resolution=64, output=out, frames="0:2", progress=False,
              on_pose=check)
-    assert r1.computed == 3 and len(seen) == 3
-    with open(out, "a") as fh:              # interrupted while writing the 4th frame
-        fh.write('{"frame": "000003", "status": "matc')
+    assert r1.computed == 2 and len(seen) == 2 and not partial.exists()
+    assert len(out.read_text().splitlines()) == 1 + 2
+    # a killed run (frame 000002 done, 000003 half-written) leaves its partial file beside
+    lines = out.read_text().splitlines()
+    one = run(capture_dir, "human", resolution=64, output=None, frames="2", progress=False).poses[0]
+    partial.write_text("\n".join(lines[:1] + [one.to_json(), '{"frame": "000003", "status": "matc']))
     seen.clear()
     r2 = run(capture_dir, "human", resolution=64, output=out, resume=True, progress=False)
-    assert r2.skipped == 3 and r2.computed == FRAMES - 3
+    assert r2.skipped == 3 and r2.computed == FRAMES - 3 and not partial.exists()
     poses = read_poses(out)
     assert [p.frame for p in poses] == [f"{i:06d}" for i in range(FRAMES)]
-    assert len(out.read_text().splitlines()) == FRAMES
+    assert len(out.read_text().splitlines()) == 1 + FRAMES
     # the resumed frames equal a fresh run's
     fresh = run(capture_dir, "human", resolution=64, output=None, progress=False)
     for a, b in zip(poses, fresh.poses):
@@ -228,4 +233,4 @@ def test_demo_writes_what_it_says(tmp_path):
     for name in ("poses.jsonl", "poses.trc", "poses.csv", "distances.png", "quality.png",
                  "gt.json", "calibration.toml"):
         assert (d / name).exists(), name
-    assert list(d.glob("frame_*.png")) and str(d) in text
+    assert list(d.glob("frame_*_typical.png")) and str(d) in text

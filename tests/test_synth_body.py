@@ -169,7 +169,7 @@ def test_cli_synth_body_and_pipeline_run(tmp_path):
     poses = tmp_path / "poses.jsonl"
     assert main(["run", str(out), "--model", "human", "--resolution", "60",
                  "--output", str(poses)]) in (0, 1)
-    assert len(poses.read_text().splitlines()) == 2
+    assert len(poses.read_text().splitlines()) == 1 + 2          # header line + 2 frames
     assert main(["synth", str(tmp_path / "x"), "--subject", "human", "--build", "child"]) == 2
 
 

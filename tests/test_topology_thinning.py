@@ -26,7 +26,7 @@ from topology_shapes import (
     topology,
 )
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared"
+DATA = Path(__file__).resolve().parent / "data"   # body volumes shipped with the tests (README there)
 CURVE = ("pkd6", "d6i1d", "ack3")
 N_RANDOM = 2000
 
@@ -90,13 +90,13 @@ def test_random_volumes_keep_topology_and_are_thin(method, random_pack):
 
 
 def _bodies():
-    return sorted(SHARED.glob("data/body_tpose_*.npz"), key=lambda p: int(p.stem.split("_")[-1]))
+    return sorted(DATA.glob("body_tpose_*.npz"), key=lambda p: int(p.stem.split("_")[-1]))
 
 
 @pytest.mark.parametrize("method", METHODS)
 def test_body_volumes(method):
     paths = [p for p in _bodies() if int(p.stem.split("_")[-1]) <= 200]
-    assert paths, "../shared/data/body_tpose_*.npz not found"
+    assert paths, "tests/data/body_tpose_*.npz not found"
     for p in paths:
         v = np.load(p)["volume"]
         r = thinning(v, method)
@@ -192,7 +192,7 @@ def test_48_cube_symmetries_keep_topology_and_thinness(method):
 def test_optimizations_do_not_change_the_result(method):
     vols = random_volumes(150, seed=9)
     big, _ = pack(vols)
-    body = np.load(SHARED / "data" / "body_tpose_100.npz")["volume"]
+    body = np.load(DATA / "body_tpose_100.npz")["volume"]
     for v in (big, body):
         ref = thin(v, method)
         for bl in (True, False):
@@ -282,7 +282,7 @@ def test_cli_skeleton(tmp_path):
     from topopose.cli import main
     from topopose.hull import Volume
 
-    v = np.load(SHARED / "data" / "body_tpose_64.npz")["volume"]
+    v = np.load(DATA / "body_tpose_64.npz")["volume"]
     Volume(v, (1.0, 2.0, 3.0), 0.5).save(tmp_path / "v.npz")
     for m in ("pkd6", "d6i1d"):
         assert main(["skeleton", str(tmp_path / "v.npz"), "--method", m, "--out", str(tmp_path / "s.npz")]) == 0

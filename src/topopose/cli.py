@@ -1,4 +1,4 @@
-"""The ``topopose`` command (DESIGN.md, "Command line").
+"""topopose: markerless pose initialization from multi-camera silhouettes (visual hull, thinning, tree alignment).
 
 Each sub-command is a thin wrapper over the Python API of one stage.
 Exit status: 0 all frames processed, 1 some frames failed, 2 unusable input.
@@ -9,6 +9,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from . import _paths
 from .errors import InputError
 
 METHODS_THIN = ["d6i1d", "pkd6", "d6u", "d6i2d", "ack3"]
@@ -23,9 +24,18 @@ def _size(text: str) -> tuple[int, int]:
     return w, h
 
 
+def _npz(path) -> Path:
+    """Volume files end in .npz (numpy adds it otherwise)."""
+    p = Path(path)
+    return p if p.suffix == ".npz" or p.is_dir() else p.with_name(p.name + ".npz")
+
+
 # --------------------------------------------------------------------------- handlers
 def cmd_demo(a):
     from .pose.demo import run_demo
+
+    _paths.writable_folder(a.dir, "DIR")
+    _paths.check_resolution(a.resolution)
 
     return run_demo(a.dir, frames=a.frames, resolution=a.resolution, seed=a.seed, noise=a.noise,
                     subjects=a.subjects.split(",") if a.subjects else None)
@@ -34,6 +44,11 @@ def cmd_demo(a):
 def cmd_synth(a):
     from .capture.synth import synthesize
 
+    _paths.writable_folder(a.out, "OUT")
+    old = [p for p in ("calibration.toml", "silhouettes", "images", "gt.json") if (Path(a.out) / p).exists()]
+    if old and not a.force:
+        raise InputError(f"synth: {a.out} already holds a capture ({', '.join(old)}); "
+                         "give --force to replace it, or another folder")
     out = synthesize(a.out, subject=a.subject, frames=a.frames, seed=a.seed, cameras=a.cameras,
                      size=a.size, noise=a.noise, motion=a.motion, thickness=a.thickness,
                      separated=a.separated, fps=a.fps, margin=a.margin, build=a.build)
@@ -45,11 +60,14 @@ def cmd_hull(a):
     from .capture import load_capture
     from .hull import visual_hull
 
+    _paths.check_resolution(a.resolution)
+    out = _paths.writable_output(_npz(a.out), "--out")
     cap = load_capture(a.capture)
-    vol = visual_hull(cap, a.frame, resolution=a.resolution, tolerance=a.tolerance,
+    tolerance = _paths.check_tolerance(a.tolerance, len(cap.cameras))
+    vol = visual_hull(cap, a.frame, resolution=a.resolution, tolerance=tolerance,
                       refocus=a.refocus)
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    vol.save(a.out)
+    with _paths.atomic_output(out) as tmp:
+        vol.save(tmp)
     d = vol.diagnostics
     extra = f", {len(d['components_dropped'])} small components dropped" if d.get("components_dropped") else ""
     border = ", touches the volume border" if d.get("touches_border") else ""
@@ -62,9 +80,11 @@ def cmd_skeleton(a):
     from .hull import Volume
     from .topology import thin
 
+    out = _paths.writable_output(_npz(a.out), "--out")
     vol = Volume.load(a.volume)
     skel = thin(vol.data, method=a.method)
-    Volume(skel, vol.origin, vol.voxel_size).save(a.out)
+    with _paths.atomic_output(out) as tmp:
+        Volume(skel, vol.origin, vol.voxel_size).save(tmp)
     print(f"wrote {a.out}: {int(skel.sum())} skeleton voxels ({a.method})")
     return 0
 
@@ -79,16 +99,20 @@ def cmd_tree(a):
         except ValueError:
             raise InputError("--resolutions: expected integers separated by commas, "
                              f"got {a.resolutions!r}") from None
+        if a.out is not None:
+            _paths.writable_output(a.out, "--out")
         return tree_stats_cli(a.stats, out=a.out, resolutions=res, incomplete=a.border)
     if a.skeleton is None or a.out is None:
         raise InputError("topopose tree: give SKELETON.npz and --out TREE.json (or --stats CAPTURE)")
+    _paths.writable_output(a.out, "--out")
     vol = Volume.load(a.skeleton)
     try:
         tree = data_tree(vol.data, origin=vol.origin, voxel_size=vol.voxel_size, weight=a.weight,
                          border="grid" if a.border else None)
     except InputError as exc:
         raise InputError(f"{a.skeleton}: {exc}") from None
-    tree.save(a.out)
+    with _paths.atomic_output(a.out) as tmp:
+        tree.save(tmp)
     d = tree.diagnostics
     notes = [f"{k.replace('_', ' ')}: {d[k]}" for k in ("cycles_broken", "loops", "small_cycles")
              if d.get(k)]
@@ -126,11 +150,16 @@ def cmd_run(a):
 def cmd_view(a):
     from .viz import view_cli
 
+    _paths.writable_output(a.out, "--out")
+
     return view_cli(a)
 
 
 def cmd_evaluate(a):
     from .pose.quality import evaluate_cli
+
+    if a.out:
+        _paths.writable_folder(a.out, "--out")
 
     return evaluate_cli(a)
 
@@ -156,6 +185,11 @@ def cmd_cluster(a):
 def cmd_learn_model(a):
     from .kinematics import learn_model_cli
 
+    _paths.check_resolution(a.resolution)
+    _paths.writable_output(a.out, "--out")
+    if a.joints:
+        _paths.writable_output(a.joints, "--joints")
+
     return learn_model_cli(a)
 
 
@@ -166,7 +200,8 @@ def cmd_calib(a):
 
 
 def cmd_bench(a):
-    import runpy
+    import os
+    import subprocess
 
     here = Path(__file__).resolve()
     for root in (Path.cwd(), *here.parents):
@@ -180,12 +215,97 @@ def cmd_bench(a):
         scripts = [p for p in scripts if p.stem.startswith(a.stage)]
         if not scripts:
             raise InputError(f"topopose bench: no benchmark named {a.stage!r} in {bdir}")
-    sys.path.insert(0, str(bdir))  # the scripts share benchmarks/_machine.py
-    for p in scripts:
-        print(f"== {p.name}", flush=True)
-        sys.argv = [str(p), *(["--quick"] if a.quick else [])]
-        runpy.run_path(str(p), run_name="__main__")
-    return 0
+    # results go to the tracked benchmarks/results/ only with --save; else to an untracked
+    # folder (benchmarks/results/quick/ is ignored by git)
+    out = bdir / "results" if a.save else bdir / "results" / "quick"
+    _paths.writable_folder(out, "benchmarks/results")
+    env = dict(os.environ, TOPOPOSE_BENCH_RESULTS=str(out))
+    src = str(here.parents[1])               # the package the scripts import: this one
+    env["PYTHONPATH"] = src + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    failed = []
+    for p in scripts:                        # each in its own process: one failing (or calling
+        print(f"== {p.name}", flush=True)    # sys.exit) does not stop the others
+        r = subprocess.run([sys.executable, str(p), *(["--quick"] if a.quick else [])], env=env,
+                           cwd=str(bdir.parent))
+        if r.returncode != 0:
+            failed.append(f"{p.stem} (exit {r.returncode})")
+    print(f"bench: {len(scripts) - len(failed)}/{len(scripts)} benchmarks ran; results in {out}"
+          + (f"; failed: {', '.join(failed)}" if failed else ""))
+    return 1 if failed else 0
+
+
+# --------------------------------------------------------------------------- help texts
+#: help of the options declared without one, per (sub-command, option); options shared by many
+#: sub-commands under (None, option). Filled in by build_parser (so the parser blocks stay short).
+HELP = {
+    (None, "capture"): "capture folder (calibration.toml, silhouettes/ or images/, optional capture.toml)",
+    (None, "--frames"): "frame range (START:STOP[:STEP], indices) or comma-separated frame names",
+    (None, "--resolution"): "voxels along the longest side of the capture volume (default %(default)s)",
+    (None, "--seed"): "random seed (default %(default)s)",
+    (None, "--out"): "output file",
+    (None, "--frame"): "frame name, or its index in the capture",
+    (None, "--model"): "model tree: human, hand, dog, spider or a model TOML file",
+    (None, "--poses"): "poses file written by `topopose run` (JSON Lines)",
+    (None, "--method"): "algorithm (default %(default)s)",
+    ("demo", "dir"): "output folder (default %(default)s); each subject's capture, poses and pictures",
+    ("demo", "--frames"): "frames per subject (default %(default)s)",
+    ("synth", "out"): "capture folder to write (refused if it already holds a capture, see --force)",
+    ("synth", "--subject"): "synthetic subject (default %(default)s)",
+    ("synth", "--frames"): "number of frames (default %(default)s)",
+    ("synth", "--cameras"): "number of cameras on a ring around the volume (default %(default)s)",
+    ("synth", "--motion"): "random poses, or a smooth gait (walk: human, dog, spider; trot: dog; "
+                           "grasp: hand)",
+    ("hull", "--out"): "volume file to write (.npz)",
+    ("skeleton", "volume"): "volume file (.npz) written by `topopose hull`",
+    ("skeleton", "--method"): "thinning: d6i1d (curve skeleton, the pipeline's), pkd6, d6u "
+                              "(ultimate), d6i2d (surface), ack3 (default %(default)s)",
+    ("skeleton", "--out"): "skeleton file to write (.npz)",
+    ("tree", "skeleton"): "skeleton file (.npz) written by `topopose skeleton`",
+    ("tree", "--out"): "tree file to write (.json); with --stats: the figure STATS.png (.md, .json beside)",
+    ("tree", "--weight"): "edge weight: branch length in capture units, or voxel count "
+                          "(default %(default)s)",
+    ("match", "model"): "model tree: human, hand, dog, spider or a model TOML file",
+    ("match", "tree"): "data tree (.json) written by `topopose tree`",
+    ("match", "--method"): "aha (asymmetric homeomorphic alignment), ha (homeomorphic) or "
+                           "alignment (default %(default)s)",
+    ("match", "--cut"): "allow free removal of data subtrees (thesis §9.6)",
+    ("run", "--threshold"): "AHA distance threshold T_d above which a frame is rejected "
+                            "(default: the model's)",
+    ("run", "--output"): "poses file (JSON Lines, one header line then one line per frame; "
+                         "written to OUTPUT.partial and renamed at the end) (default %(default)s)",
+    ("run", "--trc"): "also export the matched frames as TRC (OpenSim, metres, Y up)",
+    ("run", "--csv"): "also export the matched frames as a wide CSV (<part>_x, _y, _z)",
+    ("run", "--c3d"): "also export the matched frames as C3D (pip install topopose[c3d])",
+    ("run", "--workers"): "run the frames in N local worker processes (default %(default)s)",
+    ("run", "--scheduler"): "address of a Dask scheduler (tcp://HOST:8786) to run the frames on",
+    ("run", "--rerun"): "record the run for the rerun viewer (pip install topopose[rerun])",
+    ("view", "--out"): "picture to write (.png)",
+    ("view", "--resolution"): "hull grid (default: the one recorded in the poses)",
+    ("view", "--model"): "model tree (default: guessed from the poses' parts)",
+    ("evaluate", "--out"): "folder for the figures (default: beside the poses file)",
+    ("evaluate", "--tolerance"): "distance within which a part is right (default 0.1 × the "
+                                 "subject's height)",
+    ("learn-model", "--out"): "model file to write (.toml); MODEL.joints.toml is written beside",
+    ("calib import", "files"): "calibration files to convert (Qualisys .qca.txt, EasyMocap "
+                               "intri/extri.yml, OpenCV FileStorage, P matrices)",
+    (None, "poses"): "poses file written by `topopose run` (JSON Lines)",
+    ("bench", "stage"): "benchmark to run (hull, thinning, tree, alignment_speed, ...; default all)",
+    ("bench", "--quick"): "small inputs, a few minutes in all",
+}
+
+
+def _fill_help(parser: argparse.ArgumentParser, name=None) -> None:
+    """Give every option of every sub-command (nested ones too) a help text, from HELP when it
+    has none (``name``: the sub-command, e.g. "run" or "calib import")."""
+    for a in parser._actions:
+        if name is not None and a.help is None and not isinstance(a, argparse._HelpAction):
+            key = a.option_strings[0] if a.option_strings else a.dest
+            a.help = HELP.get((name, key), HELP.get((None, key)))
+            if a.help is None and isinstance(a, argparse._SubParsersAction):
+                a.help = "one of: " + ", ".join(a.choices)
+        if isinstance(a, argparse._SubParsersAction):
+            for sub, sp in a.choices.items():
+                _fill_help(sp, sub if name is None else f"{name} {sub}")
 
 
 # --------------------------------------------------------------------------- parser
@@ -223,6 +343,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --separated: smallest gap between limbs, in metres (e.g. 3 voxels)")
     s.add_argument("--build", choices=["average", "heavy", "child", "lean", "random"], default=None,
                    help="body subject: proportions (default random, drawn from the seed)")
+    s.add_argument("--force", "--overwrite", dest="force", action="store_true",
+                   help="replace the capture already in OUT (its frames are deleted first)")
     s.set_defaults(func=cmd_synth)
 
     s = sub.add_parser("hull", help="volumetric visual hull of one frame")
@@ -385,8 +507,24 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("bench", help="run the benchmarks beside their peers")
     s.add_argument("stage", nargs="?")
     s.add_argument("--quick", action="store_true")
+    s.add_argument("--save", action="store_true",
+                   help="write to the tracked benchmarks/results/ (default: benchmarks/results/quick/, "
+                        "ignored by git)")
     s.set_defaults(func=cmd_bench)
+    _fill_help(p)
     return p
+
+
+def _quiet_broken_pipe() -> int:
+    """stdout closed early (``topopose evaluate ... | head``): exit quietly, as Unix tools do."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())      # no second error when Python flushes stdout
+    except (OSError, ValueError):
+        pass
+    return 141
 
 
 def main(argv=None) -> int:
@@ -396,9 +534,16 @@ def main(argv=None) -> int:
     except InputError as exc:
         print(f"topopose: error: {exc}".replace("\n", " "), file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        return _quiet_broken_pipe()
     except KeyboardInterrupt:
         print("topopose: interrupted", file=sys.stderr)
         return 130
+    except (PermissionError, IsADirectoryError, NotADirectoryError, FileNotFoundError) as exc:
+        # a path the user gave that a handler did not check up front: still one line, exit 2
+        where = exc.filename if exc.filename is not None else ""
+        print(f"topopose: error: {where}: {exc.strerror or exc}".replace("\n", " "), file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

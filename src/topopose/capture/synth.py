@@ -210,8 +210,13 @@ def _grounded(body, subject):
 
 
 def _fit_offset(lo, hi, vlo, vhi, margin, rng, axes):
-    """Random offset putting the box [lo, hi] inside [vlo + margin, vhi - margin] along ``axes``."""
+    """Random offset putting the box [lo, hi] inside [vlo + margin, vhi - margin] along ``axes``;
+    along the other (vertical) axis the box is not moved and must already fit: from the floor
+    ``vlo`` up to ``vhi - margin`` (None when it does not fit)."""
     off = np.zeros(3)
+    for a in set(range(3)) - set(axes):
+        if lo[a] < vlo[a] or hi[a] > vhi[a] - margin:
+            return None
     for a in axes:
         a0 = vlo[a] + margin - lo[a]
         a1 = vhi[a] - margin - hi[a]
@@ -282,8 +287,8 @@ def _motion_frames(subject, motion, n, fps, rng, thickness, vlo, vhi, margin, bu
     lo, hi = ext[:, 0].min(0), ext[:, 1].max(0)
     axes = (0, 1, 2) if subject == "hand" else (0, 1)
     off = _fit_offset(lo, hi, vlo, vhi, margin, rng, axes)
-    if off is None:                              # the path is longer than the volume: grow it
-        off = np.zeros(3)
+    if off is None:                      # the path is longer (or the gait taller) than the volume:
+        off = np.zeros(3)                # grow the volume (written to capture.toml) to hold it all
         for a in axes:
             off[a] = (vlo[a] + vhi[a]) / 2 - (lo[a] + hi[a]) / 2
         vlo = np.minimum(vlo, lo + off - margin)
@@ -466,10 +471,18 @@ def _toml(d, prefix=""):
 
 
 def write_capture(cap: Capture, out) -> Path:
-    """Write an in-memory capture (masks set) as a capture folder."""
+    """Write an in-memory capture (masks set) as a capture folder; a capture already there is
+    replaced (its frame folders deleted first, so no stale frame stays beside the new
+    calibration; ``topopose synth`` asks for ``--force`` before that)."""
+    import shutil
+
     out = Path(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
+        for sub in ("silhouettes", "images", "backgrounds"):
+            if (out / sub).is_dir():
+                shutil.rmtree(out / sub)
+        (out / "gt.json").unlink(missing_ok=True)
     except OSError as exc:
         raise InputError(f"{out}: cannot create the output folder ({exc})") from None
     calib = {}

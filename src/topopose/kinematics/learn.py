@@ -774,6 +774,11 @@ def learn_model(capture, resolution: int = 100, frames=None, *, progress: bool =
     return res
 
 
+#: coherent intervals shorter than this give learned models whose parts may be mislabelled
+#: (issue 13: 6 random frames gave a model that swapped head and hand, yet frames "matched")
+MIN_COHERENT_FRAMES = 10
+
+
 def learn_model_cli(args) -> int:
     """``topopose learn-model CAPTURE --out MODEL.toml [--resolution N] [--joints F.jsonl]
     [--frames RANGE] [--coherence frequent|human] [--criterion correlation|rigidity]``.
@@ -791,6 +796,11 @@ def learn_model_cli(args) -> int:
     from ..capture import load_capture
 
     cap = load_capture(args.capture)
+    synth = (cap.gt or {}).get("synth") or {} if isinstance(cap.gt, dict) else {}
+    if synth.get("motion") == "random":
+        raise InputError(f"{args.capture}: learn-model needs a motion sequence, and this synthetic "
+                         "capture holds independent random poses (gt.json synth.motion = 'random'): "
+                         "no motion to learn the rigid parts from; try `topopose synth DIR --motion walk`")
     frames = None
     if getattr(args, "frames", None):
         from ..pose.run import select_frames
@@ -817,4 +827,10 @@ def learn_model_cli(args) -> int:
     if res.status != "ok":
         print(f"topopose: warning: {res.message}", file=sys.stderr)
         return 1
+    longest = max((b - a for a, b in res.intervals), default=0)
+    if longest < MIN_COHERENT_FRAMES:
+        print(f"topopose: warning: the longest topologically coherent interval has {longest} frames "
+              f"(fewer than {MIN_COHERENT_FRAMES}): too short to tell the rigid parts apart "
+              "reliably (parts may be mislabelled, e.g. head and hand swapped); learn from a longer "
+              "sequence of smooth motion", file=sys.stderr)
     return 0

@@ -803,10 +803,57 @@ def align(pattern, data, method: str = "aha", pattern_root=None, data_root=None,
     >>> align(P, D, method="aha").distance
     0.0
     """
-    m = Matcher(pattern, method=method, cut=cut, gamma=gamma, pattern_root=pattern_root, up=up, rtol=rtol)
+    m = _cached_matcher(pattern, method, cut, gamma, pattern_root, up, rtol)
     al = m.align(data, data_root=data_root)
     for c in m.betweenness:
         from .betweenness import apply_betweenness
 
         al = apply_betweenness(al, m.pattern, as_tree(data, name="data"), c)
     return al
+
+
+#: the Matchers of the last patterns :func:`align` saw (bounded LRU keyed by content)
+_MATCHERS: "OrderedDict" = None
+MATCHER_CACHE_SIZE = 16
+
+
+def _pattern_key(pattern):
+    """Content key of a pattern: its edges, root and constraints (None when unhashable)."""
+    tree, root, cons = _model_parts(pattern)
+    try:
+        key = (tuple((u, v, float(w)) for u, v, w in tree.edges), tuple(tree.vertices), root,
+               tuple(repr(c) for c in cons))
+        hash(key)
+    except TypeError:
+        return None
+    return key
+
+
+def _cached_matcher(pattern, method, cut, gamma, pattern_root, up, rtol) -> Matcher:
+    """The :class:`Matcher` of this pattern and these options, reused across calls: the plain
+    ``align(model, tree)`` called again and again with one model prepares the model once."""
+    global _MATCHERS
+    from collections import OrderedDict
+
+    if _MATCHERS is None:
+        _MATCHERS = OrderedDict()
+    pkey = _pattern_key(pattern)
+    try:
+        key = (pkey, method, bool(cut), gamma, pattern_root, tuple(np.ravel(up).tolist())
+               if not isinstance(up, str) else up, float(rtol))
+        hash(key)
+    except TypeError:
+        key = None
+    if pkey is None or key is None:
+        return Matcher(pattern, method=method, cut=cut, gamma=gamma, pattern_root=pattern_root, up=up,
+                       rtol=rtol)
+    m = _MATCHERS.get(key)
+    if m is None:
+        m = Matcher(pattern, method=method, cut=cut, gamma=gamma, pattern_root=pattern_root, up=up,
+                    rtol=rtol)
+        _MATCHERS[key] = m
+        while len(_MATCHERS) > MATCHER_CACHE_SIZE:
+            _MATCHERS.popitem(last=False)
+    else:
+        _MATCHERS.move_to_end(key)
+    return m

@@ -39,6 +39,11 @@ def run_demo(out="topopose-demo", frames=6, resolution=100, seed=0, subjects=Non
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
+    from .. import _coldstart
+
+    if _coldstart.start_warmup().proc is not None:   # first run: built while the capture is made
+        print_fn("first run: compiling kernels and building the thinning look-up tables "
+                 "(once; cached on disk)…")
     print_fn(f"topopose demo: {len(subjects)} synthetic subjects ({', '.join(subjects)}) × {frames} "
              f"frames, {cameras} cameras {size[0]}×{size[1]}, silhouette noise {noise}, grid "
              f"{resolution}³ → {out.resolve()}")
@@ -55,18 +60,19 @@ def run_demo(out="topopose-demo", frames=6, resolution=100, seed=0, subjects=Non
                   trc=cap_dir / "poses.trc", csv=cap_dir / "poses.csv", progress=progress)
         status = max(status, res.exit_status)
         ev = evaluate(cap.gt, res.poses, model=model)
-        plot_quality([(f"{subject} {resolution}³", ev)], cap_dir / "quality.png")
+        plot_quality([(f"{subject} {resolution}³", ev)], cap_dir / "quality.png",
+                     threshold=model.threshold)
         plot_distances(res.poses, cap_dir / "distances.png", evaluation=ev,
                        threshold=model.threshold, title=f"{subject}: AHA distance per frame")
-        good = {f.frame for f in ev.frames if f.quality == "good"}
-        ok = [p for p in res.poses if p.status == "matched" and p.frame in good] or \
-             [p for p in res.poses if p.status == "matched"] or \
-             [p for p in res.poses if p.status != "failed"] or res.poses
-        best = min(ok, key=lambda p: (p.distance is None, p.distance or 0))   # pictured frame
         est = FrameEstimator(cap, model, resolution)
-        _, det = est.estimate(best.frame, detail=True)
-        pic = render_frame(cap_dir / f"frame_{best.frame}.png", model, best, det, cap=cap,
-                           silhouettes=True, up=cap.up_vector)
+        pic = []
+        for kind, pose in _pictured(res.poses, ev):          # a typical frame and the worst
+            _, det = est.estimate(pose.frame, detail=True)
+            pic.append(render_frame(cap_dir / f"frame_{pose.frame}_{kind}.png", model, pose, det,
+                                    cap=cap, silhouettes=True, up=cap.up_vector,
+                                    title=f"{subject} frame {pose.frame} ({kind}: {pose.status}"
+                                          + (f", distance {pose.distance:.3f}"
+                                             if pose.distance is not None else "") + ")"))
         first = res.poses[0].frame if res.poses else None       # includes Numba compilation
         comp = [p.timings_ms.get("total", 0) for p in res.poses
                 if p.status != "failed" and (p.frame != first or len(res.poses) == 1)]
@@ -88,9 +94,35 @@ def run_demo(out="topopose-demo", frames=6, resolution=100, seed=0, subjects=Non
     for subject, res, ev, _, secs, _, pic in rows:
         d = out / subject
         print_fn(f"{subject}: capture {d}/  poses {d / 'poses.jsonl'}  exports poses.trc, poses.csv")
-        print_fn(f"{' ' * len(subject)}  pictures {pic.name}, distances.png, quality.png  ({secs:.1f} s)")
+        print_fn(f"{' ' * len(subject)}  pictures {', '.join(x.name for x in pic)}, distances.png, "
+                 f"quality.png  ({secs:.1f} s)")
     print_fn("")
     print_fn(f"done in {time.perf_counter() - t_start:.0f} s. Next: `topopose view {out / 'human'} "
              f"--poses {out / 'human' / 'poses.jsonl'} --frame 000000 --out frame.png`, or "
              f"`topopose run YOUR_CAPTURE --model human`.")
     return status
+
+
+_ORDER = ("good", "missing limb", "partial", "misplaced", "bad", "none")
+
+
+def _pictured(poses, ev):
+    """The frames the demo draws: a typical one (the median distance among the frames of the
+    most common quality class) and the worst one (worst class, then largest distance, failed
+    frames first). One picture when they coincide."""
+    if not poses:
+        return []
+    q = {f.frame: f.quality for f in ev.frames}
+    rank = {c: i for i, c in enumerate(_ORDER)}
+
+    def badness(p):
+        return (p.status == "failed", rank.get(q.get(p.frame, "none"), len(_ORDER)),
+                p.distance if p.distance is not None else float("inf"))
+
+    worst = max(poses, key=badness)
+    classes = [q.get(p.frame, "none") for p in poses if p.status != "failed"]
+    common = max(set(classes), key=classes.count) if classes else None
+    pool = sorted((p for p in poses if p.status != "failed" and q.get(p.frame, "none") == common),
+                  key=lambda p: (p.distance is None, p.distance or 0.0)) or [worst]
+    typical = pool[len(pool) // 2]
+    return [("typical", typical)] + ([("worst", worst)] if worst.frame != typical.frame else [])

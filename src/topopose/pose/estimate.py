@@ -150,6 +150,7 @@ class FrameEstimator:
                           if junction_centroid else set())
         self.up = np.asarray(cap.up_vector, dtype=float)
         self.matcher = Matcher(self.pattern, method="aha", cut=False, up=self.up)
+        self.warmup = None      # first run: the helper process of topopose._coldstart.start_warmup
         self.thickness_profile = (THICKNESS.get(self.model.name) if thickness_profile is None
                                   else dict(thickness_profile))
         if thickness is None:
@@ -223,10 +224,15 @@ class FrameEstimator:
                 timings["fill"] = (time.perf_counter() - t0) * 1e3
             t0 = time.perf_counter()
             keep = None if self.model.complete else arm_keep(vol)
+            if self.warmup is not None:
+                self.warmup.wait_tables()
             skel = thin(vol, method=self.thinning, keep=keep)
             timings["thinning"] = (time.perf_counter() - t0) * 1e3
             det.skeleton = skel
             stage = "tree"
+            if self.warmup is not None:       # its tree and alignment kernels are now cached
+                self.warmup.wait_all()
+                self.warmup = None
             t0 = time.perf_counter()
             # incomplete model: the skeleton end pinned where the infinite limb leaves the
             # grid is the border vertex (a mask, not "grid": fingertips touching the grid

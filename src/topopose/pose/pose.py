@@ -89,9 +89,32 @@ class Pose:
                    diagnostics=dict(d.get("diagnostics") or {}))
 
 
+def is_header(d) -> bool:
+    """The optional first line of a poses file: ``{"topopose": version, "model": ...}`` (what
+    made the file: model, model_hash, resolution, capture, settings; see ``run``)."""
+    return isinstance(d, dict) and "topopose" in d and "frame" not in d
+
+
+def read_header(path) -> dict | None:
+    """The header line of a poses file (None for a file without one, or an empty file)."""
+    try:
+        with open(path) as fh:
+            first = fh.readline()
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such poses file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read poses ({exc})") from None
+    try:
+        d = json.loads(first)
+    except json.JSONDecodeError:
+        return None
+    return d if is_header(d) else None
+
+
 def read_poses(path, strict: bool = True) -> list:
     """Read a poses ``.jsonl`` file (one :class:`Pose` per line), sorted by frame.
 
+    A header line (:func:`is_header`) is skipped (files with and without one are read).
     ``strict=False`` skips an unreadable *last* line (a run interrupted mid-write).
     Later lines win when a frame appears twice.
     """
@@ -112,16 +135,20 @@ def read_poses(path, strict: bool = True) -> list:
             if not strict and i == len(lines) - 1:
                 break
             raise InputError(f"{path}: line {i + 1} is not JSON ({exc})") from None
+        if is_header(d):
+            continue
         p = Pose.from_dict(d, source=f"{path}: line {i + 1}")
         poses[p.frame] = p
     return [poses[k] for k in sorted(poses)]
 
 
-def write_poses(path, poses) -> None:
-    """Write poses as JSON Lines, sorted by frame (atomic replace)."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w") as fh:
+def write_poses(path, poses, header: dict | None = None) -> None:
+    """Write poses as JSON Lines, sorted by frame, after the optional ``header`` line
+    (written to a temporary file renamed over ``path``: an existing file is never half-written)."""
+    from .._paths import atomic_output
+
+    with atomic_output(path) as tmp, open(tmp, "w") as fh:
+        if header is not None:
+            fh.write(json.dumps(header, separators=(",", ":")) + "\n")
         for p in sorted(poses, key=lambda p: p.frame):
             fh.write(p.to_json() + "\n")
-    tmp.replace(path)

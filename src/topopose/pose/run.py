@@ -71,6 +71,7 @@ def select_frames(cap, frames) -> list:
     step, if any, is in frames; times and indices mix, e.g. ``"2s:"``), or ``"f1,f2"``."""
     if frames is None:
         return list(cap.frames)
+    given = frames
     if isinstance(frames, str):
         text = frames.strip()
         if ":" in text:
@@ -90,7 +91,9 @@ def select_frames(cap, frames) -> list:
             if not out:
                 raise InputError(f"--frames: {frames!r} selects no frame ({len(cap.frames)} frames)")
             return out
-        frames = [f for f in text.split(",") if f.strip()]
+        frames = [f.strip() for f in text.split(",") if f.strip()]
+    if not frames:
+        raise InputError(f"--frames: {given!r} selects no frame")
     out = [cap.frame_name(int(f) if isinstance(f, str) and f.isdigit() and f not in cap.frames
                           else f) for f in frames]
     return out
@@ -143,8 +146,9 @@ def _progress(total, enabled, desc):
         return None
     from tqdm import tqdm
 
+    # smoothing 0: the rate is frames over time since the end of the first frame (see run)
     return tqdm(total=total, unit="frame", desc=desc, dynamic_ncols=True, file=sys.stderr,
-                smoothing=0.1)
+                smoothing=0)
 
 
 def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
@@ -193,10 +197,17 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     RunResult
         ``.exit_status`` is 1 when some frames failed.
     """
+    from .. import _paths
     from ..capture import Capture, load_capture
 
+    # ---- every argument and output checked before any work or any write
+    if workers is None or isinstance(workers, bool) or int(workers) < 1:
+        raise InputError(f"--workers: must be at least 1, got {workers}")
+    resolution = _paths.check_resolution(resolution)
+    threshold = _paths.check_threshold(threshold)
     m = load_model(model, constraints=constraints)
     cap = capture if isinstance(capture, Capture) else load_capture(capture)
+    tolerance = _paths.check_tolerance(tolerance, len(cap.cameras))
     options = {"betweenness": betweenness, "relation": relation, "max_missing": max_missing,
                "thinning": thinning, "tolerance": tolerance, "gate": gate}
     if refocus:
@@ -204,30 +215,41 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     if thickness is not None:
         options["thickness"] = float(thickness)
     todo = select_frames(cap, frames)
-    if workers is None or workers < 1:
-        raise InputError(f"--workers: must be at least 1, got {workers}")
     if c3d is not None:
         from .export import require_c3d
         require_c3d()
-
+    if trc is not None or c3d is not None:
+        from .export import metres_per_unit
+        metres_per_unit(cap.units)
+    exports = {k: _paths.writable_output(v, f"--{k}") for k, v in
+               (("trc", trc), ("csv", csv), ("c3d", c3d)) if v is not None}
+    out = _paths.writable_output(output, "--output") if output is not None else None
+    header = run_header(cap, m, resolution, threshold, options)
     done = {}
-    out = Path(output) if output is not None else None
-    if out is not None:
-        if out.parent and not out.parent.exists():
-            out.parent.mkdir(parents=True, exist_ok=True)
-        if resume and out.exists():
-            for p in read_poses(out, strict=False):
-                done[p.frame] = p
-            write_poses(out, done.values())       # drops a half-written last line
-        elif out.exists():
-            out.unlink()
+    partial = out.with_name(out.name + ".partial") if out is not None else None
+    if out is not None and resume:
+        for f in (out, partial):         # the .partial file of a killed run holds its frames
+            if f.exists():
+                check_resume(f, header, m)
+                for p in read_poses(f, strict=False):
+                    done[p.frame] = p
     skipped = [f for f in todo if f in done]
     todo = [f for f in todo if f not in done]
 
+    # ---- the run: frames appended (and flushed) to a temporary file beside the output, which
+    # replaces the output at the end — also on Ctrl-C or an error, so nothing computed is lost;
+    # a killed process leaves the existing output as it was (and the partial file beside it)
     results = dict(done)
     t0 = time.perf_counter()
-    fh = open(out, "a") if out is not None else None
+    fh = None
+    if partial is not None:
+        fh = open(partial, "w")
+        fh.write(json.dumps(header, separators=(",", ":")) + "\n")
+        for p in sorted(done.values(), key=lambda p: p.frame):
+            fh.write(p.to_json() + "\n")
+        fh.flush()
     bar = _progress(len(todo), progress and len(todo) > 0, f"{m.name} @ {resolution}³")
+    first = [True]
 
     def finish(pose: Pose):
         results[pose.frame] = pose
@@ -236,47 +258,111 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
             fh.flush()
         if bar is not None:
             bar.update(1)
+            if first[0]:        # the ETA counts from the end of the first frame, which pays
+                first[0] = False          # the first run's compilation and tables
+                bar.start_t = bar.last_print_t = bar._time()
+                bar.initial = bar.n
             bar.set_postfix(status=pose.status[:7], refresh=False)
         if on_pose is not None:
             on_pose(pose)
 
-    try:
-        if todo and (workers > 1 or scheduler):
-            _run_dask(cap, m, resolution, threshold, options, todo, workers, scheduler, finish)
-        elif todo:
-            from ..capture import prefetch
+    def note(message):
+        if bar is not None:
+            bar.set_postfix_str(message)
 
-            est = FrameEstimator(cap, m, resolution, threshold, **options)
-            with prefetch(cap, todo):        # decoding + silhouettes run ahead in a thread
-                for f in todo:
-                    finish(est.estimate(f))
+    from .. import _coldstart
+
+    try:
+        with _coldstart.notices(note):
+            if todo and (workers > 1 or scheduler):
+                _run_dask(cap, m, resolution, threshold, options, todo, workers, scheduler, finish)
+            elif todo:
+                from ..capture import prefetch
+
+                warm = _coldstart.start_warmup()     # first run: a helper process
+                try:
+                    est = FrameEstimator(cap, m, resolution, threshold, **options)
+                    est.warmup = warm
+                    with prefetch(cap, todo):        # decoding + silhouettes run ahead in a thread
+                        for f in todo:
+                            finish(est.estimate(f))
+                finally:
+                    warm.close()
     finally:
         if bar is not None:
             bar.close()
+        from .confidence import temporal_confidence      # time factors need the whole run
+        temporal_confidence(list(results.values()), {f: i for i, f in enumerate(cap.frames)},
+                            gate=gate and m.name == "human")
         if fh is not None:
             fh.close()
+            if len(results) > len(done) or not out.exists() or resume:
+                write_poses(out, results.values(), header)   # sorted, atomic replace
+            partial.unlink(missing_ok=True)
     seconds = time.perf_counter() - t0
-    from .confidence import temporal_confidence
-    temporal_confidence(list(results.values()), {f: i for i, f in enumerate(cap.frames)},
-                        gate=gate and m.name == "human")
-    if out is not None:
-        write_poses(out, results.values())
     poses = [results[k] for k in sorted(results)]
     counts = {s: sum(p.status == s for p in poses) for s in ("matched", "rejected", "failed")}
     res = RunResult(poses, out, computed=len(todo), skipped=len(skipped), seconds=seconds,
                     counts=counts)
     units = cap.units
     fps = cap.fps or 25.0
-    if trc is not None:
-        from .export import write_trc
-        write_trc(trc, poses, m.parts, fps=fps, units=units, up=cap.up)
-    if csv is not None:
-        from .export import write_csv
-        write_csv(csv, poses, m.parts)
-    if c3d is not None:
-        from .export import write_c3d
-        write_c3d(c3d, poses, m.parts, fps=fps, units=units)
+    from .export import write_c3d, write_csv, write_trc
+    writers = {"trc": lambda t: write_trc(t, poses, m.parts, fps=fps, units=units, up=cap.up),
+               "csv": lambda t: write_csv(t, poses, m.parts),
+               "c3d": lambda t: write_c3d(t, poses, m.parts, fps=fps, units=units)}
+    for k, path in exports.items():
+        with _paths.atomic_output(path) as t:
+            writers[k](t)
     return res
+
+
+def _hash(obj) -> str:
+    import hashlib
+
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def run_header(cap, model, resolution, threshold, options) -> dict:
+    """The poses file's first line: what made it (``--resume`` refuses another model,
+    resolution, capture or setting)."""
+    from .. import __version__
+
+    calib = None
+    if cap.path is not None:
+        f = Path(cap.path) / "calibration.toml"
+        if f.is_file():
+            import hashlib
+            calib = hashlib.sha256(f.read_bytes()).hexdigest()[:16]
+    return {"topopose": __version__, "model": model.name, "model_hash": _hash(model.to_dict()),
+            "resolution": int(resolution),
+            "capture": str(Path(cap.path).resolve()) if cap.path is not None else None,
+            "calibration_hash": calib, "up": cap.up, "threshold": threshold,
+            "settings": {k: v for k, v in sorted(options.items())}}
+
+
+def check_resume(out, header, model):
+    """Refuse to resume ``out`` when it was made with another model, resolution, capture or
+    setting (its header says so; a file without a header must at least hold the model's parts)."""
+    from .pose import read_header
+
+    old = read_header(out)
+    if old is None:
+        for p in read_poses(out, strict=False)[:1]:
+            if set(p.parts) != set(model.parts):
+                raise InputError(f"--resume: {out} holds poses of other parts "
+                                 f"({', '.join(sorted(p.parts))}), not of model {model.name!r}; "
+                                 "use another --output")
+        return
+    for key, name in (("model_hash", "model"), ("resolution", "resolution"),
+                      ("capture", "capture"), ("calibration_hash", "calibration"),
+                      ("threshold", "threshold"), ("settings", "settings")):
+        a, b = old.get(key), header.get(key)
+        if key == "capture" and (a is None or b is None):
+            continue
+        if a != b:
+            shown = {"model_hash": (old.get("model"), header.get("model"))}.get(key, (a, b))
+            raise InputError(f"--resume: {out} was made with another {name} ({shown[0]!r}, now "
+                             f"{shown[1]!r}); use another --output or run without --resume")
 
 
 def _run_dask(cap, model, resolution, threshold, options, todo, workers, scheduler, finish):
@@ -291,8 +377,17 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
             raise InputError(f"--scheduler: cannot reach Dask scheduler {scheduler!r} ({exc})") from None
         cluster = None
     else:
-        cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=40)
+        # the worker processes ignore Ctrl-C (inherited SIG_IGN): only this process gets the
+        # KeyboardInterrupt, and closes the cluster quietly, instead of every worker and nanny
+        # printing its own traceback
+        import signal
+
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=40)
+        finally:
+            signal.signal(signal.SIGINT, old)
         client = Client(cluster)
     try:
         spec_f = client.scatter([spec], broadcast=True)[0] if "capture" in spec else spec
@@ -305,19 +400,48 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
                 pose = Pose(frame, "failed", None, {p: None for p in model.parts},
                             f"worker: {type(exc).__name__}: {exc}")
             finish(pose)
+    except KeyboardInterrupt:
+        import logging
+
+        for name in ("distributed", "tornado", "asyncio"):   # shutting down mid-task: quiet
+            logging.getLogger(name).setLevel(logging.CRITICAL)
+        raise
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        try:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        except Exception:       # noqa: BLE001  a cluster closing mid-task may complain
+            pass
+
+
+#: ``topopose run --workers N`` uses N local processes only for at least this many frames per
+#: worker. benchmarks/workers.py (2 cores, load ~2, 100³): one process 10 ms per frame (its
+#: prefetch thread already uses the second core); two workers cost ~1.5 s to start and then run
+#: at ~9.6 ms per frame, so they win only from ~2,500 frames (40 frames: 4× slower, 200: 1.6×).
+#: Workers pay off with more cores or on a cluster (``--scheduler``).
+MIN_FRAMES_PER_WORKER = 1000
 
 
 def run_cli(a) -> int:
     """``topopose run``: prints a summary; exit 1 when some frames failed."""
+    workers = a.workers
+    if workers and workers > 1 and not a.scheduler:
+        from ..capture import load_capture
+
+        n = len(select_frames(load_capture(a.capture), getattr(a, "frames", None)))
+        if n < MIN_FRAMES_PER_WORKER * workers:
+            print(f"topopose: note: --workers {workers}: {n} frames run faster in this process "
+                  f"(starting {workers} worker processes costs more than they save below "
+                  f"{MIN_FRAMES_PER_WORKER * workers} frames)", file=sys.stderr)
+            workers = 1
     if getattr(a, "rerun", None):
+        from .._paths import writable_output
         from ..viz.rerun import require_rerun
         require_rerun()                      # fail before the run, not after
+        writable_output(a.rerun, "--rerun")
     res = run(a.capture, model=a.model, resolution=a.resolution, threshold=a.threshold,
-              output=a.output, frames=getattr(a, "frames", None), workers=a.workers,
+              output=a.output, frames=getattr(a, "frames", None), workers=workers,
               scheduler=a.scheduler, resume=a.resume, progress=True, trc=a.trc, csv=a.csv,
               c3d=getattr(a, "c3d", None),
               constraints=not getattr(a, "no_constraints", False),
@@ -346,11 +470,15 @@ def summary_text(res: RunResult) -> str:
     n = len(res.poses)
     comp = [p for p in res.poses if p.status != "failed" and p.timings_ms.get("total")]
     fps = ""
-    if comp:
-        import numpy as np
+    if res.computed and res.seconds > 0:      # the real rate: frames over wall time
+        rate = res.computed / res.seconds
+        fps = f" ({rate:.{1 if rate >= 1 else 3}f} frames/s"
+        if comp:
+            import numpy as np
 
-        t = float(np.median([p.timings_ms["total"] for p in comp]))
-        fps = f"; median {t:.1f} ms/frame ({1000 / t:.0f} frames/s per core)"
+            t = float(np.median([p.timings_ms["total"] for p in comp]))
+            fps += f"; median {t:.1f} ms/frame in the estimator"
+        fps += ")"
     where = f" → {res.output}" if res.output else ""
     skipped = f" ({res.skipped} resumed)" if res.skipped else ""
     return (f"{n} frames{skipped}: {c.get('matched', 0)} matched, {c.get('rejected', 0)} rejected, "

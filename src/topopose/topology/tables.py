@@ -87,6 +87,9 @@ def load_tables() -> np.ndarray:
                 return np.asarray(arr)  # plain read-only ndarray view of the map
         except (OSError, ValueError):
             pass
+    from .._coldstart import say
+
+    say("building the thinning look-up tables (first run only, ~10 s)…")
     tab = generate_tables()
     _save(path, tab)
     tab.setflags(write=False)

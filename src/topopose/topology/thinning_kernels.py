@@ -410,7 +410,9 @@ def _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tco
     stats[1] = tests
     stats[2] = itests
     if finish:
-        stats[4] = sequential_completion(vol, lst, n, offs, tables, lut, finish == 1)
+        # np.int64(n): n's type is int64, never the literal 0 of an early typing pass (which
+        # made Numba compile the completion twice on the first run)
+        stats[4] = sequential_completion(vol, lst, np.int64(n), offs, tables, lut, finish == 1)
         total += stats[4]
     return iterations, total
 

@@ -78,6 +78,31 @@ def draw_model_tree(ax, model, colours):
     ax.axis("off")
 
 
+def _label_positions(points: dict):
+    """Label anchors pushed outwards from the parts' centre (so neighbouring parts' labels do
+    not sit on each other), then spread vertically where two still come close."""
+    if not points:
+        return []
+    P = np.array(list(points.values()), dtype=float)
+    c = P.mean(0)
+    ext = max(float(np.ptp(P, axis=0).max()), 1e-6)
+    out = []
+    for (name, w) in points.items():
+        d = w - c
+        d[2] *= 0.3                                  # mostly sideways
+        n = np.linalg.norm(d)
+        d = d / n if n > 1e-9 else np.array([1.0, 0, 0])
+        out.append([name, w + d * 0.12 * ext, "left" if d[0] >= 0 else "right"])
+    gap = 0.06 * ext                                 # spread labels closer than this
+    out.sort(key=lambda t: t[1][2])
+    for i in range(1, len(out)):
+        for j in range(i):
+            a, b = out[j][1], out[i][1]
+            if np.linalg.norm((a - b)[:2]) < 2 * gap and abs(a[2] - b[2]) < gap:
+                b[2] = a[2] + gap
+    return [tuple(t) for t in out]
+
+
 def render_frame(path, model, pose, detail=None, cap=None, silhouettes=False, up=(0, 0, 1),
                  title=None, max_hull_points=12000):
     """Draw one frame to ``path`` (PNG).
@@ -113,7 +138,7 @@ def render_frame(path, model, pose, detail=None, cap=None, silhouettes=False, up
             surf = surf[np.random.default_rng(0).choice(len(surf), max_hull_points, replace=False)]
         if len(surf):
             w = vol.world(surf) @ R.T
-            ax.scatter(w[:, 0], w[:, 1], w[:, 2], s=2.5, color="#6baed6", alpha=0.10,
+            ax.scatter(w[:, 0], w[:, 1], w[:, 2], s=4, color="#4292c6", alpha=0.22,
                        depthshade=False, label="visual hull", rasterized=True)
             pts_all.append(w)
         if detail.skeleton is not None:
@@ -149,8 +174,10 @@ def render_frame(path, model, pose, detail=None, cap=None, silhouettes=False, up
         w = np.asarray(x) @ R.T
         ax.scatter([w[0]], [w[1]], [w[2]], s=90, color=colours.get(p, "k"), edgecolors="k",
                    depthshade=False, zorder=5)
-        ax.text(w[0], w[1], w[2], "  " + str(p), fontsize=9, fontweight="bold", zorder=6)
         pts_all.append(w[None])
+    for p, w, ha in _label_positions({p: np.asarray(x) @ R.T for p, x in placed.items()}):
+        ax.text(w[0], w[1], w[2], str(p), fontsize=9, fontweight="bold", zorder=6, ha=ha,
+                va="center", bbox=dict(fc="white", ec="none", alpha=0.75, pad=0.8))
     if pts_all:
         allp = np.concatenate(pts_all)
         lo, hi = allp.min(0), allp.max(0)
@@ -241,12 +268,15 @@ def view_cli(a) -> int:
     tol = pose.diagnostics.get("hull_tolerance")
     est = FrameEstimator(cap, model, res, tolerance=None if tol is None else int(tol))
     _, det = est.estimate(frame, detail=True)
-    if getattr(a, "segmentation", False):
-        from ..pose.segment import segmentation_figure
+    from .._paths import atomic_output
 
-        segmentation_figure(a.out, cap, frame, model, det, up=cap.up_vector)
-        print(f"wrote {a.out}")
-        return 0
-    render_frame(a.out, model, pose, det, cap=cap, silhouettes=a.silhouettes, up=cap.up_vector)
+    with atomic_output(a.out) as tmp:      # an existing picture is replaced only when done
+        if getattr(a, "segmentation", False):
+            from ..pose.segment import segmentation_figure
+
+            segmentation_figure(tmp, cap, frame, model, det, up=cap.up_vector)
+        else:
+            render_frame(tmp, model, pose, det, cap=cap, silhouettes=a.silhouettes,
+                         up=cap.up_vector)
     print(f"wrote {a.out}")
     return 0

@@ -1,0 +1,52 @@
+"""Ctrl-C during `topopose run --workers 2` (issue 13: ~60 lines of Dask tracebacks): one line,
+exit 130, no traceback, and the frames done so far are kept in the output."""
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+SRC = str(Path(__file__).resolve().parents[1] / "src")
+
+DRIVER = r"""
+import importlib, sys
+R = importlib.import_module("topopose.pose.run")
+R.MIN_FRAMES_PER_WORKER = 0            # use the workers even for this small capture
+from topopose.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.slow
+def test_ctrl_c_with_workers_is_one_line(tmp_path):
+    from topopose.capture import synthesize
+
+    cap = synthesize(tmp_path / "cap", subject="human", frames=40, seed=2, cameras=6,
+                     size=(240, 180), separated=True)
+    out = tmp_path / "p.jsonl"
+    env = dict(os.environ, PYTHONPATH=SRC)
+    p = subprocess.Popen([sys.executable, "-c", DRIVER, "run", str(cap), "--workers", "2",
+                          "--resolution", "260", "--output", str(out)], env=env,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    partial = tmp_path / "p.jsonl.partial"
+    t0 = time.time()
+    while time.time() - t0 < 120:          # wait for the first frames (cluster up and working)
+        if partial.exists() and len(partial.read_text().splitlines()) >= 2:   # header + a frame
+            break
+        if p.poll() is not None:
+            break
+        time.sleep(0.2)
+    assert p.poll() is None, "the run ended before it could be interrupted"
+    os.killpg(p.pid, signal.SIGINT)        # Ctrl-C reaches the whole process group
+    _, err = p.communicate(timeout=120)
+    err = err.decode().replace("\r", "\n")
+    assert "faster in this process" not in err               # the Dask workers did run
+    lines = [x for x in err.splitlines() if x.strip() and "frame/s" not in x and "/40 [" not in x]
+    assert p.returncode == 130, err[-2000:]
+    assert "Traceback" not in err and lines == ["topopose: interrupted"], err[-2000:]
+    from topopose.pose import read_poses
+
+    assert len(read_poses(out)) >= 1 and not partial.exists()      # nothing computed is lost

@@ -97,7 +97,9 @@ def make_capture(rec: Path, out: Path, method: str, extra: str = "") -> None:
 def summarize(poses, ref, frames_index) -> dict:
     errs, right, matched_right, matched = [], 0, 0, 0
     per = {k: [] for k in ("head", "hand", "foot")}
-    rows = []
+    from topopose.pose.confidence import MIN_CONFIDENCE
+
+    rows, gated, gated_right = [], 0, 0
     for p in poses:
         i = frames_index[p.frame]
         e = frame_errors(p.parts, ref, i) if p.status != "failed" else None
@@ -106,6 +108,9 @@ def summarize(poses, ref, frames_index) -> dict:
         if p.status == "matched":
             matched += 1
             matched_right += ok
+            if (p.diagnostics.get("confidence") or 0) >= MIN_CONFIDENCE:   # run --confidence-gate
+                gated += 1
+                gated_right += ok
         if e is not None:
             per["head"].append(e["head"])
             per["hand"] += [e["hand_L"], e["hand_R"]]
@@ -125,6 +130,8 @@ def summarize(poses, ref, frames_index) -> dict:
     return {"frames": n, "matched": matched, "matched_share": round(matched / n, 3),
             "right": right, "right_share": round(right / n, 3),
             "matched_precision": round(matched_right / matched, 3) if matched else None,
+            "gated_matched": gated,
+            "gated_precision": round(gated_right / gated, 3) if gated else None,
             "failed": sum(p.status == "failed" for p in poses), "errors": stats, "rows": rows}
 
 
@@ -157,7 +164,7 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
             for f in frames[1:]:
                 poses.append(est.estimate(f))
             t_rest = time.perf_counter() - t1
-    temporal_confidence(poses, {f: i for i, f in enumerate(cap.frames)})
+    temporal_confidence(poses, {f: i for i, f in enumerate(cap.frames)}, gate=False)  # as `run`
     idx = {f: i for i, f in enumerate(cap.frames)}
     res = summarize(poses, ref, idx)
     stages = {}
@@ -307,14 +314,16 @@ def report(doc) -> str:
          f"{doc['hand_extension_m']} m beyond it; feet: ankle → big toe). Errors in metres over "
          "all processed frames (rejected frames' best guesses included).", "",
          "| silhouettes | matched | right (target ≥ 70 %) | precision of matched (target ≥ 95 %) "
-         "| head med / p90 | hands med / p90 | feet med / p90 | failed |",
-         "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+         "| matched with --confidence-gate | head med / p90 | hands med / p90 | feet med / p90 "
+         "| failed |",
+         "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for name, r in doc["methods"].items():
         e = r["errors"]
         f = lambda k: f"{e[k]['median']} / {e[k]['p90']}"
         prec = "—" if r["matched_precision"] is None else f"{100 * r['matched_precision']:.0f} %"
+        gp = "" if r.get("gated_precision") is None else f" ({100 * r['gated_precision']:.0f} % right)"
         L.append(f"| {name} | {r['matched']}/{r['frames']} | {100 * r['right_share']:.0f} % | "
-                 f"{prec} | {f('head')} | {f('hand')} | {f('foot')} | {r['failed']} |")
+                 f"{prec} | {r.get('gated_matched', 0)}{gp} | {f('head')} | {f('hand')} | {f('foot')} | {r['failed']} |")
     L += ["", "## Speed (one process)", "",
           "| silhouettes | set-up s (background) | first frame s incl. set-up (target ≤ 2) "
           "| ms/frame after | end-to-end frames/s (target ≥ 20) | stage medians ms "

@@ -38,15 +38,20 @@ def _natural_key(s: str):
     return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", s)]
 
 
-def _list_images(folder: Path) -> dict:
+def _list_files(folder: Path, extensions, what: str) -> dict:
+    """``{stem: path}`` of the files of ``folder`` with one of ``extensions``; two files with
+    the same stem are an error (``what``: "images for frame", "videos for camera")."""
     out = {}
-    for p in folder.iterdir():
-        if p.is_file() and not p.name.startswith(".") and p.suffix.lower() in IMAGE_EXTENSIONS:
+    for p in sorted(folder.iterdir()):
+        if p.is_file() and not p.name.startswith(".") and p.suffix.lower() in extensions:
             if p.stem in out:
-                raise InputError(f"{folder}: two images for frame {p.stem!r} "
-                                 f"({out[p.stem].name}, {p.name})")
+                raise InputError(f"{folder}: two {what} {p.stem!r} ({out[p.stem].name}, {p.name})")
             out[p.stem] = p
     return out
+
+
+def _list_images(folder: Path) -> dict:
+    return _list_files(folder, IMAGE_EXTENSIONS, "images for frame")
 
 
 def _norm_name(s: str) -> str:
@@ -100,14 +105,7 @@ def _missing_entry(where: Path, cam, table, what: str) -> InputError:
 
 
 def _list_videos(folder: Path) -> dict:
-    out = {}
-    for p in sorted(folder.iterdir()):
-        if p.is_file() and not p.name.startswith(".") and p.suffix.lower() in VIDEO_EXTENSIONS:
-            if p.stem in out:
-                raise InputError(f"{folder}: two videos for camera {p.stem!r} "
-                                 f"({out[p.stem].name}, {p.name})")
-            out[p.stem] = p
-    return out
+    return _list_files(folder, VIDEO_EXTENSIONS, "videos for camera")
 
 
 def size_policy(cap: Capture, camera: str) -> str:

@@ -471,32 +471,10 @@ def load_library(path=None) -> tuple[dict, dict]:
 
 # ----------------------------------------------------------------------------- sequences
 def read_poses_file(path):
-    """Poses of a ``poses.jsonl`` and its header (a first line without ``"frame"``, or {})."""
-    from .pose import Pose
+    """Poses of a ``poses.jsonl`` (sorted by frame) and its header line ({} without one)."""
+    from .pose import read_header, read_poses
 
-    path = Path(path)
-    try:
-        lines = path.read_text().splitlines()
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such poses file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read poses ({exc})") from None
-    header, poses = {}, {}
-    for i, line in enumerate(lines):
-        if not line.strip():
-            continue
-        try:
-            d = json.loads(line)
-        except json.JSONDecodeError as exc:
-            if i == len(lines) - 1:
-                break                            # a run interrupted mid-write
-            raise InputError(f"{path}: line {i + 1} is not JSON ({exc})") from None
-        if isinstance(d, dict) and "frame" not in d and not poses:
-            header = d
-            continue
-        p = Pose.from_dict(d, source=f"{path}: line {i + 1}")
-        poses[p.frame] = p
-    return [poses[k] for k in sorted(poses)], header
+    return read_poses(path, strict=False), read_header(path) or {}
 
 
 def header_up(header: dict):

@@ -325,6 +325,21 @@ class FrameEstimator:
                      "hull_tolerance": self.tolerance})
 
 
+def path_length(adj, u, v):
+    """Length of the path from ``u`` to ``v`` in a tree given as ``{vertex: [(neighbour,
+    weight), ...]}`` (``Tree.adjacency()``), or None when they are not connected."""
+    seen, stack = {u: 0.0}, [u]
+    while stack:
+        x = stack.pop()
+        if x == v:
+            return seen[x]
+        for y, w in adj[x]:
+            if y not in seen:
+                seen[y] = seen[x] + w
+                stack.append(y)
+    return None
+
+
 def betweenness_by_lengths(al, pattern, data, constraint):
     """Apply a betweenness constraint (thesis §12.2.2), choosing by limb lengths among the
     co-optimal alignments that satisfy it.
@@ -362,18 +377,7 @@ def betweenness_by_lengths(al, pattern, data, constraint):
     dadj = data.adjacency()
 
     def tree_dist(u, v):
-        if u is None or v is None:
-            return None
-        seen, stack = {u: 0.0}, [u]
-        while stack:
-            x = stack.pop()
-            if x == v:
-                return seen[x]
-            for y, w in dadj[x]:
-                if y not in seen:
-                    seen[y] = seen[x] + w
-                    stack.append(y)
-        return None
+        return None if u is None or v is None else path_length(dadj, u, v)
 
     def score(cand, use):
         d = {p: tree_dist(cand.mapping.get(base[p]), cand.mapping.get(p)) for p in use}

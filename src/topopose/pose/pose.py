@@ -91,8 +91,9 @@ class Pose:
 
 def is_header(d) -> bool:
     """The optional first line of a poses file: ``{"topopose": version, "model": ...}`` (what
-    made the file: model, model_hash, resolution, capture, settings; see ``run``)."""
-    return isinstance(d, dict) and "topopose" in d and "frame" not in d
+    made the file: model, model_hash, resolution, capture, settings; see ``run``). Any JSON
+    object without ``"frame"`` counts (another tool's header); every pose line has one."""
+    return isinstance(d, dict) and "frame" not in d
 
 
 def read_header(path) -> dict | None:

@@ -24,27 +24,16 @@ __all__ = ["edge_lengths", "subject_model", "two_pass"]
 def edge_lengths(model: Model, alignment, data) -> dict:
     """Length of every finite model edge in one matched frame: the data-tree path between the
     images of its two parts (normalized weights), or None when a part is unplaced."""
+    from .estimate import path_length
+
     adj = data.adjacency()
-
-    def dist(u, v):
-        seen, stack = {u: 0.0}, [u]
-        while stack:
-            x = stack.pop()
-            if x == v:
-                return seen[x]
-            for y, w in adj[x]:
-                if y not in seen:
-                    seen[y] = seen[x] + w
-                    stack.append(y)
-        return None
-
     out = {}
     m = alignment.mapping
     for u, v, w in model.tree.edges:
         if not math.isfinite(w):
             continue
         a, b = m.get(u), m.get(v)
-        out[(u, v)] = None if a is None or b is None else dist(a, b)
+        out[(u, v)] = None if a is None or b is None else path_length(adj, a, b)
     return out
 
 

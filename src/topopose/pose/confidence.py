@@ -18,12 +18,12 @@ what each stage knows, as a product of factors in [0, 1]:
   frames ≤ 0.1): independent poses (synthetic "random" captures) get no time factor.
 
 The confidence is reported for every frame. With the gate on (``FrameEstimator(gate=True)``,
-``topopose run --confidence-gate``; off by default), ``matched`` for the human model also needs
-confidence ≥ ``min_confidence``. It is off by default because on the anatomically real ``body``
-subject it does not separate right from wrong (4 builds × 2 seeds × 12 frames, 100³, noise 1,
-0.08 × height, with the thickness arc cost; TP rate / FP per match): limbs apart 0.885 / 0.045
-without the gate, 0.448 / 0.044 with it; all poses 0.490 / 0.175 → 0.135 / 0.071. Other
-models report the confidence without gating (it was calibrated on human subjects only; give
+``topopose run --confidence-gate on``), ``matched`` for the human model also needs confidence ≥
+``min_confidence``. By default the gate is on with fewer than 6 cameras only
+(:func:`topopose.pose.estimate.default_gate`, which gives the measurements): with 8 cameras on
+the anatomically real ``body`` it halves the right frames for no precision gain; with 4 cameras
+(``body``, and the real recording) it removes wrong matches. Other models report the
+confidence without gating (it was calibrated on human subjects only; give
 ``FrameEstimator(min_confidence=…)`` to gate them). The form of f_d, the factor bases and
 ``min_confidence`` = 0.7 were chosen on synthetic captures only (a factor 0.8 per spurious
 skeleton branch beyond the model's leaves was tried and dropped: it halved the matched frames

@@ -154,7 +154,7 @@ def _progress(total, enabled, desc):
 def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
-        tolerance=None, refocus=False, on_pose=None, gate=False, thickness=None) -> RunResult:
+        tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -185,10 +185,11 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         (thesis §13.2.2.1; as ``topopose hull --refocus``).
     on_pose : callable, optional
         Called with each :class:`Pose` as it finishes (e.g. a live viewer).
-    gate : bool
+    gate : bool or None
         ``matched`` also needs the frame's confidence (:mod:`.confidence`, with the time
         factors computed over the run at the end) above its minimum; False: the confidence is
-        reported only.
+        reported only; None: :func:`~topopose.pose.estimate.default_gate` (on with fewer than
+        6 cameras).
     thickness : float or None
         Weight of the thickness term of the arc cost (see :class:`FrameEstimator`); 0: off.
 
@@ -208,6 +209,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     m = load_model(model, constraints=constraints)
     cap = capture if isinstance(capture, Capture) else load_capture(capture)
     tolerance = _paths.check_tolerance(tolerance, len(cap.cameras))
+    if gate is None:
+        from .estimate import default_gate
+        gate = default_gate(cap)
     options = {"betweenness": betweenness, "relation": relation, "max_missing": max_missing,
                "thinning": thinning, "tolerance": tolerance, "gate": gate}
     if refocus:
@@ -447,7 +451,7 @@ def run_cli(a) -> int:
               constraints=not getattr(a, "no_constraints", False),
               tolerance=getattr(a, "tolerance", None),
               refocus=getattr(a, "refocus", False),
-              on_pose=None, gate=getattr(a, "confidence_gate", False),
+              on_pose=None, gate={"on": True, "off": False}.get(getattr(a, "confidence_gate", "auto")),
               thickness=getattr(a, "thickness", None))
     if getattr(a, "rerun", None):
         from ..viz.rerun import record_run

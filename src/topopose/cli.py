@@ -253,6 +253,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="visual hull: keep voxels seen by C-k cameras (default 1 with >= 6 cameras, else 0)")
     s.add_argument("--rerun", metavar="FILE.rrd")
     s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
+    s.add_argument("--track", action=argparse.BooleanOptionalAction, default=True,
+                   help="sequences: numbered parts keep their identity over time (default on)")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("view", help="render one frame as a PNG")

@@ -124,7 +124,7 @@ def _progress(total, enabled, desc):
 def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
-        tolerance=None, on_pose=None) -> RunResult:
+        tolerance=None, on_pose=None, track=True) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -152,6 +152,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         cameras, else 0 (see :class:`FrameEstimator`).
     on_pose : callable, optional
         Called with each :class:`Pose` as it finishes (e.g. a live viewer).
+    track : bool
+        Sequences (more than one frame): give the numbered parts stable identities over time
+        (:func:`topopose.pose.track.track`); the output file is rewritten with them.
 
     Returns
     -------
@@ -217,6 +220,11 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     if out is not None:
         write_poses(out, results.values())
     poses = [results[k] for k in sorted(results)]
+    if track and len(poses) > 1:
+        from .track import track as track_identities
+        poses = track_identities(poses, m)
+        if out is not None:
+            write_poses(out, poses)
     counts = {s: sum(p.status == s for p in poses) for s in ("matched", "rejected", "failed")}
     res = RunResult(poses, out, computed=len(todo), skipped=len(skipped), seconds=seconds,
                     counts=counts)
@@ -277,7 +285,7 @@ def run_cli(a) -> int:
               c3d=getattr(a, "c3d", None),
               constraints=not getattr(a, "no_constraints", False),
               tolerance=getattr(a, "tolerance", None),
-              on_pose=None)
+              on_pose=None, track=getattr(a, "track", True))
     if getattr(a, "rerun", None):
         from ..viz.rerun import record_run
         record_run(a.rerun, a.capture, res.poses, model=a.model, resolution=a.resolution,

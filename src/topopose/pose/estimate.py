@@ -129,6 +129,8 @@ class FrameEstimator:
         self.up = np.asarray(cap.up_vector, dtype=float)
         self.matcher = Matcher(self.pattern, method="aha", cut=False, up=self.up)
 
+    curves = True    # record the skeleton curve of each matched arc (pose.curves)
+
     # ------------------------------------------------------------------ stages
     def hull(self, frame):
         """Visual hull of ``frame`` on the capture's grid.
@@ -258,6 +260,14 @@ class FrameEstimator:
                 "data_vertices": data.n_vertices, "missing": missing}
         if unordered:
             diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
+        if self.curves:
+            # skeleton curve of each matched arc, for left/right and the kinematic fit (§13.3.1)
+            from .curves import arc_curves
+            try:
+                diag["curves"] = arc_curves(skel, vol.origin, vol.voxel_size, data, al,
+                                            self.model, parts)
+            except Exception as exc:           # never costs the frame its pose
+                diag["curves_error"] = f"{type(exc).__name__}: {exc}"
         pose = Pose(name, status, dist, parts, error, timings, diag)
         return (pose, det) if detail else pose
 

@@ -83,12 +83,14 @@ def test_run_good_capture_writes_poses_and_exports(capture_dir, tmp_path, capsys
     printed = capsys.readouterr().out
     assert f"{FRAMES} frames" in printed and "matched" in printed
     names, times, a = read_trc(trc)
-    assert names[0] == "head" and len(times) == FRAMES
+    assert names[0] == "Head" and len(times) == FRAMES        # OpenSim marker names
     m = [i for i, p in enumerate(poses) if p.status == "matched"]
     assert m, "at least one matched frame"
     i = m[0]
     # TRC is y-up metres: its y is the capture's z
     assert np.isclose(a[i, 0, 1], poses[i].parts["head"][2], atol=1e-5)
+    # the full skeleton: every joint of the model in every matched frame, and in the TRC
+    assert len(poses[i].joints) == 20 and "Neck" in names and "chest" in names
     assert len(csvp.read_text().splitlines()) == FRAMES + 1
 
 

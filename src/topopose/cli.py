@@ -255,6 +255,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
     s.add_argument("--track", action=argparse.BooleanOptionalAction, default=True,
                    help="sequences: numbered parts keep their identity over time (default on)")
+    s.add_argument("--sides", action=argparse.BooleanOptionalAction, default=True,
+                   help="name mirror pairs left_/right_ from geometry (default on)")
+    s.add_argument("--skeleton", action=argparse.BooleanOptionalAction, default=True,
+                   help="fit the full kinematic skeleton (joints; default on)")
+    s.add_argument("--smooth", type=int, default=None, metavar="FRAMES",
+                   help="Savitzky-Golay window smoothing the skeleton")
+    s.add_argument("--bvh", help="BVH export of the fitted skeleton (Blender)")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("view", help="render one frame as a PNG")

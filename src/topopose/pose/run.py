@@ -124,7 +124,8 @@ def _progress(total, enabled, desc):
 def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
-        tolerance=None, on_pose=None, track=True) -> RunResult:
+        tolerance=None, on_pose=None, track=True, sides=True, skeleton=True, smooth=None,
+        bvh=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -155,6 +156,14 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     track : bool
         Sequences (more than one frame): give the numbered parts stable identities over time
         (:func:`topopose.pose.track.track`); the output file is rewritten with them.
+    sides : bool
+        Name the model's mirror pairs left / right (:mod:`topopose.pose.chirality`).
+    skeleton : bool
+        Fit the full kinematic skeleton (:mod:`topopose.pose.kinematic_fit`): ``Pose.joints``.
+    smooth : int, optional
+        Savitzky–Golay window (frames) smoothing the skeleton.
+    bvh : path, optional
+        BVH export of the fitted skeleton (Blender).
 
     Returns
     -------
@@ -173,6 +182,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     if c3d is not None:
         from .export import require_c3d
         require_c3d()
+    if bvh is not None and not (skeleton and m.joints):
+        raise InputError(f"--bvh: model {m.name!r} has no [[joint]] (or --no-skeleton): no "
+                         "skeleton to export")
 
     done = {}
     out = Path(output) if output is not None else None
@@ -220,9 +232,12 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     if out is not None:
         write_poses(out, results.values())
     poses = [results[k] for k in sorted(results)]
-    if track and len(poses) > 1:
-        from .track import track as track_identities
-        poses = track_identities(poses, m)
+    motion = None
+    if track or sides or skeleton:
+        from .motion import process_sequence
+        motion = process_sequence(poses, m, cap.up_vector, track=track, sides=sides,
+                                  skeleton=skeleton, smooth=smooth)
+        poses = motion.poses
         if out is not None:
             write_poses(out, poses)
     counts = {s: sum(p.status == s for p in poses) for s in ("matched", "rejected", "failed")}
@@ -230,16 +245,46 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
                     counts=counts)
     units = cap.units
     fps = cap.fps or 25.0
+    from .export import OPENSIM_LABELS, marker_names
+    markers = marker_names(poses, m.parts)
     if trc is not None:
         from .export import write_trc
-        write_trc(trc, poses, m.parts, fps=fps, units=units, up=cap.up)
+        write_trc(trc, poses, markers, fps=fps, units=units, up=cap.up, labels=OPENSIM_LABELS)
     if csv is not None:
         from .export import write_csv
-        write_csv(csv, poses, m.parts)
+        write_csv(csv, poses, markers)
     if c3d is not None:
         from .export import write_c3d
-        write_c3d(c3d, poses, m.parts, fps=fps, units=units)
+        write_c3d(c3d, poses, markers, fps=fps, units=units, labels=OPENSIM_LABELS)
+    if bvh is not None:
+        write_motion_bvh(bvh, poses, motion, m, fps=fps, units=units, up=cap.up)
     return res
+
+
+def write_motion_bvh(path, poses, motion, model, fps=25.0, units="m", up="+z"):
+    """BVH of the fitted skeleton. Joints carry their side names in the mirror order
+    (``left_elbow`` is ``elbow_1``'s name when ``hand_1`` → ``left_hand``); a frame where the
+    side was not decided uses the numbered joint in its place. Frames without a skeleton repeat
+    the last one (BVH has no gaps; poses.jsonl says which frames were fitted)."""
+    import numpy as np
+
+    from .chirality import joint_renaming
+    from .export import write_bvh
+
+    if motion is None or motion.tree is None:
+        raise InputError("--bvh: no skeleton fitted (the model declares no [[joint]], or "
+                         "--no-skeleton)")
+    tree = motion.tree
+    mapping = {pp: n for parts, names in model.mirrors for pp, n in zip(parts, names)}
+    ren = joint_renaming(model, mapping, tree.names)
+    names = [ren.get(n, n) for n in tree.names]
+    P = np.full((len(poses), len(names), 3), np.nan)
+    for i, p in enumerate(poses):
+        for j, (nm, num) in enumerate(zip(names, tree.names)):
+            v = p.joints.get(nm, p.joints.get(num))
+            if v is not None:
+                P[i, j] = v
+    return write_bvh(path, names, tree.parents, P, fps=fps, units=units, up=up)
 
 
 def _run_dask(cap, model, resolution, threshold, options, todo, workers, scheduler, finish):
@@ -285,7 +330,9 @@ def run_cli(a) -> int:
               c3d=getattr(a, "c3d", None),
               constraints=not getattr(a, "no_constraints", False),
               tolerance=getattr(a, "tolerance", None),
-              on_pose=None, track=getattr(a, "track", True))
+              on_pose=None, track=getattr(a, "track", True),
+              sides=getattr(a, "sides", True), skeleton=getattr(a, "skeleton", True),
+              smooth=getattr(a, "smooth", None), bvh=getattr(a, "bvh", None))
     if getattr(a, "rerun", None):
         from ..viz.rerun import record_run
         record_run(a.rerun, a.capture, res.poses, model=a.model, resolution=a.resolution,
@@ -296,7 +343,7 @@ def run_cli(a) -> int:
         print(f"  failed {p.frame}: {p.error}")
     if len(res.failed) > 10:
         print(f"  ... {len(res.failed) - 10} more failed frames (see {a.output})")
-    extra = [x for x in (a.trc, a.csv, getattr(a, "c3d", None)) if x]
+    extra = [x for x in (a.trc, a.csv, getattr(a, "c3d", None), getattr(a, "bvh", None)) if x]
     if extra:
         print("exports: " + ", ".join(str(x) for x in extra))
     return res.exit_status

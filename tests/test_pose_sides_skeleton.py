@@ -120,13 +120,13 @@ def test_dog_sides_from_its_axis():
     assert np.allclose(out.parts["left_hind_paw"], parts["paw_3"])
 
 
-def _true_joints(parts, curves, tree):
-    """Joints of the hand-made body at their declared fractions (exact: curves are polylines)."""
-    from topopose.pose.kinematic_fit import _along
-    out = {}
-    for j, ((u, v), t) in enumerate(zip(tree.arc, tree.at)):
-        out[tree.names[j]] = _along(curves[v], t)
-    return out
+def _true_joints(pose, tree):
+    """Joints of the hand-made rigid body where the model declares them: at their fractions of
+    the noise-free curves (exact: the curves are polylines), shoulders and hips moved by their
+    offsets. The body is rigid, so these bone lengths are constant over the frames."""
+    from topopose.pose.kinematic_fit import initial_placement
+    P = initial_placement(pose, tree)
+    return {n: P[j] for j, n in enumerate(tree.names)}
 
 
 def test_kinematic_tree_of_the_models():
@@ -155,7 +155,7 @@ def test_fit_constant_bone_lengths_recovers_joints_and_fills_gaps():
         pose, m = _numbered_frame(f"{i:06d}", parts, curves, False, False)
         noisy = {k: v + rng.normal(scale=0.003, size=v.shape) for k, v in
                  pose.diagnostics["curves"].items()}
-        truth.append(_true_joints(pose.parts, pose.diagnostics["curves"], tree))
+        truth.append(_true_joints(pose, tree))
         pose.diagnostics["curves"] = noisy
         poses.append(pose)
     poses[3].status = "rejected"                            # a gap to fill

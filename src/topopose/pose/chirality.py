@@ -14,10 +14,10 @@ Per frame, from the skeleton curves of the matched arcs (:mod:`.curves`) alone:
 
 The frame's signed score is ``(1 - e^{-|f|/f0}) (1 - e^{-|s|/s0})`` with the sign of the
 lateral difference ``s``: near 0 when the facing is weak (both feet end-on) or the pair is
-side by side along the facing. Over a sequence, the frames of one tracking segment
-(:mod:`.track`: the identities are the same) add their scores, so time only steadies the
-per-frame decision; a frame whose (summed) confidence stays below ``min_confidence`` keeps the
-numbered names.
+side by side along the facing. Over a sequence, a frame whose own score is weak (below
+``strong``) takes the sum of the scores of its tracking segment (:mod:`.track`: the identities
+are the same), so time only steadies the per-frame decision; a frame whose confidence stays
+below ``min_confidence`` keeps the numbered names.
 """
 from __future__ import annotations
 
@@ -117,7 +117,7 @@ def _joint_on(model, base, stem):
     return any(js.name == base and stem in js.arc for js in model.joints)
 
 
-def assign_sides(poses, model, up, min_confidence=0.3, use_time=True) -> list:
+def assign_sides(poses, model, up, min_confidence=0.3, use_time=True, strong=0.5) -> list:
     """Name the mirror pairs left / right in every matched frame (see the module docstring).
 
     Parameters
@@ -128,6 +128,8 @@ def assign_sides(poses, model, up, min_confidence=0.3, use_time=True) -> list:
     up : the capture's up vector
     min_confidence : below it a frame keeps the numbered names
     use_time : sum the scores over each tracking segment
+    strong : a frame whose own score reaches this keeps its own decision (a tracking segment
+        may join unrelated poses: captures of unrelated frames)
 
     Returns
     -------
@@ -153,7 +155,7 @@ def assign_sides(poses, model, up, min_confidence=0.3, use_time=True) -> list:
                 continue
             seg = (p.diagnostics.get("track") or {}).get(stem) if use_time else None
             key = ("seg", seg) if seg is not None else ("frame", p.frame)
-            z = seg_sum[key]
+            z = sc[i_pair] if abs(sc[i_pair]) >= strong else seg_sum[key]
             conf = float(min(1.0, abs(z)))
             if conf >= min_confidence:
                 mapping = ({parts[0]: names[0], parts[1]: names[1]} if z > 0

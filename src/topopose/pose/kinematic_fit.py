@@ -7,7 +7,9 @@ The model TOML declares joints at relative positions along its arcs (``[[joint]]
 they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
 
 1. **Initial placement** — every joint at its relative arc length ``at`` on the skeleton curve
-   of its arc (:mod:`.curves`); ``at = 1`` is the arc's end part.
+   of its arc (:mod:`.curves`); ``at = 1`` is the arc's end part. A joint beside the curve
+   (``offset``: shoulders and hips lie beside the curve's path from the chest junction) is moved
+   along the trunk and away from its mirror partner by the declared fractions of the trunk.
 2. **Bone lengths** — each bone's median over the matched frames of the initial placement, a
    mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length; constant over the
    sequence.
@@ -16,7 +18,8 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    arc chain by arc chain from the root down, by :func:`scipy.optimize.least_squares` on: the
    distance of every curve sample to the chain of joints along its arc (the kinematic chain
    follows the skeleton curve), the distance of each joint to its initial placement (weight 1
-   for joints on parts, ``inner_weight`` between) and a gauge term ``|d| - 1``.
+   for joints on parts and joints with an offset, ``inner_weight`` for the others) and a gauge
+   term ``|d| - 1``.
 4. **Gaps** — stretches of at most ``max_gap`` unfitted frames between fitted ones are filled
    by interpolating the root position and the bone directions (normalized linear), flagged
    ``diagnostics["interpolated"] = true``; never silently. Optional Savitzky–Golay smoothing
@@ -46,6 +49,8 @@ class KinematicTree:
     parents: list
     arc: list
     at: list
+    offset: list = None            # (along the trunk, outward) per joint, in trunk lengths
+    trunk: tuple = ()              # (from part, to part)
 
     @property
     def root(self) -> int:
@@ -84,7 +89,7 @@ def kinematic_tree(model) -> KinematicTree:
     if not model.joints:
         raise InputError(f"model {model.name!r}: no [[joint]] declared; the full skeleton needs "
                          "joints along the arcs (see topopose.pose.model)")
-    names, base, arc, at = [], [], [], []
+    names, base, arc, at, offset = [], [], [], [], []
     arcs = model_arcs(model)
     for u, v in arcs:
         for js in model.joints:
@@ -101,6 +106,7 @@ def kinematic_tree(model) -> KinematicTree:
                     suffix = "_" + str(part).rpartition("_")[2]
                     break
             names.append(js.name + suffix)
+            offset.append(tuple(float(x) for x in js.offset))
             base.append(js.name)
             arc.append((u, v))
             at.append(t)
@@ -138,7 +144,8 @@ def kinematic_tree(model) -> KinematicTree:
         roots = [names[j] for j, p in enumerate(parents) if p == -1]
         raise InputError(f"model {model.name!r}: the joints form {len(roots)} trees (roots "
                          f"{roots}); put a joint at at = 0 or 1 where arcs meet")
-    return KinematicTree(names, base, parents, arc, at)
+    return KinematicTree(names, base, parents, arc, at, offset,
+                         tuple(model.facing.get("trunk", ())))
 
 
 def _along(curve, t):
@@ -158,6 +165,28 @@ def initial_placement(pose, tree: KinematicTree) -> np.ndarray:
         c = curves.get(v)
         if c is not None:
             out[j] = _along(c, t)
+    if tree.trunk and any(any(o) for o in tree.offset):
+        a, b = (pose.parts.get(x) for x in tree.trunk)
+        if a is None or b is None:
+            return out
+        ax = np.asarray(b, float) - np.asarray(a, float)
+        S = float(np.linalg.norm(ax))
+        if S <= 0:
+            return out
+        ax /= S
+        moved = out.copy()
+        for j, (along, outward) in enumerate(tree.offset):
+            if not (along or outward) or np.isnan(out[j]).any():
+                continue
+            moved[j] = out[j] + along * S * ax
+            mates = [k for k in range(len(tree.names)) if k != j and tree.base[k] == tree.base[j]]
+            if outward and len(mates) == 1 and not np.isnan(out[mates[0]]).any():
+                lat = out[j] - out[mates[0]]
+                lat -= np.dot(lat, ax) * ax
+                n = np.linalg.norm(lat)
+                if n > 0:
+                    moved[j] += outward * S * lat / n
+        out = moved
     return out
 
 
@@ -213,7 +242,8 @@ def fit_frame(target, curves, L, tree: KinematicTree, start=None, inner_weight=0
     n = len(tree.names)
     P = np.full((n, 3), np.nan)
     P[tree.root] = target[tree.root]
-    w = np.where(np.array([t in (0.0, 1.0) for t in tree.at]), 1.0, inner_weight)
+    w = np.where(np.array([t in (0.0, 1.0) or any(o) for t, o in zip(tree.at, tree.offset)]),
+                 1.0, inner_weight)
     rms = []
     for (u, v), js in tree.chains().items():
         if np.isnan(P[js[0]]).any():

@@ -42,6 +42,9 @@ File format (TOML, DESIGN.md "Model tree file")::
     name = "elbow"
     arc = ["torso", "hand"] # a model edge; a numbered stem ("hand") stands for each member
     at = 0.55               # relative position along the arc's skeleton curve (0: first part)
+    offset = [0.2, 0.1]     # optional: joint beside the curve, in trunk lengths: along the
+                            # trunk ([facing] trunk = [from, to]) and outward (away from the
+                            # same joint of the mirror partner); e.g. shoulders, hips
 
 Mirror pairs: once :mod:`.chirality` knows the subject's left, ``parts[0]`` (the one on the
 subject's left) is output as ``names[0]`` and ``parts[1]`` as ``names[1]``; the numbered
@@ -72,8 +75,8 @@ _MODEL_KEYS = {"name", "root", "complete", "threshold", "description", "parts"}
 _EDGE_KEYS = {"parts", "length"}
 _CONSTRAINT_KEYS = {"kind", "parts", "axis", "relation"}
 _MIRROR_KEYS = {"parts", "names"}
-_FACING_KEYS = {"feet", "axis"}
-_JOINT_KEYS = {"name", "arc", "at"}
+_FACING_KEYS = {"feet", "axis", "trunk"}
+_JOINT_KEYS = {"name", "arc", "at", "offset"}
 
 
 @dataclass(frozen=True)
@@ -84,6 +87,7 @@ class JointSpec:
     name: str
     arc: tuple
     at: float
+    offset: tuple = (0.0, 0.0)     # (along the trunk, outward from the mirror partner) × trunk
 
 
 @dataclass
@@ -201,6 +205,7 @@ class Model:
             out["facing"] = {k: list(v) for k, v in self.facing.items()}
         if self.joints:
             out["joint"] = [{"name": j.name, "arc": list(j.arc), "at": float(j.at)}
+                            | ({"offset": [float(x) for x in j.offset]} if any(j.offset) else {})
                             for j in self.joints]
         return out
 
@@ -274,8 +279,8 @@ def validate_model(m: Model) -> None:
             raise InputError(f"{where}: [facing] has unknown field {k!r}; expected feet, axis")
         if not isinstance(v, (list, tuple)) or not all(p in adj for p in v):
             raise InputError(f"{where}: facing.{k} must list parts of the model, got {v!r}")
-        if k == "axis" and len(v) != 2:
-            raise InputError(f"{where}: facing.axis must be two parts [from, to], got {v!r}")
+        if k in ("axis", "trunk") and len(v) != 2:
+            raise InputError(f"{where}: facing.{k} must be two parts [from, to], got {v!r}")
     stems = {}
     for p in adj:
         stems.setdefault(_stem(p), []).append(p)
@@ -283,6 +288,12 @@ def validate_model(m: Model) -> None:
         jw = f"{where}: joint[{i}]"
         if not isinstance(j.name, str) or not j.name:
             raise InputError(f"{jw}: field 'name' must be a non-empty string")
+        if (not isinstance(j.offset, (list, tuple)) or len(j.offset) != 2
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                           for x in j.offset)):
+            raise InputError(f"{jw}: field 'offset' must be two numbers [along, outward]")
+        if any(j.offset) and len(m.facing.get("trunk", ())) != 2:
+            raise InputError(f"{jw}: an offset needs [facing] trunk = [from, to] (two parts)")
         if (not isinstance(j.arc, (list, tuple)) or len(j.arc) != 2
                 or not all(isinstance(x, str) for x in j.arc)):
             raise InputError(f"{jw}: field 'arc' must be two part names (or numbered stems)")
@@ -429,10 +440,13 @@ def model_from_dict(d: dict, source: str = "model") -> Model:
     if not isinstance(facing, dict):
         raise InputError(f"{source}: [facing] must be a table (feet, axis)")
     for i, j in enumerate(d.get("joint") or []):
-        if not isinstance(j, dict) or set(j) != _JOINT_KEYS:
-            raise InputError(f"{source}: joint[{i}]: expected a table with exactly name, arc, at")
+        if not isinstance(j, dict) or not {"name", "arc", "at"} <= set(j) <= _JOINT_KEYS:
+            raise InputError(f"{source}: joint[{i}]: expected a table with name, arc, at "
+                             "(and optional offset)")
+        off = j.get("offset", (0.0, 0.0))
         joints.append(JointSpec(j["name"], tuple(j["arc"]) if isinstance(j["arc"], list)
-                                else j["arc"], j["at"]))
+                                else j["arc"], j["at"],
+                                tuple(off) if isinstance(off, list) else off))
     return Model(name=name, tree=tree, root=meta.get("root"), complete=complete,
                  threshold=meta.get("threshold"), description=meta.get("description", ""),
                  source=source, mirrors=mirrors, facing=dict(facing), joints=joints)

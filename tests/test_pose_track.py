@@ -68,10 +68,16 @@ def test_long_gap_and_jump_reinitialize():
     perm, seg = assign_identities(t, obs, gate=0.5, max_gap=5)
     assert [list(p) for p in perm[:5]] == [[0, 1], [0, 1], [0, 1], [1, 0], [0, 1]]
     assert perm[5] is None and list(perm[11]) == [0, 1] and seg[11] == 1 and seg[4] == 0
-    # a jump larger than the gate: lost, re-initialized
-    obs2 = [np.array([[0, 0, 0], [0, 1, 0]], float), np.array([[0, 1, 0], [5, 5, 5]], float)]
-    perm2, seg2 = assign_identities(np.arange(2.0), obs2, gate=0.5)
-    assert list(seg2) == [0, 1] and list(perm2[1]) == [0, 1]
+    # a misplaced part far from every prediction: an outlier, which moves no track
+    obs2 = [np.array([[0, 0, 0], [0, 1, 0]], float), np.array([[0, 1, 0], [5, 5, 5]], float),
+            np.array([[0, 1, 0], [0, 0, 0]], float)]
+    perm2, seg2 = assign_identities(np.arange(3.0), obs2, gate=0.5)
+    assert list(seg2) == [0, 0, 0] and list(perm2[1]) == [1, 0] and list(perm2[2]) == [1, 0]
+    # outliers only, for longer than max_gap: lost, re-initialized by the per-frame order
+    obs3 = [np.array([[0, 0, 0], [0, 1, 0]], float)] + \
+        [np.array([[5, 5, 5], [9, 9, 9]], float)] * 4
+    perm3, seg3 = assign_identities(np.arange(5.0), obs3, gate=0.5, max_gap=2)
+    assert list(seg3) == [0, 0, 0, 1, 1] and list(perm3[3]) == [0, 1]
 
 
 def test_missing_part_keeps_the_others_identity():

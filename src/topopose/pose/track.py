@@ -8,8 +8,10 @@ constant velocity from its last two observations, and the matched frame's parts 
 the identities by the Hungarian method (:func:`scipy.optimize.linear_sum_assignment`) on the
 distances between predictions and observations. Tracking is *lost* — and re-initialized by the
 per-frame numbering, starting a new segment — when the gap since the last matched frame exceeds
-``max_gap`` frames or an assigned distance exceeds ``gate``. Rejected and failed frames are left
-as they are (their parts are not trusted) and do not update the tracks.
+``max_gap`` frames. An assigned observation farther than ``gate`` from its prediction is an
+outlier (a part the per-frame result misplaced): it is named by the assignment but does not
+move its track, which coasts on its prediction. Rejected and failed frames are left as they
+are (their parts are not trusted) and do not update the tracks.
 """
 from __future__ import annotations
 
@@ -65,7 +67,7 @@ def assign_identities(times, observations, gate, max_gap=5):
     times : (n,) frame numbers (increasing)
     observations : list of n entries, each None (frame not usable) or an (k, 3) array of the
         group's k positions in the per-frame numbering (NaN rows: part not placed)
-    gate : largest distance between a prediction and its assigned observation
+    gate : largest distance between a prediction and an observation that updates it
     max_gap : tracking is lost after more than this many frames without observation
 
     Returns
@@ -89,6 +91,7 @@ def assign_identities(times, observations, gate, max_gap=5):
         lost = last is None or len(last) != k or times[i] - np.max(last_t) > max_gap
         if not lost:
             pred = last.copy()                        # constant-velocity prediction
+            pred[times[i] - last_t > max_gap] = np.nan    # stale identity: neutral
             moving = ~np.isnan(prev).any(axis=1) & (last_t > prev_t)
             for a in np.flatnonzero(moving):
                 vel = (last[a] - prev[a]) / (last_t[a] - prev_t[a])
@@ -102,7 +105,11 @@ def assign_identities(times, observations, gate, max_gap=5):
             rows, cols = linear_sum_assignment(cost)
             p = np.empty(k, dtype=int)
             p[cols] = rows
-            lost = any(seen[j] and cost[p[j], j] > gate for j in range(k))
+            # an observation far from its identity's prediction is an outlier (a misplaced part
+            # of the per-frame result): it keeps the name the assignment gives, but does not
+            # move the track; the track coasts until max_gap, then tracking is lost
+            outlier = np.array([seen[j] and cost[p[j], j] > gate for j in range(k)])
+            seen = seen & ~outlier
         if lost:                                      # (re-)initialize: per-frame numbering
             p = np.arange(k)
             seg += 1
@@ -125,7 +132,7 @@ def track(poses, model, max_gap=5, gate=None) -> list:
     poses : list of Pose
     model : Model (its :meth:`~Model.interchangeable` groups are tracked)
     max_gap : frames without a matched observation after which tracking is lost
-    gate : distance above which an assignment means tracking is lost; default 0.25 × the
+    gate : distance above which an assigned observation is an outlier; default 0.25 × the
         median extent of the subject (:func:`body_scale`)
 
     Returns

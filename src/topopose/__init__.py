@@ -42,6 +42,10 @@ _LAZY = {
     "estimate_pose": "topopose.pose",
     "Pose": "topopose.pose",
     "run": "topopose.pose",
+    # applications (thesis §13.3)
+    "segment": "topopose.pose.segment",
+    "detect": "topopose.pose.detect",
+    "cluster_poses": "topopose.pose.cluster",
     # kinematics
     "learn_model": "topopose.kinematics",
 }

@@ -135,10 +135,34 @@ def cmd_evaluate(a):
     return evaluate_cli(a)
 
 
+def cmd_segment(a):
+    from .pose.segment import segment_cli
+
+    return segment_cli(a)
+
+
+def cmd_detect(a):
+    from .pose.detect import detect_cli
+
+    return detect_cli(a)
+
+
+def cmd_cluster(a):
+    from .pose.cluster import cluster_cli
+
+    return cluster_cli(a)
+
+
 def cmd_learn_model(a):
     from .kinematics import learn_model_cli
 
     return learn_model_cli(a)
+
+
+def cmd_calib(a):
+    from .capture.calib_import import calib_import_cli
+
+    return calib_import_cli(a)
 
 
 def cmd_bench(a):
@@ -252,7 +276,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--tolerance", type=int, default=None,
                    help="visual hull: keep voxels seen by C-k cameras (default 1 with >= 6 cameras, else 0)")
     s.add_argument("--rerun", metavar="FILE.rrd")
-    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
+    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007, or times "
+                   "in seconds, e.g. 0.5s:1.2s")
+    s.add_argument("--refocus", action="store_true",
+                   help="visual hull on a grid refocused on the subject every frame")
     s.add_argument("--track", action=argparse.BooleanOptionalAction, default=True,
                    help="sequences: numbered parts keep their identity over time (default on)")
     s.add_argument("--sides", action=argparse.BooleanOptionalAction, default=True,
@@ -272,6 +299,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--model", default=None)
     s.add_argument("--resolution", type=int, default=None)
     s.add_argument("--silhouettes", action="store_true", help="also draw silhouettes with parts reprojected")
+    s.add_argument("--segmentation", action="store_true",
+                   help="draw the hull segmented by body part (thesis §13.3.1.1) instead")
     s.set_defaults(func=cmd_view)
 
     s = sub.add_parser("evaluate", help="score poses against gt.json")
@@ -286,13 +315,62 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True)
     s.add_argument("--resolution", type=int, default=100)
     s.add_argument("--joints", help="write per-frame joints and segments as JSON Lines")
-    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007")
+    s.add_argument("--frames", help="frame range or list, e.g. 0:100 or 000001,000007, or times "
+                   "in seconds, e.g. 0.5s:1.2s")
     s.add_argument("--coherence", choices=["frequent", "human"], default="frequent",
                    help="coherent-interval rule: the sequence's most frequent tree signature "
                         "(default) or the paper's human rule")
     s.add_argument("--criterion", choices=["correlation", "rigidity"], default="correlation",
                    help="rigid-part clustering: velocity cross-correlation (eq. 5) or distance rigidity")
     s.set_defaults(func=cmd_learn_model)
+
+    s = sub.add_parser("calib", help="calibration tools: import Qualisys, EasyMocap, OpenCV, "
+                       "P-matrix calibrations")
+    calib = s.add_subparsers(dest="calib_command", required=True, metavar="ACTION")
+    c = calib.add_parser("import", help="convert calibration files to calibration.toml")
+    c.add_argument("files", nargs="+", metavar="FILE")
+    c.add_argument("--format", choices=["qualisys", "easymocap", "opencv", "pmatrix"],
+                   default=None, help="default: detected from the files")
+    c.add_argument("--out", required=True, help="calibration.toml to write")
+    g = c.add_mutually_exclusive_group()
+    g.add_argument("--size", type=_size, default=None,
+                   help="image size WxH when the files give none (P matrices)")
+    g.add_argument("--image", default=None, help="an image of the cameras: its size")
+    c.set_defaults(func=cmd_calib)
+
+    s = sub.add_parser("segment", help="label the visual hull by body part (thesis §13.3.1.1)")
+    s.add_argument("capture")
+    s.add_argument("--poses", required=True)
+    s.add_argument("--out", required=True, help="folder: per matched frame labels .npz, mesh .ply, "
+                                                "per-camera label .png")
+    s.add_argument("--frames", help="comma-separated frames (default: every matched frame)")
+    s.add_argument("--model", default=None)
+    s.add_argument("--resolution", type=int, default=None)
+    s.set_defaults(func=cmd_segment)
+
+    s = sub.add_parser("detect", help="detect a described pose in every frame (thesis §13.3.2.1)")
+    s.add_argument("poses")
+    s.add_argument("expr", nargs="?", help='e.g. "(z-greatest hand_1 head) XOR (z-greatest hand_2 head)"')
+    s.add_argument("--pose", help="a named pose of the library (hands-up, ask-a-question, "
+                                  "wide-spread-arms, acrobatic)")
+    s.add_argument("--library", help="a TOML pose library adding to the built-in one")
+    s.add_argument("--list", action="store_true", help="list the library's poses")
+    s.add_argument("--output", help="JSON Lines {frame, value} (default: standard output)")
+    s.add_argument("--csv", help="also write frame,value as CSV")
+    s.add_argument("--up", help="the capture's up axis (default: the poses header's, else +z)")
+    s.set_defaults(func=cmd_detect)
+
+    s = sub.add_parser("cluster", help="cluster frames by betweenness relations (thesis §13.3.2.2)")
+    s.add_argument("poses")
+    s.add_argument("--output", help="JSON Lines {frame, cluster} (default: standard output)")
+    g = s.add_mutually_exclusive_group()
+    g.add_argument("--clusters", type=int, help="number of clusters")
+    g.add_argument("--threshold", type=float, help="cut at this distance 1 - similarity")
+    s.add_argument("--auto", choices=["silhouette", "gap"], default="silhouette",
+                   help="automatic cut: best mean silhouette (default) or largest gap between merge heights")
+    s.add_argument("--figure", help="PNG: medoid poses and the timeline coloured by cluster")
+    s.add_argument("--up", help="up axis for the figure (default: the poses header's, else +z)")
+    s.set_defaults(func=cmd_cluster)
 
     s = sub.add_parser("bench", help="run the benchmarks beside their peers")
     s.add_argument("stage", nargs="?")

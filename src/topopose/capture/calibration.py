@@ -36,7 +36,9 @@ SILHOUETTE_DEFAULTS = {
 }
 _SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (int, float), "open": int,
               "close": int, "min_area": int, "fill_holes": int}
-_CAPTURE_KEYS = {"up", "units", "fps", "volume"}
+_CAPTURE_KEYS = {"up", "units", "fps", "volume", "size_policy"}
+#: What to do with an image whose size differs from its camera's calibration size
+SIZE_POLICIES = ("error", "scale", "pad")
 _UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "dm": 0.1, "km": 1000.0, "in": 0.0254, "ft": 0.3048}
 
 
@@ -142,14 +144,16 @@ def read_calibration(path) -> list:
 def read_capture_options(path, cameras=()) -> dict:
     """Settings of an optional ``capture.toml`` (defaults when it is absent).
 
-    Returns a dict with ``up``, ``units``, ``fps``, ``volume`` ((min, max) or None) and
+    Returns a dict with ``up``, ``units``, ``fps``, ``volume`` ((min, max) or None),
+    ``size_policy`` (:data:`SIZE_POLICIES`, default "error"), ``cameras`` (the ``[cameras]``
+    table: calibration name → ``{"folder", "size_policy"}``, see :func:`_camera_table`) and
     ``silhouettes`` (the background-subtraction parameters, :data:`SILHOUETTE_DEFAULTS` updated).
     Warns (``warnings.warn``) when the camera centres are more than 100 units from the origin
     while ``units = "m"`` (probably millimetre translations).
     """
     path = Path(path)
-    out = {"up": "+z", "units": "m", "fps": None, "volume": None,
-           "silhouettes": dict(SILHOUETTE_DEFAULTS)}
+    out = {"up": "+z", "units": "m", "fps": None, "volume": None, "size_policy": "error",
+           "cameras": {}, "silhouettes": dict(SILHOUETTE_DEFAULTS)}
     data = _read_toml(path) if path.is_file() else {}
     c = data.get("capture", {})
     if not isinstance(c, dict):
@@ -182,6 +186,9 @@ def read_capture_options(path, cameras=()) -> dict:
             raise InputError(f"{path}: [capture.volume] field 'min' must be < 'max' on every axis, "
                              f"got min={lo.tolist()} max={hi.tolist()}")
         out["volume"] = (lo, hi)
+    if "size_policy" in c:
+        out["size_policy"] = _size_policy(path, "capture", c["size_policy"])
+    out["cameras"] = _camera_table(path, data.get("cameras", {}), cameras)
     s = data.get("silhouettes", {})
     if not isinstance(s, dict):
         raise InputError(f"{path}: 'silhouettes' must be a table ([silhouettes])")
@@ -206,4 +213,42 @@ def read_capture_options(path, cameras=()) -> dict:
             warnings.warn(f"{path}: units = \"m\" but a camera centre is {far:.0f} units from the "
                           f"origin: are the calibration translations in millimetres? "
                           f"(set [capture] units = \"mm\")", stacklevel=3)
+    return out
+
+
+def _size_policy(path, where, v) -> str:
+    if not isinstance(v, str) or v.strip().lower() not in SIZE_POLICIES:
+        raise InputError(f"{path}: [{where}] field 'size_policy' must be one of "
+                         f"{', '.join(repr(p) for p in SIZE_POLICIES)}, got {v!r}")
+    return v.strip().lower()
+
+
+def _camera_table(path, table, cameras) -> dict:
+    """The ``[cameras]`` table: calibration name → ``{"folder": name or None, "size_policy":
+    policy or None}``. Entries are ``cam_01 = "cam01"`` or ``[cameras.cam_01]`` with fields
+    ``folder`` (folder / video / background name) and ``size_policy``."""
+    if not isinstance(table, dict):
+        raise InputError(f"{path}: 'cameras' must be a table ([cameras]: calibration name = "
+                         f"folder name)")
+    known = [c.name for c in cameras]
+    out = {}
+    for name, v in table.items():
+        if known and name not in known:
+            raise InputError(f"{path}: [cameras] names camera {name!r}, which calibration.toml "
+                             f"does not have (cameras: {', '.join(known)})")
+        if isinstance(v, str):
+            v = {"folder": v}
+        if not isinstance(v, dict):
+            raise InputError(f"{path}: [cameras] field '{name}' must be a folder name (text) or a "
+                             f"table with 'folder' and/or 'size_policy', got {v!r}")
+        bad = set(v) - {"folder", "size_policy"}
+        if bad:
+            raise InputError(f"{path}: [cameras.{name}] unknown field(s) {sorted(bad)} "
+                             f"(known: folder, size_policy)")
+        folder = v.get("folder")
+        if folder is not None and (not isinstance(folder, str) or not folder.strip()):
+            raise InputError(f"{path}: [cameras.{name}] field 'folder' must be a non-empty text, "
+                             f"got {folder!r}")
+        pol = _size_policy(path, f"cameras.{name}", v["size_policy"]) if "size_policy" in v else None
+        out[name] = {"folder": folder, "size_policy": pol}
     return out

@@ -32,9 +32,12 @@ class Capture:
     A capture is read from a folder by :func:`topopose.load_capture`, or built in
     memory (``masks``: frame name → list of boolean (h, w) arrays, one per camera).
 
-    ``options`` (from :func:`~topopose.capture.load_capture`): ``source`` ("silhouettes" or
-    "images"), ``silhouettes`` (background-subtraction parameters), ``incomplete_frames``
-    (frame → cameras lacking it; loading such a frame raises :class:`InputError`).
+    ``options`` (from :func:`~topopose.capture.load_capture`): ``source`` ("silhouettes",
+    "images" or "videos"), ``silhouettes`` (background-subtraction parameters),
+    ``incomplete_frames`` (frame → cameras lacking it; loading such a frame raises
+    :class:`InputError`), ``frame_source`` (the :mod:`~topopose.capture.sources` object giving
+    colour frames), ``names`` (calibration name → folder / video name), ``size_policy`` and
+    ``cameras`` (the ``[cameras]`` table of ``capture.toml``).
     """
 
     cameras: list

@@ -6,10 +6,18 @@ unreadable image, an image whose size differs from the calibration) are raised b
 ``Capture.silhouettes(frame)``, so a batch run can record that frame as failed and go on.
 Frames are the union of the frame names found over the cameras (natural order); frames missing
 for some camera are listed in ``cap.options["incomplete_frames"]``.
+
+Videos (``videos/<camera>.mp4``, see :mod:`~topopose.capture.sources`): frames ``000000`` … up to
+the longest video; the frames a shorter (or corrupt) video lacks are in ``incomplete_frames`` and
+fail with the reason. Folder, video and background names are matched to the calibration names
+(:func:`match_cameras`); an image whose size differs from the calibration follows the
+``size_policy`` (:func:`fit_size`).
 """
 from __future__ import annotations
 
 import re
+import warnings
+from contextlib import contextmanager
 from pathlib import Path
 
 import cv2
@@ -17,8 +25,10 @@ import numpy as np
 
 from ..errors import InputError
 from .calibration import read_calibration, read_capture_options
+from .camera import Camera
 from .capture import Capture
 from .silhouettes import extract_silhouette
+from .sources import VIDEO_EXTENSIONS, ImageSource, Prefetcher, VideoSource, imread
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
 
@@ -38,131 +48,379 @@ def _list_images(folder: Path) -> dict:
     return out
 
 
+def _norm_name(s: str) -> str:
+    """``cam_01``, ``cam01``, ``Cam1`` → ``cam1``: lower case, no punctuation, no zero padding."""
+    s = re.sub(r"[^0-9a-z]", "", s.lower())
+    return re.sub(r"\d+", lambda m: str(int(m.group())), s)
+
+
+def match_cameras(cameras, entries, table: dict, where: Path) -> dict:
+    """Calibration name → entry name (a folder, video or background name in ``where``).
+
+    An entry of the ``[cameras]`` table wins, then the exact name, then the one entry whose
+    name differs only by case, punctuation or zero padding. Cameras without a match are left
+    out; an ambiguous match or two cameras on one entry raise :class:`InputError`.
+    """
+    entries = list(entries)
+    out = {}
+    for cam in cameras:
+        want = (table.get(cam.name) or {}).get("folder")
+        if want is not None:
+            if want in entries:
+                out[cam.name] = want
+            continue
+        if cam.name in entries:
+            out[cam.name] = cam.name
+            continue
+        cands = [e for e in entries if _norm_name(e) == _norm_name(cam.name)]
+        if len(cands) > 1:
+            raise InputError(f"{where}: camera {cam.name!r} of calibration.toml matches both "
+                             f"{cands[0]!r} and {cands[1]!r}; name its folder in capture.toml "
+                             f"([cameras] {cam.name} = \"{cands[0]}\")")
+        if cands:
+            out[cam.name] = cands[0]
+    seen = {}
+    for c, e in out.items():
+        if e in seen:
+            raise InputError(f"{where}: cameras {seen[e]!r} and {c!r} of calibration.toml both "
+                             f"match {e!r}; name their folders in capture.toml ([cameras])")
+        seen[e] = c
+    return out
+
+
+def _missing_entry(where: Path, cam, table, what: str) -> InputError:
+    want = (table.get(cam.name) or {}).get("folder")
+    if want is not None:
+        return InputError(f"{where / want}: {what} of camera {cam.name!r} not found "
+                          f"(capture.toml [cameras] maps {cam.name!r} to {want!r})")
+    return InputError(f"{where / cam.name}: {what} of camera {cam.name!r} (calibration.toml) not "
+                      f"found (nor one whose name differs only by case, punctuation or zero "
+                      f"padding; or map it in capture.toml [cameras])")
+
+
+def _list_videos(folder: Path) -> dict:
+    out = {}
+    for p in sorted(folder.iterdir()):
+        if p.is_file() and not p.name.startswith(".") and p.suffix.lower() in VIDEO_EXTENSIONS:
+            if p.stem in out:
+                raise InputError(f"{folder}: two videos for camera {p.stem!r} "
+                                 f"({out[p.stem].name}, {p.name})")
+            out[p.stem] = p
+    return out
+
+
+def size_policy(cap: Capture, camera: str) -> str:
+    """The size policy of ``camera``: ``[cameras.<name>] size_policy``, else ``[capture]``'s."""
+    per = (cap.options.get("cameras") or {}).get(camera) or {}
+    return per.get("size_policy") or cap.options.get("size_policy") or "error"
+
+
+def _scaled_camera(cam: Camera, size) -> Camera:
+    """``cam`` for images of ``size`` (w, h): fx, cx (and the skew) scale by w'/w, fy, cy by h'/h."""
+    sx, sy = size[0] / cam.size[0], size[1] / cam.size[1]
+    K = cam.matrix.copy()
+    K[0, :] *= sx
+    K[1, :] *= sy
+    K[2] = [0.0, 0.0, 1.0]
+    return Camera(cam.name, size, K, cam.distortions, cam.rotation, cam.translation, cam.fisheye)
+
+
+def _first_size(src, camera, frames) -> tuple | None:
+    """(w, h) of the camera's first readable frame (None when there is none)."""
+    for f in frames:
+        p = src.path(camera, f)
+        if p is None:
+            continue
+        img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        if img is not None:
+            return img.shape[1], img.shape[0]
+    return None
+
+
 def load_capture(path) -> Capture:
     """Read a capture folder: calibration, options, frame lists (silhouettes are read lazily).
 
     Parameters
     ----------
     path : str or Path
-        Folder with ``calibration.toml``, optional ``capture.toml``, and either
-        ``silhouettes/<camera>/<frame>.png`` or ``images/<camera>/<frame>.png`` plus
-        ``backgrounds/<camera>.png``.
+        Folder with ``calibration.toml``, optional ``capture.toml``, and one of
+        ``silhouettes/<camera>/<frame>.png`` (masks), ``images/<camera>/<frame>.png`` or
+        ``videos/<camera>.<mp4|avi|mov|mkv>`` (colour frames, with ``backgrounds/<camera>.png``).
+        Folder, video and background names may differ from the calibration names by case,
+        punctuation or zero padding (``cam_01`` ↔ ``cam01`` ↔ ``Cam1``), or be mapped by the
+        ``[cameras]`` table of ``capture.toml``.
 
     Returns
     -------
     Capture
-        ``cap.silhouettes(frame)`` reads (or extracts) the masks of one frame.
+        ``cap.silhouettes(frame)`` reads (or extracts) the masks of one frame. With
+        ``size_policy = "scale"``, ``cap.cameras`` holds the rescaled cameras.
 
     Raises
     ------
     InputError
         Missing folder or calibration, malformed calibration or capture.toml, a camera
-        folder or background image absent, no frame at all.
+        folder, video or background image absent, an ambiguous name, no frame at all, a video or
+        background whose size differs from the calibration with ``size_policy = "error"``.
     """
     root = Path(path)
     if not root.is_dir():
         raise InputError(f"{root}: capture folder not found")
     cameras = read_calibration(root / "calibration.toml")
     opts = read_capture_options(root / "capture.toml", cameras)
-    sil, img = root / "silhouettes", root / "images"
+    table = opts["cameras"]
+    sil, img, vid = root / "silhouettes", root / "images", root / "videos"
     if sil.is_dir():
         source, base = "silhouettes", sil
     elif img.is_dir():
         source, base = "images", img
+    elif vid.is_dir():
+        source, base = "videos", vid
     else:
-        raise InputError(f"{root}: no silhouettes/ folder (masks) nor images/ folder "
-                         f"(colour frames + backgrounds/)")
-    files = {}
-    for cam in cameras:
-        folder = base / cam.name
-        if not folder.is_dir():
-            raise InputError(f"{folder}: folder of camera {cam.name!r} (calibration.toml) not found")
-        files[cam.name] = _list_images(folder)
-    backgrounds = {}
-    if source == "images":
-        bdir = root / "backgrounds"
+        raise InputError(f"{root}: no silhouettes/ folder (masks), images/ folder nor videos/ "
+                         f"folder (colour frames + backgrounds/)")
+    files, names = {}, {}
+    if source == "videos":
+        videos = _list_videos(vid)
+        names = match_cameras(cameras, videos, table, vid)
         for cam in cameras:
-            cands = [bdir / f"{cam.name}{e}" for e in IMAGE_EXTENSIONS] if bdir.is_dir() else []
-            found = [p for p in cands if p.is_file()]
-            if not found:
+            if cam.name not in names:
+                raise _missing_entry(vid, cam, table, "video")
+        src = VideoSource({c.name: videos[names[c.name]] for c in cameras})
+        frames = list(src.frames)
+        if not frames:
+            raise InputError(f"{vid}: no readable frame in the videos "
+                             f"({'; '.join(src.errors.values()) or 'all are empty'})")
+        incomplete = {}
+        for i, f in enumerate(frames):
+            miss = [c.name for c in cameras if src.missing(c.name, i) is not None]
+            if miss:
+                incomplete[f] = miss
+    else:
+        folders = [p.name for p in base.iterdir() if p.is_dir()]
+        names = match_cameras(cameras, folders, table, base)
+        for cam in cameras:
+            if cam.name not in names:
+                raise _missing_entry(base, cam, table, "folder")
+            files[cam.name] = _list_images(base / names[cam.name])
+        src = ImageSource(files, {c.name: base / names[c.name] for c in cameras})
+        frames = sorted(set().union(*[set(f) for f in files.values()]), key=_natural_key)
+        if not frames:
+            raise InputError(f"{base}: no frame images in the camera folders "
+                             f"(expected {base}/<camera>/<frame>.png)")
+        incomplete = {f: [c.name for c in cameras if f not in files[c.name]] for f in frames}
+        incomplete = {f: v for f, v in incomplete.items() if v}
+    backgrounds = {}
+    if source != "silhouettes":
+        bdir = root / "backgrounds"
+        stems = {}
+        if bdir.is_dir():
+            for p in sorted(bdir.iterdir()):
+                if p.is_file() and p.suffix.lower() in IMAGE_EXTENSIONS:
+                    stems.setdefault(p.stem, p)
+        bnames = match_cameras(cameras, stems, table, bdir)
+        for cam in cameras:
+            if cam.name not in bnames:
                 raise InputError(f"{bdir / (cam.name + '.png')}: background image of camera "
-                                 f"{cam.name!r} not found (needed to extract silhouettes from images/)")
-            backgrounds[cam.name] = found[0]
-    frames = sorted(set().union(*[set(f) for f in files.values()]), key=_natural_key)
-    if not frames:
-        raise InputError(f"{base}: no frame images in the camera folders "
-                         f"(expected {base}/<camera>/<frame>.png)")
-    incomplete = {f: [c.name for c in cameras if f not in files[c.name]] for f in frames}
-    incomplete = {f: v for f, v in incomplete.items() if v}
+                                 f"{cam.name!r} not found (needed to extract silhouettes from "
+                                 f"{source}/)")
+            backgrounds[cam.name] = stems[bnames[cam.name]]
+    fps = opts["fps"]
+    if source == "videos" and fps is None:
+        rates = [r for r in src.fps.values() if r]
+        if rates:
+            fps = rates[0]
+            if max(rates) > 1.01 * min(rates):
+                warnings.warn(f"{vid}: the videos have different frame rates "
+                              f"({', '.join(f'{r:g}' for r in rates)}); using {fps:g} "
+                              f"(set [capture] fps)", stacklevel=2)
     options = {"source": source, "silhouettes": opts["silhouettes"],
-               "incomplete_frames": incomplete, "backgrounds": backgrounds}
+               "incomplete_frames": incomplete, "backgrounds": backgrounds,
+               "size_policy": opts["size_policy"], "cameras": table,
+               "names": names, "frame_source": src if source != "silhouettes" else None,
+               "original_sizes": {c.name: c.size for c in cameras}}
     cap = Capture(cameras=cameras, frames=frames, path=root, up=opts["up"], units=opts["units"],
-                  fps=opts["fps"], volume=opts["volume"], options=options, files=files)
+                  fps=fps, volume=opts["volume"], options=options, files=files or None)
+    # sizes known now (videos; first image of each folder): "scale" rescales the cameras,
+    # "pad" warns once, "error" stops a video capture at once (every frame would fail)
+    for k, cam in enumerate(cameras):
+        if source == "videos":
+            size = src.sizes.get(cam.name)
+        else:
+            size = _first_size(src, cam.name, frames) if size_policy(cap, cam.name) != "error" else None
+        if size is None or tuple(size) == tuple(cam.size):
+            continue
+        pol = size_policy(cap, cam.name)
+        where = src.videos[cam.name] if source == "videos" else Path(base / names[cam.name])
+        if pol == "error":
+            raise InputError(_size_message(where, size, cam))
+        _warn_size(cap, cam, size, where, pol)
+        if pol == "scale":
+            cameras[k] = _scaled_camera(cam, size)
     for cam in cameras:                      # backgrounds concern every frame: check them now
         if cam.name in backgrounds:
-            bg = _imread(backgrounds[cam.name], cv2.IMREAD_COLOR)
-            _check_size(backgrounds[cam.name], bg, cam)
-            cap.cache[("background", cam.name)] = bg
+            bg = imread(backgrounds[cam.name], cv2.IMREAD_COLOR)
+            cap.cache[("background", cam.name)] = fit_size(cap, backgrounds[cam.name], bg, cam)
     return cap
 
 
-def _imread(path: Path, flags: int) -> np.ndarray:
-    try:
-        buf = np.fromfile(path, dtype=np.uint8)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read the image ({exc.strerror or exc})") from None
-    img = cv2.imdecode(buf, flags) if buf.size else None
-    if img is None:
-        raise InputError(f"{path}: unreadable or corrupt image")
-    return img
+def _size_message(where, size, cam) -> str:
+    return (f"{where}: image size {size[0]}x{size[1]} differs from the calibration size of camera "
+            f"{cam.name!r} (field 'size' = [{cam.size[0]}, {cam.size[1]}]); set size_policy = "
+            f"\"pad\" or \"scale\" in [capture] (or [cameras.{cam.name}]) of capture.toml")
 
 
-def _check_size(path, img, cam):
+def _warn_size(cap, cam, size, where, pol):
+    key = ("size_warned", cam.name)
+    if key in cap.cache:
+        return
+    cap.cache[key] = True
+    what = ("padded or cropped at the right/bottom to" if pol == "pad"
+            else "used with the intrinsics rescaled from")
+    ow, oh = cap.options.get("original_sizes", {}).get(cam.name, cam.size)
+    warnings.warn(f"{where}: images of camera {cam.name!r} are {size[0]}x{size[1]}, the "
+                  f"calibration says {ow}x{oh}: {what} the calibration size "
+                  f"(size_policy = \"{pol}\")", stacklevel=3)
+
+
+def fit_size(cap: Capture, path, img: np.ndarray, cam: Camera) -> np.ndarray:
+    """Apply the camera's size policy to an image (or mask) read from ``path``.
+
+    "error": :class:`InputError` naming the file, the sizes and the option; "pad": zero-padded
+    or cropped at the right/bottom to the calibration size; "scale": the cameras were rescaled
+    at loading, so the size must match the rescaled one.
+    """
     h, w = img.shape[:2]
-    if (w, h) != tuple(cam.size):
-        raise InputError(f"{path}: image size {w}x{h} differs from the calibration size of camera "
-                         f"{cam.name!r} (field 'size' = [{cam.size[0]}, {cam.size[1]}])")
+    if (w, h) == tuple(cam.size):
+        return img
+    pol = size_policy(cap, cam.name)
+    if pol != "pad":
+        raise InputError(_size_message(path, (w, h), cam))
+    _warn_size(cap, cam, (w, h), path, pol)
+    W, H = cam.size
+    out = np.zeros((H, W) + img.shape[2:], dtype=img.dtype)
+    out[:min(h, H), :min(w, W)] = img[:min(h, H), :min(w, W)]
+    return out
+
+
+def _background(cap: Capture, cam: Camera) -> np.ndarray:
+    bg = cap.cache.get(("background", cam.name))
+    if bg is None:
+        bp = cap.options["backgrounds"][cam.name]
+        bg = fit_size(cap, bp, imread(bp, cv2.IMREAD_COLOR), cam)
+        cap.cache[("background", cam.name)] = bg
+    return bg
+
+
+def _frame_source(cap: Capture):
+    src = cap.options.get("frame_source")
+    if src is None and cap.options.get("source") == "images" and cap.files is not None:
+        src = ImageSource(cap.files, {c: Path(cap.path) / "images" / c for c in cap.files})
+    return src
+
+
+def read_images(cap: Capture, frame: str) -> list:
+    """Colour images (BGR, calibration size after the size policy) of one frame, one per camera.
+
+    Raises
+    ------
+    InputError
+        The frame is missing for a camera (or a video is shorter / corrupt there), an image is
+        unreadable, or its size differs from the calibration (``size_policy = "error"``).
+    """
+    src = _frame_source(cap)
+    if src is None:
+        raise InputError(f"{cap.path or 'capture'}: no colour frames (images/ or videos/)")
+    out = []
+    for cam in cap.cameras:
+        out.append(fit_size(cap, src.path(cam.name, frame) or cam.name,
+                            src.read(cam.name, frame), cam))
+    return out
+
+
+def silhouettes_from_images(cap: Capture, frame: str, images) -> list:
+    """Silhouettes of one frame from its colour ``images`` (a list in camera order, or the
+    ``{camera: image or InputError}`` of a frame source), with the capture's method."""
+    if isinstance(images, dict):
+        src = _frame_source(cap)
+        imgs = []
+        for cam in cap.cameras:
+            im = images[cam.name]
+            if isinstance(im, Exception):
+                raise im
+            imgs.append(fit_size(cap, src.path(cam.name, frame) or cam.name, im, cam))
+        images = imgs
+    return [extract_silhouette(im, _background(cap, cam), cap.options.get("silhouettes"))
+            for cam, im in zip(cap.cameras, images)]
+
+
+def _read_masks(cap: Capture, frame: str) -> list:
+    out = []
+    base = Path(cap.path) / "silhouettes"
+    names = cap.options.get("names") or {}
+    for cam in cap.cameras:
+        p = cap.files[cam.name].get(frame)
+        if p is None:
+            raise InputError(f"{base / names.get(cam.name, cam.name)}: frame {frame!r} missing for "
+                             f"camera {cam.name!r} (other cameras have it)")
+        img = fit_size(cap, p, imread(p, cv2.IMREAD_UNCHANGED), cam)
+        if img.ndim == 3:
+            img = img[:, :, :3].max(axis=2)
+        if img.dtype != np.uint8:   # 16-bit masks: same rule on the 8-bit scale
+            img = (img.astype(np.float64) * (255.0 / np.iinfo(img.dtype).max)
+                   if np.issubdtype(img.dtype, np.integer) else img * 255.0)
+        out.append(img > 127)
+    return out
 
 
 def read_silhouettes(cap: Capture, frame: str) -> list:
     """Boolean masks (h, w) of one frame of a capture folder, one per camera.
 
     Masks are 8-bit images where > 127 is the subject (colour masks: any channel). Without
-    masks, silhouettes are extracted from ``images/`` and ``backgrounds/`` with the
-    ``[silhouettes]`` parameters (:func:`~topopose.capture.silhouettes.extract_silhouette`).
+    masks, silhouettes are extracted from the colour frames (``images/`` or ``videos/``) and
+    ``backgrounds/`` with the ``[silhouettes]`` parameters
+    (:func:`~topopose.capture.silhouettes.extract_silhouette`). Inside :func:`prefetch` the
+    frames come from the reader thread.
 
     Raises
     ------
     InputError
         The frame is missing for a camera, an image is unreadable, or its size differs from
-        the calibration's ``size``.
+        the calibration's ``size`` (with ``size_policy = "error"``).
     """
-    if cap.files is None:
+    pf = cap.cache.get("prefetch")
+    if pf is not None:
+        ok, masks = pf.take(frame)
+        if ok:
+            return masks
+    return _silhouettes_now(cap, frame)
+
+
+def _silhouettes_now(cap: Capture, frame: str, images=None) -> list:
+    if cap.files is None and cap.options.get("frame_source") is None:
         raise InputError(f"{cap.path or 'capture'}: no silhouette files nor in-memory masks")
-    out = []
-    source = cap.options.get("source", "silhouettes")
-    for cam in cap.cameras:
-        p = cap.files[cam.name].get(frame)
-        if p is None:
-            raise InputError(f"{Path(cap.path) / source / cam.name}: frame {frame!r} missing for "
-                             f"camera {cam.name!r} (other cameras have it)")
-        if source == "silhouettes":
-            img = _imread(p, cv2.IMREAD_UNCHANGED)
-            _check_size(p, img, cam)
-            if img.ndim == 3:
-                img = img[:, :, :3].max(axis=2)
-            if img.dtype != np.uint8:   # 16-bit masks: same rule on the 8-bit scale
-                img = (img.astype(np.float64) * (255.0 / np.iinfo(img.dtype).max)
-                       if np.issubdtype(img.dtype, np.integer) else img * 255.0)
-            out.append(img > 127)
-        else:
-            bg = cap.cache.get(("background", cam.name))
-            if bg is None:
-                bp = cap.options["backgrounds"][cam.name]
-                bg = _imread(bp, cv2.IMREAD_COLOR)
-                _check_size(bp, bg, cam)
-                cap.cache[("background", cam.name)] = bg
-            img = _imread(p, cv2.IMREAD_COLOR)
-            _check_size(p, img, cam)
-            out.append(extract_silhouette(img, bg, cap.options.get("silhouettes")))
-    return out
+    if cap.options.get("source", "silhouettes") == "silhouettes":
+        return _read_masks(cap, frame)
+    if images is None:
+        images = read_images(cap, frame)
+    return silhouettes_from_images(cap, frame, images)
+
+
+@contextmanager
+def prefetch(cap: Capture, frames, depth: int = 4):
+    """Within the block, ``cap.silhouettes(f)`` for ``frames`` (in that order) comes from a reader
+    thread that decodes the frames sequentially (all cameras) and extracts their silhouettes
+    ahead of the computation, at most ``depth`` frames ahead. Other frames are read directly.
+    In-memory captures: no effect."""
+    if cap.masks is not None or cap.path is None or "prefetch" in cap.cache:
+        yield cap
+        return
+    names = [cap.frame_name(f) for f in frames]
+    src = None if cap.options.get("source") == "silhouettes" else _frame_source(cap)
+    pf = Prefetcher(names, lambda f, images: _silhouettes_now(cap, f, images), src, depth)
+    cap.cache["prefetch"] = pf
+    try:
+        yield cap
+    finally:
+        cap.cache.pop("prefetch", None)
+        pf.close()

@@ -762,7 +762,10 @@ def learn_model(capture, resolution: int = 100, frames=None, *, progress: bool =
 
         it = tqdm(names, desc="visual hull", unit="frame")
     t = time.perf_counter()
-    vols = [visual_hull(capture, f, resolution=resolution) for f in it]
+    from ..capture import prefetch
+
+    with prefetch(capture, names):           # decoding + silhouettes run ahead in a thread
+        vols = [visual_hull(capture, f, resolution=resolution) for f in it]
     hull_ms = 1e3 * (time.perf_counter() - t) / len(names)
     kwargs.setdefault("up", capture.up_vector)
     kwargs.setdefault("source", str(capture.path or "capture"))

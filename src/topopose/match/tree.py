@@ -77,6 +77,10 @@ class Tree:
         Model-tree constraints (used by :func:`topopose.align`).
     diagnostics : dict
         Facts about how the tree was built (cycles broken, loops dropped, ...).
+    voxels : dict or None
+        Data trees built by :func:`topopose.data_tree`: which skeleton voxel makes which vertex
+        or edge (``index``: C-order linear indices of the skeleton voxels, ``vertex``: vertex
+        id or −1, ``edge``: index in ``edges`` or −1, per voxel). Not saved to JSON.
 
     Examples
     --------
@@ -92,6 +96,7 @@ class Tree:
     root: Hashable | None = None
     constraints: list = field(default_factory=list)
     diagnostics: dict = field(default_factory=dict)
+    voxels: dict | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
         self.edges = [(u, v, _weight(w, f"edge ({u!r}, {v!r})")) for u, v, w in self.edges]
@@ -170,13 +175,13 @@ class Tree:
         edges = [(u, v, (w / s if s > 0 and math.isfinite(w) else w)) for u, v, w in self.edges]
         return Tree(edges, vertices=list(self.vertices), positions=dict(self.positions),
                     labels=dict(self.labels), root=self.root, constraints=list(self.constraints),
-                    diagnostics=dict(self.diagnostics))
+                    diagnostics=dict(self.diagnostics), voxels=self.voxels)
 
     def rooted(self, root) -> "Tree":
         """A copy rooted at ``root`` (None: unrooted)."""
         t = Tree(list(self.edges), vertices=list(self.vertices), positions=dict(self.positions),
                  labels=dict(self.labels), root=None, constraints=list(self.constraints),
-                 diagnostics=dict(self.diagnostics))
+                 diagnostics=dict(self.diagnostics), voxels=self.voxels)
         if root is not None and root not in set(t.vertices):
             raise InputError(f"tree: root {root!r} is not a vertex of the tree")
         t.root = root

@@ -97,11 +97,14 @@ class FrameEstimator:
         vertices next to the chosen one (:func:`junction_position`) instead of the chosen
         vertex alone. ``None`` (default): on for complete models, off for incomplete ones
         (not measured there yet).
+    refocus : bool
+        Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
+        refocus=True)``, thesis §13.2.2.1).
     """
 
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
                  betweenness=True, max_missing=1, thinning="d6i1d", tolerance=None,
-                 relation=None, fill=True, repair=None, junction_centroid=None):
+                 relation=None, fill=True, repair=None, junction_centroid=None, refocus=False):
         from ..match import Matcher
 
         self.cap = cap
@@ -117,6 +120,7 @@ class FrameEstimator:
         self.thinning = thinning
         self.tolerance = default_tolerance(cap) if tolerance is None else int(tolerance)
         self.fill = bool(fill)
+        self.refocus = bool(refocus)
         if repair is None:
             repair = 1
         self.repair = int(repair)
@@ -145,7 +149,7 @@ class FrameEstimator:
 
         consensus = self.repair if self.tolerance > 0 and self.repair >= 0 else None
         return visual_hull(self.cap, frame, resolution=self.resolution, tolerance=self.tolerance,
-                           consensus=consensus)
+                           consensus=consensus, refocus=self.refocus)
 
     def estimate(self, frame, detail: bool = False):
         """Pose of one frame; never raises for a frame-level problem (status "failed").

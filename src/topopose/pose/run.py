@@ -15,6 +15,7 @@ precomputation, hull projection tables) once, on first use, and keeps it for all
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 from dataclasses import dataclass, field
@@ -47,19 +48,44 @@ class RunResult:
         return 1 if self.failed else 0
 
 
+def _frame_bound(cap, text: str, whole: str):
+    """One bound of ``--frames a:b``: an index, or a time ``1.5s`` (frame i is at i / fps)."""
+    t = text.strip()
+    if not t:
+        return None
+    if t.lower().endswith("s"):
+        try:
+            sec = float(t[:-1])
+        except ValueError:
+            raise InputError(f"--frames: {whole!r}: {t!r} is not a time like 1.5s") from None
+        if not cap.fps:
+            raise InputError(f"--frames: {whole!r} gives times but the capture has no frame rate "
+                             f"(videos give it; else set [capture] fps in capture.toml)")
+        return max(0, math.ceil(sec * cap.fps - 1e-9))
+    return int(t)
+
+
 def select_frames(cap, frames) -> list:
-    """Frame names from None (all), a list, or a text ``"a:b"`` / ``"a:b:s"`` / ``"f1,f2"``."""
+    """Frame names from None (all), a list, or a text: ``"a:b"`` / ``"a:b:s"`` (indices, Python
+    slice rules), ``"0.5s:1.2s"`` (times in seconds: the frames i with 0.5 ≤ i / fps < 1.2; the
+    step, if any, is in frames; times and indices mix, e.g. ``"2s:"``), or ``"f1,f2"``."""
     if frames is None:
         return list(cap.frames)
     if isinstance(frames, str):
         text = frames.strip()
         if ":" in text:
+            bits = text.split(":")
             try:
-                bits = [int(x) if x.strip() else None for x in text.split(":")]
-                sl = slice(*bits)
+                if len(bits) > 3:
+                    raise ValueError
+                sl = slice(*[_frame_bound(cap, b, frames) if k < 2
+                             else (int(b) if b.strip() else None) for k, b in enumerate(bits)])
+            except InputError:
+                raise
             except (ValueError, TypeError):
-                raise InputError(f"--frames: {frames!r} must be START:STOP[:STEP] (indices) "
-                                 "or a comma-separated list of frame names") from None
+                raise InputError(f"--frames: {frames!r} must be START:STOP[:STEP] (indices, or "
+                                 "times like 0.5s:1.2s) or a comma-separated list of frame "
+                                 "names") from None
             out = list(cap.frames)[sl]
             if not out:
                 raise InputError(f"--frames: {frames!r} selects no frame ({len(cap.frames)} frames)")
@@ -124,8 +150,8 @@ def _progress(total, enabled, desc):
 def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
-        tolerance=None, on_pose=None, track=True, sides=True, skeleton=True, smooth=None,
-        bvh=None) -> RunResult:
+        tolerance=None, refocus=False, on_pose=None, track=True, sides=True, skeleton=True,
+        smooth=None, bvh=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -151,6 +177,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     tolerance : int or None
         Visual-hull tolerance (voxels seen by C − tolerance cameras); None: 1 with ≥ 6
         cameras, else 0 (see :class:`FrameEstimator`).
+    refocus : bool
+        Visual hull on a grid refocused on the subject every frame, fixed voxel size
+        (thesis §13.2.2.1; as ``topopose hull --refocus``).
     on_pose : callable, optional
         Called with each :class:`Pose` as it finishes (e.g. a live viewer).
     track : bool
@@ -176,6 +205,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     cap = capture if isinstance(capture, Capture) else load_capture(capture)
     options = {"betweenness": betweenness, "relation": relation, "max_missing": max_missing,
                "thinning": thinning, "tolerance": tolerance}
+    if refocus:
+        options["refocus"] = True
     todo = select_frames(cap, frames)
     if workers is None or workers < 1:
         raise InputError(f"--workers: must be at least 1, got {workers}")
@@ -220,9 +251,12 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         if todo and (workers > 1 or scheduler):
             _run_dask(cap, m, resolution, threshold, options, todo, workers, scheduler, finish)
         elif todo:
+            from ..capture import prefetch
+
             est = FrameEstimator(cap, m, resolution, threshold, **options)
-            for f in todo:
-                finish(est.estimate(f))
+            with prefetch(cap, todo):        # decoding + silhouettes run ahead in a thread
+                for f in todo:
+                    finish(est.estimate(f))
     finally:
         if bar is not None:
             bar.close()
@@ -330,6 +364,7 @@ def run_cli(a) -> int:
               c3d=getattr(a, "c3d", None),
               constraints=not getattr(a, "no_constraints", False),
               tolerance=getattr(a, "tolerance", None),
+              refocus=getattr(a, "refocus", False),
               on_pose=None, track=getattr(a, "track", True),
               sides=getattr(a, "sides", True), skeleton=getattr(a, "skeleton", True),
               smooth=getattr(a, "smooth", None), bvh=getattr(a, "bvh", None))

@@ -393,13 +393,15 @@ def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, wei
     c1, c2, bcomp = c1[sel], c2[sel], bcomp[sel]
     s1, s2 = csteps[0::2][sel], csteps[1::2][sel]
     # each edge: u, v, length (voxel units), count, contact voxel at u, contact voxel at v
+    # (and its B component, -1 for none: kept beside the tree for Tree.voxels)
     raw = list(zip(vid[c1[:, 1]].tolist(), vid[c2[:, 1]].tolist(),
                    (bb[bcomp] + s1 + s2).tolist(), csize[bcomp].tolist(),
-                   c1[:, 3].tolist(), c2[:, 3].tolist()))
+                   c1[:, 3].tolist(), c2[:, 3].tolist(), bcomp.tolist()))
     dsel = kept_comp[direct[:, 0]]
     direct, dsteps = direct[dsel], dsteps[dsel]
     raw += list(zip(vid[direct[:, 0]].tolist(), vid[direct[:, 1]].tolist(), dsteps.tolist(),
-                    [0] * len(dsteps), direct[:, 2].tolist(), direct[:, 3].tolist()))
+                    [0] * len(dsteps), direct[:, 2].tolist(), direct[:, 3].tolist(),
+                    [-1] * len(dsteps)))
 
     # a loop of one B voxel whose two contacts touch each other is a digital triangle
     # (three mutually adjacent voxels, e.g. the corner of an axis-aligned bend): it encloses
@@ -428,7 +430,7 @@ def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, wei
         p, q, arc, between, total = _open_closed_loop(coords, nbr, vox)
         positions = [world[p], world[q]]
         vclass = ["loop", "loop"]
-        raw = [(0, 1, arc, between, p, q)]
+        raw = [(0, 1, arc, between, p, q, int(closed[0]))]
         diag["closed_loop"] = True
         diag["closed_loop_length"] = total * vs
 
@@ -463,7 +465,7 @@ def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, wei
             mdeg[u] += 1
             mdeg[v] += 1
         edges = tree_e
-        for u, v, length, count, eu, ev in rejected:
+        for u, v, length, count, eu, ev, bc in rejected:
             diag["loops" if u == v else "cycles_broken"] += 1
             # the cycle this branch closes: the branch plus the spanning-tree path between its ends
             # (for a loop, the gap between its two contact voxels inside the vertex component)
@@ -492,7 +494,7 @@ def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, wei
             w = len(positions)
             positions.append(world[cut_vox])
             vclass.append("cut")
-            edges.append((keep_end, w, length, count, cut_vox, cut_vox))
+            edges.append((keep_end, w, length, count, cut_vox, cut_vox, bc))
             diag["cuts"].append({"edge": [keep_end, w], "detached_from": cut_end,
                                  "length": length * vs, "loop": u == v,
                                  "perimeter": perimeter * vs})
@@ -514,7 +516,7 @@ def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, wei
         diag["border_vertex"] = bverts[0][1] if bverts else None
 
     out = []
-    for u, v, length, count, _, _ in edges:
+    for u, v, length, count, *_ in edges:
         if u in inf_vertices or v in inf_vertices:
             w = math.inf
         else:
@@ -526,6 +528,12 @@ def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, wei
         degs[u] += 1
         degs[v] += 1
     diag["max_degree"] = int(degs.max()) if nv else 0
+    # which voxel makes which vertex or edge (segmentation, thesis §13.3.1.1)
+    ecomp = np.full(ncomp, -1, np.int64)
+    for j, e in enumerate(edges):
+        if e[6] >= 0:
+            ecomp[e[6]] = j
+    voxels = {"index": idx, "vertex": vid[comp], "edge": ecomp[comp]}
     diag["time_ms"] = (perf_counter() - t0) * 1e3
     return Tree(out, vertices=list(range(nv)), positions=dict(enumerate(positions)),
-                root=diag["border_vertex"], diagnostics=diag)
+                root=diag["border_vertex"], diagnostics=diag, voxels=voxels)

@@ -244,6 +244,12 @@ def view_cli(a) -> int:
     tol = pose.diagnostics.get("hull_tolerance")
     est = FrameEstimator(cap, model, res, tolerance=None if tol is None else int(tol))
     _, det = est.estimate(frame, detail=True)
+    if getattr(a, "segmentation", False):
+        from ..pose.segment import segmentation_figure
+
+        segmentation_figure(a.out, cap, frame, model, det, up=cap.up_vector)
+        print(f"wrote {a.out}")
+        return 0
     render_frame(a.out, model, pose, det, cap=cap, silhouettes=a.silhouettes, up=cap.up_vector)
     print(f"wrote {a.out}")
     return 0

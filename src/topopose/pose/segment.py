@@ -1,0 +1,500 @@
+"""Body-part segmentation of the visual hull by flooding (thesis §13.3.1.1, Fig. 13.10).
+
+"A simple method to obtain an efficient part labeling of each voxel from our method outputs
+(i.e. skeleton with matched specific points) consists of two steps: color labeling each part of
+the skeleton bounded by matched points [...]; flooding the visual hull simultaneously with all
+the color labeled voxels."
+
+1. :func:`skeleton_labels`: every model arc (u, v) is matched with a data path (the alignment's
+   ``arcs``); the skeleton voxels of the path's data edges (``Tree.voxels``, kept by
+   :func:`topopose.data_tree`), of its inner data vertices and of a leaf at its end get the
+   arc's label. Junction vertices that end several arcs, unmatched branches and deleted arcs
+   stay unlabelled: the flooding gives them to the nearest arc.
+2. :func:`flood_labels`: multi-source breadth-first flooding inside the hull from all the
+   labelled skeleton voxels at once (:func:`.segment_kernels.flood`): each hull voxel takes the
+   label of the nearest labelled voxel in steps of the 26- (or 6-) adjacency, ties to the
+   smallest label. Hull voxels not connected to a labelled voxel stay 0. By default each part
+   enters the flood late by how much thinner it is than the thickest part
+   (``weighting="part"``): plain flooding lets the limbs' skeleton, which starts at a junction
+   inside the trunk, claim much of the trunk (measured in ``benchmarks/applications.py``).
+
+Labels are 1..E in the order of the model's edges, named ``"u-v"`` (e.g. ``"torso-hand_1"``);
+0 is background.
+"""
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+#: the links of the synthetic subjects grouped by the model arc (body part) they belong to,
+#: for ground truth (``Prim.link`` → arc name; the left side is numbered 1)
+SYNTH_LINK_ARCS = {
+    "human": {"head": "torso-head", "neck": "torso-head",
+              "chest": "torso-crotch", "pelvis": "torso-crotch", "dress": "torso-crotch",
+              **{f"{seg}_{s}": f"torso-hand_{k}" for s, k in (("l", 1), ("r", 2))
+                 for seg in ("upperarm", "forearm", "hand")},
+              **{f"{seg}_{s}": f"crotch-foot_{k}" for s, k in (("l", 1), ("r", 2))
+                 for seg in ("thigh", "shin", "foot")}},
+}
+
+
+
+def body_bone_arc(bone: str) -> str:
+    """The human model's arc of a bone of the ``body`` subject's rig (``cmu_mb``): head and neck →
+    torso-head; the arm from the upper arm down (the clavicle ``*Shoulder`` stays in the trunk)
+    → torso-hand_k; the leg from the thigh down (the ``*HipJoint`` stays in the trunk) →
+    crotch-foot_k; the rest (hips, back, spine, clavicles, hip joints) → torso-crotch.
+    Left is 1, as in gt.json."""
+    if bone.startswith(("Neck", "Head")):
+        return "torso-head"
+    k = "1" if bone.startswith("L") else "2"
+    if any(x in bone for x in ("Arm", "Hand", "Thumb", "Finger")):
+        return f"torso-hand_{k}"
+    if any(x in bone for x in ("UpLeg", "Leg", "Foot", "Toe")) and "Hip" not in bone:
+        return f"crotch-foot_{k}"
+    return "torso-crotch"
+
+
+def arc_names(model) -> list:
+    """Label names of a model: ``"u-v"`` per model edge, in the model's edge order (label i+1)."""
+    tree = model.tree if hasattr(model, "tree") else model
+    return [f"{u}-{v}" for u, v, _ in tree.edges]
+
+
+def skeleton_labels(skeleton, alignment, data, names=None, core=True) -> tuple:
+    """Label the skeleton voxels of every matched model arc (step 1 of §13.3.1.1).
+
+    Parameters
+    ----------
+    skeleton : (nx, ny, nz) bool array
+    alignment : :class:`topopose.match.Alignment` of the model into ``data``
+    data : the data tree of ``skeleton`` (:func:`topopose.data_tree`, keeps ``voxels``)
+    names : label names ``"u-v"`` (default: the alignment's arcs in order)
+    core : the data vertex of a junction part (model degree > 1) ending several arcs takes the
+        label of the one arc joining it to another junction part when there is exactly one
+        (the trunk between torso and crotch): a junction lies inside the trunk
+
+    Returns
+    -------
+    (labels, names): int32 grid (0: unlabelled), and the names of labels 1..len(names).
+    """
+    vox = getattr(data, "voxels", None)
+    if vox is None:
+        raise InputError("segment: the data tree does not say which voxels make its edges; build "
+                         "it with topopose.data_tree from the skeleton")
+    arcs = alignment.arcs
+    if names is None:
+        names = [f"{u}-{v}" for u, v in arcs]
+    index = {n: i + 1 for i, n in enumerate(names)}
+    eid = {}
+    for j, (u, v, _) in enumerate(data.edges):
+        eid[(u, v)] = eid[(v, u)] = j
+    degree = {v: 0 for v in data.vertices}
+    for u, v, _ in data.edges:
+        degree[u] += 1
+        degree[v] += 1
+    n_edges = len(data.edges)
+    edge_label = np.zeros(n_edges + 1, np.int32)            # last slot: voxel of no edge
+    vmax = max((v for v in data.vertices if isinstance(v, (int, np.integer))), default=-1)
+    vertex_label = np.zeros(int(vmax) + 2, np.int32)
+    for (u, v), path in arcs.items():
+        lab = index.get(f"{u}-{v}") or index.get(f"{v}-{u}")
+        if lab is None or not path:
+            continue
+        for a, b in zip(path[:-1], path[1:]):
+            j = eid.get((a, b))
+            if j is not None:
+                edge_label[j] = lab
+        inner = list(path[1:-1]) + [x for x in (path[0], path[-1]) if degree.get(x) == 1]
+        for x in inner:
+            if isinstance(x, (int, np.integer)) and 0 <= x <= vmax:
+                vertex_label[x] = lab
+    if core:
+        # a junction vertex ending several arcs goes to the one arc joining two junction parts
+        mdeg = {}
+        for u, v in arcs:
+            mdeg[u] = mdeg.get(u, 0) + 1
+            mdeg[v] = mdeg.get(v, 0) + 1
+        for part in mdeg:
+            if mdeg[part] < 2:
+                continue
+            inc = [(u, v) for u, v in arcs if part in (u, v) and arcs[(u, v)]
+                   and mdeg[u] > 1 and mdeg[v] > 1]
+            x = alignment.mapping.get(part)
+            if len(inc) == 1 and isinstance(x, (int, np.integer)) and 0 <= x <= vmax \
+                    and vertex_label[x] == 0:
+                u, v = inc[0]
+                vertex_label[x] = index.get(f"{u}-{v}") or index.get(f"{v}-{u}") or 0
+    e = vox["edge"]
+    vv = vox["vertex"]
+    lab = np.where(vv >= 0, vertex_label[vv], edge_label[e])
+    out = np.zeros(skeleton.size, np.int32)
+    out[vox["index"]] = lab
+    return out.reshape(skeleton.shape), list(names)
+
+
+def _offsets(shape, connectivity):
+    sy, sz = shape[1] * shape[2], shape[2]
+    if connectivity == 6:
+        d = [(-1, 0, 0), (1, 0, 0), (0, -1, 0), (0, 1, 0), (0, 0, -1), (0, 0, 1)]
+    elif connectivity == 26:
+        d = [x for x in itertools.product((-1, 0, 1), repeat=3) if x != (0, 0, 0)]
+    else:
+        raise InputError(f"segment: connectivity must be 6 or 26, got {connectivity!r}")
+    return np.array([a * sy + b * sz + c for a, b, c in d], np.int64)
+
+
+def _box(mask, bbox=None):
+    if bbox is not None:
+        lo, hi = bbox
+        return tuple(slice(int(a), int(b) + 1) for a, b in zip(lo, hi))
+    nz = [np.flatnonzero(mask.any(axis=ax)) for ax in ((1, 2), (0, 2), (0, 1))]
+    if any(a.size == 0 for a in nz):
+        return None
+    return tuple(slice(a[0], a[-1] + 1) for a in nz)
+
+
+def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", bbox=None,
+                 delay: float = 1.5):
+    """Flood ``mask`` from the labelled voxels of ``seeds`` (step 2 of §13.3.1.1).
+
+    ``weighting="none"``: each voxel of ``mask`` connected to a seed gets the label of its
+    geodesic nearest seed inside the mask (steps of the 26- or 6-adjacency), ties to the
+    smallest label; voxels connected to no seed stay 0. ``weighting="part"``: the seeds of
+    label L enter the flood ``delay · (D − r_L)`` steps late, r_L being the median over L's
+    seeds of their number of steps to the hull's border (the part's radius, by
+    :func:`.segment_kernels.depth`) and D the largest r_L: thick parts start first, so the
+    spine of a thick trunk keeps the trunk against the thin limbs whose skeleton starts beside
+    it, inside the trunk. ``delay = 1.5`` was chosen on seed 1 of ``benchmarks/applications.py``
+    (voxel accuracy, capsule human, 16 frames: 0.875 / 0.904 / 0.907 / 0.887 for delay 1 / 1.5 /
+    2 / 3; body, 12 frames: 0.849 / 0.845 / 0.839 / 0.789; plain flooding 0.78 / 0.79); the
+    benchmark measures on other seeds). Runs on the
+    mask's bounding box (``bbox``: ([x0, y0, z0], [x1, y1, z1]) inclusive, as
+    ``Volume.diagnostics["bbox"]``, or computed) with
+    :func:`.segment_kernels.flood`.
+
+    Examples
+    --------
+    >>> m = np.ones((5, 1, 1), bool); s = np.zeros((5, 1, 1), np.int32); s[0], s[4] = 1, 2
+    >>> flood_labels(m, s, 6).ravel().tolist()
+    [1, 1, 1, 2, 2]
+    """
+    from .segment_kernels import depth, flood
+
+    mask = np.asarray(mask, bool)
+    seeds = np.asarray(seeds)
+    if mask.ndim != 3 or seeds.shape != mask.shape:
+        raise InputError(f"segment: mask and seeds must be 3D arrays of one shape, got {mask.shape}"
+                         f" and {seeds.shape}")
+    if weighting not in ("none", "part"):
+        raise InputError(f"segment: weighting must be 'none' or 'part', got {weighting!r}")
+    out = np.zeros(mask.shape, np.int32)
+    box = _box(mask, bbox)
+    if box is None:
+        return out
+    sub_m = np.pad(mask[box], 1).view(np.uint8)
+    sub_s = np.pad(seeds[box].astype(np.int32), 1)
+    offsets = _offsets(sub_m.shape, connectivity)
+    flat_m, flat_s = sub_m.reshape(-1), sub_s.reshape(-1)
+    if weighting == "part":
+        d = depth(flat_m, offsets)
+        sel = flat_s > 0
+        r = np.zeros(int(flat_s.max()) + 1)
+        for lab in np.unique(flat_s[sel]):
+            r[lab] = np.median(d[flat_s == lab])
+        start = np.round(delay * (r.max() - r[flat_s])).astype(np.int32)
+    else:
+        start = np.zeros(flat_m.size, np.int32)
+    flood(flat_m, flat_s, start, offsets)
+    out[box] = sub_s[1:-1, 1:-1, 1:-1]
+    return out
+
+
+def segment(volume, skeleton, alignment, data=None, *, names=None, connectivity: int = 26,
+            weighting: str = "part", delay: float = 1.5):
+    """Body-part segmentation of a visual hull (thesis §13.3.1.1).
+
+    Parameters
+    ----------
+    volume : :class:`topopose.Volume` or (nx, ny, nz) bool array — the visual hull
+    skeleton : bool array of the same shape — its curve skeleton
+    alignment : the model's alignment into the data tree (``FrameEstimator.estimate(frame,
+        detail=True)`` gives volume, skeleton, data tree and alignment of a frame)
+    data : the data tree of ``skeleton`` (default: rebuilt with :func:`topopose.data_tree`;
+        vertex ids are deterministic, so they are the alignment's)
+    names : label names (default ``"u-v"`` per pattern arc of the alignment)
+    connectivity : 26 (default) or 6
+    weighting, delay : ``"part"`` (default; delay 1.5) or ``"none"`` (the thesis' plain
+        flooding), see :func:`flood_labels`
+
+    Returns
+    -------
+    (labels, names): int32 grid, 0 background and unreached hull voxels, label i the arc
+    ``names[i - 1]``.
+    """
+    from ..skeleton import data_tree
+
+    hull = volume.data if hasattr(volume, "data") else volume
+    bbox = (getattr(volume, "diagnostics", None) or {}).get("bbox")
+    hull = np.asarray(hull, bool)
+    skeleton = np.asarray(skeleton, bool)
+    if skeleton.shape != hull.shape:
+        raise InputError(f"segment: skeleton shape {skeleton.shape} differs from the hull's {hull.shape}")
+    if data is None or getattr(data, "voxels", None) is None:
+        data = data_tree(skeleton)
+    seeds, names = skeleton_labels(skeleton, alignment, data, names)
+    return flood_labels(hull, seeds, connectivity, weighting, bbox=bbox, delay=delay), names
+
+
+# ----------------------------------------------------------------------------- outputs
+def label_colours(n: int) -> np.ndarray:
+    """(n + 1, 3) uint8 colours: grey for 0, then tab10 / tab20."""
+    import matplotlib
+
+    cmap = matplotlib.colormaps["tab10" if n <= 10 else "tab20"]
+    out = np.zeros((n + 1, 3), np.uint8)
+    out[0] = (128, 128, 128)
+    for i in range(n):
+        out[i + 1] = np.round(np.array(cmap(i % cmap.N)[:3]) * 255)
+    return out
+
+
+def write_label_mesh(path, labels, names, origin=(0, 0, 0), voxel_size=1.0) -> int:
+    """A coloured triangle mesh (ASCII PLY, vertex colours) of each label's voxels
+    (``skimage.measure.marching_cubes`` per label). Returns the number of faces."""
+    from skimage.measure import marching_cubes
+
+    cols = label_colours(len(names))
+    verts, faces, vcol = [], [], []
+    nv = 0
+    for lab in range(1, len(names) + 1):
+        m = labels == lab
+        if m.sum() < 2:
+            continue
+        v, f, _, _ = marching_cubes(np.pad(m, 1).astype(np.float32), 0.5)
+        v = (v - 1) * float(voxel_size) + np.asarray(origin, float)
+        verts.append(v)
+        faces.append(f + nv)
+        vcol.append(np.repeat(cols[lab][None], len(v), 0))
+        nv += len(v)
+    V = np.concatenate(verts) if verts else np.zeros((0, 3))
+    F = np.concatenate(faces) if faces else np.zeros((0, 3), np.int64)
+    C = np.concatenate(vcol) if vcol else np.zeros((0, 3), np.uint8)
+    with open(path, "w") as fh:
+        fh.write("ply\nformat ascii 1.0\ncomment topopose segmentation: "
+                 + ", ".join(f"{i + 1}={n}" for i, n in enumerate(names)) + "\n")
+        fh.write(f"element vertex {len(V)}\nproperty float x\nproperty float y\nproperty float z\n"
+                 "property uchar red\nproperty uchar green\nproperty uchar blue\n")
+        fh.write(f"element face {len(F)}\nproperty list uchar int vertex_indices\nend_header\n")
+        for p, c in zip(V, C):
+            fh.write(f"{p[0]:.5f} {p[1]:.5f} {p[2]:.5f} {c[0]} {c[1]} {c[2]}\n")
+        for f in F:
+            fh.write(f"3 {f[0]} {f[1]} {f[2]}\n")
+    return len(F)
+
+
+def camera_masks(cap, labels, origin, voxel_size, silhouettes=None) -> list:
+    """Per-camera label images (uint8, 0 background) of a labelled hull.
+
+    Every labelled voxel centre is projected with the hull's projection tables
+    (:meth:`topopose.hull.carver.HullCarver.project_voxels`), nearest voxel last so it wins;
+    with ``silhouettes`` (one bool mask per camera) every silhouette pixel takes the label of
+    the nearest projected pixel.
+    """
+    from scipy import ndimage
+
+    from ..hull.hull import get_carver
+
+    ijk = np.argwhere(labels > 0)
+    lab = labels[tuple(ijk.T)]
+    carver = get_carver(cap, np.asarray(origin, float), float(voxel_size), labels.shape)
+    pix = carver.project_voxels(ijk)
+    world = np.asarray(origin, float) + ijk * float(voxel_size)
+    out = []
+    for c, cam in enumerate(cap.cameras):
+        w, h = cam.size
+        img = np.zeros(h * w, np.uint8)
+        order = np.argsort(-np.linalg.norm(world - cam.center, axis=1))
+        p = pix[order, c]
+        ok = p >= 0
+        img[p[ok]] = lab[order][ok]
+        img = img.reshape(h, w)
+        if silhouettes is not None:
+            sil = np.asarray(silhouettes[c], bool)
+            if img.any():
+                _, (ii, jj) = ndimage.distance_transform_edt(img == 0, return_indices=True)
+                img = np.where(sil, img[ii, jj], 0).astype(np.uint8)
+        out.append(img)
+    return out
+
+
+def segmentation_figure(path, cap, frame, model, detail, up=(0, 0, 1), max_points=15000) -> None:
+    """Picture of a frame's segmentation: the hull's surface voxels coloured by body part (3D)
+    beside the label masks of up to four cameras."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    from scipy import ndimage
+
+    from ..viz.view import _up_rotation
+
+    if detail is None or detail.alignment is None:
+        raise InputError(f"segment: frame {frame!r} has no alignment to segment with")
+    names = arc_names(model)
+    labels, _ = segment(detail.volume, detail.skeleton, detail.alignment, detail.data, names=names)
+    vol = detail.volume
+    cols = label_colours(len(names))
+    surf = labels * (labels > 0) * (~ndimage.binary_erosion(labels > 0))
+    ijk = np.argwhere(surf > 0)
+    if len(ijk) > max_points:
+        ijk = ijk[np.random.default_rng(0).choice(len(ijk), max_points, replace=False)]
+    w = vol.world(ijk) @ _up_rotation(up).T
+    lab = labels[tuple(ijk.T)]
+    ncam = min(4, len(cap.cameras))
+    fig = plt.figure(figsize=(4 + 2.4 * ncam, 4.4), dpi=80)
+    gs = fig.add_gridspec(1, 1 + ncam, width_ratios=[1.6] + [1] * ncam)
+    ax = fig.add_subplot(gs[0, 0], projection="3d")
+    ax.scatter(w[:, 0], w[:, 1], w[:, 2], s=3, c=cols[lab] / 255.0, depthshade=False)
+    span = (w.max(0) - w.min(0)).max() / 2 if len(w) else 1
+    mid = (w.max(0) + w.min(0)) / 2 if len(w) else np.zeros(3)
+    for setl, m in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), mid):
+        setl(m - span, m + span)
+    ax.set_title(f"frame {frame}", fontsize=9)
+    for i, n in enumerate(names):
+        ax.plot([], [], "s", color=cols[i + 1] / 255.0, label=n)
+    ax.legend(fontsize=6, loc="upper left")
+    sils = cap.silhouettes(frame)
+    masks = camera_masks(cap, labels, vol.origin, vol.voxel_size, sils)
+    for c in range(ncam):
+        a = fig.add_subplot(gs[0, 1 + c])
+        img = masks[c]
+        ys, xs = np.nonzero(img)
+        a.imshow(cols[img])
+        if len(ys):
+            a.set_xlim(xs.min() - 10, xs.max() + 10)
+            a.set_ylim(ys.max() + 10, ys.min() - 10)
+        a.set_title(cap.cameras[c].name, fontsize=8)
+        a.axis("off")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def synthetic_truth(volume, body, names, subject="human") -> np.ndarray:
+    """Ground-truth labels of a hull of a synthetic subject; 0 outside the hull.
+
+    Capsule subjects: each hull voxel takes the arc of the nearest primitive's link (signed
+    distance, :func:`~topopose.capture.synth_geometry.sdf`), grouped by
+    :data:`SYNTH_LINK_ARCS`. The ``body`` subject (a :class:`~topopose.capture.synth_body.MeshBody`):
+    the dominant bone (largest skinning weight) of the nearest posed mesh vertex, grouped by
+    :func:`body_bone_arc`.
+    """
+    hull = volume.data
+    ijk = np.argwhere(hull)
+    X = np.asarray(volume.origin, float) + ijk * float(volume.voxel_size)
+    index = {n: i + 1 for i, n in enumerate(names)}
+    for n in list(index):
+        u, v = n.split("-", 1)
+        index.setdefault(f"{v}-{u}", index[n])
+    out = np.zeros(hull.shape, np.int32)
+    if hasattr(body, "vertices") and not hasattr(body, "prims"):
+        from scipy.spatial import cKDTree
+
+        from ..capture.synth_body import dominant_bones
+
+        dom, bones = dominant_bones()
+        lab_of_bone = np.array([index[body_bone_arc(b)] for b in bones], np.int32)
+        _, nearest = cKDTree(body.vertices).query(X, k=1)
+        out[tuple(ijk.T)] = lab_of_bone[dom[nearest]]
+        return out
+    from ..capture.synth_geometry import sdf
+
+    arcs = SYNTH_LINK_ARCS[subject]
+    D = np.stack([sdf(p, X) for p in body.prims], 1)
+    lab_of_prim = np.array([index[arcs[p.link]] for p in body.prims], np.int32)
+    out[tuple(ijk.T)] = lab_of_prim[np.argmin(D, 1)]
+    return out
+
+
+def renumbered_accuracy(pred, truth, names) -> float:
+    """Voxel accuracy over the voxels labelled in ``truth``, best over the renumberings of
+    numbered parts (a tree cannot tell hand_1 from hand_2: the pipeline numbers them freely)."""
+    from .cluster import renumberings
+
+    parts = sorted({p for n in names for p in n.split("-", 1)})
+    index = {n: i + 1 for i, n in enumerate(names)}
+    sel = truth > 0
+    t, p = truth[sel], pred[sel]
+    if t.size == 0:
+        return math.nan
+    best = 0.0
+    for perm in renumberings(parts):
+        ren = {a: parts[perm[i]] for i, a in enumerate(parts)}
+        m = np.arange(len(names) + 1)
+        for n, i in index.items():
+            u, v = n.split("-", 1)
+            j = index.get(f"{ren[u]}-{ren[v]}") or index.get(f"{ren[v]}-{ren[u]}")
+            if j is not None:
+                m[i] = j
+        best = max(best, float(np.mean(m[p] == t)))
+    return best
+
+
+def segment_cli(a) -> int:
+    """``topopose segment CAPTURE --poses P.jsonl --out DIR [--frames ...]``."""
+    from PIL import Image
+
+    from ..capture import load_capture
+    from ..viz.view import guess_model
+    from .detect import read_poses_file
+    from .estimate import FrameEstimator
+
+    cap = load_capture(a.capture)
+    poses, _ = read_poses_file(a.poses)
+    if not poses:
+        raise InputError(f"{a.poses}: no pose in the file")
+    if a.frames:
+        want = {cap.frame_name(f) for f in a.frames.split(",")}
+        poses = [p for p in poses if p.frame in want]
+    model = guess_model(poses[0], a.model)
+    res = a.resolution or int(poses[0].diagnostics.get("resolution", 100))
+    tol = poses[0].diagnostics.get("hull_tolerance")
+    est = FrameEstimator(cap, model, res, tolerance=None if tol is None else int(tol))
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    names_all = arc_names(model)
+    cols = label_colours(len(names_all))
+    n_done, summary = 0, []
+    for p in poses:
+        if p.status != "matched":
+            continue
+        pose, det = est.estimate(p.frame, detail=True)
+        if pose.status != "matched" or det.alignment is None:
+            summary.append({"frame": p.frame, "status": pose.status, "error": pose.error})
+            continue
+        t0 = time.perf_counter()
+        labels, names = segment(det.volume, det.skeleton, det.alignment, det.data, names=names_all)
+        ms = (time.perf_counter() - t0) * 1e3
+        vol = det.volume
+        np.savez_compressed(out / f"{p.frame}_labels.npz", labels=labels.astype(np.uint8),
+                            names=np.array(names), origin=vol.origin, voxel_size=vol.voxel_size)
+        write_label_mesh(out / f"{p.frame}.ply", labels, names, vol.origin, vol.voxel_size)
+        sils = cap.silhouettes(p.frame)
+        for cam, img in zip(cap.cameras, camera_masks(cap, labels, vol.origin, vol.voxel_size, sils)):
+            Image.fromarray(cols[img]).save(out / f"{p.frame}_{cam.name}.png")
+        counts = np.bincount(labels.ravel(), minlength=len(names) + 1)[1:]
+        summary.append({"frame": p.frame, "status": "segmented", "segment_ms": round(ms, 3),
+                        "voxels": {n: int(c) for n, c in zip(names, counts)}})
+        n_done += 1
+    (out / "segmentation.jsonl").write_text("".join(json.dumps(s) + "\n" for s in summary))
+    print(f"segmented {n_done} matched frames into {out} (labels: "
+          + ", ".join(f"{i + 1}={n}" for i, n in enumerate(names_all)) + ")")
+    return 0

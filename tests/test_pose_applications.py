@@ -1,0 +1,417 @@
+"""The thesis' applications (§13.3): hull segmentation by flooding, pose detection by
+description, pose clustering by betweenness relations."""
+import itertools
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import shortest_path
+
+from topopose.errors import InputError
+from topopose.pose import cluster as C
+from topopose.pose import detect as D
+from topopose.pose import segment as S
+from topopose.pose.segment_kernels import depth, flood
+
+
+# ============================================================================ flooding
+def _graph(mask, connectivity):
+    """All-pairs hop distances over the mask voxels (brute force)."""
+    ijk = np.argwhere(mask)
+    idx = {tuple(p): i for i, p in enumerate(ijk)}
+    steps = [d for d in itertools.product((-1, 0, 1), repeat=3) if d != (0, 0, 0)
+             and (connectivity == 26 or sum(map(abs, d)) == 1)]
+    rows, cols = [], []
+    for i, p in enumerate(ijk):
+        for d in steps:
+            j = idx.get(tuple(p + d))
+            if j is not None:
+                rows.append(i)
+                cols.append(j)
+    G = csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(ijk),) * 2)
+    return ijk, shortest_path(G, unweighted=True)
+
+
+def _brute_flood(mask, seeds, start, connectivity):
+    ijk, Dm = _graph(mask, connectivity)
+    lab = seeds[tuple(ijk.T)]
+    st = start[tuple(ijk.T)]
+    out = np.zeros(mask.shape, np.int32)
+    s_idx = np.flatnonzero(lab > 0)
+    for x in range(len(ijk)):
+        cost = st[s_idx] + Dm[s_idx, x]
+        if not np.isfinite(cost.min()):
+            continue
+        best = cost.min()
+        out[tuple(ijk[x])] = lab[s_idx][cost == best].min()      # ties: the smallest label
+    return out
+
+
+def _padded(mask, seeds, start, connectivity):
+    m = np.pad(mask, 1).view(np.uint8)
+    s = np.pad(seeds.astype(np.int32), 1)
+    st = np.pad(start.astype(np.int32), 1)
+    flood(m.reshape(-1), s.reshape(-1), st.reshape(-1), S._offsets(m.shape, connectivity))
+    return s[1:-1, 1:-1, 1:-1]
+
+
+@pytest.mark.parametrize("connectivity", [6, 26])
+@pytest.mark.parametrize("seed", range(4))
+def test_flood_equals_brute_force_geodesic_labelling(connectivity, seed):
+    rng = np.random.default_rng(seed)
+    mask = rng.random((7, 6, 5)) < 0.65
+    seeds = np.zeros(mask.shape, np.int32)
+    pts = np.argwhere(mask)
+    for i in rng.choice(len(pts), 6, replace=False):
+        seeds[tuple(pts[i])] = rng.integers(1, 4)
+    seeds[tuple(np.argwhere(~mask)[0])] = 2                    # a seed outside the mask: ignored
+    zero = np.zeros(mask.shape, np.int32)
+    ref = _brute_flood(mask, np.where(mask, seeds, 0), zero, connectivity)
+    assert np.array_equal(S.flood_labels(mask, seeds, connectivity), ref)
+    assert np.array_equal(_padded(mask, seeds, zero, connectivity), ref)
+    # delayed seeds (the "part" weighting): min over seeds of start + steps
+    start = np.where(seeds > 0, rng.integers(0, 4, mask.shape), 0)
+    ref2 = _brute_flood(mask, np.where(mask, seeds, 0), start, connectivity)
+    assert np.array_equal(_padded(mask, seeds, start, connectivity), ref2)
+
+
+def test_flood_ties_go_to_the_smallest_label():
+    mask = np.ones((5, 1, 1), bool)
+    seeds = np.zeros(mask.shape, np.int32)
+    seeds[0], seeds[4] = 3, 2
+    assert S.flood_labels(mask, seeds, 6).ravel().tolist() == [3, 3, 2, 2, 2]
+    seeds[0], seeds[4] = 2, 3
+    assert S.flood_labels(mask, seeds, 6).ravel().tolist() == [2, 2, 2, 3, 3]
+
+
+@pytest.mark.parametrize("connectivity", [6, 26])
+def test_depth_is_steps_to_the_border(connectivity):
+    rng = np.random.default_rng(7)
+    mask = np.zeros((9, 8, 7), bool)
+    mask[1:-1, 1:-1, 1:-1] = rng.random((7, 6, 5)) < 0.9
+    m = np.pad(mask, 1).view(np.uint8)
+    d = depth(m.reshape(-1), S._offsets(m.shape, connectivity)).reshape(m.shape)[1:-1, 1:-1, 1:-1]
+    ijk, Dm = _graph(mask, connectivity)
+    steps = [np.array(s) for s in itertools.product((-1, 0, 1), repeat=3) if s != (0, 0, 0)
+             and (connectivity == 26 or sum(map(abs, s)) == 1)]
+    border = np.array([any(not mask[tuple(np.clip(p + s, 0, np.array(mask.shape) - 1))]
+                           or np.any(p + s < 0) or np.any(p + s >= mask.shape) for s in steps)
+                       for p in ijk])
+    ref = 1 + Dm[border].min(0)
+    assert np.array_equal(d[tuple(ijk.T)], ref.astype(int))
+    assert not d[~mask].any()
+
+
+def _y_skeleton():
+    """A Y: a stem along z and two arms; ends at the three tips, one junction."""
+    s = np.zeros((15, 15, 15), bool)
+    for k in range(2, 8):
+        s[7, 7, k] = True
+    for d in range(1, 6):
+        s[7 - d, 7, 7 + d] = s[7 + d, 7, 7 + d] = True
+    return s
+
+
+def test_tree_voxels_make_the_vertices_and_edges():
+    from topopose import data_tree
+
+    rng = np.random.default_rng(1)
+    skel = _y_skeleton()
+    skel[rng.integers(0, 15, 3), 1, rng.integers(0, 15, 3)] = True    # small extra components
+    t = data_tree(skel, origin=(1.0, 2.0, 3.0), voxel_size=0.5)
+    vox = t.voxels
+    assert np.array_equal(vox["index"], np.flatnonzero(skel))
+    world = np.array([1.0, 2.0, 3.0]) + np.argwhere(skel) * 0.5
+    for v in t.vertices:                       # vertices are the centroids of their voxels
+        sel = vox["vertex"] == v
+        assert sel.any()
+        assert np.allclose(world[sel].mean(0), t.positions[v])
+    assert set(vox["edge"][vox["edge"] >= 0]) == set(range(len(t.edges)))
+    assert not np.any((vox["vertex"] >= 0) & (vox["edge"] >= 0))
+    # edge voxels touch both of the edge's vertices' voxels (26-adjacency)
+    for j, (u, v, _) in enumerate(t.edges):
+        e = np.argwhere(skel)[vox["edge"] == j]
+        for w in (u, v):
+            q = np.argwhere(skel)[vox["vertex"] == w]
+            assert np.abs(e[:, None, :] - q[None, :, :]).max(2).min() == 1
+    # normalized / rooted copies keep them
+    assert t.normalized().voxels is vox
+
+
+def test_skeleton_labels_follow_the_matched_arcs():
+    from topopose import data_tree
+
+    skel = _y_skeleton()
+    t = data_tree(skel)
+    tip = {k: min(t.vertices, key=lambda v: np.linalg.norm(t.positions[v] - np.array(p)))
+           for k, p in {"foot": (7, 7, 2), "a1": (2, 7, 12), "a2": (12, 7, 12), "j": (7, 7, 7)}.items()}
+    arcs = {("j", "foot"): [tip["j"], tip["foot"]], ("j", "a1"): [tip["j"], tip["a1"]],
+            ("j", "a2"): None}                                                # a deleted arc
+    al = SimpleNamespace(arcs=arcs, mapping={"j": tip["j"], "foot": tip["foot"], "a1": tip["a1"],
+                                             "a2": None})
+    lab, names = S.skeleton_labels(skel, al, t)
+    assert names == ["j-foot", "j-a1", "j-a2"]
+    assert set(np.unique(lab[skel])) <= {0, 1, 2}
+    assert (lab[7, 7, 2:6] == 1).all() and lab[7, 7, 2] == 1                     # stem and its tip
+    assert lab[2, 7, 12] == 2 and lab[4, 7, 10] == 2
+    assert lab[12, 7, 12] == 0 and lab[10, 7, 10] == 0                          # deleted arc
+    assert lab[7, 7, 7] == 0                                                   # the junction
+    assert not lab[~skel].any()
+    # flooding a thick Y from them: voxels nearest the labelled stem take label 1
+    from scipy import ndimage
+
+    hull = ndimage.binary_dilation(skel, iterations=1)
+    out, _ = S.segment(hull, skel, al, t, weighting="none")
+    ref = _brute_flood(hull, lab, np.zeros(hull.shape, np.int32), 26)
+    assert np.array_equal(out, ref)
+    assert out[7, 7, 2] == 1 and out[12, 7, 12] == 1    # the deleted arm: tie between 1 and 2 -> 1
+
+
+def test_segment_synthetic_human_against_ground_truth(tmp_path):
+    from topopose.capture.synth import synthetic_capture
+    from topopose.pose.estimate import FrameEstimator
+
+    cap = synthetic_capture("human", frames=2, seed=11, separated=True, margin=0.06)
+    est = FrameEstimator(cap, "human", 64)
+    names = S.arc_names(est.model)
+    accs = []
+    for fi, f in enumerate(cap.frames):
+        pose, det = est.estimate(f, detail=True)
+        if pose.status != "matched":
+            continue
+        lab, nm = S.segment(det.volume, det.skeleton, det.alignment, det.data, names=names)
+        assert nm == names
+        hull = det.volume.data
+        assert not lab[~hull].any() and (lab[hull] > 0).mean() > 0.99
+        truth = S.synthetic_truth(det.volume, cap.options["bodies"][fi], names)
+        accs.append(S.renumbered_accuracy(lab, truth, names))
+        masks = S.camera_masks(cap, lab, det.volume.origin, det.volume.voxel_size, cap.silhouettes(f))
+        sil = np.asarray(cap.silhouettes(f)[0], bool)
+        assert masks[0].shape == sil.shape and not masks[0][~sil].any()
+        assert (masks[0][sil] > 0).mean() > 0.95
+        nf = S.write_label_mesh(tmp_path / "m.ply", lab, names, det.volume.origin, det.volume.voxel_size)
+        assert nf > 100 and (tmp_path / "m.ply").read_text().startswith("ply\n")
+    assert accs and min(accs) > 0.75
+
+
+def test_renumbered_accuracy_forgives_swapped_numbers():
+    names = ["t-h_1", "t-h_2", "t-c"]
+    truth = np.array([1, 1, 2, 2, 3, 0])
+    pred = np.array([2, 2, 1, 1, 3, 3])
+    assert S.renumbered_accuracy(pred, truth, names) == 1.0
+    assert S.renumbered_accuracy(np.array([2, 2, 1, 3, 3, 3]), truth, names) == 0.8
+
+
+# ============================================================================ detection
+def test_parse_trees():
+    R = D.Rel
+    assert D.parse("(z-greatest A_1 - H) XOR (z-greatest A_2 - H)") == D.BinOp(
+        "xor", R("greatest", ("A_1", "H"), axis=2), R("greatest", ("A_2", "H"), axis=2))
+    # the thesis' spacing "z - greatest", and precedence not > and > xor > or
+    assert D.parse("z - greatest a b or not x-least a b and order c, d, e xor far a b 2") == D.BinOp(
+        "or", R("greatest", ("a", "b"), axis=2),
+        D.BinOp("xor",
+                D.BinOp("and", D.Not(R("least", ("a", "b"), axis=0)),
+                        R("order", ("c", "d", "e"), relation="b")),
+                R("far", ("a", "b"), value=2.0)))
+    assert D.parse("above p q and below q p") == D.BinOp(
+        "and", R("greatest", ("p", "q"), axis=2), R("least", ("q", "p"), axis=2))
+    assert D.parse("ORDER-I a b c d") == R("order", ("a", "b", "c", "d"), relation="i")
+    assert D.parse("near hand_1 - head 0.25") == R("near", ("hand_1", "head"), value=0.25)
+    assert D.parse("((true)) and not false") == D.BinOp("and", D.Const(True), D.Not(D.Const(False)))
+    assert D.parse("Above x1 x2 OR above x3 x4").op == "or"
+
+
+@pytest.mark.parametrize("text, col", [
+    ("above head", 10),                      # missing second part: at the end
+    ("above a b and", 13),
+    ("(above a b", 10),
+    ("z-great a b", 2),
+    ("near a b x", 9),
+    ("hands a b", 0),
+    ("above a b c", 10),
+    ("above a b $ c", 10),
+    ("above a and b", 8),
+    ("order a b", 9),
+    ("w-greatest a b", 0),
+    ("", 0),
+    ("above a b)", 9),
+])
+def test_error_columns(text, col):
+    with pytest.raises(D.ExpressionError) as e:
+        D.parse(text)
+    assert e.value.col == col
+    assert str(e.value).endswith("\n  " + text + "\n  " + " " * col + "^")
+
+
+def test_evaluate_on_hand_made_positions():
+    P = {"head": (0, 0, 1.7), "torso": (0, 0, 1.45), "crotch": (0, 0, 0.95),
+         "hand_1": (0.1, 0.3, 1.9), "hand_2": (0.0, -0.8, 1.4), "foot_1": (0, 0.1, 0), "foot_2": (0, -0.1, 0)}
+    lib, aliases = D.load_library()
+    val = {n: D.evaluate(p.expr, P, "+z", aliases) for n, p in lib.items()}
+    assert val == {"hands-up": False, "ask-a-question": True, "wide-spread-arms": False,
+                   "acrobatic": False}
+    for n, p in lib.items():                # the thesis' notation says the same
+        assert D.evaluate(p.thesis, P, "+z", aliases) == val[n]
+    Q = dict(P, hand_1=(0, 0.9, 1.45), hand_2=(0, -0.9, 1.45))
+    assert D.evaluate(lib["wide-spread-arms"].expr, Q) is True
+    # crotch: 0.5 below the shoulders; ball of diameter 1.8 centred at torso height holds it
+    assert D.evaluate("order hand_1 crotch hand_2", Q) is True
+    assert D.evaluate("order hand_1 crotch hand_2", dict(Q, crotch=(0, 0, 0.5))) is False
+    assert D.evaluate("near hand_1 hand_2 1.9", Q) and not D.evaluate("near hand_1 hand_2 1.7", Q)
+    assert D.evaluate("x-least head hand_1 or y-greatest head hand_2", P) is True
+    # missing part: null; unknown part: null
+    assert D.evaluate("above hand_1 head", dict(P, hand_1=None)) is None
+    assert D.evaluate("above thumb head or true", P) is None
+    # up = +y: the thesis' z is the capture's y
+    Py = {k: (v[0], v[2], -v[1]) for k, v in P.items()}
+    assert D.evaluate("z-greatest hand_1 head", Py, "+y") is True
+    assert D.evaluate("z-greatest hand_1 head", Py, "+z") is False
+    assert D.evaluate("z-greatest hand_1 head", {k: (v[0], v[1], -v[2]) for k, v in P.items()}, "-z")
+    # sided names resolve to numbered ones and back
+    sided = {"head": P["head"], "left_hand": P["hand_1"], "right_hand": P["hand_2"]}
+    assert D.evaluate("above hand_1 head and not above hand_2 head", sided) is True
+    assert D.evaluate("above left_hand head", {"head": P["head"], "hand_1": P["hand_1"]}) is True
+    assert D.evaluate("above hand_r head", {"head": P["head"], "hand_2": P["hand_2"]}) is False
+
+
+def test_detect_sequence_intervals_and_cli(tmp_path, capsys):
+    from topopose.cli import main
+
+    frames = []
+    for i in range(8):
+        up = i in (2, 3, 4, 6)
+        frames.append({"frame": f"{i:06d}", "status": "matched" if i != 5 else "rejected",
+                       "distance": 0.1,
+                       "parts": {"head": [0, 1.7, 0], "hand_1": [0, 1.9 if up else 1.0, 0],
+                                 "hand_2": [0, 1.0, 0] if i != 7 else None}})
+    f = tmp_path / "poses.jsonl"
+    f.write_text(json.dumps({"model": "human", "capture": {"up": "+y"}}) + "\n"
+                 + "".join(json.dumps(d) + "\n" for d in frames))
+    assert main(["detect", str(f), "above hand_1 head", "--output", str(tmp_path / "o.jsonl"),
+                 "--csv", str(tmp_path / "o.csv")]) == 0
+    res = [json.loads(x) for x in (tmp_path / "o.jsonl").read_text().splitlines()]
+    assert [r["value"] for r in res] == [False, False, True, True, True, None, True, False]
+    assert "000002 .. 000004  (3 frames)" in capsys.readouterr().out
+    assert (tmp_path / "o.csv").read_text().splitlines()[3] == "000002,1"
+    assert main(["detect", str(f), "--pose", "ask-a-question", "--output", str(tmp_path / "q.jsonl")]) == 0
+    res = [json.loads(x)["value"] for x in (tmp_path / "q.jsonl").read_text().splitlines()]
+    assert res == [False, False, True, True, True, None, True, None]
+    assert main(["detect", str(f), "above hand_1 head or"]) == 2
+    assert "^" in capsys.readouterr().err
+    assert main(["detect", str(f), "--pose", "nope"]) == 2
+
+
+def test_user_library(tmp_path):
+    lib = tmp_path / "lib.toml"
+    lib.write_text('[aliases.me]\nHD = "head"\n[[pose]]\nname = "hand-high"\nexpr = "above hand_1 HD"\n')
+    poses, aliases = D.load_library(lib)
+    assert "hand-high" in poses and "hands-up" in poses and aliases["hd"] == "head"
+    assert D.evaluate(poses["hand-high"].expr, {"head": (0, 0, 1), "hand_1": (0, 0, 2)}, aliases=aliases)
+    lib.write_text('[[pose]]\nname = "bad"\nexpr = "above a"\n')
+    with pytest.raises(InputError, match="column 8"):
+        D.load_library(lib)
+
+
+# ============================================================================ clustering
+def test_relation_sets_of_hand_computed_poses():
+    # a straight line a-b-c-d: every inner point lies between any two points around it
+    line = {"a": (0, 0, 0), "b": (1, 0, 0), "c": (2, 0, 0), "d": (3, 0, 0)}
+    assert C.relation_set(line) == {("a", "b", "c"), ("a", "b", "d"), ("a", "c", "d"),
+                                    ("b", "c", "d")}
+    # a square: the diagonal's ends see the other corners at 90°: not strictly inside the ball
+    sq = {"a": (0, 0, 0), "b": (1, 0, 0), "c": (1, 1, 0), "d": (0, 1, 0)}
+    assert C.relation_set(sq) == set()
+    # a T: the stem's top is between the bar's ends; nothing else
+    t = {"l": (-1, 0, 0), "m": (0, 0.1, 0), "r": (1, 0, 0), "s": (0, -3, 0)}
+    assert C.relation_set(t) == {("l", "m", "r")}
+    assert C.relation_set(dict(t, s=None)) == {("l", "m", "r")}
+
+
+def test_similarity_renumbering_and_ari():
+    parts = ["head", "hand_1", "hand_2", "torso"]
+    A = {"head": (0, 0, 2), "hand_1": (0, 1, 1), "hand_2": (0, -1, 3), "torso": (0, 0, 1)}
+    B = dict(A, hand_1=A["hand_2"], hand_2=A["hand_1"])           # the same pose, renumbered
+    M = C.relation_matrix([A, B], parts)
+    assert not np.array_equal(M[0], M[1])
+    assert C.similarity_matrix(M, parts)[0, 1] == 1.0
+    plain = C.similarity_matrix(M, None)[0, 1]
+    sa, sb = C.relation_set(A), C.relation_set(B)
+    assert plain == pytest.approx(len(sa & sb) / len(sa | sb))
+    # ARI: identical partitions up to names, a hand-computed one, independent ones near 0
+    assert C.adjusted_rand_index([0, 0, 1, 1, 2], [5, 5, 3, 3, 9]) == 1.0
+    # contingency [[2,1,0],[0,1,2]]: sum C(nij,2)=2, rows 3+3=6, cols 1+1+1=3, C(6,2)=15
+    # ARI = (2 - 6*3/15) / ((6+3)/2 - 6*3/15) = 0.8 / 3.3
+    assert C.adjusted_rand_index([0, 0, 0, 1, 1, 1], [0, 0, 1, 1, 2, 2]) == pytest.approx(0.8 / 3.3)
+    rng = np.random.default_rng(0)
+    assert abs(C.adjusted_rand_index(rng.integers(0, 3, 3000), rng.integers(0, 3, 3000))) < 0.02
+
+
+def _jittered(K=4, per=12, noise=0.03, seed=0):
+    rng = np.random.default_rng(seed)
+    parts = ["head", "torso", "crotch", "hand_1", "hand_2", "foot_1", "foot_2"]
+    base = [{p: rng.normal(0, 0.6, 3) for p in parts} for _ in range(K)]
+    poses, truth = [], []
+    for i in range(K * per):
+        k = int(rng.integers(K))
+        pos = {p: base[k][p] + rng.normal(0, noise, 3) for p in parts}
+        if rng.random() < 0.5:                         # the pipeline numbers limbs freely
+            pos["hand_1"], pos["hand_2"] = pos["hand_2"], pos["hand_1"]
+        poses.append({"frame": f"{i:06d}", "status": "matched", "parts": pos})
+        truth.append(k)
+    return poses, truth
+
+
+@pytest.mark.parametrize("auto", ["gap", "silhouette"])
+def test_clustering_finds_known_poses(auto):
+    poses, truth = _jittered()
+    res = C.cluster_poses(poses, auto=auto)
+    assert res.k == 4
+    assert C.adjusted_rand_index(res.labels, truth) == 1.0
+    for c, m in enumerate(res.medoids):
+        assert res.labels[res.frames.index(m)] == c
+    assert C.cluster_poses(poses, clusters=2).k == 2
+    assert C.cluster_poses(poses, threshold=1.0).k == 1
+
+
+def test_cluster_cli(tmp_path):
+    from topopose.cli import main
+
+    poses, truth = _jittered(K=3, per=5)
+    poses[0]["status"] = "failed"
+    f = tmp_path / "p.jsonl"
+    f.write_text("".join(json.dumps({**p, "distance": 0.1, "parts": {k: list(map(float, v))
+                                                                      for k, v in p["parts"].items()}})
+                         + "\n" for p in poses))
+    assert main(["cluster", str(f), "--output", str(tmp_path / "c.jsonl"),
+                 "--figure", str(tmp_path / "c.png")]) == 0
+    res = [json.loads(x) for x in (tmp_path / "c.jsonl").read_text().splitlines()]
+    assert res[0]["cluster"] is None
+    assert C.adjusted_rand_index([r["cluster"] for r in res[1:]], truth[1:]) == 1.0
+    assert (tmp_path / "c.png").stat().st_size > 1000
+
+
+def test_body_bones_group_into_the_human_arcs():
+    bones = ('Hips', 'LHipJoint', 'LeftUpLeg', 'LowerBack', 'RHipJoint', 'RightUpLeg', 'Spine',
+             'Spine1', 'LeftLeg', 'LeftShoulder', 'Neck', 'Neck1', 'RightLeg', 'RightShoulder',
+             'Head', 'LeftArm', 'LeftFoot', 'LeftForeArm', 'LeftHand', 'LeftToeBase', 'RightArm',
+             'RightFoot', 'RightForeArm', 'RightHand', 'RightToeBase', 'LThumb', 'LeftFingerBase',
+             'LeftHandFinger1', 'RThumb', 'RightFingerBase', 'RightHandFinger1')
+    want = {"torso-head": {"Neck", "Neck1", "Head"},
+            "torso-crotch": {"Hips", "LHipJoint", "RHipJoint", "LowerBack", "Spine", "Spine1",
+                             "LeftShoulder", "RightShoulder"},
+            "torso-hand_1": {"LeftArm", "LeftForeArm", "LeftHand", "LThumb", "LeftFingerBase",
+                             "LeftHandFinger1"},
+            "torso-hand_2": {"RightArm", "RightForeArm", "RightHand", "RThumb", "RightFingerBase",
+                             "RightHandFinger1"},
+            "crotch-foot_1": {"LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase"},
+            "crotch-foot_2": {"RightUpLeg", "RightLeg", "RightFoot", "RightToeBase"}}
+    got = {}
+    for b in bones:
+        got.setdefault(S.body_bone_arc(b), set()).add(b)
+    assert got == want
+    from topopose.pose.model import load_model
+
+    assert set(want) == set(S.arc_names(load_model("human")))

@@ -1,11 +1,12 @@
 """From poses to motion on the anatomically real ``body`` subject: identities over time, left and
 right, and the full skeleton against the rig joints of the ground truth.
 
-    python benchmarks/tracking.py [--walk-frames 200] [--random-frames 100] [--out benchmarks/results]
+    python benchmarks/tracking.py [--walk-frames 40] [--random-frames 60] [--out benchmarks/results]
                                   [--work DIR]
 
-Sequences (100³, 8 cameras, noise 1, 640×480): walking with builds average / lean / heavy /
-random (seeds 1–4) and unrelated random poses (seeds 5–6, builds average / random). Every figure
+Sequences (100³, 8 cameras, noise 1, 640×480): ten walks of 40 frames with builds average /
+lean / heavy / random / child (seeds 1–10) and three sequences of unrelated random poses
+(seeds 11–13, builds average / random / lean). Every figure
 is measured beside its peer in the same run:
 
 * **identity switches** of the numbered parts (hand_1/hand_2, foot_1/foot_2) per 500 frames:
@@ -50,8 +51,13 @@ from topopose.pose.model import load_model  # noqa: E402
 from topopose.pose.quality import evaluate, point_segment_distance  # noqa: E402
 from topopose.pose.track import track  # noqa: E402
 
-SEQUENCES = [("walk", 1, "average"), ("walk", 2, "lean"), ("walk", 3, "heavy"),
-             ("walk", 4, "random"), ("random", 5, "average"), ("random", 6, "random")]
+# Walking sequences are short: the synthetic walk goes straight (≈ 1.3 m/s) and the capture
+# volume holds the whole path, so a 200-frame walk (≈ 10 m) would get 10 cm voxels at 100³;
+# 40 frames (1.6 s, a gait cycle and a half) keep the voxels near 3 cm, as in a capture volume
+# of a few metres. Ten walks of 40 frames = 400 frames; identity switches are scaled to 500.
+SEQUENCES = ([("walk", s, b) for s, b in zip(range(1, 11), ["average", "lean", "heavy", "random",
+                                                            "child"] * 2)]
+             + [("random", 11, "average"), ("random", 12, "random"), ("random", 13, "lean")])
 RIG = {"neck": ("Neck_head",), "skull": ("Head_head",),
        "pelvis": ("LeftUpLeg_head", "RightUpLeg_head"),
        "shoulder": ("LeftArm_head", "RightArm_head"), "elbow": ("LeftForeArm_head", "RightForeArm_head"),
@@ -267,8 +273,8 @@ def _joint(p, numbered_name, model):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--walk-frames", type=int, default=200)
-    ap.add_argument("--random-frames", type=int, default=100)
+    ap.add_argument("--walk-frames", type=int, default=40)
+    ap.add_argument("--random-frames", type=int, default=60)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     ap.add_argument("--work", default=None, help="keep the captures here (default: a temp dir)")
     a = ap.parse_args(argv)

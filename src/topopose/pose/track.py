@@ -3,14 +3,15 @@
 Pose initialization solves each frame alone (thesis §12.1), so the tree cannot tell ``hand_1``
 from ``hand_2`` (the model's interchangeable groups, :meth:`Model.interchangeable`) and their
 numbers may swap from one frame to the next. Thesis §13.3.1: the per-frame result initializes
-tracking. Here each group is tracked on its own: every identity predicts its position by
-constant velocity from its last two observations, and the matched frame's parts are assigned to
+tracking. Here each group is tracked on its own: every identity predicts its position by a
+damped constant velocity from its last two observations, and the matched frame's parts are assigned to
 the identities by the Hungarian method (:func:`scipy.optimize.linear_sum_assignment`) on the
 distances between predictions and observations. Tracking is *lost* — and re-initialized by the
 per-frame numbering, starting a new segment — when the gap since the last matched frame exceeds
 ``max_gap`` frames. An assigned observation farther than ``gate`` from its prediction is an
 outlier (a part the per-frame result misplaced): it is named by the assignment but does not
-move its track, which coasts on its prediction. Rejected and failed frames are left as they
+move its track, which coasts on its prediction (a wrong velocity from one misplaced part would
+otherwise steer the next assignments). Rejected and failed frames are left as they
 are (their parts are not trusted) and do not update the tracks.
 """
 from __future__ import annotations
@@ -59,7 +60,7 @@ def body_scale(poses) -> float:
     return float(np.median(ext)) if ext else 1.0
 
 
-def assign_identities(times, observations, gate, max_gap=5):
+def assign_identities(times, observations, gate, max_gap=5, velocity=0.5):
     """Track one interchangeable group.
 
     Parameters
@@ -69,6 +70,10 @@ def assign_identities(times, observations, gate, max_gap=5):
         group's k positions in the per-frame numbering (NaN rows: part not placed)
     gate : largest distance between a prediction and an observation that updates it
     max_gap : tracking is lost after more than this many frames without observation
+    velocity : weight of the constant-velocity term of the prediction (1: constant velocity,
+        0: constant position). The velocity of two noisy per-frame positions is noisy;
+        ``benchmarks/tracking.py`` walks (400 frames, identity switches on frames with both
+        parts right, gate 0.25): 1.0 → 5, 0.5 → 0, 0.0 → 0; crossing hands need some velocity.
 
     Returns
     -------
@@ -95,7 +100,7 @@ def assign_identities(times, observations, gate, max_gap=5):
             moving = ~np.isnan(prev).any(axis=1) & (last_t > prev_t)
             for a in np.flatnonzero(moving):
                 vel = (last[a] - prev[a]) / (last_t[a] - prev_t[a])
-                pred[a] = last[a] + vel * (times[i] - last_t[a])
+                pred[a] = last[a] + velocity * vel * (times[i] - last_t[a])
             cost = np.zeros((k, k))
             for a in range(k):
                 for j in range(k):
@@ -108,7 +113,9 @@ def assign_identities(times, observations, gate, max_gap=5):
             # an observation far from its identity's prediction is an outlier (a misplaced part
             # of the per-frame result): it keeps the name the assignment gives, but does not
             # move the track; the track coasts until max_gap, then tracking is lost
-            outlier = np.array([seen[j] and cost[p[j], j] > gate for j in range(k)])
+            dt = np.maximum(times[i] - last_t, 1.0)       # the gate widens over gaps
+            outlier = np.array([seen[j] and cost[p[j], j] > gate * (1 + 0.5 * (dt[p[j]] - 1))
+                                for j in range(k)])
             seen = seen & ~outlier
         if lost:                                      # (re-)initialize: per-frame numbering
             p = np.arange(k)
@@ -124,7 +131,7 @@ def assign_identities(times, observations, gate, max_gap=5):
     return perm, segment
 
 
-def track(poses, model, max_gap=5, gate=None) -> list:
+def track(poses, model, max_gap=5, gate=None, velocity=0.5) -> list:
     """Give the numbered parts of a sequence stable identities (see the module docstring).
 
     Parameters
@@ -132,8 +139,10 @@ def track(poses, model, max_gap=5, gate=None) -> list:
     poses : list of Pose
     model : Model (its :meth:`~Model.interchangeable` groups are tracked)
     max_gap : frames without a matched observation after which tracking is lost
-    gate : distance above which an assigned observation is an outlier; default 0.25 × the
-        median extent of the subject (:func:`body_scale`)
+    gate : distance above which an assigned observation is an outlier (× 1 + (dt − 1)/2 after
+        dt frames without update); default 0.25 × the median extent of the subject
+        (:func:`body_scale`), 45 cm for a standing adult
+    velocity : see :func:`assign_identities`
 
     Returns
     -------
@@ -153,7 +162,7 @@ def track(poses, model, max_gap=5, gate=None) -> list:
                 continue
             obs.append(np.array([np.full(3, np.nan) if p.parts.get(g) is None
                                  else np.asarray(p.parts[g], float) for g in group]))
-        perm, seg = assign_identities(times, obs, gate, max_gap)
+        perm, seg = assign_identities(times, obs, gate, max_gap, velocity)
         stem = str(group[0]).rpartition("_")[0]
         for i, p in enumerate(perm):
             if p is None:

@@ -380,8 +380,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=0.3):
                 smoothed[i] = True
     out = []
     for i, p in enumerate(poses):
-        if np.isnan(P[i]).any():
-            out.append(p)
+        if np.isnan(P[i]).any():              # no skeleton (joints of an earlier run dropped)
+            out.append(type(p)(**{**p.__dict__, "joints": {}}) if p.joints else p)
             continue
         diag = dict(p.diagnostics)
         if rms[i] is not None:

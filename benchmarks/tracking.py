@@ -290,7 +290,8 @@ def main(argv=None):
         n = a.walk_frames if motion == "walk" else a.random_frames
         r, d, sided, tree = one_sequence(work, motion, seed, build, n, model)
         rows.append(r)
-        print(json.dumps({k: v for k, v in r.items() if k != "bone_lengths"}), flush=True)
+        print(json.dumps({k: (v[0] if k.startswith("mpjpe") else v) for k, v in r.items()
+                          if k != "bone_lengths"}), flush=True)
         if motion == "walk" and (pic is None or r["good"] > pic[0]):
             pic = (r["good"], d, sided, tree)
     out = Path(a.out)
@@ -298,7 +299,9 @@ def main(argv=None):
     if pic is not None:
         picture(out / "tracking.png", pic[1], pic[2], pic[3], load_capture(pic[1]).gt, model)
     info = machine(resolution=100, cameras=8, noise=1, subject="body")
-    (out / "tracking.json").write_text(json.dumps({"machine": info, "sequences": rows}, indent=1))
+    compact = [{k: (v[:3] if k.startswith("mpjpe") else v) for k, v in r.items()} for r in rows]
+    (out / "tracking.json").write_text(json.dumps({"machine": info, "sequences": compact},
+                                                  indent=1))
     (out / "tracking.md").write_text(report(rows, info))
     print(report(rows, info))
 

@@ -21,7 +21,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-PER_PART_DIAGNOSTICS = ("curves", "chirality_parts")
+PER_PART_DIAGNOSTICS = ("curves",)
 
 
 def frame_index(poses) -> np.ndarray:

@@ -275,12 +275,57 @@ def _joint(p, numbered_name, model):
     return None
 
 
+def real_mpjpe(poses_path, trc_path):
+    """MPJPE of the fitted joints against Pose2Sim's 3D result of a real recording (TRC Y-up:
+    (X, Y, Z)_trc = world (y, z, x)); frame i of the poses ↔ row i of the TRC; left/right pairs
+    paired optimally, as for the synthetic sequences. None when a file is absent."""
+    from topopose.pose.export import OPENSIM_LABELS, read_trc
+    from topopose.pose.pose import read_poses
+
+    if not (Path(poses_path).exists() and Path(trc_path).exists()):
+        return None
+    names, _, ref = read_trc(trc_path)
+    per_joint, per_frame = {}, []
+    for i, p in enumerate(read_poses(poses_path)):
+        if not p.matched or not p.joints or i >= len(ref):
+            continue
+        errs = []
+        for base in MPJPE_JOINTS:
+            ours = {side: p.joints.get(f"{side}_{base}") for side in ("left", "right")}
+            if base == "neck":
+                ours = {"": p.joints.get("neck")}
+            labs = {k: OPENSIM_LABELS.get(f"{k}_{base}" if k else base) for k in ours}
+            if not all(lab in names and ours[k] is not None for k, lab in labs.items()):
+                continue
+            gt = {k: ref[i, names.index(lab)] for k, lab in labs.items()}
+            w = {k: np.array([v[2], v[0], v[1]]) for k, v in gt.items()}      # trc → world
+            if any(np.isnan(v).any() for v in w.values()):
+                continue
+            if len(ours) == 2:
+                d0 = [np.linalg.norm(ours["left"] - w["left"]), np.linalg.norm(ours["right"] - w["right"])]
+                d1 = [np.linalg.norm(ours["left"] - w["right"]), np.linalg.norm(ours["right"] - w["left"])]
+                d = d0 if sum(d0) <= sum(d1) else d1
+            else:
+                d = [np.linalg.norm(ours[""] - w[""])]
+            per_joint.setdefault(base, []).extend(float(x) for x in d)
+            errs += d
+        if errs:
+            per_frame.append(float(np.mean(errs)))
+    return {"frames": len(per_frame),
+            "mpjpe": float(np.median(per_frame)) if per_frame else None,
+            "per_joint": {k: float(np.median(v)) for k, v in per_joint.items()}}
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--walk-frames", type=int, default=40)
     ap.add_argument("--random-frames", type=int, default=60)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     ap.add_argument("--work", default=None, help="keep the captures here (default: a temp dir)")
+    ap.add_argument("--real-poses", default=None,
+                    help="poses.jsonl of `topopose run` on the real recording (Pose2Sim balancing)")
+    ap.add_argument("--real-trc", default=None,
+                    help="its reference/pose2sim_3d.trc (Pose2Sim's 3D result)")
     a = ap.parse_args(argv)
     model = load_model("human")
     work = a.work or tempfile.mkdtemp(prefix="topopose_tracking_")
@@ -299,11 +344,16 @@ def main(argv=None):
     if pic is not None:
         picture(out / "tracking.png", pic[1], pic[2], pic[3], load_capture(pic[1]).gt, model)
     info = machine(resolution=100, cameras=8, noise=1, subject="body")
+    real = None
+    if a.real_poses or a.real_trc:
+        real = real_mpjpe(a.real_poses or "", a.real_trc or "")
+        if real is None:
+            print(f"real recording: {a.real_poses} or {a.real_trc} absent; skipped")
     compact = [{k: (v[:3] if k.startswith("mpjpe") else v) for k, v in r.items()} for r in rows]
-    (out / "tracking.json").write_text(json.dumps({"machine": info, "sequences": compact},
-                                                  indent=1))
-    (out / "tracking.md").write_text(report(rows, info))
-    print(report(rows, info))
+    (out / "tracking.json").write_text(json.dumps({"machine": info, "sequences": compact,
+                                                   "real": real}, indent=1))
+    (out / "tracking.md").write_text(report(rows, info, real))
+    print(report(rows, info, real))
 
 
 def _rate(c):
@@ -311,7 +361,7 @@ def _rate(c):
     return f"{c['right'] / n:.1%} ({c['right']}/{n}, wrong {c['wrong']}, unsure {c['unsure']})" if n else "–"
 
 
-def report(rows, info):
+def report(rows, info, real=None):
     L = ["# From poses to motion (body subject, 100³, 8 cameras, noise 1)", "",
          f"Machine: {info['cpu']}, {info['cores']} cores, load {info['load_average']}, {info['date']}.",
          "Produced by `benchmarks/tracking.py`; every figure beside its peer in the same run. The "
@@ -367,6 +417,14 @@ def report(rows, info):
         if motion == "random":
             L.append("- unrelated random poses have no identity over time: their switch counts "
                      "only show that tracking does not help there (chirality is per frame)")
+    L += ["", "## Real recording (Pose2Sim balancing trial, against Pose2Sim's 3D result)", ""]
+    if real is None or not real.get("frames"):
+        L.append("- not measured: the recording needs silhouettes from its videos (no empty-scene "
+                 "frame), which main does not make yet; run `topopose run` on it, then this script "
+                 "with `--real-poses POSES.jsonl --real-trc reference/pose2sim_3d.trc`")
+    else:
+        L.append(f"- MPJPE {100 * real['mpjpe']:.1f} cm over {real['frames']} frames; per joint "
+                 + ", ".join(f"{k} {100 * v:.1f}" for k, v in real["per_joint"].items()) + " cm")
     return "\n".join(L) + "\n"
 
 

@@ -175,3 +175,16 @@ def test_c3d_round_trip_every_joint(tmp_path):
                 assert frames[i][j, 3] < 0
             else:
                 assert np.allclose(frames[i][j, :3], np.asarray(v) * 1000, atol=0.05)
+
+
+def test_read_trc_of_pose2sim_layout(tmp_path):
+    """Pose2Sim writes the data right after the X1/Y1/Z1 line (no empty line)."""
+    text = ("PathFileType\t4\t(X/Y/Z)\tt.trc\n"
+            "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\t"
+            "OrigDataStartFrame\tOrigNumFrames\n60\t60\t2\t2\tm\t60\t0\t2\n"
+            "Frame#\tTime\tRHip\t\t\tNeck\t\t\n\t\tX1\tY1\tZ1\tX2\tY2\tZ2\n"
+            "1\t0.0166\t1\t2\t3\t4\t5\t6\n2\t0.0333\t7\t8\t9\t10\t11\t12\n")
+    (tmp_path / "t.trc").write_text(text)
+    names, times, a = read_trc(tmp_path / "t.trc")
+    assert names == ["RHip", "Neck"] and len(times) == 2
+    assert np.allclose(a[1, 1], [10, 11, 12]) and np.allclose(a[0, 0], [1, 2, 3])

@@ -84,6 +84,7 @@ def test_run_good_capture_writes_poses_and_exports(capture_dir, tmp_path, capsys
     assert f"{FRAMES} frames" in printed and "matched" in printed
     names, times, a = read_trc(trc)
     assert names[0] == "Head" and len(times) == FRAMES        # OpenSim marker names
+    assert "torso" in names and "Neck" in names               # Neck: the fitted neck joint
     m = [i for i, p in enumerate(poses) if p.status == "matched"]
     assert m, "at least one matched frame"
     i = m[0]

@@ -4,8 +4,8 @@ Only matched frames carry positions in the exports; rejected and failed frames a
 with empty values (TRC, CSV) or invalid points (C3D), so frame numbers and times stay aligned
 with the capture. Markers are every part and every fitted joint (:attr:`Pose.joints`); with
 ``labels=OPENSIM_LABELS`` they carry the OpenSim / Pose2Sim marker names where one exists
-(``left_elbow`` → ``LElbow``, ``torso`` → ``Neck``, ``crotch`` → ``Hip``...), other names are
-kept as they are.
+(``left_elbow`` → ``LElbow``, ``neck`` → ``Neck``, ``pelvis`` → ``Hip``...; without a fitted
+skeleton ``torso`` → ``Neck`` and ``crotch`` → ``Hip``), other names are kept as they are.
 """
 from __future__ import annotations
 
@@ -68,13 +68,19 @@ def marker_names(poses, parts=()) -> list:
     return list(names)
 
 
+# parts that give way to the fitted joint of the same marker (Pose2Sim's Neck is the neck base:
+# the fitted neck joint, not the skeleton's shoulder-centre junction)
+_GIVE_WAY = {"torso": "neck", "crotch": "pelvis"}
+
+
 def _labels(names, labels):
     if labels is None:
         return list(names)
+    present = set(names)
     out, seen = [], set()
     for n in names:
         lab = labels.get(n, n)
-        if lab in seen:            # two names for one marker (torso and neck): keep ours
+        if lab in seen or _GIVE_WAY.get(n) in present:   # two names for one marker: keep ours
             lab = n
         seen.add(lab)
         out.append(lab)
@@ -151,10 +157,12 @@ def write_trc(path, poses, parts, fps=25.0, units="m", up="+z", y_up=True, label
 
 
 def read_trc(path):
-    """Read a ``.trc`` written by :func:`write_trc`: (marker names, times, (n, m, 3) array)."""
+    """Read a ``.trc`` (ours or Pose2Sim's): (marker names, times, (n, m, 3) array)."""
     lines = Path(path).read_text().splitlines()
-    names = [x for x in lines[3].split("\t")[2:] if x]
-    rows = [ln.split("\t") for ln in lines[6:] if ln.strip()]
+    names = [x.strip() for x in lines[3].split("\t")[2:] if x.strip()]
+    # data from line 6 (ours, after an empty line) or line 5 (Pose2Sim / OpenSim files)
+    rows = [ln.split("\t") for ln in lines[5:] if ln.strip() and ln.split("\t")[0].strip()
+            and ln.split("\t")[0].strip()[0].isdigit()]
     times = np.array([float(r[1]) for r in rows])
     a = np.full((len(rows), len(names), 3), np.nan)
     for i, r in enumerate(rows):

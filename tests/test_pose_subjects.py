@@ -13,12 +13,14 @@ FRAMES = 4
 MARGIN = {"human": 0.075, "dog": 0.054, "spider": 0.027}
 
 
-def _run(subject, noise, tolerance=None, resolution=100, seed=11, threshold=None, margin=None):
+def _run(subject, noise, tolerance=None, resolution=100, seed=11, threshold=None, margin=None,
+         gate=True):
     from topopose.capture import synthetic_capture
 
     cap = synthetic_capture(subject=subject, frames=FRAMES, seed=seed, noise=noise,
                             separated=True, cameras=8, margin=margin)
-    est = FrameEstimator(cap, subject, resolution, threshold=threshold, tolerance=tolerance)
+    est = FrameEstimator(cap, subject, resolution, threshold=threshold, tolerance=tolerance,
+                         gate=gate)
     poses = [est.estimate(f) for f in cap.frames]
     return cap, est, poses
 
@@ -40,8 +42,10 @@ def test_human_noise1_default_settings_good_matchings():
 
 def test_human_limbs_apart_in_the_hull_every_frame_right():
     """Limbs 3 voxels apart, noise 1, default settings (tolerance 1 with the consensus hull):
-    every frame a true positive, matched at the model's T_d, every part on its segment."""
-    cap, est, poses = _run("human", noise=1, margin=MARGIN["human"])
+    every frame a true positive, matched at the model's T_d, every part on its segment.
+    (The confidence gate, which trades such frames for precision on harder captures, is off:
+    this checks the hull and the alignment.)"""
+    cap, est, poses = _run("human", noise=1, margin=MARGIN["human"], gate=False)
     assert est.repair == 1
     ev = evaluate(cap.gt, poses)
     assert all(f.status == "matched" and f.quality == "good" for f in ev.frames), \

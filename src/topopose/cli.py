@@ -273,6 +273,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--resume", action="store_true", help="skip the frames already in --output")
     s.add_argument("--no-constraints", action="store_true",
                    help="drop the model's coordinate constraints (acrobatics)")
+    s.add_argument("--no-confidence-gate", action="store_true",
+                   help="report each frame's confidence but do not let it decide 'matched'")
     s.add_argument("--tolerance", type=int, default=None,
                    help="visual hull: keep voxels seen by C-k cameras (default 1 with >= 6 cameras, else 0)")
     s.add_argument("--rerun", metavar="FILE.rrd")

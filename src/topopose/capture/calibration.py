@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import InputError
 from .camera import Camera
+from .background import SEQUENCE_METHODS, check_params
 from .capture import axis_vector
 
 IGNORED_TABLES = {"metadata"}
@@ -33,9 +34,26 @@ SILHOUETTE_DEFAULTS = {
     "close": 7,            # closing kernel size (pixels, 0 = none): fills small holes and cracks
     "min_area": 100,       # connected blobs smaller than this (pixels) are dropped
     "fill_holes": 0,       # holes smaller than this many pixels are filled (0 = none)
+    # methods "sequence", "selfie", "sequence+selfie": no empty scene (capture/background.py)
+    "scale": 0.25,         # probabilities computed on images resized by this factor
+    "samples": 25,         # frames spread over the sequence that the background is learned from
+    "reveal": 40.0,        # a sample within this colour distance of the inpainted guess shows the background
+    "shadow": 0.6,         # brightness ratio down to which a darker pixel of the same colour is shadow
+    "uncertain": 0.5,      # weight of the vote of pixels whose background was never revealed
+    "zone_margin": 0.15,   # growth (metres) of the 3D box the subject sweeps
+    "fusion": "soft",      # "soft": Franco & Boyer occupancy grid from probabilities; "hard": p > 0.5 masks
+    "p_detect": 0.99,      # soft fusion: P(pixel foreground | voxel occupied)
+    "p_false": 0.4,        # soft fusion: P(pixel foreground | voxel empty)
+    "occupancy": 0.5,      # soft fusion: posterior occupancy above which a voxel is in the hull
+    "open3d": 1,           # soft fusion: 3D opening of the hull by a (2k + 1)³ cube (0: none)
+    "selfie_floor": 0.0,   # selfie: the network's probability is raised to at least this (a weak "no")
 }
 _SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (int, float), "open": int,
-              "close": int, "min_area": int, "fill_holes": int}
+              "close": int, "min_area": int, "fill_holes": int, "scale": (int, float),
+              "samples": int, "reveal": (int, float), "shadow": (int, float), "uncertain": (int, float),
+              "zone_margin": (int, float), "fusion": str, "p_detect": (int, float),
+              "p_false": (int, float), "occupancy": (int, float), "open3d": int,
+              "selfie_floor": (int, float)}
 _CAPTURE_KEYS = {"up", "units", "fps", "volume", "size_policy"}
 #: What to do with an image whose size differs from its camera's calibration size
 SIZE_POLICIES = ("error", "scale", "pad")
@@ -198,15 +216,20 @@ def read_capture_options(path, cameras=()) -> dict:
                              f"(known: {', '.join(sorted(_SIL_TYPES))})")
         if isinstance(v, bool) or not isinstance(v, _SIL_TYPES[k]):
             raise InputError(f"{path}: [silhouettes] field '{k}' has the wrong type ({v!r})")
-        if k != "method" and v < 0:
+        if k not in ("method", "fusion") and v < 0:
             raise InputError(f"{path}: [silhouettes] field '{k}' must be ≥ 0, got {v!r}")
         out["silhouettes"][k] = v
     if out["silhouettes"]["median"] > 1 and out["silhouettes"]["median"] % 2 == 0:
         raise InputError(f"{path}: [silhouettes] field 'median' must be an odd size (or 0), "
                          f"got {out['silhouettes']['median']}")
-    if out["silhouettes"]["method"] not in ("diff", "mog2", "knn"):
-        raise InputError(f"{path}: [silhouettes] field 'method' must be \"diff\", \"mog2\" or \"knn\", "
+    if out["silhouettes"]["method"] not in ("diff", "mog2", "knn", *SEQUENCE_METHODS):
+        raise InputError(f"{path}: [silhouettes] field 'method' must be \"diff\", \"mog2\", \"knn\", "
+                         f"\"sequence\", \"selfie\" or \"sequence+selfie\", "
                          f"got {out['silhouettes']['method']!r}")
+    if out["silhouettes"]["fusion"] not in ("soft", "hard"):
+        raise InputError(f"{path}: [silhouettes] field 'fusion' must be \"soft\" or \"hard\", "
+                         f"got {out['silhouettes']['fusion']!r}")
+    check_params(path, out["silhouettes"])
     if cameras:
         far = max(float(np.linalg.norm(cam.center)) for cam in cameras)
         if out["units"] == "m" and far > 100:

@@ -27,6 +27,7 @@ from ..errors import InputError
 from .calibration import read_calibration, read_capture_options
 from .camera import Camera
 from .capture import Capture
+from .background import SEQUENCE_METHODS
 from .silhouettes import extract_silhouette
 from .sources import VIDEO_EXTENSIONS, ImageSource, Prefetcher, VideoSource, imread
 
@@ -211,7 +212,8 @@ def load_capture(path) -> Capture:
         incomplete = {f: [c.name for c in cameras if f not in files[c.name]] for f in frames}
         incomplete = {f: v for f, v in incomplete.items() if v}
     backgrounds = {}
-    if source != "silhouettes":
+    sequence = opts["silhouettes"]["method"] in SEQUENCE_METHODS   # no empty scene needed
+    if source != "silhouettes" and not sequence:
         bdir = root / "backgrounds"
         stems = {}
         if bdir.is_dir():
@@ -338,9 +340,13 @@ def read_images(cap: Capture, frame: str) -> list:
     return out
 
 
-def silhouettes_from_images(cap: Capture, frame: str, images) -> list:
-    """Silhouettes of one frame from its colour ``images`` (a list in camera order, or the
-    ``{camera: image or InputError}`` of a frame source), with the capture's method."""
+def _sequence_method(cap: Capture) -> bool:
+    return (cap.options.get("silhouettes") or {}).get("method") in SEQUENCE_METHODS
+
+
+def image_list(cap: Capture, frame: str, images) -> list:
+    """``images`` in camera order, from a list or the ``{camera: image or InputError}`` of a
+    frame source (the size policy applied)."""
     if isinstance(images, dict):
         src = _frame_source(cap)
         imgs = []
@@ -350,6 +356,16 @@ def silhouettes_from_images(cap: Capture, frame: str, images) -> list:
                 raise im
             imgs.append(fit_size(cap, src.path(cam.name, frame) or cam.name, im, cam))
         images = imgs
+    return images
+
+
+def silhouettes_from_images(cap: Capture, frame: str, images) -> list:
+    """Silhouettes of one frame from its colour ``images`` (a list in camera order, or the
+    ``{camera: image or InputError}`` of a frame source), with the capture's method."""
+    images = image_list(cap, frame, images)
+    if _sequence_method(cap):
+        from .background import foreground_maps, masks_from_maps
+        return masks_from_maps(cap, foreground_maps(cap, frame, images))
     return [extract_silhouette(im, _background(cap, cam), cap.options.get("silhouettes"))
             for cam, im in zip(cap.cameras, images)]
 
@@ -392,6 +408,9 @@ def read_silhouettes(cap: Capture, frame: str) -> list:
     if pf is not None:
         ok, masks = pf.take(frame)
         if ok:
+            if _sequence_method(cap):        # the reader computed probability maps
+                from .background import masks_from_maps
+                return masks_from_maps(cap, masks)
             return masks
     return _silhouettes_now(cap, frame)
 
@@ -417,7 +436,19 @@ def prefetch(cap: Capture, frames, depth: int = 4):
         return
     names = [cap.frame_name(f) for f in frames]
     src = None if cap.options.get("source") == "silhouettes" else _frame_source(cap)
-    pf = Prefetcher(names, lambda f, images: _silhouettes_now(cap, f, images), src, depth)
+    if _sequence_method(cap):
+        # the reader computes the foreground probabilities (the soft hull's input); the
+        # background model is learned first, here
+        from .background import capture_backgrounds, foreground_maps
+        capture_backgrounds(cap)
+
+        def work(f, images):
+            return foreground_maps(cap, f, image_list(cap, f, images) if images is not None
+                                   else None)
+    else:
+        def work(f, images):
+            return _silhouettes_now(cap, f, images)
+    pf = Prefetcher(names, work, src, depth)
     cap.cache["prefetch"] = pf
     try:
         yield cap

@@ -222,11 +222,75 @@ def _sampled_boxes(cap, tolerance) -> list:
     return cap.cache[key]
 
 
+def _soft_fusion(cap) -> bool:
+    """The capture's silhouettes are probabilities fused by the soft hull (:mod:`.soft`)."""
+    from ..capture.background import SEQUENCE_METHODS
+
+    p = cap.options.get("silhouettes") or {}
+    return (cap.masks is None and cap.options.get("source") == "images"
+            and p.get("method") in SEQUENCE_METHODS and p.get("fusion") == "soft")
+
+
+def _soft_table(cap, origin, vs, shape):
+    from ..capture.background import scaled_camera
+    from .soft import voxel_pixels
+
+    key = ("soft_pix", tuple(np.round(np.asarray(origin) / vs, 6)), round(vs, 12), tuple(shape))
+    if key not in cap.cache:
+        s = float(cap.options["silhouettes"]["scale"])
+        cap.cache[key] = voxel_pixels([scaled_camera(c, s) for c in cap.cameras], origin, vs, shape)
+    return cap.cache[key]
+
+
+def _bbox(occ) -> np.ndarray:
+    """Carver-style stats of an occupancy: [6:9] inclusive min, [9:12] max (-1: empty)."""
+    st = np.zeros(12, dtype=np.int64)
+    st[9:12] = -1
+    for ax in range(3):
+        other = tuple(a for a in range(3) if a != ax)
+        nz = np.flatnonzero(occ.any(axis=other))
+        if nz.size == 0:
+            return st
+        st[6 + ax], st[9 + ax] = nz[0], nz[-1]
+    return st
+
+
+def _soft_carve(cap, pix, maps, shape):
+    """Soft hull of one frame (:mod:`.soft`), opened by ``open3d``, and its bounding box."""
+    from scipy import ndimage
+
+    from .soft import soft_carve
+
+    p = cap.options["silhouettes"]
+    occ, n = soft_carve(pix, maps, shape, float(p["p_detect"]), float(p["p_false"]),
+                        float(p["occupancy"]))
+    st = _bbox(occ)
+    k = int(p.get("open3d", 0))
+    if k > 0 and n:
+        # opening by a (2k + 1)³ cube (minimum then maximum filter, separable, on the bounding
+        # box): removes the hairs a noisy surface gives the skeleton as spurious branches
+        bb = tuple(slice(int(a), int(b) + 1) for a, b in zip(st[6:9], st[9:12]))
+        sub = np.pad(occ[bb], k)
+        sub = ndimage.maximum_filter(ndimage.minimum_filter(sub, 2 * k + 1, mode="constant"),
+                                     2 * k + 1, mode="constant")[k:-k, k:-k, k:-k]
+        occ[bb] = sub
+        st = _bbox(occ)
+    return occ.view(bool), st
+
+
 def capture_box(cap, tolerance: int = 0) -> tuple:
-    """The capture volume (lo, hi): ``cap.volume`` or fitted to sampled frames (cached)."""
+    """The capture volume (lo, hi): ``cap.volume``, the box the subject sweeps (silhouettes
+    learned from the sequence, :mod:`topopose.capture.background`), or fitted to sampled frames
+    (cached)."""
     if cap.volume is not None:
         lo, hi = (np.asarray(v, dtype=float) for v in cap.volume)
         return lo, hi
+    if _soft_fusion(cap) or (cap.options.get("silhouettes") or {}).get("method") in (
+            "sequence", "selfie", "sequence+selfie"):
+        from ..capture.background import subject_box
+        box = subject_box(cap)
+        if box is not None:
+            return box
     boxes = _sampled_boxes(cap, tolerance)
     if not boxes:
         raise InputError(f"{cap.path or 'capture'}: cannot fit a capture volume: no sampled frame "
@@ -349,7 +413,14 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
     t = {}
     t0 = time.perf_counter()
     name = cap.frame_name(frame)
-    if masks is None:
+    soft = masks is None and _soft_fusion(cap)
+    maps = None
+    if soft:
+        from ..capture.background import foreground_maps
+        maps = foreground_maps(cap, name)
+        if refocus:
+            masks = cap.silhouettes(name)
+    elif masks is None:
         masks = cap.silhouettes(name)
     t["silhouettes"] = (time.perf_counter() - t0) * 1e3
     t0 = time.perf_counter()
@@ -392,12 +463,20 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
             origin, vs, shape = grid_for_box(*capture_box(cap, tolerance), resolution, margin=True)
     t["fit"] = (time.perf_counter() - t0) * 1e3
     t0 = time.perf_counter()
-    carver = get_carver(cap, origin, vs, shape)
-    t["setup"] = (time.perf_counter() - t0) * 1e3
-    t0 = time.perf_counter()
-    occ = carver.carve(masks, tolerance, levels=consensus is not None)
-    st = carver.stats.copy()
-    t["carve"] = (time.perf_counter() - t0) * 1e3
+    if soft:
+        pix = _soft_table(cap, origin, vs, shape)
+        t["setup"] = (time.perf_counter() - t0) * 1e3
+        t0 = time.perf_counter()
+        occ, st = _soft_carve(cap, pix, maps, shape)
+        consensus = None
+        t["carve"] = (time.perf_counter() - t0) * 1e3
+    else:
+        carver = get_carver(cap, origin, vs, shape)
+        t["setup"] = (time.perf_counter() - t0) * 1e3
+        t0 = time.perf_counter()
+        occ = carver.carve(masks, tolerance, levels=consensus is not None)
+        st = carver.stats.copy()
+        t["carve"] = (time.perf_counter() - t0) * 1e3
     t0 = time.perf_counter()
     dropped, nvox, touches = [], 0, False
     lo_i = hi_i = None
@@ -429,8 +508,13 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
         empty = True
     t["components"] = (time.perf_counter() - t0) * 1e3
     bbox = None if lo_i is None or nvox == 0 else ([int(x) for x in lo_i], [int(x) for x in hi_i])
+    total = nvox + sum(dropped)
     diag = {"frame": name, "voxels": nvox, "bbox": bbox,
             "components_dropped": dropped, "touches_border": touches,
+            # what was lost: each dropped component's share of all hull voxels, and the kept one's
+            "components_share": [round(d / total, 4) for d in dropped] if total else [],
+            "largest_share": round(nvox / total, 4) if total else 0.0,
+            "fusion": "soft" if soft else "hard",
             "grid": "refocus" if refocus else "fixed", "tolerance": tolerance,
             "empty": empty, "timings_ms": t,
             "work": {"blocks": int(st[0]), "voxel_tests": int(st[1]), "projections": int(st[2]),

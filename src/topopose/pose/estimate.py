@@ -104,11 +104,19 @@ class FrameEstimator:
 
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
                  betweenness=True, max_missing=1, thinning="d6i1d", tolerance=None,
-                 relation=None, fill=True, repair=None, junction_centroid=None, refocus=False):
+                 relation=None, fill=True, repair=None, junction_centroid=None, refocus=False,
+                 min_share=0.8, gate=True, min_confidence=None):
         from ..match import Matcher
+        from .confidence import MIN_CONFIDENCE
+
+        self.min_share = float(min_share)
+        self.gate = bool(gate)
+        self.min_confidence = None if min_confidence is None else float(min_confidence)
 
         self.cap = cap
         self.model: Model = load_model(model, constraints=constraints)
+        if self.min_confidence is None and self.model.name == "human":
+            self.min_confidence = MIN_CONFIDENCE   # calibrated for the human model only
         self.resolution = int(resolution)
         if self.resolution < 8:
             raise InputError(f"--resolution: {resolution} is too small (at least 8 voxels)")
@@ -257,11 +265,17 @@ class FrameEstimator:
             error = f"{len(missing)} parts unmatched ({', '.join(missing)})"
             if unordered:
                 error += "; no co-optimal alignment satisfies the betweenness constraint"
+        # what the hull lost and how far to trust the frame (topopose.pose.confidence)
+        from .confidence import judge_frame
+
+        status, error, extra = judge_frame(
+            vol, n_vox, data, self.model, self.up, dist, self.threshold, len(missing), status,
+            error, self.min_share, self.min_confidence if self.gate else None, self.cap.units)
         timings["total"] = (time.perf_counter() - t_all) * 1e3
         diag = {"model": self.model.name, "resolution": self.resolution,
                 "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
                 "skeleton_voxels": int(data.diagnostics.get("n_voxels", -1)),
-                "data_vertices": data.n_vertices, "missing": missing}
+                "data_vertices": data.n_vertices, "missing": missing, **extra}
         if unordered:
             diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
         if self.curves:

@@ -150,8 +150,8 @@ def _progress(total, enabled, desc):
 def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
-        tolerance=None, refocus=False, on_pose=None, track=True, sides=True, skeleton=True,
-        smooth=None, bvh=None) -> RunResult:
+        tolerance=None, refocus=False, on_pose=None, gate=True, track=True, sides=True,
+        skeleton=True, smooth=None, bvh=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -182,6 +182,10 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         (thesis §13.2.2.1; as ``topopose hull --refocus``).
     on_pose : callable, optional
         Called with each :class:`Pose` as it finishes (e.g. a live viewer).
+    gate : bool
+        ``matched`` also needs the frame's confidence (:mod:`.confidence`, with the time
+        factors computed over the run at the end) above its minimum; False: the confidence is
+        reported only.
     track : bool
         Sequences (more than one frame): give the numbered parts stable identities over time
         (:func:`topopose.pose.track.track`); the output file is rewritten with them.
@@ -204,7 +208,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     m = load_model(model, constraints=constraints)
     cap = capture if isinstance(capture, Capture) else load_capture(capture)
     options = {"betweenness": betweenness, "relation": relation, "max_missing": max_missing,
-               "thinning": thinning, "tolerance": tolerance}
+               "thinning": thinning, "tolerance": tolerance, "gate": gate}
     if refocus:
         options["refocus"] = True
     todo = select_frames(cap, frames)
@@ -263,6 +267,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         if fh is not None:
             fh.close()
     seconds = time.perf_counter() - t0
+    from .confidence import temporal_confidence
+    temporal_confidence(list(results.values()), {f: i for i, f in enumerate(cap.frames)},
+                        gate=gate and m.name == "human")
     if out is not None:
         write_poses(out, results.values())
     poses = [results[k] for k in sorted(results)]
@@ -365,7 +372,8 @@ def run_cli(a) -> int:
               constraints=not getattr(a, "no_constraints", False),
               tolerance=getattr(a, "tolerance", None),
               refocus=getattr(a, "refocus", False),
-              on_pose=None, track=getattr(a, "track", True),
+              on_pose=None, gate=not getattr(a, "no_confidence_gate", False),
+              track=getattr(a, "track", True),
               sides=getattr(a, "sides", True), skeleton=getattr(a, "skeleton", True),
               smooth=getattr(a, "smooth", None), bvh=getattr(a, "bvh", None))
     if getattr(a, "rerun", None):

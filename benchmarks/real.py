@@ -1,0 +1,337 @@
+"""A real recording: Pose2Sim's balancing trial, from its 4 videos and Calib.toml as shipped.
+
+    python benchmarks/real.py [RECORDING] [--methods sequence,selfie,sequence+selfie] [--frames N]
+
+RECORDING (default ``benchmarks/data/pose2sim_balancing/``): ``videos/cam01.mp4`` …,
+``Calib.toml`` (tables ``cam_01`` …), ``reference/pose2sim_3d.trc`` (Pose2Sim's own 3D result,
+TRC axes (X, Y, Z) = world (y, z, x)). No hand-made masks, no 2D keypoints: silhouettes come
+from the sequence itself (``[silhouettes] method``, see ``topopose.capture.background``).
+
+Scores (all frames, best guesses of rejected frames included; a failed frame counts as wrong):
+
+- head: distance to the TRC ``Head`` marker;
+- hands: distance to the segment from the wrist to 0.1 m beyond it along elbow → wrist
+  (the hand: the model's hand is the end of the arm's skeleton branch, beyond the wrist);
+- feet: distance to the segment ankle → big toe;
+- ``hand_1``/``hand_2`` (and feet) are paired to left/right per frame to minimize the sum;
+- a frame is *right* when head, both hands and both feet are within 0.15 m;
+- precision of ``matched``: right frames among matched ones.
+
+Speed: end to end from the videos, one process as ``topopose run`` (a reader thread decodes
+the 4 videos and computes the foreground probabilities ahead of the hull, skeleton and
+alignment), resolution 100; the set-up (learning the background from 25 sampled frames, which
+seeks in the videos) and the first frame (capture volume, tables) are reported apart.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+DEFAULT = HERE / "data" / "pose2sim_balancing"
+RIGHT = 0.15            # metres
+HAND_EXT = 0.10         # metres beyond the wrist
+
+
+def read_trc(path: Path) -> dict:
+    """marker → (frames, 3) world coordinates (TRC (X, Y, Z) = world (y, z, x))."""
+    lines = Path(path).read_text().splitlines()
+    names = [x for x in lines[3].split("\t")[2:] if x.strip()]
+    rows = [np.array([float(v) for v in ln.split("\t")[2:2 + 3 * len(names)]])
+            for ln in lines[5:] if ln.strip()]
+    a = np.array(rows).reshape(len(rows), len(names), 3)
+    world = a[:, :, [2, 0, 1]]
+    return {n: world[:, i] for i, n in enumerate(names)}
+
+
+def seg_dist(p, a, b) -> float:
+    if p is None:
+        return float("inf")
+    p, a, b = (np.asarray(x, float) for x in (p, a, b))
+    ab = b - a
+    t = np.clip(np.dot(p - a, ab) / max(np.dot(ab, ab), 1e-12), 0, 1)
+    return float(np.linalg.norm(p - (a + t * ab)))
+
+
+def frame_errors(parts: dict, ref: dict, i: int) -> dict:
+    """Errors of one frame's head, hands, feet against the reference (metres)."""
+    g = {k: v[i] for k, v in ref.items()}
+    out = {"head": float("inf") if parts.get("head") is None
+           else float(np.linalg.norm(np.asarray(parts["head"]) - g["Head"]))}
+    hands = {}
+    for side in "LR":
+        w, e = g[f"{side}Wrist"], g[f"{side}Elbow"]
+        d = (w - e) / max(np.linalg.norm(w - e), 1e-9)
+        hands[side] = (w, w + HAND_EXT * d)
+    feet = {side: (g[f"{side}Ankle"], g[f"{side}BigToe"]) for side in "LR"}
+    for kind, segs in (("hand", hands), ("foot", feet)):
+        a, b = parts.get(f"{kind}_1"), parts.get(f"{kind}_2")
+        s1 = [seg_dist(a, *segs["L"]), seg_dist(b, *segs["R"])]
+        s2 = [seg_dist(a, *segs["R"]), seg_dist(b, *segs["L"])]
+        best = s1 if sum(min(x, 1e9) for x in s1) <= sum(min(x, 1e9) for x in s2) else s2
+        out[f"{kind}_L"], out[f"{kind}_R"] = best
+    return out
+
+
+def make_capture(rec: Path, out: Path, method: str, extra: str = "") -> None:
+    """A capture folder over the recording as shipped: ``calibration.toml`` = ``Calib.toml``
+    (tables ``cam_01`` … matched to the videos ``cam01`` … by name), ``videos`` linked, and a
+    ``capture.toml`` (Z up, metres, ``size_policy = "pad"`` for the 1080-wide videos, the
+    silhouette method)."""
+    out.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(rec / "Calib.toml", out / "calibration.toml")
+    (out / "videos").symlink_to((rec / "videos").resolve(), target_is_directory=True)
+    (out / "capture.toml").write_text(
+        '[capture]\nup = "+z"\nunits = "m"\nsize_policy = "pad"\n\n'
+        f'[silhouettes]\nmethod = "{method}"\n{extra}')
+
+
+def summarize(poses, ref, frames_index) -> dict:
+    errs, right, matched_right, matched = [], 0, 0, 0
+    per = {k: [] for k in ("head", "hand", "foot")}
+    rows = []
+    for p in poses:
+        i = frames_index[p.frame]
+        e = frame_errors(p.parts, ref, i) if p.status != "failed" else None
+        ok = e is not None and all(v <= RIGHT for v in e.values())
+        right += ok
+        if p.status == "matched":
+            matched += 1
+            matched_right += ok
+        if e is not None:
+            per["head"].append(e["head"])
+            per["hand"] += [e["hand_L"], e["hand_R"]]
+            per["foot"] += [e["foot_L"], e["foot_R"]]
+        rows.append({"frame": p.frame, "status": p.status, "right": bool(ok),
+                     "confidence": p.diagnostics.get("confidence"), "distance": p.distance,
+                     "errors": None if e is None else {k: round(v, 3) for k, v in e.items()},
+                     "error": p.error})
+    n = len(poses)
+    stats = {}
+    for k, v in per.items():
+        v = np.asarray(v, float)
+        v = v[np.isfinite(v)] if v.size else v
+        stats[k] = {"median": round(float(np.median(v)), 3) if v.size else None,
+                    "p90": round(float(np.percentile(v, 90)), 3) if v.size else None,
+                    "placed": int(v.size)}
+    return {"frames": n, "matched": matched, "matched_share": round(matched / n, 3),
+            "right": right, "right_share": round(right / n, 3),
+            "matched_precision": round(matched_right / matched, 3) if matched else None,
+            "failed": sum(p.status == "failed" for p in poses), "errors": stats, "rows": rows}
+
+
+def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, extra=""):
+    """Run the recording end to end from its videos (decoding and silhouettes in the reader
+    thread, as ``topopose run`` does), score it, time it."""
+    import warnings
+
+    import topopose as tp
+    from topopose.capture import prefetch
+    from topopose.pose.confidence import temporal_confidence
+    from topopose.pose.estimate import FrameEstimator
+
+    cdir = work / method.replace("+", "_")
+    if cdir.exists():
+        shutil.rmtree(cdir)
+    make_capture(rec, cdir, method, extra)
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")          # the "pad" policy warns for cam01/cam02
+        cap = tp.load_capture(cdir)
+        frames = cap.frames[:nframes] if nframes else cap.frames
+        est = FrameEstimator(cap, "human", resolution)
+        poses = []
+        with prefetch(cap, frames):
+            t_setup = time.perf_counter() - t0    # background learned (prefetch learns it first)
+            poses.append(est.estimate(frames[0]))
+            t_first = time.perf_counter() - t0
+            t1 = time.perf_counter()
+            for f in frames[1:]:
+                poses.append(est.estimate(f))
+            t_rest = time.perf_counter() - t1
+    temporal_confidence(poses, {f: i for i, f in enumerate(cap.frames)})
+    idx = {f: i for i, f in enumerate(cap.frames)}
+    res = summarize(poses, ref, idx)
+    stages = {}
+    for p in poses[1:]:
+        for k, v in p.timings_ms.items():
+            stages.setdefault(k, []).append(v)
+    per = t_rest / max(len(frames) - 1, 1)
+    res["speed"] = {
+        "setup_s": round(t_setup, 3),
+        "first_frame_s": round(t_first, 3),
+        "per_frame_ms": round(1000 * per, 2),
+        "end_to_end_fps": round(1 / per, 2),
+        "stages_median_ms": {k: round(float(np.median(v)), 2) for k, v in stages.items()},
+    }
+    res["method"] = method
+    if picture is not None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            _picture(cap, est, poses, res, picture)
+    return res, poses
+
+
+def time_breakdown(rec: Path, n: int = 20) -> dict:
+    """Where the time goes, per frame of 4 cameras (process CPU time and wall time):
+    decoding the videos, resizing, the colour probability at several scales (full resolution
+    vs downscaled; against a stand-in background of the right size: timing only), the
+    selfie network, reading a JPEG frame."""
+    import cv2
+
+    from topopose.capture.background import SequenceBackground, foreground_probability
+    from topopose.capture.calibration import SILHOUETTE_DEFAULTS
+
+    vids = sorted((rec / "videos").glob("*.mp4"))
+    frames = [[] for _ in vids]
+    out = {}
+    t0, c0 = time.perf_counter(), time.process_time()
+    for k, v in enumerate(vids):
+        vc = cv2.VideoCapture(str(v))
+        for _ in range(n):
+            ok, f = vc.read()
+            if not ok:
+                break
+            frames[k].append(f)
+    out["decode 4 videos"] = ((time.perf_counter() - t0) / n, (time.process_time() - c0) / n)
+    p = dict(SILHOUETTE_DEFAULTS, method="sequence")
+
+    def clock(name, fn):
+        t0, c0 = time.perf_counter(), time.process_time()
+        for i in range(n):
+            for k in range(len(vids)):
+                fn(frames[k][i])
+        out[name] = ((time.perf_counter() - t0) / n, (time.process_time() - c0) / n)
+
+    for s in (1.0, 0.5, 0.25, 0.125):
+        h, w = (int(round(x * s)) for x in frames[0][0].shape[:2])
+        bg = SequenceBackground(np.full((h, w, 3), 90, np.uint8), np.ones((h, w), bool), None, None)
+        if s < 1:
+            clock(f"resize to {s}", lambda f, w=w, h=h: cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA))
+        clock(f"colour probability at {s}",
+              lambda f, w=w, h=h, bg=bg: foreground_probability(
+                  f if s == 1 else cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA), bg, p))
+    try:
+        from topopose.capture.segment import selfie_probability
+        zone = np.zeros((480, 272), bool)
+        zone[100:400, 60:220] = True
+        clock("selfie network (zone crop at 0.25)",
+              lambda f: selfie_probability(cv2.resize(f, (272, 480)), zone, stream="timing"))
+    except Exception:                      # noqa: BLE001  (mediapipe absent)
+        pass
+    enc = cv2.imencode(".jpg", frames[0][0], [cv2.IMWRITE_JPEG_QUALITY, 95])[1]
+    clock("read a JPEG frame (as images/)", lambda f: cv2.imdecode(enc, cv2.IMREAD_COLOR))
+    return {k: {"wall_ms": round(1000 * a, 2), "cpu_ms": round(1000 * b, 2)} for k, (a, b) in out.items()}
+
+
+def _picture(cap, est, poses, res, path):
+    """Silhouettes with the reprojected parts and the hull/skeleton of a matched, right frame
+    (else the best-confidence one), and of a wrong one."""
+    from topopose.viz.view import render_frame
+
+    rows = {r["frame"]: r for r in res["rows"]}
+    good = [p for p in poses if p.status == "matched" and rows[p.frame]["right"]]
+    pick = good[len(good) // 2] if good else max(
+        (p for p in poses if p.status != "failed"), key=lambda p: p.diagnostics.get("confidence", 0))
+    pose, det = est.estimate(pick.frame, detail=True)
+    pose = pick
+    render_frame(str(path), est.model, pose, det, cap=cap, silhouettes=True, up=cap.up_vector,
+                 title=f"Pose2Sim balancing, frame {pick.frame}: {pick.status}, confidence "
+                       f"{pick.diagnostics.get('confidence')}, "
+                       f"{'right' if rows[pick.frame]['right'] else 'wrong'} (≤ 0.15 m)")
+    return pick.frame
+
+
+def main(argv=None):
+    from _machine import machine
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("recording", nargs="?", default=str(DEFAULT))
+    ap.add_argument("--methods", default="sequence,selfie,sequence+selfie")
+    ap.add_argument("--resolution", type=int, default=100)
+    ap.add_argument("--frames", type=int, default=0, help="first N frames only (0: all)")
+    ap.add_argument("--out", default=str(HERE / "results" / "real"))
+    ap.add_argument("--set", action="append", default=[],
+                    help="extra [silhouettes] field, e.g. --set occupancy=0.9 (TOML value)")
+    a = ap.parse_args(argv)
+    rec = Path(a.recording)
+    if not (rec / "videos").is_dir() or not (rec / "Calib.toml").is_file():
+        print(f"{rec}: recording not found (needs videos/ and Calib.toml); pass its path")
+        return 2
+    ref = read_trc(rec / "reference" / "pose2sim_3d.trc")
+    methods = [m for m in a.methods.split(",") if m]
+    if "selfie" in a.methods:
+        try:
+            import mediapipe  # noqa: F401
+        except ImportError:
+            print("mediapipe not installed: the selfie methods are skipped")
+            methods = [m for m in methods if "selfie" not in m]
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    results = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for m in methods:
+            pic = out.parent / f"real_{m.replace('+', '_')}_frame.png"
+            res, poses = run_method(rec, m, a.resolution, a.frames, Path(tmp), ref, picture=pic,
+                                    extra="".join(x + "\n" for x in a.set))
+            res["picture"] = pic.name
+            results[m] = res
+            print(m, {k: res[k] for k in ("matched_share", "right_share", "matched_precision")},
+                  res["errors"], res["speed"])
+    breakdown = time_breakdown(rec)
+    doc = {"recording": str(rec), "machine": machine(), "resolution": a.resolution,
+           "time_breakdown_per_frame": breakdown,
+           "silhouette_settings": a.set,
+           "right_within_m": RIGHT, "hand_extension_m": HAND_EXT, "methods": results}
+    out.with_suffix(".json").write_text(json.dumps(doc, indent=1))
+    out.with_suffix(".md").write_text(report(doc))
+    print(f"wrote {out}.md / .json")
+    return 0
+
+
+def report(doc) -> str:
+    m = doc["machine"]
+    L = ["# Real recording: Pose2Sim balancing trial (4 phone cameras, 100 frames)", "",
+         f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
+         f"Resolution {doc['resolution']}³. Written by `benchmarks/real.py`.", "",
+         "A frame is *right* when head, both hands and both feet are within "
+         f"{doc['right_within_m']} m of Pose2Sim's 3D result (hands: wrist → "
+         f"{doc['hand_extension_m']} m beyond it; feet: ankle → big toe). Errors in metres over "
+         "all processed frames (rejected frames' best guesses included).", "",
+         "| silhouettes | matched | right (target ≥ 70 %) | precision of matched (target ≥ 95 %) "
+         "| head med / p90 | hands med / p90 | feet med / p90 | failed |",
+         "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for name, r in doc["methods"].items():
+        e = r["errors"]
+        f = lambda k: f"{e[k]['median']} / {e[k]['p90']}"
+        prec = "—" if r["matched_precision"] is None else f"{100 * r['matched_precision']:.0f} %"
+        L.append(f"| {name} | {r['matched']}/{r['frames']} | {100 * r['right_share']:.0f} % | "
+                 f"{prec} | {f('head')} | {f('hand')} | {f('foot')} | {r['failed']} |")
+    L += ["", "## Speed (one process)", "",
+          "| silhouettes | set-up s (background) | first frame s incl. set-up (target ≤ 2) "
+          "| ms/frame after | end-to-end frames/s (target ≥ 20) | stage medians ms "
+          "(hull includes waiting for the reader) |",
+          "| --- | --- | --- | --- | --- | --- |"]
+    for name, r in doc["methods"].items():
+        s = r["speed"]
+        st = ", ".join(f"{k} {v}" for k, v in s["stages_median_ms"].items())
+        L.append(f"| {name} | {s['setup_s']} | {s['first_frame_s']} | {s['per_frame_ms']} | "
+                 f"{s['end_to_end_fps']} | {st} |")
+    L += ["", "## Where the time goes (per frame of 4 cameras)", "",
+          "| step | wall ms | CPU ms |", "| --- | --- | --- |"]
+    for k, v in doc["time_breakdown_per_frame"].items():
+        L.append(f"| {k} | {v['wall_ms']} | {v['cpu_ms']} |")
+    L += ["", "Pictures: " + ", ".join(f"`{r['picture']}`" for r in doc["methods"].values()), ""]
+    return "\n".join(L)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

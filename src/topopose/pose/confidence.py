@@ -1,0 +1,169 @@
+"""A per-frame confidence that says whether to trust a pose (issue 12, part 5).
+
+The AHA distance alone does not separate right from wrong poses on real recordings (a wrong
+frame can align closely: a hull that lost its legs is still a tree). The confidence combines
+what each stage knows, as a product of factors in [0, 1]:
+
+- **alignment**: f_d = 2^(−d / T_d) (½ at the threshold T_d);
+- **hull**: f_h = clip((s − s_min) / (0.95 − s_min), 0, 1) where s is the share of the hull's
+  voxels in its largest component (what was dropped, part 4) and ``s_min`` = ``min_share``;
+- **placement**: f_m = 0.5^m, m = parts left unmatched;
+- **fat hull**: r = hull volume / H³ (H: the hull's extent along the up axis); f_v = 1 up to
+  r = 0.04, 0 from 0.06, linear between (synthetic good frames: 0.013–0.032 with 4 or 8
+  cameras; a hull this fat has its limbs merged with the body, which no alignment undoes);
+- **time** (batch runs, :func:`temporal_confidence`): f_t = 2^(−(δ / (0.1 H))²) with δ the
+  median displacement of the parts since the previous frame (numbered parts paired
+  optimally); frames whose hull volume departs from the run's median by more than a factor
+  1.5 get ½. Applied only when the run is a coherent sequence (median δ / H over consecutive
+  frames ≤ 0.1): independent poses (synthetic "random" captures) get no time factor.
+
+For the human model, ``matched`` then also needs confidence ≥ ``min_confidence``
+(``FrameEstimator(gate=True)``, ``topopose run --no-confidence-gate`` to switch off); other
+models report the confidence without gating (it was calibrated on human subjects only; give
+``FrameEstimator(min_confidence=…)`` to gate them). The form of f_d, the factor bases and
+``min_confidence`` = 0.7 were chosen on synthetic captures only (a factor 0.8 per spurious
+skeleton branch beyond the model's leaves was tried and dropped: it halved the matched frames
+for no gain in precision; ``data_leaves`` stays in the diagnostics) (``benchmarks/confidence.py``:
+capsule human and ``body``, 4 and 8 cameras, walk and random motion, seeds 0–1) and checked on
+other seeds (2–3); the real recording is used to check them, never to tune them.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+MIN_CONFIDENCE = 0.7
+FAT_OK, FAT_MAX = 0.04, 0.06
+
+
+def leaf_count(tree) -> int:
+    deg = {}
+    for e in tree.edges:
+        a, b = e[0], e[1]
+        deg[a] = deg.get(a, 0) + 1
+        deg[b] = deg.get(b, 0) + 1
+    return sum(1 for v in deg.values() if v == 1)
+
+
+def frame_confidence(distance, threshold, share, missing, min_share=0.8, fatness=None) -> dict:
+    """Factors and product (see the module docstring) of one frame, without the time term.
+    ``fatness``: hull volume / H³ (None: not known)."""
+    fd = 0.0 if distance is None or not math.isfinite(distance) else 2.0 ** (-distance / threshold)
+    fh = float(np.clip((share - min_share) / max(0.95 - min_share, 1e-9), 0.0, 1.0))
+    fm = 0.5 ** max(0, int(missing))
+    fv = 1.0 if fatness is None else float(np.clip((FAT_MAX - fatness) / (FAT_MAX - FAT_OK), 0, 1))
+    return {"alignment": round(fd, 4), "hull": round(fh, 4), "placement": round(fm, 4),
+            "fat": round(fv, 4), "confidence": round(fd * fh * fm * fv, 4)}
+
+
+def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
+                min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m") -> tuple:
+    """Status, reason and diagnostics of one frame from what the stages know.
+
+    A ``matched`` frame becomes ``rejected`` when the hull's largest component holds less than
+    ``min_share`` of its voxels (the dropped components are named with their sizes and shares),
+    or when its confidence is below ``min_confidence`` (None: no gate).
+
+    Returns
+    -------
+    (status, error, diagnostics) with ``hull_litres``, ``largest_share``,
+    ``components_dropped`` (the five largest), ``data_leaves``, ``height`` (hull extent along
+    the up axis), ``confidence`` and ``confidence_factors``.
+    """
+    from ..capture.calibration import _UNITS
+
+    vd = vol.diagnostics or {}
+    share = float(vd.get("largest_share", 1.0))
+    dropped = vd.get("components_dropped") or []
+    leaves = leaf_count(data)
+    ax = int(np.argmax(np.abs(up)))
+    bb = vd.get("bbox")
+    height = None if not bb else float((bb[1][ax] - bb[0][ax] + 1) * vol.voxel_size)
+    fat = None
+    if height and model.name == "human":        # the fat-hull factor is the human model's
+        fat = n_vox * vol.voxel_size ** 3 / height ** 3
+    conf = frame_confidence(distance, threshold, share, missing, min_share, fat)
+    if status == "matched" and share < min_share:
+        status = "rejected"
+        total = n_vox + sum(dropped)
+        error = (f"hull split: the largest component holds {100 * share:.0f} % of the {total} "
+                 f"hull voxels; dropped: "
+                 + ", ".join(f"{d} ({100 * d / total:.0f} %)" for d in dropped[:3])
+                 + (f" and {len(dropped) - 3} smaller" if len(dropped) > 3 else ""))
+    elif status == "matched" and min_confidence is not None and conf["confidence"] < min_confidence:
+        status = "rejected"
+        error = f"confidence {conf['confidence']:.2f} below {min_confidence:g}"
+    metre = _UNITS.get(units, 1.0)
+    diag = {"hull_litres": round(n_vox * (vol.voxel_size * metre) ** 3 * 1000.0, 2),
+            "largest_share": round(share, 4), "components_dropped": dropped[:5],
+            "data_leaves": leaves, "height": height,
+            "confidence": conf.pop("confidence"), "confidence_factors": conf}
+    return status, error, diag
+
+
+def _group(part: str) -> str:
+    head, _, tail = part.rpartition("_")
+    return head if tail.isdigit() and head else part
+
+
+def part_displacement(a: dict, b: dict) -> float | None:
+    """Median distance between the parts of two poses, numbered parts (``hand_1``, ``hand_2``)
+    paired optimally within their group."""
+    groups = {}
+    for p in a:
+        groups.setdefault(_group(p), []).append(p)
+    ds = []
+    for g, ps in groups.items():
+        xa = [a.get(p) for p in ps]
+        xb = [b.get(p) for p in ps]
+        best = None
+        for perm in itertools.permutations(range(len(ps))):
+            d = [float(np.linalg.norm(np.asarray(xa[i]) - np.asarray(xb[j])))
+                 for i, j in zip(range(len(ps)), perm) if xa[i] is not None and xb[j] is not None]
+            if d and (best is None or sum(d) < sum(best)):
+                best = d
+            if len(ps) > 4:
+                break
+        if best:
+            ds.extend(best)
+    return float(np.median(ds)) if ds else None
+
+
+def temporal_confidence(poses, frame_index, gate=True, min_confidence=MIN_CONFIDENCE) -> None:
+    """Multiply the time factors into each pose's confidence, in place (module docstring), and
+    re-decide ``matched`` when ``gate``. ``frame_index``: frame name → index in the capture."""
+    done = [p for p in poses if p.status != "failed" and "confidence" in p.diagnostics]
+    vols = [p.diagnostics.get("hull_voxels") for p in done if p.diagnostics.get("hull_voxels")]
+    vmed = float(np.median(vols)) if vols else None
+    by_idx = {frame_index[p.frame]: p for p in done if p.frame in frame_index}
+    steps = []
+    for i, p in by_idx.items():
+        prev, H = by_idx.get(i - 1), p.diagnostics.get("height")
+        if prev is not None and H:
+            d = part_displacement(p.parts, prev.parts)
+            if d is not None:
+                steps.append(d / H)
+    coherent = bool(steps) and float(np.median(steps)) <= 0.1
+    for i, p in sorted(by_idx.items()):
+        diag = p.diagnostics
+        if "time" in diag.get("confidence_factors", {}):
+            continue                       # a resumed frame: already done
+        ft = 1.0
+        prev = by_idx.get(i - 1)
+        H = diag.get("height")
+        if coherent and prev is not None and H:
+            d = part_displacement(p.parts, prev.parts)
+            if d is not None:
+                ft = 2.0 ** (-(d / (0.1 * H)) ** 2)
+        fv = 1.0
+        v = diag.get("hull_voxels")
+        if coherent and vmed and v and not (vmed / 1.5 <= v <= vmed * 1.5):
+            fv = 0.5
+        diag["confidence_factors"]["time"] = round(ft, 4) if coherent else None
+        diag["confidence_factors"]["volume"] = fv if coherent else None
+        diag["confidence"] = round(diag["confidence"] * ft * fv, 4)
+        if gate and p.status == "matched" and diag["confidence"] < min_confidence:
+            p.status = "rejected"
+            p.error = f"confidence {diag['confidence']:.2f} below {min_confidence:g}"

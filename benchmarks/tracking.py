@@ -419,9 +419,11 @@ def report(rows, info, real=None):
                      "only show that tracking does not help there (chirality is per frame)")
     L += ["", "## Real recording (Pose2Sim balancing trial, against Pose2Sim's 3D result)", ""]
     if real is None or not real.get("frames"):
-        L.append("- not measured: the recording needs silhouettes from its videos (no empty-scene "
-                 "frame), which main does not make yet; run `topopose run` on it, then this script "
-                 "with `--real-poses POSES.jsonl --real-trc reference/pose2sim_3d.trc`")
+        L.append("- not measured: on main the per-frame result matches none of the recording's "
+                 "100 frames with any silhouette method (benchmarks/results/real.md: every frame "
+                 "rejected, head and hands 0.6–0.8 m off), so there is no skeleton to compare; "
+                 "when it does, run `topopose run` on it, then this script with `--real-poses "
+                 "POSES.jsonl --real-trc reference/pose2sim_3d.trc`")
     else:
         L.append(f"- MPJPE {100 * real['mpjpe']:.1f} cm over {real['frames']} frames; per joint "
                  + ", ".join(f"{k} {100 * v:.1f}" for k, v in real["per_joint"].items()) + " cm")

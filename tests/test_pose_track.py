@@ -54,8 +54,13 @@ def test_crossing_hands_keep_their_identity_through_a_gap():
         assert len(set(_identity_of(out, traj, ["foot_1", "foot_2"]))) == 1
     segs = {p.diagnostics["track"]["hand"] for p in out if p.matched}
     assert segs == {0}                                          # never lost
-    assert "track" not in out[15].diagnostics                   # rejected frame untouched
-    assert out[15].parts["hand_1"] is poses[15].parts["hand_1"]
+    assert "track" not in out[20].diagnostics                   # failed frame untouched
+    assert out[20].parts["hand_1"] is poses[20].parts["hand_1"]
+    assert "track" in out[15].diagnostics                       # rejected frames observed
+    only = track(poses, human, use_rejected=False)
+    assert "track" not in only[15].diagnostics
+    for traj in (a, b):
+        assert len(set(_identity_of(only, traj, ["hand_1", "hand_2"]))) == 1
 
 
 def test_long_gap_and_jump_reinitialize():

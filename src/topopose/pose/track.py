@@ -11,8 +11,8 @@ per-frame numbering, starting a new segment — when the gap since the last matc
 ``max_gap`` frames. An assigned observation farther than ``gate`` from its prediction is an
 outlier (a part the per-frame result misplaced): it is named by the assignment but does not
 move its track, which coasts on its prediction (a wrong velocity from one misplaced part would
-otherwise steer the next assignments). Rejected and failed frames are left as they
-are (their parts are not trusted) and do not update the tracks.
+otherwise steer the next assignments). Rejected frames are observations too (gated the same
+way); failed frames are left as they are.
 """
 from __future__ import annotations
 
@@ -131,7 +131,7 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5):
     return perm, segment
 
 
-def track(poses, model, max_gap=5, gate=None, velocity=0.5) -> list:
+def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True) -> list:
     """Give the numbered parts of a sequence stable identities (see the module docstring).
 
     Parameters
@@ -143,11 +143,15 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5) -> list:
         dt frames without update); default 0.25 × the median extent of the subject
         (:func:`body_scale`), 45 cm for a standing adult
     velocity : see :func:`assign_identities`
+    use_rejected : rejected frames (which keep the positions the alignment proposed) are
+        observations too: the gate keeps their misplaced parts out of the tracks, and the
+        confidence gate of the per-frame result rejects many right frames, whose gaps would
+        otherwise lose the tracks (``benchmarks/tracking.py``)
 
     Returns
     -------
     list of Pose, sorted by frame: parts renamed to their track identity;
-    ``diagnostics["track"]`` = {group stem: segment number} on matched frames.
+    ``diagnostics["track"]`` = {group stem: segment number} on the tracked frames.
     """
     poses = sorted(poses, key=lambda p: p.frame)
     if gate is None:
@@ -157,7 +161,7 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5) -> list:
     for group in model.interchangeable():
         obs = []
         for p in poses:
-            if not p.matched:
+            if p.status == "failed" or (not use_rejected and not p.matched):
                 obs.append(None)
                 continue
             obs.append(np.array([np.full(3, np.nan) if p.parts.get(g) is None

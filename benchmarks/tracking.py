@@ -29,7 +29,9 @@ is measured beside its peer in the same run:
 
 The per-frame matching on the body is being improved elsewhere (issue 11): figures are as the
 per-frame result is, misses included. Writes ``tracking.md``, ``tracking.json`` and
-``tracking.png`` (a walking sequence: joints over time).
+``tracking.png`` (a walking sequence: joints over time); with ``--no-gate`` (the per-frame
+confidence gate off: every frame the alignment accepts is matched, many more frames)
+``tracking_nogate.*``.
 """
 import argparse
 import json
@@ -144,7 +146,7 @@ def mpjpe(frames_err):
             {k: [float(x) for x in v] for k, v in per_joint.items()})
 
 
-def one_sequence(work, motion, seed, build, frames, model):
+def one_sequence(work, motion, seed, build, frames, model, gate=True):
     d = Path(work) / f"{motion}_{seed}_{build}"
     t0 = time.perf_counter()
     if not (d / "gt.json").exists():
@@ -154,7 +156,7 @@ def one_sequence(work, motion, seed, build, frames, model):
     cap = load_capture(d)
     gt = cap.gt
     res = run(cap, model=model, resolution=100, output=d / "poses.jsonl", progress=False,
-              track=False, sides=False, skeleton=False)
+              track=False, sides=False, skeleton=False, gate=gate)
     raw = res.poses
     ev = evaluate(gt, raw, model=model)
     good = {}
@@ -322,6 +324,9 @@ def main(argv=None):
     ap.add_argument("--random-frames", type=int, default=60)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     ap.add_argument("--work", default=None, help="keep the captures here (default: a temp dir)")
+    ap.add_argument("--gate", action=argparse.BooleanOptionalAction, default=True,
+                    help="the per-frame confidence gate (main's default); --no-gate: every "
+                         "frame the alignment accepts is matched (results tracking_nogate.*)")
     ap.add_argument("--real-poses", default=None,
                     help="poses.jsonl of `topopose run` on the real recording (Pose2Sim balancing)")
     ap.add_argument("--real-trc", default=None,
@@ -333,7 +338,7 @@ def main(argv=None):
     pic = None
     for motion, seed, build in SEQUENCES:
         n = a.walk_frames if motion == "walk" else a.random_frames
-        r, d, sided, tree = one_sequence(work, motion, seed, build, n, model)
+        r, d, sided, tree = one_sequence(work, motion, seed, build, n, model, gate=a.gate)
         rows.append(r)
         print(json.dumps({k: (v[0] if k.startswith("mpjpe") else v) for k, v in r.items()
                           if k != "bone_lengths"}), flush=True)
@@ -341,18 +346,20 @@ def main(argv=None):
             pic = (r["good"], d, sided, tree)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
+    suffix = "" if a.gate else "_nogate"
     if pic is not None:
-        picture(out / "tracking.png", pic[1], pic[2], pic[3], load_capture(pic[1]).gt, model)
-    info = machine(resolution=100, cameras=8, noise=1, subject="body")
+        picture(out / f"tracking{suffix}.png", pic[1], pic[2], pic[3], load_capture(pic[1]).gt,
+                model)
+    info = machine(resolution=100, cameras=8, noise=1, subject="body", confidence_gate=a.gate)
     real = None
     if a.real_poses or a.real_trc:
         real = real_mpjpe(a.real_poses or "", a.real_trc or "")
         if real is None:
             print(f"real recording: {a.real_poses} or {a.real_trc} absent; skipped")
     compact = [{k: (v[:3] if k.startswith("mpjpe") else v) for k, v in r.items()} for r in rows]
-    (out / "tracking.json").write_text(json.dumps({"machine": info, "sequences": compact,
+    (out / f"tracking{suffix}.json").write_text(json.dumps({"machine": info, "sequences": compact,
                                                    "real": real}, indent=1))
-    (out / "tracking.md").write_text(report(rows, info, real))
+    (out / f"tracking{suffix}.md").write_text(report(rows, info, real))
     print(report(rows, info, real))
 
 
@@ -362,7 +369,10 @@ def _rate(c):
 
 
 def report(rows, info, real=None):
+    gate = "on (main's default)" if info.get("confidence_gate", True) else \
+        "off (every frame the alignment accepts is matched)"
     L = ["# From poses to motion (body subject, 100³, 8 cameras, noise 1)", "",
+         f"Per-frame confidence gate: {gate}.", "",
          f"Machine: {info['cpu']}, {info['cores']} cores, load {info['load_average']}, {info['date']}.",
          "Produced by `benchmarks/tracking.py`; every figure beside its peer in the same run. The "
          "per-frame matching on the body is being improved elsewhere (issue 11): matched frames "

@@ -26,7 +26,8 @@ def _crossing(n=40, seed=0, gap=(), rejected=()):
         status = "rejected" if i in rejected else "matched"
         if i in gap:
             status = "failed"
-        poses.append(Pose(f"{i:06d}", status, 0.1, parts))
+        error = "confidence 0.40 below 0.7" if i in rejected else None
+        poses.append(Pose(f"{i:06d}", status, 0.1, parts, error))
         truth.append((hands, feet))
     return poses, truth, (a, b, f1, f2)
 
@@ -56,7 +57,9 @@ def test_crossing_hands_keep_their_identity_through_a_gap():
     assert segs == {0}                                          # never lost
     assert "track" not in out[20].diagnostics                   # failed frame untouched
     assert out[20].parts["hand_1"] is poses[20].parts["hand_1"]
-    assert "track" in out[15].diagnostics                       # rejected frames observed
+    assert "track" in out[15].diagnostics                 # rejected by the confidence gate only
+    poses[15].error = "AHA distance 0.9 above threshold T_d = 0.4"
+    assert "track" not in track(poses, human)[15].diagnostics   # rejected by the alignment
     only = track(poses, human, use_rejected=False)
     assert "track" not in only[15].diagnostics
     for traj in (a, b):

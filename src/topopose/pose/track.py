@@ -11,8 +11,8 @@ per-frame numbering, starting a new segment — when the gap since the last matc
 ``max_gap`` frames. An assigned observation farther than ``gate`` from its prediction is an
 outlier (a part the per-frame result misplaced): it is named by the assignment but does not
 move its track, which coasts on its prediction (a wrong velocity from one misplaced part would
-otherwise steer the next assignments). Rejected frames are observations too (gated the same
-way); failed frames are left as they are.
+otherwise steer the next assignments). Frames rejected only by the confidence gate are
+observations too (gated the same way); other rejected and failed frames are left as they are.
 """
 from __future__ import annotations
 
@@ -47,6 +47,12 @@ def relabel(pose, mapping: dict):
     if isinstance(miss, list):
         diag["missing"] = [mapping.get(k, k) for k in miss]
     return replace(pose, parts=parts, diagnostics=diag)
+
+
+def gated_only(pose) -> bool:
+    """A frame the alignment accepted but the confidence gate rejected
+    (:mod:`topopose.pose.confidence`)."""
+    return pose.status == "rejected" and str(pose.error or "").startswith("confidence ")
 
 
 def body_scale(poses) -> float:
@@ -143,10 +149,10 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True) -
         dt frames without update); default 0.25 × the median extent of the subject
         (:func:`body_scale`), 45 cm for a standing adult
     velocity : see :func:`assign_identities`
-    use_rejected : rejected frames (which keep the positions the alignment proposed) are
-        observations too: the gate keeps their misplaced parts out of the tracks, and the
-        confidence gate of the per-frame result rejects many right frames, whose gaps would
-        otherwise lose the tracks (``benchmarks/tracking.py``)
+    use_rejected : frames only the confidence gate rejected (:func:`gated_only`) are
+        observations too: the gate rejects many right frames, whose gaps would otherwise lose
+        the tracks (``benchmarks/tracking.py``, walks: identity switches on matched frames per
+        500 frames 13.8 → 2.5); frames the alignment itself rejected are not (with them: worse)
 
     Returns
     -------
@@ -161,7 +167,7 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True) -
     for group in model.interchangeable():
         obs = []
         for p in poses:
-            if p.status == "failed" or (not use_rejected and not p.matched):
+            if not (p.matched or (use_rejected and gated_only(p))):
                 obs.append(None)
                 continue
             obs.append(np.array([np.full(3, np.nan) if p.parts.get(g) is None

@@ -230,17 +230,21 @@ def picture(path, seq_dir, poses, tree, gt, model):
                     [xa[2], xb[2]], color=col, ls=ls, lw=1.5)
         a0.text(off, -0.08, p.frame[-3:], ha="center", fontsize=7)
     a0.set_aspect("equal")
-    a0.set_title("fitted skeleton every 4th frame, side view, facing right (red: left, blue: "
+    a0.set_title("fitted skeleton, every 4th frame that has one, side view, facing right (red: left, blue: "
                  "right, grey: side unknown; dashed: interpolated across a rejected frame)",
                  fontsize=9)
     a0.axis("off")
-    t, hl, hr, gl, gr = [], [], [], [], []
+    t, hl, hr, gl, gr, tu, hu = [], [], [], [], [], [], []
     for p in frames:
-        L_ = _joint(p, "ankle_1", model)
-        R_ = _joint(p, "ankle_2", model)
-        if L_ is None or R_ is None:
+        A = _joint(p, "ankle_1", model)
+        B = _joint(p, "ankle_2", model)
+        if A is None or B is None:
             continue
-        pair = sorted([L_, R_], key=lambda x: x[1] != "left")
+        if A[1] is None or B[1] is None:            # side not decided (e.g. interpolated)
+            tu += [int(p.frame)] * 2
+            hu += [A[0][2], B[0][2]]
+            continue
+        pair = sorted([A, B], key=lambda x: x[1] != "left")
         t.append(int(p.frame))
         hl.append(pair[0][0][2])
         hr.append(pair[1][0][2])
@@ -251,10 +255,12 @@ def picture(path, seq_dir, poses, tree, gt, model):
     a1.plot(range(len(gr)), gr, color="tab:blue", lw=1, alpha=0.5, label="gt right ankle")
     a1.plot(t, hl, "o", color="tab:red", ms=3, label="fitted left ankle")
     a1.plot(t, hr, "s", color="tab:blue", ms=3, label="fitted right ankle")
+    if tu:
+        a1.plot(tu, hu, "x", color="0.4", ms=4, label="fitted, side unknown")
     a1.set_xlabel("frame")
     a1.set_ylabel("height (m)")
     a1.legend(fontsize=7, ncol=4)
-    a1.set_title(f"{seq_dir.name}: ankle heights over time (matched frames only)", fontsize=9)
+    a1.set_title(f"{seq_dir.name}: ankle heights over time (frames with a skeleton)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -71,9 +71,9 @@ def broken_dir(capture_dir, tmp_path_factory):
 
 def test_run_good_capture_writes_poses_and_exports(capture_dir, tmp_path, capsys):
     out = tmp_path / "poses.jsonl"
-    trc, csvp = tmp_path / "p.trc", tmp_path / "p.csv"
+    trc, csvp, bvh = tmp_path / "p.trc", tmp_path / "p.csv", tmp_path / "p.bvh"
     code = main(["run", str(capture_dir), "--model", "human", "--resolution", "80",
-                 "--output", str(out), "--trc", str(trc), "--csv", str(csvp)])
+                 "--output", str(out), "--trc", str(trc), "--csv", str(csvp), "--bvh", str(bvh)])
     assert code == 0
     poses = read_poses(out)
     assert [p.frame for p in poses] == [f"{i:06d}" for i in range(FRAMES)]
@@ -83,12 +83,18 @@ def test_run_good_capture_writes_poses_and_exports(capture_dir, tmp_path, capsys
     printed = capsys.readouterr().out
     assert f"{FRAMES} frames" in printed and "matched" in printed
     names, times, a = read_trc(trc)
-    assert names[0] == "head" and len(times) == FRAMES
+    assert names[0] == "Head" and len(times) == FRAMES        # OpenSim marker names
+    assert "torso" in names and "Neck" in names               # Neck: the fitted neck joint
     m = [i for i, p in enumerate(poses) if p.status == "matched"]
     assert m, "at least one matched frame"
     i = m[0]
     # TRC is y-up metres: its y is the capture's z
     assert np.isclose(a[i, 0, 1], poses[i].parts["head"][2], atol=1e-5)
+    # the full skeleton: every joint of the model in every matched frame, and in the TRC
+    assert len(poses[i].joints) == 20 and "Neck" in names and "chest" in names
+    text = bvh.read_text()
+    assert text.startswith("HIERARCHY\nROOT chest") and f"Frames: {FRAMES}" in text
+    assert "JOINT left_elbow" in text
     assert len(csvp.read_text().splitlines()) == FRAMES + 1
 
 

@@ -409,6 +409,15 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--thickness", type=float, default=None,
                    help="weight of the parts' thickness in the arc cost (human model; default 1, "
                         "0: off)")
+    s.add_argument("--track", action=argparse.BooleanOptionalAction, default=True,
+                   help="sequences: numbered parts keep their identity over time (default on)")
+    s.add_argument("--sides", action=argparse.BooleanOptionalAction, default=True,
+                   help="name mirror pairs left_/right_ from geometry (default on)")
+    s.add_argument("--skeleton", action=argparse.BooleanOptionalAction, default=True,
+                   help="fit the full kinematic skeleton (joints; default on)")
+    s.add_argument("--smooth", type=int, default=None, metavar="FRAMES",
+                   help="Savitzky-Golay window smoothing the skeleton")
+    s.add_argument("--bvh", help="BVH export of the fitted skeleton (Blender)")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("view", help="render one frame as a PNG")

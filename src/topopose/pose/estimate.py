@@ -172,6 +172,8 @@ class FrameEstimator:
                                   self.thickness_profile, self.thickness,
                                   root=self.model.root, root_arc=self._root_arc)
 
+    curves = True    # record the skeleton curve of each matched arc (pose.curves)
+
     # ------------------------------------------------------------------ stages
     def hull(self, frame):
         """Visual hull of ``frame`` on the capture's grid.
@@ -318,6 +320,14 @@ class FrameEstimator:
             diag["thickness_cost"] = round(thick, 6)
         if unordered:
             diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
+        if self.curves:
+            # skeleton curve of each matched arc, for left/right and the kinematic fit (§13.3.1)
+            from .curves import arc_curves
+            try:
+                diag["curves"] = arc_curves(skel, vol.origin, vol.voxel_size, data, al,
+                                            self.model, parts)
+            except Exception as exc:           # never costs the frame its pose
+                diag["curves_error"] = f"{type(exc).__name__}: {exc}"
         pose = Pose(name, status, dist, parts, error, timings, diag)
         return (pose, det) if detail else pose
 

@@ -31,6 +31,29 @@ File format (TOML, DESIGN.md "Model tree file")::
     parts = ["head", "torso"]
     axis = "+z"             # optional; default: the capture's up axis
     relation = "b"          # "between" only: c, p, b (default), u, i
+    [[mirror]]              # optional: a mirror pair of numbered parts (left and right)
+    parts = ["hand_1", "hand_2"]
+    names = ["left_hand", "right_hand"]
+    [facing]                # optional: how to find the subject's forward direction
+    feet = ["foot_1", "foot_2"]   # the arcs ending at these parts end in a foot pointing
+                                  # forward and bend forward at their middle (knees)
+    axis = ["hips", "shoulders"]  # or: forward is from the first part to the second
+    [[joint]]               # optional: a joint of the full kinematic skeleton
+    name = "elbow"
+    arc = ["torso", "hand"] # a model edge; a numbered stem ("hand") stands for each member
+    at = 0.55               # relative position along the arc's skeleton curve (0: first part)
+    offset = [0.2, 0.1]     # optional: joint beside the curve, in trunk lengths: along the
+                            # trunk ([facing] trunk = [from, to]) and outward (away from the
+                            # same joint of the mirror partner); e.g. shoulders, hips
+
+Mirror pairs: once :mod:`.chirality` knows the subject's left, ``parts[0]`` (the one on the
+subject's left) is output as ``names[0]`` and ``parts[1]`` as ``names[1]``; the numbered
+names stay when unsure. Ground truth follows the same order (``hand_1`` is the left hand of
+the synthetic subjects). Joints on a numbered arc are named ``<name>_<k>`` (``elbow_1``), then
+``<side>_<name>`` (``left_elbow``) with the prefix of the mirror name (``left_`` of
+``left_hand``). The joints along the arcs, joined in order of ``at`` from the model root, form
+the kinematic tree (:mod:`.kinematic_fit`): a joint at ``at = 0`` or ``1`` sits on a part and
+links the arcs that meet there.
 """
 from __future__ import annotations
 
@@ -51,6 +74,20 @@ _AXES = ("+x", "-x", "+y", "-y", "+z", "-z", "x", "y", "z")
 _MODEL_KEYS = {"name", "root", "complete", "threshold", "description", "parts"}
 _EDGE_KEYS = {"parts", "length"}
 _CONSTRAINT_KEYS = {"kind", "parts", "axis", "relation"}
+_MIRROR_KEYS = {"parts", "names"}
+_FACING_KEYS = {"feet", "axis", "trunk"}
+_JOINT_KEYS = {"name", "arc", "at", "offset"}
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    """A joint of the kinematic skeleton: ``name`` at relative position ``at`` along the model
+    arc ``arc`` (first part → second part, or a numbered stem standing for each member)."""
+
+    name: str
+    arc: tuple
+    at: float
+    offset: tuple = (0.0, 0.0)     # (along the trunk, outward from the mirror partner) × trunk
 
 
 @dataclass
@@ -81,6 +118,9 @@ class Model:
     threshold: float | None = None
     description: str = ""
     source: str = field(default="", repr=False)
+    mirrors: list = field(default_factory=list)     # [(parts (a, b), names (a, b)), ...]
+    facing: dict = field(default_factory=dict)      # {"feet": [...]} and/or {"axis": [a, b]}
+    joints: list = field(default_factory=list)      # [JointSpec, ...]
 
     def __post_init__(self):
         validate_model(self)
@@ -159,6 +199,14 @@ class Model:
             cons.append(d)
         if cons:
             out["constraint"] = cons
+        if self.mirrors:
+            out["mirror"] = [{"parts": list(p), "names": list(n)} for p, n in self.mirrors]
+        if self.facing:
+            out["facing"] = {k: list(v) for k, v in self.facing.items()}
+        if self.joints:
+            out["joint"] = [{"name": j.name, "arc": list(j.arc), "at": float(j.at)}
+                            | ({"offset": [float(x) for x in j.offset]} if any(j.offset) else {})
+                            for j in self.joints]
         return out
 
     def save(self, path) -> None:
@@ -214,6 +262,52 @@ def validate_model(m: Model) -> None:
                              f"the infinite edge, got {m.root!r}")
     if m.threshold is not None and not (isinstance(m.threshold, (int, float)) and m.threshold >= 0):
         raise InputError(f"{where}: model.threshold must be a number >= 0, got {m.threshold!r}")
+    names = set()
+    for i, (ps, ns) in enumerate(m.mirrors):
+        mw = f"{where}: mirror[{i}]"
+        if len(ps) != 2 or len(ns) != 2 or not all(isinstance(x, str) and x for x in (*ps, *ns)):
+            raise InputError(f"{mw}: parts and names must be two names each")
+        for p in ps:
+            if p not in adj:
+                raise InputError(f"{mw}: unknown part {p!r} (parts: {list(adj)})")
+        for x in ns:
+            if x in adj or x in names:
+                raise InputError(f"{mw}: name {x!r} is already a part or a mirror name")
+            names.add(x)
+    for k, v in m.facing.items():
+        if k not in _FACING_KEYS:
+            raise InputError(f"{where}: [facing] has unknown field {k!r}; expected feet, axis")
+        if not isinstance(v, (list, tuple)) or not all(p in adj for p in v):
+            raise InputError(f"{where}: facing.{k} must list parts of the model, got {v!r}")
+        if k in ("axis", "trunk") and len(v) != 2:
+            raise InputError(f"{where}: facing.{k} must be two parts [from, to], got {v!r}")
+    stems = {}
+    for p in adj:
+        stems.setdefault(_stem(p), []).append(p)
+    for i, j in enumerate(m.joints):
+        jw = f"{where}: joint[{i}]"
+        if not isinstance(j.name, str) or not j.name:
+            raise InputError(f"{jw}: field 'name' must be a non-empty string")
+        if (not isinstance(j.offset, (list, tuple)) or len(j.offset) != 2
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                           for x in j.offset)):
+            raise InputError(f"{jw}: field 'offset' must be two numbers [along, outward]")
+        if any(j.offset) and len(m.facing.get("trunk", ())) != 2:
+            raise InputError(f"{jw}: an offset needs [facing] trunk = [from, to] (two parts)")
+        if (not isinstance(j.arc, (list, tuple)) or len(j.arc) != 2
+                or not all(isinstance(x, str) for x in j.arc)):
+            raise InputError(f"{jw}: field 'arc' must be two part names (or numbered stems)")
+        a, b = j.arc
+        for x in (a, b):
+            if x not in adj and x not in stems:
+                raise InputError(f"{jw}: unknown part {x!r} in arc (parts: {list(adj)})")
+        ea = [a] if a in adj else stems[a]
+        eb = [b] if b in adj else stems[b]
+        if not any(y in (n for n, _ in adj[x]) for x in ea for y in eb):
+            raise InputError(f"{jw}: arc {[a, b]} is not a model edge")
+        if (isinstance(j.at, bool) or not isinstance(j.at, (int, float))
+                or not 0.0 <= float(j.at) <= 1.0):
+            raise InputError(f"{jw}: field 'at' must be a number in [0, 1], got {j.at!r}")
     for i, c in enumerate(t.constraints):
         cw = f"{where}: constraint[{i}]"
         if not isinstance(c, Constraint):
@@ -249,10 +343,10 @@ def model_from_dict(d: dict, source: str = "model") -> Model:
     """Build a :class:`Model` from the parsed TOML; every error names ``source`` and the field."""
     if not isinstance(d, dict):
         raise InputError(f"{source}: expected a TOML document")
-    unknown = set(d) - {"model", "edge", "constraint"}
+    unknown = set(d) - {"model", "edge", "constraint", "mirror", "facing", "joint"}
     if unknown:
         raise InputError(f"{source}: unknown table(s) {sorted(unknown)}; expected [model], [[edge]], "
-                         "[[constraint]]")
+                         "[[constraint]], [[mirror]], [facing], [[joint]]")
     meta = d.get("model")
     if not isinstance(meta, dict):
         raise InputError(f"{source}: missing table [model] (with name, complete, optional root)")
@@ -337,9 +431,25 @@ def model_from_dict(d: dict, source: str = "model") -> Model:
         tree = Tree(edges, vertices=verts, constraints=cons)
     except InputError as exc:
         raise InputError(f"{source}: {exc}".replace("tree: ", "")) from None
+    mirrors, joints = [], []
+    for i, mi in enumerate(d.get("mirror") or []):
+        if not isinstance(mi, dict) or set(mi) != _MIRROR_KEYS:
+            raise InputError(f"{source}: mirror[{i}]: expected a table with exactly parts, names")
+        mirrors.append((tuple(mi["parts"]), tuple(mi["names"])))
+    facing = d.get("facing") or {}
+    if not isinstance(facing, dict):
+        raise InputError(f"{source}: [facing] must be a table (feet, axis)")
+    for i, j in enumerate(d.get("joint") or []):
+        if not isinstance(j, dict) or not {"name", "arc", "at"} <= set(j) <= _JOINT_KEYS:
+            raise InputError(f"{source}: joint[{i}]: expected a table with name, arc, at "
+                             "(and optional offset)")
+        off = j.get("offset", (0.0, 0.0))
+        joints.append(JointSpec(j["name"], tuple(j["arc"]) if isinstance(j["arc"], list)
+                                else j["arc"], j["at"],
+                                tuple(off) if isinstance(off, list) else off))
     return Model(name=name, tree=tree, root=meta.get("root"), complete=complete,
                  threshold=meta.get("threshold"), description=meta.get("description", ""),
-                 source=source)
+                 source=source, mirrors=mirrors, facing=dict(facing), joints=joints)
 
 
 def builtin_path(name: str):

@@ -38,6 +38,11 @@ class Pose:
         Per-stage times: hull, thinning, tree, alignment, total.
     diagnostics : dict
         Small JSON-able facts (data tree size, hull voxels, ...).
+    joints : dict name -> ndarray (3,)
+        The full kinematic skeleton of the frame (:mod:`.kinematic_fit`): neck, shoulders,
+        elbows, ... with bone lengths constant over the sequence; empty when not fitted.
+        ``diagnostics["interpolated"]`` is true when they were filled in across a short
+        rejected stretch rather than fitted to this frame.
     """
 
     frame: str
@@ -47,6 +52,7 @@ class Pose:
     error: str | None = None
     timings_ms: dict = field(default_factory=dict)
     diagnostics: dict = field(default_factory=dict)
+    joints: dict = field(default_factory=dict)
 
     @property
     def matched(self) -> bool:
@@ -62,6 +68,9 @@ class Pose:
              "timings_ms": {k: round(float(v), 3) for k, v in self.timings_ms.items()}}
         if self.diagnostics:
             d["diagnostics"] = _jsonable(self.diagnostics)
+        if self.joints:
+            d["joints"] = {str(k): [float(x) for x in np.asarray(v).ravel()]
+                           for k, v in self.joints.items()}
         return d
 
     def to_json(self) -> str:
@@ -82,11 +91,17 @@ class Pose:
                 if a.shape != (3,):
                     raise InputError(f"{source}: parts.{k} must be [x, y, z] or null")
                 parts[k] = a
+        joints = {}
+        for k, v in (d.get("joints") or {}).items():
+            a = np.asarray(v, dtype=float)
+            if a.shape != (3,):
+                raise InputError(f"{source}: joints.{k} must be [x, y, z]")
+            joints[k] = a
         dist = d.get("distance")
         return cls(frame=str(d["frame"]), status=d["status"],
                    distance=None if dist is None else float(dist), parts=parts,
                    error=d.get("error"), timings_ms=dict(d.get("timings_ms") or {}),
-                   diagnostics=dict(d.get("diagnostics") or {}))
+                   diagnostics=dict(d.get("diagnostics") or {}), joints=joints)
 
 
 def is_header(d) -> bool:

@@ -255,6 +255,9 @@ def evaluate(gt: dict, poses, model=None, tolerance=None, max_missing=1, groups=
     else:
         junctions = set()
     frames = []
+    if model is not None and model.mirrors:       # left_hand → hand_1 (gt's left), see chirality
+        from .chirality import numbered
+        poses = [numbered(p, model) for p in poses]
     for p in sorted(poses, key=lambda p: p.frame):
         g = gt["frames"].get(p.frame)
         if g is None:

@@ -154,7 +154,8 @@ def _progress(total, enabled, desc):
 def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
-        tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None) -> RunResult:
+        tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None, track=True,
+        sides=True, skeleton=True, smooth=None, bvh=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -192,6 +193,17 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         6 cameras).
     thickness : float or None
         Weight of the thickness term of the arc cost (see :class:`FrameEstimator`); 0: off.
+    track : bool
+        Sequences (more than one frame): give the numbered parts stable identities over time
+        (:func:`topopose.pose.track.track`); the output file is rewritten with them.
+    sides : bool
+        Name the model's mirror pairs left / right (:mod:`topopose.pose.chirality`).
+    skeleton : bool
+        Fit the full kinematic skeleton (:mod:`topopose.pose.kinematic_fit`): ``Pose.joints``.
+    smooth : int, optional
+        Savitzky–Golay window (frames) smoothing the skeleton.
+    bvh : path, optional
+        BVH export of the fitted skeleton (Blender).
 
     Returns
     -------
@@ -225,8 +237,11 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     if trc is not None or c3d is not None:
         from .export import metres_per_unit
         metres_per_unit(cap.units)
+    if bvh is not None and not (skeleton and m.joints):
+        raise InputError(f"--bvh: model {m.name!r} has no [[joint]] (or --no-skeleton): no "
+                         "skeleton to export")
     exports = {k: _paths.writable_output(v, f"--{k}") for k, v in
-               (("trc", trc), ("csv", csv), ("c3d", c3d)) if v is not None}
+               (("trc", trc), ("csv", csv), ("c3d", c3d), ("bvh", bvh)) if v is not None}
     out = _paths.writable_output(output, "--output") if output is not None else None
     header = run_header(cap, m, resolution, threshold, options)
     done = {}
@@ -305,15 +320,28 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
             partial.unlink(missing_ok=True)
     seconds = time.perf_counter() - t0
     poses = [results[k] for k in sorted(results)]
+    motion = None
+    if (track or sides or skeleton) and todo:     # a resume with nothing to do keeps the file
+        from .motion import process_sequence
+        motion = process_sequence(poses, m, cap.up_vector, track=track, sides=sides,
+                                  skeleton=skeleton, smooth=smooth)
+        poses = motion.poses
+        if out is not None:
+            write_poses(out, poses, header)
     counts = {s: sum(p.status == s for p in poses) for s in ("matched", "rejected", "failed")}
     res = RunResult(poses, out, computed=len(todo), skipped=len(skipped), seconds=seconds,
                     counts=counts)
     units = cap.units
     fps = cap.fps or 25.0
-    from .export import write_c3d, write_csv, write_trc
-    writers = {"trc": lambda t: write_trc(t, poses, m.parts, fps=fps, units=units, up=cap.up),
-               "csv": lambda t: write_csv(t, poses, m.parts),
-               "c3d": lambda t: write_c3d(t, poses, m.parts, fps=fps, units=units)}
+    from .export import OPENSIM_LABELS, marker_names, write_c3d, write_csv, write_trc
+    markers = marker_names(poses, m.parts)
+    writers = {"trc": lambda t: write_trc(t, poses, markers, fps=fps, units=units, up=cap.up,
+                                          labels=OPENSIM_LABELS),
+               "csv": lambda t: write_csv(t, poses, markers),
+               "c3d": lambda t: write_c3d(t, poses, markers, fps=fps, units=units,
+                                          labels=OPENSIM_LABELS),
+               "bvh": lambda t: write_motion_bvh(t, poses, motion, m, fps=fps, units=units,
+                                                 up=cap.up)}
     for k, path in exports.items():
         with _paths.atomic_output(path) as t:
             writers[k](t)
@@ -351,8 +379,10 @@ def check_resume(out, header, model):
 
     old = read_header(out)
     if old is None:
+        from .chirality import numbered                  # left_/right_ names → the model's
+
         for p in read_poses(out, strict=False)[:1]:
-            if set(p.parts) != set(model.parts):
+            if set(numbered(p, model).parts) != set(model.parts):
                 raise InputError(f"--resume: {out} holds poses of other parts "
                                  f"({', '.join(sorted(p.parts))}), not of model {model.name!r}; "
                                  "use another --output")
@@ -367,6 +397,32 @@ def check_resume(out, header, model):
             shown = {"model_hash": (old.get("model"), header.get("model"))}.get(key, (a, b))
             raise InputError(f"--resume: {out} was made with another {name} ({shown[0]!r}, now "
                              f"{shown[1]!r}); use another --output or run without --resume")
+
+
+def write_motion_bvh(path, poses, motion, model, fps=25.0, units="m", up="+z"):
+    """BVH of the fitted skeleton. Joints carry their side names in the mirror order
+    (``left_elbow`` is ``elbow_1``'s name when ``hand_1`` → ``left_hand``); a frame where the
+    side was not decided uses the numbered joint in its place. Frames without a skeleton repeat
+    the last one (BVH has no gaps; poses.jsonl says which frames were fitted)."""
+    import numpy as np
+
+    from .chirality import joint_renaming
+    from .export import write_bvh
+
+    if motion is None or motion.tree is None:
+        raise InputError("--bvh: no skeleton fitted (the model declares no [[joint]], or "
+                         "--no-skeleton)")
+    tree = motion.tree
+    mapping = {pp: n for parts, names in model.mirrors for pp, n in zip(parts, names)}
+    ren = joint_renaming(model, mapping, tree.names)
+    names = [ren.get(n, n) for n in tree.names]
+    P = np.full((len(poses), len(names), 3), np.nan)
+    for i, p in enumerate(poses):
+        for j, (nm, num) in enumerate(zip(names, tree.names)):
+            v = p.joints.get(nm, p.joints.get(num))
+            if v is not None:
+                P[i, j] = v
+    return write_bvh(path, names, tree.parents, P, fps=fps, units=units, up=up)
 
 
 def _run_dask(cap, model, resolution, threshold, options, todo, workers, scheduler, finish):
@@ -452,7 +508,9 @@ def run_cli(a) -> int:
               tolerance=getattr(a, "tolerance", None),
               refocus=getattr(a, "refocus", False),
               on_pose=None, gate={"on": True, "off": False}.get(getattr(a, "confidence_gate", "auto")),
-              thickness=getattr(a, "thickness", None))
+              thickness=getattr(a, "thickness", None), track=getattr(a, "track", True),
+              sides=getattr(a, "sides", True), skeleton=getattr(a, "skeleton", True),
+              smooth=getattr(a, "smooth", None), bvh=getattr(a, "bvh", None))
     if getattr(a, "rerun", None):
         from ..viz.rerun import record_run
         record_run(a.rerun, a.capture, res.poses, model=a.model, resolution=a.resolution,
@@ -463,7 +521,7 @@ def run_cli(a) -> int:
         print(f"  failed {p.frame}: {p.error}")
     if len(res.failed) > 10:
         print(f"  ... {len(res.failed) - 10} more failed frames (see {a.output})")
-    extra = [x for x in (a.trc, a.csv, getattr(a, "c3d", None)) if x]
+    extra = [x for x in (a.trc, a.csv, getattr(a, "c3d", None), getattr(a, "bvh", None)) if x]
     if extra:
         print("exports: " + ", ".join(str(x) for x in extra))
     return res.exit_status

@@ -59,7 +59,8 @@ def record_run(path, capture, poses, model="human", resolution=100, tolerance=No
                     if t.positions.get(u) is not None and t.positions.get(w) is not None]
             if segs:
                 rec.log("data_tree", rr.LineStrips3D(segs, colors=[117, 107, 177]))
-        placed = {p: x for p, x in pose.parts.items() if x is not None}
+        from ..pose.chirality import numbered
+        placed = {p: x for p, x in numbered(pose, m).parts.items() if x is not None}
         if placed:
             names = list(placed)
             rec.log("parts", rr.Points3D(np.stack([placed[p] for p in names]), labels=names,

@@ -121,6 +121,8 @@ def render_frame(path, model, pose, detail=None, cap=None, silhouettes=False, up
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
+    from ..pose.chirality import numbered
+    pose = numbered(pose, model)           # left_hand → hand_1: the model's part names
     colours = part_colours(model.parts)
     R = _up_rotation(up)
     ncam = len(cap.cameras) if (silhouettes and cap is not None) else 0
@@ -246,7 +248,8 @@ def guess_model(pose, name=None):
     keys = set(pose.parts)
     for b in BUILTIN:
         m = load_model(b)
-        if set(m.parts) == keys:
+        mirror = {n for _, names in m.mirrors for n in names}
+        if set(m.parts) == keys or (keys & mirror and keys <= set(m.parts) | mirror):
             return m
     raise InputError("--model: the poses' parts match no built-in model; give --model FILE.toml")
 

@@ -1,0 +1,396 @@
+"""Full skeleton: a kinematic model fitted to the skeleton curves of each frame (thesis §13.3.1:
+the per-frame result initializes a kinematic model — extremities placed, then a fit to the
+skeleton).
+
+The model TOML declares joints at relative positions along its arcs (``[[joint]]``,
+:class:`~topopose.pose.model.JointSpec`); joined in order along the arcs from the model root
+they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
+
+1. **Initial placement** — every joint at its relative arc length ``at`` on the skeleton curve
+   of its arc (:mod:`.curves`); ``at = 1`` is the arc's end part. A joint beside the curve
+   (``offset``: shoulders and hips lie beside the curve's path from the chest junction) is moved
+   along the trunk and away from its mirror partner by the declared fractions of the trunk.
+2. **Bone lengths** — each bone's median over the matched frames of the initial placement, a
+   mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length; constant over the
+   sequence.
+3. **Fit** — per matched frame, the root at its initial placement (the model root part) and one
+   direction per bone (``P_child = P_parent + L · d/|d|``, so lengths stay exactly constant),
+   arc chain by arc chain from the root down, by :func:`scipy.optimize.least_squares` on: the
+   distance of every curve sample to the chain of joints along its arc (the kinematic chain
+   follows the skeleton curve), the distance of each joint to its initial placement (weight 1
+   for joints on parts and joints with an offset, ``inner_weight`` for the others) and a gauge
+   term ``|d| - 1``.
+4. **Gaps** — stretches of at most ``max_gap`` unfitted frames between fitted ones are filled
+   by interpolating the root position and the bone directions (normalized linear), flagged
+   ``diagnostics["interpolated"] = true``; never silently. Optional Savitzky–Golay smoothing
+   (:func:`scipy.signal.savgol_filter`) of the root and bone directions over runs of fitted
+   frames, flagged ``diagnostics["smoothed"]``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..errors import InputError
+from .curves import model_arcs
+from .track import frame_index
+
+
+@dataclass
+class KinematicTree:
+    """Joint instances of a model: ``names[i]`` (``elbow_1``), ``base[i]`` (``elbow``),
+    ``parents[i]`` (index, -1 for the root), ``arc[i]`` = (parent part, child part) of the model
+    arc it lies on, ``at[i]`` its relative position along it."""
+
+    names: list
+    base: list
+    parents: list
+    arc: list
+    at: list
+    offset: list = None            # (along the trunk, outward) per joint, in trunk lengths
+    trunk: tuple = ()              # (from part, to part)
+
+    @property
+    def root(self) -> int:
+        return self.parents.index(-1)
+
+    def order(self) -> list:
+        """Joint indices, parents before children."""
+        out, todo = [], [self.root]
+        while todo:
+            j = todo.pop(0)
+            out.append(j)
+            todo.extend(c for c, p in enumerate(self.parents) if p == j)
+        return out
+
+    def chains(self) -> dict:
+        """Model arc (u, v) → joint indices along it in order, with the joint at its start."""
+        out = {}
+        for j, (u, v) in enumerate(self.arc):
+            out.setdefault((u, v), []).append(j)
+        for key, js in out.items():
+            js.sort(key=lambda j: self.at[j])
+            first = js[0]
+            p = self.parents[first]
+            if p >= 0 and self.at[first] > 0:
+                js.insert(0, p)
+        return out
+
+
+def _stem(p):
+    h, s, t = str(p).rpartition("_")
+    return h if s and t.isdigit() and h else str(p)
+
+
+def kinematic_tree(model) -> KinematicTree:
+    """Expand the model's ``[[joint]]`` declarations over its arcs into one kinematic tree."""
+    if not model.joints:
+        raise InputError(f"model {model.name!r}: no [[joint]] declared; the full skeleton needs "
+                         "joints along the arcs (see topopose.pose.model)")
+    names, base, arc, at, offset = [], [], [], [], []
+    arcs = model_arcs(model)
+    for u, v in arcs:
+        for js in model.joints:
+            a, b = js.arc
+            if a in (u, _stem(u)) and b in (v, _stem(v)):
+                t = float(js.at)
+            elif b in (u, _stem(u)) and a in (v, _stem(v)):
+                t = 1.0 - float(js.at)
+            else:
+                continue
+            suffix = ""
+            for decl, part in ((a, u), (b, v), (a, v), (b, u)):
+                if decl not in (u, v) and decl == _stem(part) and part != decl:
+                    suffix = "_" + str(part).rpartition("_")[2]
+                    break
+            names.append(js.name + suffix)
+            offset.append(tuple(float(x) for x in js.offset))
+            base.append(js.name)
+            arc.append((u, v))
+            at.append(t)
+    if len(set(names)) != len(names):
+        raise InputError(f"model {model.name!r}: two joints share a name ({names})")
+    anchor = {}
+    for j, ((u, v), t) in enumerate(zip(arc, at)):
+        if t == 0.0:
+            anchor.setdefault(u, j)
+        elif t == 1.0:
+            anchor.setdefault(v, j)
+    parents = [None] * len(names)
+    for u, v in arcs:
+        js = sorted((j for j in range(len(names)) if arc[j] == (u, v)), key=lambda j: at[j])
+        prev = anchor.get(u)
+        for j in js:
+            if j == prev:
+                continue
+            if at[j] == 0.0 and anchor.get(u) not in (None, j):
+                prev = anchor[u]
+                continue
+            parents[j] = -1 if prev is None else prev
+            prev = j
+    for part, j in anchor.items():
+        if parents[j] is None:            # an anchor at the start of its arc: link it upwards
+            into = [a for a in arcs if a[1] == part]
+            up = None
+            if into:
+                cands = [k for k in range(len(names)) if arc[k] == into[0]]
+                if cands:
+                    up = max(cands, key=lambda k: at[k])
+            parents[j] = -1 if up is None else up
+    parents = [-1 if p is None else p for p in parents]
+    if sum(p == -1 for p in parents) != 1:
+        roots = [names[j] for j, p in enumerate(parents) if p == -1]
+        raise InputError(f"model {model.name!r}: the joints form {len(roots)} trees (roots "
+                         f"{roots}); put a joint at at = 0 or 1 where arcs meet")
+    return KinematicTree(names, base, parents, arc, at, offset,
+                         tuple(model.facing.get("trunk", ())))
+
+
+def _along(curve, t):
+    c = np.asarray(curve, dtype=float)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+    if s[-1] <= 0:
+        return c[0]
+    x = t * s[-1]
+    return np.array([np.interp(x, s, c[:, k]) for k in range(3)])
+
+
+def initial_placement(pose, tree: KinematicTree) -> np.ndarray:
+    """(n_joints, 3) joints at their relative arc length on the frame's curves (NaN: no curve)."""
+    curves = pose.diagnostics.get("curves") or {}
+    out = np.full((len(tree.names), 3), np.nan)
+    for j, ((u, v), t) in enumerate(zip(tree.arc, tree.at)):
+        c = curves.get(v)
+        if c is not None:
+            out[j] = _along(c, t)
+    if tree.trunk and any(any(o) for o in tree.offset):
+        a, b = (pose.parts.get(x) for x in tree.trunk)
+        if a is None or b is None:
+            return out
+        ax = np.asarray(b, float) - np.asarray(a, float)
+        S = float(np.linalg.norm(ax))
+        if S <= 0:
+            return out
+        ax /= S
+        moved = out.copy()
+        for j, (along, outward) in enumerate(tree.offset):
+            if not (along or outward) or np.isnan(out[j]).any():
+                continue
+            moved[j] = out[j] + along * S * ax
+            mates = [k for k in range(len(tree.names)) if k != j and tree.base[k] == tree.base[j]]
+            if outward and len(mates) == 1 and not np.isnan(out[mates[0]]).any():
+                lat = out[j] - out[mates[0]]
+                lat -= np.dot(lat, ax) * ax
+                n = np.linalg.norm(lat)
+                if n > 0:
+                    moved[j] += outward * S * lat / n
+        out = moved
+    return out
+
+
+def bone_lengths(init: np.ndarray, tree: KinematicTree) -> np.ndarray:
+    """Median length of each bone (child joint index) over the frames, mirror bones pooled."""
+    L = np.full(len(tree.names), np.nan)
+    pooled = {}
+    for j, p in enumerate(tree.parents):
+        if p < 0:
+            continue
+        d = np.linalg.norm(init[:, j] - init[:, p], axis=1)
+        pooled.setdefault((tree.base[j], tree.base[p]), []).extend(d[~np.isnan(d)])
+    for j, p in enumerate(tree.parents):
+        if p >= 0:
+            v = pooled[(tree.base[j], tree.base[p])]
+            L[j] = float(np.median(v)) if v else np.nan
+    return L
+
+
+def forward(root, dirs, L, tree: KinematicTree, order=None) -> np.ndarray:
+    """Joint positions from the root position and one direction per bone (normalized here)."""
+    order = tree.order() if order is None else order
+    P = np.zeros((len(tree.names), 3))
+    P[tree.root] = root
+    for j in order[1:]:
+        d = dirs[j]
+        P[j] = P[tree.parents[j]] + L[j] * d / max(np.linalg.norm(d), 1e-12)
+    return P
+
+
+def _seg_dist(q, A, B):
+    """Distance of points q (m, 3) to the nearest of segments A→B (k, 3)."""
+    ab = B - A
+    t = np.einsum("mkc,kc->mk", q[:, None, :] - A[None], ab) / np.maximum(
+        np.einsum("kc,kc->k", ab, ab), 1e-12)
+    t = np.clip(t, 0.0, 1.0)
+    proj = A[None] + t[..., None] * ab[None]
+    return np.linalg.norm(q[:, None, :] - proj, axis=2).min(axis=1)
+
+
+def fit_frame(target, curves, L, tree: KinematicTree, start=None, inner_weight=0.3,
+              curve_weight=1.0):
+    """Fit the kinematic tree to one frame (see the module docstring), one arc chain at a time
+    from the root down: each chain's first joint is fixed by the chains above it, its bone
+    directions are fitted (a dozen unknowns per :func:`least_squares`).
+
+    Returns (positions (n, 3), rms of the curve distances) or (None, None) without targets.
+    """
+    ok = ~np.isnan(target).any(axis=1)
+    if not ok[tree.root] or ok.sum() < 2:
+        return None, None
+    init = target if start is None else np.where(np.isnan(start), target, start)
+    n = len(tree.names)
+    P = np.full((n, 3), np.nan)
+    P[tree.root] = target[tree.root]
+    w = np.where(np.array([t in (0.0, 1.0) or any(o) for t, o in zip(tree.at, tree.offset)]),
+                 1.0, inner_weight)
+    rms = []
+    for (u, v), js in tree.chains().items():
+        if np.isnan(P[js[0]]).any():
+            continue
+        bones = js[1:]
+        c = curves.get(v)
+        c = None if c is None else np.asarray(c, float)
+        tgt = target[bones]
+        has = ~np.isnan(tgt).any(axis=1)
+        if c is None and not has.any():
+            continue
+        x0 = []
+        prev = P[js[0]]
+        for j in bones:
+            d = init[j] - prev if not np.isnan(init[j]).any() else np.array([0.0, 0.0, -1.0])
+            d = d / max(np.linalg.norm(d), 1e-9)
+            x0.append(d)
+            prev = prev + L[j] * d
+        x0 = np.concatenate(x0)
+        Lb = L[bones]
+        wb = (w[bones] * has)[:, None]
+        tgt0 = np.nan_to_num(tgt)
+        p0 = P[js[0]]
+
+        def chain(x):
+            d = x.reshape(-1, 3)
+            nd = np.linalg.norm(d, axis=1)
+            return p0 + np.cumsum(Lb[:, None] * d / np.maximum(nd, 1e-12)[:, None], axis=0), nd
+
+        def res(x):
+            Q, nd = chain(x)
+            r = [((Q - tgt0) * wb).ravel(), 0.1 * (nd - 1.0)]
+            if c is not None:
+                A = np.vstack([p0, Q])
+                r.append(curve_weight * _seg_dist(c, A[:-1], A[1:]) / np.sqrt(len(c)))
+            return np.concatenate(r)
+
+        sol = least_squares(res, x0, method="lm", max_nfev=200)
+        Q, _ = chain(sol.x)
+        P[bones] = Q
+        if c is not None:
+            A = np.vstack([p0, Q])
+            rms.append(float(np.sqrt(np.mean(_seg_dist(c, A[:-1], A[1:]) ** 2))))
+    if np.isnan(P).any():
+        return None, None
+    return P, float(np.mean(rms)) if rms else None
+
+
+def _directions(P, tree):
+    D = np.zeros_like(P)
+    for j, p in enumerate(tree.parents):
+        if p >= 0:
+            d = P[j] - P[p]
+            D[j] = d / max(np.linalg.norm(d), 1e-12)
+    return D
+
+
+def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=0.3):
+    """Fit the full skeleton to every matched frame of a sequence (see the module docstring).
+
+    Parameters
+    ----------
+    poses : list of Pose (curves in their diagnostics)
+    model : Model with ``[[joint]]`` declarations
+    max_gap : longest run of unfitted frames filled by interpolation (0: none)
+    smooth : None or an odd Savitzky–Golay window (frames, polynomial order 2)
+
+    Returns
+    -------
+    poses : list of Pose with ``joints`` (numbered joint names, e.g. ``elbow_1``) and
+        ``diagnostics["skeleton_rms"]`` (curve distance after the fit),
+        ``["interpolated"]``, ``["smoothed"]``
+    tree : KinematicTree
+    lengths : ndarray, the bone length of each joint's bone (NaN for the root)
+    """
+    poses = sorted(poses, key=lambda p: p.frame)
+    tree = kinematic_tree(model)
+    init = np.stack([initial_placement(p, tree) if p.matched
+                     else np.full((len(tree.names), 3), np.nan) for p in poses]) \
+        if poses else np.zeros((0, len(tree.names), 3))
+    L = bone_lengths(init, tree)
+    n_f = len(poses)
+    P = np.full_like(init, np.nan)
+    rms = [None] * n_f
+    prev = None
+    if not np.isnan(L[[j for j in range(len(L)) if tree.parents[j] >= 0]]).any():
+        for i, p in enumerate(poses):
+            if not p.matched:
+                continue
+            start = init[i].copy()
+            if prev is not None:                  # fill unseen joints from the last fit
+                miss = np.isnan(start).any(axis=1)
+                start[miss] = prev[miss] - prev[tree.root] + np.nan_to_num(start[tree.root])
+            Pi, r = fit_frame(init[i], p.diagnostics.get("curves") or {}, L, tree,
+                              start=None if np.isnan(start).any() else start,
+                              inner_weight=inner_weight)
+            if Pi is not None:
+                P[i], rms[i], prev = Pi, r, Pi
+    fitted = ~np.isnan(P).any(axis=(1, 2))
+    interp = np.zeros(n_f, dtype=bool)
+    t = frame_index(poses)
+    idx = np.flatnonzero(fitted)
+    if max_gap and len(idx) > 1:
+        D = np.stack([_directions(P[i], tree) if fitted[i] else np.zeros_like(P[i])
+                      for i in range(n_f)])
+        for a, b in zip(idx, idx[1:]):
+            if 1 < b - a <= max_gap + 1:
+                for i in range(a + 1, b):
+                    s = (t[i] - t[a]) / (t[b] - t[a])
+                    root = (1 - s) * P[a, tree.root] + s * P[b, tree.root]
+                    P[i] = forward(root, (1 - s) * D[a] + s * D[b], L, tree)
+                    interp[i] = True
+    smoothed = np.zeros(n_f, dtype=bool)
+    if smooth:
+        from scipy.signal import savgol_filter
+
+        win = int(smooth) | 1
+        ok = ~np.isnan(P).any(axis=(1, 2))
+        runs, start = [], None
+        for i in range(n_f + 1):
+            if i < n_f and ok[i] and (start is None or t[i] - t[i - 1] == 1):
+                start = i if start is None else start
+            else:
+                if start is not None and i - start >= win:
+                    runs.append((start, i))
+                start = i if i < n_f and ok[i] else None
+        for a, b in runs:
+            D = np.stack([_directions(P[i], tree) for i in range(a, b)])
+            R = P[a:b, tree.root]
+            D = savgol_filter(D, win, 2, axis=0)
+            R = savgol_filter(R, win, 2, axis=0)
+            for k, i in enumerate(range(a, b)):
+                P[i] = forward(R[k], D[k], L, tree)
+                smoothed[i] = True
+    out = []
+    for i, p in enumerate(poses):
+        if np.isnan(P[i]).any():              # no skeleton (joints of an earlier run dropped)
+            out.append(type(p)(**{**p.__dict__, "joints": {}}) if p.joints else p)
+            continue
+        diag = dict(p.diagnostics)
+        if rms[i] is not None:
+            diag["skeleton_rms"] = round(rms[i], 5)
+        if interp[i]:
+            diag["interpolated"] = True
+        if smoothed[i]:
+            diag["smoothed"] = True
+        q = type(p)(**{**p.__dict__, "diagnostics": diag,
+                       "joints": {nm: P[i, j].copy() for j, nm in enumerate(tree.names)}})
+        out.append(q)
+    return out, tree, L

@@ -1,0 +1,52 @@
+"""From pose initialization to motion capture: the sequence stages after the per-frame result.
+
+numbered parts → identities over time (:mod:`.track`) → full kinematic skeleton with constant
+bone lengths (:mod:`.kinematic_fit`) → left and right (:mod:`.chirality`). Every stage reads
+only the poses (their parts and the skeleton curves in ``diagnostics["curves"]``), so it runs
+after a parallel or resumed run as well.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .chirality import assign_sides, numbered
+from .kinematic_fit import fit_sequence
+from .track import track as track_identities
+
+
+@dataclass
+class Motion:
+    """The processed sequence: poses, the kinematic tree and its bone lengths (or None)."""
+
+    poses: list
+    tree: object = None
+    lengths: object = None
+    stages: list = field(default_factory=list)
+
+
+def process_sequence(poses, model, up, track=True, sides=True, skeleton=True, max_gap=5,
+                     smooth=None) -> Motion:
+    """Run the sequence stages on the poses of one capture (sorted by frame).
+
+    Parameters
+    ----------
+    poses : list of Pose
+    model : Model
+    up : the capture's up vector
+    track, sides, skeleton : which stages to run (each needs what the model declares:
+        interchangeable parts, ``[[mirror]]`` + ``[facing]``, ``[[joint]]``)
+    max_gap, smooth : gap filling and smoothing of the skeleton (:func:`.fit_sequence`)
+    """
+    poses = sorted((numbered(p, model) for p in poses), key=lambda p: p.frame)
+    out = Motion(poses)
+    if track and len(poses) > 1 and model.interchangeable():
+        out.poses = track_identities(out.poses, model, max_gap=max_gap)
+        out.stages.append("track")
+    if skeleton and model.joints:
+        out.poses, out.tree, out.lengths = fit_sequence(out.poses, model, max_gap=max_gap,
+                                                        smooth=smooth)
+        out.stages.append("skeleton")
+    if sides and model.mirrors and model.facing:
+        out.poses = assign_sides(out.poses, model, up, use_time=track)
+        out.stages.append("sides")
+    return out

@@ -1,0 +1,198 @@
+"""Left and right from one frame's geometry, and the kinematic fit with constant bone lengths,
+on hand-made skeleton curves whose truth is known."""
+import numpy as np
+import pytest
+
+from topopose.errors import InputError
+from topopose.pose.chirality import assign_sides, frame_scores, numbered
+from topopose.pose.curves import resample
+from topopose.pose.kinematic_fit import fit_sequence, kinematic_tree
+from topopose.pose.model import load_model, model_from_dict
+from topopose.pose.motion import process_sequence
+from topopose.pose.pose import Pose
+
+UP = np.array([0.0, 0.0, 1.0])
+HUMAN = load_model("human")
+
+
+def _rotz(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+
+
+def _body(yaw, rng, knee=0.08, toe=0.2, arms_crossed=False):
+    """A standing human facing ``R @ x`` (body frame x forward, y left, z up): true joints
+    along each arc at the human model's ``at`` fractions, so that the curve through them puts
+    every joint at its declared relative arc length. Returns (parts, curves, joints) with
+    side-named truth, in world coordinates."""
+    R = _rotz(yaw)
+    o = rng.normal(scale=0.5, size=3) * [1, 1, 0]
+    W = lambda v: R @ np.asarray(v, float) + o                          # noqa: E731
+    J, parts, curves = {}, {}, {}
+    torso, crotch, head = W([0, 0, 1.35]), W([0, 0, 0.95]), W([0, 0, 1.75])
+    parts.update(torso=torso, crotch=crotch, head=head)
+    curves["head"] = resample([torso, head])
+    curves["crotch"] = resample([torso, crotch])
+    for side, sg in (("left", 1.0), ("right", -1.0)):
+        hand = W([0.15, sg * (0.05 if arms_crossed else 0.3), 0.9])
+        if arms_crossed:
+            hand = W([0.3, -sg * 0.15, 1.2])
+        sh = W([0, sg * 0.2, 1.4])
+        arm = resample([torso, sh, hand], 64)
+        hip = W([0, sg * 0.1, 0.9])
+        knee_p = W([knee, sg * 0.1, 0.5])
+        ankle = W([0, sg * 0.1, 0.1])
+        foot = W([toe, sg * 0.1, 0.05])
+        leg = resample([crotch, hip, knee_p, ankle, foot], 64)
+        parts[f"{side}_hand"], parts[f"{side}_foot"] = hand, foot
+        curves[f"{side}_hand"], curves[f"{side}_foot"] = resample(arm), resample(leg)
+    return parts, curves
+
+
+def _numbered_frame(frame, parts, curves, swap_hands, swap_feet):
+    """What the per-frame matcher gives: numbered names in an arbitrary order."""
+    mh = {"left_hand": "hand_2", "right_hand": "hand_1"} if swap_hands else \
+        {"left_hand": "hand_1", "right_hand": "hand_2"}
+    mf = {"left_foot": "foot_2", "right_foot": "foot_1"} if swap_feet else \
+        {"left_foot": "foot_1", "right_foot": "foot_2"}
+    m = {**mh, **mf}
+    return Pose(frame, "matched", 0.1, {m.get(k, k): v for k, v in parts.items()},
+                diagnostics={"curves": {m.get(k, k): v for k, v in curves.items()}}), m
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_single_frame_left_right_any_facing(seed):
+    rng = np.random.default_rng(seed)
+    yaw = rng.uniform(0, 2 * np.pi)
+    parts, curves = _body(yaw, rng)
+    pose, m = _numbered_frame("000000", parts, curves, rng.random() < 0.5, rng.random() < 0.5)
+    out = assign_sides([pose], HUMAN, UP)[0]
+    for side in ("left", "right"):
+        for stem in ("hand", "foot"):
+            assert np.allclose(out.parts[f"{side}_{stem}"], parts[f"{side}_{stem}"])
+    fwd = np.array(out.diagnostics["facing"])
+    assert np.dot(fwd, _rotz(yaw) @ [1, 0, 0]) > 0.95
+    ch = out.diagnostics["chirality"]
+    assert all(d["confidence"] > 0.5 for d in ch.values())
+    # evaluation turns the side names back into gt's numbering (hand_1 = left)
+    back = numbered(out, HUMAN)
+    assert np.allclose(back.parts["hand_1"], parts["left_hand"])
+    assert np.allclose(back.parts["foot_2"], parts["right_foot"])
+
+
+def test_crossed_arms_still_sided_by_the_shoulders():
+    rng = np.random.default_rng(9)
+    parts, curves = _body(0.7, rng, arms_crossed=True)
+    pose, _ = _numbered_frame("000000", parts, curves, True, False)
+    out = assign_sides([pose], HUMAN, UP)[0]
+    assert np.allclose(out.parts["left_hand"], parts["left_hand"])   # its hand is on the right
+
+
+def test_unsure_frame_keeps_numbered_names_and_time_decides():
+    rng = np.random.default_rng(4)
+    parts, curves = _body(1.0, rng, knee=0.0, toe=0.0)            # feet end-on, knees straight
+    weak, _ = _numbered_frame("000001", parts, curves, True, True)
+    assert all(abs(s) < 0.3 for s in frame_scores(weak, HUMAN, UP).values())
+    out = assign_sides([weak], HUMAN, UP)[0]
+    assert "hand_1" in out.parts and "left_hand" not in out.parts
+    assert out.diagnostics["chirality"]["hand_1"]["name"] == "hand_1"
+    # with a confident frame of the same tracking segment, the weak frame is decided too
+    parts2, curves2 = _body(1.0, rng)
+    strong, _ = _numbered_frame("000000", parts2, curves2, True, True)
+    for p in (strong, weak):
+        p.diagnostics["track"] = {"hand": 0, "foot": 0}
+    out2 = assign_sides([strong, weak], HUMAN, UP)
+    assert np.allclose(out2[1].parts["left_hand"], parts["left_hand"])
+    # without time, it stays unsure
+    out3 = assign_sides([strong, weak], HUMAN, UP, use_time=False)
+    assert "hand_1" in out3[1].parts
+
+
+def test_dog_sides_from_its_axis():
+    dog = load_model("dog")
+    R = _rotz(2.0)
+    W = lambda v: R @ np.asarray(v, float)                             # noqa: E731
+    parts = {"head": W([0.5, 0, 0.6]), "shoulders": W([0.3, 0, 0.5]), "hips": W([-0.3, 0, 0.5]),
+             "tail": W([-0.6, 0, 0.6]), "paw_1": W([0.3, -0.1, 0]), "paw_2": W([0.3, 0.1, 0]),
+             "paw_3": W([-0.3, 0.1, 0]), "paw_4": W([-0.3, -0.1, 0])}
+    out = assign_sides([Pose("0", "matched", 0.1, parts)], dog, UP)[0]
+    assert np.allclose(out.parts["left_front_paw"], parts["paw_2"])
+    assert np.allclose(out.parts["left_hind_paw"], parts["paw_3"])
+
+
+def _true_joints(pose, tree):
+    """Joints of the hand-made rigid body where the model declares them: at their fractions of
+    the noise-free curves (exact: the curves are polylines), shoulders and hips moved by their
+    offsets. The body is rigid, so these bone lengths are constant over the frames."""
+    from topopose.pose.kinematic_fit import initial_placement
+    P = initial_placement(pose, tree)
+    return {n: P[j] for j, n in enumerate(tree.names)}
+
+
+def test_kinematic_tree_of_the_models():
+    t = kinematic_tree(HUMAN)
+    assert t.names[t.root] == "chest" and len(t.names) == 20
+    assert t.names[t.parents[t.names.index("elbow_1")]] == "shoulder_1"
+    assert t.names[t.parents[t.names.index("hip_2")]] == "pelvis"
+    for name in ("dog", "spider"):
+        kinematic_tree(load_model(name))                   # one tree each
+    bad = HUMAN.to_dict()
+    bad["joint"] = [{"name": "elbow", "arc": ["torso", "hand"], "at": 0.5}]
+    with pytest.raises(InputError, match="trees"):
+        kinematic_tree(model_from_dict(bad))
+    bad["joint"] = [{"name": "elbow", "arc": ["head", "hand"], "at": 0.5}]
+    with pytest.raises(InputError, match="not a model edge"):
+        model_from_dict(bad)
+
+
+def test_fit_constant_bone_lengths_recovers_joints_and_fills_gaps():
+    rng = np.random.default_rng(1)
+    tree = kinematic_tree(HUMAN)
+    poses, truth = [], []
+    # one body, different facings and positions: bone lengths are constant
+    for i in range(8):
+        parts, curves = _body(0.3 * i, rng)
+        pose, m = _numbered_frame(f"{i:06d}", parts, curves, False, False)
+        noisy = {k: v + rng.normal(scale=0.003, size=v.shape) for k, v in
+                 pose.diagnostics["curves"].items()}
+        truth.append(_true_joints(pose, tree))
+        pose.diagnostics["curves"] = noisy
+        poses.append(pose)
+    poses[3].status = "rejected"                            # a gap to fill
+    out, tree, L = fit_sequence(poses, HUMAN, max_gap=2)
+    for i, p in enumerate(out):
+        assert set(p.joints) == set(tree.names)
+        for j, par in enumerate(tree.parents):
+            if par >= 0:
+                d = np.linalg.norm(p.joints[tree.names[j]] - p.joints[tree.names[par]])
+                assert abs(d - L[j]) < 1e-9                  # exactly constant lengths
+        err = max(np.linalg.norm(p.joints[k] - truth[i][k]) for k in tree.names)
+        if i == 3:
+            assert p.diagnostics.get("interpolated") is True
+        else:
+            assert "interpolated" not in p.diagnostics
+            assert err < 0.02, (i, err)
+    assert np.isnan(L[tree.root])
+    # smoothing keeps the lengths
+    out2, _, _ = fit_sequence(poses, HUMAN, max_gap=2, smooth=5)
+    assert all(p.diagnostics.get("smoothed") for p in out2)
+    p = out2[5]
+    j = tree.names.index("elbow_1")
+    assert abs(np.linalg.norm(p.joints["elbow_1"] - p.joints["shoulder_1"]) - L[j]) < 1e-9
+
+
+def test_process_sequence_names_joints_by_side():
+    rng = np.random.default_rng(3)
+    poses = []
+    for i in range(5):
+        parts, curves = _body(0.1 * i, rng)
+        pose, _ = _numbered_frame(f"{i:06d}", parts, curves, i % 2 == 1, i % 3 == 1)
+        poses.append(pose)
+    mo = process_sequence(poses, HUMAN, UP)
+    assert mo.stages == ["track", "skeleton", "sides"]
+    for p in mo.poses:
+        assert {"left_elbow", "right_knee", "left_hand", "right_foot"} <= set(p.joints) | set(p.parts)
+        # the left elbow is on the left of the facing direction
+        f = np.array(p.diagnostics["facing"])
+        left = np.cross(UP, f)
+        assert np.dot(p.joints["left_elbow"] - p.joints["right_elbow"], left) > 0.2

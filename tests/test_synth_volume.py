@@ -43,11 +43,16 @@ def _inside(subject, bodies, vlo, vhi, where):
                 f"{subject} {where} frame {i}: {k} = {v.round(3)} outside {vlo}..{vhi}"
 
 
+def _volume(subject):
+    """The subject's capture volume (min, max as arrays) and placement margin."""
+    lo, hi, place = synth.VOLUMES[subject]
+    return np.array(lo, float), np.array(hi, float), place
+
+
 @pytest.mark.parametrize("subject", sorted(synth.VOLUMES))
 @pytest.mark.parametrize("separated", [True, False])
 def test_random_poses_stay_in_volume(subject, separated):
-    vlo, vhi, place = (np.array(v, float) if i < 2 else v
-                       for i, v in enumerate(synth.VOLUMES[subject]))
+    vlo, vhi, place = _volume(subject)
     seeds, frames = _runs(subject)
     for seed in range(seeds):
         rng = np.random.default_rng(seed)
@@ -58,8 +63,7 @@ def test_random_poses_stay_in_volume(subject, separated):
 
 @pytest.mark.parametrize("subject,motion", sorted(GAIT))
 def test_motions_stay_in_volume(subject, motion):
-    v0lo, v0hi, place = (np.array(v, float) if i < 2 else v
-                         for i, v in enumerate(synth.VOLUMES[subject]))
+    v0lo, v0hi, place = _volume(subject)
     seeds, _ = _runs(subject)
     for seed in range(seeds):
         rng = np.random.default_rng(seed)

@@ -283,8 +283,6 @@ HELP = {
     ("view", "--resolution"): "hull grid (default: the one recorded in the poses)",
     ("view", "--model"): "model tree (default: guessed from the poses' parts)",
     ("evaluate", "--out"): "folder for the figures (default: beside the poses file)",
-    ("evaluate", "--tolerance"): "distance within which a part is right (default 0.1 × the "
-                                 "subject's height)",
     ("learn-model", "--out"): "model file to write (.toml); MODEL.joints.toml is written beside",
     ("calib import", "files"): "calibration files to convert (Qualisys .qca.txt, EasyMocap "
                                "intri/extri.yml, OpenCV FileStorage, P matrices)",

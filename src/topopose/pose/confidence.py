@@ -34,12 +34,28 @@ other seeds (2–3); the real recording is used to check them, never to tune the
 from __future__ import annotations
 
 import itertools
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 
 MIN_CONFIDENCE = 0.7
 FAT_OK, FAT_MAX = 0.04, 0.06
+FEATURES = ("distance", "thickness", "missing", "lost", "fat", "spurious", "spurious_length",
+            "arc_dev", "head_low", "foot_high", "head_radius", "end_radius")
+MODEL_PATH = Path(__file__).with_name("confidence_model.json")
+# the fitted logistic confidence (benchmarks/confidence.py --fit rewrites the file)
+CONFIDENCE_MODEL = json.loads(MODEL_PATH.read_text())
+
+
+def logistic_confidence(features: dict, model: dict = None) -> float:
+    """σ(b + Σ c_i (x_i − mean_i) / scale_i) over ``model["features"]`` (default
+    :data:`CONFIDENCE_MODEL`)."""
+    m = CONFIDENCE_MODEL if model is None else model
+    z = m["intercept"] + sum(c * (float(features[f]) - mu) / sc for f, c, mu, sc
+                             in zip(m["features"], m["coef"], m["mean"], m["scale"]))
+    return 1.0 / (1.0 + math.exp(-max(min(z, 50.0), -50.0)))
 
 
 def leaf_count(tree) -> int:
@@ -49,6 +65,98 @@ def leaf_count(tree) -> int:
         deg[a] = deg.get(a, 0) + 1
         deg[b] = deg.get(b, 0) + 1
     return sum(1 for v in deg.values() if v == 1)
+
+
+def _stem(part) -> str:
+    head, sep, tail = str(part).rpartition("_")
+    return head if sep and tail.isdigit() else str(part)
+
+
+def _branch_length(adj, leaf) -> float:
+    """Length of the branch from ``leaf`` to the first vertex of degree ≠ 2."""
+    prev, x, n = None, leaf, 0.0
+    while True:
+        y, w = next((y, w) for y, w in adj[x] if y != prev)
+        n += w if math.isfinite(w) else 0.0
+        prev, x = x, y
+        if len(adj[x]) != 2:
+            return n
+
+
+def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al=None,
+                   thickness_cost=0.0, radii=None) -> dict:
+    """What one frame's stages know about how far to trust it, as numbers (the inputs of the
+    logistic confidence, :data:`FEATURES`).
+
+    - ``distance``: AHA length distance / T_d (3 when infinite);
+    - ``thickness``: the thickness arc cost paid by the matched arcs (a hand placed on a thick
+      branch, a head on a thin one; :func:`topopose.pose.estimate.thickness_arc_cost`);
+    - ``missing``: parts left unmatched;
+    - ``lost``: share of the hull's voxels outside its largest component;
+    - ``fat``: hull volume / H³ (H: hull extent along the up axis);
+    - ``spurious``: data leaves that no part maps to; ``spurious_length``: the longest of
+      their branches (normalized tree weight, the whole tree weighs 1);
+    - ``arc_dev``: the largest |log(data length / model length)| of the matched arcs (both
+      relative to their tree's total);
+    - ``head_low``: 1 − the head's height above the hull's bottom / H (0: at the top);
+      ``foot_high``: the higher foot's height / H (0: on the floor);
+    - ``head_radius``, ``end_radius``: the hull's inscribed-ball radius at the head and the
+      largest at a hand or foot, relative to the hull's largest (``radii``: per data vertex,
+      :func:`topopose.pose.estimate.vertex_radii`; absent: 0).
+    """
+    vd = vol.diagnostics or {}
+    share = float(vd.get("largest_share", 1.0))
+    up = np.asarray(up, float)
+    ax = int(np.argmax(np.abs(up)))
+    sign = 1.0 if up[ax] >= 0 else -1.0
+    bb = vd.get("bbox")
+    if bb:
+        lo_i, hi_i = bb[0][ax], bb[1][ax]
+    else:
+        occ = np.flatnonzero(vol.data.any(axis=tuple(i for i in range(3) if i != ax)))
+        lo_i, hi_i = (int(occ[0]), int(occ[-1])) if occ.size else (0, 0)
+    vs = float(vol.voxel_size)
+    height = (hi_i - lo_i + 1) * vs
+    z0 = vol.origin[ax] + (lo_i if sign > 0 else hi_i) * vs
+    f = {"distance": 3.0 if distance is None or not math.isfinite(distance)
+         else min(float(distance) / threshold, 3.0),
+         "thickness": min(float(thickness_cost or 0.0), 5.0),
+         "missing": float(missing), "lost": 1.0 - share,
+         "fat": n_vox * vs ** 3 / height ** 3 if height > 0 else 0.0,
+         "spurious": 0.0, "spurious_length": 0.0, "arc_dev": 0.0,
+         "head_low": 0.0, "foot_high": 0.0, "head_radius": 0.0, "end_radius": 0.0}
+    if al is None:
+        return f
+    mapping = al.mapping or {}
+    adj = data.adjacency()
+    used = {v for v in mapping.values() if v is not None}
+    spur = [_branch_length(adj, v) for v, n in adj.items() if len(n) == 1 and v not in used]
+    f["spurious"] = float(len(spur))
+    f["spurious_length"] = max(spur, default=0.0)
+    padj = model.tree.adjacency()
+    ptot = model.tree.total_weight() or 1.0
+    dtot = data.total_weight() or 1.0
+    dev = []
+    for ppath, dpath in (al.pairs or []):
+        pl = sum(w for a, b in zip(ppath[:-1], ppath[1:]) for y, w in padj.get(a, ()) if y == b)
+        dl = sum(w for a, b in zip(dpath[:-1], dpath[1:]) for y, w in adj.get(a, ()) if y == b)
+        if pl > 0 and dl > 0 and math.isfinite(pl) and math.isfinite(dl):
+            dev.append(abs(math.log((dl / dtot) / (pl / ptot))))
+    f["arc_dev"] = max(dev, default=0.0)
+    pos = {p: data.positions.get(v) for p, v in mapping.items() if v is not None}
+    def h(p):
+        return sign * (float(np.asarray(pos[p])[ax]) - z0) / height if height > 0 else 0.0
+    heads = [p for p in pos if _stem(p) == "head" and pos[p] is not None]
+    feet = [p for p in pos if _stem(p) == "foot" and pos[p] is not None]
+    if heads:
+        f["head_low"] = 1.0 - max(h(p) for p in heads)
+    if feet:
+        f["foot_high"] = max(h(p) for p in feet)
+    if radii:
+        r = {p: radii.get(v, 0.0) for p, v in mapping.items() if v is not None}
+        f["head_radius"] = max((r[p] for p in r if _stem(p) == "head"), default=0.0)
+        f["end_radius"] = max((r[p] for p in r if _stem(p) in ("hand", "foot")), default=0.0)
+    return {k: round(float(v), 5) for k, v in f.items()}
 
 
 def frame_confidence(distance, threshold, share, missing, min_share=0.8, fatness=None) -> dict:
@@ -63,7 +171,8 @@ def frame_confidence(distance, threshold, share, missing, min_share=0.8, fatness
 
 
 def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
-                min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m") -> tuple:
+                min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m", al=None,
+                thickness_cost=0.0, reach=0) -> tuple:
     """Status, reason and diagnostics of one frame from what the stages know.
 
     A ``matched`` frame becomes ``rejected`` when the hull's largest component holds less than
@@ -89,6 +198,15 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     if height and model.name == "human":        # the fat-hull factor is the human model's
         fat = n_vox * vol.voxel_size ** 3 / height ** 3
     conf = frame_confidence(distance, threshold, share, missing, min_share, fat)
+    radii = None
+    if al is not None:
+        from types import SimpleNamespace
+
+        from .estimate import vertex_radii
+        mapped = [v for v in (al.mapping or {}).values() if v is not None]
+        radii = vertex_radii(vol, SimpleNamespace(vertices=mapped, positions=data.positions), reach)
+    feats = frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al,
+                           thickness_cost, radii)
     if status == "matched" and share < min_share:
         status = "rejected"
         total = n_vox + sum(dropped)
@@ -103,7 +221,8 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     diag = {"hull_litres": round(n_vox * (vol.voxel_size * metre) ** 3 * 1000.0, 2),
             "largest_share": round(share, 4), "components_dropped": dropped[:5],
             "data_leaves": leaves, "height": height,
-            "confidence": conf.pop("confidence"), "confidence_factors": conf}
+            "confidence": conf.pop("confidence"), "confidence_factors": conf,
+            "confidence_features": feats}
     return status, error, diag
 
 

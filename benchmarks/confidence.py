@@ -28,7 +28,9 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 BUILDS = ("average", "heavy", "child", "lean", "random")
 TOLERANCE = 0.08          # × subject height
-TARGET = 0.97             # precision asked of the calibration seeds (the issue: ≥ 0.95 held out)
+TARGET = 0.985             # precision asked of the calibration seeds (the issue: ≥ 0.95 held out)
+FIT_FEATURES = ("distance", "missing", "arc_dev", "head_low", "head_radius", "head_bend",
+                "head_offset", "head_reach", "trunk")
 
 
 def collect(a) -> list:
@@ -59,49 +61,48 @@ def collect(a) -> list:
                              "motion": motion, "seed": seed, "frame": p.frame,
                              "status": p.status, "good": s.quality == "good",
                              "quality": s.quality, "distance": p.distance,
+                             "wrong": sorted(k for k, v in s.right.items() if v is False),
+                             "parts": {k: None if v is None else np.round(v, 4).tolist()
+                                       for k, v in p.parts.items()},
                              "features": dg["confidence_features"],
-                             "time": fac.get("time"), "volume": fac.get("volume"),
-                             "product": dg["confidence"]})
+                             "time": fac.get("time"), "volume": fac.get("volume")})
             print(f"{subject} {build or ''} {cams} cameras {motion} seed {seed}: "
                   f"{sum(r['seed'] == seed and r['subject'] == subject and r['motion'] == motion and r['cameras'] == cams for r in rows)} frames",
                   file=sys.stderr, flush=True)
     return rows
 
 
-def fit_logistic(X, y, l2=1.0, iters=50):
-    """L2-penalized logistic regression by Newton's method (intercept unpenalized)."""
-    Xa = np.hstack([X, np.ones((len(X), 1))])
-    w = np.zeros(Xa.shape[1])
-    P = l2 * np.eye(Xa.shape[1])
-    P[-1, -1] = 0.0
-    for _ in range(iters):
-        p = 1.0 / (1.0 + np.exp(-Xa @ w))
-        g = Xa.T @ (p - y) + P @ w
-        H = (Xa * (p * (1 - p))[:, None]).T @ Xa + P
-        step = np.linalg.solve(H, g)
-        w -= step
-        if np.abs(step).max() < 1e-8:
-            break
-    return w[:-1], float(w[-1])
+def _fit(rows, features, l2):
+    from topopose.pose.confidence import fit_logistic
 
-
-def fit(rows, features, half, l2):
-    """Coefficients on the calibration seeds' base-matched frames, and the minimum that
-    reaches TARGET precision there with the most matched frames."""
-    from topopose.pose.confidence import logistic_confidence
-
-    cal = [r for r in rows if r["seed"] < half_of(r, half) and r["status"] == "matched"]
-    X = np.array([[r["features"][f] for f in features] for r in cal], float)
-    y = np.array([r["good"] for r in cal], float)
+    X = np.array([[r["features"][f] for f in features] for r in rows], float)
+    y = np.array([r["good"] for r in rows], float)
     mean, scale = X.mean(axis=0), X.std(axis=0)
     scale[scale == 0] = 1.0
     coef, icpt = fit_logistic((X - mean) / scale, y, l2)
-    model = {"features": list(features), "mean": mean.round(6).tolist(),
-             "scale": scale.round(6).tolist(), "coef": coef.round(4).tolist(),
-             "intercept": round(icpt, 4)}
-    c = np.array([logistic_confidence(r["features"], model) for r in cal])
-    best = 0.5
-    for t in np.arange(0.30, 0.96, 0.01):
+    return {"models": ["human"], "features": list(features), "mean": mean.round(6).tolist(),
+            "scale": scale.round(6).tolist(), "coef": coef.round(4).tolist(),
+            "intercept": round(icpt, 4)}
+
+
+def fit(rows, features, half, l2):
+    """Coefficients on the calibration seeds' base-matched frames (gate off, status
+    "matched"), and the smallest minimum at which the calibration frames reach TARGET
+    precision — judged on out-of-fold confidences (two folds by seed parity, each scored by a
+    model fitted on the other), which behave like held-out ones: the in-sample confidences
+    of the wrong frames are optimistic."""
+    from topopose.pose.confidence import logistic_confidence
+
+    cal = [r for r in rows if r["seed"] < half_of(r, half) and r["status"] == "matched"]
+    model = _fit(cal, features, l2)
+    oof = []
+    for k in (0, 1):
+        m = _fit([r for r in cal if r["seed"] % 2 != k], features, l2)
+        oof += [(logistic_confidence(r["features"], m), r["good"]) for r in cal if r["seed"] % 2 == k]
+    c = np.array([x for x, _ in oof])
+    y = np.array([g for _, g in oof], float)
+    best = 0.95
+    for t in np.arange(0.30, 0.951, 0.01):
         m = c >= t
         if m.sum() and y[m].mean() >= TARGET:
             best = round(float(t), 2)
@@ -116,18 +117,23 @@ def half_of(r, half):
 
 def report(rows, model, half, subjects):
     """Rows of the table: before (gate off; previous product ≥ 0.7) and after, per seed half."""
-    from topopose.pose.confidence import logistic_confidence
+    from topopose.pose.confidence import fitted_confidence, frame_confidence
 
     for r in rows:
-        c = logistic_confidence(r["features"], model)
-        r["confidence"] = round(c, 4)
-        r["confidence_t"] = round(c * (r["time"] if r["time"] is not None else 1.0)
-                                  * (r["volume"] if r["volume"] is not None else 1.0), 4)
+        f = r["features"]
+        tv = ((r["time"] if r["time"] is not None else 1.0)
+              * (r["volume"] if r["volume"] is not None else 1.0))
+        # the previous confidence: the product of factors (still used by the other models)
+        r["product"] = round(frame_confidence(f["distance"], 1.0, 1.0 - f["lost"], f["missing"],
+                                              fatness=f["fat"])["confidence"] * tv, 4)
+        c = fitted_confidence(f, 1.0 - f["lost"], model=model)["confidence"]
+        r["confidence"] = c
+        r["confidence_t"] = round(c * tv, 4)
     rules = [("no gate", lambda r: True),
-             ("previous: product ≥ 0.7", lambda r: r["product"] >= 0.7),
-             (f"new: logistic ≥ {model['min_confidence']}",
+             ("previous: product × time ≥ 0.7", lambda r: r["product"] >= 0.7),
+             (f"new: fitted ≥ {model['min_confidence']}",
               lambda r: r["confidence"] >= model["min_confidence"]),
-             (f"new × time factor ≥ {model['min_confidence']}",
+             (f"new × time factors ≥ {model['min_confidence']} (not used)",
               lambda r: r["confidence_t"] >= model["min_confidence"])]
     table = []
     for part, sel in (("calibration", lambda r: r["seed"] < half_of(r, half)),
@@ -186,7 +192,7 @@ def main(argv=None):
     half = {"body": max(1, a.body_seeds // 2), "human": max(1, a.seeds // 2)}
     model = C.CONFIDENCE_MODEL
     if a.fit:
-        model = fit(rows, C.FEATURES, half, a.l2)
+        model = fit(rows, FIT_FEATURES, half, a.l2)
         model["fitted_by"] = "python benchmarks/confidence.py --fit"
         model["frames"] = sum(r["seed"] < half_of(r, half) and r["status"] == "matched"
                               for r in rows)

@@ -40,13 +40,18 @@ from pathlib import Path
 
 import numpy as np
 
-MIN_CONFIDENCE = 0.7
-FAT_OK, FAT_MAX = 0.04, 0.06
+FAT_OK, FAT_MAX = 0.04, 0.06          # the product confidence (models without a fitted one)
 FEATURES = ("distance", "thickness", "missing", "lost", "fat", "spurious", "spurious_length",
-            "arc_dev", "head_low", "foot_high", "head_radius", "end_radius")
+            "arc_dev", "head_low", "foot_high", "head_radius", "end_radius", "head_bend",
+            "head_offset", "head_reach", "trunk")
 MODEL_PATH = Path(__file__).with_name("confidence_model.json")
 # the fitted logistic confidence (benchmarks/confidence.py --fit rewrites the file)
 CONFIDENCE_MODEL = json.loads(MODEL_PATH.read_text())
+MIN_CONFIDENCE = float(CONFIDENCE_MODEL["min_confidence"])
+# size guard of the fitted confidence, hull volume / H³: 1 inside [SLIM_OK, SIZE_OK], 0 below
+# SLIM_MIN or above SIZE_MAX (matched frames of the calibration captures: right 0.009–0.060,
+# wrong up to 0.084; a hull without its legs or head is far slimmer)
+SLIM_MIN, SLIM_OK, SIZE_OK, SIZE_MAX = 0.002, 0.005, 0.06, 0.08
 
 
 def logistic_confidence(features: dict, model: dict = None) -> float:
@@ -65,6 +70,27 @@ def leaf_count(tree) -> int:
         deg[a] = deg.get(a, 0) + 1
         deg[b] = deg.get(b, 0) + 1
     return sum(1 for v in deg.values() if v == 1)
+
+
+def fit_logistic(X, y, l2=1.0, iters=50) -> tuple:
+    """L2-penalized logistic regression by Newton's method on standardized ``X`` (n, k) and
+    labels ``y`` in {0, 1}; the intercept is not penalized. Returns (coefficients, intercept)
+    (what ``benchmarks/confidence.py --fit`` writes to :data:`MODEL_PATH`)."""
+    X = np.asarray(X, float)
+    y = np.asarray(y, float)
+    Xa = np.hstack([X, np.ones((len(X), 1))])
+    w = np.zeros(Xa.shape[1])
+    P = l2 * np.eye(Xa.shape[1])
+    P[-1, -1] = 0.0
+    for _ in range(iters):
+        p = 1.0 / (1.0 + np.exp(-np.clip(Xa @ w, -50, 50)))
+        g = Xa.T @ (p - y) + P @ w
+        H = (Xa * (p * (1 - p))[:, None]).T @ Xa + P + 1e-9 * np.eye(len(w))
+        step = np.linalg.solve(H, g)
+        w -= step
+        if np.abs(step).max() < 1e-10:
+            break
+    return w[:-1], float(w[-1])
 
 
 def _stem(part) -> str:
@@ -100,6 +126,9 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
       relative to their tree's total);
     - ``head_low``: 1 − the head's height above the hull's bottom / H (0: at the top);
       ``foot_high``: the higher foot's height / H (0: on the floor);
+    - ``head_bend``: 1 − cos of the angle between torso → head and crotch → torso (0: the
+      head continues the trunk); ``head_offset``: the head's distance from the trunk's line /
+      H; ``head_reach``: |head − torso| / H; ``trunk``: |torso − crotch| / H;
     - ``head_radius``, ``end_radius``: the hull's inscribed-ball radius at the head and the
       largest at a hand or foot, relative to the hull's largest (``radii``: per data vertex,
       :func:`topopose.pose.estimate.vertex_radii`; absent: 0).
@@ -124,7 +153,8 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
          "missing": float(missing), "lost": 1.0 - share,
          "fat": n_vox * vs ** 3 / height ** 3 if height > 0 else 0.0,
          "spurious": 0.0, "spurious_length": 0.0, "arc_dev": 0.0,
-         "head_low": 0.0, "foot_high": 0.0, "head_radius": 0.0, "end_radius": 0.0}
+         "head_low": 0.0, "foot_high": 0.0, "head_radius": 0.0, "end_radius": 0.0,
+         "head_bend": 0.0, "head_offset": 0.0, "head_reach": 0.0, "trunk": 0.0}
     if al is None:
         return f
     mapping = al.mapping or {}
@@ -152,6 +182,19 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
         f["head_low"] = 1.0 - max(h(p) for p in heads)
     if feet:
         f["foot_high"] = max(h(p) for p in feet)
+    trunk = [np.asarray(pos[p], float) for p in ("torso", "crotch") if pos.get(p) is not None]
+    if len(trunk) == 2 and heads and height > 0:
+        t, c = trunk
+        x = np.asarray(pos[heads[0]], float)
+        axis = t - c
+        n = float(np.linalg.norm(axis))
+        f["trunk"] = n / height
+        hv = x - t
+        hn = float(np.linalg.norm(hv))
+        f["head_reach"] = hn / height
+        if n > 0 and hn > 0:
+            f["head_bend"] = 1.0 - float(hv @ axis) / (hn * n)
+            f["head_offset"] = float(np.linalg.norm(np.cross(x - c, axis / n))) / height
     if radii:
         r = {p: radii.get(v, 0.0) for p, v in mapping.items() if v is not None}
         f["head_radius"] = max((r[p] for p in r if _stem(p) == "head"), default=0.0)
@@ -168,6 +211,21 @@ def frame_confidence(distance, threshold, share, missing, min_share=0.8, fatness
     fv = 1.0 if fatness is None else float(np.clip((FAT_MAX - fatness) / (FAT_MAX - FAT_OK), 0, 1))
     return {"alignment": round(fd, 4), "hull": round(fh, 4), "placement": round(fm, 4),
             "fat": round(fv, 4), "confidence": round(fd * fh * fm * fv, 4)}
+
+
+def fitted_confidence(features: dict, share: float, min_share: float = 0.8,
+                      model: dict = None) -> dict:
+    """Factors and product of the fitted confidence (module docstring): the logistic
+    :func:`logistic_confidence` times the guards ``hull`` (split hull, as
+    :func:`frame_confidence`) and ``size`` (hull volume / H³ outside what the calibration
+    frames showed)."""
+    fl = logistic_confidence(features, model)
+    fh = float(np.clip((share - min_share) / max(0.95 - min_share, 1e-9), 0.0, 1.0))
+    r = float(features["fat"])
+    fs = float(np.clip(min((r - SLIM_MIN) / (SLIM_OK - SLIM_MIN), (SIZE_MAX - r) / (SIZE_MAX - SIZE_OK)),
+                       0.0, 1.0))
+    return {"fitted": round(fl, 4), "hull": round(fh, 4), "size": round(fs, 4),
+            "confidence": round(fl * fh * fs, 4)}
 
 
 def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
@@ -197,7 +255,6 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     fat = None
     if height and model.name == "human":        # the fat-hull factor is the human model's
         fat = n_vox * vol.voxel_size ** 3 / height ** 3
-    conf = frame_confidence(distance, threshold, share, missing, min_share, fat)
     radii = None
     if al is not None:
         from types import SimpleNamespace
@@ -207,6 +264,10 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
         radii = vertex_radii(vol, SimpleNamespace(vertices=mapped, positions=data.positions), reach)
     feats = frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al,
                            thickness_cost, radii)
+    if model.name in CONFIDENCE_MODEL.get("models", ()):
+        conf = fitted_confidence(feats, share, min_share)
+    else:
+        conf = frame_confidence(distance, threshold, share, missing, min_share, fat)
     if status == "matched" and share < min_share:
         status = "rejected"
         total = n_vox + sum(dropped)
@@ -286,6 +347,8 @@ def temporal_confidence(poses, frame_index, gate=True, min_confidence=MIN_CONFID
             fv = 0.5
         diag["confidence_factors"]["time"] = round(ft, 4) if coherent else None
         diag["confidence_factors"]["volume"] = fv if coherent else None
+        if "fitted" in diag["confidence_factors"]:
+            continue                       # the fitted confidence: the time factors are told only
         diag["confidence"] = round(diag["confidence"] * ft * fv, 4)
         if gate and p.status == "matched" and diag["confidence"] < min_confidence:
             p.status = "rejected"

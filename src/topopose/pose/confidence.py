@@ -1,35 +1,54 @@
-"""A per-frame confidence that says whether to trust a pose (issue 12, part 5).
+"""A per-frame confidence that says whether to trust a pose (issue 12 part 5, issue 11).
 
-The AHA distance alone does not separate right from wrong poses on real recordings (a wrong
-frame can align closely: a hull that lost its legs is still a tree). The confidence combines
-what each stage knows, as a product of factors in [0, 1]:
+The AHA distance alone does not separate right from wrong poses (a wrong frame can align
+closely: a bent arm as short as the neck+head branch takes the head at a small distance). For
+the human model the confidence is **fitted** (:func:`fitted_confidence`): a logistic regression
+on standardized features of the frame (:func:`frame_features`), times two guards outside what
+the calibration frames showed:
 
-- **alignment**: f_d = 2^(−d / T_d) (½ at the threshold T_d);
-- **hull**: f_h = clip((s − s_min) / (0.95 − s_min), 0, 1) where s is the share of the hull's
-  voxels in its largest component (what was dropped, part 4) and ``s_min`` = ``min_share``;
-- **placement**: f_m = 0.5^m, m = parts left unmatched;
-- **fat hull**: r = hull volume / H³ (H: the hull's extent along the up axis); f_v = 1 up to
-  r = 0.04, 0 from 0.06, linear between (synthetic good frames: 0.013–0.032 with 4 or 8
-  cameras; a hull this fat has its limbs merged with the body, which no alignment undoes);
-- **time** (batch runs, :func:`temporal_confidence`): f_t = 2^(−(δ / (0.1 H))²) with δ the
-  median displacement of the parts since the previous frame (numbered parts paired
-  optimally); frames whose hull volume departs from the run's median by more than a factor
-  1.5 get ½. Applied only when the run is a coherent sequence (median δ / H over consecutive
-  frames ≤ 0.1): independent poses (synthetic "random" captures) get no time factor.
+    confidence = σ(b + Σ c_i (x_i − mean_i) / scale_i) × f_hull × f_size
+
+- the features ``x_i``, their means, scales, coefficients ``c_i``, the intercept ``b`` and the
+  minimum ``min_confidence`` are in ``confidence_model.json`` beside this module
+  (:data:`CONFIDENCE_MODEL`), written by ``python benchmarks/confidence.py --fit`` — re-run
+  it after any change of the pipeline (it fits on calibration seeds and reports held-out
+  ones, before/after, in ``benchmarks/results/confidence.md``). The features that carry weight:
+  the AHA distance / T_d, parts left unmatched, the head's height below the hull's top, the
+  angle between crotch → torso and torso → head (a head that does not continue the trunk is
+  a limb), the head's thickness, the trunk's length and the matched arcs' length ratios to the
+  model's. Spurious branches (count, longest), hull volume / H³, the thickness cost, the feet's
+  height and the hands'/feet's thickness are computed too (``diagnostics["confidence_features"]``)
+  and were tried: they add nothing the distance does not already see (a spurious branch is a
+  deleted data arc the AHA distance pays for);
+- the minimum is the smallest at which the calibration frames' *out-of-fold* confidences
+  (two folds by seed, each scored by a model fitted on the other) reach 98.5 % precision;
+- the fit also sees, as wrong frames, the issue's failure made on purpose: each right frame
+  with the head's and a hand's data vertices exchanged (a hand given the head);
+- **hull**: f_hull = clip((s − s_min) / (0.95 − s_min), 0, 1) where s is the share of the
+  hull's voxels in its largest component (what was dropped, part 4) and ``s_min`` =
+  ``min_share``;
+- **size**: r = hull volume / H³ (H: the hull's extent along the up axis); f_size = 1 for r in
+  [0.005, 0.06], 0 below 0.002 or above 0.08, linear between (a hull this fat has its limbs
+  merged with the body; one this slim lost its head or legs).
+
+Other models get the earlier **product** confidence (:func:`frame_confidence`), reported
+without gating (nothing was calibrated for them; give ``FrameEstimator(min_confidence=…)`` to
+gate them): f_d = 2^(−d / T_d) × f_hull × 0.5^(unmatched parts) × a fat-hull factor (1 up to r =
+0.04, 0 from 0.06).
+
+**Time** (batch runs, :func:`temporal_confidence`): f_t = 2^(−(δ / (0.1 H))²) with δ the median
+displacement of the parts since the previous frame (numbered parts paired optimally); frames
+whose hull volume departs from the run's median by more than a factor 1.5 get ½; only when
+the run is a coherent sequence (median δ / H over consecutive frames ≤ 0.1). They multiply
+the product confidence; the fitted confidence only reports them in its factors (measured: they
+cost half the right walking frames for no precision, ``benchmarks/results/confidence.md``).
 
 The confidence is reported for every frame. With the gate on (``FrameEstimator(gate=True)``,
-``topopose run --confidence-gate on``), ``matched`` for the human model also needs confidence ≥
-``min_confidence``. By default the gate is on with fewer than 6 cameras only
-(:func:`topopose.pose.estimate.default_gate`, which gives the measurements): with 8 cameras on
-the anatomically real ``body`` it halves the right frames for no precision gain; with 4 cameras
-(``body``, and the real recording) it removes wrong matches. Other models report the
-confidence without gating (it was calibrated on human subjects only; give
-``FrameEstimator(min_confidence=…)`` to gate them). The form of f_d, the factor bases and
-``min_confidence`` = 0.7 were chosen on synthetic captures only (a factor 0.8 per spurious
-skeleton branch beyond the model's leaves was tried and dropped: it halved the matched frames
-for no gain in precision; ``data_leaves`` stays in the diagnostics) (``benchmarks/confidence.py``:
-capsule human and ``body``, 4 and 8 cameras, walk and random motion, seeds 0–1) and checked on
-other seeds (2–3); the real recording is used to check them, never to tune them.
+``topopose run --confidence-gate on``; the default, :func:`topopose.pose.estimate.default_gate`),
+``matched`` for the human model also needs confidence ≥ ``min_confidence``; rejected frames
+keep their best guess. Everything was fitted and checked on synthetic captures only (capsule
+human and ``body``, 4 and 8 cameras, walk and random motion); the real recording is used to
+check, never to tune.
 """
 from __future__ import annotations
 
@@ -72,20 +91,22 @@ def leaf_count(tree) -> int:
     return sum(1 for v in deg.values() if v == 1)
 
 
-def fit_logistic(X, y, l2=1.0, iters=50) -> tuple:
+def fit_logistic(X, y, l2=1.0, iters=50, weights=None) -> tuple:
     """L2-penalized logistic regression by Newton's method on standardized ``X`` (n, k) and
-    labels ``y`` in {0, 1}; the intercept is not penalized. Returns (coefficients, intercept)
-    (what ``benchmarks/confidence.py --fit`` writes to :data:`MODEL_PATH`)."""
+    labels ``y`` in {0, 1}, rows weighted by ``weights`` (default 1); the intercept is not
+    penalized. Returns (coefficients, intercept) (what ``benchmarks/confidence.py --fit``
+    writes to :data:`MODEL_PATH`)."""
     X = np.asarray(X, float)
     y = np.asarray(y, float)
+    sw = np.ones(len(y)) if weights is None else np.asarray(weights, float)
     Xa = np.hstack([X, np.ones((len(X), 1))])
     w = np.zeros(Xa.shape[1])
     P = l2 * np.eye(Xa.shape[1])
     P[-1, -1] = 0.0
     for _ in range(iters):
         p = 1.0 / (1.0 + np.exp(-np.clip(Xa @ w, -50, 50)))
-        g = Xa.T @ (p - y) + P @ w
-        H = (Xa * (p * (1 - p))[:, None]).T @ Xa + P + 1e-9 * np.eye(len(w))
+        g = Xa.T @ (sw * (p - y)) + P @ w
+        H = (Xa * (sw * p * (1 - p))[:, None]).T @ Xa + P + 1e-9 * np.eye(len(w))
         step = np.linalg.solve(H, g)
         w -= step
         if np.abs(step).max() < 1e-10:

@@ -233,8 +233,8 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--frames", type=int, default=15)
-    ap.add_argument("--seeds", type=int, default=4, help="capsule human seeds")
-    ap.add_argument("--body-seeds", type=int, default=10,
+    ap.add_argument("--seeds", type=int, default=6, help="capsule human seeds")
+    ap.add_argument("--body-seeds", type=int, default=20,
                     help="body seeds (build: average, heavy, child, lean, random by seed)")
     ap.add_argument("--subjects", default="body,human")
     ap.add_argument("--fit", action="store_true",

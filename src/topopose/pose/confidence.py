@@ -256,13 +256,17 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
 
     A ``matched`` frame becomes ``rejected`` when the hull's largest component holds less than
     ``min_share`` of its voxels (the dropped components are named with their sizes and shares),
-    or when its confidence is below ``min_confidence`` (None: no gate).
+    or when its confidence is below ``min_confidence`` (None: no gate). The confidence is the
+    fitted one (:func:`fitted_confidence`) for the models of :data:`CONFIDENCE_MODEL`, else
+    the product (:func:`frame_confidence`). ``al``: the alignment (its mapping and matched
+    arcs give the features), ``thickness_cost``: the part of its distance paid to the
+    thickness term, ``reach``: of :func:`topopose.pose.estimate.vertex_radii`.
 
     Returns
     -------
     (status, error, diagnostics) with ``hull_litres``, ``largest_share``,
     ``components_dropped`` (the five largest), ``data_leaves``, ``height`` (hull extent along
-    the up axis), ``confidence`` and ``confidence_factors``.
+    the up axis), ``confidence``, ``confidence_factors`` and ``confidence_features``.
     """
     from ..capture.calibration import _UNITS
 
@@ -273,9 +277,6 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     ax = int(np.argmax(np.abs(up)))
     bb = vd.get("bbox")
     height = None if not bb else float((bb[1][ax] - bb[0][ax] + 1) * vol.voxel_size)
-    fat = None
-    if height and model.name == "human":        # the fat-hull factor is the human model's
-        fat = n_vox * vol.voxel_size ** 3 / height ** 3
     radii = None
     if al is not None:
         from types import SimpleNamespace
@@ -288,7 +289,8 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     if model.name in CONFIDENCE_MODEL.get("models", ()):
         conf = fitted_confidence(feats, share, min_share)
     else:
-        conf = frame_confidence(distance, threshold, share, missing, min_share, fat)
+        conf = frame_confidence(distance, threshold, share, missing, min_share,
+                                feats["fat"] if model.name == "human" else None)
     if status == "matched" and share < min_share:
         status = "rejected"
         total = n_vox + sum(dropped)

@@ -1,5 +1,12 @@
 """Optional person segmentation by a network shipped inside a pip wheel (``[silhouettes]
-method = "selfie"`` or ``"sequence+selfie"``).
+method = "person"``, ``"selfie"`` or ``"sequence+selfie"``).
+
+``"person"``: MediaPipe's legacy *pose* solution (``mediapipe.solutions.pose``, BlazePose
+GHUM "full" model, inside the ``mediapipe`` wheel up to 0.10.14) with its segmentation output:
+the network finds the person, crops a region of interest around the whole body, tracks it from
+frame to frame, and returns a full-body person probability. Only that probability is used (its
+landmarks are not): the pose still comes from the hull's geometry. When it finds no one in a
+camera's image, that camera's probability is 0.5 everywhere (no vote).
 
 MediaPipe's legacy *selfie segmentation* model (``mediapipe.solutions.selfie_segmentation``,
 the general 256 × 256 model, ~250 kB, inside the ``mediapipe`` wheel up to 0.10.14: nothing is
@@ -30,6 +37,28 @@ def _segmenter(stream):
                              "(pip install \"topopose[segment]\")") from None
         _MODEL[stream] = selfie_segmentation.SelfieSegmentation(model_selection=0)
     return _MODEL[stream]
+
+
+def _pose_segmenter(stream):
+    if stream not in _MODEL:
+        try:
+            from mediapipe.python.solutions import pose
+        except ImportError:
+            raise InputError("[silhouettes] method \"person\" needs MediaPipe ≤ 0.10.14 "
+                             "(pip install \"topopose[segment]\")") from None
+        _MODEL[stream] = pose.Pose(static_image_mode=False, model_complexity=1,
+                                   enable_segmentation=True, smooth_segmentation=True)
+    return _MODEL[stream]
+
+
+def person_probability(img: np.ndarray, stream="") -> np.ndarray:
+    """uint8 (h, w) full-body person probability (× 255) of a BGR image from MediaPipe's pose
+    network (module docstring); 128 everywhere when it finds no one. ``stream``: the camera
+    (one tracker each: the network follows the person from the previous frame)."""
+    res = _pose_segmenter(("person", stream)).process(np.ascontiguousarray(img[:, :, ::-1]))
+    if res.segmentation_mask is None:
+        return np.full(img.shape[:2], 128, dtype=np.uint8)
+    return np.clip(res.segmentation_mask * 255 + 0.5, 0, 255).astype(np.uint8)
 
 
 def selfie_probability(img: np.ndarray, zone: np.ndarray | None = None, stream="") -> np.ndarray:

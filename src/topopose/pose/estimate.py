@@ -101,6 +101,14 @@ class FrameEstimator:
         :data:`THICKNESS`; cost 1–3 ms a frame at 100³ (×1.3–1.4, ``benchmarks/quality.py``).
     thickness_profile : dict, optional
         ``{part stem: (lo, hi)}`` relative radii overriding the model's.
+    tips : sequence of str
+        Leaf parts (by name stem) placed where their skeleton branch, prolonged, leaves the hull
+        (:func:`topopose.pose.tips.extremity_tips`) rather than at the branch's end, which
+        thinning leaves about one limb radius inside (complete models). Default ``("head",)``:
+        a head's branch ends near the ball's centre, 0.10–0.15 m below the crown; the ends of
+        thin hands and feet are within 2 cm of their tips, and prolonging them to the hull's
+        border lands 1–2 cm further on the real recording and on the ``body`` subject
+        (``benchmarks/real.py``, ``benchmarks/quality.py``). ``()``: off.
     junction_centroid : bool or None
         Place each junction part (model degree > 1) at the centroid of its co-optimal data
         vertices next to the chosen one (:func:`junction_position`) instead of the chosen
@@ -118,7 +126,7 @@ class FrameEstimator:
                  betweenness=True, max_missing=1, thinning="d6i1d", tolerance=None,
                  relation=None, fill=True, repair=None, junction_centroid=None, refocus=False,
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
-                 thickness_profile=None):
+                 thickness_profile=None, tips=("head",)):
         from ..match import Matcher
         from .confidence import MIN_CONFIDENCE
 
@@ -163,6 +171,10 @@ class FrameEstimator:
         nb = [p for p in self.model.neighbours(self.model.root) if p in self.junctions
               or len(adj[p]) > 1]
         self._root_arc = nb[0] if nb else None
+        # leaf parts placed where their branch leaves the hull (pose/tips.py)
+        stems = set(tips or ())
+        self.tips = [p for p in self.model.parts if len(adj[p]) == 1 and self.model.complete
+                     and p.rstrip("_0123456789") in stems]
 
     def arc_cost(self, vol, data):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off."""
@@ -295,6 +307,11 @@ class FrameEstimator:
             if pos is not None and p in self.junctions:
                 pos = junction_position(al, data, p, v)
             parts[p] = None if pos is None or p in unordered else np.asarray(pos, dtype=float)
+        if self.tips:
+            from .tips import extremity_tips
+            for p, x in extremity_tips(vol, skel, data, al.mapping, self.tips).items():
+                if parts.get(p) is not None:
+                    parts[p] = x
         missing = [p for p, x in parts.items() if x is None]
         status, error = "matched", None
         if not math.isfinite(dist) or dist > self.threshold:

@@ -21,7 +21,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-PER_PART_DIAGNOSTICS = ("curves",)
+PER_PART_DIAGNOSTICS = ("curves", "misplaced")
 
 
 def frame_index(poses) -> np.ndarray:
@@ -43,9 +43,9 @@ def relabel(pose, mapping: dict):
         d = diag.get(key)
         if isinstance(d, dict):
             diag[key] = {mapping.get(k, k): v for k, v in d.items()}
-    miss = diag.get("missing")
-    if isinstance(miss, list):
-        diag["missing"] = [mapping.get(k, k) for k in miss]
+    for key in ("missing", "predicted"):
+        if isinstance(diag.get(key), list):
+            diag[key] = [mapping.get(k, k) for k in diag[key]]
     return replace(pose, parts=parts, diagnostics=diag)
 
 
@@ -66,7 +66,8 @@ def body_scale(poses) -> float:
     return float(np.median(ext)) if ext else 1.0
 
 
-def assign_identities(times, observations, gate, max_gap=5, velocity=0.5):
+def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, misplaced=None,
+                      reinit=3, detail=False):
     """Track one interchangeable group.
 
     Parameters
@@ -74,22 +75,39 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5):
     times : (n,) frame numbers (increasing)
     observations : list of n entries, each None (frame not usable) or an (k, 3) array of the
         group's k positions in the per-frame numbering (NaN rows: part not placed)
-    gate : largest distance between a prediction and an observation that updates it
-    max_gap : tracking is lost after more than this many frames without observation
+    gate : largest distance between a prediction and an observation that updates it (× 1 +
+        (dt − 1)/2 after dt frames without update)
+    max_gap : an identity without update for more than this many frames is stale (its
+        prediction is no longer used); when every identity is stale, tracking is lost
     velocity : weight of the constant-velocity term of the prediction (1: constant velocity,
         0: constant position). The velocity of two noisy per-frame positions is noisy;
         ``benchmarks/tracking.py`` walks (400 frames, identity switches on frames with both
         parts right, gate 0.25): 1.0 → 5, 0.5 → 0, 0.0 → 0; crossing hands need some velocity.
+    misplaced : None or a list of n (k,) bool arrays (or None): observations inconsistent with
+        the other parts of their frame (:func:`implausible_reach`). An observation beyond the
+        gate of its identity's prediction *and* misplaced is *held*: the identity keeps its
+        prediction, the observation moves no track and counts for no re-initialization.
+    reinit : an identity whose observations lie beyond the gate (not misplaced) for this many
+        consecutive observed frames, consistent among themselves (each within the gate of the
+        one before), is re-initialized at them; when every identity of the group is
+        re-initialized in the same frame, by the per-frame numbering
+    detail : also return ``held`` and ``predicted``
 
     Returns
     -------
     perm : list of n entries: None, or an int array ``perm[j]`` = identity of observation j
     segment : (n,) int, the tracking segment of each frame (-1 for unusable frames); a new
         segment starts each time tracking is (re-)initialized.
+    held : (n, k) bool, observation j of frame i held (only with ``detail``)
+    predicted : (n, k, 3) the prediction of identity a in frame i, NaN when none (only with
+        ``detail``)
     """
     n = len(times)
     perm = [None] * n
     segment = np.full(n, -1, dtype=int)
+    kmax = max((len(o) for o in observations if o is not None), default=0)
+    held = np.zeros((n, kmax), dtype=bool)
+    predicted = np.full((n, kmax, 3), np.nan)
     last = prev = last_t = prev_t = None
     seg = -1
     for i in range(n):
@@ -99,14 +117,18 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5):
         obs = np.asarray(obs, dtype=float)
         k = len(obs)
         seen = ~np.isnan(obs).any(axis=1)
+        bad = (np.zeros(k, dtype=bool) if misplaced is None or misplaced[i] is None
+               else np.asarray(misplaced[i], dtype=bool))
         lost = last is None or len(last) != k or times[i] - np.max(last_t) > max_gap
+        fresh = None
         if not lost:
             pred = last.copy()                        # constant-velocity prediction
-            pred[times[i] - last_t > max_gap] = np.nan    # stale identity: neutral
             moving = ~np.isnan(prev).any(axis=1) & (last_t > prev_t)
             for a in np.flatnonzero(moving):
                 vel = (last[a] - prev[a]) / (last_t[a] - prev_t[a])
                 pred[a] = last[a] + velocity * vel * (times[i] - last_t[a])
+            pred[times[i] - last_t > max_gap] = np.nan    # stale identity: neutral
+            predicted[i, :k] = pred
             cost = np.zeros((k, k))
             for a in range(k):
                 for j in range(k):
@@ -116,28 +138,93 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5):
             rows, cols = linear_sum_assignment(cost)
             p = np.empty(k, dtype=int)
             p[cols] = rows
-            # an observation far from its identity's prediction is an outlier (a misplaced part
-            # of the per-frame result): it keeps the name the assignment gives, but does not
-            # move the track; the track coasts until max_gap, then tracking is lost
+            # an observation far from its identity's prediction is an outlier: held when it
+            # is also inconsistent with the other parts (a misplaced part of the per-frame
+            # result), else a candidate for re-initializing its identity
             dt = np.maximum(times[i] - last_t, 1.0)       # the gate widens over gaps
             outlier = np.array([seen[j] and cost[p[j], j] > gate * (1 + 0.5 * (dt[p[j]] - 1))
                                 for j in range(k)])
+            # only an established track (``reinit`` inlier updates in a row) holds a part: the
+            # prediction of a track that follows unrelated poses means nothing
+            held[i, :k] = outlier & bad & (streak[p] >= reinit)
+            bad = held[i, :k]
+            fresh = []
+            for j in np.flatnonzero(outlier & ~bad):
+                a = p[j]
+                c = cand[a]
+                if c and (times[i] - c[-1][0] > max_gap or
+                          np.linalg.norm(obs[j] - c[-1][1]) > gate * (times[i] - c[-1][0])):
+                    c.clear()                         # not consistent with the previous ones
+                c.append((times[i], obs[j]))
+                if len(c) >= reinit:
+                    fresh.append(j)
+            for j in np.flatnonzero(seen & ~outlier):
+                cand[p[j]].clear()
+            streak[p[outlier & ~bad]] = 0
+            if len(fresh) == k:                       # the whole group: per-frame numbering
+                lost = True
             seen = seen & ~outlier
         if lost:                                      # (re-)initialize: per-frame numbering
             p = np.arange(k)
             seg += 1
             last, prev = np.full((k, 3), np.nan), np.full((k, 3), np.nan)
             last_t, prev_t = np.full(k, -np.inf), np.full(k, -np.inf)
+            cand = [[] for _ in range(k)]
+            streak = np.zeros(k, dtype=int)
+            held[i] = False
+            fresh = None
+        elif fresh:                                   # some identities re-initialized
+            seg += 1
+            for j in fresh:
+                a = p[j]
+                (t0, x0) = cand[a][-2]
+                prev[a], prev_t[a] = x0, t0
+                last[a], last_t[a] = obs[j], times[i]
+                cand[a].clear()
+                streak[a] = 1
         perm[i] = p
         segment[i] = seg
         for j in np.flatnonzero(seen):
             a = p[j]
+            streak[a] = streak[a] + 1 if times[i] - last_t[a] <= 1 else 1
             prev[a], prev_t[a] = last[a], last_t[a]
             last[a], last_t[a] = obs[j], times[i]
+    if detail:
+        return perm, segment, held, predicted
     return perm, segment
 
 
-def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True) -> list:
+def implausible_reach(poses, model, group, low=0.6, high=1.25, q=5.0):
+    """Which of a group's parts lie where their limb cannot reach, per pose.
+
+    The *reach* of a part is its distance to the part its model arc hangs from
+    (:func:`~topopose.pose.curves.model_arcs`: the torso for a hand, the crotch for a foot). Over
+    the usable poses of the sequence the reach of the group's parts spans [P_q, P_100−q]
+    (percentiles); a reach below ``low`` × P_q or above ``high`` × P_100−q is implausible: a
+    hand put on a foot (reach of a leg from the torso), a foot put on a hand. Parts whose
+    parent is not placed are not judged.
+
+    Returns a list (one per pose) of (k,) bool arrays, None for poses without usable parts.
+    """
+    from .curves import model_arcs
+
+    parent = {v: u for u, v in model_arcs(model)}
+    reach = np.full((len(poses), len(group)), np.nan)
+    for i, p in enumerate(poses):
+        for j, g in enumerate(group):
+            x, r = p.parts.get(g), p.parts.get(parent.get(g))
+            if x is not None and r is not None:
+                reach[i, j] = np.linalg.norm(np.asarray(x, float) - np.asarray(r, float))
+    ok = reach[~np.isnan(reach)]
+    if len(ok) < 5:
+        return [None] * len(poses)
+    lo, hi = low * np.percentile(ok, q), high * np.percentile(ok, 100 - q)
+    with np.errstate(invalid="ignore"):
+        bad = (reach < lo) | (reach > hi)
+    return list(bad)
+
+
+def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, reinit=3) -> list:
     """Give the numbered parts of a sequence stable identities (see the module docstring).
 
     Parameters
@@ -148,7 +235,7 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True) -
     gate : distance above which an assigned observation is an outlier (× 1 + (dt − 1)/2 after
         dt frames without update); default 0.25 × the median extent of the subject
         (:func:`body_scale`), 45 cm for a standing adult
-    velocity : see :func:`assign_identities`
+    velocity, reinit : see :func:`assign_identities`
     use_rejected : frames only the confidence gate rejected (:func:`gated_only`) are
         observations too: the gate rejects many right frames, whose gaps would otherwise lose
         the tracks (``benchmarks/tracking.py``, walks: identity switches on matched frames per
@@ -157,28 +244,52 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True) -
     Returns
     -------
     list of Pose, sorted by frame: parts renamed to their track identity;
-    ``diagnostics["track"]`` = {group stem: segment number} on the tracked frames.
+    ``diagnostics["track"]`` = {group stem: segment number} on the tracked frames. A *held*
+    part (beyond the gate of its prediction and out of its limb's reach,
+    :func:`implausible_reach`: the per-frame result misplaced it) is never followed: it is
+    placed at its identity's prediction (None when there is none), listed in
+    ``diagnostics["predicted"]``, its per-frame position kept in ``diagnostics["misplaced"]``
+    and its skeleton curve dropped (the kinematic fit then bridges the frame, flagged
+    ``interpolated``).
     """
     poses = sorted(poses, key=lambda p: p.frame)
     if gate is None:
         gate = 0.25 * body_scale(poses)
     times = frame_index(poses)
     out = list(poses)
+    usable = [p.matched or (use_rejected and gated_only(p)) for p in poses]
     for group in model.interchangeable():
         obs = []
-        for p in poses:
-            if not (p.matched or (use_rejected and gated_only(p))):
-                obs.append(None)
-                continue
-            obs.append(np.array([np.full(3, np.nan) if p.parts.get(g) is None
+        for p, u in zip(poses, usable):
+            obs.append(None if not u else
+                       np.array([np.full(3, np.nan) if p.parts.get(g) is None
                                  else np.asarray(p.parts[g], float) for g in group]))
-        perm, seg = assign_identities(times, obs, gate, max_gap, velocity)
+        bad = implausible_reach([p if u else replace(p, parts={}) for p, u in zip(poses, usable)],
+                                model, group)
+        perm, seg, held, pred = assign_identities(times, obs, gate, max_gap, velocity,
+                                                  misplaced=bad, reinit=reinit, detail=True)
         stem = str(group[0]).rpartition("_")[0]
         for i, p in enumerate(perm):
             if p is None:
                 continue
             q = relabel(out[i], {group[j]: group[p[j]] for j in range(len(group))})
-            q.diagnostics = {**q.diagnostics,
-                             "track": {**q.diagnostics.get("track", {}), stem: int(seg[i])}}
+            diag = {**q.diagnostics, "track": {**q.diagnostics.get("track", {}), stem: int(seg[i])}}
+            if held[i].any():
+                parts = dict(q.parts)
+                curves = dict(diag.get("curves") or {})
+                mis = dict(diag.get("misplaced") or {})
+                prd = list(diag.get("predicted") or [])
+                for j in np.flatnonzero(held[i, :len(group)]):
+                    name = group[p[j]]
+                    x = pred[i, p[j]]
+                    mis[name] = [round(float(c), 5) for c in parts[name]]
+                    parts[name] = None if np.isnan(x).any() else x.copy()
+                    curves.pop(name, None)
+                    prd.append(name)
+                diag.update(misplaced=mis, predicted=sorted(prd))
+                if "curves" in diag:
+                    diag["curves"] = curves
+                q = replace(q, parts=parts)
+            q.diagnostics = diag
             out[i] = q
     return out

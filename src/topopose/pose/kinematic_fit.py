@@ -51,6 +51,7 @@ class KinematicTree:
     at: list
     offset: list = None            # (along the trunk, outward) per joint, in trunk lengths
     trunk: tuple = ()              # (from part, to part)
+    beyond: list = None            # tip joints: past the end part, × the curve length
 
     @property
     def root(self) -> int:
@@ -89,7 +90,7 @@ def kinematic_tree(model) -> KinematicTree:
     if not model.joints:
         raise InputError(f"model {model.name!r}: no [[joint]] declared; the full skeleton needs "
                          "joints along the arcs (see topopose.pose.model)")
-    names, base, arc, at, offset = [], [], [], [], []
+    names, base, arc, at, offset, beyond = [], [], [], [], [], []
     arcs = model_arcs(model)
     for u, v in arcs:
         for js in model.joints:
@@ -107,6 +108,7 @@ def kinematic_tree(model) -> KinematicTree:
                     break
             names.append(js.name + suffix)
             offset.append(tuple(float(x) for x in js.offset))
+            beyond.append(float(js.beyond) if t == 1.0 else 0.0)
             base.append(js.name)
             arc.append((u, v))
             at.append(t)
@@ -145,16 +147,29 @@ def kinematic_tree(model) -> KinematicTree:
         raise InputError(f"model {model.name!r}: the joints form {len(roots)} trees (roots "
                          f"{roots}); put a joint at at = 0 or 1 where arcs meet")
     return KinematicTree(names, base, parents, arc, at, offset,
-                         tuple(model.facing.get("trunk", ())))
+                         tuple(model.facing.get("trunk", ())), beyond)
 
 
-def _along(curve, t):
+TIP_DIRECTION = 0.1      # the tip direction: along the curve's last 10 % (see _along)
+
+
+def _along(curve, t, beyond=0.0):
+    """The point at relative arc length ``t`` of a curve; with ``beyond`` (t = 1), past its end
+    by ``beyond`` × its length along its last direction (the chord of its last
+    ``TIP_DIRECTION``): thinning stops a skeleton branch short of the limb's tip."""
     c = np.asarray(curve, dtype=float)
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
     if s[-1] <= 0:
         return c[0]
     x = t * s[-1]
-    return np.array([np.interp(x, s, c[:, k]) for k in range(3)])
+    out = np.array([np.interp(x, s, c[:, k]) for k in range(3)])
+    if beyond:
+        back = np.array([np.interp((1 - TIP_DIRECTION) * s[-1], s, c[:, k]) for k in range(3)])
+        d = c[-1] - back
+        n = np.linalg.norm(d)
+        if n > 0:
+            out = out + beyond * s[-1] * d / n
+    return out
 
 
 def initial_placement(pose, tree: KinematicTree) -> np.ndarray:
@@ -164,7 +179,7 @@ def initial_placement(pose, tree: KinematicTree) -> np.ndarray:
     for j, ((u, v), t) in enumerate(zip(tree.arc, tree.at)):
         c = curves.get(v)
         if c is not None:
-            out[j] = _along(c, t)
+            out[j] = _along(c, t, tree.beyond[j] if tree.beyond else 0.0)
     if tree.trunk and any(any(o) for o in tree.offset):
         a, b = (pose.parts.get(x) for x in tree.trunk)
         if a is None or b is None:

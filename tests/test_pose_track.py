@@ -176,3 +176,22 @@ def test_consistently_different_for_several_frames_reinitializes():
     perm, seg, held, pred = assign_identities(t, obs, gate=0.3, reinit=3, max_gap=2,
                                               misplaced=bad, detail=True)
     assert list(np.flatnonzero(held[:, 0])) == [6, 7] and set(seg) == {0}
+
+
+def test_lost_across_a_gap_relinks_by_position_relative_to_the_anchor():
+    # the subject walks 0.05 m / frame along x; hands on either side of the torso (y = ±0.25)
+    # swing ±0.2 m; 8 frames unseen (> max_gap): tracking is lost, the walk has moved 0.45 m
+    # and the per-frame numbering of the first frame after the gap is swapped
+    t = np.array([0, 1, 2, 3, 4, 5, 14, 15, 16], float)
+    torso = np.stack([0.05 * t, 0 * t, 1.4 + 0 * t], axis=1)
+    h = [torso + np.stack([s * 0.2 * np.sin(t / 3), y + 0 * t, -0.5 + 0 * t], axis=1)
+         for s, y in ((1, 0.25), (-1, -0.25))]
+    obs = [np.stack([h[0][i], h[1][i]]) for i in range(len(t))]
+    obs[6] = obs[6][::-1]
+    perm, seg = assign_identities(t, obs, gate=0.3, max_gap=5, anchors=torso)
+    assert list(seg) == [0] * 6 + [1] * 3                    # lost, a new segment
+    assert list(perm[6]) == [1, 0] and list(perm[8]) == [0, 1]   # but the same identities
+    perm, seg = assign_identities(t, obs, gate=0.3, max_gap=5)   # without anchors:
+    assert list(perm[6]) == [0, 1]                           # the per-frame numbering (swapped)
+    perm, seg = assign_identities(t, obs, gate=0.3, max_gap=5, anchors=torso, relink=6)
+    assert list(perm[6]) == [0, 1]                           # gap longer than relink

@@ -4,15 +4,23 @@ Pose initialization solves each frame alone (thesis §12.1), so the tree cannot 
 from ``hand_2`` (the model's interchangeable groups, :meth:`Model.interchangeable`) and their
 numbers may swap from one frame to the next. Thesis §13.3.1: the per-frame result initializes
 tracking. Here each group is tracked on its own: every identity predicts its position by a
-damped constant velocity from its last two observations, and the matched frame's parts are assigned to
-the identities by the Hungarian method (:func:`scipy.optimize.linear_sum_assignment`) on the
-distances between predictions and observations. Tracking is *lost* — and re-initialized by the
-per-frame numbering, starting a new segment — when the gap since the last matched frame exceeds
-``max_gap`` frames. An assigned observation farther than ``gate`` from its prediction is an
-outlier (a part the per-frame result misplaced): it is named by the assignment but does not
-move its track, which coasts on its prediction (a wrong velocity from one misplaced part would
-otherwise steer the next assignments). Frames rejected only by the confidence gate are
-observations too (gated the same way); other rejected and failed frames are left as they are.
+damped constant velocity from its last two observations, and the matched frame's parts are
+assigned to the identities by the Hungarian method (:func:`scipy.optimize.linear_sum_assignment`)
+on the distances between predictions and observations.
+
+An assigned observation farther than ``gate`` from its prediction is an outlier; it moves no
+track (a wrong velocity from one misplaced part would steer the next assignments). When it is
+also inconsistent with the other parts — out of its limb's reach from the part the limb hangs
+from (:func:`implausible_reach`: a hand put on a foot) — and its track is established, the
+per-frame result misplaced it: the part is *held* at its identity's prediction, flagged
+(``diagnostics["predicted"]``, its per-frame position in ``diagnostics["misplaced"]``), never
+silently. Other outliers re-initialize their identity only when they are consistently
+different for ``reinit`` frames (a trajectory of their own). Tracking is *lost* when no
+identity was updated for ``max_gap`` frames; the new segment takes the per-frame numbering, or,
+after a gap of at most ``relink`` frames, the numbering that keeps each part on its side of
+the part its limb hangs from (positions relative to the torso for the hands). Frames rejected
+only by the confidence gate are observations too (gated the same way); other rejected and
+failed frames are left as they are.
 """
 from __future__ import annotations
 
@@ -20,6 +28,8 @@ from dataclasses import replace
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+
+from .curves import model_arcs
 
 PER_PART_DIAGNOSTICS = ("curves", "misplaced")
 
@@ -67,7 +77,7 @@ def body_scale(poses) -> float:
 
 
 def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, misplaced=None,
-                      reinit=3, detail=False):
+                      reinit=3, anchors=None, relink=None, detail=False):
     """Track one interchangeable group.
 
     Parameters
@@ -91,6 +101,11 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
         consecutive observed frames, consistent among themselves (each within the gate of the
         one before), is re-initialized at them; when every identity of the group is
         re-initialized in the same frame, by the per-frame numbering
+    anchors : None or (n, 3) positions of the part the group hangs from (NaN: not placed).
+        When tracking is lost after a gap of at most ``relink`` frames (default 3 ×
+        ``max_gap``), the new segment's numbering is the assignment of the positions relative
+        to the anchor against the last ones of the identities (a hand stays on its side of the
+        torso across a short gap) instead of the per-frame numbering
     detail : also return ``held`` and ``predicted``
 
     Returns
@@ -110,6 +125,9 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
     predicted = np.full((n, kmax, 3), np.nan)
     last = prev = last_t = prev_t = None
     seg = -1
+    relink = 3 * max_gap if relink is None else relink
+    anchors = None if anchors is None else np.asarray(anchors, dtype=float)
+    rel = None                                        # last position of each identity − anchor
     for i in range(n):
         obs = observations[i]
         if obs is None:
@@ -166,6 +184,12 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
             seen = seen & ~outlier
         if lost:                                      # (re-)initialize: per-frame numbering
             p = np.arange(k)
+            if (anchors is not None and rel is not None and len(rel) == k and fresh is None
+                    and not np.isnan(anchors[i]).any() and seen.all()
+                    and not np.isnan(rel).any() and times[i] - np.max(last_t) <= relink):
+                cost = np.linalg.norm(rel[:, None, :] - (obs - anchors[i])[None], axis=2)
+                rows, cols = linear_sum_assignment(cost)
+                p[cols] = rows
             seg += 1
             last, prev = np.full((k, 3), np.nan), np.full((k, 3), np.nan)
             last_t, prev_t = np.full(k, -np.inf), np.full(k, -np.inf)
@@ -189,6 +213,10 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
             streak[a] = streak[a] + 1 if times[i] - last_t[a] <= 1 else 1
             prev[a], prev_t[a] = last[a], last_t[a]
             last[a], last_t[a] = obs[j], times[i]
+            if anchors is not None and not np.isnan(anchors[i]).any():
+                if rel is None or len(rel) != k:
+                    rel = np.full((k, 3), np.nan)
+                rel[a] = obs[j] - anchors[i]
     if detail:
         return perm, segment, held, predicted
     return perm, segment
@@ -206,8 +234,6 @@ def implausible_reach(poses, model, group, low=0.6, high=1.25, q=5.0):
 
     Returns a list (one per pose) of (k,) bool arrays, None for poses without usable parts.
     """
-    from .curves import model_arcs
-
     parent = {v: u for u, v in model_arcs(model)}
     reach = np.full((len(poses), len(group)), np.nan)
     for i, p in enumerate(poses):
@@ -258,6 +284,7 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
     times = frame_index(poses)
     out = list(poses)
     usable = [p.matched or (use_rejected and gated_only(p)) for p in poses]
+    parent = {v: u for u, v in model_arcs(model)}
     for group in model.interchangeable():
         obs = []
         for p, u in zip(poses, usable):
@@ -266,8 +293,12 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
                                  else np.asarray(p.parts[g], float) for g in group]))
         bad = implausible_reach([p if u else replace(p, parts={}) for p, u in zip(poses, usable)],
                                 model, group)
+        up = parent.get(group[0])
+        anchors = np.array([np.asarray(p.parts[up], float) if u and p.parts.get(up) is not None
+                            else np.full(3, np.nan) for p, u in zip(poses, usable)])
         perm, seg, held, pred = assign_identities(times, obs, gate, max_gap, velocity,
-                                                  misplaced=bad, reinit=reinit, detail=True)
+                                                  misplaced=bad, reinit=reinit, anchors=anchors,
+                                                  detail=True)
         stem = str(group[0]).rpartition("_")[0]
         for i, p in enumerate(perm):
             if p is None:

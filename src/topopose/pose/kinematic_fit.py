@@ -242,7 +242,7 @@ def _seg_dist(q, A, B):
     return np.linalg.norm(q[:, None, :] - proj, axis=2).min(axis=1)
 
 
-def fit_frame(target, curves, L, tree: KinematicTree, start=None, inner_weight=0.3,
+def fit_frame(target, curves, L, tree: KinematicTree, start=None, inner_weight=1.0,
               curve_weight=1.0):
     """Fit the kinematic tree to one frame (see the module docstring), one arc chain at a time
     from the root down: each chain's first joint is fixed by the chains above it, its bone
@@ -316,7 +316,7 @@ def _directions(P, tree):
     return D
 
 
-def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=0.3):
+def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0):
     """Fit the full skeleton to every matched frame of a sequence (see the module docstring).
 
     Parameters
@@ -325,6 +325,10 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=0.3):
     model : Model with ``[[joint]]`` declarations
     max_gap : longest run of unfitted frames filled by interpolation (0: none)
     smooth : None or an odd Savitzky–Golay window (frames, polynomial order 2)
+    inner_weight : weight of the initial placement of the joints inside an arc (elbows,
+        knees, ...) against the curve term. Calibration set of the model's joints (seeds
+        101–106, gate off, MPJPE median): 0.3 → 1.0 → 3.0 gives walks 4.66 → 4.52 → 4.52 cm,
+        random poses 6.38 → 5.80 → 6.05 cm
 
     Returns
     -------

@@ -28,8 +28,9 @@ is measured beside its peer in the same run:
   lengths constant) against the rig joints, each
   mirror pair paired optimally (chirality is scored above), per joint and the median over
   matched frames of the per-frame mean; against the initial placement (joints at their ``at``
-  on the curves, no fit) and against the same fit with the tips (fingertip, toe) at the branch
-  end (``beyond`` 0, the definitions before). Joint → rig: neck ``Neck_head``, skull ``Head_head``, pelvis mean of
+  on the curves, no fit) and against the same fit with the previous joint definitions
+  (:data:`PREVIOUS`: tips at the branch end, shoulders and hips of the first calibration,
+  inner weight 0.3). Joint → rig: neck ``Neck_head``, skull ``Head_head``, pelvis mean of
   the ``UpLeg`` heads, shoulder ``Arm_head``, elbow ``ForeArm_head``, wrist ``Hand_head``,
   fingertip ``fingertip_l/r``, hip ``UpLeg_head``, knee ``Leg_head``, ankle ``Foot_head``,
   toe ``toe_l/r``; chest (the curve's shoulder-centre junction) has no rig joint.
@@ -151,12 +152,19 @@ def mpjpe(frames_err):
             {k: [float(x) for x in v] for k, v in per_joint.items()})
 
 
-def without_tips(model):
-    """The model with its tip joints at the branch end (``beyond`` 0): the joint definitions
-    before fingertips and toes were moved past it, measured beside them in the same run."""
+# The joint definitions and fit weight before issue 15's MPJPE work, measured beside the
+# current ones in the same run: tips at the branch end (no ``beyond``), shoulders and hips of
+# the first calibration, inner weight 0.3.
+PREVIOUS = {"fingertip": {"beyond": 0.0}, "toe": {"beyond": 0.0},
+            "shoulder": {"at": 0.26, "offset": (0.22, 0.1)}, "hip": {"offset": (0.14, 0.11)}}
+PREVIOUS_INNER_WEIGHT = 0.3
+
+
+def previous_definitions(model):
+    """The model with the joint definitions of :data:`PREVIOUS`."""
     from dataclasses import replace
 
-    return replace(model, joints=[replace(j, beyond=0.0) for j in model.joints])
+    return replace(model, joints=[replace(j, **PREVIOUS.get(j.name, {})) for j in model.joints])
 
 
 def ungated(poses):
@@ -201,7 +209,8 @@ def analyse(raw, cap, model):
     t0 = time.perf_counter()
     fitted, tree, L = fit_sequence(tracked, model)
     t_fit = time.perf_counter() - t0
-    before, tree0, _ = fit_sequence(tracked, without_tips(model))
+    before, tree0, _ = fit_sequence(tracked, previous_definitions(model),
+                                    inner_weight=PREVIOUS_INNER_WEIGHT)
     t0 = time.perf_counter()
     sided = assign_sides(fitted, model, cap.up_vector)
     t_sides = time.perf_counter() - t0
@@ -420,7 +429,7 @@ def report(rows, info, real=None):
          "include misplaced ones, and every figure counts them.", "",
          "| sequence | frames | matched | good | switches/500 raw → tracked (all matched) | "
          "same, good frames | held parts | chirality with time | chirality single frame | "
-         "MPJPE fit (median over frames) | same, tips at the branch end | MPJPE initial placement |",
+         "MPJPE fit (median over frames) | same, previous joint definitions | MPJPE initial placement |",
          "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         k = 500.0 / r["frames"]
@@ -481,9 +490,10 @@ def report(rows, info, real=None):
               "(target ≤ 5 cm); on the good frames (every part right) "
               f"{100 * np.median(pooled_good):.1f} cm ({len(pooled_good)} frames); per sequence: "
               + ", ".join(f"{100 * m:.1f}" for m in med) + " cm",
-              f"- the same run with the tips (fingertip, toe) at the branch end, as before "
-              f"`beyond`: MPJPE {100 * np.median(pooled_before):.1f} cm ({len(pooled_before)} frames)",
-              "- per joint, median over all matched frames (cm), now ← tips at the branch end: "
+              "- the same run with the previous joint definitions and fit (tips at the branch "
+              "end, shoulders and hips of the first calibration, inner weight 0.3): MPJPE "
+              f"{100 * np.median(pooled_before):.1f} cm ({len(pooled_before)} frames)",
+              "- per joint, median over all matched frames (cm), now ← previous definitions: "
               + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pj0.get(j, [np.nan])):.1f}"
                           for j, v in pj.items())]
     L += ["", "## Real recording (Pose2Sim balancing trial, against Pose2Sim's 3D result)", ""]

@@ -29,7 +29,7 @@ is measured beside its peer in the same run:
   mirror pair paired optimally (chirality is scored above), per joint and the median over
   matched frames of the per-frame mean; against the initial placement (joints at their ``at``
   on the curves, no fit) and against the same fit with the previous joint definitions
-  (:data:`PREVIOUS`: tips at the branch end, shoulders and hips of the first calibration,
+  (:data:`PREVIOUS`: tips at the branch end, shoulders of the first calibration,
   inner weight 0.3). Joint → rig: neck ``Neck_head``, skull ``Head_head``, pelvis mean of
   the ``UpLeg`` heads, shoulder ``Arm_head``, elbow ``ForeArm_head``, wrist ``Hand_head``,
   fingertip ``fingertip_l/r``, hip ``UpLeg_head``, knee ``Leg_head``, ankle ``Foot_head``,
@@ -153,10 +153,10 @@ def mpjpe(frames_err):
 
 
 # The joint definitions and fit weight before issue 15's MPJPE work, measured beside the
-# current ones in the same run: tips at the branch end (no ``beyond``), shoulders and hips of
-# the first calibration, inner weight 0.3.
+# current ones in the same run: tips at the branch end (no ``beyond``), shoulders of the first
+# calibration, inner weight 0.3.
 PREVIOUS = {"fingertip": {"beyond": 0.0}, "toe": {"beyond": 0.0},
-            "shoulder": {"at": 0.26, "offset": (0.22, 0.1)}, "hip": {"offset": (0.14, 0.11)}}
+            "shoulder": {"offset": (0.22, 0.1)}}
 PREVIOUS_INNER_WEIGHT = 0.3
 
 
@@ -491,7 +491,7 @@ def report(rows, info, real=None):
               f"{100 * np.median(pooled_good):.1f} cm ({len(pooled_good)} frames); per sequence: "
               + ", ".join(f"{100 * m:.1f}" for m in med) + " cm",
               "- the same run with the previous joint definitions and fit (tips at the branch "
-              "end, shoulders and hips of the first calibration, inner weight 0.3): MPJPE "
+              "end, shoulders of the first calibration, inner weight 0.3): MPJPE "
               f"{100 * np.median(pooled_before):.1f} cm ({len(pooled_before)} frames)",
               "- per joint, median over all matched frames (cm), now ← previous definitions: "
               + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pj0.get(j, [np.nan])):.1f}"

@@ -77,7 +77,7 @@ def body_scale(poses) -> float:
 
 
 def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, misplaced=None,
-                      reinit=3, anchors=None, relink=None, detail=False):
+                      reinit=3, anchors=None, relink=None, up=None, detail=False):
     """Track one interchangeable group.
 
     Parameters
@@ -106,6 +106,9 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
         ``max_gap``), the new segment's numbering is the assignment of the positions relative
         to the anchor against the last ones of the identities (a hand stays on its side of the
         torso across a short gap) instead of the per-frame numbering
+    up : None or (n, 3) the subject's up axis per frame (the trunk); with it, when the anchor
+        travelled across the gap, only the lateral components (across the travel and the up
+        axis) are compared: a foot swings forward and back, it stays on its side
     detail : also return ``held`` and ``predicted``
 
     Returns
@@ -127,7 +130,9 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
     seg = -1
     relink = 3 * max_gap if relink is None else relink
     anchors = None if anchors is None else np.asarray(anchors, dtype=float)
+    up = None if up is None else np.asarray(up, dtype=float)
     rel = None                                        # last position of each identity − anchor
+    rel_anchor = None                                 # the anchor it was measured from
     for i in range(n):
         obs = observations[i]
         if obs is None:
@@ -187,7 +192,14 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
             if (anchors is not None and rel is not None and len(rel) == k and fresh is None
                     and not np.isnan(anchors[i]).any() and seen.all()
                     and not np.isnan(rel).any() and times[i] - np.max(last_t) <= relink):
-                cost = np.linalg.norm(rel[:, None, :] - (obs - anchors[i])[None], axis=2)
+                diff = rel[:, None, :] - (obs - anchors[i])[None]
+                travel = anchors[i] - rel_anchor
+                if (up is not None and not np.isnan(up[i]).any() and not np.isnan(travel).any()
+                        and np.linalg.norm(travel) > 0.25 * gate):
+                    lat = np.cross(up[i], travel)
+                    if np.linalg.norm(lat) > 0:
+                        diff = diff @ (lat / np.linalg.norm(lat))[:, None]
+                cost = np.linalg.norm(diff, axis=2)
                 rows, cols = linear_sum_assignment(cost)
                 p[cols] = rows
             seg += 1
@@ -217,6 +229,7 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
                 if rel is None or len(rel) != k:
                     rel = np.full((k, 3), np.nan)
                 rel[a] = obs[j] - anchors[i]
+                rel_anchor = anchors[i]
     if detail:
         return perm, segment, held, predicted
     return perm, segment
@@ -248,6 +261,28 @@ def implausible_reach(poses, model, group, low=0.6, high=1.25, q=5.0):
     with np.errstate(invalid="ignore"):
         bad = (reach < lo) | (reach > hi)
     return list(bad)
+
+
+def on_other_parts(poses, usable, group, others, radius):
+    """Which of a group's parts lie within ``radius`` of one of the parts ``others`` as the
+    previous usable pose placed it (a hand put where a foot was a frame before), per pose;
+    None for poses that are not usable or have no usable predecessor."""
+    out, before = [], None
+    for p, u in zip(poses, usable):
+        if not u:
+            out.append(None)
+            continue
+        if before is None:
+            out.append(None)
+        else:
+            there = np.array([np.asarray(before.parts[k], float) for k in others
+                              if before.parts.get(k) is not None]).reshape(-1, 3)
+            out.append(np.array([p.parts.get(g) is not None and len(there) > 0 and
+                                 bool(np.min(np.linalg.norm(there - np.asarray(p.parts[g], float),
+                                                            axis=1)) < radius)
+                                 for g in group]))
+        before = p
+    return out
 
 
 def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, reinit=3) -> list:
@@ -285,7 +320,14 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
     out = list(poses)
     usable = [p.matched or (use_rejected and gated_only(p)) for p in poses]
     parent = {v: u for u, v in model_arcs(model)}
-    for group in model.interchangeable():
+    groups = model.interchangeable()
+    up = None
+    trunk = tuple(model.facing.get("trunk", ()))
+    if len(trunk) == 2:                               # the subject's up axis per frame
+        up = np.array([np.asarray(p.parts[trunk[1]], float) - np.asarray(p.parts[trunk[0]], float)
+                       if p.parts.get(trunk[0]) is not None and p.parts.get(trunk[1]) is not None
+                       else np.full(3, np.nan) for p in poses])
+    for group in groups:
         obs = []
         for p, u in zip(poses, usable):
             obs.append(None if not u else
@@ -293,12 +335,15 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
                                  else np.asarray(p.parts[g], float) for g in group]))
         bad = implausible_reach([p if u else replace(p, parts={}) for p, u in zip(poses, usable)],
                                 model, group)
-        up = parent.get(group[0])
-        anchors = np.array([np.asarray(p.parts[up], float) if u and p.parts.get(up) is not None
+        near = on_other_parts(poses, usable, group,
+                              [g for other in groups if other != group for g in other], 0.5 * gate)
+        bad = [n if b is None else (b if n is None else b | n) for b, n in zip(bad, near)]
+        hang = parent.get(group[0])
+        anchors = np.array([np.asarray(p.parts[hang], float) if u and p.parts.get(hang) is not None
                             else np.full(3, np.nan) for p, u in zip(poses, usable)])
         perm, seg, held, pred = assign_identities(times, obs, gate, max_gap, velocity,
                                                   misplaced=bad, reinit=reinit, anchors=anchors,
-                                                  detail=True)
+                                                  up=up, detail=True)
         stem = str(group[0]).rpartition("_")[0]
         for i, p in enumerate(perm):
             if p is None:

@@ -195,3 +195,36 @@ def test_lost_across_a_gap_relinks_by_position_relative_to_the_anchor():
     assert list(perm[6]) == [0, 1]                           # the per-frame numbering (swapped)
     perm, seg = assign_identities(t, obs, gate=0.3, max_gap=5, anchors=torso, relink=6)
     assert list(perm[6]) == [0, 1]                           # gap longer than relink
+
+
+def test_relink_of_feet_compares_the_lateral_side_only():
+    # feet 0.2 m apart (y = ±0.1), swinging ±0.3 m fore and aft while the subject walks along
+    # x; after a 9-frame gap their fore-aft order has reversed: in 3D each foot is nearer the
+    # other's last relative position, laterally each stays on its side
+    t = np.array([0, 1, 2, 3, 4, 14, 15], float)
+    crotch = np.stack([0.05 * t, 0 * t, 0.9 + 0 * t], axis=1)
+    swing = np.array([0.3, 0.3, 0.3, 0.3, 0.3, -0.3, -0.3])
+    fa = crotch + np.stack([swing, 0.1 + 0 * t, -0.85 + 0 * t], axis=1)
+    fb = crotch + np.stack([-swing, -0.1 + 0 * t, -0.85 + 0 * t], axis=1)
+    obs = [np.stack([fa[i], fb[i]]) for i in range(len(t))]
+    up = np.tile([0.0, 0.0, 1.0], (len(t), 1))
+    perm, seg = assign_identities(t, obs, gate=0.3, anchors=crotch, up=up)
+    assert seg[5] == 1 and list(perm[5]) == [0, 1]          # lost, relinked laterally: right
+    perm, seg = assign_identities(t, obs, gate=0.3, anchors=crotch)
+    assert list(perm[5]) == [1, 0]                          # in 3D: the oracle sees the swap
+
+
+def test_a_part_on_another_groups_previous_position_is_flagged():
+    from topopose.pose.track import on_other_parts
+
+    def pose(i, h1, f1):
+        return Pose(f"{i:06d}", "matched", 0.1, {"hand_1": np.array(h1, float),
+                                                 "foot_1": np.array(f1, float),
+                                                 "torso": np.array([0, 0, 1.4])})
+    poses = [pose(0, [0.3, 0.2, 0.9], [0.2, 0.1, 0.05]),
+             pose(1, [0.25, 0.1, 0.08], [0.6, 0.1, 0.05]),        # hand where the foot was
+             pose(2, [0.3, 0.2, 0.9], [0.25, 0.1, 0.05])]
+    near = on_other_parts(poses, [True] * 3, ["hand_1"], ["foot_1"], 0.1)
+    assert near[0] is None and list(near[1]) == [True] and list(near[2]) == [False]
+    # the torso is not another group: a hand near it is not suspicious
+    assert list(on_other_parts(poses, [True] * 3, ["hand_1"], [], 0.1)[1]) == [False]

@@ -11,14 +11,16 @@ on the distances between predictions and observations.
 An assigned observation farther than ``gate`` from its prediction is an outlier; it moves no
 track (a wrong velocity from one misplaced part would steer the next assignments). When it is
 also inconsistent with the other parts — out of its limb's reach from the part the limb hangs
-from (:func:`implausible_reach`: a hand put on a foot) — and its track is established, the
+from (:func:`implausible_reach`: a hand put on a foot), or where a part of another group was
+a frame before (:func:`on_other_parts`) — and its track is established, the
 per-frame result misplaced it: the part is *held* at its identity's prediction, flagged
 (``diagnostics["predicted"]``, its per-frame position in ``diagnostics["misplaced"]``), never
 silently. Other outliers re-initialize their identity only when they are consistently
 different for ``reinit`` frames (a trajectory of their own). Tracking is *lost* when no
 identity was updated for ``max_gap`` frames; the new segment takes the per-frame numbering, or,
 after a gap of at most ``relink`` frames, the numbering that keeps each part on its side of
-the part its limb hangs from (positions relative to the torso for the hands). Frames rejected
+the part its limb hangs from (positions relative to the torso for the hands; only their
+lateral components when the subject travelled across the gap). Frames rejected
 only by the confidence gate are observations too (gated the same way); other rejected and
 failed frames are left as they are.
 """
@@ -94,7 +96,8 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
         ``benchmarks/tracking.py`` walks (400 frames, identity switches on frames with both
         parts right, gate 0.25): 1.0 → 5, 0.5 → 0, 0.0 → 0; crossing hands need some velocity.
     misplaced : None or a list of n (k,) bool arrays (or None): observations inconsistent with
-        the other parts of their frame (:func:`implausible_reach`). An observation beyond the
+        the other parts of their frame (:func:`implausible_reach`, :func:`on_other_parts`).
+        An observation beyond the
         gate of its identity's prediction *and* misplaced is *held*: the identity keeps its
         prediction, the observation moves no track and counts for no re-initialization.
     reinit : an identity whose observations lie beyond the gate (not misplaced) for this many
@@ -306,8 +309,8 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
     -------
     list of Pose, sorted by frame: parts renamed to their track identity;
     ``diagnostics["track"]`` = {group stem: segment number} on the tracked frames. A *held*
-    part (beyond the gate of its prediction and out of its limb's reach,
-    :func:`implausible_reach`: the per-frame result misplaced it) is never followed: it is
+    part (beyond the gate of its prediction and inconsistent with the other parts: the
+    per-frame result misplaced it) is never followed: it is
     placed at its identity's prediction (None when there is none), listed in
     ``diagnostics["predicted"]``, its per-frame position kept in ``diagnostics["misplaced"]``
     and its skeleton curve dropped (the kinematic fit then bridges the frame, flagged

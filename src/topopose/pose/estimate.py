@@ -491,11 +491,6 @@ DEFAULT_THICKNESS_WEIGHT = 1.0
 #                                         0.617 / 0.129; c 2.4: 0.858 / 0.096, 0.600 / 0.163
 # Held-out seeds: benchmarks/quality.py (quality_body.md, "no-prune" rows).
 PRUNE = {"human": 2.0}
-    lab = cc3d.largest_k(b, k=1, connectivity=26)
-    vol.data = np.ascontiguousarray(lab > 0)
-    vol.diagnostics.pop("bbox", None)
-    fill_cavities(vol)
-    return vol
 THICKNESS = {"human": {"head": (0.30, 0.85), "hand": (0.0, 0.40), "foot": (0.0, 0.43),
                        "crotch": (0.83, 9.0), "torso": (0.67, 9.0)}}
 THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the largest within ± that

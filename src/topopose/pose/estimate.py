@@ -351,6 +351,8 @@ class FrameEstimator:
                 "data_vertices": data.n_vertices, "missing": missing, **extra}
         if arc_cost is not None:
             diag["thickness_cost"] = round(thick, 6)
+        if self.prune > 0:
+            diag["pruned_bumps"] = len(data.diagnostics.get("pruned_bumps", ()))
         if unordered:
             diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
         if self.curves:

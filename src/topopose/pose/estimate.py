@@ -491,7 +491,9 @@ DEFAULT_THICKNESS_WEIGHT = 1.0
 #                                         (the head's short branch is pruned: missing limb 12 → 32)
 #   ball containment (default) < c        c 1.6: 0.842 / 0.114, 0.592 / 0.155; c 2.0: 0.858 / 0.096,
 #                                         0.617 / 0.129; c 2.4: 0.858 / 0.096, 0.600 / 0.163
-# Held-out seeds: benchmarks/quality.py (quality_body.md, "no-prune" rows).
+# (before the head tips of pose/tips.py; with them, c 2.0 contain: off 0.817 / 0.140; 0.567 / 0.181
+# → on 0.833 / 0.123; 0.592 / 0.165.) Held-out seeds: benchmarks/quality.py (quality_body.md,
+# "no-prune" rows).
 PRUNE = {"human": 2.0}
 THICKNESS = {"human": {"head": (0.30, 0.85), "hand": (0.0, 0.40), "foot": (0.0, 0.43),
                        "crotch": (0.83, 9.0), "torso": (0.67, 9.0)}}

@@ -116,15 +116,19 @@ def prune_bumps(skeleton: np.ndarray, hull: np.ndarray, ratio: float, origin=(0.
                     c = (np.asarray(tree.positions[u], float) - np.asarray(origin, float)) / vs
                     x = coords[own[np.argmin(((coords[own] - c) ** 2).sum(1))]]
                     radius[u] = ball_radius(hull, x)
-            if measure == "contain" and length < 2 * ratio * radius[u] and radius[u] > 0:
+            r = radius[u]
+            sel = mine | (edge == eindex[frozenset((u, v))])
+            if r <= 0 or not sel.any():
+                bump = False
+            elif measure == "length" or length >= 2 * ratio * r:
+                # (a branch twice as long as the scaled ball's radius leaves it)
+                bump = length < ratio * r
+            else:
                 # scale axis: the branch's balls must fit in the junction's ball scaled by ratio
-                sel = mine | (edge == eindex[frozenset((u, v))])
                 c = (np.asarray(tree.positions[u], float) - np.asarray(origin, float)) / vs
                 reach = max(float(np.linalg.norm(x - c)) + ball_radius(hull, x)
-                            for x in coords[sel]) if sel.any() else 0.0
-                bump = reach < ratio * radius[u]
-            else:
-                bump = length < ratio * radius[u]
+                            for x in coords[sel])
+                bump = reach < ratio * r
             if bump and (u not in best or length < best[u][0]):
                 best[u] = (length, v, eindex[frozenset((u, v))], radius[u])
         if not best:

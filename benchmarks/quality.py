@@ -19,7 +19,7 @@ hand (4 poor cameras): T_d = 3.5 (unnormalized scale) gives 10–20 %.
     python benchmarks/quality.py [--quick] [--frames N] [--only human,dog,spider,body]
 
 - body (the MakeHuman mesh, issue 11): builds × seeds, separated and all poses, noise 0–2,
-  50/100/150³, the thickness term on and off, scored at 0.08 × height for every part
+  50/100/150³, the thickness term on and off, the pruning of skeleton bumps on and off, scored at 0.08 × height for every part
   (benchmarks/results/quality_body.{md,json}).
 
 "Limbs separated" (the thesis' dancer study: "each limb is clearly separated from others" in the
@@ -189,12 +189,15 @@ def body_rows(quick, out, suffix):
     row("body separated noise1 no-thickness", *body_study(sep, 100, thickness=0))
     row("body all-poses noise1", *body_study(allp, 100))
     row("body all-poses noise1 no-thickness", *body_study(allp, 100, thickness=0))
+    row("body separated noise1 no-prune", *body_study(sep, 100, prune=0))
+    row("body all-poses noise1 no-prune", *body_study(allp, 100, prune=0))
     row("body separated noise1 two-pass", *body_study(sep, 100, two_pass=True))
     row("body all-poses noise1 two-pass", *body_study(allp, 100, two_pass=True))
     if not quick:
         for noise in (0, 2):
             c = body_captures(True, noise, seeds[:1], n, builds)
             row(f"body separated noise{noise}", *body_study(c, 100))
+            row(f"body separated noise{noise} no-prune", *body_study(c, 100, prune=0))
     L = ["", "## body (MakeHuman mesh, issue 11)", "",
          f"Builds {', '.join(builds)} × seeds {', '.join(map(str, seeds))} × {n} frames per row "
          f"(noise rows: seed {seeds[0]}), 8 cameras 640×480, `run --model human`, the run's own "
@@ -203,7 +206,9 @@ def body_rows(quick, out, suffix):
          "missing limb) / frames, FP/match = (misplaced + bad) / (TP + FP) over matched frames; "
          "errors: median distance to the gt segment in cm (all parts of the matched frames of a "
          "class). *separated*: distinct limbs at least 7.5 cm apart. *no-thickness*: "
-         "`FrameEstimator(thickness=0)`, the peer of the thickness term; *two-pass*: "
+         "`FrameEstimator(thickness=0)`, the peer of the thickness term; *no-prune*: "
+         "`FrameEstimator(prune=0)`, the peer of the scale-axis pruning of skeleton bumps "
+         "(`topopose.skeleton.prune`, default 2.0 for the human model); *two-pass*: "
          "`topopose.pose.subject.two_pass` per capture (one subject), the subject's own lengths "
          "from its confident frames.", "",
          "| configuration | res | frames | TP rate | FP/match | good | miss1 | partial | misplaced "

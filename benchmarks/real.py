@@ -1,6 +1,6 @@
 """A real recording: Pose2Sim's balancing trial, from its 4 videos and Calib.toml as shipped.
 
-    python benchmarks/real.py [RECORDING] [--methods sequence,selfie,sequence+selfie] [--frames N]
+    python benchmarks/real.py [RECORDING] [--methods sequence,selfie,sequence+selfie,person] [--frames N]
 
 RECORDING (default ``benchmarks/data/pose2sim_balancing/``): ``videos/cam01.mp4`` …,
 ``Calib.toml`` (tables ``cam_01`` …), ``reference/pose2sim_3d.trc`` (Pose2Sim's own 3D result,
@@ -262,7 +262,7 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
-    ap.add_argument("--methods", default="sequence,selfie,sequence+selfie")
+    ap.add_argument("--methods", default="sequence,selfie,sequence+selfie,person")
     ap.add_argument("--resolution", type=int, default=100)
     ap.add_argument("--frames", type=int, default=0, help="first N frames only (0: all)")
     ap.add_argument("--out", default=str(HERE / "results" / "real"))
@@ -275,12 +275,12 @@ def main(argv=None):
         return 2
     ref = read_trc(rec / "reference" / "pose2sim_3d.trc")
     methods = [m for m in a.methods.split(",") if m]
-    if "selfie" in a.methods:
+    if "selfie" in a.methods or "person" in a.methods:
         try:
             import mediapipe  # noqa: F401
         except ImportError:
-            print("mediapipe not installed: the selfie methods are skipped")
-            methods = [m for m in methods if "selfie" not in m]
+            print("mediapipe not installed: the selfie and person methods are skipped")
+            methods = [m for m in methods if "selfie" not in m and m != "person"]
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     results = {}

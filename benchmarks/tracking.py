@@ -4,6 +4,10 @@ right, and the full skeleton against the rig joints of the ground truth.
     python benchmarks/tracking.py [--walk-frames 40] [--random-frames 60] [--out benchmarks/results]
                                   [--work DIR]
 
+One per-frame run per sequence (confidence gate on); every figure is then measured twice, with
+the gate on (``tracking.*``) and off (``tracking_nogate.*``: the frames only the gate rejected
+count as matched — the gate judges a frame after its alignment and changes nothing else).
+
 Sequences (100³, 8 cameras, noise 1, 640×480): ten walks of 40 frames with builds average /
 lean / heavy / random / child (seeds 1–10) and three sequences of unrelated random poses
 (seeds 11–13, builds average / random / lean). Every figure
@@ -13,7 +17,9 @@ is measured beside its peer in the same run:
   consecutive matched frames in which a numbered part changes the gt limb it is nearest to;
   ``track`` (:mod:`topopose.pose.track`) against the raw per-frame numbering. Counted on all
   matched frames (a misplaced part counts too) and on the frames where both parts are placed
-  right (``evaluate``: within the tolerance).
+  right (``evaluate``: within the tolerance); and the parts the tracker *held* (misplaced by the
+  per-frame result: placed at their prediction, flagged ``predicted``). Unrelated random poses
+  have no identity over time: there the per-frame identity is the side name (chirality).
 * **chirality**: per matched frame and mirror pair, right (left_X nearer gt's left limb than
   right_X, both summed), wrong, or unsure (numbered names kept); with time (tracking segments)
   against a single frame.
@@ -22,16 +28,16 @@ is measured beside its peer in the same run:
   lengths constant) against the rig joints, each
   mirror pair paired optimally (chirality is scored above), per joint and the median over
   matched frames of the per-frame mean; against the initial placement (joints at their ``at``
-  on the curves, no fit). Joint → rig: neck ``Neck_head``, skull ``Head_head``, pelvis mean of
+  on the curves, no fit) and against the same fit with the previous joint definitions
+  (:data:`PREVIOUS`: tips at the branch end, shoulders of the first calibration,
+  inner weight 0.3). Joint → rig: neck ``Neck_head``, skull ``Head_head``, pelvis mean of
   the ``UpLeg`` heads, shoulder ``Arm_head``, elbow ``ForeArm_head``, wrist ``Hand_head``,
   fingertip ``fingertip_l/r``, hip ``UpLeg_head``, knee ``Leg_head``, ankle ``Foot_head``,
   toe ``toe_l/r``; chest (the curve's shoulder-centre junction) has no rig joint.
 
 The per-frame matching on the body is being improved elsewhere (issue 11): figures are as the
 per-frame result is, misses included. Writes ``tracking.md``, ``tracking.json`` and
-``tracking.png`` (a walking sequence: joints over time); with ``--no-gate`` (the per-frame
-confidence gate off: every frame the alignment accepts is matched, many more frames)
-``tracking_nogate.*``.
+``tracking.png`` (a walking sequence: joints over time), and the same with the gate off.
 """
 import argparse
 import json
@@ -51,7 +57,7 @@ from topopose.pose.chirality import assign_sides  # noqa: E402
 from topopose.pose.kinematic_fit import fit_sequence, initial_placement  # noqa: E402
 from topopose.pose.model import load_model  # noqa: E402
 from topopose.pose.quality import evaluate, point_segment_distance  # noqa: E402
-from topopose.pose.track import track  # noqa: E402
+from topopose.pose.track import gated_only, track  # noqa: E402
 
 # Walking sequences are short: the synthetic walk goes straight (≈ 1.3 m/s) and the capture
 # volume holds the whole path, so a 200-frame walk (≈ 10 m) would get 10 cm voxels at 100³;
@@ -146,7 +152,31 @@ def mpjpe(frames_err):
             {k: [float(x) for x in v] for k, v in per_joint.items()})
 
 
-def one_sequence(work, motion, seed, build, frames, model, gate=True):
+# The joint definitions and fit weight before issue 15's MPJPE work, measured beside the
+# current ones in the same run: tips at the branch end (no ``beyond``), shoulders of the first
+# calibration, inner weight 0.3.
+PREVIOUS = {"fingertip": {"beyond": 0.0}, "toe": {"beyond": 0.0},
+            "shoulder": {"offset": (0.22, 0.1)}}
+PREVIOUS_INNER_WEIGHT = 0.3
+
+
+def previous_definitions(model):
+    """The model with the joint definitions of :data:`PREVIOUS`."""
+    from dataclasses import replace
+
+    return replace(model, joints=[replace(j, **PREVIOUS.get(j.name, {})) for j in model.joints])
+
+
+def ungated(poses):
+    """The poses as with the confidence gate off: frames only the gate rejected are matched
+    (the gate judges a frame after its alignment; it changes nothing else)."""
+    from dataclasses import replace
+
+    return [replace(p, status="matched", error=None) if gated_only(p) else p for p in poses]
+
+
+def one_sequence(work, motion, seed, build, frames, model):
+    """Per-frame result once (gate on), then every figure with the gate on and off."""
     d = Path(work) / f"{motion}_{seed}_{build}"
     t0 = time.perf_counter()
     if not (d / "gt.json").exists():
@@ -154,10 +184,20 @@ def one_sequence(work, motion, seed, build, frames, model, gate=True):
                    build=build)
     t_synth = time.perf_counter() - t0
     cap = load_capture(d)
-    gt = cap.gt
     res = run(cap, model=model, resolution=100, output=d / "poses.jsonl", progress=False,
-              track=False, sides=False, skeleton=False, gate=gate)
-    raw = res.poses
+              track=False, sides=False, skeleton=False, gate=True)
+    out = {}
+    for gate in (True, False):
+        raw = res.poses if gate else ungated(res.poses)
+        r, sided, tree = analyse(raw, cap, model)
+        r.update(motion=motion, seed=seed, build=build)
+        r["seconds"].update(synth=t_synth, run=res.seconds)
+        out[gate] = (r, d, sided, tree)
+    return out
+
+
+def analyse(raw, cap, model):
+    gt = cap.gt
     ev = evaluate(gt, raw, model=model)
     good = {}
     for fs in ev.frames:
@@ -169,14 +209,16 @@ def one_sequence(work, motion, seed, build, frames, model, gate=True):
     t0 = time.perf_counter()
     fitted, tree, L = fit_sequence(tracked, model)
     t_fit = time.perf_counter() - t0
+    before, tree0, _ = fit_sequence(tracked, previous_definitions(model),
+                                    inner_weight=PREVIOUS_INNER_WEIGHT)
     t0 = time.perf_counter()
     sided = assign_sides(fitted, model, cap.up_vector)
     t_sides = time.perf_counter() - t0
     single = assign_sides(fitted, model, cap.up_vector, use_time=False)
     # MPJPE: fitted (numbered joints, before renaming) and the initial placement
-    err_fit, err_init, err_good = [], [], []
+    err_fit, err_init, err_good, err_before = [], [], [], []
     good_frames = {fs.frame for fs in ev.frames if fs.quality == "good"}
-    for p in fitted:
+    for p, q in zip(fitted, before):
         if not p.matched:
             continue
         gj = gt["frames"][p.frame]["joints"]
@@ -185,21 +227,22 @@ def one_sequence(work, motion, seed, build, frames, model, gate=True):
             err_fit.append(joint_errors(tree.names, P, gj))
             if p.frame in good_frames:
                 err_good.append(err_fit[-1])
+        if q.joints and not q.diagnostics.get("interpolated"):
+            err_before.append(joint_errors(tree0.names, np.array([q.joints[n] for n in tree0.names]), gj))
         err_init.append(joint_errors(tree.names, initial_placement(p, tree), gj))
-    n_matched = sum(p.matched for p in raw)
-    out = {"motion": motion, "seed": seed, "build": build, "frames": len(raw),
-           "matched": n_matched, "good": ev.counts.get("good", 0),
+    out = {"frames": len(raw),
+           "matched": sum(p.matched for p in raw), "good": ev.counts.get("good", 0),
            "switches_raw": identity_switches(raw, gt),
            "switches_tracked": identity_switches(tracked, gt),
            "switches_raw_good": identity_switches(raw, gt, good),
            "switches_tracked_good": identity_switches(tracked, gt, good),
+           "held": sum(len(p.diagnostics.get("predicted") or []) for p in tracked),
            "chirality_time": chirality(sided, gt), "chirality_single": chirality(single, gt),
            "mpjpe_fit": mpjpe(err_fit), "mpjpe_init": mpjpe(err_init),
-           "mpjpe_fit_good": mpjpe(err_good),
+           "mpjpe_fit_good": mpjpe(err_good), "mpjpe_before": mpjpe(err_before),
            "bone_lengths": {tree.names[j]: float(L[j]) for j in range(len(L)) if tree.parents[j] >= 0},
-           "seconds": {"synth": t_synth, "run": res.seconds, "track": t_track, "fit": t_fit,
-                       "sides": t_sides}}
-    return out, d, sided, tree
+           "seconds": {"track": t_track, "fit": t_fit, "sides": t_sides}}
+    return out, sided, tree
 
 
 def picture(path, seq_dir, poses, tree, gt, model):
@@ -330,9 +373,6 @@ def main(argv=None):
     ap.add_argument("--random-frames", type=int, default=60)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     ap.add_argument("--work", default=None, help="keep the captures here (default: a temp dir)")
-    ap.add_argument("--gate", action=argparse.BooleanOptionalAction, default=True,
-                    help="the per-frame confidence gate (main's default); --no-gate: every "
-                         "frame the alignment accepts is matched (results tracking_nogate.*)")
     ap.add_argument("--real-poses", default=None,
                     help="poses.jsonl of `topopose run` on the real recording (Pose2Sim balancing)")
     ap.add_argument("--real-trc", default=None,
@@ -340,33 +380,37 @@ def main(argv=None):
     a = ap.parse_args(argv)
     model = load_model("human")
     work = a.work or tempfile.mkdtemp(prefix="topopose_tracking_")
-    rows = []
-    pic = None
+    rows = {True: [], False: []}
+    pic = {True: None, False: None}
     for motion, seed, build in SEQUENCES:
         n = a.walk_frames if motion == "walk" else a.random_frames
-        r, d, sided, tree = one_sequence(work, motion, seed, build, n, model, gate=a.gate)
-        rows.append(r)
-        print(json.dumps({k: (v[0] if k.startswith("mpjpe") else v) for k, v in r.items()
-                          if k != "bone_lengths"}), flush=True)
-        if motion == "walk" and (pic is None or r["good"] > pic[0]):
-            pic = (r["good"], d, sided, tree)
+        both = one_sequence(work, motion, seed, build, n, model)
+        for gate, (r, d, sided, tree) in both.items():
+            rows[gate].append(r)
+            print(json.dumps({"gate": gate, **{k: (v[0] if k.startswith("mpjpe") else v)
+                                               for k, v in r.items() if k != "bone_lengths"}}),
+                  flush=True)
+            if motion == "walk" and (pic[gate] is None or r["good"] > pic[gate][0]):
+                pic[gate] = (r["good"], d, sided, tree)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    suffix = "" if a.gate else "_nogate"
-    if pic is not None:
-        picture(out / f"tracking{suffix}.png", pic[1], pic[2], pic[3], load_capture(pic[1]).gt,
-                model)
-    info = machine(resolution=100, cameras=8, noise=1, subject="body", confidence_gate=a.gate)
     real = None
     if a.real_poses or a.real_trc:
         real = real_mpjpe(a.real_poses or "", a.real_trc or "")
         if real is None:
             print(f"real recording: {a.real_poses} or {a.real_trc} absent; skipped")
-    compact = [{k: (v[:3] if k.startswith("mpjpe") else v) for k, v in r.items()} for r in rows]
-    (out / f"tracking{suffix}.json").write_text(json.dumps({"machine": info, "sequences": compact,
-                                                   "real": real}, indent=1))
-    (out / f"tracking{suffix}.md").write_text(report(rows, info, real))
-    print(report(rows, info, real))
+    for gate in (True, False):
+        suffix = "" if gate else "_nogate"
+        if pic[gate] is not None:
+            p = pic[gate]
+            picture(out / f"tracking{suffix}.png", p[1], p[2], p[3], load_capture(p[1]).gt, model)
+        info = machine(resolution=100, cameras=8, noise=1, subject="body", confidence_gate=gate)
+        compact = [{k: (v[:3] if k.startswith("mpjpe") else v) for k, v in r.items()}
+                   for r in rows[gate]]
+        (out / f"tracking{suffix}.json").write_text(json.dumps(
+            {"machine": info, "sequences": compact, "real": real}, indent=1))
+        (out / f"tracking{suffix}.md").write_text(report(rows[gate], info, real))
+        print(report(rows[gate], info, real))
 
 
 def _rate(c):
@@ -384,16 +428,18 @@ def report(rows, info, real=None):
          "per-frame matching on the body is being improved elsewhere (issue 11): matched frames "
          "include misplaced ones, and every figure counts them.", "",
          "| sequence | frames | matched | good | switches/500 raw → tracked (all matched) | "
-         "same, good frames | chirality with time | chirality single frame | MPJPE fit (median over frames) | MPJPE initial placement |",
-         "|---|---|---|---|---|---|---|---|---|---|"]
+         "same, good frames | held parts | chirality with time | chirality single frame | "
+         "MPJPE fit (median over frames) | same, previous joint definitions | MPJPE initial placement |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         k = 500.0 / r["frames"]
-        fit, init = r["mpjpe_fit"], r["mpjpe_init"]
+        fit, init, bef = r["mpjpe_fit"], r["mpjpe_init"], r["mpjpe_before"]
         L.append(f"| {r['motion']} s{r['seed']} {r['build']} | {r['frames']} | {r['matched']} | "
                  f"{r['good']} | {r['switches_raw'] * k:.1f} → {r['switches_tracked'] * k:.1f} | "
                  f"{r['switches_raw_good'] * k:.1f} → {r['switches_tracked_good'] * k:.1f} | "
-                 f"{_rate(r['chirality_time'])} | {_rate(r['chirality_single'])} | "
+                 f"{r['held']} | {_rate(r['chirality_time'])} | {_rate(r['chirality_single'])} | "
                  f"{'–' if fit[0] is None else f'{100 * fit[0]:.1f} cm'} ({fit[2]} frames) | "
+                 f"{'–' if bef[0] is None else f'{100 * bef[0]:.1f} cm'} | "
                  f"{'–' if init[0] is None else f'{100 * init[0]:.1f} cm'} |")
     for motion in ("walk", "random"):
         rs = [r for r in rows if r["motion"] == motion]
@@ -413,14 +459,30 @@ def report(rows, info, real=None):
         pooled = [x for r in rs for x in r["mpjpe_fit"][3]]
         pooled_init = [x for r in rs for x in r["mpjpe_init"][3]]
         pooled_good = [x for r in rs for x in r["mpjpe_fit_good"][3]]
-        pj = {}
+        pj, pj0 = {}, {}
         for r in rs:
             for j, v in r["mpjpe_fit"][4].items():
                 pj.setdefault(j, []).extend(v)
+            for j, v in r["mpjpe_before"][4].items():
+                pj0.setdefault(j, []).extend(v)
+        pooled_before = [x for r in rs for x in r["mpjpe_before"][3]]
+        held = sum(r["held"] for r in rs)
+        wrong = sum(r["chirality_time"]["wrong"] for r in rs)
+        if motion == "walk":
+            ident = (f"- identity switches per 500 frames (all matched frames): raw {sw_r:.1f}, "
+                     f"tracked {sw_t:.1f} (target ≤ 1); on good frames, tracked {sw_tg:.1f}; "
+                     f"{held} part-frames held (misplaced by the per-frame result, placed at "
+                     "their prediction, flagged `predicted`)")
+        else:
+            ident = ("- identity over time is not defined for unrelated random poses (each frame "
+                     "a new pose: the hands move 0.5–1.5 m between frames), so switches are not "
+                     "a figure there; the identity a single frame can have is its side, scored "
+                     f"per frame against the truth's left/right: {wrong * 500 / frames:.1f} wrong "
+                     "side names per 500 frames (the chirality below). For the record, switches "
+                     f"of the numbered parts per 500 frames: raw {sw_r:.1f}, tracked {sw_t:.1f}; "
+                     f"{held} part-frames held")
         L += ["", f"## {motion}: {frames} frames, {sum(r['matched'] for r in rs)} matched, "
-              f"{sum(r['good'] for r in rs)} good", "",
-              f"- identity switches per 500 frames (all matched frames): raw {sw_r:.1f}, tracked "
-              f"{sw_t:.1f} (target ≤ 1); on good frames, tracked {sw_tg:.1f}",
+              f"{sum(r['good'] for r in rs)} good", "", ident,
               f"- chirality on matched frames × pairs: with time {_rate(ct)}; single frame {_rate(cs)}"
               f" (target ≥ {95 if motion == 'walk' else 90} %)",
               f"- MPJPE, median over all matched frames: fit {100 * np.median(pooled):.1f} cm "
@@ -428,11 +490,12 @@ def report(rows, info, real=None):
               "(target ≤ 5 cm); on the good frames (every part right) "
               f"{100 * np.median(pooled_good):.1f} cm ({len(pooled_good)} frames); per sequence: "
               + ", ".join(f"{100 * m:.1f}" for m in med) + " cm",
-              "- per joint, median over all matched frames (cm): "
-              + ", ".join(f"{j} {100 * np.median(v):.1f}" for j, v in pj.items())]
-        if motion == "random":
-            L.append("- unrelated random poses have no identity over time: their switch counts "
-                     "only show that tracking does not help there (chirality is per frame)")
+              "- the same run with the previous joint definitions and fit (tips at the branch "
+              "end, shoulders of the first calibration, inner weight 0.3): MPJPE "
+              f"{100 * np.median(pooled_before):.1f} cm ({len(pooled_before)} frames)",
+              "- per joint, median over all matched frames (cm), now ← previous definitions: "
+              + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pj0.get(j, [np.nan])):.1f}"
+                          for j, v in pj.items())]
     L += ["", "## Real recording (Pose2Sim balancing trial, against Pose2Sim's 3D result)", ""]
     if real is None or not real.get("frames"):
         L.append("- not measured: on main the per-frame result matches none of the recording's "

@@ -196,3 +196,18 @@ def test_process_sequence_names_joints_by_side():
         f = np.array(p.diagnostics["facing"])
         left = np.cross(UP, f)
         assert np.dot(p.joints["left_elbow"] - p.joints["right_elbow"], left) > 0.2
+
+
+def test_tip_joint_lies_beyond_the_branch_end_along_its_last_direction():
+    from topopose.pose.kinematic_fit import TIP_DIRECTION, _along, kinematic_tree
+    from topopose.pose.model import load_model as _load
+
+    # an L-shaped curve: 1 m along x, then 0.2 m along z (the last 10 % points up)
+    c = np.array([[0, 0, 0], [1.0, 0, 0], [1.0, 0, 0.2]])
+    assert TIP_DIRECTION <= 0.2 / 1.2                   # the chord lies on the last leg
+    assert np.allclose(_along(c, 1.0), [1.0, 0, 0.2])
+    assert np.allclose(_along(c, 1.0, 0.1), [1.0, 0, 0.2 + 0.1 * 1.2])
+    assert np.allclose(_along(c, 0.5), [0.6, 0, 0])
+    tree = kinematic_tree(_load("human"))
+    by = dict(zip(tree.names, tree.beyond))
+    assert by["fingertip_1"] > 0 and by["toe_2"] > 0 and by["wrist_1"] == 0 and by["neck"] == 0

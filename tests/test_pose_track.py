@@ -96,3 +96,135 @@ def test_missing_part_keeps_the_others_identity():
     perm, seg = assign_identities(t, obs, gate=0.5)
     assert perm[2][1] == 0 and list(perm[3]) == [1, 0] and list(perm[5]) == [0, 1]
     assert set(seg) == {0}
+
+
+def _walking(n=30, seed=1, misplace=()):
+    """Hands swinging beside the body, feet stepping; in the frames ``misplace`` the per-frame
+    result puts hand_1's position on foot_2 and foot_2's on hand_1 (what a per-frame matcher
+    misplacing parts does). Per-frame numbering random, returns the true trajectories."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n, dtype=float)
+    h1 = np.stack([0.2 * np.sin(t / 4), 0.25 + 0 * t, 0.9 + 0 * t], axis=1)
+    h2 = np.stack([-0.2 * np.sin(t / 4), -0.25 + 0 * t, 0.9 + 0 * t], axis=1)
+    f1 = np.stack([-0.25 * np.sin(t / 4), 0.1 + 0 * t, 0.05 + 0 * t], axis=1)
+    f2 = np.stack([0.25 * np.sin(t / 4), -0.1 + 0 * t, 0.05 + 0 * t], axis=1)
+    poses = []
+    for i in range(n):
+        hands, feet = [h1[i], h2[i]], [f1[i], f2[i]]
+        if i in misplace:
+            hands, feet = [f2[i], h2[i]], [f1[i], h1[i]]
+        sh, sf = rng.permutation(2), rng.permutation(2)
+        parts = {"head": np.array([0, 0, 1.7]), "torso": np.array([0, 0, 1.4]),
+                 "crotch": np.array([0, 0, 0.9]),
+                 "hand_1": hands[sh[0]], "hand_2": hands[sh[1]],
+                 "foot_1": feet[sf[0]], "foot_2": feet[sf[1]]}
+        curves = {k: np.repeat(v[None], 4, axis=0) for k, v in parts.items()}
+        poses.append(Pose(f"{i:06d}", "matched", 0.1, parts, None, {}, {"curves": curves}))
+    return poses, (h1, h2, f1, f2)
+
+
+def test_misplaced_part_is_held_at_its_prediction_and_flagged():
+    human = load_model("human")
+    poses, (h1, h2, f1, f2) = _walking(misplace=(12, 20, 21))
+    out = track(poses, human)
+    for traj, names in ((h1, ["hand_1", "hand_2"]), (h2, ["hand_1", "hand_2"]),
+                        (f1, ["foot_1", "foot_2"]), (f2, ["foot_1", "foot_2"])):
+        ids = _identity_of(out, traj, names)
+        assert len(set(ids)) == 1, ids                         # no switch
+    name_h1 = _identity_of(out, h1, ["hand_1", "hand_2"])[0]
+    name_f2 = _identity_of(out, f2, ["foot_1", "foot_2"])[0]
+    for i, p in enumerate(out):
+        if i in (12, 20, 21):
+            assert sorted(p.diagnostics["predicted"]) == sorted([name_h1, name_f2])
+            # the part is at its prediction (a few cm from the truth), the per-frame position kept
+            assert np.linalg.norm(p.parts[name_h1] - h1[i]) < 0.1
+            assert np.linalg.norm(p.parts[name_f2] - f2[i]) < 0.1
+            assert np.allclose(p.diagnostics["misplaced"][name_h1], f2[i], atol=1e-4)
+            assert name_h1 not in p.diagnostics["curves"] and "head" in p.diagnostics["curves"]
+            assert set(p.diagnostics["track"].values()) == {0}
+        else:
+            assert "predicted" not in p.diagnostics                   # never flagged otherwise
+            assert np.allclose(p.parts[name_h1], h1[i])
+    # the raw numbering does follow the misplaced part: the oracle can see the difference
+    assert len(set(_identity_of(poses, h1, ["hand_1", "hand_2"]))) == 2
+
+
+def test_consistently_different_for_several_frames_reinitializes():
+    # identity 0 moves smoothly, then from frame 6 on the per-frame result sees it 1 m away,
+    # consistently (a smooth trajectory of its own): followed after `reinit` frames
+    t = np.arange(14, dtype=float)
+    obs = [np.array([[0.02 * i, 0, 0], [0.02 * i, 2, 0]]) for i in range(14)]
+    for i in range(6, 14):
+        obs[i][0] = [0.02 * i, 0, 1.0]
+    perm, seg, held, pred = assign_identities(t, obs, gate=0.3, reinit=3, detail=True)
+    assert not held.any()                       # never judged misplaced: nothing to hold
+    assert [list(p) for p in perm] == [[0, 1]] * 14
+    assert list(seg[:8]) == [0] * 8 and list(seg[8:]) == [1] * 6     # re-initialized at frame 8
+    assert np.allclose(pred[9, 0], [0.02 * 8 + 0.5 * 0.02, 0, 1.0])  # now following it
+    # a jump for 4 frames judged misplaced (out of reach): held, never followed, no new segment
+    obs = [np.array([[0.02 * i, 0, 0], [0.02 * i, 2, 0]]) for i in range(14)]
+    for i in range(6, 10):
+        obs[i][0] = [0.02 * i, 0, 1.0]
+    bad = [np.array([6 <= i < 10, False]) for i in range(14)]
+    perm, seg, held, pred = assign_identities(t, obs, gate=0.3, reinit=3, misplaced=bad,
+                                              detail=True)
+    assert list(np.flatnonzero(held[:, 0])) == [6, 7, 8, 9] and not held[:, 1].any()
+    assert set(seg) == {0} and [list(p) for p in perm] == [[0, 1]] * 14
+    assert np.allclose(pred[9, 0, 1:], [0, 0])                        # on its trajectory
+    assert abs(pred[9, 0, 0] - 0.02 * 9) < 0.05
+    # held for longer than max_gap: the identity goes stale and takes the per-frame result
+    perm, seg, held, pred = assign_identities(t, obs, gate=0.3, reinit=3, max_gap=2,
+                                              misplaced=bad, detail=True)
+    assert list(np.flatnonzero(held[:, 0])) == [6, 7] and set(seg) == {0}
+
+
+def test_lost_across_a_gap_relinks_by_position_relative_to_the_anchor():
+    # the subject walks 0.05 m / frame along x; hands on either side of the torso (y = ±0.25)
+    # swing ±0.2 m; 8 frames unseen (> max_gap): tracking is lost, the walk has moved 0.45 m
+    # and the per-frame numbering of the first frame after the gap is swapped
+    t = np.array([0, 1, 2, 3, 4, 5, 14, 15, 16], float)
+    torso = np.stack([0.05 * t, 0 * t, 1.4 + 0 * t], axis=1)
+    h = [torso + np.stack([s * 0.2 * np.sin(t / 3), y + 0 * t, -0.5 + 0 * t], axis=1)
+         for s, y in ((1, 0.25), (-1, -0.25))]
+    obs = [np.stack([h[0][i], h[1][i]]) for i in range(len(t))]
+    obs[6] = obs[6][::-1]
+    perm, seg = assign_identities(t, obs, gate=0.3, max_gap=5, anchors=torso)
+    assert list(seg) == [0] * 6 + [1] * 3                    # lost, a new segment
+    assert list(perm[6]) == [1, 0] and list(perm[8]) == [0, 1]   # but the same identities
+    perm, seg = assign_identities(t, obs, gate=0.3, max_gap=5)   # without anchors:
+    assert list(perm[6]) == [0, 1]                           # the per-frame numbering (swapped)
+    perm, seg = assign_identities(t, obs, gate=0.3, max_gap=5, anchors=torso, relink=6)
+    assert list(perm[6]) == [0, 1]                           # gap longer than relink
+
+
+def test_relink_of_feet_compares_the_lateral_side_only():
+    # feet 0.2 m apart (y = ±0.1), swinging ±0.3 m fore and aft while the subject walks along
+    # x; after a 9-frame gap their fore-aft order has reversed: in 3D each foot is nearer the
+    # other's last relative position, laterally each stays on its side
+    t = np.array([0, 1, 2, 3, 4, 14, 15], float)
+    crotch = np.stack([0.05 * t, 0 * t, 0.9 + 0 * t], axis=1)
+    swing = np.array([0.3, 0.3, 0.3, 0.3, 0.3, -0.3, -0.3])
+    fa = crotch + np.stack([swing, 0.1 + 0 * t, -0.85 + 0 * t], axis=1)
+    fb = crotch + np.stack([-swing, -0.1 + 0 * t, -0.85 + 0 * t], axis=1)
+    obs = [np.stack([fa[i], fb[i]]) for i in range(len(t))]
+    up = np.tile([0.0, 0.0, 1.0], (len(t), 1))
+    perm, seg = assign_identities(t, obs, gate=0.3, anchors=crotch, up=up)
+    assert seg[5] == 1 and list(perm[5]) == [0, 1]          # lost, relinked laterally: right
+    perm, seg = assign_identities(t, obs, gate=0.3, anchors=crotch)
+    assert list(perm[5]) == [1, 0]                          # in 3D: the oracle sees the swap
+
+
+def test_a_part_on_another_groups_previous_position_is_flagged():
+    from topopose.pose.track import on_other_parts
+
+    def pose(i, h1, f1):
+        return Pose(f"{i:06d}", "matched", 0.1, {"hand_1": np.array(h1, float),
+                                                 "foot_1": np.array(f1, float),
+                                                 "torso": np.array([0, 0, 1.4])})
+    poses = [pose(0, [0.3, 0.2, 0.9], [0.2, 0.1, 0.05]),
+             pose(1, [0.25, 0.1, 0.08], [0.6, 0.1, 0.05]),        # hand where the foot was
+             pose(2, [0.3, 0.2, 0.9], [0.25, 0.1, 0.05])]
+    near = on_other_parts(poses, [True] * 3, ["hand_1"], ["foot_1"], 0.1)
+    assert near[0] is None and list(near[1]) == [True] and list(near[2]) == [False]
+    # the torso is not another group: a hand near it is not suspicious
+    assert list(on_other_parts(poses, [True] * 3, ["hand_1"], [], 0.1)[1]) == [False]

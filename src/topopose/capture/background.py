@@ -47,7 +47,7 @@ import numpy as np
 from ..errors import InputError
 from .camera import Camera
 
-SEQUENCE_METHODS = ("sequence", "selfie", "sequence+selfie")
+SEQUENCE_METHODS = ("sequence", "selfie", "sequence+selfie", "person")
 
 
 def scaled_camera(cam: Camera, scale: float) -> Camera:
@@ -301,6 +301,9 @@ def foreground_maps(cap, frame, images=None) -> list:
         q = None
         if method in ("sequence", "sequence+selfie"):
             q = foreground_probability(img, bg, p)
+        if method == "person":
+            from .segment import person_probability
+            q = person_probability(img, stream=(id(cap), c))
         if method in ("selfie", "sequence+selfie"):
             from .segment import selfie_probability
             q2 = selfie_probability(img, bg.zone, stream=(id(cap), c))

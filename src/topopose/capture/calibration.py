@@ -224,7 +224,7 @@ def read_capture_options(path, cameras=()) -> dict:
                          f"got {out['silhouettes']['median']}")
     if out["silhouettes"]["method"] not in ("diff", "mog2", "knn", *SEQUENCE_METHODS):
         raise InputError(f"{path}: [silhouettes] field 'method' must be \"diff\", \"mog2\", \"knn\", "
-                         f"\"sequence\", \"selfie\" or \"sequence+selfie\", "
+                         f"\"sequence\", \"selfie\", \"sequence+selfie\" or \"person\", "
                          f"got {out['silhouettes']['method']!r}")
     if out["silhouettes"]["fusion"] not in ("soft", "hard"):
         raise InputError(f"{path}: [silhouettes] field 'fusion' must be \"soft\" or \"hard\", "

@@ -1,5 +1,14 @@
 """Optional person segmentation by a network shipped inside a pip wheel (``[silhouettes]
-method = "selfie"`` or ``"sequence+selfie"``).
+method = "person"``, ``"selfie"`` or ``"sequence+selfie"``).
+
+``"person"``: MediaPipe's legacy *pose* solution (``mediapipe.solutions.pose``, BlazePose
+GHUM "full" model, inside the ``mediapipe`` wheel up to 0.10.14) with its segmentation output:
+the network finds the person, crops a region of interest around the whole body and returns a
+full-body person probability. Each image is segmented alone (``static_image_mode``): in
+tracking mode the mask of a frame depended on the frames segmented before it (the region of
+interest and the mask smoothing carry over), so a frame asked twice, or out of order, changed. Only that probability is used (its
+landmarks are not): the pose still comes from the hull's geometry. When it finds no one in a
+camera's image, that camera's probability is 0.5 everywhere (no vote).
 
 MediaPipe's legacy *selfie segmentation* model (``mediapipe.solutions.selfie_segmentation``,
 the general 256 × 256 model, ~250 kB, inside the ``mediapipe`` wheel up to 0.10.14: nothing is
@@ -11,25 +20,58 @@ installed: keep one).
 """
 from __future__ import annotations
 
+import threading
+
 import cv2
 import numpy as np
 
 from ..errors import InputError
 
 _MODEL = {}
+_LOCK = threading.Lock()     # one camera's network is fed by one thread at a time
 
 
-def _segmenter(stream):
+def _process(make, key, rgb):
+    """Run the network ``_MODEL[key]`` (made by ``make()`` on first use) on an RGB image.
+    MediaPipe's graph wants increasing timestamps: calls are serialized, and a graph that
+    failed (e.g. a frame asked again out of order) is rebuilt once."""
+    with _LOCK:
+        if key not in _MODEL:
+            _MODEL[key] = make()
+        try:
+            return _MODEL[key].process(rgb)
+        except (RuntimeError, ValueError):
+            _MODEL[key] = make()
+            return _MODEL[key].process(rgb)
+
+
+def _selfie():
     """One segmenter per camera: MediaPipe's solution smooths its masks over the images it is
     given in turn, which must then be one camera's frames, not several cameras'."""
-    if stream not in _MODEL:
-        try:
-            from mediapipe.python.solutions import selfie_segmentation
-        except ImportError:
-            raise InputError("[silhouettes] method \"selfie\" needs MediaPipe ≤ 0.10.14 "
-                             "(pip install \"topopose[segment]\")") from None
-        _MODEL[stream] = selfie_segmentation.SelfieSegmentation(model_selection=0)
-    return _MODEL[stream]
+    try:
+        from mediapipe.python.solutions import selfie_segmentation
+    except ImportError:
+        raise InputError("[silhouettes] method \"selfie\" needs MediaPipe ≤ 0.10.14 "
+                         "(pip install \"topopose[segment]\")") from None
+    return selfie_segmentation.SelfieSegmentation(model_selection=0)
+
+
+def _pose():
+    try:
+        from mediapipe.python.solutions import pose
+    except ImportError:
+        raise InputError("[silhouettes] method \"person\" needs MediaPipe ≤ 0.10.14 "
+                         "(pip install \"topopose[segment]\")") from None
+    return pose.Pose(static_image_mode=True, model_complexity=1, enable_segmentation=True)
+
+
+def person_probability(img: np.ndarray, stream="") -> np.ndarray:
+    """uint8 (h, w) full-body person probability (× 255) of a BGR image from MediaPipe's pose
+    network (module docstring); 128 everywhere when it finds no one. ``stream``: the camera."""
+    res = _process(_pose, ("person", stream), np.ascontiguousarray(img[:, :, ::-1]))
+    if res.segmentation_mask is None:
+        return np.full(img.shape[:2], 128, dtype=np.uint8)
+    return np.clip(res.segmentation_mask * 255 + 0.5, 0, 255).astype(np.uint8)
 
 
 def selfie_probability(img: np.ndarray, zone: np.ndarray | None = None, stream="") -> np.ndarray:
@@ -41,7 +83,7 @@ def selfie_probability(img: np.ndarray, zone: np.ndarray | None = None, stream="
         ys, xs = np.nonzero(zone)
         y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
     crop = np.ascontiguousarray(img[y0:y1, x0:x1, ::-1])
-    res = _segmenter(stream).process(crop)
+    res = _process(_selfie, ("selfie", stream), crop)
     out = np.zeros((h, w), dtype=np.uint8)
     if res.segmentation_mask is not None:
         out[y0:y1, x0:x1] = np.clip(res.segmentation_mask * 255 + 0.5, 0, 255).astype(np.uint8)

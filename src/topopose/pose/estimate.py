@@ -101,6 +101,19 @@ class FrameEstimator:
         :data:`THICKNESS`; cost 1–3 ms a frame at 100³ (×1.3–1.4, ``benchmarks/quality.py``).
     thickness_profile : dict, optional
         ``{part stem: (lo, hi)}`` relative radii overriding the model's.
+    tips : sequence of str
+        Leaf parts (by name stem) placed where their skeleton branch, prolonged, leaves the hull
+        (:func:`topopose.pose.tips.extremity_tips`) rather than at the branch's end, which
+        thinning leaves about one limb radius inside (complete models). Default ``("head",)``:
+        a head's branch ends near the ball's centre, 0.10–0.15 m below the crown; the ends of
+        thin hands and feet are within 2 cm of their tips, and prolonging them to the hull's
+        border lands 1–2 cm further on the real recording and on the ``body`` subject
+        (``benchmarks/real.py``, ``benchmarks/quality.py``). ``()``: off.
+    prune : float or None
+        Remove the skeleton's bumps before the data tree (:func:`topopose.skeleton.prune.
+        prune_bumps`, scale-axis ball containment): leaf branches whose inscribed balls stay
+        inside the junction's ball scaled by ``prune``. None: the model's entry in
+        :data:`PRUNE` (human: 2.0, measured there; other models: off); 0: off.
     junction_centroid : bool or None
         Place each junction part (model degree > 1) at the centroid of its co-optimal data
         vertices next to the chosen one (:func:`junction_position`) instead of the chosen
@@ -118,7 +131,7 @@ class FrameEstimator:
                  betweenness=True, max_missing=1, thinning="d6i1d", tolerance=None,
                  relation=None, fill=True, repair=None, junction_centroid=None, refocus=False,
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
-                 thickness_profile=None):
+                 thickness_profile=None, tips=("head",), prune=None):
         from ..match import Matcher
         from .confidence import MIN_CONFIDENCE
 
@@ -160,9 +173,16 @@ class FrameEstimator:
             thickness = DEFAULT_THICKNESS_WEIGHT
         self.thickness = float(thickness) if self.thickness_profile else 0.0
         self.thickness_reach = max(1, round(THICKNESS_REACH * self.resolution))
+        if prune is None:
+            prune = PRUNE.get(self.model.name, 0.0)
+        self.prune = float(prune)
         nb = [p for p in self.model.neighbours(self.model.root) if p in self.junctions
               or len(adj[p]) > 1]
         self._root_arc = nb[0] if nb else None
+        # leaf parts placed where their branch leaves the hull (pose/tips.py)
+        stems = set(tips or ())
+        self.tips = [p for p in self.model.parts if len(adj[p]) == 1 and self.model.complete
+                     and p.rstrip("_0123456789") in stems]
 
     def arc_cost(self, vol, data):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off."""
@@ -242,8 +262,16 @@ class FrameEstimator:
             # incomplete model: the skeleton end pinned where the infinite limb leaves the
             # grid is the border vertex (a mask, not "grid": fingertips touching the grid
             # side must not become infinite limbs too)
-            data = data_tree(skel, origin=vol.origin, voxel_size=vol.voxel_size,
-                             border=None if self.model.complete else keep)
+            if self.prune > 0:         # bumps of the surface are no limbs (skeleton.prune)
+                from ..skeleton.prune import prune_bumps
+
+                skel, data, _ = prune_bumps(skel, vol.data, self.prune, vol.origin,
+                                            vol.voxel_size,
+                                            border=None if self.model.complete else keep)
+                det.skeleton = skel
+            else:
+                data = data_tree(skel, origin=vol.origin, voxel_size=vol.voxel_size,
+                                 border=None if self.model.complete else keep)
             data_root = None
             if not self.model.complete:
                 data_root = _border_vertex(data)
@@ -295,6 +323,11 @@ class FrameEstimator:
             if pos is not None and p in self.junctions:
                 pos = junction_position(al, data, p, v)
             parts[p] = None if pos is None or p in unordered else np.asarray(pos, dtype=float)
+        if self.tips:
+            from .tips import extremity_tips
+            for p, x in extremity_tips(vol, skel, data, al.mapping, self.tips).items():
+                if parts.get(p) is not None:
+                    parts[p] = x
         missing = [p for p, x in parts.items() if x is None]
         status, error = "matched", None
         if not math.isfinite(dist) or dist > self.threshold:
@@ -319,6 +352,8 @@ class FrameEstimator:
                 "data_vertices": data.n_vertices, "missing": missing, **extra}
         if arc_cost is not None:
             diag["thickness_cost"] = round(thick, 6)
+        if self.prune > 0:
+            diag["pruned_bumps"] = len(data.diagnostics.get("pruned_bumps", ()))
         if unordered:
             diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
         if self.curves:
@@ -448,6 +483,19 @@ def betweenness_by_lengths(al, pattern, data, constraint):
 # frames, noise 1, 100³): separated 1.00 / 0 either way; all poses 0.75 / 0.118 → 0.80 / 0.
 # The dog, the spider and the hand have no profile (term off).
 DEFAULT_THICKNESS_WEIGHT = 1.0
+# Scale-axis pruning of skeleton bumps (topopose.skeleton.prune.prune_bumps) per model: the
+# ratio; models not listed: off. Measured on `body` (5 builds x seeds 41, 42 x 12 frames, 100³,
+# noise 1, 0.08 x height; TP rate / FP per match), separated; all poses:
+#   off                                   0.833 / 0.123;  0.592 / 0.145
+#   branch length < c x junction radius   c 1.0: 0.833 / 0.123, 0.600 / 0.143; c 1.5: 0.842 / 0.114,
+#                                         0.617 / 0.129; c 2.0: 0.858 / 0.104, 0.608 / 0.120
+#                                         (the head's short branch is pruned: missing limb 12 → 32)
+#   ball containment (default) < c        c 1.6: 0.842 / 0.114, 0.592 / 0.155; c 2.0: 0.858 / 0.096,
+#                                         0.617 / 0.129; c 2.4: 0.858 / 0.096, 0.600 / 0.163
+# (before the head tips of pose/tips.py; with them, c 2.0 contain: off 0.817 / 0.140; 0.567 / 0.181
+# → on 0.833 / 0.123; 0.592 / 0.165.) Held-out seeds: benchmarks/quality.py (quality_body.md,
+# "no-prune" rows).
+PRUNE = {"human": 2.0}
 THICKNESS = {"human": {"head": (0.30, 0.85), "hand": (0.0, 0.40), "foot": (0.0, 0.43),
                        "crotch": (0.83, 9.0), "torso": (0.67, 9.0)}}
 THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the largest within ± that

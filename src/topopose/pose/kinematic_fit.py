@@ -51,6 +51,7 @@ class KinematicTree:
     at: list
     offset: list = None            # (along the trunk, outward) per joint, in trunk lengths
     trunk: tuple = ()              # (from part, to part)
+    beyond: list = None            # tip joints: past the end part, × the curve length
 
     @property
     def root(self) -> int:
@@ -89,7 +90,7 @@ def kinematic_tree(model) -> KinematicTree:
     if not model.joints:
         raise InputError(f"model {model.name!r}: no [[joint]] declared; the full skeleton needs "
                          "joints along the arcs (see topopose.pose.model)")
-    names, base, arc, at, offset = [], [], [], [], []
+    names, base, arc, at, offset, beyond = [], [], [], [], [], []
     arcs = model_arcs(model)
     for u, v in arcs:
         for js in model.joints:
@@ -107,6 +108,7 @@ def kinematic_tree(model) -> KinematicTree:
                     break
             names.append(js.name + suffix)
             offset.append(tuple(float(x) for x in js.offset))
+            beyond.append(float(js.beyond) if t == 1.0 else 0.0)
             base.append(js.name)
             arc.append((u, v))
             at.append(t)
@@ -145,16 +147,29 @@ def kinematic_tree(model) -> KinematicTree:
         raise InputError(f"model {model.name!r}: the joints form {len(roots)} trees (roots "
                          f"{roots}); put a joint at at = 0 or 1 where arcs meet")
     return KinematicTree(names, base, parents, arc, at, offset,
-                         tuple(model.facing.get("trunk", ())))
+                         tuple(model.facing.get("trunk", ())), beyond)
 
 
-def _along(curve, t):
+TIP_DIRECTION = 0.1      # the tip direction: along the curve's last 10 % (see _along)
+
+
+def _along(curve, t, beyond=0.0):
+    """The point at relative arc length ``t`` of a curve; with ``beyond`` (t = 1), past its end
+    by ``beyond`` × its length along its last direction (the chord of its last
+    ``TIP_DIRECTION``): thinning stops a skeleton branch short of the limb's tip."""
     c = np.asarray(curve, dtype=float)
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
     if s[-1] <= 0:
         return c[0]
     x = t * s[-1]
-    return np.array([np.interp(x, s, c[:, k]) for k in range(3)])
+    out = np.array([np.interp(x, s, c[:, k]) for k in range(3)])
+    if beyond:
+        back = np.array([np.interp((1 - TIP_DIRECTION) * s[-1], s, c[:, k]) for k in range(3)])
+        d = c[-1] - back
+        n = np.linalg.norm(d)
+        if n > 0:
+            out = out + beyond * s[-1] * d / n
+    return out
 
 
 def initial_placement(pose, tree: KinematicTree) -> np.ndarray:
@@ -164,7 +179,7 @@ def initial_placement(pose, tree: KinematicTree) -> np.ndarray:
     for j, ((u, v), t) in enumerate(zip(tree.arc, tree.at)):
         c = curves.get(v)
         if c is not None:
-            out[j] = _along(c, t)
+            out[j] = _along(c, t, tree.beyond[j] if tree.beyond else 0.0)
     if tree.trunk and any(any(o) for o in tree.offset):
         a, b = (pose.parts.get(x) for x in tree.trunk)
         if a is None or b is None:
@@ -227,7 +242,7 @@ def _seg_dist(q, A, B):
     return np.linalg.norm(q[:, None, :] - proj, axis=2).min(axis=1)
 
 
-def fit_frame(target, curves, L, tree: KinematicTree, start=None, inner_weight=0.3,
+def fit_frame(target, curves, L, tree: KinematicTree, start=None, inner_weight=1.0,
               curve_weight=1.0):
     """Fit the kinematic tree to one frame (see the module docstring), one arc chain at a time
     from the root down: each chain's first joint is fixed by the chains above it, its bone
@@ -301,7 +316,7 @@ def _directions(P, tree):
     return D
 
 
-def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=0.3):
+def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0):
     """Fit the full skeleton to every matched frame of a sequence (see the module docstring).
 
     Parameters
@@ -310,6 +325,11 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=0.3):
     model : Model with ``[[joint]]`` declarations
     max_gap : longest run of unfitted frames filled by interpolation (0: none)
     smooth : None or an odd Savitzky–Golay window (frames, polynomial order 2)
+    inner_weight : weight of the initial placement of the joints inside an arc (elbows,
+        knees, ...) against the curve term. Calibration set of the model's joints (seeds
+        101–116, 8 walks and 6 random-pose sequences, gate off, MPJPE median): 0.3 → 1.0 →
+        2.0 gives walks 4.88 → 4.44 → 4.45 cm, random poses 6.76 → 6.29 → 6.17 cm (the
+        initial placement: 4.50 and 6.03 cm)
 
     Returns
     -------

@@ -76,7 +76,7 @@ _EDGE_KEYS = {"parts", "length"}
 _CONSTRAINT_KEYS = {"kind", "parts", "axis", "relation"}
 _MIRROR_KEYS = {"parts", "names"}
 _FACING_KEYS = {"feet", "axis", "trunk"}
-_JOINT_KEYS = {"name", "arc", "at", "offset"}
+_JOINT_KEYS = {"name", "arc", "at", "offset", "beyond"}
 
 
 @dataclass(frozen=True)
@@ -88,6 +88,7 @@ class JointSpec:
     arc: tuple
     at: float
     offset: tuple = (0.0, 0.0)     # (along the trunk, outward from the mirror partner) × trunk
+    beyond: float = 0.0            # a tip joint (at = 1): past the end part, × the curve length
 
 
 @dataclass
@@ -206,6 +207,7 @@ class Model:
         if self.joints:
             out["joint"] = [{"name": j.name, "arc": list(j.arc), "at": float(j.at)}
                             | ({"offset": [float(x) for x in j.offset]} if any(j.offset) else {})
+                            | ({"beyond": float(j.beyond)} if j.beyond else {})
                             for j in self.joints]
         return out
 
@@ -308,6 +310,10 @@ def validate_model(m: Model) -> None:
         if (isinstance(j.at, bool) or not isinstance(j.at, (int, float))
                 or not 0.0 <= float(j.at) <= 1.0):
             raise InputError(f"{jw}: field 'at' must be a number in [0, 1], got {j.at!r}")
+        if (isinstance(j.beyond, bool) or not isinstance(j.beyond, (int, float))
+                or not 0.0 <= float(j.beyond) <= 1.0 or (j.beyond and float(j.at) != 1.0)):
+            raise InputError(f"{jw}: field 'beyond' must be a number in [0, 1] on a joint at "
+                             f"at = 1, got {j.beyond!r}")
     for i, c in enumerate(t.constraints):
         cw = f"{where}: constraint[{i}]"
         if not isinstance(c, Constraint):
@@ -442,11 +448,12 @@ def model_from_dict(d: dict, source: str = "model") -> Model:
     for i, j in enumerate(d.get("joint") or []):
         if not isinstance(j, dict) or not {"name", "arc", "at"} <= set(j) <= _JOINT_KEYS:
             raise InputError(f"{source}: joint[{i}]: expected a table with name, arc, at "
-                             "(and optional offset)")
+                             "(and optional offset, beyond)")
         off = j.get("offset", (0.0, 0.0))
         joints.append(JointSpec(j["name"], tuple(j["arc"]) if isinstance(j["arc"], list)
                                 else j["arc"], j["at"],
-                                tuple(off) if isinstance(off, list) else off))
+                                tuple(off) if isinstance(off, list) else off,
+                                j.get("beyond", 0.0)))
     return Model(name=name, tree=tree, root=meta.get("root"), complete=complete,
                  threshold=meta.get("threshold"), description=meta.get("description", ""),
                  source=source, mirrors=mirrors, facing=dict(facing), joints=joints)

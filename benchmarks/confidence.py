@@ -28,7 +28,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 BUILDS = ("average", "heavy", "child", "lean", "random")
 TOLERANCE = 0.08          # × subject height
-TARGET = 0.985             # precision asked of the calibration seeds (the issue: ≥ 0.95 held out)
+TARGET = 0.98             # precision asked of the calibration seeds (the issue: ≥ 0.95 held out)
 SWAP_WEIGHT = 0.1
 FIT_FEATURES = ("distance", "missing", "arc_dev", "head_low", "head_radius", "head_bend",
                 "head_offset", "head_reach", "trunk")
@@ -134,7 +134,7 @@ def fit(rows, features, half, l2):
     """Coefficients on the calibration seeds' base-matched frames (gate off, status
     "matched"), and the smallest minimum at which the calibration frames reach TARGET
     precision — judged on out-of-fold confidences (two folds by seed parity, each scored by a
-    model fitted on the other), which behave like held-out ones: the in-sample confidences
+    model fitted on the other; never reached: the most precise minimum), which behave like held-out ones: the in-sample confidences
     of the wrong frames are optimistic."""
     from topopose.pose.confidence import logistic_confidence
 
@@ -147,12 +147,17 @@ def fit(rows, features, half, l2):
                 if r["seed"] % 2 == k and not r.get("augmented")]
     c = np.array([x for x, _ in oof])
     y = np.array([g for _, g in oof], float)
-    best = 0.95
-    for t in np.arange(0.30, 0.951, 0.01):
+    best, best_p = None, -1.0
+    for t in np.arange(0.30, 0.991, 0.01):
         m = c >= t
-        if m.sum() and y[m].mean() >= TARGET:
+        p = y[m].mean() if m.sum() else -1.0
+        if p >= TARGET:
             best = round(float(t), 2)
             break
+        if p > best_p:                   # never reached: the most precise minimum
+            best_p, fallback = p, round(float(t), 2)
+    if best is None:
+        best = fallback
     model["min_confidence"] = best
     return model
 

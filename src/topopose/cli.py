@@ -396,8 +396,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--confidence-gate", choices=["auto", "on", "off"], default="auto",
                    help="human model: 'matched' also needs the fitted confidence >= its minimum "
                         "(topopose/pose/confidence_model.json); auto (default): on (measured on "
-                        "held-out synthetic frames, 8 cameras: precision 0.84 -> 0.96 for recall "
-                        "0.98 -> 0.96)")
+                        "held-out synthetic frames, 8 cameras: precision 0.79 -> 0.97 for recall "
+                        "0.97 -> 0.84)")
     s.add_argument("--tolerance", type=int, default=None,
                    help="visual hull: keep voxels seen by C-k cameras (default 1 with >= 6 cameras, else 0)")
     s.add_argument("--rerun", metavar="FILE.rrd")

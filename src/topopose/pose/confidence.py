@@ -21,7 +21,8 @@ the calibration frames showed:
   and were tried: they add nothing the distance does not already see (a spurious branch is a
   deleted data arc the AHA distance pays for);
 - the minimum is the smallest at which the calibration frames' *out-of-fold* confidences
-  (two folds by seed, each scored by a model fitted on the other) reach 98.5 % precision;
+  (two folds by seed, each scored by a model fitted on the other) reach 98 % precision (else
+  the most precise minimum);
 - the fit also sees, as wrong frames, the issue's failure made on purpose: each right frame
   with the head's and a hand's data vertices exchanged (a hand given the head);
 - **hull**: f_hull = clip((s − s_min) / (0.95 − s_min), 0, 1) where s is the share of the

@@ -681,10 +681,9 @@ def default_gate(cap) -> bool:
     With the fitted confidence (:mod:`.confidence`, ``benchmarks/results/confidence.md``:
     held-out seeds of ``body`` and the capsule human, walk and random, noise 1, 100³, right =
     every part within 0.08 × height; matched frames, precision, recall of the right frames):
-    8 cameras 283, 0.837, 0.975 without the gate → 242, 0.963, 0.959 with it; 4 cameras 13,
-    0.69, 0.08 → 7, 1.0, 0.06. (The earlier product confidence halved the right frames with 8
+    8 cameras 291, 0.79, 0.97 without the gate → 205, 0.97, 0.84 with it; 4 cameras 18, 0.50,
+    0.10 → 6, 0.83, 0.05. (The earlier product confidence halved the right frames with 8
     cameras, so the gate was on with fewer than 6 cameras only.) ``cap`` is kept for callers.
-    """
     return True
 
 

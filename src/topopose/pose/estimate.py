@@ -684,6 +684,7 @@ def default_gate(cap) -> bool:
     8 cameras 291, 0.79, 0.97 without the gate → 205, 0.97, 0.84 with it; 4 cameras 18, 0.50,
     0.10 → 6, 0.83, 0.05. (The earlier product confidence halved the right frames with 8
     cameras, so the gate was on with fewer than 6 cameras only.) ``cap`` is kept for callers.
+    """
     return True
 
 

@@ -77,6 +77,82 @@ def test_flood_equals_brute_force_geodesic_labelling(connectivity, seed):
     assert np.array_equal(_padded(mask, seeds, start, connectivity), ref2)
 
 
+def _brute_weighted(mask, seeds, start):
+    """Min over seeds of start + Euclidean geodesic distance (26-adjacency, steps 1, √2, √3)."""
+    from scipy.sparse.csgraph import dijkstra
+
+    ijk = np.argwhere(mask)
+    idx = {tuple(p): i for i, p in enumerate(ijk)}
+    rows, cols, w = [], [], []
+    for i, p in enumerate(ijk):
+        for d in itertools.product((-1, 0, 1), repeat=3):
+            j = idx.get(tuple(p + d))
+            if j is not None and j != i:
+                rows.append(i)
+                cols.append(j)
+                w.append(np.sqrt(np.sum(np.abs(d))))
+    G = csr_matrix((w, (rows, cols)), shape=(len(ijk),) * 2)
+    lab = seeds[tuple(ijk.T)]
+    s_idx = np.flatnonzero(lab > 0)
+    Dm = dijkstra(G, indices=s_idx) + start[tuple(ijk.T)][s_idx][:, None]
+    best = Dm.min(0)
+    out = np.zeros(mask.shape, np.int32)
+    for x in np.flatnonzero(np.isfinite(best)):
+        out[tuple(ijk[x])] = lab[s_idx][Dm[:, x] <= best[x] + 1e-9].min()
+    return out, best
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_weighted_flood_equals_brute_force_dijkstra(seed):
+    from topopose.pose.segment_kernels import flood_weighted
+
+    rng = np.random.default_rng(seed)
+    mask = rng.random((7, 6, 5)) < 0.65
+    seeds = np.zeros(mask.shape, np.int32)
+    pts = np.argwhere(mask)
+    for i in rng.choice(len(pts), 6, replace=False):
+        seeds[tuple(pts[i])] = rng.integers(1, 4)
+    start = np.where(seeds > 0, rng.random(mask.shape) * 3, 0.0)
+    ref, dist = _brute_weighted(mask, seeds, start)
+    m = np.pad(mask, 1).view(np.uint8)
+    s = np.pad(seeds, 1)
+    d = flood_weighted(m.reshape(-1), s.reshape(-1), np.pad(start, 1).reshape(-1),
+                       S._offsets(m.shape, 26), S._step_lengths(26), np.ones(m.size))
+    assert np.array_equal(s[1:-1, 1:-1, 1:-1], ref)
+    d = d.reshape(m.shape)[1:-1, 1:-1, 1:-1]
+    assert np.allclose(d[mask], dist)
+    assert np.isinf(d[~mask]).all()
+
+
+def test_radius_weighting_moves_the_boundary_towards_the_narrowing():
+    """A dumbbell along x: a thick bar (radius 6, the trunk, x < 14) and a thin one (radius 1.5,
+    a limb); the limb's skeleton starts inside the trunk (x = 11), as a limb's branch starts at a
+    junction. On the axis the fronts meet half-way between the seeds' ends with plain flooding;
+    with the radius weighting the limb starts ``tau = delay · (r_trunk − r_limb)`` late (radii:
+    the seeds' median distance to the border) and the trunk's front overruns its seeds up to
+    x = 8 + tau, at the narrowing; the trunk's flanks beside the limb's seeds stay in the trunk."""
+    from scipy import ndimage
+
+    x, y, z = np.mgrid[0:48, 0:15, 0:15]
+    rr = np.hypot(y - 7, z - 7)
+    mask = ((x >= 1) & (x < 14) & (rr <= 6)) | ((x >= 14) & (x < 46) & (rr <= 1.5))
+    seeds = np.zeros(mask.shape, np.int32)
+    seeds[5:9, 7, 7] = 1
+    seeds[11:45, 7, 7] = 2
+    plain = S.flood_labels(mask, seeds, 26, "none")
+    assert (plain[1:10, 7, 7] == 1).all() and (plain[10:46, 7, 7] == 2).all()   # (8 + 11) / 2
+    edt = ndimage.distance_transform_edt(np.pad(mask, 1))[1:-1, 1:-1, 1:-1]
+    tau = S.DELAY["radius"] * (np.median(edt[seeds == 1]) - np.median(edt[seeds == 2]))
+    boundary = 8 + tau
+    assert 12 <= boundary <= 14
+    out = S.flood_labels(mask, seeds, 26, "radius")
+    axis = out[:, 7, 7]
+    assert (axis[1:int(np.floor(boundary)) + 1] == 1).all()
+    assert (axis[int(np.floor(boundary)) + 1:46] == 2).all()
+    flank = mask & (x < 14) & (rr >= 3)
+    assert (out[flank] == 1).all() and np.mean(plain[flank] == 1) < 0.8
+
+
 def test_flood_ties_go_to_the_smallest_label():
     mask = np.ones((5, 1, 1), bool)
     seeds = np.zeros(mask.shape, np.int32)

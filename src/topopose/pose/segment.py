@@ -14,8 +14,9 @@ the color labeled voxels."
    labelled skeleton voxels at once (:func:`.segment_kernels.flood`): each hull voxel takes the
    label of the nearest labelled voxel in steps of the 26- (or 6-) adjacency, ties to the
    smallest label. Hull voxels not connected to a labelled voxel stay 0. By default each part
-   enters the flood late by how much thinner it is than the thickest part
-   (``weighting="part"``): plain flooding lets the limbs' skeleton, which starts at a junction
+   enters the flood late by how much thinner it is than the thickest part, and the fronts
+   advance by Euclidean step lengths (``weighting="radius"``, Dijkstra,
+   :func:`.segment_kernels.flood_weighted`): plain flooding lets the limbs' skeleton, which starts at a junction
    inside the trunk, claim much of the trunk (measured in ``benchmarks/applications.py``).
 
 Labels are 1..E in the order of the model's edges, named ``"u-v"`` (e.g. ``"torso-hand_1"``);
@@ -160,6 +161,18 @@ def _offsets(shape, connectivity):
     return np.array([a * sy + b * sz + c for a, b, c in d], np.int64)
 
 
+def _step_lengths(connectivity):
+    """Euclidean lengths of the neighbour offsets of :func:`_offsets`, in the same order."""
+    if connectivity == 6:
+        return np.ones(6)
+    return np.array([math.sqrt(sum(map(abs, x))) for x in itertools.product((-1, 0, 1), repeat=3)
+                     if x != (0, 0, 0)])
+
+
+#: default delay per weighting (see :func:`flood_labels`)
+DELAY = {"part": 1.5, "radius": 1.25}
+
+
 def _box(mask, bbox=None):
     if bbox is not None:
         lo, hi = bbox
@@ -171,23 +184,33 @@ def _box(mask, bbox=None):
 
 
 def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", bbox=None,
-                 delay: float = 1.5):
+                 delay: float | None = None):
     """Flood ``mask`` from the labelled voxels of ``seeds`` (step 2 of §13.3.1.1).
 
-    ``weighting="none"``: each voxel of ``mask`` connected to a seed gets the label of its
-    geodesic nearest seed inside the mask (steps of the 26- or 6-adjacency), ties to the
-    smallest label; voxels connected to no seed stay 0. ``weighting="part"``: the seeds of
-    label L enter the flood ``delay · (D − r_L)`` steps late, r_L being the median over L's
-    seeds of their number of steps to the hull's border (the part's radius, by
-    :func:`.segment_kernels.depth`) and D the largest r_L: thick parts start first, so the
-    spine of a thick trunk keeps the trunk against the thin limbs whose skeleton starts beside
-    it, inside the trunk. ``delay = 1.5`` was chosen on seed 1 of ``benchmarks/applications.py``
-    (voxel accuracy, capsule human, 16 frames: 0.875 / 0.904 / 0.907 / 0.887 for delay 1 / 1.5 /
-    2 / 3; body, 12 frames: 0.849 / 0.845 / 0.839 / 0.789; plain flooding 0.78 / 0.79); the
-    benchmark measures on other seeds). Runs on the
-    mask's bounding box (``bbox``: ([x0, y0, z0], [x1, y1, z1]) inclusive, as
-    ``Volume.diagnostics["bbox"]``, or computed) with
-    :func:`.segment_kernels.flood`.
+    ``weighting="none"`` (the thesis' plain flooding): each voxel of ``mask`` connected to a
+    seed gets the label of its geodesic nearest seed inside the mask (steps of the 26- or
+    6-adjacency, breadth first, :func:`.segment_kernels.flood`), ties to the smallest label;
+    voxels connected to no seed stay 0.
+
+    ``weighting="radius"`` (default of :func:`segment`): each part enters the flood late by how
+    much thinner it is than the thickest part: the seeds of label L start at
+    ``delay · (D − r_L)``, r_L being the median over L's seeds of their Euclidean distance to
+    the hull's border (:func:`scipy.ndimage.distance_transform_edt`: the part's radius) and D
+    the largest r_L, and the fronts advance by the Euclidean length of each step (1, √2, √3:
+    :func:`.segment_kernels.flood_weighted`, Dijkstra). A voxel goes to the part whose
+    skeleton ball reaches it soonest: the thick trunk keeps its flanks against the thin limbs
+    whose skeleton starts beside its spine, inside the trunk (plain flooding gives them much of
+    the trunk). ``delay = 1.25`` (voxels per voxel of radius) was chosen on seeds 1 and 11 of
+    the ``body`` subject (28 good frames; voxel accuracy 0.877 / 0.880 / 0.875 for delay
+    1 / 1.25 / 1.5; the former default below 0.844, plain flooding 0.735); the benchmark
+    measures on other seeds.
+
+    ``weighting="part"`` (the former default, kept for comparison): the same idea in
+    breadth-first steps (``delay`` 1.5 steps per step of the border distance
+    :func:`.segment_kernels.depth`).
+
+    Runs on the mask's bounding box (``bbox``: ([x0, y0, z0], [x1, y1, z1]) inclusive, as
+    ``Volume.diagnostics["bbox"]``, or computed).
 
     Examples
     --------
@@ -195,15 +218,17 @@ def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", b
     >>> flood_labels(m, s, 6).ravel().tolist()
     [1, 1, 1, 2, 2]
     """
-    from .segment_kernels import depth, flood
+    from scipy import ndimage
+
+    from .segment_kernels import depth, flood, flood_weighted
 
     mask = np.asarray(mask, bool)
     seeds = np.asarray(seeds)
     if mask.ndim != 3 or seeds.shape != mask.shape:
         raise InputError(f"segment: mask and seeds must be 3D arrays of one shape, got {mask.shape}"
                          f" and {seeds.shape}")
-    if weighting not in ("none", "part"):
-        raise InputError(f"segment: weighting must be 'none' or 'part', got {weighting!r}")
+    if weighting not in ("none", "part", "radius"):
+        raise InputError(f"segment: weighting must be 'none', 'part' or 'radius', got {weighting!r}")
     out = np.zeros(mask.shape, np.int32)
     box = _box(mask, bbox)
     if box is None:
@@ -212,22 +237,29 @@ def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", b
     sub_s = np.pad(seeds[box].astype(np.int32), 1)
     offsets = _offsets(sub_m.shape, connectivity)
     flat_m, flat_s = sub_m.reshape(-1), sub_s.reshape(-1)
-    if weighting == "part":
-        d = depth(flat_m, offsets)
-        sel = flat_s > 0
+    if weighting == "none":
+        flood(flat_m, flat_s, np.zeros(flat_m.size, np.int32), offsets)
+    else:
+        if weighting == "part":
+            d = depth(flat_m, offsets)
+        else:
+            d = ndimage.distance_transform_edt(sub_m).reshape(-1)
+        sel = (flat_s > 0) & (flat_m > 0)
         r = np.zeros(int(flat_s.max()) + 1)
         for lab in np.unique(flat_s[sel]):
-            r[lab] = np.median(d[flat_s == lab])
-        start = np.round(delay * (r.max() - r[flat_s])).astype(np.int32)
-    else:
-        start = np.zeros(flat_m.size, np.int32)
-    flood(flat_m, flat_s, start, offsets)
+            r[lab] = np.median(d[sel & (flat_s == lab)])
+        late = (r.max() - r[flat_s]) * (DELAY[weighting] if delay is None else delay)
+        if weighting == "part":
+            flood(flat_m, flat_s, np.round(late).astype(np.int32), offsets)
+        else:
+            flood_weighted(flat_m, flat_s, late, offsets, _step_lengths(connectivity),
+                           np.ones(flat_m.size))
     out[box] = sub_s[1:-1, 1:-1, 1:-1]
     return out
 
 
 def segment(volume, skeleton, alignment, data=None, *, names=None, connectivity: int = 26,
-            weighting: str = "part", delay: float = 1.5):
+            weighting: str = "radius", delay: float | None = None):
     """Body-part segmentation of a visual hull (thesis §13.3.1.1).
 
     Parameters
@@ -240,8 +272,8 @@ def segment(volume, skeleton, alignment, data=None, *, names=None, connectivity:
         vertex ids are deterministic, so they are the alignment's)
     names : label names (default ``"u-v"`` per pattern arc of the alignment)
     connectivity : 26 (default) or 6
-    weighting, delay : ``"part"`` (default; delay 1.5) or ``"none"`` (the thesis' plain
-        flooding), see :func:`flood_labels`
+    weighting, delay : ``"radius"`` (default; delay 1.25), ``"part"`` (the former default;
+        delay 1.5) or ``"none"`` (the thesis' plain flooding), see :func:`flood_labels`
 
     Returns
     -------

@@ -106,3 +106,86 @@ def flood(mask, labels, start, offsets):
                         labels[j] = lab
         level += 1
     return tail
+
+
+@njit(cache=True)
+def _push(hk, hv, hl, size, k, v, lab):
+    i = size
+    hk[i] = k
+    hv[i] = v
+    hl[i] = lab
+    while i > 0:
+        p = (i - 1) >> 1
+        if hk[p] < hk[i] or (hk[p] == hk[i] and hl[p] <= hl[i]):
+            break
+        hk[p], hk[i] = hk[i], hk[p]
+        hv[p], hv[i] = hv[i], hv[p]
+        hl[p], hl[i] = hl[i], hl[p]
+        i = p
+    return size + 1
+
+
+@njit(cache=True)
+def _pop(hk, hv, hl, size):
+    k, v, lab = hk[0], hv[0], hl[0]
+    size -= 1
+    hk[0], hv[0], hl[0] = hk[size], hv[size], hl[size]
+    i = 0
+    while True:
+        a = 2 * i + 1
+        b = a + 1
+        m = i
+        if a < size and (hk[a] < hk[m] or (hk[a] == hk[m] and hl[a] < hl[m])):
+            m = a
+        if b < size and (hk[b] < hk[m] or (hk[b] == hk[m] and hl[b] < hl[m])):
+            m = b
+        if m == i:
+            break
+        hk[m], hk[i] = hk[i], hk[m]
+        hv[m], hv[i] = hv[i], hv[m]
+        hl[m], hl[i] = hl[i], hl[m]
+        i = m
+    return k, v, lab, size
+
+
+@njit(cache=True)
+def flood_weighted(mask, labels, start, offsets, steps, cost):
+    """Multi-source Dijkstra flooding of ``mask`` from the voxels with ``labels > 0``.
+
+    In place on ``labels`` (int32): every mask voxel reachable from a seed gets the label of
+    the seed s minimizing ``start[s] + Σ steps[k] · (cost[a] + cost[b]) / 2`` over the steps
+    a → b of a path inside the mask (``steps[k]``: the length of neighbour offset k, e.g. 1,
+    √2, √3; ``cost``: a per-voxel price, 1 everywhere for the Euclidean geodesic distance),
+    ties to the smallest label. Returns the distances (inf where not reached).
+    """
+    n = mask.size
+    dist = np.full(n, np.inf)
+    cap = 1
+    for i in range(n):
+        if mask[i]:
+            cap += 1
+    cap *= offsets.size + 1
+    hk = np.empty(cap)
+    hv = np.empty(cap, np.int64)
+    hl = np.empty(cap, np.int32)
+    size = 0
+    own = labels.copy()
+    for i in range(n):
+        labels[i] = 0
+    for i in range(n):
+        if own[i] > 0 and mask[i]:
+            size = _push(hk, hv, hl, size, start[i], i, own[i])
+    while size > 0:
+        d, i, lab, size = _pop(hk, hv, hl, size)
+        if labels[i] != 0:
+            continue
+        labels[i] = lab
+        dist[i] = d
+        for k in range(offsets.size):
+            j = i + offsets[k]
+            if mask[j] and labels[j] == 0:
+                nd = d + steps[k] * 0.5 * (cost[i] + cost[j])
+                if nd <= dist[j]:
+                    dist[j] = nd
+                    size = _push(hk, hv, hl, size, nd, j, lab)
+    return dist

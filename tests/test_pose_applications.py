@@ -153,6 +153,69 @@ def test_radius_weighting_moves_the_boundary_towards_the_narrowing():
     assert (out[flank] == 1).all() and np.mean(plain[flank] == 1) < 0.9
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_bone_vote_equals_brute_force(seed):
+    """With bones, each voxel takes the label minimizing (1 − w) · (own flood) + w · (distance
+    to the label's bones): per label a brute-force Dijkstra and a point-segment distance."""
+    rng = np.random.default_rng(seed)
+    mask = rng.random((7, 6, 5)) < 0.7
+    seeds = np.zeros(mask.shape, np.int32)
+    pts = np.argwhere(mask)
+    for i in rng.choice(len(pts), 8, replace=False):
+        seeds[tuple(pts[i])] = rng.integers(1, 4)
+    bones = [(rng.random(3) * 6, rng.random(3) * 6, lab) for lab in (1, 1, 2)]   # label 3: none
+    w = 0.7
+    out = S.flood_labels(mask, seeds, 26, "radius", delay=0.0, bones=bones, bone_weight=w)
+    ijk = np.argwhere(mask).astype(float)
+    labs = sorted(set(seeds[mask].tolist()) - {0})
+    score = []
+    for lab in labs:
+        _, t = _brute_weighted(mask, np.where(seeds == lab, lab, 0), np.zeros(mask.shape))
+        segs = []
+        for a, b, bl in bones:
+            if bl == lab:
+                lam = np.clip((ijk - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
+                segs.append(np.linalg.norm(ijk - (a + lam[:, None] * (b - a)), axis=1))
+        score.append(t if not segs else (1 - w) * t + w * np.min(segs, 0))
+    score = np.array(score)
+    ref = np.zeros(mask.shape, np.int32)
+    ok = np.isfinite(score.min(0))
+    ref[tuple(ijk[ok].astype(int).T)] = np.array(labs)[np.argmin(score, 0)[ok]]
+    assert np.array_equal(out, ref)
+    with pytest.raises(InputError):
+        S.flood_labels(mask, seeds, 26, "part", bones=bones)
+
+
+def test_bone_segments_put_each_limb_from_its_first_joint():
+    """Human model, straight curves: the first bone of each limb's arc (chest → shoulder,
+    chest → neck, pelvis → hip) is the trunk's, the next ones the limb's."""
+    from topopose.pose.model import load_model
+    from topopose.pose.pose import Pose
+
+    model = load_model("human")
+    names = S.arc_names(model)
+    P = {"torso": (0, 0, 1.4), "head": (0, 0, 1.75), "crotch": (0, 0, 0.9),
+         "hand_1": (-0.7, 0, 1.4), "hand_2": (0.7, 0, 1.4), "foot_1": (-0.2, 0, 0.0),
+         "foot_2": (0.2, 0, 0.0)}
+    curves = {k: np.linspace(P["crotch" if k.startswith("foot") else "torso"], P[k], 16).tolist()
+              for k in P if k != "torso"}
+    pose = Pose("0", "matched", 0.0, {k: np.array(v, float) for k, v in P.items()},
+                diagnostics={"curves": curves})
+    bones = S.bone_segments(pose, model, names)
+    lab = {n: i + 1 for i, n in enumerate(names)}
+    assert len(bones) == 19
+    for a, b, L in bones:
+        if b[2] > 1.7:                                           # neck → skull (at 0.58 → 0.93)
+            assert L == lab["torso-head"]
+        elif abs(b[0]) > 0.3 and b[2] > 1.0:                     # elbows, wrists, fingertips
+            assert L == lab[f"torso-hand_{1 if b[0] < 0 else 2}"]
+        elif b[2] < 0.6:                                         # knees and below
+            assert L == lab[f"crotch-foot_{1 if b[0] < 0 else 2}"]
+    firsts = [L for a, b, L in bones if np.allclose(a, P["torso"]) or np.allclose(a, P["crotch"])]
+    assert len(firsts) == 6 and set(firsts) == {lab["torso-crotch"]}   # from chest, pelvis: trunk
+    assert S.bone_segments(Pose("0", "matched", 0.0, pose.parts), model, names) == []
+
+
 def test_flood_ties_go_to_the_smallest_label():
     mask = np.ones((5, 1, 1), bool)
     seeds = np.zeros(mask.shape, np.int32)
@@ -261,6 +324,11 @@ def test_segment_synthetic_human_against_ground_truth(tmp_path):
         assert nm == names
         hull = det.volume.data
         assert not lab[~hull].any() and (lab[hull] > 0).mean() > 0.99
+        bl, _ = S.segment(det.volume, det.skeleton, det.alignment, det.data, names=names,
+                          pose=pose, model=est.model)                      # with the bones
+        assert not bl[~hull].any() and (bl[hull] > 0).mean() > 0.99
+        accs.append(S.renumbered_accuracy(bl, S.synthetic_truth(det.volume, cap.options["bodies"][fi],
+                                                                names), names))
         truth = S.synthetic_truth(det.volume, cap.options["bodies"][fi], names)
         accs.append(S.renumbered_accuracy(lab, truth, names))
         masks = S.camera_masks(cap, lab, det.volume.origin, det.volume.voxel_size, cap.silhouettes(f))

@@ -15,7 +15,7 @@ the color labeled voxels."
    label of the nearest labelled voxel in steps of the 26- (or 6-) adjacency, ties to the
    smallest label. Hull voxels not connected to a labelled voxel stay 0. By default each part
    enters the flood late by how much thinner it is than the thickest part, and the fronts
-   advance by Euclidean step lengths (``weighting="radius"``, Dijkstra,
+   advance by chamfer step lengths (``weighting="radius"``,
    :func:`.segment_kernels.flood_weighted`): plain flooding lets the limbs' skeleton, which starts at a junction
    inside the trunk, claim much of the trunk (measured in ``benchmarks/applications.py``).
    Given the frame's pose and a model with joints, each part's flood is mixed with the distance
@@ -216,14 +216,6 @@ def _offsets(shape, connectivity):
     return np.array([a * sy + b * sz + c for a, b, c in d], np.int64)
 
 
-def _step_lengths(connectivity):
-    """Euclidean lengths of the neighbour offsets of :func:`_offsets`, in the same order."""
-    if connectivity == 6:
-        return np.ones(6)
-    return np.array([math.sqrt(sum(map(abs, x))) for x in itertools.product((-1, 0, 1), repeat=3)
-                     if x != (0, 0, 0)])
-
-
 #: default delay per weighting (see :func:`flood_labels`)
 DELAY = {"part": 1.5, "radius": 1.25}
 
@@ -249,26 +241,26 @@ def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", b
 
     ``weighting="radius"`` (default of :func:`segment`): each part enters the flood late by how
     much thinner it is than the thickest part: the seeds of label L start at
-    ``delay · (D − r_L)``, r_L being the median over L's seeds of their Euclidean distance to
-    the hull's border (:func:`scipy.ndimage.distance_transform_edt`: the part's radius) and D
-    the largest r_L, and the fronts advance by the Euclidean length of each step (1, √2, √3:
-    :func:`.segment_kernels.flood_weighted`, Dijkstra). A voxel goes to the part whose
-    skeleton ball reaches it soonest: the thick trunk keeps its flanks against the thin limbs
-    whose skeleton starts beside its spine, inside the trunk (plain flooding gives them much of
-    the trunk). ``delay = 1.25`` (voxels per voxel of radius) was chosen on seeds 1 and 11 of
-    the ``body`` subject (28 good frames; voxel accuracy 0.877 / 0.880 / 0.875 for delay
-    1 / 1.25 / 1.5; the former default below 0.844, plain flooding 0.735); the benchmark
-    measures on other seeds.
+    ``delay · (D − r_L)``, r_L being the median over L's seeds of their distance to the hull's
+    border (the part's radius) and D the largest r_L, and the fronts advance by the chamfer
+    length of each step (3, 4, 5 for face, edge, corner steps, ÷ 3 ≈ 1, √2, √3; both
+    distances by :func:`.segment_kernels.flood_weighted`, Dial's bucket queue). A voxel goes
+    to the part whose skeleton ball reaches it soonest: the thick trunk keeps its flanks
+    against the thin limbs whose skeleton starts beside its spine, inside the trunk (plain
+    flooding gives them much of the trunk). ``delay = 1.25`` (voxels per voxel of radius) was
+    chosen on seeds 1 and 11 of the ``body`` subject (28 good frames; voxel accuracy 0.873 /
+    0.872 / 0.865 for delay 1 / 1.25 / 1.5, with the bones below 0.895 / 0.897 / 0.897; the
+    former default 0.844, plain flooding 0.735); the benchmark measures on other seeds.
 
     ``bones`` (with ``weighting="radius"``): ``[(A, B, label), ...]`` segments in voxel
     coordinates of ``mask`` (:func:`bone_segments`); each voxel then takes the label L
     minimizing ``(1 − bone_weight) · T_L + bone_weight · B_L``, T_L being L's own flood
-    (its start plus the Euclidean geodesic distance from its seeds, run for each label alone)
+    (its start plus the geodesic distance from its seeds, run for each label alone)
     and B_L the distance to L's nearest bone (labels without a bone: T_L); voxels no label
     reaches stay 0. The kinematic model's joints say where a limb begins (its first joint, not
     the junction inside the trunk) and the bones follow the limb's axis where the curve
     skeleton bends into the trunk. ``bone_weight = 0.8`` was chosen with the delay on the same
-    seeds (0.897 / 0.898 / 0.894 / 0.880 for 0.9 / 0.8 / 0.5 / 0; the bones alone 0.892).
+    seeds (0.897 / 0.897 / 0.893 / 0.872 for 0.9 / 0.8 / 0.5 / 0; the bones alone 0.891).
 
     ``weighting="part"`` (the former default, kept for comparison): the same idea in
     breadth-first steps (``delay`` 1.5 steps per step of the border distance
@@ -283,9 +275,7 @@ def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", b
     >>> flood_labels(m, s, 6).ravel().tolist()
     [1, 1, 1, 2, 2]
     """
-    from scipy import ndimage
-
-    from .segment_kernels import depth, flood, flood_weighted
+    from .segment_kernels import depth, flood
 
     mask = np.asarray(mask, bool)
     seeds = np.asarray(seeds)
@@ -306,61 +296,69 @@ def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", b
     flat_m, flat_s = sub_m.reshape(-1), sub_s.reshape(-1)
     if weighting == "none":
         flood(flat_m, flat_s, np.zeros(flat_m.size, np.int32), offsets)
-    else:
-        if weighting == "part":
-            d = depth(flat_m, offsets)
-        else:
-            d = ndimage.distance_transform_edt(sub_m).reshape(-1)
+    elif weighting == "part":
+        d = depth(flat_m, offsets)
         sel = (flat_s > 0) & (flat_m > 0)
         r = np.zeros(int(flat_s.max()) + 1)
         for lab in np.unique(flat_s[sel]):
             r[lab] = np.median(d[sel & (flat_s == lab)])
         late = (r.max() - r[flat_s]) * (DELAY[weighting] if delay is None else delay)
-        if weighting == "part":
-            flood(flat_m, flat_s, np.round(late).astype(np.int32), offsets)
-        else:
-            steps = _step_lengths(connectivity)
-            if bones:
-                shift = np.array([b.start for b in box], float) - 1
-                bones = [(np.asarray(a, float) - shift, np.asarray(b, float) - shift, lab)
-                         for a, b, lab in bones]
-                flat_s[:] = _bone_vote(flat_m, flat_s, late, offsets, steps, bones, sub_m.shape,
-                                       bone_weight)
-            else:
-                flood_weighted(flat_m, flat_s, late, offsets, steps, np.ones(flat_m.size))
+        flood(flat_m, flat_s, np.round(late).astype(np.int32), offsets)
+    else:
+        if bones:
+            shift = np.array([b.start for b in box], float) - 1
+            bones = [(np.asarray(a, float) - shift, np.asarray(b, float) - shift, lab)
+                     for a, b, lab in bones]
+        flat_s[:] = _radius_flood(flat_m, flat_s, sub_m.shape, offsets, connectivity,
+                                  DELAY["radius"] if delay is None else delay, bones, bone_weight)
     out[box] = sub_s[1:-1, 1:-1, 1:-1]
     return out
 
 
-def _segment_distance(X, A, B):
-    d = B - A
-    t = np.clip((X - A) @ d / max(float(d @ d), 1e-12), 0.0, 1.0)
-    return np.linalg.norm(X - (A + t[:, None] * d), axis=1)
+def _chamfer(connectivity):
+    """Integer costs of the neighbour offsets of :func:`_offsets`, in the same order: the
+    chamfer 3, 4, 5 for face, edge and corner steps (÷ 3 ≈ 1, √2, √3)."""
+    if connectivity == 6:
+        return np.full(6, 3, np.int64)
+    return np.array([(0, 3, 4, 5)[sum(map(abs, x))] for x in itertools.product((-1, 0, 1), repeat=3)
+                     if x != (0, 0, 0)], np.int64)
 
 
-def _bone_vote(flat_m, flat_s, late, offsets, steps, bones, shape, weight):
-    """Labels of :func:`flood_labels` with ``bones``: per label its own flood and its bones'
-    distance, mixed; flat arrays of the padded box."""
-    from .segment_kernels import flood_weighted
+def _radius_flood(flat_m, flat_s, shape, offsets, connectivity, delay, bones, weight):
+    """Labels of :func:`flood_labels` with ``weighting="radius"`` (flat arrays of the padded
+    box; ``bones`` in its voxel coordinates)."""
+    from .segment_kernels import bone_distance, flood_weighted, neighbours
 
-    idx = np.flatnonzero(flat_m)
-    X = np.stack(np.unravel_index(idx, shape), 1).astype(float)
-    labs = np.unique(flat_s[(flat_s > 0) & (flat_m > 0)])
-    score = np.full((len(labs), len(idx)), np.inf)
-    ones = np.ones(flat_m.size)
-    for k, lab in enumerate(labs):
-        one = np.where(flat_s == lab, lab, 0).astype(np.int32)
-        t = flood_weighted(flat_m, one, late, offsets, steps, ones)[idx]
-        b = np.full(len(idx), np.inf)
-        for A, B, bl in bones:
-            if bl == lab:
-                b = np.minimum(b, _segment_distance(X, A, B))
-        score[k] = t if np.isinf(b).all() else (1 - weight) * t + weight * b
+    idx, nb = neighbours(flat_m, offsets)
+    steps = _chamfer(connectivity)
+    s = flat_s[idx].astype(np.int32)
     out = np.zeros(flat_m.size, np.int32)
-    if len(labs):
-        best = np.argmin(score, 0)
-        reached = np.isfinite(score.min(0))
-        out[idx[reached]] = labs[best[reached]]
+    labs = np.unique(s[s > 0])
+    if len(labs) == 0:
+        return out
+    # each voxel's distance to the background: from the border voxels (one step) inwards
+    border = (nb < 0).any(1).astype(np.int32)
+    _, dr = flood_weighted(nb, steps, border, np.full(len(idx), 3, np.int64))
+    R = np.zeros(int(s.max()) + 1)
+    for lab in labs:
+        R[lab] = np.median(dr[s == lab]) / 3.0
+    late = np.round(3 * delay * (R.max() - R[s])).astype(np.int64)
+    if not bones:
+        out[idx] = flood_weighted(nb, steps, s, late)[0]
+        return out
+    X = np.stack(np.unravel_index(idx, shape), 1).astype(float)
+    nlab = int(max(R.size - 1, max(bl for _, _, bl in bones)))
+    bd = bone_distance(X, np.array([a for a, _, _ in bones], float),
+                       np.array([b for _, b, _ in bones], float),
+                       np.array([bl for _, _, bl in bones], np.int64), nlab)
+    score = np.full((len(labs), len(idx)), np.inf)
+    for k, lab in enumerate(labs):
+        _, t = flood_weighted(nb, steps, np.where(s == lab, lab, 0).astype(np.int32), late)
+        t = np.where(t >= 0, t / 3.0, np.inf)
+        b = bd[lab - 1]
+        score[k] = t if np.isinf(b).all() else (1 - weight) * t + weight * b
+    reached = np.isfinite(score.min(0))
+    out[idx[reached]] = labs[np.argmin(score, 0)[reached]]
     return out
 
 

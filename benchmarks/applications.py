@@ -272,12 +272,15 @@ def bench_segmentation(n_frames, seeds, log, subject="human", figure=None):
                                  f"body seed {seed} frame {pose.frame}")
                     figure = None
             # timings: best of 5 (shared machine)
-            t_seg, t_old, t_flood, t_ws = [], [], [], []
+            t_seg, t_rad, t_old, t_flood, t_ws = [], [], [], [], []
             for _ in range(5):
                 t0 = time.perf_counter()
                 segment(vol, det.skeleton, det.alignment, det.data, names=names, pose=pose,
                         model=est.model)
                 t_seg.append(time.perf_counter() - t0)
+                t0 = time.perf_counter()
+                segment(vol, det.skeleton, det.alignment, det.data, names=names)
+                t_rad.append(time.perf_counter() - t0)
                 t0 = time.perf_counter()
                 segment(vol, det.skeleton, det.alignment, det.data, names=names, weighting="part")
                 t_old.append(time.perf_counter() - t0)
@@ -290,7 +293,8 @@ def bench_segmentation(n_frames, seeds, log, subject="human", figure=None):
                 ws = watershed(np.zeros(m.shape, np.uint8), markers=seeds_grid[box], mask=m,
                                connectivity=3)
                 t_ws.append(time.perf_counter() - t0)
-            row.update(segment_ms=min(t_seg) * 1e3, segment_part_ms=min(t_old) * 1e3, flood_ms=min(t_flood) * 1e3,
+            row.update(segment_ms=min(t_seg) * 1e3, segment_radius_ms=min(t_rad) * 1e3,
+                       segment_part_ms=min(t_old) * 1e3, flood_ms=min(t_flood) * 1e3,
                        watershed_ms=min(t_ws) * 1e3,
                        agree_watershed=float(np.mean(ws[m] == plain[box][m])))
             rows.append(row)
@@ -547,7 +551,8 @@ def main(argv=None):
                        / max(1, sum(r["part_voxels"][n] for r in bg)) for n in bg[0]["part_voxels"]}
                    for k in SEG_METHODS} if bg else {}
     speed = {k: float(np.median([r[k] for r in seg])) for k in
-             ("segment_ms", "segment_part_ms", "flood_ms", "watershed_ms", "hull_voxels")} if seg else {}
+             ("segment_ms", "segment_radius_ms", "segment_part_ms", "flood_ms", "watershed_ms",
+              "hull_voxels")} if seg else {}
     if seg:
         speed["ratio_watershed_over_flood"] = float(np.median([r["watershed_ms"] / r["flood_ms"] for r in seg]))
         speed["agree_watershed"] = _mean([r["agree_watershed"] for r in seg])
@@ -627,6 +632,8 @@ def main(argv=None):
               "| step | ms |", "|---|---|",
               f"| whole segment step, default (`tp.segment` with pose and model: skeleton labels, "
               f"bones, one flood per part) | {speed['segment_ms']:.2f} |",
+              f"| whole segment step, radius-weighted without bones (no pose given) | "
+              f"{speed['segment_radius_ms']:.2f} |",
               f"| whole segment step, former default (part-weighted) | {speed['segment_part_ms']:.2f} |",
               f"| flooding call alone (`flood_labels`, plain, 26-adjacency) | {speed['flood_ms']:.2f} |",
               f"| peer: `skimage.segmentation.watershed` (constant image, markers, mask) | "

@@ -217,10 +217,6 @@ def _offsets(shape, connectivity):
     return np.array([a * sy + b * sz + c for a, b, c in d], np.int64)
 
 
-#: steps around the voxels a part can win within which its own flood runs (bones, see
-#: :func:`flood_labels`)
-GROW = 3
-
 #: default delay per weighting (see :func:`flood_labels`)
 DELAY = {"part": 1.5, "radius": 1.25}
 
@@ -267,9 +263,6 @@ def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", b
     the junction inside the trunk) and the bones follow the limb's axis where the curve
     skeleton bends into the trunk. ``bone_weight = 0.8`` was chosen with the delay on the same
     seeds (0.897 / 0.898 / 0.894 / 0.875 for 0.9 / 0.8 / 0.5 / 0; the bones alone 0.891).
-    Each part's own flood runs only within :data:`GROW` steps of the voxels the competitive
-    flood or the nearest bone gives it (and on its seeds), where it can win: the same labels
-    on the development frames, in less time.
 
     ``weighting="part"`` (the former default, kept for comparison): the same idea in
     breadth-first steps (``delay`` 1.5 steps per step of the border distance
@@ -338,7 +331,7 @@ def _radius_flood(flat_m, flat_s, shape, offsets, connectivity, delay, bones, we
     box; ``bones`` in its voxel coordinates)."""
     from scipy.spatial import cKDTree
 
-    from .segment_kernels import bone_distance, flood_weighted, label_bits, neighbours
+    from .segment_kernels import bone_distance, flood_weighted, neighbours
 
     idx, nb = neighbours(flat_m, offsets)
     steps = _chamfer(connectivity)
@@ -354,25 +347,17 @@ def _radius_flood(flat_m, flat_s, shape, offsets, connectivity, delay, bones, we
     R = np.zeros(int(s.max()) + 1)
     for lab in labs:
         R[lab] = 1.0 + np.median(r[s[s > 0] == lab])
-    every = np.ones(len(idx), np.bool_)
     late = np.round(3 * delay * (R.max() - R[s])).astype(np.int64)
-    first = flood_weighted(nb, steps, s, late, every)[0]
     if not bones:
-        out[idx] = first
+        out[idx] = flood_weighted(nb, steps, s, late)[0]
         return out
     nlab = int(max(R.size - 1, max(bl for _, _, bl in bones)))
     bd = bone_distance(X, np.array([a for a, _, _ in bones], float),
                        np.array([b for _, b, _ in bones], float),
                        np.array([bl for _, _, bl in bones], np.int64), nlab)
-    # each part's own flood runs where it can win: within GROW steps of the voxels the
-    # competitive flood or the nearest bone gives it (and its seeds)
-    nearest = np.where(np.isfinite(bd).any(0), np.argmin(bd, 0) + 1, 0).astype(np.int32)
-    bits = label_bits(nb, first, nearest, GROW)
     score = np.full((len(labs), len(idx)), np.inf)
     for k, lab in enumerate(labs):
-        own = s == lab
-        allow = ((bits >> int(lab)) & 1).astype(np.bool_) | own
-        _, t = flood_weighted(nb, steps, np.where(own, lab, 0).astype(np.int32), late, allow)
+        _, t = flood_weighted(nb, steps, np.where(s == lab, lab, 0).astype(np.int32), late)
         t = np.where(t >= 0, t / 3.0, np.inf)
         b = bd[lab - 1]
         score[k] = t if np.isinf(b).all() else (1 - weight) * t + weight * b

@@ -134,14 +134,14 @@ def neighbours(mask, offsets):
 
 
 @njit(cache=True)
-def flood_weighted(nb, steps, seeds, start, allow):
+def flood_weighted(nb, steps, seeds, start):
     """Multi-source shortest paths on the graph of :func:`neighbours` with integer step costs
     (Dial's bucket queue): every vertex reachable from a seed (``seeds > 0``) gets the label of
     the seed s minimizing ``start[s] + Σ steps[k]`` over the steps of a path, ties to the
     smallest label. ``steps`` (int, ≥ 1): the cost of each neighbour offset, e.g. the chamfer
     3, 4, 5 for face, edge and corner steps (÷ 3: a Euclidean distance within 4 %);
-    ``start`` (int, ≥ 0) delays a seed; the paths stay on the vertices with ``allow`` true.
-    Returns ``(labels, dist)``: label 0 and dist -1 where no seed reaches."""
+    ``start`` (int, ≥ 0) delays a seed. Returns ``(labels, dist)``: label 0 and dist -1 where
+    no seed reaches."""
     m, K = nb.shape
     big = np.iinfo(np.int64).max
     dist = np.full(m, big, np.int64)
@@ -162,7 +162,7 @@ def flood_weighted(nb, steps, seeds, start, allow):
     top = 0
     for a in range(m):
         L = seeds[a]
-        if L > 0 and allow[a]:
+        if L > 0:
             d = start[a]
             if d < dist[a] or (d == dist[a] and L < lab[a]):
                 dist[a] = d
@@ -184,7 +184,7 @@ def flood_weighted(nb, steps, seeds, start, allow):
             done[v] = True
             for k in range(K):
                 w = nb[v, k]
-                if w < 0 or done[w] or not allow[w]:
+                if w < 0 or done[w]:
                     continue
                 nd = d + steps[k]
                 if nd < dist[w] or (nd == dist[w] and lab[v] < lab[w]):
@@ -223,24 +223,3 @@ def bone_distance(X, A, B, label, nlab):
                 out[L, i] = e
     return out
 
-
-@njit(cache=True)
-def label_bits(nb, a, b, rounds):
-    """Per vertex the bit set of the labels (1..62) of ``a`` and ``b`` found within ``rounds``
-    steps on the graph of :func:`neighbours`."""
-    m, K = nb.shape
-    bits = np.zeros(m, np.int64)
-    for v in range(m):
-        if a[v] > 0:
-            bits[v] |= np.int64(1) << a[v]
-        if b[v] > 0:
-            bits[v] |= np.int64(1) << b[v]
-    for _ in range(rounds):
-        new = bits.copy()
-        for v in range(m):
-            for k in range(K):
-                w = nb[v, k]
-                if w >= 0:
-                    new[v] |= bits[w]
-        bits = new
-    return bits

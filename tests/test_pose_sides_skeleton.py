@@ -211,3 +211,27 @@ def test_tip_joint_lies_beyond_the_branch_end_along_its_last_direction():
     tree = kinematic_tree(_load("human"))
     by = dict(zip(tree.names, tree.beyond))
     assert by["fingertip_1"] > 0 and by["toe_2"] > 0 and by["wrist_1"] == 0 and by["neck"] == 0
+
+
+def test_frame_without_head_keeps_a_skeleton_with_held_joints():
+    """A frame whose head (part and curve) is missing: the root (chest, at the torso part) is
+    still placed, the head's chain keeps the previous frame's directions (flagged), and every
+    other joint is fitted as in the complete frame."""
+    rng = np.random.default_rng(5)
+    tree = kinematic_tree(HUMAN)
+    parts, curves = _body(0.4, rng)
+    full, _ = _numbered_frame("000000", parts, curves, False, False)
+    cut, _ = _numbered_frame("000001", parts, curves, False, False)
+    cut.parts["head"] = None
+    del cut.diagnostics["curves"]["head"]
+    out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
+    a, b = out
+    assert set(b.joints) == set(tree.names) and "interpolated" not in b.diagnostics
+    assert sorted(b.diagnostics["held_joints"]) == ["neck", "skull"]
+    assert "held_joints" not in a.diagnostics
+    assert np.allclose(b.joints["chest"], parts["torso"])
+    for k in tree.names:                       # the same body: the held joints too
+        assert np.linalg.norm(b.joints[k] - a.joints[k]) < 1e-6, k
+    # the lone frame has no earlier fit to hold from: no skeleton, not a wrong one
+    alone, _, _ = fit_sequence([cut], HUMAN)
+    assert alone[0].joints == {}

@@ -222,7 +222,8 @@ def run_recording(rec: Path, work: Path, raw_path=None):
         cap = tp.load_capture(cdir)
     model = load_model("human")
     t0 = time.perf_counter()
-    if raw_path is not None and Path(raw_path).exists():
+    reused = raw_path is not None and Path(raw_path).exists()
+    if reused:                                       # --raw of an earlier run: not timed
         raw = read_poses(raw_path)
     else:
         with warnings.catch_warnings():
@@ -230,7 +231,7 @@ def run_recording(rec: Path, work: Path, raw_path=None):
             raw = run(cap, model=model, resolution=100, threshold=1e9, gate=False,
                       output=raw_path or work / "raw.jsonl", progress=False, track=False,
                       sides=False, skeleton=False).poses
-    t_frames = time.perf_counter() - t0
+    t_frames = None if reused else round(time.perf_counter() - t0, 2)
     raw = sorted(raw, key=lambda p: p.frame)
     t0 = time.perf_counter()
     motion = process_sequence(raw, model, cap.up_vector)
@@ -238,7 +239,7 @@ def run_recording(rec: Path, work: Path, raw_path=None):
     trc_path = work / "motion.trc"
     write_trc(trc_path, motion.poses, marker_names(motion.poses, model.parts),
               fps=cap.fps or 25.0, units=cap.units, up=cap.up, labels=OPENSIM_LABELS)
-    return raw, motion, cap, model, trc_path, {"per_frame_run_s": round(t_frames, 2),
+    return raw, motion, cap, model, trc_path, {"per_frame_run_s": t_frames,
                                                "motion_stage_s": round(t_motion, 3)}
 
 
@@ -289,8 +290,9 @@ def picture(path, markers, ref, right, final, up=np.array([0.0, 0.0, 1.0])):
     a0.set_aspect("equal")
     a0.axis("off")
     a0.set_title("Pose2Sim balancing trial, front view: Pose2Sim's 3D result (thick grey) and our "
-                 "exported skeleton (red: named left, blue: named right, black: trunk); "
-                 "'right': the per-frame head, hands and feet within 0.15 m", fontsize=8.5)
+                 "exported skeleton (red: named left, blue: named right, black: trunk)\n"
+                 "every frame's best guess (AHA threshold and gate off); '(right)': the per-frame "
+                 "head, hands and feet within 0.15 m of Pose2Sim", fontsize=8.5)
     t = np.arange(n)
     for mk, col, ls in (("LWrist", "tab:red", "-"), ("RWrist", "tab:blue", "-"),
                         ("LAnkle", "tab:red", "--"), ("RAnkle", "tab:blue", "--")):
@@ -305,6 +307,11 @@ def picture(path, markers, ref, right, final, up=np.array([0.0, 0.0, 1.0])):
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+# (name, our bone's child joint, Pose2Sim's markers at its ends) for the bone-length comparison
+BONES_COMPARED = (("upper arm", "elbow_1", "Shoulder", "Elbow"), ("forearm", "wrist_1", "Elbow", "Wrist"),
+                  ("thigh", "knee_1", "Hip", "Knee"), ("shank", "ankle_1", "Knee", "Ankle"))
 
 
 def _fmt(v):
@@ -346,7 +353,10 @@ def report(doc) -> str:
               f", tracked {r['switches_tracked']} ({r['switches_raw'] * k:.0f} → "
               f"{r['switches_tracked'] * k:.0f} per 500 frames); {r['held']} part-frames held "
               "by the tracker", ""]
-    L += [f"Picture: `{doc['picture']}`.", ""]
+    L += ["Bone lengths (ours: constant over the sequence, median over its frames' initial "
+          "placements; Pose2Sim: left side, median over frames), m: "
+          + ", ".join(f"{k} {a} vs {b}" for k, (a, b) in doc["bone_lengths_vs_pose2sim_m"].items()),
+          "", f"Picture: `{doc['picture']}`.", ""]
     return "\n".join(L)
 
 
@@ -382,6 +392,10 @@ def main(argv=None):
            "threshold": model.threshold, "seconds": secs, "picture": "real_motion.png",
            "bone_lengths_m": {motion.tree.names[j]: round(float(x), 4)
                               for j, x in enumerate(motion.lengths) if np.isfinite(x)},
+           "bone_lengths_vs_pose2sim_m": {
+               name: [round(float(motion.lengths[motion.tree.names.index(j)]), 3),
+                      round(float(np.median(np.linalg.norm(ref[f"{sd}{a}"] - ref[f"{sd}{b}"], axis=1))), 3)]
+               for name, j, a, b in BONES_COMPARED for sd in "L"},
            "scores": s}
     (out / "real_motion.json").write_text(json.dumps(doc, indent=1))
     (out / "real_motion.md").write_text(report(doc))

@@ -327,44 +327,32 @@ def _joint(p, numbered_name, model):
 
 
 def real_mpjpe(poses_path, trc_path):
-    """MPJPE of the fitted joints against Pose2Sim's 3D result of a real recording (TRC Y-up:
-    (X, Y, Z)_trc = world (y, z, x)); frame i of the poses ↔ row i of the TRC; left/right pairs
-    paired optimally, as for the synthetic sequences. None when a file is absent."""
-    from topopose.pose.export import OPENSIM_LABELS, read_trc
+    """MPJPE of the fitted joints against Pose2Sim's 3D result of a real recording, scored as
+    ``benchmarks/real_motion.py`` scores it (which also runs the recording end to end): every
+    frame with a skeleton (a run with ``--threshold`` above the recording's AHA distances and
+    ``--confidence-gate off`` gives best guesses; the default run rejects almost every frame of
+    the 4-camera trial), our head part → ``Head``, joints by their OpenSim labels, side names
+    as named. Frame i of the poses ↔ row i of the TRC. None when a file is absent."""
+    from real import read_trc as read_reference
+    from real_motion import joint_errors
+    from real_motion import mpjpe as real_mpjpe_of
+
+    from topopose.pose.export import OPENSIM_LABELS
     from topopose.pose.pose import read_poses
 
     if not (Path(poses_path).exists() and Path(trc_path).exists()):
         return None
-    names, _, ref = read_trc(trc_path)
-    per_joint, per_frame = {}, []
-    for i, p in enumerate(read_poses(poses_path)):
-        if not p.matched or not p.joints or i >= len(ref):
+    ref = read_reference(trc_path)
+    errs = []
+    for i, p in enumerate(sorted(read_poses(poses_path), key=lambda p: p.frame)):
+        if not p.joints or i >= len(ref["Neck"]):
             continue
-        errs = []
-        for base in MPJPE_JOINTS:
-            ours = {side: p.joints.get(f"{side}_{base}") for side in ("left", "right")}
-            if base == "neck":
-                ours = {"": p.joints.get("neck")}
-            labs = {k: OPENSIM_LABELS.get(f"{k}_{base}" if k else base) for k in ours}
-            if not all(lab in names and ours[k] is not None for k, lab in labs.items()):
-                continue
-            gt = {k: ref[i, names.index(lab)] for k, lab in labs.items()}
-            w = {k: np.array([v[2], v[0], v[1]]) for k, v in gt.items()}      # trc → world
-            if any(np.isnan(v).any() for v in w.values()):
-                continue
-            if len(ours) == 2:
-                d0 = [np.linalg.norm(ours["left"] - w["left"]), np.linalg.norm(ours["right"] - w["right"])]
-                d1 = [np.linalg.norm(ours["left"] - w["right"]), np.linalg.norm(ours["right"] - w["left"])]
-                d = d0 if sum(d0) <= sum(d1) else d1
-            else:
-                d = [np.linalg.norm(ours[""] - w[""])]
-            per_joint.setdefault(base, []).extend(float(x) for x in d)
-            errs += d
-        if errs:
-            per_frame.append(float(np.mean(errs)))
-    return {"frames": len(per_frame),
-            "mpjpe": float(np.median(per_frame)) if per_frame else None,
-            "per_joint": {k: float(np.median(v)) for k, v in per_joint.items()}}
+        markers = {OPENSIM_LABELS.get(k, k): np.asarray(v, float) for k, v in p.joints.items()}
+        if p.parts.get("head") is not None:
+            markers["Head"] = np.asarray(p.parts["head"], float)
+        errs.append(joint_errors(markers, ref, i))
+    r = real_mpjpe_of(errs)
+    return {"frames": r["frames"], "mpjpe": r["mpjpe"], "per_joint": r["per_joint"]}
 
 
 def main(argv=None):
@@ -498,11 +486,11 @@ def report(rows, info, real=None):
                           for j, v in pj.items())]
     L += ["", "## Real recording (Pose2Sim balancing trial, against Pose2Sim's 3D result)", ""]
     if real is None or not real.get("frames"):
-        L.append("- not measured: on main the per-frame result matches none of the recording's "
-                 "100 frames with any silhouette method (benchmarks/results/real.md: every frame "
-                 "rejected, head and hands 0.6–0.8 m off), so there is no skeleton to compare; "
-                 "when it does, run `topopose run` on it, then this script with `--real-poses "
-                 "POSES.jsonl --real-trc reference/pose2sim_3d.trc`")
+        L.append("- measured by `benchmarks/real_motion.py` (benchmarks/results/real_motion.md: "
+                 "the recording run end to end with the person silhouettes, every frame's best "
+                 "guess, against Pose2Sim's 3D result); here only with `--real-poses POSES.jsonl "
+                 "--real-trc reference/pose2sim_3d.trc` (a `topopose run` of the recording with "
+                 "`--threshold 5 --confidence-gate off`)")
     else:
         L.append(f"- MPJPE {100 * real['mpjpe']:.1f} cm over {real['frames']} frames; per joint "
                  + ", ".join(f"{k} {100 * v:.1f}" for k, v in real["per_joint"].items()) + " cm")

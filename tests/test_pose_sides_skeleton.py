@@ -211,3 +211,60 @@ def test_tip_joint_lies_beyond_the_branch_end_along_its_last_direction():
     tree = kinematic_tree(_load("human"))
     by = dict(zip(tree.names, tree.beyond))
     assert by["fingertip_1"] > 0 and by["toe_2"] > 0 and by["wrist_1"] == 0 and by["neck"] == 0
+
+
+def test_frame_without_head_keeps_a_skeleton_with_held_joints():
+    """A frame whose head (part and curve) is missing: the root (chest, at the torso part) is
+    still placed, the head's chain keeps the previous frame's directions (flagged), and every
+    other joint is fitted as in the complete frame."""
+    rng = np.random.default_rng(5)
+    tree = kinematic_tree(HUMAN)
+    parts, curves = _body(0.4, rng)
+    full, _ = _numbered_frame("000000", parts, curves, False, False)
+    cut, _ = _numbered_frame("000001", parts, curves, False, False)
+    cut.parts["head"] = None
+    del cut.diagnostics["curves"]["head"]
+    out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
+    a, b = out
+    assert set(b.joints) == set(tree.names) and "interpolated" not in b.diagnostics
+    assert sorted(b.diagnostics["held_joints"]) == ["neck", "skull"]
+    assert "held_joints" not in a.diagnostics
+    assert np.allclose(b.joints["chest"], parts["torso"])
+    for k in tree.names:                       # the same body: the held joints too
+        assert np.linalg.norm(b.joints[k] - a.joints[k]) < 1e-6, k
+    # the lone frame has no earlier fit to hold from: no skeleton, not a wrong one
+    alone, _, _ = fit_sequence([cut], HUMAN)
+    assert alone[0].joints == {}
+
+
+def _crossed_legs_sequence(n, rng):
+    """n frames of one tracked body (same segment); in the middle frame the legs cross (each
+    leg's curve on the other side: its own score is strong and wrong)."""
+    poses, truth = [], []
+    for i in range(n):
+        parts, curves = _body(0.2, rng)
+        if i == n // 2:
+            curves["left_foot"], curves["right_foot"] = curves["right_foot"], curves["left_foot"]
+        pose, _ = _numbered_frame(f"{i:06d}", parts, curves, False, False)
+        pose.diagnostics["track"] = {"hand": 0, "foot": 0}
+        poses.append(pose)
+        truth.append(parts)
+    return poses, truth
+
+
+def test_a_long_tracked_segment_overrules_one_frame_with_crossed_legs():
+    from topopose.pose.chirality import OVERRULE_MIN
+    rng = np.random.default_rng(2)
+    poses, truth = _crossed_legs_sequence(OVERRULE_MIN + 1, rng)
+    k = len(poses) // 2
+    assert frame_scores(poses[k], HUMAN, UP)[1] <= -0.5          # strong, wrong
+    out = assign_sides(poses, HUMAN, UP)
+    for p, parts in zip(out, truth):
+        assert np.allclose(p.parts["left_foot"], parts["left_foot"])
+    # a short segment (captures of unrelated poses) does not overrule a strong frame
+    short, t2 = _crossed_legs_sequence(OVERRULE_MIN, rng)
+    out = assign_sides(short, HUMAN, UP)
+    assert np.allclose(out[len(short) // 2].parts["left_foot"], t2[len(short) // 2]["right_foot"])
+    # without time, the single frame decides alone
+    out = assign_sides(poses, HUMAN, UP, use_time=False)
+    assert np.allclose(out[k].parts["left_foot"], truth[k]["right_foot"])

@@ -17,7 +17,10 @@ lateral difference ``s``: near 0 when the facing is weak (both feet end-on) or t
 side by side along the facing. Over a sequence, a frame whose own score is weak (below
 ``strong``) takes the sum of the scores of its tracking segment (:mod:`.track`: the identities
 are the same), so time only steadies the per-frame decision; a frame whose confidence stays
-below ``min_confidence`` keeps the numbered names.
+below ``min_confidence`` keeps the numbered names. A strong frame is overruled only by at least
+``OVERRULE_MIN`` other frames of its segment whose mean score is strong and opposite (legs
+crossing on a one-legged balancing subject turn the hips' order for a frame or two; measured
+on the Pose2Sim balancing trial, ``benchmarks/real_motion.py``).
 """
 from __future__ import annotations
 
@@ -26,6 +29,7 @@ import numpy as np
 from .track import relabel
 
 F0 = 0.05          # facing strength scale (m): a planted foot gives 0.1–0.2
+OVERRULE_MIN = 5   # frames of a tracking segment that can overrule a frame's strong decision
 S0 = 0.05          # lateral separation scale (m): shoulders / hips are 0.3–0.4 apart
 
 
@@ -129,7 +133,8 @@ def assign_sides(poses, model, up, min_confidence=0.3, use_time=True, strong=0.5
     min_confidence : below it a frame keeps the numbered names
     use_time : sum the scores over each tracking segment
     strong : a frame whose own score reaches this keeps its own decision (a tracking segment
-        may join unrelated poses: captures of unrelated frames)
+        may join unrelated poses: captures of unrelated frames), unless ``OVERRULE_MIN`` other
+        frames of its segment have a mean score at least this strong of the other sign
 
     Returns
     -------
@@ -155,7 +160,10 @@ def assign_sides(poses, model, up, min_confidence=0.3, use_time=True, strong=0.5
                 continue
             seg = (p.diagnostics.get("track") or {}).get(stem) if use_time else None
             key = ("seg", seg) if seg is not None else ("frame", p.frame)
-            z = sc[i_pair] if abs(sc[i_pair]) >= strong else seg_sum[key]
+            own, others = sc[i_pair], seg_n[key] - 1
+            mean = (seg_sum[key] - own) / max(others, 1)       # the rest of the segment
+            overruled = others >= OVERRULE_MIN and abs(mean) >= strong and mean * own < 0
+            z = own if abs(own) >= strong and not overruled else seg_sum[key]
             conf = float(min(1.0, abs(z)))
             if conf >= min_confidence:
                 mapping = ({parts[0]: names[0], parts[1]: names[1]} if z > 0

@@ -10,6 +10,8 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    of its arc (:mod:`.curves`); ``at = 1`` is the arc's end part. A joint beside the curve
    (``offset``: shoulders and hips lie beside the curve's path from the chest junction) is moved
    along the trunk and away from its mirror partner by the declared fractions of the trunk.
+   A joint at a part (``at = 0``, or ``at = 1`` without ``beyond``) whose arc has no curve in
+   the frame (the far part missing, e.g. no head) is at that part.
 2. **Bone lengths** — each bone's median over the matched frames of the initial placement, a
    mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length; constant over the
    sequence.
@@ -19,7 +21,9 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    distance of every curve sample to the chain of joints along its arc (the kinematic chain
    follows the skeleton curve), the distance of each joint to its initial placement (weight 1
    for joints on parts and joints with an offset, ``inner_weight`` for the others) and a gauge
-   term ``|d| - 1``.
+   term ``|d| - 1``. An arc with neither a curve nor a placed joint in the frame keeps the
+   bone directions of the last fitted frame (its joints listed in
+   ``diagnostics["held_joints"]``), so a frame that lost one part still has a skeleton.
 4. **Gaps** — stretches of at most ``max_gap`` unfitted frames between fitted ones are filled
    by interpolating the root position and the bone directions (normalized linear), flagged
    ``diagnostics["interpolated"] = true``; never silently. Optional Savitzky–Golay smoothing
@@ -178,8 +182,13 @@ def initial_placement(pose, tree: KinematicTree) -> np.ndarray:
     out = np.full((len(tree.names), 3), np.nan)
     for j, ((u, v), t) in enumerate(zip(tree.arc, tree.at)):
         c = curves.get(v)
+        beyond = tree.beyond[j] if tree.beyond else 0.0
         if c is not None:
-            out[j] = _along(c, t, tree.beyond[j] if tree.beyond else 0.0)
+            out[j] = _along(c, t, beyond)
+        elif t == 0.0 or (t == 1.0 and not beyond):   # a joint at a part: the part (no curve
+            x = pose.parts.get(u if t == 0.0 else v)  # when the arc's far part is missing)
+            if x is not None:
+                out[j] = np.asarray(x, dtype=float)
     if tree.trunk and any(any(o) for o in tree.offset):
         a, b = (pose.parts.get(x) for x in tree.trunk)
         if a is None or b is None:
@@ -269,6 +278,10 @@ def fit_frame(target, curves, L, tree: KinematicTree, start=None, inner_weight=1
         tgt = target[bones]
         has = ~np.isnan(tgt).any(axis=1)
         if c is None and not has.any():
+            if start is not None:      # nothing seen on this arc: the start's directions (held)
+                d = np.diff(np.vstack([start[js[0]], start[bones]]), axis=0)
+                d /= np.maximum(np.linalg.norm(d, axis=1), 1e-12)[:, None]
+                P[bones] = P[js[0]] + np.cumsum(L[bones][:, None] * d, axis=0)
             continue
         x0 = []
         prev = P[js[0]]
@@ -406,6 +419,9 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0):
         diag = dict(p.diagnostics)
         if rms[i] is not None:
             diag["skeleton_rms"] = round(rms[i], 5)
+        held = [nm for j, nm in enumerate(tree.names) if np.isnan(init[i, j]).any()]
+        if held and not interp[i]:
+            diag["held_joints"] = held
         if interp[i]:
             diag["interpolated"] = True
         if smoothed[i]:

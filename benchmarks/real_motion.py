@@ -1,0 +1,407 @@
+"""From poses to motion on the real recording (Pose2Sim's balancing trial) against Pose2Sim's 3D
+result: the full skeleton's per-joint error, left and right, identities over time (issue 15).
+
+    python benchmarks/real_motion.py [RECORDING] [--raw RAW.jsonl] [--out benchmarks/results]
+
+RECORDING (default ``benchmarks/data/pose2sim_balancing/``, see ``benchmarks/real.py``): 4 videos,
+``Calib.toml`` and ``reference/pose2sim_3d.trc`` (TRC axes (X, Y, Z) = world (y, z, x)).
+
+Silhouettes ``[silhouettes] method = "person"``, ``scale = 0.5`` (MediaPipe's pose network's
+segmentation mask; needs ``mediapipe``: without it this script says so and measures nothing).
+The per-frame result runs once (100³, as ``topopose run --no-track --no-sides --no-skeleton``)
+with the AHA threshold and the confidence gate OFF: with 4 phone cameras the AHA distance of
+this recording is 0.3–0.9, above the human model's T_d = 0.4 on almost every frame, so the
+gated run matches (almost) nothing; the figures are those of the per-frame *best guesses*, and
+the frames the gates would have kept are counted beside them. The motion stage then runs as
+``topopose run`` runs it (:func:`topopose.pose.motion.process_sequence`: track, skeleton,
+sides, the defaults), the TRC is exported as ``run --trc`` writes it and read back, and:
+
+* **MPJPE** per joint, median over frames, of the exported markers against Pose2Sim's: head
+  (our ``head`` part, the head's tip) → ``Head``, ``neck`` → ``Neck``, shoulders, elbows, wrists,
+  hips, knees, ankles → ``L…``/``R…``; the per-frame mean over these 14 joints, median over
+  frames. Twice: with our side names (a wrong side costs; a frame whose sides are unsure keeps
+  numbered joints, paired optimally) and with every mirror pair paired optimally (the error
+  of the skeleton alone).
+* **chirality**: per frame and mirror pair (hands, feet), right when ``left_X`` + ``right_X``
+  are nearer Pose2Sim's L/R segments (hand: wrist → 0.1 m beyond it, foot: ankle → big toe)
+  than the swapped pair; wrong; or unsure (numbered names kept).
+* **identity switches** of the numbered parts (``hand_1``/``hand_2``, ``foot_1``/``foot_2``):
+  consecutive frames in which a numbered part changes the Pose2Sim side it is nearest to; the
+  per-frame numbering (raw) against the tracked one (``diagnostics["chirality"]`` names the
+  tracked part behind each side name).
+
+Every figure on all 100 frames and on the *right* frames (per-frame result: head, both hands,
+both feet within 0.15 m of Pose2Sim, as ``benchmarks/real.py``). Writes ``real_motion.md``,
+``real_motion.json`` and ``real_motion.png`` (our joints against Pose2Sim's over time).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+DEFAULT = HERE / "data" / "pose2sim_balancing"
+SILHOUETTES = 'scale = 0.5\n'
+# our marker (exported TRC, OPENSIM_LABELS) → Pose2Sim marker; paired joints by their stem
+SINGLE = ("Head", "Neck")          # our head part (its tip) and neck joint, as exported
+PAIRED = ("shoulder", "elbow", "wrist", "hip", "knee", "ankle")
+OURS = {"shoulder": "Shoulder", "elbow": "Elbow", "wrist": "Wrist", "hip": "Hip",
+        "knee": "Knee", "ankle": "Ankle"}
+PAIRS = (("hand", "hand_1", "hand_2"), ("foot", "foot_1", "foot_2"))
+
+
+def pose2sim_segments(ref: dict, i: int) -> dict:
+    """Pose2Sim's hand and foot segments of frame i: (kind, "L"/"R") → (a, b)."""
+    from real import HAND_EXT
+
+    g = {k: v[i] for k, v in ref.items()}
+    out = {}
+    for s in "LR":
+        w, e = g[f"{s}Wrist"], g[f"{s}Elbow"]
+        out[("hand", s)] = (w, w + HAND_EXT * (w - e) / max(np.linalg.norm(w - e), 1e-9))
+        out[("foot", s)] = (g[f"{s}Ankle"], g[f"{s}BigToe"])
+    return out
+
+
+def joint_errors(markers: dict, ref: dict, i: int, named=True) -> dict:
+    """Per joint (``head``, ``neck``, ``LElbow``… or, unnamed, ``elbow``) → error (m) of frame i.
+
+    ``markers``: our exported marker → (3,) position (NaN: absent). With ``named`` a side name
+    is compared with the same side of Pose2Sim, and numbered joints (sides unsure) are paired
+    optimally; without, every pair is paired optimally."""
+    out = {}
+    for name in SINGLE:
+        x = markers.get(name)
+        if x is not None and not np.isnan(x).any():
+            out[name] = float(np.linalg.norm(x - ref[name][i]))
+    for stem in PAIRED:
+        L, R = ref[f"L{OURS[stem]}"][i], ref[f"R{OURS[stem]}"][i]
+        a, b = markers.get(f"L{OURS[stem]}"), markers.get(f"R{OURS[stem]}")
+        sided = a is not None and b is not None and not (np.isnan(a).any() or np.isnan(b).any())
+        if not sided:
+            a, b = markers.get(f"{stem}_1"), markers.get(f"{stem}_2")
+            if a is None or b is None or np.isnan(a).any() or np.isnan(b).any():
+                continue
+        d0 = [np.linalg.norm(a - L), np.linalg.norm(b - R)]
+        d1 = [np.linalg.norm(a - R), np.linalg.norm(b - L)]
+        d = d0 if (named and sided) or sum(d0) <= sum(d1) else d1
+        if named and sided:
+            out[f"L{OURS[stem]}"], out[f"R{OURS[stem]}"] = float(d[0]), float(d[1])
+        else:
+            k = f"{stem}" if not named else f"{stem} (sides unsure)"
+            out.setdefault(k, [])
+            out[k] = [float(x) for x in d]
+    return out
+
+
+def mpjpe(per_frame_errors: list) -> dict:
+    """Median over frames of the per-frame mean, and each joint's median over frames."""
+    means, joints = [], {}
+    for e in per_frame_errors:
+        vals = []
+        for k, v in e.items():
+            v = v if isinstance(v, list) else [v]
+            vals += v
+            base = k.replace(" (sides unsure)", "")
+            base = base[1:].lower() if base[:1] in "LR" and base[1:].lower() in PAIRED else base
+            joints.setdefault(base, []).extend(v)
+        if vals:
+            means.append(float(np.mean(vals)))
+    return {"frames": len(means), "mpjpe": float(np.median(means)) if means else None,
+            "mpjpe_p90": float(np.percentile(means, 90)) if means else None,
+            "per_joint": {k: float(np.median(v)) for k, v in joints.items()},
+            "per_frame": means}
+
+
+def tracked_parts(pose) -> dict:
+    """The pose's parts under their tracked numbered names (``left_hand`` → ``hand_2`` when
+    ``diagnostics["chirality"]`` says hand_2 was named left_hand)."""
+    chir = pose.diagnostics.get("chirality") or {}
+    back = {d["name"]: part for part, d in chir.items()}
+    return {back.get(k, k): v for k, v in pose.parts.items()}
+
+
+def nearest_side(x, segs, kind):
+    from topopose.pose.quality import point_segment_distance
+
+    d = [point_segment_distance(np.asarray(x, float), *segs[(kind, s)]) for s in "LR"]
+    return "LR"[int(np.argmin(d))]
+
+
+def identity_switches(part_dicts, ref, rows):
+    """Switches of each numbered part's nearest Pose2Sim side between consecutive frames of
+    ``rows`` (the frame indices to use)."""
+    n = 0
+    for kind, a, _b in PAIRS:
+        seq = [nearest_side(part_dicts[i][a], pose2sim_segments(ref, i), kind)
+               for i in rows if part_dicts[i].get(a) is not None]
+        n += sum(x != y for x, y in zip(seq, seq[1:]))
+    return n
+
+
+def chirality(poses, ref, rows):
+    from topopose.pose.quality import point_segment_distance as psd
+
+    c = {"right": 0, "wrong": 0, "unsure": 0}
+    for i in rows:
+        p, segs = poses[i], pose2sim_segments(ref, i)
+        for kind, _a, _b in PAIRS:
+            a, b = p.parts.get(f"left_{kind}"), p.parts.get(f"right_{kind}")
+            if a is None or b is None:
+                c["unsure"] += 1
+                continue
+            a, b = np.asarray(a, float), np.asarray(b, float)
+            ok = (psd(a, *segs[(kind, "L")]) + psd(b, *segs[(kind, "R")])
+                  < psd(a, *segs[(kind, "R")]) + psd(b, *segs[(kind, "L")]))
+            c["right" if ok else "wrong"] += 1
+    return c
+
+
+def score(raw, final, trc_path, ref, model):
+    """Every figure (see the module docstring) from the per-frame poses, the motion stage's
+    poses and the exported TRC (read back)."""
+    from real import RIGHT, frame_errors
+
+    from topopose.pose.confidence import MIN_CONFIDENCE
+    from topopose.pose.export import read_trc
+
+    names, _t, trc = read_trc(trc_path)
+    n = len(final)
+    right = []
+    for i, p in enumerate(raw):
+        e = frame_errors(p.parts, ref, i) if p.status != "failed" else None
+        right.append(e is not None and all(v <= RIGHT for v in e.values()))
+    aha = [p.distance is not None and p.distance <= model.threshold for p in raw]
+    gated = [a and (p.diagnostics.get("confidence") or 0) >= MIN_CONFIDENCE for a, p in zip(aha, raw)]
+    markers = []
+    for i in range(n):
+        w = trc[i][:, [2, 0, 1]]                          # TRC (X, Y, Z) = world (y, z, x)
+        markers.append({nm: w[k] for k, nm in enumerate(names)})
+    out = {"frames": n, "right_frames": int(sum(right)), "aha_accepted": int(sum(aha)),
+           "gate_accepted": int(sum(gated)),
+           "with_skeleton": int(sum(bool(p.joints) for p in final)),
+           "interpolated": int(sum(bool(p.diagnostics.get("interpolated")) for p in final))}
+    raw_parts = [p.parts for p in raw]
+    trk_parts = [tracked_parts(p) for p in final]
+    for label, rows in (("all", list(range(n))), ("right", [i for i in range(n) if right[i]])):
+        sk = [i for i in rows if final[i].joints]
+        out[label] = {
+            "frames": len(rows),
+            "mpjpe_named": mpjpe([joint_errors(markers[i], ref, i) for i in sk]),
+            "mpjpe_paired": mpjpe([joint_errors(markers[i], ref, i, named=False) for i in sk]),
+            "chirality": chirality(final, ref, rows),
+            "switches_raw": identity_switches(raw_parts, ref, rows),
+            "switches_tracked": identity_switches(trk_parts, ref, rows),
+            "held": sum(len(final[i].diagnostics.get("predicted") or []) for i in rows)}
+    return out, markers, right
+
+
+def run_recording(rec: Path, work: Path, raw_path=None):
+    """Per-frame run (gates off) and the motion stage; returns raw poses, motion, capture, TRC."""
+    import topopose as tp
+    from real import make_capture
+
+    from topopose.pose import run
+    from topopose.pose.export import OPENSIM_LABELS, marker_names, write_trc
+    from topopose.pose.model import load_model
+    from topopose.pose.motion import process_sequence
+    from topopose.pose.pose import read_poses
+
+    cdir = work / "capture"
+    make_capture(rec, cdir, "person", SILHOUETTES)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cap = tp.load_capture(cdir)
+    model = load_model("human")
+    t0 = time.perf_counter()
+    reused = raw_path is not None and Path(raw_path).exists()
+    if reused:                                       # --raw of an earlier run: not timed
+        raw = read_poses(raw_path)
+    else:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            raw = run(cap, model=model, resolution=100, threshold=1e9, gate=False,
+                      output=raw_path or work / "raw.jsonl", progress=False, track=False,
+                      sides=False, skeleton=False).poses
+    t_frames = None if reused else round(time.perf_counter() - t0, 2)
+    raw = sorted(raw, key=lambda p: p.frame)
+    t0 = time.perf_counter()
+    motion = process_sequence(raw, model, cap.up_vector)
+    t_motion = time.perf_counter() - t0
+    trc_path = work / "motion.trc"
+    write_trc(trc_path, motion.poses, marker_names(motion.poses, model.parts),
+              fps=cap.fps or 25.0, units=cap.units, up=cap.up, labels=OPENSIM_LABELS)
+    return raw, motion, cap, model, trc_path, {"per_frame_run_s": t_frames,
+                                               "motion_stage_s": round(t_motion, 3)}
+
+
+BONES_P2S = [("Head", "Neck"), ("Neck", "LShoulder"), ("LShoulder", "LElbow"), ("LElbow", "LWrist"),
+             ("Neck", "RShoulder"), ("RShoulder", "RElbow"), ("RElbow", "RWrist"),
+             ("LHip", "RHip"), ("LHip", "LKnee"), ("LKnee", "LAnkle"), ("LAnkle", "LBigToe"),
+             ("RHip", "RKnee"), ("RKnee", "RAnkle"), ("RAnkle", "RBigToe")]
+BONES_OURS = [("head", "Neck"), ("Neck", "LShoulder"), ("LShoulder", "LElbow"), ("LElbow", "LWrist"),
+              ("Neck", "RShoulder"), ("RShoulder", "RElbow"), ("RElbow", "RWrist"),
+              ("LHip", "RHip"), ("LHip", "LKnee"), ("LKnee", "LAnkle"), ("LAnkle", "left_toe"),
+              ("RHip", "RKnee"), ("RKnee", "RAnkle"), ("RAnkle", "right_toe"),
+              ("Neck", "Hip")]
+
+
+def picture(path, markers, ref, right, final, up=np.array([0.0, 0.0, 1.0])):
+    """Our exported joints against Pose2Sim's: stick figures of 8 frames (front view) and the
+    heights of the wrists and ankles over the 100 frames."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(markers)
+    fwd = np.array([p.diagnostics["facing"] for p in final if p.diagnostics.get("facing")])
+    f = fwd.mean(axis=0) if len(fwd) else np.array([1.0, 0, 0])
+    f = f - np.dot(f, up) * up
+    f /= np.linalg.norm(f)
+    lat = np.cross(up, f)                                   # the subject's left, seen from the front
+    fig, (a0, a1) = plt.subplots(2, 1, figsize=(12, 7.5), gridspec_kw={"height_ratios": [1.2, 1]})
+    picks = np.linspace(0, n - 1, 8).round().astype(int)
+    for k, i in enumerate(picks):
+        off = 1.2 * k
+        c0 = ref["Neck"][i]
+        xy = lambda x: (off - np.dot(x - c0, lat), x[2])   # front view: the subject's left on the right
+        for a, b in BONES_P2S:
+            A, B = xy(ref[a][i]), xy(ref[b][i])
+            a0.plot([A[0], B[0]], [A[1], B[1]], color="0.55", lw=3, alpha=0.6, solid_capstyle="round")
+        m = markers[i]
+        for a, b in BONES_OURS:
+            A, B = m.get(a), m.get(b)
+            if A is None or B is None or np.isnan(A).any() or np.isnan(B).any():
+                continue
+            side = "L" if a.startswith(("L", "left")) or b.startswith(("L", "left")) else \
+                "R" if a.startswith(("R", "right")) or b.startswith(("R", "right")) else ""
+            col = {"L": "tab:red", "R": "tab:blue"}.get(side, "k")
+            A, B = xy(A), xy(B)
+            a0.plot([A[0], B[0]], [A[1], B[1]], color=col, lw=1.3)
+        a0.text(off, -0.12, f"frame {i}" + (" (right)" if right[i] else ""), ha="center", fontsize=7)
+    a0.set_aspect("equal")
+    a0.axis("off")
+    a0.set_title("Pose2Sim balancing trial, front view: Pose2Sim's 3D result (thick grey) and our "
+                 "exported skeleton (red: named left, blue: named right, black: trunk)\n"
+                 "every frame's best guess (AHA threshold and gate off); '(right)': the per-frame "
+                 "head, hands and feet within 0.15 m of Pose2Sim", fontsize=8.5)
+    t = np.arange(n)
+    for mk, col, ls in (("LWrist", "tab:red", "-"), ("RWrist", "tab:blue", "-"),
+                        ("LAnkle", "tab:red", "--"), ("RAnkle", "tab:blue", "--")):
+        a1.plot(t, ref[mk][:, 2], color=col, ls=ls, lw=1.2, alpha=0.6, label=f"Pose2Sim {mk}")
+        ours = np.array([m.get(mk, np.full(3, np.nan))[2] for m in markers])
+        a1.plot(t, ours, "o" if "Wrist" in mk else "s", color=col, ms=2.5, label=f"ours {mk}")
+    a1.set_xlabel("frame (30 frames/s)")
+    a1.set_ylabel("height (m)")
+    a1.legend(fontsize=6.5, ncol=4)
+    a1.set_title("heights of the wrists and ankles over time (ours: markers by our side names)",
+                 fontsize=8.5)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# (name, our bone's child joint, Pose2Sim's markers at its ends) for the bone-length comparison
+BONES_COMPARED = (("upper arm", "elbow_1", "Shoulder", "Elbow"), ("forearm", "wrist_1", "Elbow", "Wrist"),
+                  ("thigh", "knee_1", "Hip", "Knee"), ("shank", "ankle_1", "Knee", "Ankle"))
+
+
+def _fmt(v):
+    return "–" if v is None else f"{100 * v:.1f}"
+
+
+def report(doc) -> str:
+    m, s = doc["machine"], doc["scores"]
+    L = ["# From poses to motion on the real recording (Pose2Sim balancing, against Pose2Sim's 3D result)",
+         "", f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
+         "Written by `benchmarks/real_motion.py`; 100³, 4 cameras, silhouettes `person` "
+         "(scale 0.5).", "",
+         f"Per-frame result with the AHA threshold and the confidence gate **off** (best guesses "
+         f"of every frame): the AHA distance accepts {s['aha_accepted']}/{s['frames']} frames at "
+         f"T_d = {doc['threshold']}, the gate {s['gate_accepted']}; {s['right_frames']} frames "
+         "are *right* (per-frame head, both hands and both feet within 0.15 m of Pose2Sim). "
+         f"Motion stage as `topopose run` (track, skeleton, sides): {s['with_skeleton']} frames "
+         f"with a skeleton ({s['interpolated']} interpolated). Errors in cm, exported TRC read "
+         "back. Time: " + ", ".join(f"{k} {v}" for k, v in doc["seconds"].items()) + ".", ""]
+    for label, title in (("all", "all frames"), ("right", "frames whose per-frame pose is right")):
+        r = s[label]
+        a, b = r["mpjpe_named"], r["mpjpe_paired"]
+        joints = list(dict.fromkeys(list(b["per_joint"]) + list(a["per_joint"])))
+        c = r["chirality"]
+        nc = sum(c.values())
+        k = 500.0 / max(r["frames"], 1)
+        L += [f"## {title} ({r['frames']})", "",
+              f"- MPJPE (14 joints; median over frames of the per-frame mean; p90): with our side "
+              f"names {_fmt(a['mpjpe'])} cm (p90 {_fmt(a['mpjpe_p90'])}, {a['frames']} frames); "
+              f"pairs paired optimally {_fmt(b['mpjpe'])} cm (p90 {_fmt(b['mpjpe_p90'])})",
+              "", "| joint | " + " | ".join(joints) + " |", "|---" * (len(joints) + 1) + "|",
+              "| side names | " + " | ".join(_fmt(a["per_joint"].get(j)) for j in joints) + " |",
+              "| paired optimally | " + " | ".join(_fmt(b["per_joint"].get(j)) for j in joints) + " |",
+              "",
+              f"- chirality (frames × hands, feet): right {c['right']}/{nc}"
+              + (f" ({100 * c['right'] / nc:.0f} %)" if nc else "")
+              + f", wrong {c['wrong']}, unsure {c['unsure']}",
+              f"- identity switches of the numbered parts: per-frame numbering {r['switches_raw']}"
+              f", tracked {r['switches_tracked']} ({r['switches_raw'] * k:.0f} → "
+              f"{r['switches_tracked'] * k:.0f} per 500 frames); {r['held']} part-frames held "
+              "by the tracker", ""]
+    L += ["Bone lengths (ours: constant over the sequence, median over its frames' initial "
+          "placements; Pose2Sim: left side, median over frames), m: "
+          + ", ".join(f"{k} {a} vs {b}" for k, (a, b) in doc["bone_lengths_vs_pose2sim_m"].items()),
+          "", f"Picture: `{doc['picture']}`.", ""]
+    return "\n".join(L)
+
+
+def main(argv=None):
+    from _machine import machine
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("recording", nargs="?", default=str(DEFAULT))
+    ap.add_argument("--raw", default=None, help="per-frame poses.jsonl to reuse (or write)")
+    ap.add_argument("--out", default=str(HERE / "results"))
+    a = ap.parse_args(argv)
+    rec = Path(a.recording)
+    if not (rec / "videos").is_dir() or not (rec / "reference" / "pose2sim_3d.trc").is_file():
+        print(f"{rec}: recording not found (needs videos/, Calib.toml, reference/); pass its path")
+        return 2
+    try:
+        import mediapipe  # noqa: F401
+    except ImportError:
+        print("mediapipe not installed: the person silhouettes, hence this benchmark, are "
+              "skipped (pip install mediapipe)")
+        return 0
+    from real import read_trc
+
+    ref = read_trc(rec / "reference" / "pose2sim_3d.trc")
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        raw, motion, cap, model, trc_path, secs = run_recording(rec, Path(tmp), a.raw)
+        s, markers, right = score(raw, motion.poses, trc_path, ref, model)
+        picture(out / "real_motion.png", markers, ref, right, motion.poses,
+                np.asarray(cap.up_vector, float))
+    doc = {"recording": str(rec), "machine": machine(resolution=100, cameras=4),
+           "threshold": model.threshold, "seconds": secs, "picture": "real_motion.png",
+           "bone_lengths_m": {motion.tree.names[j]: round(float(x), 4)
+                              for j, x in enumerate(motion.lengths) if np.isfinite(x)},
+           "bone_lengths_vs_pose2sim_m": {
+               name: [round(float(motion.lengths[motion.tree.names.index(j)]), 3),
+                      round(float(np.median(np.linalg.norm(ref[f"{sd}{a}"] - ref[f"{sd}{b}"], axis=1))), 3)]
+               for name, j, a, b in BONES_COMPARED for sd in "L"},
+           "scores": s}
+    (out / "real_motion.json").write_text(json.dumps(doc, indent=1))
+    (out / "real_motion.md").write_text(report(doc))
+    print(report(doc))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -120,10 +120,10 @@ class FrameEstimator:
         vertex alone. ``None`` (default): on for complete models, off for incomplete ones
         (not measured there yet).
     leaf_axis : float or None
-        Drop a leaf part that leaves its junction across the body axis (:func:`off_axis_leaf`):
-        the model's entry in :data:`LEAF_AXIS` (human: the head must continue the axis
-        crotch → torso within 45°, cosine ≥ 0.7, measured there) is applied with this minimum
-        cosine instead. None: the model's entry (other models: off); 0: off.
+        Leave a leaf part unplaced when it leaves its junction across the body axis
+        (:func:`off_axis_leaf`) and every other part is placed: the model's entry in
+        :data:`LEAF_AXIS` (human: the head must continue the axis crotch → torso within 45°,
+        cosine ≥ 0.7, measured there) with this minimum cosine instead. None: the model's entry (other models: off); 0: off.
     tip_fraction : float
         Move a tip part (``tips``) only this fraction of the way from its skeleton end to the
         hull's border (1, default: all the way; measured in :data:`LEAF_AXIS`).
@@ -338,14 +338,16 @@ class FrameEstimator:
                 pos = junction_position(al, data, p, v)
             parts[p] = None if pos is None or p in unordered else np.asarray(pos, dtype=float)
         dropped = []
-        if self.leaf_axis is not None and off_axis_leaf(data, al.mapping, *self.leaf_axis):
+        if (self.leaf_axis is not None and all(x is not None for x in parts.values())
+                and off_axis_leaf(data, al.mapping, *self.leaf_axis)):
             dropped.append(self.leaf_axis[0])
             parts[self.leaf_axis[0]] = None
         if self.tips:
             from .tips import extremity_tips
             for p, x in extremity_tips(vol, skel, data, al.mapping, self.tips).items():
                 if parts.get(p) is not None:
-                    parts[p] = parts[p] + self.tip_fraction * (x - parts[p])
+                    parts[p] = (x if self.tip_fraction == 1.0
+                                else parts[p] + self.tip_fraction * (x - parts[p]))
         missing = [p for p, x in parts.items() if x is None]
         status, error = "matched", None
         if not math.isfinite(dist) or dist > self.threshold:
@@ -520,21 +522,27 @@ THICKNESS = {"human": {"head": (0.30, 0.85), "hand": (0.0, 0.40), "foot": (0.0, 
 # A leaf part that must continue the body axis (model: (leaf, its junction, the junction's other
 # axis end, minimum cosine)): the leaf's data vertex must lie within acos(cos) of the direction
 # axis end → junction, seen from the junction (data vertices of the alignment), else the leaf is
-# left unplaced (a missing limb, the frame stays usable when the rest is right). On `body` the
-# skeleton often has no head branch — a raised arm merges with the head in the hull, or the head
-# is absorbed into the shoulders' junction — and the head then takes a shoulder spur or a bend
-# of an arm path, sideways of the neck (0.08–0.33 × height off). Measured on `body` (builds
-# average, heavy, child, lean, random × tuning seeds 41, 42 × 8 frames, 100³, noise 1, 0.08 ×
-# height; TP rate / FP per match), separated; all poses:
-#   off                                   0.863 / 0.138;  0.688 / 0.127
-#   cos 0.5 / 0.6                         0.912 / 0.076;  0.675 / 0.129 (right heads dropped: 5)
-#   cos 0.7 (default, 45°)                0.912 / 0.076;  0.675 / 0.115 (right heads dropped: 6)
-#   cos 0.75 / 0.8                        0.925 / 0.063;  0.688 / 0.098 (7 / 11 dropped)
-#   world up instead of the torso axis    cos 0.7: 0.912 / 0.076;  0.700 / 0.097
-# With the head's tip (pose/tips.py) only half way (tip_fraction 0.5) on top of cos 0.7: 0.938 /
-# 0.051; 0.688 / 0.098 — on `body` the head's gt is neck base → crown, a tip sent off the axis
-# leaves it; the real recording's head-top marker wants the whole way (tips.py), so the default
-# stays 1. Held-out seeds: benchmarks/quality.py (quality_body.md, "no-leaf-axis" rows).
+# left unplaced — a missing limb: the frame stays usable when the rest is right. Only in frames
+# with every other part placed (a second missing part would make the frame partial, rejected).
+# On `body` the skeleton often has no head branch — a raised arm merges with the head in the
+# hull, or the head is absorbed into the shoulders' junction — and the head then takes a
+# shoulder spur or a bend of an arm path, sideways of the neck (0.08–0.33 × height off).
+# Measured on `body` (builds average, heavy, child, lean, random × tuning seeds 41–44 × 8 frames,
+# 100³, noise 1, 0.08 × height; TP rate / FP per match), separated (160 frames); all poses (160):
+#   off                                       0.825 / 0.170;  0.644 / 0.127
+#   cos 0.6 / 0.7 / 0.8, in every frame       0.875 / 0.114, 0.881 / 0.108, 0.887 / 0.101;
+#                                             0.637 / 0.121, 0.631 / 0.106, 0.637 / 0.097
+#   the same, only with nothing else missing  0.875 / 0.119, 0.881 / 0.113 (default: cos 0.7,
+#                                             45°), 0.887 / 0.107;  0.650 / 0.119, 0.656 / 0.110,
+#                                             0.662 / 0.102
+#   the world's up axis instead (cos 0.7)     0.875 / 0.114 (0.875 / 0.119);  0.644 / 0.096
+#                                             (0.662 / 0.102)
+# Tip of the head (pose/tips.py) only half way (tip_fraction 0.5), on top of cos 0.7, seeds 41,
+# 42: 0.912 / 0.076 → 0.938 / 0.051; all poses 0.675 / 0.115 → 0.688 / 0.098: the head's skeleton
+# end lies 2–5 % of the height beside the neck → crown segment (the face's volume), and the tip
+# moves it as far again sideways; the real recording's head-top marker wants the whole way
+# (tips.py), so the default stays 1. Held-out seeds: benchmarks/quality.py (quality_body.md,
+# "no-leaf-axis" and "tip-half" rows).
 LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.7)}
 THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the largest within ± that
 

@@ -191,7 +191,7 @@ def time_breakdown(rec: Path, n: int = 20) -> dict:
     """Where the time goes, per frame of 4 cameras (process CPU time and wall time):
     decoding the videos, resizing, the colour probability at several scales (full resolution
     vs downscaled; against a stand-in background of the right size: timing only), the
-    selfie network, reading a JPEG frame."""
+    selfie and person networks, reading a JPEG frame."""
     import cv2
 
     from topopose.capture.background import SequenceBackground, foreground_probability
@@ -232,6 +232,12 @@ def time_breakdown(rec: Path, n: int = 20) -> dict:
         zone[100:400, 60:220] = True
         clock("selfie network (zone crop at 0.25)",
               lambda f: selfie_probability(cv2.resize(f, (272, 480)), zone, stream="timing"))
+    except Exception:                      # noqa: BLE001  (mediapipe absent)
+        pass
+    try:
+        from topopose.capture.segment import person_probability
+        clock("person network (whole image at 0.25)",
+              lambda f: person_probability(cv2.resize(f, (272, 480)), stream="timing"))
     except Exception:                      # noqa: BLE001  (mediapipe absent)
         pass
     enc = cv2.imencode(".jpg", frames[0][0], [cv2.IMWRITE_JPEG_QUALITY, 95])[1]

@@ -181,13 +181,13 @@ def test_confidence_factors_and_time_only_on_coherent_sequences():
         return out
 
     ps = poses(0.01, jump_at=5)                     # coherent, one frame jumps 1 m
-    temporal_confidence(ps, {p.frame: i for i, p in enumerate(ps)})
+    temporal_confidence(ps, {p.frame: i for i, p in enumerate(ps)}, min_confidence=0.7)
     assert ps[5].status == "rejected" and "confidence" in ps[5].error
     assert ps[6].status == "rejected"               # its predecessor was far
     assert all(ps[i].status == "matched" for i in (1, 2, 3, 4, 7, 8, 9))
     assert ps[3].diagnostics["confidence_factors"]["time"] == pytest.approx(
         2 ** -((0.01 / 0.17) ** 2), abs=1e-4)
     ps = poses(0.5)                                 # independent poses: no time factor
-    temporal_confidence(ps, {p.frame: i for i, p in enumerate(ps)})
+    temporal_confidence(ps, {p.frame: i for i, p in enumerate(ps)}, min_confidence=0.7)
     assert all(p.status == "matched" for p in ps)
     assert ps[3].diagnostics["confidence_factors"]["time"] is None

@@ -89,6 +89,27 @@ def test_video_capture_equals_image_capture(tmp_path, cams, scene):
     assert np.array_equal(ha.data, hb.data) and ha.data.sum() > 100
 
 
+def test_videos_fuse_like_images(tmp_path, cams, scene):
+    """A method without an empty scene fuses probabilities (soft hull) from videos exactly as
+    from images: the same hull and the same fusion (videos once fell back to hard masks)."""
+    frames, _ = scene
+    toml = ("[capture.volume]\nmin = [-0.6, -0.6, 0.0]\nmax = [0.8, 0.8, 1.8]\n\n"
+            "[silhouettes]\nmethod = \"sequence\"\nsamples = 8\n")
+    root = write_capture(tmp_path / "img", cams, {}, images=frames)
+    (root / "capture.toml").write_text(toml)
+    img = load_capture(root)
+    vroot = video_capture(tmp_path / "vid", cams, scene, capture_toml=toml)
+    shutil.rmtree(vroot / "backgrounds")
+    vid = load_capture(vroot)
+    from topopose.capture.background import foreground_maps
+
+    ha, hb = visual_hull(img, "000000", resolution=40), visual_hull(vid, "000000", resolution=40)
+    assert ha.diagnostics["fusion"] == hb.diagnostics["fusion"] == "soft"
+    assert np.array_equal(ha.data, hb.data)
+    for a, b in zip(foreground_maps(img, "000000"), foreground_maps(vid, "000000")):
+        assert np.array_equal(a, b)
+
+
 def test_lossy_mp4_gives_nearly_the_same_hull(tmp_path, cams, scene):
     frames, bgs = scene
     img = load_capture(write_capture(tmp_path / "img", cams, {}, images=frames, backgrounds=bgs))

@@ -77,6 +77,147 @@ def test_flood_equals_brute_force_geodesic_labelling(connectivity, seed):
     assert np.array_equal(_padded(mask, seeds, start, connectivity), ref2)
 
 
+def _brute_weighted(mask, seeds, start):
+    """Min over seeds of start + chamfer geodesic distance (26-adjacency, steps 3, 4, 5 for
+    face, edge, corner neighbours), ties to the smallest label."""
+    from scipy.sparse.csgraph import dijkstra
+
+    ijk = np.argwhere(mask)
+    idx = {tuple(p): i for i, p in enumerate(ijk)}
+    rows, cols, w = [], [], []
+    for i, p in enumerate(ijk):
+        for d in itertools.product((-1, 0, 1), repeat=3):
+            j = idx.get(tuple(p + d))
+            if j is not None and j != i:
+                rows.append(i)
+                cols.append(j)
+                w.append(2 + np.sum(np.abs(d)))
+    G = csr_matrix((w, (rows, cols)), shape=(len(ijk),) * 2)
+    lab = seeds[tuple(ijk.T)]
+    s_idx = np.flatnonzero(lab > 0)
+    Dm = dijkstra(G, indices=s_idx) + start[tuple(ijk.T)][s_idx][:, None]
+    best = Dm.min(0)
+    out = np.zeros(mask.shape, np.int32)
+    for x in np.flatnonzero(np.isfinite(best)):
+        out[tuple(ijk[x])] = lab[s_idx][Dm[:, x] == best[x]].min()
+    return out, best
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_weighted_flood_equals_brute_force_dijkstra(seed):
+    from topopose.pose.segment_kernels import flood_weighted, neighbours
+
+    rng = np.random.default_rng(seed)
+    mask = rng.random((7, 6, 5)) < 0.65
+    seeds = np.zeros(mask.shape, np.int32)
+    pts = np.argwhere(mask)
+    for i in rng.choice(len(pts), 6, replace=False):
+        seeds[tuple(pts[i])] = rng.integers(1, 4)
+    start = np.where(seeds > 0, rng.integers(0, 9, mask.shape), 0)
+    ref, dist = _brute_weighted(mask, seeds, start)
+    m = np.pad(mask, 1).view(np.uint8)
+    idx, nb = neighbours(m.reshape(-1), S._offsets(m.shape, 26))
+    assert np.array_equal(idx, np.flatnonzero(m))
+    lab, d = flood_weighted(nb, S._chamfer(26), np.pad(seeds, 1).reshape(-1)[idx],
+                            np.pad(start, 1).reshape(-1)[idx].astype(np.int64))
+    assert np.array_equal(lab, ref[mask])
+    assert np.array_equal(np.where(d < 0, np.inf, d), dist)
+
+
+def test_radius_weighting_moves_the_boundary_towards_the_narrowing():
+    """A dumbbell along x: a thick bar (radius 6, the trunk, x < 14) and a thin one (radius 1.5,
+    a limb); the limb's skeleton starts inside the trunk (x = 11), as a limb's branch starts at a
+    junction. On the axis the fronts meet half-way between the seeds' ends with plain flooding;
+    with the radius weighting the limb starts ``tau = delay · (r_trunk − r_limb)`` late (radii:
+    the seeds' median distance to the border) and the trunk's front overruns its seeds up to
+    x = 8 + tau, at the narrowing; the trunk's flanks beside the limb's seeds stay in the trunk."""
+    from scipy import ndimage
+
+    x, y, z = np.mgrid[0:48, 0:15, 0:15]
+    rr = np.hypot(y - 7, z - 7)
+    mask = ((x >= 1) & (x < 14) & (rr <= 6)) | ((x >= 14) & (x < 46) & (rr <= 1.5))
+    seeds = np.zeros(mask.shape, np.int32)
+    seeds[5:9, 7, 7] = 1
+    seeds[11:45, 7, 7] = 2
+    plain = S.flood_labels(mask, seeds, 26, "none")
+    assert (plain[1:10, 7, 7] == 1).all() and (plain[10:46, 7, 7] == 2).all()   # (8 + 11) / 2
+    edt = ndimage.distance_transform_edt(np.pad(mask, 1))[1:-1, 1:-1, 1:-1]
+    tau = S.DELAY["radius"] * (np.median(edt[seeds == 1]) - np.median(edt[seeds == 2]))
+    boundary = 8 + tau
+    assert 12 <= boundary <= 14
+    out = S.flood_labels(mask, seeds, 26, "radius")
+    axis = out[:, 7, 7]
+    assert (axis[1:int(np.floor(boundary)) + 1] == 1).all()
+    assert (axis[int(np.floor(boundary)) + 1:46] == 2).all()
+    flank = mask & (x >= 10) & (x < 14) & (rr >= 3)          # beside the limb's seeds
+    assert (out[flank] == 1).all() and np.mean(plain[flank] == 1) < 0.9
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_bone_vote_equals_brute_force(seed):
+    """With bones, each voxel takes the label minimizing (1 − w) · (own flood) + w · (distance
+    to the label's bones): per label a brute-force Dijkstra (chamfer steps / 3) and a
+    point-segment distance."""
+    rng = np.random.default_rng(seed)
+    mask = rng.random((7, 6, 5)) < 0.7
+    seeds = np.zeros(mask.shape, np.int32)
+    pts = np.argwhere(mask)
+    for i in rng.choice(len(pts), 8, replace=False):
+        seeds[tuple(pts[i])] = rng.integers(1, 4)
+    bones = [(rng.random(3) * 6, rng.random(3) * 6, lab) for lab in (1, 1, 2)]   # label 3: none
+    w = 0.7
+    out = S.flood_labels(mask, seeds, 26, "radius", delay=0.0, bones=bones, bone_weight=w)
+    ijk = np.argwhere(mask).astype(float)
+    labs = sorted(set(seeds[mask].tolist()) - {0})
+    score = []
+    for lab in labs:
+        _, t = _brute_weighted(mask, np.where(seeds == lab, lab, 0), np.zeros(mask.shape))
+        t = t / 3
+        segs = []
+        for a, b, bl in bones:
+            if bl == lab:
+                lam = np.clip((ijk - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
+                segs.append(np.linalg.norm(ijk - (a + lam[:, None] * (b - a)), axis=1))
+        score.append(t if not segs else (1 - w) * t + w * np.min(segs, 0))
+    score = np.array(score)
+    ref = np.zeros(mask.shape, np.int32)
+    ok = np.isfinite(score.min(0))
+    ref[tuple(ijk[ok].astype(int).T)] = np.array(labs)[np.argmin(score, 0)[ok]]
+    assert np.array_equal(out, ref)
+    with pytest.raises(InputError):
+        S.flood_labels(mask, seeds, 26, "part", bones=bones)
+
+
+def test_bone_segments_put_each_limb_from_its_first_joint():
+    """Human model, straight curves: the first bone of each limb's arc (chest → shoulder,
+    chest → neck, pelvis → hip) is the trunk's, the next ones the limb's."""
+    from topopose.pose.model import load_model
+    from topopose.pose.pose import Pose
+
+    model = load_model("human")
+    names = S.arc_names(model)
+    P = {"torso": (0, 0, 1.4), "head": (0, 0, 1.75), "crotch": (0, 0, 0.9),
+         "hand_1": (-0.7, 0, 1.4), "hand_2": (0.7, 0, 1.4), "foot_1": (-0.2, 0, 0.0),
+         "foot_2": (0.2, 0, 0.0)}
+    curves = {k: np.linspace(P["crotch" if k.startswith("foot") else "torso"], P[k], 16).tolist()
+              for k in P if k != "torso"}
+    pose = Pose("0", "matched", 0.0, {k: np.array(v, float) for k, v in P.items()},
+                diagnostics={"curves": curves})
+    bones = S.bone_segments(pose, model, names)
+    lab = {n: i + 1 for i, n in enumerate(names)}
+    assert len(bones) == 19
+    for a, b, L in bones:
+        if b[2] > 1.7:                                           # neck → skull (at 0.58 → 0.93)
+            assert L == lab["torso-head"]
+        elif abs(b[0]) > 0.3 and b[2] > 1.0:                     # elbows, wrists, fingertips
+            assert L == lab[f"torso-hand_{1 if b[0] < 0 else 2}"]
+        elif b[2] < 0.6:                                         # knees and below
+            assert L == lab[f"crotch-foot_{1 if b[0] < 0 else 2}"]
+    firsts = [L for a, b, L in bones if np.allclose(a, P["torso"]) or np.allclose(a, P["crotch"])]
+    assert len(firsts) == 6 and set(firsts) == {lab["torso-crotch"]}   # from chest, pelvis: trunk
+    assert S.bone_segments(Pose("0", "matched", 0.0, pose.parts), model, names) == []
+
+
 def test_flood_ties_go_to_the_smallest_label():
     mask = np.ones((5, 1, 1), bool)
     seeds = np.zeros(mask.shape, np.int32)
@@ -185,6 +326,11 @@ def test_segment_synthetic_human_against_ground_truth(tmp_path):
         assert nm == names
         hull = det.volume.data
         assert not lab[~hull].any() and (lab[hull] > 0).mean() > 0.99
+        bl, _ = S.segment(det.volume, det.skeleton, det.alignment, det.data, names=names,
+                          pose=pose, model=est.model)                      # with the bones
+        assert not bl[~hull].any() and (bl[hull] > 0).mean() > 0.99
+        accs.append(S.renumbered_accuracy(bl, S.synthetic_truth(det.volume, cap.options["bodies"][fi],
+                                                                names), names))
         truth = S.synthetic_truth(det.volume, cap.options["bodies"][fi], names)
         accs.append(S.renumbered_accuracy(lab, truth, names))
         masks = S.camera_masks(cap, lab, det.volume.origin, det.volume.voxel_size, cap.silhouettes(f))

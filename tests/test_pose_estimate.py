@@ -32,21 +32,21 @@ def test_fill_cavities_fills_pockets_keeps_tunnels():
     assert fill_cavities(Volume(np.zeros((3, 3, 3), bool), (0, 0, 0), 1.0)).data.sum() == 0
 
 
-def test_confidence_gate_default_follows_the_camera_count():
-    """The gate is on by default with fewer than 6 cameras only (measured in default_gate); an
-    explicit choice wins, and the CLI's auto/on/off reach the run."""
+def test_confidence_gate_default_is_on():
+    """The gate is on by default with 4 and 8 cameras (measured in default_gate); an explicit
+    choice wins, and the CLI's auto/on/off reach the run."""
     from types import SimpleNamespace
 
     from topopose.cli import build_parser
     from topopose.pose.estimate import FrameEstimator, default_gate
 
-    assert default_gate(SimpleNamespace(cameras=[0] * 4)) and not default_gate(SimpleNamespace(cameras=[0] * 8))
+    assert default_gate(SimpleNamespace(cameras=[0] * 4)) and default_gate(SimpleNamespace(cameras=[0] * 8))
     from topopose.capture import synthetic_capture
 
-    for n, want in ((4, True), (8, False)):
+    for n in (4, 8):
         cap = synthetic_capture("human", frames=1, cameras=n, size=(160, 120))
-        assert FrameEstimator(cap, "human", 40).gate is want
-        assert FrameEstimator(cap, "human", 40, gate=not want).gate is (not want)
+        assert FrameEstimator(cap, "human", 40).gate is True
+        assert FrameEstimator(cap, "human", 40, gate=False).gate is False
     p = build_parser()
     assert p.parse_args(["run", "C"]).confidence_gate == "auto"
     assert p.parse_args(["run", "C", "--confidence-gate", "off"]).confidence_gate == "off"

@@ -295,7 +295,8 @@ def foreground_maps(cap, frame, images=None) -> list:
         from .io import read_images
         images = read_images(cap, frame)
     small = [downscale(img, cam, s) for img, cam in zip(images, cap.cameras)]
-    bgs = capture_backgrounds(cap)
+    # the network alone needs no background model
+    bgs = [None] * len(small) if method == "person" else capture_backgrounds(cap)
     out = []
     for c, (img, bg) in enumerate(zip(small, bgs)):
         q = None

@@ -41,7 +41,8 @@ SILHOUETTE_DEFAULTS = {
     "shadow": 0.6,         # brightness ratio down to which a darker pixel of the same colour is shadow
     "uncertain": 0.5,      # weight of the vote of pixels whose background was never revealed
     "zone_margin": 0.15,   # growth (metres) of the 3D box the subject sweeps
-    "fusion": "soft",      # "soft": Franco & Boyer occupancy grid from probabilities; "hard": p > 0.5 masks
+    "fusion": "auto",      # "soft": Franco & Boyer occupancy grid from probabilities; "hard": p > 0.5 masks;
+                           # "auto": hard for method "person" (sharp masks), soft for the others
     "p_detect": 0.99,      # soft fusion: P(pixel foreground | voxel occupied)
     "p_false": 0.4,        # soft fusion: P(pixel foreground | voxel empty)
     "occupancy": 0.5,      # soft fusion: posterior occupancy above which a voxel is in the hull
@@ -226,8 +227,8 @@ def read_capture_options(path, cameras=()) -> dict:
         raise InputError(f"{path}: [silhouettes] field 'method' must be \"diff\", \"mog2\", \"knn\", "
                          f"\"sequence\", \"selfie\", \"sequence+selfie\" or \"person\", "
                          f"got {out['silhouettes']['method']!r}")
-    if out["silhouettes"]["fusion"] not in ("soft", "hard"):
-        raise InputError(f"{path}: [silhouettes] field 'fusion' must be \"soft\" or \"hard\", "
+    if out["silhouettes"]["fusion"] not in ("auto", "soft", "hard"):
+        raise InputError(f"{path}: [silhouettes] field 'fusion' must be \"auto\", \"soft\" or \"hard\", "
                          f"got {out['silhouettes']['fusion']!r}")
     check_params(path, out["silhouettes"])
     if cameras:

@@ -227,8 +227,9 @@ def _soft_fusion(cap) -> bool:
     from ..capture.background import SEQUENCE_METHODS
 
     p = cap.options.get("silhouettes") or {}
-    return (cap.masks is None and cap.options.get("source") == "images"
-            and p.get("method") in SEQUENCE_METHODS and p.get("fusion") == "soft")
+    return (cap.masks is None and cap.options.get("source") in ("images", "videos")
+            and p.get("method") in SEQUENCE_METHODS
+            and (p.get("fusion") == "soft" or (p.get("fusion") == "auto" and p.get("method") != "person")))
 
 
 def _soft_table(cap, origin, vs, shape):
@@ -285,7 +286,7 @@ def capture_box(cap, tolerance: int = 0) -> tuple:
     if cap.volume is not None:
         lo, hi = (np.asarray(v, dtype=float) for v in cap.volume)
         return lo, hi
-    if _soft_fusion(cap) or (cap.options.get("silhouettes") or {}).get("method") in (
+    if (cap.options.get("silhouettes") or {}).get("method") in (
             "sequence", "selfie", "sequence+selfie"):
         from ..capture.background import subject_box
         box = subject_box(cap)

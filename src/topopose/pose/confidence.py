@@ -1,45 +1,86 @@
-"""A per-frame confidence that says whether to trust a pose (issue 12, part 5).
+"""A per-frame confidence that says whether to trust a pose (issue 12 part 5, issue 11).
 
-The AHA distance alone does not separate right from wrong poses on real recordings (a wrong
-frame can align closely: a hull that lost its legs is still a tree). The confidence combines
-what each stage knows, as a product of factors in [0, 1]:
+The AHA distance alone does not separate right from wrong poses (a wrong frame can align
+closely: a bent arm as short as the neck+head branch takes the head at a small distance). For
+the human model the confidence is **fitted** (:func:`fitted_confidence`): a logistic regression
+on standardized features of the frame (:func:`frame_features`), times two guards outside what
+the calibration frames showed:
 
-- **alignment**: f_d = 2^(−d / T_d) (½ at the threshold T_d);
-- **hull**: f_h = clip((s − s_min) / (0.95 − s_min), 0, 1) where s is the share of the hull's
-  voxels in its largest component (what was dropped, part 4) and ``s_min`` = ``min_share``;
-- **placement**: f_m = 0.5^m, m = parts left unmatched;
-- **fat hull**: r = hull volume / H³ (H: the hull's extent along the up axis); f_v = 1 up to
-  r = 0.04, 0 from 0.06, linear between (synthetic good frames: 0.013–0.032 with 4 or 8
-  cameras; a hull this fat has its limbs merged with the body, which no alignment undoes);
-- **time** (batch runs, :func:`temporal_confidence`): f_t = 2^(−(δ / (0.1 H))²) with δ the
-  median displacement of the parts since the previous frame (numbered parts paired
-  optimally); frames whose hull volume departs from the run's median by more than a factor
-  1.5 get ½. Applied only when the run is a coherent sequence (median δ / H over consecutive
-  frames ≤ 0.1): independent poses (synthetic "random" captures) get no time factor.
+    confidence = σ(b + Σ c_i (x_i − mean_i) / scale_i) × f_hull × f_size
+
+- the features ``x_i``, their means, scales, coefficients ``c_i``, the intercept ``b`` and the
+  minimum ``min_confidence`` are in ``confidence_model.json`` beside this module
+  (:data:`CONFIDENCE_MODEL`), written by ``python benchmarks/confidence.py --fit`` — re-run
+  it after any change of the pipeline (it fits on calibration seeds and reports held-out
+  ones, before/after, in ``benchmarks/results/confidence.md``). The features that carry weight:
+  the AHA distance / T_d, parts left unmatched, the head's height below the hull's top, the
+  angle between crotch → torso and torso → head (a head that does not continue the trunk is
+  a limb), the head's thickness, the trunk's length and the matched arcs' length ratios to the
+  model's. Spurious branches (count, longest), hull volume / H³, the thickness cost, the feet's
+  height and the hands'/feet's thickness are computed too (``diagnostics["confidence_features"]``)
+  and were tried: they add nothing the distance does not already see (a spurious branch is a
+  deleted data arc the AHA distance pays for);
+- the minimum is the smallest at which the calibration frames' *out-of-fold* confidences
+  (two folds by seed, each scored by a model fitted on the other) reach 98 % precision (else
+  the most precise minimum);
+- the fit also sees, as wrong frames, the issue's failure made on purpose: each right frame
+  with the head's and a hand's data vertices exchanged (a hand given the head);
+- **hull**: f_hull = clip((s − s_min) / (0.95 − s_min), 0, 1) where s is the share of the
+  hull's voxels in its largest component (what was dropped, part 4) and ``s_min`` =
+  ``min_share``;
+- **size**: r = hull volume / H³ (H: the hull's extent along the up axis); f_size = 1 for r in
+  [0.005, 0.06], 0 below 0.002 or above 0.08, linear between (a hull this fat has its limbs
+  merged with the body; one this slim lost its head or legs).
+
+Other models get the earlier **product** confidence (:func:`frame_confidence`), reported
+without gating (nothing was calibrated for them; give ``FrameEstimator(min_confidence=…)`` to
+gate them): f_d = 2^(−d / T_d) × f_hull × 0.5^(unmatched parts) × a fat-hull factor (1 up to r =
+0.04, 0 from 0.06).
+
+**Time** (batch runs, :func:`temporal_confidence`): f_t = 2^(−(δ / (0.1 H))²) with δ the median
+displacement of the parts since the previous frame (numbered parts paired optimally); frames
+whose hull volume departs from the run's median by more than a factor 1.5 get ½; only when
+the run is a coherent sequence (median δ / H over consecutive frames ≤ 0.1). They multiply
+the product confidence; the fitted confidence only reports them in its factors (measured: they
+cost half the right walking frames for no precision, ``benchmarks/results/confidence.md``).
 
 The confidence is reported for every frame. With the gate on (``FrameEstimator(gate=True)``,
-``topopose run --confidence-gate on``), ``matched`` for the human model also needs confidence ≥
-``min_confidence``. By default the gate is on with fewer than 6 cameras only
-(:func:`topopose.pose.estimate.default_gate`, which gives the measurements): with 8 cameras on
-the anatomically real ``body`` it halves the right frames for no precision gain; with 4 cameras
-(``body``, and the real recording) it removes wrong matches. Other models report the
-confidence without gating (it was calibrated on human subjects only; give
-``FrameEstimator(min_confidence=…)`` to gate them). The form of f_d, the factor bases and
-``min_confidence`` = 0.7 were chosen on synthetic captures only (a factor 0.8 per spurious
-skeleton branch beyond the model's leaves was tried and dropped: it halved the matched frames
-for no gain in precision; ``data_leaves`` stays in the diagnostics) (``benchmarks/confidence.py``:
-capsule human and ``body``, 4 and 8 cameras, walk and random motion, seeds 0–1) and checked on
-other seeds (2–3); the real recording is used to check them, never to tune them.
+``topopose run --confidence-gate on``; the default, :func:`topopose.pose.estimate.default_gate`),
+``matched`` for the human model also needs confidence ≥ ``min_confidence``; rejected frames
+keep their best guess. Everything was fitted and checked on synthetic captures only (capsule
+human and ``body``, 4 and 8 cameras, walk and random motion); the real recording is used to
+check, never to tune.
 """
 from __future__ import annotations
 
 import itertools
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 
-MIN_CONFIDENCE = 0.7
-FAT_OK, FAT_MAX = 0.04, 0.06
+FAT_OK, FAT_MAX = 0.04, 0.06          # the product confidence (models without a fitted one)
+FEATURES = ("distance", "thickness", "missing", "lost", "fat", "spurious", "spurious_length",
+            "arc_dev", "head_low", "foot_high", "head_radius", "end_radius", "head_bend",
+            "head_offset", "head_reach", "trunk")
+MODEL_PATH = Path(__file__).with_name("confidence_model.json")
+# the fitted logistic confidence (benchmarks/confidence.py --fit rewrites the file)
+CONFIDENCE_MODEL = json.loads(MODEL_PATH.read_text())
+MIN_CONFIDENCE = float(CONFIDENCE_MODEL["min_confidence"])
+# size guard of the fitted confidence, hull volume / H³: 1 inside [SLIM_OK, SIZE_OK], 0 below
+# SLIM_MIN or above SIZE_MAX (matched frames of the calibration captures: right 0.009–0.060,
+# wrong up to 0.084; a hull without its legs or head is far slimmer)
+SLIM_MIN, SLIM_OK, SIZE_OK, SIZE_MAX = 0.002, 0.005, 0.06, 0.08
+
+
+def logistic_confidence(features: dict, model: dict = None) -> float:
+    """σ(b + Σ c_i (x_i − mean_i) / scale_i) over ``model["features"]`` (default
+    :data:`CONFIDENCE_MODEL`)."""
+    m = CONFIDENCE_MODEL if model is None else model
+    z = m["intercept"] + sum(c * (float(features[f]) - mu) / sc for f, c, mu, sc
+                             in zip(m["features"], m["coef"], m["mean"], m["scale"]))
+    return 1.0 / (1.0 + math.exp(-max(min(z, 50.0), -50.0)))
 
 
 def leaf_count(tree) -> int:
@@ -49,6 +90,138 @@ def leaf_count(tree) -> int:
         deg[a] = deg.get(a, 0) + 1
         deg[b] = deg.get(b, 0) + 1
     return sum(1 for v in deg.values() if v == 1)
+
+
+def fit_logistic(X, y, l2=1.0, iters=50, weights=None) -> tuple:
+    """L2-penalized logistic regression by Newton's method on standardized ``X`` (n, k) and
+    labels ``y`` in {0, 1}, rows weighted by ``weights`` (default 1); the intercept is not
+    penalized. Returns (coefficients, intercept) (what ``benchmarks/confidence.py --fit``
+    writes to :data:`MODEL_PATH`)."""
+    X = np.asarray(X, float)
+    y = np.asarray(y, float)
+    sw = np.ones(len(y)) if weights is None else np.asarray(weights, float)
+    Xa = np.hstack([X, np.ones((len(X), 1))])
+    w = np.zeros(Xa.shape[1])
+    P = l2 * np.eye(Xa.shape[1])
+    P[-1, -1] = 0.0
+    for _ in range(iters):
+        p = 1.0 / (1.0 + np.exp(-np.clip(Xa @ w, -50, 50)))
+        g = Xa.T @ (sw * (p - y)) + P @ w
+        H = (Xa * (sw * p * (1 - p))[:, None]).T @ Xa + P + 1e-9 * np.eye(len(w))
+        step = np.linalg.solve(H, g)
+        w -= step
+        if np.abs(step).max() < 1e-10:
+            break
+    return w[:-1], float(w[-1])
+
+
+def _stem(part) -> str:
+    head, sep, tail = str(part).rpartition("_")
+    return head if sep and tail.isdigit() else str(part)
+
+
+def _branch_length(adj, leaf) -> float:
+    """Length of the branch from ``leaf`` to the first vertex of degree ≠ 2."""
+    prev, x, n = None, leaf, 0.0
+    while True:
+        y, w = next((y, w) for y, w in adj[x] if y != prev)
+        n += w if math.isfinite(w) else 0.0
+        prev, x = x, y
+        if len(adj[x]) != 2:
+            return n
+
+
+def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al=None,
+                   thickness_cost=0.0, radii=None) -> dict:
+    """What one frame's stages know about how far to trust it, as numbers (the inputs of the
+    logistic confidence, :data:`FEATURES`).
+
+    - ``distance``: AHA length distance / T_d (3 when infinite);
+    - ``thickness``: the thickness arc cost paid by the matched arcs (a hand placed on a thick
+      branch, a head on a thin one; :func:`topopose.pose.estimate.thickness_arc_cost`);
+    - ``missing``: parts left unmatched;
+    - ``lost``: share of the hull's voxels outside its largest component;
+    - ``fat``: hull volume / H³ (H: hull extent along the up axis);
+    - ``spurious``: data leaves that no part maps to; ``spurious_length``: the longest of
+      their branches (normalized tree weight, the whole tree weighs 1);
+    - ``arc_dev``: the largest |log(data length / model length)| of the matched arcs (both
+      relative to their tree's total);
+    - ``head_low``: 1 − the head's height above the hull's bottom / H (0: at the top);
+      ``foot_high``: the higher foot's height / H (0: on the floor);
+    - ``head_bend``: 1 − cos of the angle between torso → head and crotch → torso (0: the
+      head continues the trunk); ``head_offset``: the head's distance from the trunk's line /
+      H; ``head_reach``: |head − torso| / H; ``trunk``: |torso − crotch| / H;
+    - ``head_radius``, ``end_radius``: the hull's inscribed-ball radius at the head and the
+      largest at a hand or foot, relative to the hull's largest (``radii``: per data vertex,
+      :func:`topopose.pose.estimate.vertex_radii`; absent: 0).
+    """
+    vd = vol.diagnostics or {}
+    share = float(vd.get("largest_share", 1.0))
+    up = np.asarray(up, float)
+    ax = int(np.argmax(np.abs(up)))
+    sign = 1.0 if up[ax] >= 0 else -1.0
+    bb = vd.get("bbox")
+    if bb:
+        lo_i, hi_i = bb[0][ax], bb[1][ax]
+    else:
+        occ = np.flatnonzero(vol.data.any(axis=tuple(i for i in range(3) if i != ax)))
+        lo_i, hi_i = (int(occ[0]), int(occ[-1])) if occ.size else (0, 0)
+    vs = float(vol.voxel_size)
+    height = (hi_i - lo_i + 1) * vs
+    z0 = vol.origin[ax] + (lo_i if sign > 0 else hi_i) * vs
+    f = {"distance": 3.0 if distance is None or not math.isfinite(distance)
+         else min(float(distance) / threshold, 3.0),
+         "thickness": min(float(thickness_cost or 0.0), 5.0),
+         "missing": float(missing), "lost": 1.0 - share,
+         "fat": n_vox * vs ** 3 / height ** 3 if height > 0 else 0.0,
+         "spurious": 0.0, "spurious_length": 0.0, "arc_dev": 0.0,
+         "head_low": 0.0, "foot_high": 0.0, "head_radius": 0.0, "end_radius": 0.0,
+         "head_bend": 0.0, "head_offset": 0.0, "head_reach": 0.0, "trunk": 0.0}
+    if al is None:
+        return f
+    mapping = al.mapping or {}
+    adj = data.adjacency()
+    used = {v for v in mapping.values() if v is not None}
+    spur = [_branch_length(adj, v) for v, n in adj.items() if len(n) == 1 and v not in used]
+    f["spurious"] = float(len(spur))
+    f["spurious_length"] = max(spur, default=0.0)
+    padj = model.tree.adjacency()
+    ptot = model.tree.total_weight() or 1.0
+    dtot = data.total_weight() or 1.0
+    dev = []
+    for ppath, dpath in (al.pairs or []):
+        pl = sum(w for a, b in zip(ppath[:-1], ppath[1:]) for y, w in padj.get(a, ()) if y == b)
+        dl = sum(w for a, b in zip(dpath[:-1], dpath[1:]) for y, w in adj.get(a, ()) if y == b)
+        if pl > 0 and dl > 0 and math.isfinite(pl) and math.isfinite(dl):
+            dev.append(abs(math.log((dl / dtot) / (pl / ptot))))
+    f["arc_dev"] = max(dev, default=0.0)
+    pos = {p: data.positions.get(v) for p, v in mapping.items() if v is not None}
+    def h(p):
+        return sign * (float(np.asarray(pos[p])[ax]) - z0) / height if height > 0 else 0.0
+    heads = [p for p in pos if _stem(p) == "head" and pos[p] is not None]
+    feet = [p for p in pos if _stem(p) == "foot" and pos[p] is not None]
+    if heads:
+        f["head_low"] = 1.0 - max(h(p) for p in heads)
+    if feet:
+        f["foot_high"] = max(h(p) for p in feet)
+    trunk = [np.asarray(pos[p], float) for p in ("torso", "crotch") if pos.get(p) is not None]
+    if len(trunk) == 2 and heads and height > 0:
+        t, c = trunk
+        x = np.asarray(pos[heads[0]], float)
+        axis = t - c
+        n = float(np.linalg.norm(axis))
+        f["trunk"] = n / height
+        hv = x - t
+        hn = float(np.linalg.norm(hv))
+        f["head_reach"] = hn / height
+        if n > 0 and hn > 0:
+            f["head_bend"] = 1.0 - float(hv @ axis) / (hn * n)
+            f["head_offset"] = float(np.linalg.norm(np.cross(x - c, axis / n))) / height
+    if radii:
+        r = {p: radii.get(v, 0.0) for p, v in mapping.items() if v is not None}
+        f["head_radius"] = max((r[p] for p in r if _stem(p) == "head"), default=0.0)
+        f["end_radius"] = max((r[p] for p in r if _stem(p) in ("hand", "foot")), default=0.0)
+    return {k: round(float(v), 5) for k, v in f.items()}
 
 
 def frame_confidence(distance, threshold, share, missing, min_share=0.8, fatness=None) -> dict:
@@ -62,19 +235,39 @@ def frame_confidence(distance, threshold, share, missing, min_share=0.8, fatness
             "fat": round(fv, 4), "confidence": round(fd * fh * fm * fv, 4)}
 
 
+def fitted_confidence(features: dict, share: float, min_share: float = 0.8,
+                      model: dict = None) -> dict:
+    """Factors and product of the fitted confidence (module docstring): the logistic
+    :func:`logistic_confidence` times the guards ``hull`` (split hull, as
+    :func:`frame_confidence`) and ``size`` (hull volume / H³ outside what the calibration
+    frames showed)."""
+    fl = logistic_confidence(features, model)
+    fh = float(np.clip((share - min_share) / max(0.95 - min_share, 1e-9), 0.0, 1.0))
+    r = float(features["fat"])
+    fs = float(np.clip(min((r - SLIM_MIN) / (SLIM_OK - SLIM_MIN), (SIZE_MAX - r) / (SIZE_MAX - SIZE_OK)),
+                       0.0, 1.0))
+    return {"fitted": round(fl, 4), "hull": round(fh, 4), "size": round(fs, 4),
+            "confidence": round(fl * fh * fs, 4)}
+
+
 def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
-                min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m") -> tuple:
+                min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m", al=None,
+                thickness_cost=0.0, reach=0) -> tuple:
     """Status, reason and diagnostics of one frame from what the stages know.
 
     A ``matched`` frame becomes ``rejected`` when the hull's largest component holds less than
     ``min_share`` of its voxels (the dropped components are named with their sizes and shares),
-    or when its confidence is below ``min_confidence`` (None: no gate).
+    or when its confidence is below ``min_confidence`` (None: no gate). The confidence is the
+    fitted one (:func:`fitted_confidence`) for the models of :data:`CONFIDENCE_MODEL`, else
+    the product (:func:`frame_confidence`). ``al``: the alignment (its mapping and matched
+    arcs give the features), ``thickness_cost``: the part of its distance paid to the
+    thickness term, ``reach``: of :func:`topopose.pose.estimate.vertex_radii`.
 
     Returns
     -------
     (status, error, diagnostics) with ``hull_litres``, ``largest_share``,
     ``components_dropped`` (the five largest), ``data_leaves``, ``height`` (hull extent along
-    the up axis), ``confidence`` and ``confidence_factors``.
+    the up axis), ``confidence``, ``confidence_factors`` and ``confidence_features``.
     """
     from ..capture.calibration import _UNITS
 
@@ -85,10 +278,20 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     ax = int(np.argmax(np.abs(up)))
     bb = vd.get("bbox")
     height = None if not bb else float((bb[1][ax] - bb[0][ax] + 1) * vol.voxel_size)
-    fat = None
-    if height and model.name == "human":        # the fat-hull factor is the human model's
-        fat = n_vox * vol.voxel_size ** 3 / height ** 3
-    conf = frame_confidence(distance, threshold, share, missing, min_share, fat)
+    radii = None
+    if al is not None:
+        from types import SimpleNamespace
+
+        from .estimate import vertex_radii
+        mapped = [v for v in (al.mapping or {}).values() if v is not None]
+        radii = vertex_radii(vol, SimpleNamespace(vertices=mapped, positions=data.positions), reach)
+    feats = frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al,
+                           thickness_cost, radii)
+    if model.name in CONFIDENCE_MODEL.get("models", ()):
+        conf = fitted_confidence(feats, share, min_share)
+    else:
+        conf = frame_confidence(distance, threshold, share, missing, min_share,
+                                feats["fat"] if model.name == "human" else None)
     if status == "matched" and share < min_share:
         status = "rejected"
         total = n_vox + sum(dropped)
@@ -103,7 +306,8 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     diag = {"hull_litres": round(n_vox * (vol.voxel_size * metre) ** 3 * 1000.0, 2),
             "largest_share": round(share, 4), "components_dropped": dropped[:5],
             "data_leaves": leaves, "height": height,
-            "confidence": conf.pop("confidence"), "confidence_factors": conf}
+            "confidence": conf.pop("confidence"), "confidence_factors": conf,
+            "confidence_features": feats}
     return status, error, diag
 
 
@@ -167,6 +371,8 @@ def temporal_confidence(poses, frame_index, gate=True, min_confidence=MIN_CONFID
             fv = 0.5
         diag["confidence_factors"]["time"] = round(ft, 4) if coherent else None
         diag["confidence_factors"]["volume"] = fv if coherent else None
+        if "fitted" in diag["confidence_factors"]:
+            continue                       # the fitted confidence: the time factors are told only
         diag["confidence"] = round(diag["confidence"] * ft * fv, 4)
         if gate and p.status == "matched" and diag["confidence"] < min_confidence:
             p.status = "rejected"

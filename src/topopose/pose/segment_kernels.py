@@ -106,3 +106,120 @@ def flood(mask, labels, start, offsets):
                         labels[j] = lab
         level += 1
     return tail
+
+
+@njit(cache=True)
+def neighbours(mask, offsets):
+    """The mask's voxels as a graph: ``idx`` (flat index of each mask voxel, in order) and
+    ``nb`` (m, k): position in ``idx`` of each voxel's neighbour along ``offsets[k]``, or -1."""
+    n = mask.size
+    pos = np.full(n, -1, np.int64)
+    m = 0
+    for i in range(n):
+        if mask[i]:
+            pos[i] = m
+            m += 1
+    idx = np.empty(m, np.int64)
+    for i in range(n):
+        if mask[i]:
+            idx[pos[i]] = i
+    nb = np.full((m, offsets.size), -1, np.int32)
+    for a in range(m):
+        i = idx[a]
+        for k in range(offsets.size):
+            j = i + offsets[k]
+            if j >= 0 and j < n and mask[j]:
+                nb[a, k] = pos[j]
+    return idx, nb
+
+
+@njit(cache=True)
+def flood_weighted(nb, steps, seeds, start):
+    """Multi-source shortest paths on the graph of :func:`neighbours` with integer step costs
+    (Dial's bucket queue): every vertex reachable from a seed (``seeds > 0``) gets the label of
+    the seed s minimizing ``start[s] + Σ steps[k]`` over the steps of a path, ties to the
+    smallest label. ``steps`` (int, ≥ 1): the cost of each neighbour offset, e.g. the chamfer
+    3, 4, 5 for face, edge and corner steps (÷ 3: a Euclidean distance within 4 %);
+    ``start`` (int, ≥ 0) delays a seed. Returns ``(labels, dist)``: label 0 and dist -1 where
+    no seed reaches."""
+    m, K = nb.shape
+    big = np.iinfo(np.int64).max
+    dist = np.full(m, big, np.int64)
+    lab = np.zeros(m, np.int32)
+    smax = 0
+    for a in range(m):
+        if seeds[a] > 0:
+            smax = max(smax, start[a])
+    kmax = 1
+    for k in range(K):
+        kmax = max(kmax, steps[k])
+    nbuck = smax + kmax * (m + 1) + 1
+    head = np.full(nbuck, -1, np.int64)
+    cap = m * (K + 1) + 1
+    node_v = np.empty(cap, np.int64)
+    node_next = np.empty(cap, np.int64)
+    c = 0
+    top = 0
+    for a in range(m):
+        L = seeds[a]
+        if L > 0:
+            d = start[a]
+            if d < dist[a] or (d == dist[a] and L < lab[a]):
+                dist[a] = d
+                lab[a] = L
+                node_v[c] = a
+                node_next[c] = head[d]
+                head[d] = c
+                c += 1
+                top = max(top, d)
+    done = np.zeros(m, np.bool_)
+    d = 0
+    while d <= top:
+        e = head[d]
+        while e != -1:
+            v = node_v[e]
+            e = node_next[e]
+            if done[v] or dist[v] != d:
+                continue
+            done[v] = True
+            for k in range(K):
+                w = nb[v, k]
+                if w < 0 or done[w]:
+                    continue
+                nd = d + steps[k]
+                if nd < dist[w] or (nd == dist[w] and lab[v] < lab[w]):
+                    dist[w] = nd
+                    lab[w] = lab[v]
+                    node_v[c] = w
+                    node_next[c] = head[nd]
+                    head[nd] = c
+                    c += 1
+                    if nd > top:
+                        top = nd
+        d += 1
+    for a in range(m):
+        if not done[a]:
+            lab[a] = 0
+            dist[a] = -1
+    return lab, dist
+
+
+@njit(cache=True)
+def bone_distance(X, A, B, label, nlab):
+    """(nlab, m) distance of each point of ``X`` (m, 3) to the nearest segment A[k]–B[k] of
+    each label (``label[k]`` in 1..nlab; inf for a label without a segment)."""
+    m = X.shape[0]
+    out = np.full((nlab, m), np.inf)
+    for k in range(A.shape[0]):
+        L = label[k] - 1
+        d0, d1, d2 = B[k, 0] - A[k, 0], B[k, 1] - A[k, 1], B[k, 2] - A[k, 2]
+        dd = max(d0 * d0 + d1 * d1 + d2 * d2, 1e-12)
+        for i in range(m):
+            x0, x1, x2 = X[i, 0] - A[k, 0], X[i, 1] - A[k, 1], X[i, 2] - A[k, 2]
+            t = min(1.0, max(0.0, (x0 * d0 + x1 * d1 + x2 * d2) / dd))
+            e0, e1, e2 = x0 - t * d0, x1 - t * d1, x2 - t * d2
+            e = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+            if e < out[L, i]:
+                out[L, i] = e
+    return out
+

@@ -277,7 +277,7 @@ def view_cli(a) -> int:
         if getattr(a, "segmentation", False):
             from ..pose.segment import segmentation_figure
 
-            segmentation_figure(tmp, cap, frame, model, det, up=cap.up_vector)
+            segmentation_figure(tmp, cap, frame, model, det, up=cap.up_vector, pose=pose)
         else:
             render_frame(tmp, model, pose, det, cap=cap, silhouettes=a.silhouettes,
                          up=cap.up_vector)

@@ -1,0 +1,168 @@
+"""The fitted per-frame confidence (topopose.pose.confidence): its features on a hand-built
+frame, the logistic fit against known coefficients, and the gate against ground truth — a clean
+frame passes, the same frame with a swapped part assignment or an added spurious limb does not."""
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from topopose.hull import Volume
+from topopose.match.tree import Tree
+from topopose.pose import confidence as C
+from topopose.pose.model import load_model
+
+
+def test_features_of_a_hand_built_frame():
+    """A 10-voxel-tall slab hull and a data tree whose lengths, heights and spurious branch
+    are known by construction."""
+    a = np.zeros((12, 12, 12), bool)
+    a[1:11, 1:11, 1:11] = True                       # H = 10 voxels of 0.1 → 1.0
+    vol = Volume(a, (0, 0, 0), 0.1)
+    P = {"t": (0.5, 0.5, 0.7), "c": (0.5, 0.5, 0.4), "h": (0.5, 0.5, 1.0),
+         "a1": (0.1, 0.5, 0.5), "a2": (0.9, 0.5, 0.5), "f1": (0.4, 0.5, 0.1),
+         "f2": (0.6, 0.5, 0.3), "s": (0.5, 0.9, 0.7)}
+    edges = [("t", "h", 0.3), ("t", "a1", 0.4), ("t", "a2", 0.4), ("t", "c", 0.3),
+             ("c", "f1", 0.3), ("c", "f2", 0.2), ("t", "s", 0.1)]
+    data = Tree(edges, positions={k: np.array(v) for k, v in P.items()})
+    model = load_model("human")
+    mapping = {"torso": "t", "crotch": "c", "head": "h", "hand_1": "a1", "hand_2": "a2",
+               "foot_1": "f1", "foot_2": "f2"}
+    pairs = [(["torso", "head"], ["t", "h"]), (["torso", "crotch"], ["t", "c"])]
+    al = SimpleNamespace(mapping=mapping, pairs=pairs)
+    f = C.frame_features(vol, int(a.sum()), data, model, (0, 0, 1), 0.2, 0.4, 0, al, 0.3,
+                         {"h": 0.6, "a1": 0.2, "a2": 0.3, "f1": 0.25, "f2": 0.1})
+    assert f["distance"] == pytest.approx(0.5)
+    assert f["thickness"] == pytest.approx(0.3)
+    assert f["fat"] == pytest.approx(1000 * 0.001 / 1.0)
+    assert f["spurious"] == 1 and f["spurious_length"] == pytest.approx(0.1)
+    ptot, dtot = model.tree.total_weight(), 2.0
+    want = max(abs(math.log((0.3 / dtot) / (0.27 / ptot))), abs(math.log((0.3 / dtot) / (0.3 / ptot))))
+    assert f["arc_dev"] == pytest.approx(want, abs=1e-4)
+    # hull bottom at voxel 1 (z = 0.1), H = 1.0: head at 1.0 → 0.9 up; feet 0.0 and 0.2 up
+    assert f["head_low"] == pytest.approx(0.1) and f["foot_high"] == pytest.approx(0.2)
+    assert f["head_radius"] == 0.6 and f["end_radius"] == 0.3
+    assert f["head_bend"] == pytest.approx(0.0, abs=1e-6) and f["head_offset"] == pytest.approx(0.0, abs=1e-6)
+    assert f["head_reach"] == pytest.approx(0.3) and f["trunk"] == pytest.approx(0.3)
+    # the head bent sideways by 90°: bend 1, offset = its distance from the trunk line
+    data.positions["h"] = np.array([0.8, 0.5, 0.7])
+    g = C.frame_features(vol, int(a.sum()), data, model, (0, 0, 1), 0.2, 0.4, 0, al)
+    assert g["head_bend"] == pytest.approx(1.0) and g["head_offset"] == pytest.approx(0.3)
+    assert g["head_low"] == pytest.approx(0.4)
+
+
+def test_logistic_fit_recovers_known_coefficients():
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(4000, 3))
+    w, b = np.array([1.5, -2.0, 0.0]), 0.5
+    y = rng.random(4000) < 1 / (1 + np.exp(-(X @ w + b)))
+    coef, icpt = C.fit_logistic(X, y, l2=1e-6)
+    np.testing.assert_allclose(coef, w, atol=0.15)
+    assert icpt == pytest.approx(b, abs=0.15)
+    model = {"features": ["x", "y", "z"], "mean": [1, 0, 0], "scale": [2, 1, 1],
+             "coef": [1.0, -1.0, 0.0], "intercept": 0.2}
+    z = 0.2 + (3 - 1) / 2 - 0.5
+    assert C.logistic_confidence({"x": 3, "y": 0.5, "z": 9}, model) == pytest.approx(1 / (1 + math.exp(-z)))
+
+
+def test_shipped_model_is_complete():
+    m = C.CONFIDENCE_MODEL
+    assert set(m["features"]) <= set(C.FEATURES)
+    assert len(m["coef"]) == len(m["mean"]) == len(m["scale"]) == len(m["features"])
+    assert 0 < m["min_confidence"] < 1 and C.MIN_CONFIDENCE == m["min_confidence"]
+    assert "human" in m["models"]
+
+
+@pytest.fixture(scope="module")
+def clean():
+    """Three frames of the capsule human, limbs apart, 8 cameras, noise 1, 100³: every part
+    right by ground truth (the oracle)."""
+    from topopose.capture.synth import synthetic_capture
+    from topopose.pose.estimate import FrameEstimator
+    from topopose.pose.quality import evaluate
+
+    cap = synthetic_capture("human", frames=3, seed=4, cameras=8, noise=1, separated=True,
+                            margin=0.06)
+    est = FrameEstimator(cap, "human", 100, gate=True)
+    out = [est.estimate(f, detail=True) for f in cap.frames]
+    ev = evaluate(cap.gt, [p for p, _ in out], model=est.model,
+                  tolerance=0.08 * cap.gt["height"])
+    assert all(s.quality == "good" for s in ev.frames)
+    return cap, est, out
+
+
+def test_clean_frames_pass_the_gate(clean):
+    _, _, out = clean
+    passed = [p.status == "matched" and p.diagnostics["confidence"] >= C.MIN_CONFIDENCE
+              for p, _ in out]
+    assert sum(passed) >= 2, [p.diagnostics["confidence"] for p, _ in out]
+    assert set(out[0][0].diagnostics["confidence_factors"]) == {"fitted", "hull", "size"}
+
+
+def test_swapped_head_and_hand_fail_the_gate(clean):
+    """The same frames with the head's and a hand's data vertices exchanged (a wrong pose whose
+    AHA distance is unchanged) fall below the gate."""
+    from topopose.pose.estimate import vertex_radii
+
+    cap, est, out = clean
+    for pose, det in out:
+        al = det.alignment
+        radii = vertex_radii(det.volume, det.data, est.thickness_reach)
+        for hand in ("hand_1", "hand_2"):
+            m = dict(al.mapping)
+            m["head"], m[hand] = m[hand], m["head"]
+            sw = SimpleNamespace(mapping=m, pairs=al.pairs)
+            f = C.frame_features(det.volume, int(det.volume.data.sum()), det.data, est.model,
+                                 est.up, pose.distance, est.threshold, 0, sw, 0.0, radii)
+            c = C.fitted_confidence(f, det.volume.diagnostics.get("largest_share", 1.0))
+            assert c["confidence"] < C.MIN_CONFIDENCE, (pose.frame, hand, f, c)
+
+
+def test_spurious_limb_fails_the_gate(clean):
+    """A 0.45 m rod added to the hull at chest height, pointing away from the arms (a limb the
+    subject does not have): the frame is no longer matched, and keeps its best guess."""
+    cap, est, out = clean
+    k = next(i for i, (p, _) in enumerate(out) if p.status == "matched")
+    frame = cap.frames[k]
+    gt = cap.gt["frames"][frame]
+    torso = np.asarray(gt["parts"]["torso"], float)
+    hands = [np.asarray(gt["parts"][h], float) for h in ("hand_1", "hand_2")]
+    dirs = [np.array([math.cos(t), math.sin(t), 0.0])
+            for t in np.linspace(0, 2 * math.pi, 16, endpoint=False)]
+    d = max(dirs, key=lambda u: min(np.linalg.norm(torso + 0.4 * u - h) for h in hands))
+    hull = est.hull
+
+    def with_rod(name):
+        vol = hull(name)
+        vs = vol.voxel_size
+        for s in np.arange(0.0, 0.45, vs / 2):
+            i = np.round((torso + s * d - vol.origin) / vs).astype(int)
+            if np.any(i < 2) or np.any(i > np.array(vol.data.shape) - 3):
+                break
+            vol.data[i[0] - 1:i[0] + 2, i[1] - 1:i[1] + 2, i[2]] = True
+        vol.diagnostics.pop("bbox", None)
+        vol.diagnostics["voxels"] = int(vol.data.sum())
+        return vol
+
+    est.hull = with_rod
+    try:
+        bad = est.estimate(frame)
+    finally:
+        del est.hull
+    assert bad.diagnostics["confidence"] < C.MIN_CONFIDENCE
+    assert bad.status == "rejected" and bad.parts["head"] is not None
+
+
+def test_time_factors_are_told_not_applied_to_the_fitted_confidence():
+    from topopose.pose.pose import Pose
+
+    ps = []
+    for i in range(6):
+        x = i * 0.01 + (1.0 if i == 3 else 0.0)           # a coherent walk, frame 3 jumps 1 m
+        parts = {"head": np.array([x, 0, 1.7]), "hand_1": np.array([x, -0.5, 1.0])}
+        ps.append(Pose(f"{i:02d}", "matched", 0.1, parts, None, {},
+                       {"confidence": 0.97, "height": 1.7, "hull_voxels": 1000,
+                        "confidence_factors": {"fitted": 0.97, "hull": 1.0, "size": 1.0}}))
+    C.temporal_confidence(ps, {p.frame: i for i, p in enumerate(ps)})
+    assert ps[3].diagnostics["confidence_factors"]["time"] < 0.01       # told
+    assert all(p.status == "matched" and p.diagnostics["confidence"] == 0.97 for p in ps)

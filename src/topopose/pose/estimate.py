@@ -745,11 +745,14 @@ def default_gate(cap) -> bool:
     """Confidence gate used by default: on, whatever the number of cameras.
 
     With the fitted confidence (:mod:`.confidence`, ``benchmarks/results/confidence.md``:
-    held-out seeds of ``body`` and the capsule human, walk and random, noise 1, 100³, right =
-    every part within 0.08 × height; matched frames, precision, recall of the right frames):
-    8 cameras 291, 0.79, 0.97 without the gate → 205, 0.97, 0.84 with it; 4 cameras 18, 0.50,
-    0.10 → 6, 0.83, 0.05. (The earlier product confidence halved the right frames with 8
-    cameras, so the gate was on with fewer than 6 cameras only.) ``cap`` is kept for callers.
+    held-out seeds of ``body`` (walk, random, separated and all poses) and the capsule human,
+    noise 1, 100³, right = issue 11's TP, every placed part within 0.08 × height; matched
+    frames, precision, recall of the right frames): 8 cameras 383, 0.875, 0.861 without the
+    gate → 333, 0.949, 0.812 with it; 4 cameras 18, 0.83, 0.15 → 11, 0.91, 0.10. On the body
+    benchmark's own frames (``quality.py --only body``, seeds 21, 22, 8 cameras; TP rate /
+    FP per match) separated 0.88 / 0.070 → 0.81 / 0.020, all poses 0.55 / 0.185 → 0.48 /
+    0.095. (The earlier product confidence halved the right frames with 8 cameras, so the
+    gate was on with fewer than 6 cameras only.) ``cap`` is kept for callers.
     """
     return True
 

@@ -5,10 +5,10 @@ per seed) and the capsule human, 4 and 8 cameras, walking and random poses, silh
 and all random poses, 8 cameras) on seeds POSE_SEED0… (disjoint from its 21, 22). A frame is
 *right* when it is a TP of issue 11, as in the body benchmark: quality "good" or "missing
 limb" (every placed part within 0.08 × height of its ground-truth segment, junctions too).
-The first half of the seeds fits the logistic confidence and
-chooses its minimum (calibration), the second half checks them (held out). The fit also sees
-each right frame with the head's and a hand's data vertices exchanged (wrong by ground truth,
-weighted SWAP_WEIGHT of the real frames), the failure issue 11 names. Features fitted:
+The first half of the seeds fits the logistic confidence and chooses its minimum
+(calibration), the second half checks them (held out). The fit also sees each right frame
+with the head's and a hand's data vertices exchanged (wrong by ground truth, weighted
+SWAP_WEIGHT of the real frames), the failure issue 11 names. Features fitted:
 FIT_FEATURES (every feature of ``frame_features`` is stored in the rows, to try others).
 
 Refit after a pipeline change (one command; it rewrites the package's coefficients,
@@ -18,8 +18,10 @@ Refit after a pipeline change (one command; it rewrites the package's coefficien
 
 Without ``--fit`` it only reports (the shipped coefficients against the previous product
 confidence, same frames); with it the shipped model before the refit is a row too. A table of
-precision / recall at other minima (held out, 8 cameras) shows the trade-off. ``--rows results/confidence.json`` reuses the frames of an earlier
-run (no pipeline run: for trying features).
+precision / recall at other minima (held out, 8 cameras) shows the trade-off;
+``--body-benchmark`` applies the same rules to quality.py's own body frames (seeds 21, 22: a
+check, never fitted on). ``--rows results/confidence.json`` reuses the frames of an earlier run
+(no pipeline run: for trying features).
 """
 from __future__ import annotations
 
@@ -44,13 +46,13 @@ KEEP = 0.9
 SWAP_WEIGHT = 0.1
 POSE_KINDS = ("separated", "all")   # the body benchmark's poses (quality.py body_captures)
 POSE_SEED0 = 100                    # their seeds: disjoint from quality.py's 21, 22
-BODY_MARGIN = 0.075                 # as quality.py
 FIT_FEATURES = ("distance", "missing", "arc_dev", "head_low", "head_radius", "head_bend",
                 "head_offset", "head_reach", "trunk")
 
 
 def collect(a) -> list:
     """Run the pipeline (gate off) on every capture; one row per processed frame."""
+    from quality import BODY_MARGIN
     from topopose.capture.synth import synthetic_capture
 
     rows = []
@@ -64,7 +66,8 @@ def collect(a) -> list:
     # the poses of the body benchmark (quality.py --only body: separated limbs / all random
     # poses, 8 cameras), on seeds POSE_SEED0… disjoint from its 21, 22
     if "body" in a.subjects.split(","):
-        for kind, seed in itertools.product(POSE_KINDS, range(POSE_SEED0, POSE_SEED0 + a.pose_seeds)):
+        pose_seeds = range(POSE_SEED0, POSE_SEED0 + a.pose_seeds)
+        for kind, seed in itertools.product(POSE_KINDS, pose_seeds):
             build = BUILDS[seed % len(BUILDS)]
             sep = kind == "separated"
             cap = synthetic_capture("body", frames=a.pose_frames, seed=seed, cameras=8, noise=1,
@@ -322,7 +325,8 @@ def body_benchmark(models, frames=12, seeds=(21, 22)):
                     continue
                 if m is not None:
                     f = p.diagnostics["confidence_features"]
-                    if fitted_confidence(f, 1.0 - f["lost"], model=m)["confidence"] < m["min_confidence"]:
+                    c = fitted_confidence(f, 1.0 - f["lost"], model=m)["confidence"]
+                    if c < m["min_confidence"]:
                         continue
                 tp += s.quality in TP_CLASSES
                 fp += s.quality in ("misplaced", "bad")

@@ -220,7 +220,7 @@ def test_bone_segments_put_each_limb_from_its_first_joint():
               for k in P if k != "torso"}
     pose = Pose("0", "matched", 0.0, {k: np.array(v, float) for k, v in P.items()},
                 diagnostics={"curves": curves})
-    bones = S.bone_segments(pose, model, names)
+    bones = S.bone_segments(pose, model, names, start={})     # every limb from its first joint
     lab = {n: i + 1 for i, n in enumerate(names)}
     assert len(bones) == 19
     for a, b, L in bones:
@@ -233,6 +233,43 @@ def test_bone_segments_put_each_limb_from_its_first_joint():
     firsts = [L for a, b, L in bones if np.allclose(a, P["torso"]) or np.allclose(a, P["crotch"])]
     assert len(firsts) == 6 and set(firsts) == {lab["torso-crotch"]}   # from chest, pelvis: trunk
     assert S.bone_segments(Pose("0", "matched", 0.0, pose.parts), model, names) == []
+
+
+def test_bone_segments_split_the_chain_at_the_limb_start():
+    """``start``: the trunk takes each limb's chain of joints up to the given position (in
+    bones from the junction), the limb the rest: head 0.5 splits chest → neck at its middle,
+    hand 1.45 gives the trunk chest → shoulder and 45 % of shoulder → elbow."""
+    from topopose.pose.kinematic_fit import initial_placement, kinematic_tree
+    from topopose.pose.model import load_model
+    from topopose.pose.pose import Pose
+
+    model = load_model("human")
+    names = S.arc_names(model)
+    lab = {n: i + 1 for i, n in enumerate(names)}
+    P = {"torso": (0, 0, 1.4), "head": (0, 0, 1.75), "crotch": (0, 0, 0.9),
+         "hand_1": (-0.7, 0, 1.4), "hand_2": (0.7, 0, 1.4), "foot_1": (-0.2, 0, 0.0),
+         "foot_2": (0.2, 0, 0.0)}
+    curves = {k: np.linspace(P["crotch" if k.startswith("foot") else "torso"], P[k], 16).tolist()
+              for k in P if k != "torso"}
+    pose = Pose("0", "matched", 0.0, {k: np.array(v, float) for k, v in P.items()},
+                diagnostics={"curves": curves})
+    tree = kinematic_tree(model)
+    J = dict(zip(tree.names, initial_placement(pose, tree)))
+    bones = S.bone_segments(pose, model, names, start={"head": 0.5, "hand": 1.45})
+    assert len(bones) == 22                     # neck and both upper arms split in two
+
+    def has(a, b, L):
+        return any(np.allclose(a, x) and np.allclose(b, y) and L == m for x, y, m in bones)
+
+    mid = J["chest"] + 0.5 * (J["neck"] - J["chest"])
+    assert has(J["chest"], mid, lab["torso-crotch"]) and has(mid, J["neck"], lab["torso-head"])
+    for k in (1, 2):
+        sh, el = J[f"shoulder_{k}"], J[f"elbow_{k}"]
+        m = sh + 0.45 * (el - sh)
+        assert has(J["chest"], sh, lab["torso-crotch"]) and has(sh, m, lab["torso-crotch"])
+        assert has(m, el, lab[f"torso-hand_{k}"])
+        assert has(J[f"hip_{k}"], J[f"knee_{k}"], lab[f"crotch-foot_{k}"])
+        assert has(J["pelvis"], J[f"hip_{k}"], lab["torso-crotch"])
 
 
 def test_flood_ties_go_to_the_smallest_label():

@@ -414,7 +414,7 @@ def _radius_flood(flat_m, flat_s, shape, offsets, connectivity, delay, bones, we
 
 def segment(volume, skeleton, alignment, data=None, *, names=None, connectivity: int = 26,
             weighting: str = "radius", delay: float | None = None, pose=None, model=None,
-            bone_weight: float = 0.8):
+            bone_weight: float = 0.8, limb_start=None, band: float = BAND):
     """Body-part segmentation of a visual hull (thesis §13.3.1.1).
 
     Parameters
@@ -433,6 +433,8 @@ def segment(volume, skeleton, alignment, data=None, *, names=None, connectivity:
         curves) and a model declaring joints (``human``), the radius weighting also follows
         the model's bones (:func:`bone_segments`; ``volume`` must then be a
         :class:`topopose.Volume`, for its origin and voxel size)
+    limb_start, band : where each limb's bones begin (:func:`bone_segments`, default
+        :data:`LIMB_START`) and the band of each part's own flood (:func:`flood_labels`)
 
     Returns
     -------
@@ -456,9 +458,10 @@ def segment(volume, skeleton, alignment, data=None, *, names=None, connectivity:
             raise InputError("segment: the bones need the hull as a topopose.Volume (origin, "
                              "voxel size), not a bare array")
         o, h = np.asarray(volume.origin, float), float(volume.voxel_size)
-        bones = [((a - o) / h, (b - o) / h, lab) for a, b, lab in bone_segments(pose, model, names)]
+        bones = [((a - o) / h, (b - o) / h, lab)
+                 for a, b, lab in bone_segments(pose, model, names, limb_start)]
     return flood_labels(hull, seeds, connectivity, weighting, bbox=bbox, delay=delay, bones=bones,
-                        bone_weight=bone_weight), names
+                        bone_weight=bone_weight, band=band), names
 
 
 # ----------------------------------------------------------------------------- outputs

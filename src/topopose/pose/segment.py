@@ -21,8 +21,8 @@ the color labeled voxels."
    ``benchmarks/applications.py``).
    Given the frame's pose and a model with joints, each part's flood is mixed with the distance
    to its bones (:func:`bone_segments`: the kinematic model's joints placed on the skeleton
-   curves), so a limb begins at its first joint (shoulder, hip, neck) rather than at the
-   junction inside the trunk.
+   curves), so a limb begins near its first joint (neck, shoulder, hip: :data:`LIMB_START`)
+   rather than at the junction inside the trunk.
 
 Labels are 1..E in the order of the model's edges, named ``"u-v"`` (e.g. ``"torso-hand_1"``);
 0 is background.
@@ -308,10 +308,13 @@ def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", b
     ``band`` voxels of the nearest bone's distance, where it can win
     (:func:`.segment_kernels.flood_parts`, all the labels in one call): ``band = 3`` gives
     the labels of the unrestricted floods (``band=inf``) on all the development frames in
-    2.5 times less flooding time (``band`` 2: 0.99999 of the voxels; 0: 0.95). The kinematic model's joints say where a limb begins (its first joint, not
-    the junction inside the trunk) and the bones follow the limb's axis where the curve
-    skeleton bends into the trunk. ``bone_weight = 0.8`` was chosen with the delay on the same
-    seeds (0.897 / 0.898 / 0.894 / 0.875 for 0.9 / 0.8 / 0.5 / 0; the bones alone 0.891).
+    2.5 times less flooding time (``band`` 2: 0.99999 of the voxels; 0: 0.95). The
+    kinematic model's joints say where a limb begins (near its first joint, not at the
+    junction inside the trunk; :data:`LIMB_START`) and the bones follow the limb's axis
+    where the curve skeleton bends into the trunk. ``bone_weight = 0.8`` was chosen with the
+    delay on the same seeds (limbs from their first joint: 0.897 / 0.898 / 0.894 / 0.875 for
+    0.9 / 0.8 / 0.5 / 0, the bones alone 0.891; with the limb starts, 26 good frames: 0.904
+    / 0.906 / 0.905 for 0.7 / 0.8 / 0.9, delay 1 / 1.5: 0.904 / 0.904).
 
     ``weighting="part"`` (the former default, kept for comparison): the same idea in
     breadth-first steps (``delay`` 1.5 steps per step of the border distance
@@ -374,8 +377,6 @@ def _chamfer(connectivity):
         return np.full(6, 3, np.int64)
     return np.array([(0, 3, 4, 5)[sum(map(abs, x))] for x in itertools.product((-1, 0, 1), repeat=3)
                      if x != (0, 0, 0)], np.int64)
-
-
 
 
 def _radius_flood(flat_m, flat_s, shape, offsets, connectivity, delay, bones, weight, band):

@@ -140,8 +140,8 @@ def flood_weighted(nb, steps, seeds, start, allow):
     the seed s minimizing ``start[s] + Σ steps[k]`` over the steps of a path, ties to the
     smallest label. ``steps`` (int, ≥ 1): the cost of each neighbour offset, e.g. the chamfer
     3, 4, 5 for face, edge and corner steps (÷ 3: a Euclidean distance within 4 %);
-    ``start`` (int, ≥ 0) delays a seed. Returns ``(labels, dist)``: label 0 and dist -1 where
-    no seed reaches."""
+    ``start`` (int, ≥ 0) delays a seed; the paths stay on the vertices where ``allow`` is true
+    (and the seeds). Returns ``(labels, dist)``: label 0 and dist -1 where no seed reaches."""
     m, K = nb.shape
     big = np.iinfo(np.int64).max
     dist = np.full(m, big, np.int64)
@@ -224,11 +224,9 @@ def bone_distance(X, A, B, label, nlab):
     return out
 
 
-
-
 @njit(cache=True)
 def flood_parts(nb, steps, seeds, start, bd, weight, band):
-    """Each label's own flood mixed with its bone distance (the bones of :func:`.segment.flood_labels`).
+    """Each label's own flood mixed with its distance to its bones (:func:`.segment.flood_labels`).
 
     For each label L with seeds, the shortest paths of :func:`flood_weighted` from L's seeds
     alone give T_L (``start`` plus chamfer ``steps``; ÷ 3 in voxels); each vertex takes the

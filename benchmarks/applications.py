@@ -535,7 +535,6 @@ def main(argv=None):
         bdet = bench_body_detection(10, [2], log)
         clu = bench_clustering(4, 30, [1], log, out / f"applications_clusters{suffix}.png")
     else:
-        # seed 1 chose the flooding's delay
         seg = bench_segmentation(25, [2, 3], log) + bench_segmentation(
             20, [2, 3, 4], log, "body", out / f"applications_segmentation_errors{suffix}.png")
         # the development seeds (the segmentation's parameters were chosen on them)

@@ -205,6 +205,19 @@ def test_bone_vote_equals_brute_force(seed, band):
         S.flood_labels(mask, seeds, 26, "part", bones=bones)
 
 
+def _straight_pose():
+    """A human pose with straight skeleton curves: (part positions, Pose)."""
+    from topopose.pose.pose import Pose
+
+    P = {"torso": (0, 0, 1.4), "head": (0, 0, 1.75), "crotch": (0, 0, 0.9),
+         "hand_1": (-0.7, 0, 1.4), "hand_2": (0.7, 0, 1.4), "foot_1": (-0.2, 0, 0.0),
+         "foot_2": (0.2, 0, 0.0)}
+    curves = {k: np.linspace(P["crotch" if k.startswith("foot") else "torso"], P[k], 16).tolist()
+              for k in P if k != "torso"}
+    return P, Pose("0", "matched", 0.0, {k: np.array(v, float) for k, v in P.items()},
+                   diagnostics={"curves": curves})
+
+
 def test_bone_segments_put_each_limb_from_its_first_joint():
     """Human model, straight curves: the first bone of each limb's arc (chest → shoulder,
     chest → neck, pelvis → hip) is the trunk's, the next ones the limb's."""
@@ -213,13 +226,7 @@ def test_bone_segments_put_each_limb_from_its_first_joint():
 
     model = load_model("human")
     names = S.arc_names(model)
-    P = {"torso": (0, 0, 1.4), "head": (0, 0, 1.75), "crotch": (0, 0, 0.9),
-         "hand_1": (-0.7, 0, 1.4), "hand_2": (0.7, 0, 1.4), "foot_1": (-0.2, 0, 0.0),
-         "foot_2": (0.2, 0, 0.0)}
-    curves = {k: np.linspace(P["crotch" if k.startswith("foot") else "torso"], P[k], 16).tolist()
-              for k in P if k != "torso"}
-    pose = Pose("0", "matched", 0.0, {k: np.array(v, float) for k, v in P.items()},
-                diagnostics={"curves": curves})
+    P, pose = _straight_pose()
     bones = S.bone_segments(pose, model, names, start={})     # every limb from its first joint
     lab = {n: i + 1 for i, n in enumerate(names)}
     assert len(bones) == 19
@@ -241,18 +248,11 @@ def test_bone_segments_split_the_chain_at_the_limb_start():
     hand 1.45 gives the trunk chest → shoulder and 45 % of shoulder → elbow."""
     from topopose.pose.kinematic_fit import initial_placement, kinematic_tree
     from topopose.pose.model import load_model
-    from topopose.pose.pose import Pose
 
     model = load_model("human")
     names = S.arc_names(model)
     lab = {n: i + 1 for i, n in enumerate(names)}
-    P = {"torso": (0, 0, 1.4), "head": (0, 0, 1.75), "crotch": (0, 0, 0.9),
-         "hand_1": (-0.7, 0, 1.4), "hand_2": (0.7, 0, 1.4), "foot_1": (-0.2, 0, 0.0),
-         "foot_2": (0.2, 0, 0.0)}
-    curves = {k: np.linspace(P["crotch" if k.startswith("foot") else "torso"], P[k], 16).tolist()
-              for k in P if k != "torso"}
-    pose = Pose("0", "matched", 0.0, {k: np.array(v, float) for k, v in P.items()},
-                diagnostics={"curves": curves})
+    P, pose = _straight_pose()
     tree = kinematic_tree(model)
     J = dict(zip(tree.names, initial_placement(pose, tree)))
     bones = S.bone_segments(pose, model, names, start={"head": 0.5, "hand": 1.45})

@@ -57,15 +57,22 @@ def _padded(mask, seeds, start, connectivity):
     return s[1:-1, 1:-1, 1:-1]
 
 
+def _random_seeds(seed, fill=0.65, n=6):
+    """A random 7×6×5 mask (``fill`` of it set) with ``n`` seeds of labels 1–3 on it:
+    (rng, mask, seeds)."""
+    rng = np.random.default_rng(seed)
+    mask = rng.random((7, 6, 5)) < fill
+    seeds = np.zeros(mask.shape, np.int32)
+    pts = np.argwhere(mask)
+    for i in rng.choice(len(pts), n, replace=False):
+        seeds[tuple(pts[i])] = rng.integers(1, 4)
+    return rng, mask, seeds
+
+
 @pytest.mark.parametrize("connectivity", [6, 26])
 @pytest.mark.parametrize("seed", range(4))
 def test_flood_equals_brute_force_geodesic_labelling(connectivity, seed):
-    rng = np.random.default_rng(seed)
-    mask = rng.random((7, 6, 5)) < 0.65
-    seeds = np.zeros(mask.shape, np.int32)
-    pts = np.argwhere(mask)
-    for i in rng.choice(len(pts), 6, replace=False):
-        seeds[tuple(pts[i])] = rng.integers(1, 4)
+    rng, mask, seeds = _random_seeds(seed)
     seeds[tuple(np.argwhere(~mask)[0])] = 2                    # a seed outside the mask: ignored
     zero = np.zeros(mask.shape, np.int32)
     ref = _brute_flood(mask, np.where(mask, seeds, 0), zero, connectivity)
@@ -107,12 +114,7 @@ def _brute_weighted(mask, seeds, start):
 def test_weighted_flood_equals_brute_force_dijkstra(seed):
     from topopose.pose.segment_kernels import flood_weighted, neighbours
 
-    rng = np.random.default_rng(seed)
-    mask = rng.random((7, 6, 5)) < 0.65
-    seeds = np.zeros(mask.shape, np.int32)
-    pts = np.argwhere(mask)
-    for i in rng.choice(len(pts), 6, replace=False):
-        seeds[tuple(pts[i])] = rng.integers(1, 4)
+    rng, mask, seeds = _random_seeds(seed)
     start = np.where(seeds > 0, rng.integers(0, 9, mask.shape), 0)
     ref, dist = _brute_weighted(mask, seeds, start)
     m = np.pad(mask, 1).view(np.uint8)
@@ -161,12 +163,7 @@ def test_bone_vote_equals_brute_force(seed, band):
     to the label's bones): per label a brute-force Dijkstra (chamfer steps / 3) on the voxels
     where its bones are within ``band`` of the nearest bone (and its seeds) and a
     point-segment distance."""
-    rng = np.random.default_rng(seed)
-    mask = rng.random((7, 6, 5)) < 0.7
-    seeds = np.zeros(mask.shape, np.int32)
-    pts = np.argwhere(mask)
-    for i in rng.choice(len(pts), 8, replace=False):
-        seeds[tuple(pts[i])] = rng.integers(1, 4)
+    rng, mask, seeds = _random_seeds(seed, fill=0.7, n=8)
     bones = [(rng.random(3) * 6, rng.random(3) * 6, lab) for lab in (1, 1, 2)]   # label 3: none
     w = 0.7
     out = S.flood_labels(mask, seeds, 26, "radius", delay=0.0, bones=bones, bone_weight=w,

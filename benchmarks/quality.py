@@ -192,13 +192,13 @@ def body_rows(quick, out, suffix):
     row("body all-poses noise1 no-thickness", *body_study(allp, 100, thickness=0))
     row("body separated noise1 no-prune", *body_study(sep, 100, prune=0))
     row("body all-poses noise1 no-prune", *body_study(allp, 100, prune=0))
-    row("body separated noise1 no-leaf-axis", *body_study(sep, 100, leaf_axis=0))
-    row("body all-poses noise1 no-leaf-axis", *body_study(allp, 100, leaf_axis=0))
+    row("body separated noise1 leaf-axis", *body_study(sep, 100, leaf_axis=0.7))
+    row("body all-poses noise1 leaf-axis", *body_study(allp, 100, leaf_axis=0.7))
     # the same without the confidence gate (matched = the alignment's own T_d and missing parts)
     row("body separated noise1 gate-off", *body_study(sep, 100, gate=False))
     row("body all-poses noise1 gate-off", *body_study(allp, 100, gate=False))
-    row("body separated noise1 no-leaf-axis gate-off", *body_study(sep, 100, leaf_axis=0, gate=False))
-    row("body all-poses noise1 no-leaf-axis gate-off", *body_study(allp, 100, leaf_axis=0, gate=False))
+    row("body separated noise1 leaf-axis gate-off", *body_study(sep, 100, leaf_axis=0.7, gate=False))
+    row("body all-poses noise1 leaf-axis gate-off", *body_study(allp, 100, leaf_axis=0.7, gate=False))
     row("body separated noise1 tip-half", *body_study(sep, 100, tip_fraction=0.5))
     row("body all-poses noise1 tip-half", *body_study(allp, 100, tip_fraction=0.5))
     row("body separated noise1 two-pass", *body_study(sep, 100, two_pass=True))
@@ -218,9 +218,10 @@ def body_rows(quick, out, suffix):
          "class). *separated*: distinct limbs at least 7.5 cm apart. *no-thickness*: "
          "`FrameEstimator(thickness=0)`, the peer of the thickness term; *no-prune*: "
          "`FrameEstimator(prune=0)`, the peer of the scale-axis pruning of skeleton bumps "
-         "(`topopose.skeleton.prune`, default 2.0 for the human model); *no-leaf-axis*: "
-         "`FrameEstimator(leaf_axis=0)`, the peer of leaving a head off the body axis unplaced "
-         "(`topopose.pose.estimate.LEAF_AXIS`, human: cosine 0.7); *tip-half*: "
+         "(`topopose.skeleton.prune`, default 2.0 for the human model); *leaf-axis*: "
+         "`FrameEstimator(leaf_axis=0.7)`, a head off the body axis left unplaced "
+         "(`topopose.pose.estimate.LEAF_AXIS`; off by default: it halves the real recording's "
+         "right frames); *tip-half*: "
          "`FrameEstimator(tip_fraction=0.5)`, the head only half way to its tip (`pose/tips.py`); "
          "*gate-off*: `FrameEstimator(gate=False)`, without the confidence gate (`pose/confidence.py`); "
          "*two-pass*: "

@@ -57,15 +57,22 @@ def _padded(mask, seeds, start, connectivity):
     return s[1:-1, 1:-1, 1:-1]
 
 
+def _random_seeds(seed, fill=0.65, n=6):
+    """A random 7×6×5 mask (``fill`` of it set) with ``n`` seeds of labels 1–3 on it:
+    (rng, mask, seeds)."""
+    rng = np.random.default_rng(seed)
+    mask = rng.random((7, 6, 5)) < fill
+    seeds = np.zeros(mask.shape, np.int32)
+    pts = np.argwhere(mask)
+    for i in rng.choice(len(pts), n, replace=False):
+        seeds[tuple(pts[i])] = rng.integers(1, 4)
+    return rng, mask, seeds
+
+
 @pytest.mark.parametrize("connectivity", [6, 26])
 @pytest.mark.parametrize("seed", range(4))
 def test_flood_equals_brute_force_geodesic_labelling(connectivity, seed):
-    rng = np.random.default_rng(seed)
-    mask = rng.random((7, 6, 5)) < 0.65
-    seeds = np.zeros(mask.shape, np.int32)
-    pts = np.argwhere(mask)
-    for i in rng.choice(len(pts), 6, replace=False):
-        seeds[tuple(pts[i])] = rng.integers(1, 4)
+    rng, mask, seeds = _random_seeds(seed)
     seeds[tuple(np.argwhere(~mask)[0])] = 2                    # a seed outside the mask: ignored
     zero = np.zeros(mask.shape, np.int32)
     ref = _brute_flood(mask, np.where(mask, seeds, 0), zero, connectivity)
@@ -107,19 +114,15 @@ def _brute_weighted(mask, seeds, start):
 def test_weighted_flood_equals_brute_force_dijkstra(seed):
     from topopose.pose.segment_kernels import flood_weighted, neighbours
 
-    rng = np.random.default_rng(seed)
-    mask = rng.random((7, 6, 5)) < 0.65
-    seeds = np.zeros(mask.shape, np.int32)
-    pts = np.argwhere(mask)
-    for i in rng.choice(len(pts), 6, replace=False):
-        seeds[tuple(pts[i])] = rng.integers(1, 4)
+    rng, mask, seeds = _random_seeds(seed)
     start = np.where(seeds > 0, rng.integers(0, 9, mask.shape), 0)
     ref, dist = _brute_weighted(mask, seeds, start)
     m = np.pad(mask, 1).view(np.uint8)
     idx, nb = neighbours(m.reshape(-1), S._offsets(m.shape, 26))
     assert np.array_equal(idx, np.flatnonzero(m))
     lab, d = flood_weighted(nb, S._chamfer(26), np.pad(seeds, 1).reshape(-1)[idx],
-                            np.pad(start, 1).reshape(-1)[idx].astype(np.int64))
+                            np.pad(start, 1).reshape(-1)[idx].astype(np.int64),
+                            np.ones(len(idx), np.bool_))
     assert np.array_equal(lab, ref[mask])
     assert np.array_equal(np.where(d < 0, np.inf, d), dist)
 
@@ -153,32 +156,43 @@ def test_radius_weighting_moves_the_boundary_towards_the_narrowing():
     assert (out[flank] == 1).all() and np.mean(plain[flank] == 1) < 0.9
 
 
-@pytest.mark.parametrize("seed", range(3))
-def test_bone_vote_equals_brute_force(seed):
+@pytest.mark.parametrize("seed,band", [(0, np.inf), (1, np.inf), (2, np.inf), (3, 1.0),
+                                       (4, 0.5), (5, 0.0)])
+def test_bone_vote_equals_brute_force(seed, band):
     """With bones, each voxel takes the label minimizing (1 − w) · (own flood) + w · (distance
-    to the label's bones): per label a brute-force Dijkstra (chamfer steps / 3) and a
+    to the label's bones): per label a brute-force Dijkstra (chamfer steps / 3) on the voxels
+    where its bones are within ``band`` of the nearest bone (and its seeds) and a
     point-segment distance."""
-    rng = np.random.default_rng(seed)
-    mask = rng.random((7, 6, 5)) < 0.7
-    seeds = np.zeros(mask.shape, np.int32)
-    pts = np.argwhere(mask)
-    for i in rng.choice(len(pts), 8, replace=False):
-        seeds[tuple(pts[i])] = rng.integers(1, 4)
+    rng, mask, seeds = _random_seeds(seed, fill=0.7, n=8)
     bones = [(rng.random(3) * 6, rng.random(3) * 6, lab) for lab in (1, 1, 2)]   # label 3: none
     w = 0.7
-    out = S.flood_labels(mask, seeds, 26, "radius", delay=0.0, bones=bones, bone_weight=w)
+    out = S.flood_labels(mask, seeds, 26, "radius", delay=0.0, bones=bones, bone_weight=w,
+                         band=band)
     ijk = np.argwhere(mask).astype(float)
     labs = sorted(set(seeds[mask].tolist()) - {0})
-    score = []
+    bd = {}
     for lab in labs:
-        _, t = _brute_weighted(mask, np.where(seeds == lab, lab, 0), np.zeros(mask.shape))
-        t = t / 3
         segs = []
         for a, b, bl in bones:
             if bl == lab:
                 lam = np.clip((ijk - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
                 segs.append(np.linalg.norm(ijk - (a + lam[:, None] * (b - a)), axis=1))
-        score.append(t if not segs else (1 - w) * t + w * np.min(segs, 0))
+        bd[lab] = np.min(segs, 0) if segs else None
+    bmin = np.min([b for b in bd.values() if b is not None], 0)
+    score = []
+    for lab in labs:
+        sub = mask.copy()
+        if bd[lab] is not None:
+            keep = (bd[lab] <= bmin + band) | (seeds[mask] == lab)
+            sub[tuple(ijk[~keep].astype(int).T)] = False
+        _, t = _brute_weighted(sub, np.where(seeds == lab, lab, 0), np.zeros(mask.shape))
+        t = np.full(len(ijk), np.inf) if t.size == 0 else t
+        if t.size != len(ijk):                   # distances on the sub-mask's voxels
+            full = np.full(len(ijk), np.inf)
+            full[sub[mask]] = t
+            t = full
+        t = t / 3
+        score.append(t if bd[lab] is None else (1 - w) * t + w * bd[lab])
     score = np.array(score)
     ref = np.zeros(mask.shape, np.int32)
     ok = np.isfinite(score.min(0))
@@ -186,6 +200,19 @@ def test_bone_vote_equals_brute_force(seed):
     assert np.array_equal(out, ref)
     with pytest.raises(InputError):
         S.flood_labels(mask, seeds, 26, "part", bones=bones)
+
+
+def _straight_pose():
+    """A human pose with straight skeleton curves: (part positions, Pose)."""
+    from topopose.pose.pose import Pose
+
+    P = {"torso": (0, 0, 1.4), "head": (0, 0, 1.75), "crotch": (0, 0, 0.9),
+         "hand_1": (-0.7, 0, 1.4), "hand_2": (0.7, 0, 1.4), "foot_1": (-0.2, 0, 0.0),
+         "foot_2": (0.2, 0, 0.0)}
+    curves = {k: np.linspace(P["crotch" if k.startswith("foot") else "torso"], P[k], 16).tolist()
+              for k in P if k != "torso"}
+    return P, Pose("0", "matched", 0.0, {k: np.array(v, float) for k, v in P.items()},
+                   diagnostics={"curves": curves})
 
 
 def test_bone_segments_put_each_limb_from_its_first_joint():
@@ -196,14 +223,8 @@ def test_bone_segments_put_each_limb_from_its_first_joint():
 
     model = load_model("human")
     names = S.arc_names(model)
-    P = {"torso": (0, 0, 1.4), "head": (0, 0, 1.75), "crotch": (0, 0, 0.9),
-         "hand_1": (-0.7, 0, 1.4), "hand_2": (0.7, 0, 1.4), "foot_1": (-0.2, 0, 0.0),
-         "foot_2": (0.2, 0, 0.0)}
-    curves = {k: np.linspace(P["crotch" if k.startswith("foot") else "torso"], P[k], 16).tolist()
-              for k in P if k != "torso"}
-    pose = Pose("0", "matched", 0.0, {k: np.array(v, float) for k, v in P.items()},
-                diagnostics={"curves": curves})
-    bones = S.bone_segments(pose, model, names)
+    P, pose = _straight_pose()
+    bones = S.bone_segments(pose, model, names, start={})     # every limb from its first joint
     lab = {n: i + 1 for i, n in enumerate(names)}
     assert len(bones) == 19
     for a, b, L in bones:
@@ -216,6 +237,36 @@ def test_bone_segments_put_each_limb_from_its_first_joint():
     firsts = [L for a, b, L in bones if np.allclose(a, P["torso"]) or np.allclose(a, P["crotch"])]
     assert len(firsts) == 6 and set(firsts) == {lab["torso-crotch"]}   # from chest, pelvis: trunk
     assert S.bone_segments(Pose("0", "matched", 0.0, pose.parts), model, names) == []
+
+
+def test_bone_segments_split_the_chain_at_the_limb_start():
+    """``start``: the trunk takes each limb's chain of joints up to the given position (in
+    bones from the junction), the limb the rest: head 0.5 splits chest → neck at its middle,
+    hand 1.45 gives the trunk chest → shoulder and 45 % of shoulder → elbow."""
+    from topopose.pose.kinematic_fit import initial_placement, kinematic_tree
+    from topopose.pose.model import load_model
+
+    model = load_model("human")
+    names = S.arc_names(model)
+    lab = {n: i + 1 for i, n in enumerate(names)}
+    P, pose = _straight_pose()
+    tree = kinematic_tree(model)
+    J = dict(zip(tree.names, initial_placement(pose, tree)))
+    bones = S.bone_segments(pose, model, names, start={"head": 0.5, "hand": 1.45})
+    assert len(bones) == 22                     # neck and both upper arms split in two
+
+    def has(a, b, L):
+        return any(np.allclose(a, x) and np.allclose(b, y) and L == m for x, y, m in bones)
+
+    mid = J["chest"] + 0.5 * (J["neck"] - J["chest"])
+    assert has(J["chest"], mid, lab["torso-crotch"]) and has(mid, J["neck"], lab["torso-head"])
+    for k in (1, 2):
+        sh, el = J[f"shoulder_{k}"], J[f"elbow_{k}"]
+        m = sh + 0.45 * (el - sh)
+        assert has(J["chest"], sh, lab["torso-crotch"]) and has(sh, m, lab["torso-crotch"])
+        assert has(m, el, lab[f"torso-hand_{k}"])
+        assert has(J[f"hip_{k}"], J[f"knee_{k}"], lab[f"crotch-foot_{k}"])
+        assert has(J["pelvis"], J[f"hip_{k}"], lab["torso-crotch"])
 
 
 def test_flood_ties_go_to_the_smallest_label():

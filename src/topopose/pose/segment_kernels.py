@@ -134,14 +134,14 @@ def neighbours(mask, offsets):
 
 
 @njit(cache=True)
-def flood_weighted(nb, steps, seeds, start):
+def flood_weighted(nb, steps, seeds, start, allow):
     """Multi-source shortest paths on the graph of :func:`neighbours` with integer step costs
     (Dial's bucket queue): every vertex reachable from a seed (``seeds > 0``) gets the label of
     the seed s minimizing ``start[s] + Σ steps[k]`` over the steps of a path, ties to the
     smallest label. ``steps`` (int, ≥ 1): the cost of each neighbour offset, e.g. the chamfer
     3, 4, 5 for face, edge and corner steps (÷ 3: a Euclidean distance within 4 %);
-    ``start`` (int, ≥ 0) delays a seed. Returns ``(labels, dist)``: label 0 and dist -1 where
-    no seed reaches."""
+    ``start`` (int, ≥ 0) delays a seed; the paths stay on the vertices where ``allow`` is true
+    (and the seeds). Returns ``(labels, dist)``: label 0 and dist -1 where no seed reaches."""
     m, K = nb.shape
     big = np.iinfo(np.int64).max
     dist = np.full(m, big, np.int64)
@@ -184,7 +184,7 @@ def flood_weighted(nb, steps, seeds, start):
             done[v] = True
             for k in range(K):
                 w = nb[v, k]
-                if w < 0 or done[w]:
+                if w < 0 or done[w] or not allow[w]:
                     continue
                 nd = d + steps[k]
                 if nd < dist[w] or (nd == dist[w] and lab[v] < lab[w]):
@@ -223,3 +223,48 @@ def bone_distance(X, A, B, label, nlab):
                 out[L, i] = e
     return out
 
+
+@njit(cache=True)
+def flood_parts(nb, steps, seeds, start, bd, weight, band):
+    """Each label's own flood mixed with its distance to its bones (:func:`.segment.flood_labels`).
+
+    For each label L with seeds, the shortest paths of :func:`flood_weighted` from L's seeds
+    alone give T_L (``start`` plus chamfer ``steps``; ÷ 3 in voxels); each vertex takes the
+    label minimizing ``(1 − weight) · T_L / 3 + weight · bd[L − 1]`` (``bd``: (nlab, m)
+    distances to each label's bones, voxels; a label whose row is all inf scores T_L / 3).
+    L's flood runs only on the vertices whose distance to L's bones is within ``band`` of
+    the nearest bone's (and on its seeds): where L can win (``band`` inf: everywhere).
+    Returns the labels (0 where no label reaches)."""
+    m = nb.shape[0]
+    nl = bd.shape[0]
+    bmin = np.full(m, np.inf)
+    for L in range(nl):
+        for a in range(m):
+            bmin[a] = min(bmin[a], bd[L, a])
+    best = np.full(m, np.inf)
+    lab = np.zeros(m, np.int32)
+    own = np.zeros(m, np.int32)
+    allow = np.zeros(m, np.bool_)
+    for L in range(1, nl + 1):
+        n_own = 0
+        for a in range(m):
+            own[a] = L if seeds[a] == L else 0
+            n_own += own[a] > 0
+        if n_own == 0:
+            continue
+        plain = True
+        for a in range(m):
+            if np.isfinite(bd[L - 1, a]):
+                plain = False
+                break
+        for a in range(m):
+            allow[a] = plain or own[a] > 0 or bd[L - 1, a] <= bmin[a] + band
+        _, t = flood_weighted(nb, steps, own, start, allow)
+        for a in range(m):
+            if t[a] < 0:
+                continue
+            sc = t[a] / 3.0 if plain else (1 - weight) * t[a] / 3.0 + weight * bd[L - 1, a]
+            if sc < best[a]:
+                best[a] = sc
+                lab[a] = L
+    return lab

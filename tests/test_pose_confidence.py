@@ -95,7 +95,7 @@ def test_clean_frames_pass_the_gate(clean):
     _, _, out = clean
     passed = [p.status == "matched" and p.diagnostics["confidence"] >= C.MIN_CONFIDENCE
               for p, _ in out]
-    # every one (confidences 0.84–0.99 against the minimum 0.72 when refitted, 2026-11)
+    # every one (confidences 0.87–0.99 against the minimum 0.74 when refitted, 2026-11)
     assert all(passed), [p.diagnostics["confidence"] for p, _ in out]
     assert set(out[0][0].diagnostics["confidence_factors"]) == {"fitted", "hull", "size"}
 

@@ -47,8 +47,8 @@ displacement of the parts since the previous frame (numbered parts paired optima
 whose hull volume departs from the run's median by more than a factor 1.5 get ½; only when
 the run is a coherent sequence (median δ / H over consecutive frames ≤ 0.1). They multiply
 the product confidence; the fitted confidence only reports them in its factors (measured,
-held out, 8 cameras: precision / recall 0.949 / 0.812 → 0.957 / 0.792, body walking 0.938 /
-0.763 → 0.966 / 0.712: little precision for right frames, ``benchmarks/results/confidence.md``).
+held out, 8 cameras: precision / recall 0.936 / 0.799 → 0.949 / 0.781, body walking 0.908 /
+0.754 → 0.954 / 0.703: little precision for right frames, ``benchmarks/results/confidence.md``).
 
 The confidence is reported for every frame. With the gate on (``FrameEstimator(gate=True)``,
 ``topopose run --confidence-gate on``; the default, :func:`topopose.pose.estimate.default_gate`),

@@ -750,11 +750,11 @@ def default_gate(cap) -> bool:
     With the fitted confidence (:mod:`.confidence`, ``benchmarks/results/confidence.md``:
     held-out seeds of ``body`` (walk, random, separated and all poses) and the capsule human,
     noise 1, 100³, right = issue 11's TP, every placed part within 0.08 × height; matched
-    frames, precision, recall of the right frames): 8 cameras 383, 0.875, 0.861 without the
-    gate → 333, 0.949, 0.812 with it; 4 cameras 18, 0.83, 0.15 → 11, 0.91, 0.10. On the body
+    frames, precision, recall of the right frames): 8 cameras 383, 0.859, 0.859 without the
+    gate → 327, 0.936, 0.799 with it; 4 cameras 18, 0.67, 0.14 → 8, 0.88, 0.08. On the body
     benchmark's own frames (``quality.py --only body``, seeds 21, 22, 8 cameras; TP rate /
-    FP per match) separated 0.88 / 0.070 → 0.81 / 0.020, all poses 0.55 / 0.185 → 0.48 /
-    0.095. (The earlier product confidence halved the right frames with 8 cameras, so the
+    FP per match) separated 0.86 / 0.096 → 0.79 / 0.031, all poses 0.55 / 0.185 → 0.46 /
+    0.083. (The earlier product confidence halved the right frames with 8 cameras, so the
     gate was on with fewer than 6 cameras only.) ``cap`` is kept for callers.
     """
     return True

@@ -320,7 +320,7 @@ def report(doc) -> str:
          f"{doc['hand_extension_m']} m beyond it; feet: ankle → big toe). Errors in metres over "
          "all processed frames (rejected frames' best guesses included).", "",
          "| silhouettes | matched without the gate | right (target ≥ 70 %) | precision of matched "
-         "(target ≥ 95 %) | matched with the gate (run's default with < 6 cameras) | head med / p90 | hands med / p90 | feet med / p90 "
+         "(target ≥ 95 %) | matched with the confidence gate (the run's default) | head med / p90 | hands med / p90 | feet med / p90 "
          "| failed |",
          "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for name, r in doc["methods"].items():

@@ -343,6 +343,7 @@ class FrameEstimator:
                 and off_axis_leaf(data, al.mapping, *self.leaf_axis)):
             dropped.append(self.leaf_axis[0])
             parts[self.leaf_axis[0]] = None
+        on_skeleton = dict(parts)      # the skeleton curves end at the branch ends
         if self.tips:
             from .tips import extremity_tips
             for p, x in extremity_tips(vol, skel, data, al.mapping, self.tips).items():
@@ -383,8 +384,9 @@ class FrameEstimator:
             # skeleton curve of each matched arc, for left/right and the kinematic fit (§13.3.1)
             from .curves import arc_curves
             try:
+                # (the model's [[joint]] positions along arcs are fractions of these curves)
                 diag["curves"] = arc_curves(skel, vol.origin, vol.voxel_size, data, al,
-                                            self.model, parts)
+                                            self.model, on_skeleton)
             except Exception as exc:           # never costs the frame its pose
                 diag["curves_error"] = f"{type(exc).__name__}: {exc}"
         pose = Pose(name, status, dist, parts, error, timings, diag)

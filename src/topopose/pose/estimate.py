@@ -133,7 +133,8 @@ class FrameEstimator:
         refocus=True)``, thesis §13.2.2.1).
     gate : bool or None
         ``matched`` also needs the frame's confidence (:mod:`.confidence`) ≥ ``min_confidence``.
-        None (default): :func:`default_gate` (on).
+        None (default): :func:`default_gate` (on), off with ``constraints=False`` (the fitted
+        confidence knows upright subjects only).
     """
 
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
@@ -146,7 +147,11 @@ class FrameEstimator:
         from .confidence import MIN_CONFIDENCE
 
         self.min_share = float(min_share)
-        self.gate = default_gate(cap) if gate is None else bool(gate)
+        # the fitted confidence knows upright subjects only (its head features look up): without
+        # the coordinate constraints (acrobatic poses) the default gate is off — on, it rejected
+        # 105 of the 198 frames of benchmarks/applications.py's acrobatic sequence, every
+        # inverted one
+        self.gate = ((default_gate(cap) and constraints) if gate is None else bool(gate))
         self.min_confidence = None if min_confidence is None else float(min_confidence)
 
         self.cap = cap

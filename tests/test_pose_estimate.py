@@ -47,6 +47,9 @@ def test_confidence_gate_default_is_on():
         cap = synthetic_capture("human", frames=1, cameras=n, size=(160, 120))
         assert FrameEstimator(cap, "human", 40).gate is True
         assert FrameEstimator(cap, "human", 40, gate=False).gate is False
+        # the fitted confidence knows upright subjects: off without the coordinate constraints
+        assert FrameEstimator(cap, "human", 40, constraints=False).gate is False
+        assert FrameEstimator(cap, "human", 40, constraints=False, gate=True).gate is True
     p = build_parser()
     assert p.parse_args(["run", "C"]).confidence_gate == "auto"
     assert p.parse_args(["run", "C", "--confidence-gate", "off"]).confidence_gate == "off"

@@ -310,6 +310,12 @@ def main(argv=None):
     return 0
 
 
+def _table(head: list, rows: list) -> list:
+    """Markdown table lines."""
+    return (["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
+            + ["| " + " | ".join(str(x) for x in r) + " |" for r in rows])
+
+
 def report(doc) -> str:
     m = doc["machine"]
     L = ["# Real recording: Pose2Sim balancing trial (4 phone cameras, 100 frames)", "",
@@ -318,32 +324,32 @@ def report(doc) -> str:
          "A frame is *right* when head, both hands and both feet are within "
          f"{doc['right_within_m']} m of Pose2Sim's 3D result (hands: wrist → "
          f"{doc['hand_extension_m']} m beyond it; feet: ankle → big toe). Errors in metres over "
-         "all processed frames (rejected frames' best guesses included).", "",
-         "| silhouettes | matched without the gate | right (target ≥ 70 %) | precision of matched "
-         "(target ≥ 95 %) | matched with the confidence gate (the run's default) | head med / p90 | hands med / p90 | feet med / p90 "
-         "| failed |",
-         "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+         "all processed frames (rejected frames' best guesses included).", ""]
+    rows = []
     for name, r in doc["methods"].items():
         e = r["errors"]
-        f = lambda k: f"{e[k]['median']} / {e[k]['p90']}"
         prec = "—" if r["matched_precision"] is None else f"{100 * r['matched_precision']:.0f} %"
         gp = "" if r.get("gated_precision") is None else f" ({100 * r['gated_precision']:.0f} % right)"
-        L.append(f"| {name} | {r['matched']}/{r['frames']} | {100 * r['right_share']:.0f} % | "
-                 f"{prec} | {r.get('gated_matched', 0)}{gp} | {f('head')} | {f('hand')} | {f('foot')} | {r['failed']} |")
-    L += ["", "## Speed (one process)", "",
-          "| silhouettes | set-up s (background) | first frame s incl. set-up (target ≤ 2) "
-          "| ms/frame after | end-to-end frames/s (target ≥ 20) | stage medians ms "
-          "(hull includes waiting for the reader) |",
-          "| --- | --- | --- | --- | --- | --- |"]
+        rows.append([name, f"{r['matched']}/{r['frames']}", f"{100 * r['right_share']:.0f} %", prec,
+                     f"{r.get('gated_matched', 0)}{gp}",
+                     *(f"{e[k]['median']} / {e[k]['p90']}" for k in ("head", "hand", "foot")),
+                     r["failed"]])
+    L += _table(["silhouettes", "matched without the gate", "right (target ≥ 70 %)",
+                 "precision of matched (target ≥ 95 %)",
+                 "matched with the confidence gate (the run's default)", "head med / p90",
+                 "hands med / p90", "feet med / p90", "failed"], rows)
+    L += ["", "## Speed (one process)", ""]
+    rows = []
     for name, r in doc["methods"].items():
         s = r["speed"]
-        st = ", ".join(f"{k} {v}" for k, v in s["stages_median_ms"].items())
-        L.append(f"| {name} | {s['setup_s']} | {s['first_frame_s']} | {s['per_frame_ms']} | "
-                 f"{s['end_to_end_fps']} | {st} |")
-    L += ["", "## Where the time goes (per frame of 4 cameras)", "",
-          "| step | wall ms | CPU ms |", "| --- | --- | --- |"]
-    for k, v in doc["time_breakdown_per_frame"].items():
-        L.append(f"| {k} | {v['wall_ms']} | {v['cpu_ms']} |")
+        rows.append([name, s["setup_s"], s["first_frame_s"], s["per_frame_ms"], s["end_to_end_fps"],
+                     ", ".join(f"{k} {v}" for k, v in s["stages_median_ms"].items())])
+    L += _table(["silhouettes", "set-up s (background)", "first frame s incl. set-up (target ≤ 2)",
+                 "ms/frame after", "end-to-end frames/s (target ≥ 20)",
+                 "stage medians ms (hull includes waiting for the reader)"], rows)
+    L += ["", "## Where the time goes (per frame of 4 cameras)", ""]
+    L += _table(["step", "wall ms", "CPU ms"],
+                [[k, v["wall_ms"], v["cpu_ms"]] for k, v in doc["time_breakdown_per_frame"].items()])
     L += ["", "Pictures: " + ", ".join(f"`{r['picture']}`" for r in doc["methods"].values()), ""]
     return "\n".join(L)
 

@@ -142,7 +142,7 @@ class FrameEstimator:
                  relation=None, fill=True, repair=None, junction_centroid=None, refocus=False,
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
-                 tip_fraction=1.0):
+                 tip_fraction=1.0, spine=None, level_tips=False):
         from ..match import Matcher
         from .confidence import MIN_CONFIDENCE
 
@@ -203,6 +203,8 @@ class FrameEstimator:
         stems = set(tips or ())
         self.tips = [p for p in self.model.parts if len(adj[p]) == 1 and self.model.complete
                      and p.rstrip("_0123456789") in stems]
+        self.spine = _spine_option(self.model, spine)
+        self.level_tips = bool(level_tips)
 
     def arc_cost(self, vol, data):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off."""
@@ -355,6 +357,8 @@ class FrameEstimator:
                 if parts.get(p) is not None:
                     parts[p] = (x if self.tip_fraction == 1.0
                                 else parts[p] + self.tip_fraction * (x - parts[p]))
+        if self.spine:      # the spine lies behind the medial axis (pose/anatomy.py)
+            parts, diag_spine = self.spine_parts(vol, skel, data, al, parts, on_skeleton)
         missing = [p for p, x in parts.items() if x is None]
         status, error = "matched", None
         if not math.isfinite(dist) or dist > self.threshold:
@@ -383,6 +387,8 @@ class FrameEstimator:
             diag["pruned_bumps"] = len(data.diagnostics.get("pruned_bumps", ()))
         if dropped:
             diag["off_axis"] = dropped
+        if self.spine:
+            diag["spine_shift"] = diag_spine
         if unordered:
             diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
         if self.curves:
@@ -396,6 +402,20 @@ class FrameEstimator:
                 diag["curves_error"] = f"{type(exc).__name__}: {exc}"
         pose = Pose(name, status, dist, parts, error, timings, diag)
         return (pose, det) if detail else pose
+
+    def spine_parts(self, vol, skel, data, al, parts, ends=None):
+        """``parts`` with the body-axis parts moved back onto the spine
+        (:mod:`topopose.pose.anatomy`), and the shift applied (world units, or None)."""
+        from .anatomy import front_direction, hull_radius, level_tips, spine_shift
+
+        feet = [p for p in self.model.parts if p.rstrip("_0123456789") == "foot"]
+        front = front_direction(vol, skel, data, al.mapping, feet, self.up)
+        if front is None:
+            return parts, None
+        if self.level_tips and ends is not None:
+            parts = level_tips(parts, ends, front, self.tips)
+        r = hull_radius(vol)
+        return spine_shift(parts, front, r, self.spine), [round(float(x), 4) for x in -r * front]
 
     def _failed(self, name, reason, timings, t_all):
         timings["total"] = (time.perf_counter() - t_all) * 1e3
@@ -765,6 +785,20 @@ def default_gate(cap) -> bool:
     gate was on with fewer than 6 cameras only.) ``cap`` is kept for callers.
     """
     return True
+
+
+def _spine_option(model, spine):
+    """The spine shift shares of :class:`FrameEstimator` (``{part: share}``, empty: off):
+    None: the model's entry of :data:`topopose.pose.anatomy.SPINE_SHIFT` (complete models
+    only); False/0: off; a number: that multiple of the model's entry; a dict: the shares."""
+    from .anatomy import SPINE_SHIFT
+
+    base = SPINE_SHIFT.get(model.name, {}) if model.complete else {}
+    if spine is None or spine is True:
+        return dict(base)
+    if isinstance(spine, dict):
+        return {p: float(x) for p, x in spine.items() if p in model.parts}
+    return {p: float(spine) * x for p, x in base.items()} if spine else {}
 
 
 def _touches_border(a: np.ndarray) -> bool:

@@ -20,7 +20,8 @@ hand (4 poor cameras): T_d = 3.5 (unnormalized scale) gives 10–20 %.
 
 - body (the MakeHuman mesh, issue 11): builds × seeds, separated and all poses, noise 0–2,
   50/100/150³, the thickness term on and off, the pruning of skeleton bumps on and off, the
-  head's body-axis check on and off, the head half way to its tip, scored at 0.08 × height for every part
+  head's body-axis check on and off, the head half way to its tip, the spine shift (pose/anatomy.py)
+  on and off, the head's tip levelled, scored at 0.08 × height for every part
   (benchmarks/results/quality_body.{md,json}).
 
 "Limbs separated" (the thesis' dancer study: "each limb is clearly separated from others" in the
@@ -201,6 +202,25 @@ def body_rows(quick, out, suffix):
     row("body all-poses noise1 leaf-axis gate-off", *body_study(allp, 100, leaf_axis=0.7, gate=False))
     row("body separated noise1 tip-half", *body_study(sep, 100, tip_fraction=0.5))
     row("body all-poses noise1 tip-half", *body_study(allp, 100, tip_fraction=0.5))
+    # the spine shift of torso, crotch, head (pose/anatomy.py) off: its peer, gate on and off;
+    # and the forward prolongation of the head's tip dropped (level_tips)
+    row("body separated noise1 no-spine", *body_study(sep, 100, spine=False))
+    row("body all-poses noise1 no-spine", *body_study(allp, 100, spine=False))
+    row("body separated noise1 no-spine gate-off", *body_study(sep, 100, spine=False, gate=False))
+    row("body all-poses noise1 no-spine gate-off", *body_study(allp, 100, spine=False, gate=False))
+    row("body separated noise1 level-tips", *body_study(sep, 100, level_tips=True))
+    row("body all-poses noise1 level-tips", *body_study(allp, 100, level_tips=True))
+    row("body separated noise1 level-tips gate-off",
+        *body_study(sep, 100, level_tips=True, gate=False))
+    row("body all-poses noise1 level-tips gate-off",
+        *body_study(allp, 100, level_tips=True, gate=False))
+    # a head the skeleton lost, recovered on the body axis above the torso (pose/anatomy.py)
+    row("body separated noise1 recover-head", *body_study(sep, 100, recover_head=True))
+    row("body all-poses noise1 recover-head", *body_study(allp, 100, recover_head=True))
+    row("body separated noise1 recover-head gate-off",
+        *body_study(sep, 100, recover_head=True, gate=False))
+    row("body all-poses noise1 recover-head gate-off",
+        *body_study(allp, 100, recover_head=True, gate=False))
     row("body separated noise1 two-pass", *body_study(sep, 100, two_pass=True))
     row("body all-poses noise1 two-pass", *body_study(allp, 100, two_pass=True))
     if not quick:
@@ -226,7 +246,15 @@ def body_rows(quick, out, suffix):
          "*gate-off*: `FrameEstimator(gate=False)`, without the confidence gate (`pose/confidence.py`); "
          "*two-pass*: "
          "`topopose.pose.subject.two_pass` per capture (one subject), the subject's own lengths "
-         "from its confident frames.", "",
+         "from its confident frames; *no-spine*: `FrameEstimator(spine=False)`, the peer of the "
+         "spine shift (torso, crotch and head moved back from the hull's medial axis onto the "
+         "spine, against the front the feet give: `topopose.pose.anatomy`, on by default for the "
+         "human model); *level-tips*: `FrameEstimator(level_tips=True)`, the head's tip without "
+         "the forward part of its prolongation (`topopose.pose.anatomy.level_tips`); *recover-head*: "
+         "`FrameEstimator(recover_head=True)`, a head the alignment left unplaced put where the "
+         "body axis crotch → torso leaves the hull above the torso (`topopose.pose.anatomy."
+         "axis_head`; after the frame's judgement: status unchanged). Diagnosis of "
+         "the failing parts: `benchmarks/diagnose_body.py` (diagnose_body*.md).", "",
          "| configuration | res | frames | TP rate | FP/match | good | miss1 | partial | misplaced "
          "| bad | none | err good (cm) | err misplaced (cm) | ms/frame | alignment stage ms (median) |",
          "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]

@@ -128,6 +128,25 @@ class FrameEstimator:
     tip_fraction : float
         Move a tip part (``tips``) only this fraction of the way from its skeleton end to the
         hull's border (1, default: all the way; measured in :data:`LEAF_AXIS`).
+    spine : None, bool, float or dict
+        Move the body-axis parts (torso, crotch, head) back from the hull's medial axis onto
+        the spine (:mod:`topopose.pose.anatomy`): against the body's front, which the feet's
+        end directions give, by a share of the hull's largest inscribed-ball radius. None
+        (default): the model's entry of :data:`topopose.pose.anatomy.SPINE_SHIFT` (human;
+        complete models only; no front, no shift); False or 0: off; a number scales the
+        model's shares; a dict ``{part: share}`` replaces them. Measured in ``anatomy.py`` and
+        ``benchmarks/quality.py`` (quality_body.md, "no-spine" rows).
+    level_tips : bool
+        With ``spine`` on and a front found, drop the forward component of each tip part's
+        prolongation (:func:`topopose.pose.anatomy.level_tips`; off by default, measured in
+        ``anatomy.py``).
+    recover_head : bool
+        Human model: in a matched frame whose only unplaced part is the head (no head branch:
+        thinning absorbed it into the shoulders' junction), put the head where the body axis
+        crotch → torso leaves the hull above the torso, at most 2 hull radii away
+        (:func:`topopose.pose.anatomy.axis_head`), after the frame's judgement (status and
+        confidence unchanged; ``diagnostics["recovered"]``). Off by default (measured in
+        ``anatomy.py``).
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -142,7 +161,7 @@ class FrameEstimator:
                  relation=None, fill=True, repair=None, junction_centroid=None, refocus=False,
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
-                 tip_fraction=1.0, spine=None, level_tips=False):
+                 tip_fraction=1.0, spine=None, level_tips=False, recover_head=False):
         from ..match import Matcher
         from .confidence import MIN_CONFIDENCE
 
@@ -205,6 +224,8 @@ class FrameEstimator:
                      and p.rstrip("_0123456789") in stems]
         self.spine = _spine_option(self.model, spine)
         self.level_tips = bool(level_tips)
+        self.recover_head = (bool(recover_head) and self.model.name == "human"
+                             and self.model.complete)
 
     def arc_cost(self, vol, data):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off."""
@@ -376,6 +397,8 @@ class FrameEstimator:
             vol, n_vox, data, self.model, self.up, dist, self.threshold, len(missing), status,
             error, self.min_share, self.min_confidence if self.gate else None, self.cap.units,
             al=al, thickness_cost=thick, reach=self.thickness_reach)
+        recovered = self.recover_missing_head(vol, parts, status) if self.recover_head else []
+        missing = [p for p in missing if p not in recovered]
         timings["total"] = (time.perf_counter() - t_all) * 1e3
         diag = {"model": self.model.name, "resolution": self.resolution,
                 "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
@@ -387,6 +410,8 @@ class FrameEstimator:
             diag["pruned_bumps"] = len(data.diagnostics.get("pruned_bumps", ()))
         if dropped:
             diag["off_axis"] = dropped
+        if recovered:
+            diag["recovered"] = recovered
         if self.spine:
             diag["spine_shift"] = diag_spine
         if unordered:
@@ -416,6 +441,22 @@ class FrameEstimator:
             parts = level_tips(parts, ends, front, self.tips)
         r = hull_radius(vol)
         return spine_shift(parts, front, r, self.spine), [round(float(x), 4) for x in -r * front]
+
+    def recover_missing_head(self, vol, parts, status):
+        """Place a head the alignment left unplaced, in place, on the body axis above the
+        torso (:func:`topopose.pose.anatomy.axis_head`), in a matched frame whose other parts
+        are all placed; after the frame's judgement (status and confidence see the head
+        missing). Returns the parts placed."""
+        from .anatomy import axis_head, hull_radius
+
+        if status != "matched" or parts.get("head") is not None or \
+                any(x is None for p, x in parts.items() if p != "head"):
+            return []
+        x = axis_head(vol, parts.get("torso"), parts.get("crotch"), hull_radius(vol))
+        if x is None:
+            return []
+        parts["head"] = np.asarray(x, float)
+        return ["head"]
 
     def _failed(self, name, reason, timings, t_all):
         timings["total"] = (time.perf_counter() - t_all) * 1e3

@@ -80,8 +80,9 @@ def run(caps, options, pictures=0, tag=""):
                 parts[gp] = {"ratio": fs.errors[p] / tol,
                              "up": float(o @ up) / h, "left": float(o @ left) / h,
                              "front": float(o @ front) / h}
-            rec = {"capture": cap.gt["synth"].get("build"), "seed": cap.gt["synth"].get("seed"),
-                   "frame": f, "separated": bool(g.get("separated")), "status": pose.status,
+            rec = {"capture": (cap.gt["synth"].get("build") or {}).get("name"),
+                   "seed": cap.gt["synth"].get("seed"), "frame": f,
+                   "separated": bool(g.get("separated")), "status": pose.status,
                    "quality": fs.quality, "parts": parts, "height": h}
             recs.append(rec)
             if pictures and rec["quality"] in ("misplaced", "missing limb") \
@@ -90,7 +91,7 @@ def run(caps, options, pictures=0, tag=""):
 
                 shown[rec["quality"]] += 1
                 wrong = [p for p, v in parts.items() if v is None or v["ratio"] > 1]
-                name = f"diagnose_body_{rec['quality'].replace(' ', '_')}{shown[rec['quality']]}"
+                name = f"diagnose_body{tag}_{rec['quality'].replace(' ', '_')}{shown[rec['quality']]}"
                 render_frame(results_dir() / f"{name}.png", model, pose, det, cap=cap,
                              title=f"body {rec['capture']} seed {rec['seed']} frame {f}: "
                                    f"{rec['quality']} ({', '.join(wrong)})")
@@ -162,7 +163,8 @@ def main():
     out = results_dir()
     name = f"diagnose_body{a.tag}"
     (out / f"{name}.json").write_text(json.dumps(
-        {"machine": machine(), "seeds": seeds, "options": options, **res}, indent=1))
+        {"machine": machine(), "seeds": seeds, "options": options, **res},
+        separators=(",", ":")))
     L = [f"# Diagnosis of the body subject's failures (issue 11)", "",
          f"Seeds {', '.join(map(str, seeds))} × builds {', '.join(BODY_BUILDS)} × {a.frames} "
          f"frames, 8 cameras, noise 1, 100³, gate off, options {options or 'default'}; "

@@ -128,6 +128,12 @@ class FrameEstimator:
     tip_fraction : float
         Move a tip part (``tips``) only this fraction of the way from its skeleton end to the
         hull's border (1, default: all the way; measured in :data:`LEAF_AXIS`).
+    head_from_hull : float or None
+        Place the head part from the hull rather than from the alignment
+        (:func:`topopose.pose.tips.head_from_hull`, :data:`HEAD_FROM_HULL`): the highest hull
+        point thicker than this fraction of the hull's largest inscribed radius, prolonged
+        away from the torso to the hull's border. None: the model's entry when its head has
+        an "above" coordinate constraint (human, upright subjects: 0.4), else off; 0: off.
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -142,6 +148,7 @@ class FrameEstimator:
                  relation=None, fill=True, repair=None, junction_centroid=None, refocus=False,
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
+                 head_from_hull=None,
                  tip_fraction=1.0):
         from ..match import Matcher
         from .confidence import MIN_CONFIDENCE
@@ -199,6 +206,12 @@ class FrameEstimator:
         cos = (rule[3] if rule else 0.0) if leaf_axis is None else float(leaf_axis)
         self.leaf_axis = (*rule[:3], cos) if rule and cos else None
         self.tip_fraction = float(tip_fraction)
+        # the head from the hull's highest thick point (pose/tips.py), for upright subjects
+        rule = HEAD_FROM_HULL.get(self.model.name)
+        frac = ((rule[2] if rule and any(c.kind == "above" and rule[0] in c.parts
+                                          for c in self.model.constraints) else 0.0)
+                if head_from_hull is None else float(head_from_hull))
+        self.head_from_hull = (rule[0], rule[1], frac) if rule and frac > 0 else None
         # leaf parts placed where their branch leaves the hull (pose/tips.py)
         stems = set(tips or ())
         self.tips = [p for p in self.model.parts if len(adj[p]) == 1 and self.model.complete
@@ -355,7 +368,15 @@ class FrameEstimator:
                 if parts.get(p) is not None:
                     parts[p] = (x if self.tip_fraction == 1.0
                                 else parts[p] + self.tip_fraction * (x - parts[p]))
-        missing = [p for p, x in parts.items() if x is None]
+        missing = [p for p, x in parts.items() if x is None]   # by the alignment: the status
+        from_hull = []
+        if self.head_from_hull is not None:
+            from .tips import head_from_hull
+            head, anchor, frac = self.head_from_hull
+            x = head_from_hull(vol, self.up, parts.get(anchor), frac)
+            if x is not None:
+                parts[head] = x
+                from_hull.append(head)
         status, error = "matched", None
         if not math.isfinite(dist) or dist > self.threshold:
             status = "rejected"
@@ -381,6 +402,8 @@ class FrameEstimator:
             diag["thickness_cost"] = round(thick, 6)
         if self.prune > 0:
             diag["pruned_bumps"] = len(data.diagnostics.get("pruned_bumps", ()))
+        if from_hull:
+            diag["from_hull"] = from_hull
         if dropped:
             diag["off_axis"] = dropped
         if unordered:
@@ -558,6 +581,12 @@ THICKNESS = {"human": {"head": (0.30, 0.85), "hand": (0.0, 0.40), "foot": (0.0, 
 # leaves the head unplaced in 69 of 100 frames and the frames with head, hands and feet within
 # 0.15 m fall from 31 % to 15 %: the default is off (0); ``leaf_axis=0.7`` turns it on.
 LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.0)}
+# The head from the hull (pose/tips.py, head_from_hull): (head, anchor, min_fraction) — the head
+# part is put where the direction anchor → the hull's highest point whose inscribed radius is
+# ≥ min_fraction × the hull's largest leaves the hull, whatever the alignment gave the head. On
+# for models whose head carries an "above" coordinate constraint (upright subjects).
+# FIGURES
+HEAD_FROM_HULL = {"human": ("head", "torso", 0.4)}
 THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the largest within ± that
 
 

@@ -592,8 +592,10 @@ LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.0)}
 # 0.122 / 0.370 → 0.068 / 0.096 m. Body subject (benchmarks/quality.py's body set, seeds 21, 22,
 # 100³, TP rate / FP per match, gate on | off): separated 0.79 / 0.031 | 0.86 / 0.096 → 0.81 /
 # 0.010 | 0.89 / 0.061, all poses 0.46 / 0.083 | 0.55 / 0.185 → 0.47 / 0.067 | 0.56 / 0.173;
-# head median error 5.6 → 2.1 cm. At 0.3 raised arms count as thick on the 8-camera hulls
-# (separated 0.64 / 0.214 with the gate).
+# head median error 5.6 → 2.1 cm. The window is narrow: on the body's 8-camera hulls raised
+# arms count as thick below 0.4 (separated, gate on: 0.3 → 0.64 / 0.214, 0.35 → 0.78 / 0.051,
+# 0.45 → 0.82 / 0.000); on the real recording's 4-camera hulls (a trunk inflated by phantom
+# volume) the head no longer does above it (0.45 → 59 right frames).
 HEAD_FROM_HULL = {"human": ("head", "torso", 0.4)}
 THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the largest within ± that
 

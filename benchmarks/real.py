@@ -171,7 +171,7 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     import topopose as tp
     from topopose.capture import prefetch
     from topopose.pose.confidence import temporal_confidence
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.pose.estimate import FrameEstimator, default_gate
 
     cdir = work / method.replace("+", "_")
     if cdir.exists():
@@ -195,9 +195,8 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     temporal_confidence(poses, {f: i for i, f in enumerate(cap.frames)}, gate=False)
     idx = {f: i for i, f in enumerate(cap.frames)}
     res = summarize(poses, ref, idx)
-    from topopose.pose.estimate import default_gate
     run_poses = as_run(poses, est.model, cap.up_vector, default_gate(cap))
-    res["as_run"] = {k: v for k, v in summarize(run_poses, ref, idx).items()}
+    res["as_run"] = summarize(run_poses, ref, idx)
     res["as_run"]["predicted"] = sum(bool(p.diagnostics.get("predicted")) for p in run_poses)
     stages = {}
     for p in poses[1:]:

@@ -87,10 +87,11 @@ def test_leaf_axis_and_tip_fraction_in_the_estimator():
     cap = synthetic_capture("human", frames=2, seed=3, noise=0, separated=True)
     poses = {}
     off = {"head_from_hull": 0}       # the head from the alignment (these rules place it)
-    for key, kw in {"hull": {}, "default": off, "drop": {"leaf_axis": 1.01, **off},
+    for key, kw in {"hull": {"resolution": 100}, "default": off, "drop": {"leaf_axis": 1.01, **off},
                     "t0": {"tip_fraction": 0.0, **off},
                     "t05": {"tip_fraction": 0.5, **off}}.items():
-        est = FrameEstimator(cap, "human", 60, **kw)
+        kw = {"resolution": 60, **kw}       # the head from the hull needs a finer grid
+        est = FrameEstimator(cap, "human", **kw)
         poses[key] = [est.estimate(f, detail=True) for f in cap.frames]
     for key in ("default", "hull"):
         ev = evaluate(cap.gt, [p for p, _ in poses[key]])

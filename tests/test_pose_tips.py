@@ -72,8 +72,11 @@ def test_thick_top_skips_a_thin_arm_above_the_head():
     assert abs(top[1] - 32) <= 1 and abs(top[2] - 32) <= 1
     assert 42 <= top[0] <= 44 and r >= 4.4
     # with the threshold below the arm's radius the arm wins (the oracle is not vacuous)
-    top2, _ = thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.1)
+    top2, _ = thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.1, min_voxels=1.0)
     assert top2[0] >= 55 and abs(top2[2] - 46) <= 2
+    # a grid too coarse to tell a head from an arm by thickness: no answer
+    assert thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.1) is None           # 0.1 × 11 < 2 voxels
+    assert thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.4, min_voxels=5.0) is None
 
 
 def test_head_from_hull_is_the_crown_not_the_arm():

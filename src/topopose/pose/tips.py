@@ -112,10 +112,12 @@ def extremity_tips(vol, skeleton, data, mapping: dict, leaf_parts, reach: float 
     return out
 
 
-def thick_top(volume: np.ndarray, origin, voxel_size: float, up, min_fraction: float):
+def thick_top(volume: np.ndarray, origin, voxel_size: float, up, min_fraction: float,
+              min_voxels: float = 2.0):
     """The highest point (along ``up``) of ``volume`` (bool grid) whose inscribed ball radius
     is at least ``min_fraction`` × the largest one (the trunk's), and that radius (world units);
-    None when the volume is empty.
+    None when the volume is empty or that radius is below ``min_voxels`` voxels (a coarse grid
+    cannot tell a head from an arm by thickness: body subject at 50³, ``HEAD_FROM_HULL``).
 
     The head of an upright subject is the highest *thick* part: hands and forearms raised
     beside or above it are thinner (see :func:`head_from_hull`)."""
@@ -127,6 +129,8 @@ def thick_top(volume: np.ndarray, origin, voxel_size: float, up, min_fraction: f
     lo, hi = idx.min(axis=0), idx.max(axis=0) + 1
     sub = np.pad(volume[tuple(slice(a, b) for a, b in zip(lo, hi))], 1)
     dt = distance_transform_edt(sub)
+    if min_fraction * dt.max() < min_voxels:
+        return None
     ijk = np.argwhere(dt >= min_fraction * dt.max())
     pts = (ijk - 1 + lo) * voxel_size + np.asarray(origin, float)
     h = pts @ np.asarray(up, float)
@@ -137,7 +141,8 @@ def thick_top(volume: np.ndarray, origin, voxel_size: float, up, min_fraction: f
 def head_from_hull(vol, up, anchor=None, min_fraction: float = 0.4, max_radii: float = 3.0):
     """The head of an upright subject from the hull alone: from the highest thick point
     (:func:`thick_top`), where the direction from ``anchor`` (the torso part) through it leaves
-    the hull (the crown), at most ``max_radii`` inscribed radii on; None for an empty hull.
+    the hull (the crown), at most ``max_radii`` inscribed radii on; None for an empty hull or
+    one too coarse (:func:`thick_top`).
 
     Thinning gives a head a branch only where the head stands out of the hull: with an arm
     raised beside a leaning head (and, with few cameras, the phantom volume between them) the

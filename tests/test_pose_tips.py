@@ -75,7 +75,7 @@ def test_thick_top_skips_a_thin_arm_above_the_head():
     top2, _ = thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.1, min_voxels=1.0)
     assert top2[0] >= 55 and abs(top2[2] - 46) <= 2
     # a grid too coarse to tell a head from an arm by thickness: no answer
-    assert thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.1) is None           # 0.1 × 11 < 2 voxels
+    assert thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.1) is None           # 0.1 × 11 < 1.5 voxels
     assert thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.4, min_voxels=5.0) is None
 
 

@@ -595,7 +595,10 @@ LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.0)}
 # head median error 5.6 → 2.1 cm. The window is narrow: on the body's 8-camera hulls raised
 # arms count as thick below 0.4 (separated, gate on: 0.3 → 0.64 / 0.214, 0.35 → 0.78 / 0.051,
 # 0.45 → 0.82 / 0.000); on the real recording's 4-camera hulls (a trunk inflated by phantom
-# volume) the head no longer does above it (0.45 → 59 right frames).
+# volume) the head no longer does above it (0.45 → 59 right frames). On a coarse grid the rule
+# is skipped (thick radius below 1.5 voxels, :func:`~topopose.pose.tips.thick_top`): at 50³ the
+# body's trunk is 3–3.5 voxels thick and the rule cost separated frames 0.53 / 0.190 → 0.48 /
+# 0.266; at 100³ it is 5–6 voxels.
 HEAD_FROM_HULL = {"human": ("head", "torso", 0.4)}
 THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the largest within ± that
 

@@ -113,7 +113,7 @@ def extremity_tips(vol, skeleton, data, mapping: dict, leaf_parts, reach: float 
 
 
 def thick_top(volume: np.ndarray, origin, voxel_size: float, up, min_fraction: float,
-              min_voxels: float = 2.0):
+              min_voxels: float = 1.5):
     """The highest point (along ``up``) of ``volume`` (bool grid) whose inscribed ball radius
     is at least ``min_fraction`` × the largest one (the trunk's), and that radius (world units);
     None when the volume is empty or that radius is below ``min_voxels`` voxels (a coarse grid

@@ -18,20 +18,13 @@ the same frames: median cosine with the true front 0.975, within 45° in 91 %, b
 by their share of the hull's largest radius (the chest's: girth, not height, sets the
 offset).
 
-Two head rules use the same front and radius (both opt-in, ``FrameEstimator(level_tips=True,
-recover_head=True)``): :func:`level_tips` drops the forward part of the head tip's prolongation
-(a head branch ending in the face is not sent on through the nose), and :func:`axis_head` puts a
-head the skeleton lost (16 of the 114 matched separated training frames have no head branch)
-where the body axis leaves the hull above the torso. Training figures (seeds 41, 42, gate off,
+Training figures (seeds 41, 42, gate off,
 matched frames good / missing limb / misplaced): separated 84 / 16 / 14 without the shift →
-91 / 16 / 7 with it (head share 0: 89 / 16 / 9; shares × 1.4: 92 / 16 / 6); with it,
-level_tips 92 / 16 / 6, recover_head 107 / 0 / 7; all poses 45 / 26 / 14 → 47 / 27 / 11
-(level_tips the same, recover_head 62 / 12 / 11). Held-out seeds 21, 22 (``benchmarks/
-quality.py``, quality_body.md, *no-spine*, *level-tips*, *recover-head* rows; TP rate / FP per
+91 / 16 / 7 with it (head share 0: 89 / 16 / 9; shares × 1.4: 92 / 16 / 6); all poses 45 / 26 / 14 → 47 / 27 / 11. Held-out seeds 21, 22 (``benchmarks/
+quality.py``, quality_body.md, *no-spine* rows; TP rate / FP per
 match, gate off): separated 0.86 / 0.096 → 0.88 / 0.079, all poses 0.55 / 0.185 → 0.58 /
 0.136; gate on unchanged (0.79 / 0.031, 0.46 / 0.083: the gate had rejected the frames the
-shift mends); level_tips on top, gate on: separated 0.81 / 0.010; recover_head: 27 of the 28
-separated missing-head frames good, none misplaced. The capsule human's ground truth lies on
+shift mends). The capsule human's ground truth lies on
 its capsules' axis: there the shift only adds 1.5–2.5 cm to the torso and crotch errors
 (classes unchanged, seed 0, 80 frames).
 """
@@ -107,41 +100,3 @@ def spine_shift(parts: dict, front, radius: float, shares: dict) -> dict:
             out[p] = np.asarray(out[p], float) - s * radius * np.asarray(front, float)
     return out
 
-
-def level_tips(parts: dict, ends: dict, front, tips) -> dict:
-    """``parts`` with the forward component of each tip's prolongation removed: a tip part
-    (:mod:`.tips`) placed at ``parts[p]`` from its skeleton end ``ends[p]`` keeps the
-    prolongation's components along ``up`` and sideways, not the one along ``front`` when
-    positive (a head whose branch ends in the face is not sent on through the nose)."""
-    if front is None:
-        return dict(parts)
-    out = dict(parts)
-    f = np.asarray(front, float)
-    for p in tips:
-        x, e = out.get(p), ends.get(p)
-        if x is None or e is None:
-            continue
-        t = np.asarray(x, float) - np.asarray(e, float)
-        out[p] = np.asarray(x, float) - max(float(t @ f), 0.0) * f
-    return out
-
-
-def axis_head(vol, torso, crotch, radius: float, reach: float = 2.0):
-    """A head the skeleton lost, recovered on the body axis: the point where the ray from
-    ``torso`` along crotch → torso leaves the hull, at most ``reach`` × ``radius`` (the hull's
-    largest inscribed-ball radius) from ``torso``; None without torso or crotch.
-
-    With no head branch (a head absorbed into the shoulders' junction by thinning, or fused
-    with a raised arm in the hull) the alignment leaves the head unplaced; the neck still
-    continues the trunk, and the ground truth's head segment starts at the neck base, where
-    the torso is. The reach bounds the ray inside a raised arm fused with the head."""
-    from .tips import exit_point
-
-    if torso is None or crotch is None or radius <= 0:
-        return None
-    a = np.asarray(torso, float) - np.asarray(crotch, float)
-    n = float(np.linalg.norm(a))
-    if n == 0:
-        return None
-    return exit_point(vol.data, vol.origin, float(vol.voxel_size), np.asarray(torso, float),
-                      a / n, reach * radius)

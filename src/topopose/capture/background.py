@@ -31,6 +31,16 @@ p = 1 / (1 + exp(−(d − threshold) / (threshold / 4))). Pixels that were neve
 (0-255), at ``scale`` of the image size, and fused into the hull by
 :func:`topopose.hull.soft.soft_carve` (Franco & Boyer's occupancy grid).
 
+``"person+sequence"``: the background is learned with the person network's masks
+(:mod:`.segment`) on ``person_samples`` frames excluding the subject: per pixel the median of
+the samples where the network's mask, dilated by ``person_dilate`` pixels, is not the person
+(:func:`clean_background`); pixels never free in any sample (the subject covered them in every
+sample) vote for the subject with p = 0.75 (``NEVER_FREE``): on the Pose2Sim recording a
+weaker vote cut the torso. The subject's 3D region (step 2) is carved from the network's masks
+instead of the motion masks. Every frame then only needs the colour probability against that
+clean background (fast), not the network. ``"person"`` (the network on every frame) learns no
+background but takes its capture volume from the same set-up.
+
 ``"selfie"`` uses MediaPipe's selfie-segmentation network (an optional dependency whose model
 ships inside the wheel, see :mod:`.segment`) on the zone's bounding rectangle;
 ``"sequence+selfie"`` takes the network's probability, raised to the background model's where
@@ -47,7 +57,11 @@ import numpy as np
 from ..errors import InputError
 from .camera import Camera
 
-SEQUENCE_METHODS = ("sequence", "selfie", "sequence+selfie", "person")
+SEQUENCE_METHODS = ("sequence", "selfie", "sequence+selfie", "person", "person+sequence")
+#: methods whose set-up runs the person network (:mod:`.segment`) on the sampled frames
+PERSON_METHODS = ("person", "person+sequence")
+#: "person+sequence": probability (× 255) of the pixels the subject covered in every sample
+NEVER_FREE = 191
 
 
 def scaled_camera(cam: Camera, scale: float) -> Camera:
@@ -176,6 +190,53 @@ def _zone_background(stack, guess, zone, reveal):
     return bg, kn
 
 
+def clean_background(stack, person, dilate: int) -> tuple:
+    """Background of one camera from samples and the person network's masks of them.
+
+    Parameters
+    ----------
+    stack : (N, h, w, 3) uint8 samples
+    person : (N, h, w) bool person masks (a sample whose camera found no one: all True)
+    dilate : pixels the masks are grown by (the network's edges are soft)
+
+    Returns
+    -------
+    (image (h, w, 3) uint8, known (h, w) bool): per pixel the (lower) median of the samples
+    where it is free of the person; pixels free in no sample (``known`` False) are inpainted
+    from the known ones (OpenCV's Telea).
+    """
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * dilate + 1,) * 2)
+    busy = np.stack([cv2.dilate(m.astype(np.uint8), k) for m in person]).astype(bool)
+    x = stack.astype(np.float32)
+    x[busy] = np.nan
+    x.sort(axis=0)                                   # NaN (not free) last
+    n = (~busy).sum(axis=0)
+    known = n > 0
+    mid = np.maximum(n - 1, 0) // 2
+    bg = np.take_along_axis(x, mid[None, :, :, None], axis=0)[0]
+    bg = np.where(known[:, :, None], bg, 0).astype(np.uint8)
+    if not known.all():
+        bg = cv2.inpaint(bg, (~known).astype(np.uint8), 5, cv2.INPAINT_TELEA)
+    return bg, known
+
+
+def person_backgrounds(samples, person, cameras, params, unit, clean: bool = True) -> tuple:
+    """Background models (``clean``: :func:`clean_background`, else zones only) and the
+    subject's region from samples and the person network's masks of them (lists over cameras
+    of (N, h, w, 3) and (N, h, w) stacks; module docstring, ``"person+sequence"``)."""
+    per_sample = [[m[i] for m in person] for i in range(len(person[0]))]
+    region = subject_region(cameras, per_sample, unit)
+    out = []
+    for stack, masks, cam in zip(samples, person, cameras):
+        zone = (region_zone(cam, *region) if region is not None
+                else np.zeros(stack.shape[1:3], dtype=bool))
+        bg = known = None
+        if clean:
+            bg, known = clean_background(stack, masks, int(params["person_dilate"]))
+        out.append(SequenceBackground(bg, known, zone, cam))
+    return out, region
+
+
 def learn_backgrounds(samples, cameras, params, unit) -> tuple:
     """Background models of every camera from ``samples`` (list over cameras of (N, h, w, 3)
     uint8 stacks of downscaled frames) and the downscaled ``cameras`` (module docstring), and
@@ -240,7 +301,8 @@ def capture_backgrounds(cap) -> list:
     p = cap.options["silhouettes"]
     s = float(p["scale"])
     cams = [scaled_camera(c, s) for c in cap.cameras]
-    names = sample_frames(cap.frames, int(p["samples"]))
+    person = p["method"] in PERSON_METHODS
+    names = sample_frames(cap.frames, int(p["person_samples" if person else "samples"]))
     stacks = [[] for _ in cap.cameras]
     src = _frame_source(cap)
     if src is None:
@@ -258,7 +320,20 @@ def capture_backgrounds(cap) -> list:
     from .calibration import _UNITS
 
     unit = 1.0 / _UNITS.get(cap.units, 1.0)
-    models, region = learn_backgrounds([np.stack(x) for x in stacks], cams, p, unit)
+    stacks = [np.stack(x) for x in stacks]
+    if person:
+        from .segment import person_probabilities
+
+        masks = [[] for _ in cams]
+        for i in range(len(stacks[0])):
+            qs = person_probabilities([x[i] for x in stacks],
+                                      [(id(cap), c) for c in range(len(cams))])
+            for c, q in enumerate(qs):
+                masks[c].append(q > 127)
+        models, region = person_backgrounds(stacks, [np.stack(m) for m in masks], cams, p, unit,
+                                            clean=p["method"] != "person")
+    else:
+        models, region = learn_backgrounds(stacks, cams, p, unit)
     cap.cache[key] = models
     box = None
     if region is not None:
@@ -295,16 +370,20 @@ def foreground_maps(cap, frame, images=None) -> list:
         from .io import read_images
         images = read_images(cap, frame)
     small = [downscale(img, cam, s) for img, cam in zip(images, cap.cameras)]
-    # the network alone needs no background model
-    bgs = [None] * len(small) if method == "person" else capture_backgrounds(cap)
+    if method == "person":       # the network alone needs no background model
+        from .segment import person_probabilities
+        out = person_probabilities(small, [(id(cap), c) for c in range(len(small))])
+        cap.cache["foreground_last"] = (ck, out)
+        return out
+    bgs = capture_backgrounds(cap)
     out = []
     for c, (img, bg) in enumerate(zip(small, bgs)):
         q = None
-        if method in ("sequence", "sequence+selfie"):
+        if method in ("sequence", "sequence+selfie", "person+sequence"):
             q = foreground_probability(img, bg, p)
-        if method == "person":
-            from .segment import person_probability
-            q = person_probability(img, stream=(id(cap), c))
+        if method == "person+sequence":
+            # never free at set-up: the subject covered the pixel in every sample, a vote for it
+            q[~bg.known] = NEVER_FREE
         if method in ("selfie", "sequence+selfie"):
             from .segment import selfie_probability
             q2 = selfie_probability(img, bg.zone, stream=(id(cap), c))
@@ -341,8 +420,9 @@ def check_params(path, p) -> None:
     """Validate the sequence-method fields of ``[silhouettes]``."""
     if not 0.05 <= float(p["scale"]) <= 1.0:
         raise InputError(f"{path}: [silhouettes] field 'scale' must be in [0.05, 1], got {p['scale']!r}")
-    if int(p["samples"]) < 3:
-        raise InputError(f"{path}: [silhouettes] field 'samples' must be ≥ 3, got {p['samples']!r}")
+    for k in ("samples", "person_samples"):
+        if int(p[k]) < 3:
+            raise InputError(f"{path}: [silhouettes] field {k!r} must be ≥ 3, got {p[k]!r}")
     for k in ("p_detect", "p_false"):
         if not 0.0 < float(p[k]) < 1.0:
             raise InputError(f"{path}: [silhouettes] field {k!r} must be in (0, 1), got {p[k]!r}")

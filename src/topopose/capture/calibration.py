@@ -48,13 +48,15 @@ SILHOUETTE_DEFAULTS = {
     "occupancy": 0.5,      # soft fusion: posterior occupancy above which a voxel is in the hull
     "open3d": 1,           # soft fusion: 3D opening of the hull by a (2k + 1)³ cube (0: none)
     "selfie_floor": 0.0,   # selfie: the network's probability is raised to at least this (a weak "no")
+    "person_samples": 8,   # "person", "person+sequence": frames the person network segments at set-up
+    "person_dilate": 3,    # "person+sequence": pixels (at scale) the network's masks grow by
 }
 _SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (int, float), "open": int,
               "close": int, "min_area": int, "fill_holes": int, "scale": (int, float),
               "samples": int, "reveal": (int, float), "shadow": (int, float), "uncertain": (int, float),
               "zone_margin": (int, float), "fusion": str, "p_detect": (int, float),
               "p_false": (int, float), "occupancy": (int, float), "open3d": int,
-              "selfie_floor": (int, float)}
+              "selfie_floor": (int, float), "person_samples": int, "person_dilate": int}
 _CAPTURE_KEYS = {"up", "units", "fps", "volume", "size_policy"}
 #: What to do with an image whose size differs from its camera's calibration size
 SIZE_POLICIES = ("error", "scale", "pad")
@@ -225,7 +227,7 @@ def read_capture_options(path, cameras=()) -> dict:
                          f"got {out['silhouettes']['median']}")
     if out["silhouettes"]["method"] not in ("diff", "mog2", "knn", *SEQUENCE_METHODS):
         raise InputError(f"{path}: [silhouettes] field 'method' must be \"diff\", \"mog2\", \"knn\", "
-                         f"\"sequence\", \"selfie\", \"sequence+selfie\" or \"person\", "
+                         f"\"sequence\", \"selfie\", \"sequence+selfie\", \"person\" or \"person+sequence\", "
                          f"got {out['silhouettes']['method']!r}")
     if out["silhouettes"]["fusion"] not in ("auto", "soft", "hard"):
         raise InputError(f"{path}: [silhouettes] field 'fusion' must be \"auto\", \"soft\" or \"hard\", "

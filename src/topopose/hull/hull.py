@@ -286,9 +286,11 @@ def capture_box(cap, tolerance: int = 0) -> tuple:
     if cap.volume is not None:
         lo, hi = (np.asarray(v, dtype=float) for v in cap.volume)
         return lo, hi
-    if (cap.options.get("silhouettes") or {}).get("method") in (
-            "sequence", "selfie", "sequence+selfie"):
-        from ..capture.background import subject_box
+    from ..capture.background import SEQUENCE_METHODS, subject_box
+
+    if (cap.options.get("silhouettes") or {}).get("method") in SEQUENCE_METHODS:
+        # the set-up's sampled frames (low resolution) give the box: no frame is segmented
+        # twice, and the reader thread is not drained to the sampled frames
         box = subject_box(cap)
         if box is not None:
             return box

@@ -34,8 +34,8 @@ p = 1 / (1 + exp(−(d − threshold) / (threshold / 4))). Pixels that were neve
 ``"person+sequence"``: the background is learned with the person network's masks
 (:mod:`.segment`) on ``person_samples`` frames excluding the subject: per pixel the median of
 the samples where the network's mask, dilated by ``person_dilate`` pixels, is not the person
-(:func:`clean_background`); pixels never free in any sample (the subject covered them in every
-sample) vote for the subject with p = 0.75 (``NEVER_FREE``): on the Pose2Sim recording a
+(near the subject in every sample: where the mask itself is not; :func:`clean_background`);
+pixels never free in any sample (the subject covered them in every sample) vote for the subject with p = 0.75 (``NEVER_FREE``): on the Pose2Sim recording a
 weaker vote cut the torso. The subject's 3D region (step 2) is carved from the network's masks
 instead of the motion masks. Every frame then only needs the colour probability against that
 clean background (fast), not the network. ``"person"`` (the network on every frame) learns no
@@ -190,6 +190,17 @@ def _zone_background(stack, guess, zone, reveal):
     return bg, kn
 
 
+def _free_median(x, busy):
+    """Per pixel the lower median of the samples ``x`` (N, h, w, 3) where ``busy`` (N, h, w)
+    is False, and whether there was one."""
+    x = x.astype(np.float32)
+    x[busy] = np.nan
+    x.sort(axis=0)                                   # NaN (busy) last
+    n = (~busy).sum(axis=0)
+    mid = np.maximum(n - 1, 0) // 2
+    return np.take_along_axis(x, mid[None, :, :, None], axis=0)[0], n > 0
+
+
 def clean_background(stack, person, dilate: int) -> tuple:
     """Background of one camera from samples and the person network's masks of them.
 
@@ -202,19 +213,16 @@ def clean_background(stack, person, dilate: int) -> tuple:
     Returns
     -------
     (image (h, w, 3) uint8, known (h, w) bool): per pixel the (lower) median of the samples
-    where it is free of the person; pixels free in no sample (``known`` False) are inpainted
-    from the known ones (OpenCV's Telea).
+    where it is free of the dilated person mask, else (a pixel near the subject in every
+    sample) of those free of the mask itself; pixels inside the mask in every sample
+    (``known`` False) are inpainted from the known ones (OpenCV's Telea).
     """
     k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * dilate + 1,) * 2)
-    busy = np.stack([cv2.dilate(m.astype(np.uint8), k) for m in person]).astype(bool)
-    x = stack.astype(np.float32)
-    x[busy] = np.nan
-    x.sort(axis=0)                                   # NaN (not free) last
-    n = (~busy).sum(axis=0)
-    known = n > 0
-    mid = np.maximum(n - 1, 0) // 2
-    bg = np.take_along_axis(x, mid[None, :, :, None], axis=0)[0]
-    bg = np.where(known[:, :, None], bg, 0).astype(np.uint8)
+    grown = np.stack([cv2.dilate(m.astype(np.uint8), k) for m in person]).astype(bool)
+    far, known_far = _free_median(stack, grown)
+    near, known = _free_median(stack, np.asarray(person, bool))
+    bg = np.where(known_far[:, :, None], far, np.where(known[:, :, None], near, 0))
+    bg = bg.astype(np.uint8)
     if not known.all():
         bg = cv2.inpaint(bg, (~known).astype(np.uint8), 5, cv2.INPAINT_TELEA)
     return bg, known

@@ -42,7 +42,8 @@ SILHOUETTE_DEFAULTS = {
     "uncertain": 0.5,      # weight of the vote of pixels whose background was never revealed
     "zone_margin": 0.15,   # growth (metres) of the 3D box the subject sweeps
     "fusion": "auto",      # "soft": Franco & Boyer occupancy grid from probabilities; "hard": p > 0.5 masks;
-                           # "auto": hard for method "person" (sharp masks), soft for the others
+                           # "auto": hard for methods "person" (sharp masks) and "person+sequence"
+                           # (measured: 15 % right frames vs 0 % soft), soft for the others
     "p_detect": 0.99,      # soft fusion: P(pixel foreground | voxel occupied)
     "p_false": 0.4,        # soft fusion: P(pixel foreground | voxel empty)
     "occupancy": 0.5,      # soft fusion: posterior occupancy above which a voxel is in the hull
@@ -51,6 +52,11 @@ SILHOUETTE_DEFAULTS = {
     "person_samples": 8,   # "person", "person+sequence": frames the person network segments at set-up
     "person_dilate": 3,    # "person+sequence": pixels (at scale) the network's masks grow by
 }
+#: Defaults that differ per method (fields the user sets win): "person+sequence" compares
+#: colours against a clean background, so a smaller distortion is the subject, and a darker
+#: pixel of the same colour is less often a shadow (skin in front of a beige wall); measured
+#: on the Pose2Sim recording (benchmarks/real.py)
+METHOD_DEFAULTS = {"person+sequence": {"threshold": 20.0, "shadow": 0.85}}
 _SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (int, float), "open": int,
               "close": int, "min_area": int, "fill_holes": int, "scale": (int, float),
               "samples": int, "reveal": (int, float), "shadow": (int, float), "uncertain": (int, float),
@@ -213,6 +219,7 @@ def read_capture_options(path, cameras=()) -> dict:
     s = data.get("silhouettes", {})
     if not isinstance(s, dict):
         raise InputError(f"{path}: 'silhouettes' must be a table ([silhouettes])")
+    out["silhouettes"].update(METHOD_DEFAULTS.get(s.get("method"), {}))
     for k, v in s.items():
         if k not in _SIL_TYPES:
             raise InputError(f"{path}: [silhouettes] unknown field '{k}' "

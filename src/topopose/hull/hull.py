@@ -224,12 +224,13 @@ def _sampled_boxes(cap, tolerance) -> list:
 
 def _soft_fusion(cap) -> bool:
     """The capture's silhouettes are probabilities fused by the soft hull (:mod:`.soft`)."""
-    from ..capture.background import SEQUENCE_METHODS
+    from ..capture.background import PERSON_METHODS, SEQUENCE_METHODS
 
     p = cap.options.get("silhouettes") or {}
     return (cap.masks is None and cap.options.get("source") in ("images", "videos")
             and p.get("method") in SEQUENCE_METHODS
-            and (p.get("fusion") == "soft" or (p.get("fusion") == "auto" and p.get("method") != "person")))
+            and (p.get("fusion") == "soft"
+                 or (p.get("fusion") == "auto" and p.get("method") not in PERSON_METHODS)))
 
 
 def _soft_table(cap, origin, vs, shape):

@@ -37,9 +37,12 @@ the samples where the network's mask, dilated by ``person_dilate`` pixels, is no
 (near the subject in every sample: where the mask itself is not; :func:`clean_background`);
 pixels never free in any sample (the subject covered them in every sample) vote for the subject with p = 0.75 (``NEVER_FREE``): on the Pose2Sim recording a
 weaker vote cut the torso. The subject's 3D region (step 2) is carved from the network's masks
-instead of the motion masks. Every frame then only needs the colour probability against that
+instead of the motion masks, and the capture volume is the box of the sampled frames' hulls
+from those masks (:func:`topopose.hull.hull.fit_box` at the set-up's scale), grown by
+``zone_margin``. Every frame then only needs the colour probability against that
 clean background (fast), not the network. ``"person"`` (the network on every frame) learns no
-background but takes its capture volume from the same set-up.
+background but takes its capture volume from the same set-up (before: 32 sampled frames
+segmented at full size in the hull stage, 10–40 s).
 
 ``"selfie"`` uses MediaPipe's selfie-segmentation network (an optional dependency whose model
 ships inside the wheel, see :mod:`.segment`) on the zone's bounding rectangle;
@@ -228,23 +231,6 @@ def clean_background(stack, person, dilate: int) -> tuple:
     return bg, known
 
 
-def person_backgrounds(samples, person, cameras, params, unit, clean: bool = True) -> tuple:
-    """Background models (``clean``: :func:`clean_background`, else zones only) and the
-    subject's region from samples and the person network's masks of them (lists over cameras
-    of (N, h, w, 3) and (N, h, w) stacks; module docstring, ``"person+sequence"``)."""
-    per_sample = [[m[i] for m in person] for i in range(len(person[0]))]
-    region = subject_region(cameras, per_sample, unit)
-    out = []
-    for stack, masks, cam in zip(samples, person, cameras):
-        zone = (region_zone(cam, *region) if region is not None
-                else np.zeros(stack.shape[1:3], dtype=bool))
-        bg = known = None
-        if clean:
-            bg, known = clean_background(stack, masks, int(params["person_dilate"]))
-        out.append(SequenceBackground(bg, known, zone, cam))
-    return out, region
-
-
 def learn_backgrounds(samples, cameras, params, unit) -> tuple:
     """Background models of every camera from ``samples`` (list over cameras of (N, h, w, 3)
     uint8 stacks of downscaled frames) and the downscaled ``cameras`` (module docstring), and
@@ -304,31 +290,47 @@ def capture_backgrounds(cap) -> list:
     key = ("sequence_backgrounds",)
     if key in cap.cache:
         return cap.cache[key]
-    from .io import _frame_source, image_list
+    from .io import _frame_source, fit_size
 
     p = cap.options["silhouettes"]
     s = float(p["scale"])
     cams = [scaled_camera(c, s) for c in cap.cameras]
     person = p["method"] in PERSON_METHODS
     names = sample_frames(cap.frames, int(p["person_samples" if person else "samples"]))
-    stacks = [[] for _ in cap.cameras]
     src = _frame_source(cap)
     if src is None:
         raise InputError(f"{cap.path or 'capture'}: no colour frames (images/ or videos/) to "
                          f"learn the background from")
-    for f, images in src.sequential(names):      # videos: decoded forward, no seeking
-        try:
-            imgs = image_list(cap, f, images)
-        except InputError:
-            continue                        # an unreadable frame is not needed here
-        for c, (img, cam) in enumerate(zip(imgs, cap.cameras)):
-            stacks[c].append(downscale(img, cam, s))
-    if not stacks[0]:
+
+    def read(cam):         # one camera's samples, downscaled (videos: decoded forward)
+        out = {}
+        for f, images in src.sequential(names, [cam.name]):
+            im = images[cam.name]
+            if isinstance(im, InputError):
+                continue                   # an unreadable frame is not needed here
+            try:
+                out[f] = downscale(fit_size(cap, src.path(cam.name, f) or cam.name, im, cam),
+                                   cam, s)
+            except InputError:
+                continue
+        return out
+
+    from concurrent.futures import ThreadPoolExecutor
+
+    import time
+
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(len(cap.cameras)) as ex:   # OpenCV decodes without the GIL
+        got = list(ex.map(read, cap.cameras))
+    ok = [f for f in names if all(f in g for g in got)]
+    stacks = [[g[f] for f in ok] for g in got]
+    if not ok:
         raise InputError(f"{cap.path}: no readable frame to learn the background from")
     from .calibration import _UNITS
 
     unit = 1.0 / _UNITS.get(cap.units, 1.0)
     stacks = [np.stack(x) for x in stacks]
+    times = {"decode": time.perf_counter() - t0}
     if person:
         from .segment import person_probabilities
 
@@ -338,18 +340,40 @@ def capture_backgrounds(cap) -> list:
                                       [(id(cap), c) for c in range(len(cams))])
             for c, q in enumerate(qs):
                 masks[c].append(q > 127)
-        models, region = person_backgrounds(stacks, [np.stack(m) for m in masks], cams, p, unit,
-                                            clean=p["method"] != "person")
+        times["network"] = time.perf_counter() - t0 - sum(times.values())
+        d = int(p["person_dilate"])
+        models = [SequenceBackground(*(clean_background(x, np.stack(m), d)
+                                       if p["method"] == "person+sequence" else (None, None)),
+                                     None, cam) for x, m, cam in zip(stacks, masks, cams)]
     else:
         models, region = learn_backgrounds(stacks, cams, p, unit)
+    times["background"] = time.perf_counter() - t0 - sum(times.values())
     cap.cache[key] = models
     box = None
-    if region is not None:
+    if person:
+        box = _person_box(cams, masks, float(p["zone_margin"]) * unit)
+    elif region is not None:
         pts, vs = region
         m = 2 * float(p["zone_margin"]) * unit      # the hull may reach beyond the motion
         box = (pts.min(axis=0) - vs / 2 - m, pts.max(axis=0) + vs / 2 + m)
+    times["volume"] = time.perf_counter() - t0 - sum(times.values())
+    cap.cache[("setup_seconds",)] = times     # where the set-up's time went (benchmarks)
     cap.cache[("subject_box",)] = box
     return models
+
+
+def _person_box(cameras, masks, margin):
+    """Box of the union of the sampled frames' hulls from the person masks (the cones' box
+    shrunk by coarse passes, :func:`topopose.hull.hull.fit_box`, at the set-up's scale), grown
+    by ``margin`` (or None)."""
+    from ..hull.hull import fit_box
+
+    boxes = [fit_box(cameras, [m[i] for m in masks], 0) for i in range(len(masks[0]))]
+    boxes = [b for b in boxes if b is not None]
+    if not boxes:
+        return None
+    return (np.min([b[0] for b in boxes], axis=0) - margin,
+            np.max([b[1] for b in boxes], axis=0) + margin)
 
 
 def subject_box(cap):

@@ -65,6 +65,8 @@ SEQUENCE_METHODS = ("sequence", "selfie", "sequence+selfie", "person", "person+s
 PERSON_METHODS = ("person", "person+sequence")
 #: "person+sequence": probability (× 255) of the pixels the subject covered in every sample
 NEVER_FREE = 191
+#: "person+sequence": erosion (pixels at ``scale``, square) of a keyframe's network mask
+KEYFRAME_ERODE = 5
 
 
 def scaled_camera(cam: Camera, scale: float) -> Camera:
@@ -408,6 +410,8 @@ def foreground_maps(cap, frame, images=None) -> list:
         cap.cache["foreground_last"] = (ck, out)
         return out
     bgs = capture_backgrounds(cap)
+    if method == "person+sequence":
+        keys = _keyframe_maps(cap, frame, small, int(p["person_every"]))
     out = []
     for c, (img, bg) in enumerate(zip(small, bgs)):
         q = None
@@ -416,6 +420,9 @@ def foreground_maps(cap, frame, images=None) -> list:
         if method == "person+sequence":
             # never free at set-up: the subject covered the pixel in every sample, a vote for it
             q[~bg.known] = NEVER_FREE
+            # raised to the network's (eroded) mask of the frame's keyframe: the colour model
+            # misses the capped head and skin in front of a beige wall
+            q = np.maximum(q, keys[c])
         if method in ("selfie", "sequence+selfie"):
             from .segment import selfie_probability
             q2 = selfie_probability(img, bg.zone, stream=(id(cap), c))
@@ -437,6 +444,33 @@ def foreground_maps(cap, frame, images=None) -> list:
     return out
 
 
+def _keyframe_maps(cap, frame, small, every: int) -> list:
+    """``"person+sequence"``: the person network's maps of the frame's keyframe (frame index
+    rounded down to a multiple of ``every``; the frame itself when it is one), eroded by
+    ``KEYFRAME_ERODE`` pixels (the subject moved since), one per camera. The latest keyframe
+    is cached, so that frames read in order segment each keyframe once."""
+    from .segment import person_probabilities
+
+    idx = cap.cache.get("frame_index")
+    if idx is None or len(idx) != len(cap.frames):
+        idx = cap.cache["frame_index"] = {f: i for i, f in enumerate(cap.frames)}
+    i = idx[frame]
+    k = (i // every) * every
+    hit = cap.cache.get("person_keyframe")
+    if hit is not None and hit[0] == k:
+        return hit[1]
+    if k != i:
+        from .io import read_images
+        s = float(cap.options["silhouettes"]["scale"])
+        small = [downscale(im, cam, s) for im, cam in
+                 zip(read_images(cap, cap.frames[k]), cap.cameras)]
+    kern = np.ones((KEYFRAME_ERODE,) * 2, np.uint8)
+    maps = [cv2.erode(q, kern) for q in
+            person_probabilities(small, [(id(cap), c) for c in range(len(small))])]
+    cap.cache["person_keyframe"] = (k, maps)
+    return maps
+
+
 def masks_from_maps(cap, maps) -> list:
     """Boolean silhouettes at the calibration size from probability maps (p > 0.5)."""
     out = []
@@ -452,6 +486,9 @@ def check_params(path, p) -> None:
     """Validate the sequence-method fields of ``[silhouettes]``."""
     if not 0.05 <= float(p["scale"]) <= 1.0:
         raise InputError(f"{path}: [silhouettes] field 'scale' must be in [0.05, 1], got {p['scale']!r}")
+    if int(p["person_every"]) < 1:
+        raise InputError(f"{path}: [silhouettes] field 'person_every' must be ≥ 1, "
+                         f"got {p['person_every']!r}")
     for k in ("samples", "person_samples"):
         if int(p[k]) < 3:
             raise InputError(f"{path}: [silhouettes] field {k!r} must be ≥ 3, got {p[k]!r}")

@@ -51,6 +51,7 @@ SILHOUETTE_DEFAULTS = {
     "selfie_floor": 0.0,   # selfie: the network's probability is raised to at least this (a weak "no")
     "person_samples": 8,   # "person", "person+sequence": frames the person network segments at set-up
     "person_dilate": 3,    # "person+sequence": pixels (at scale) the network's masks grow by
+    "person_every": 4,     # "person+sequence": the network also runs on every k-th frame (keyframe)
 }
 #: Defaults that differ per method (fields the user sets win): "person+sequence" compares
 #: colours against a clean background, so a smaller distortion is the subject, and a darker
@@ -62,7 +63,8 @@ _SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (
               "samples": int, "reveal": (int, float), "shadow": (int, float), "uncertain": (int, float),
               "zone_margin": (int, float), "fusion": str, "p_detect": (int, float),
               "p_false": (int, float), "occupancy": (int, float), "open3d": int,
-              "selfie_floor": (int, float), "person_samples": int, "person_dilate": int}
+              "selfie_floor": (int, float), "person_samples": int, "person_dilate": int,
+              "person_every": int}
 _CAPTURE_KEYS = {"up", "units", "fps", "volume", "size_policy"}
 #: What to do with an image whose size differs from its camera's calibration size
 SIZE_POLICIES = ("error", "scale", "pad")

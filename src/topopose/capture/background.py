@@ -34,15 +34,17 @@ p = 1 / (1 + exp(−(d − threshold) / (threshold / 4))). Pixels that were neve
 ``"person+sequence"``: the background is learned with the person network's masks
 (:mod:`.segment`) on ``person_samples`` frames excluding the subject: per pixel the median of
 the samples where the network's mask, dilated by ``person_dilate`` pixels, is not the person
-(near the subject in every sample: where the mask itself is not; :func:`clean_background`);
-pixels never free in any sample (the subject covered them in every sample) vote for the subject with p = 0.75 (``NEVER_FREE``): on the Pose2Sim recording a
-weaker vote cut the torso. The subject's 3D region (step 2) is carved from the network's masks
-instead of the motion masks, and the capture volume is the box of the sampled frames' hulls
-from those masks (:func:`topopose.hull.hull.fit_box` at the set-up's scale), grown by
-``zone_margin`` / 3. Every frame then only needs the colour probability against that
-clean background (fast), not the network. ``"person"`` (the network on every frame) learns no
-background but takes its capture volume from the same set-up (before: 32 sampled frames
-segmented at full size in the hull stage, 10–40 s).
+(near the subject in every sample: where the mask itself is not; :func:`clean_background`).
+Pixels never free in any sample (the subject covered them in every sample) vote for the
+subject with p = 0.75 (``NEVER_FREE``): on the Pose2Sim recording a weaker vote cut the torso.
+Every frame is then the colour probability against that clean background (fast), raised to
+the network's mask of its keyframe (every ``person_every``-th frame is segmented), eroded by
+``KEYFRAME_ERODE`` pixels: the colour model misses the capped head and skin in front of a beige
+wall. No subject zone is needed (step 2 is skipped): the capture volume of ``"person"`` and
+``"person+sequence"`` is the box of the sampled frames' hulls from the network's masks
+(:func:`topopose.hull.hull.fit_box` at the set-up's scale), grown by ``zone_margin`` / 3
+(before, ``"person"`` segmented 32 sampled frames at full size in the first frame's hull
+stage: 10–40 s).
 
 ``"selfie"`` uses MediaPipe's selfie-segmentation network (an optional dependency whose model
 ships inside the wheel, see :mod:`.segment`) on the zone's bounding rectangle;
@@ -53,6 +55,8 @@ caps), lowered where it is sure of the background (p < 0.05).
 from __future__ import annotations
 
 import math
+import time
+from concurrent.futures import ThreadPoolExecutor
 
 import cv2
 import numpy as np
@@ -317,10 +321,6 @@ def capture_backgrounds(cap) -> list:
                 continue
         return out
 
-    from concurrent.futures import ThreadPoolExecutor
-
-    import time
-
     t0 = time.perf_counter()
     with ThreadPoolExecutor(len(cap.cameras)) as ex:   # OpenCV decodes without the GIL
         got = list(ex.map(read, cap.cameras))
@@ -382,7 +382,8 @@ def _person_box(cameras, masks, margin):
 
 
 def subject_box(cap):
-    """(lo, hi) of the 3D region the subject sweeps, grown by 2 × ``zone_margin`` (or None)."""
+    """(lo, hi) of the 3D region the subject sweeps, grown by 2 × ``zone_margin`` (person
+    methods: the sampled masks' hulls, grown by ``zone_margin`` / 3), or None."""
     capture_backgrounds(cap)
     return cap.cache[("subject_box",)]
 

@@ -43,7 +43,8 @@ SILHOUETTE_DEFAULTS = {
     "zone_margin": 0.15,   # growth (metres) of the 3D box the subject sweeps
     "fusion": "auto",      # "soft": Franco & Boyer occupancy grid from probabilities; "hard": p > 0.5 masks;
                            # "auto": hard for methods "person" (sharp masks) and "person+sequence"
-                           # (measured: 15 % right frames vs 0 % soft), soft for the others
+                           # (real recording: soft 0 % right frames, hard 6–18 % over the variants
+                           # tried), soft for the others
     "p_detect": 0.99,      # soft fusion: P(pixel foreground | voxel occupied)
     "p_false": 0.4,        # soft fusion: P(pixel foreground | voxel empty)
     "occupancy": 0.5,      # soft fusion: posterior occupancy above which a voxel is in the hull

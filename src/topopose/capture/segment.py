@@ -80,8 +80,9 @@ def person_probability(img: np.ndarray, stream="") -> np.ndarray:
 
 def person_probabilities(images, streams) -> list:
     """:func:`person_probability` of several cameras' images at once, one thread per camera
-    (MediaPipe releases the GIL while its graph runs: on 2 cores the 4 cameras of the Pose2Sim
-    recording take 111 ms instead of 174 ms, ``benchmarks/real.py``)."""
+    (MediaPipe releases the GIL while its graph runs: on 2 idle cores the 4 cameras of the
+    Pose2Sim recording took 111 ms instead of 174 ms one after the other; ``benchmarks/real.py``
+    times both)."""
     if len(images) == 1:
         return [person_probability(images[0], streams[0])]
     with _LOCK:

@@ -1,6 +1,6 @@
 """A real recording: Pose2Sim's balancing trial, from its 4 videos and Calib.toml as shipped.
 
-    python benchmarks/real.py [RECORDING] [--methods sequence,selfie,sequence+selfie,person,person+sequence] [--frames N]
+    python benchmarks/real.py [RECORDING] [--methods sequence,selfie,sequence+selfie,person] [--frames N]
 
 RECORDING (default ``benchmarks/data/pose2sim_balancing/``): ``videos/cam01.mp4`` …,
 ``Calib.toml`` (tables ``cam_01`` …), ``reference/pose2sim_3d.trc`` (Pose2Sim's own 3D result,
@@ -19,9 +19,9 @@ Scores (all frames, best guesses of rejected frames included; a failed frame cou
 
 Speed: end to end from the videos, one process as ``topopose run`` (a reader thread decodes
 the 4 videos and computes the foreground probabilities ahead of the hull, skeleton and
-alignment), resolution 100; the set-up (learning the background from 25 sampled frames, or
-for ``person`` / ``person+sequence`` segmenting 8 sampled frames with the network; the capture
-volume comes from it) and the first frame are reported apart, with their breakdowns.
+alignment), resolution 100; the set-up (learning the background from 25 sampled frames;
+``person`` has none: its capture volume is fitted to the first frame) and the first frame are
+reported apart, with their breakdowns.
 """
 from __future__ import annotations
 
@@ -281,7 +281,7 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
-    ap.add_argument("--methods", default="sequence,selfie,sequence+selfie,person,person+sequence")
+    ap.add_argument("--methods", default="sequence,selfie,sequence+selfie,person")
     ap.add_argument("--resolution", type=int, default=100)
     ap.add_argument("--frames", type=int, default=0, help="first N frames only (0: all)")
     ap.add_argument("--out", default=str(HERE / "results" / "real"))
@@ -299,7 +299,7 @@ def main(argv=None):
             import mediapipe  # noqa: F401
         except ImportError:
             print("mediapipe not installed: the selfie and person methods are skipped")
-            methods = [m for m in methods if "selfie" not in m and "person" not in m]
+            methods = [m for m in methods if "selfie" not in m and m != "person"]
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     results = {}

@@ -91,90 +91,91 @@ def test_a_camera_where_no_one_is_found_does_not_vote(tmp_path, fake_mediapipe):
     assert not (maps[1] == 128).all()
 
 
-# --- "person+sequence": background learned with the network's masks excluding the subject ---
 
-SEQ_TOML = ('[silhouettes]\nmethod = "person+sequence"\nscale = 1.0\nmedian = 0\n'
-            'person_samples = 6\nperson_dilate = {d}\nperson_every = {k}\n')
-VOLUME = '[capture.volume]\nmin = [-0.6, -0.6, 0.1]\nmax = [0.6, 0.6, 1.8]\n\n'
+# --- the capture volume of "person": fitted to the first frame, grown with the subject ---
 
-
-def _sequence(tmp_path, dilate=0, volume=False, n=6, every=1):
-    """A subject (capsule) that sways by ±8 cm but never leaves its place over ``n`` frames,
-    in front of a textured background: the rendered empty scene is the oracle."""
+def _moving(tmp_path):
+    """No [capture.volume]: a capsule that stands still for two frames, then steps 0.35 m
+    aside and raises its top (frame 2)."""
     cams = ring(n=4, size=(160, 120), f=200)
-    rng = np.random.default_rng(5)
+    rng = np.random.default_rng(4)
     empty = [rng.integers(0, 120, (c.size[1], c.size[0], 3)).astype(np.uint8) for c in cams]
-    frames, truth = {}, {}
-    for i in range(n):
-        dx = 0.08 * np.sin(2 * np.pi * i / n)
-        masks = capsule_masks(cams, (dx, 0.0, 0.5), (dx + 0.05, 0.05, 1.4), 0.15)
-        frames[f"{i:06d}"] = [np.where(m[:, :, None], np.uint8([200, 220, 240]), bg)
-                              for m, bg in zip(masks, empty)]
-        truth[f"{i:06d}"] = masks
+    ends = [((0.0, 0.0, 0.6), (0.05, 0.05, 1.2)), ((0.0, 0.0, 0.6), (0.05, 0.05, 1.2)),
+            ((0.35, 0.1, 0.6), (0.4, 0.1, 1.4))]
+    truth = {f"{i:06d}": capsule_masks(cams, a, b, 0.15) for i, (a, b) in enumerate(ends)}
+    frames = {f: [np.where(m[:, :, None], np.uint8([200, 220, 240]), bg)
+                  for m, bg in zip(ms, empty)] for f, ms in truth.items()}
     root = write_capture(tmp_path / "cap", cams, {}, images=frames)
-    (root / "capture.toml").write_text((VOLUME if volume else "") + SEQ_TOML.format(d=dilate, k=every))
-    t = write_capture(tmp_path / "truth", cams, truth)
-    (t / "capture.toml").write_text(VOLUME)
-    return load_capture(root), load_capture(t), empty, truth
+    (root / "capture.toml").write_text(TOML.split("\n\n")[1])       # no volume
+    return load_capture(root), cams, ends, truth
 
 
-def test_clean_background_equals_the_empty_scene(tmp_path, fake_mediapipe):
-    """Without dilation the pixels ever free are exactly those not covered in every frame, and
-    there the learned background equals the rendered empty scene; the never-free pixels (the
-    subject's core) vote for the subject, the others see it by colour."""
-    from topopose.capture.background import NEVER_FREE, capture_backgrounds, subject_box
+def _true_hull(cams, masks, vol):
+    """The hull of the true silhouettes on ``vol``'s grid, largest component (the oracle)."""
+    from topopose.hull import HullCarver, keep_largest_component
 
-    cap, _, empty, truth = _sequence(tmp_path)
-    models = capture_backgrounds(cap)
-    for c, (m, bg) in enumerate(zip(models, empty)):
-        always = np.all([truth[f][c] for f in truth], axis=0)
-        assert always.sum() > 300 and (~always).sum() > 10000
-        assert np.array_equal(m.known, ~always)                  # never free: handled apart
-        assert np.array_equal(m.image[m.known], bg[m.known])
-    maps = foreground_maps(cap, "000002")
-    for c, (q, m) in enumerate(zip(maps, models)):
-        assert (q[~m.known] >= NEVER_FREE).all()             # or the keyframe: the frame
-        assert np.array_equal(q > 127, truth["000002"][c])
-    lo, hi = subject_box(cap)                                      # the capture volume
-    assert np.all(lo <= [-0.1, -0.15, 0.35]) and np.all(hi >= [0.2, 0.2, 1.55])
-    assert np.all(hi - lo < 2.0)
+    occ = HullCarver(cams, vol.origin, vol.voxel_size, vol.data.shape).carve(masks, 0).astype(bool)
+    keep_largest_component(occ)
+    return occ
 
 
-def test_clean_background_with_dilated_masks(tmp_path, fake_mediapipe):
-    """Dilated masks (the samples far from the subject are preferred): the same pixels are
-    known, and every known one is still the empty scene."""
-    cap, _, empty, truth = _sequence(tmp_path, dilate=3)
-    from topopose.capture.background import capture_backgrounds
+def test_person_volume_fitted_to_the_first_frame_grows_with_the_subject(tmp_path, fake_mediapipe):
+    """The first frame's volume holds that frame's capsule (with the margin) and no sampled
+    frame is read for it; frame 1 (same place) keeps it; frame 2 (the subject stepped out of
+    it) grows it to hold the new capsule, and its hull is the true silhouettes' hull on the
+    grown grid (not cut at the old border)."""
+    from topopose.capture import prefetch
+    from topopose.hull import capture_box
 
-    for c, (m, bg) in enumerate(zip(capture_backgrounds(cap), empty)):
-        always = np.all([truth[f][c] for f in truth], axis=0)
-        assert np.array_equal(m.known, ~always)
-        assert np.array_equal(m.image[m.known], bg[m.known])
+    cap, cams, ends, truth = _moving(tmp_path)
+    with prefetch(cap, cap.frames):
+        h0 = visual_hull(cap, "000000", resolution=40)
+        box0 = capture_box(cap, 0, [])
+        h1 = visual_hull(cap, "000001", resolution=40)
+        h2 = visual_hull(cap, "000002", resolution=40)
+    assert ("sequence_backgrounds",) not in cap.cache and ("fitted_boxes", 0) not in cap.cache
+    a, b = (np.array(x) for x in ends[0])
+    m = 0.1 - 0.02        # ⅔ of zone_margin (0.15 m), less a pixel (≈ 1.5 cm at 3 m: the
+    #                       silhouettes sample pixel centres, so the hull may be that short)
+    assert np.all(box0[0] <= np.minimum(a, b) - 0.15 - m)
+    assert np.all(box0[1] >= np.maximum(a, b) + 0.15 + m)
+    assert np.all(box0[1] - box0[0] < np.abs(b - a) + 2 * (0.15 + m) + 1.0)   # cone phantoms
+    assert not h0.diagnostics["touches_border"] and "volume_grown" not in h0.diagnostics
+    assert "volume_grown" not in h1.diagnostics and h1.voxel_size == h0.voxel_size
+    assert h2.diagnostics["volume_grown"] and not h2.diagnostics["touches_border"]
+    lo, hi = capture_box(cap, 0, [])
+    a2, b2 = (np.array(x) for x in ends[2])
+    assert np.all(lo <= np.minimum(a2, b2) - 0.15 - m) and np.all(hi >= np.maximum(a2, b2) + 0.15 + m)
+    assert np.all(lo <= box0[0]) and np.all(hi >= box0[1])
+    for h, f in ((h0, "000000"), (h1, "000001"), (h2, "000002")):
+        t = _true_hull(cams, truth[f], h)
+        assert t.sum() > 200 and np.array_equal(h.data, t)
 
 
-def test_person_sequence_hull_equals_the_true_hull(tmp_path, fake_mediapipe):
-    """The hull from "person+sequence" silhouettes (fusion "auto": hard) against the hull of
-    the true silhouettes on the same grid: equal within 3 % of the voxels; the network runs
-    at set-up only (6 samples × 4 cameras), not per frame."""
-    cap, truth, _, _ = _sequence(tmp_path, dilate=2, volume=True)
-    made = None
-    for f in ("000001", "000004"):
-        h, t = visual_hull(cap, f, resolution=40), visual_hull(truth, f, resolution=40)
-        made = made or _FakePose.made
-        assert h.diagnostics["fusion"] == "hard"
-        diff = np.logical_xor(h.data, t.data).sum()
-        assert t.data.sum() > 1000 and diff <= 0.03 * t.data.sum(), (diff, t.data.sum())
-    assert made == 4 and _FakePose.made == 4                    # one graph per camera, reused
+def test_cameras_run_in_threads_each_on_its_own_network(fake_mediapipe):
+    """person_probabilities (one thread per camera) gives what the cameras one after the
+    other give, and each camera's images go to its own network, in frame order."""
+    from topopose.capture.segment import person_probabilities, person_probability
 
+    rng = np.random.default_rng(0)
+    frames = [[rng.integers(0, 256, (60, 80, 3)).astype(np.uint8) for _ in range(4)]
+              for _ in range(3)]
+    seen = {}
+    orig = _FakePose.process
 
-def test_keyframe_mask_is_added_eroded(tmp_path, fake_mediapipe):
-    """Every 3rd frame is a keyframe: frame 4's map is its colour foreground raised to the
-    network's mask of frame 3, eroded by KEYFRAME_ERODE (a square)."""
-    from topopose.capture.background import KEYFRAME_ERODE
+    def process(self, rgb):
+        seen.setdefault(id(self), []).append(rgb.copy())
+        return orig(self, rgb)
 
-    cap, _, _, truth = _sequence(tmp_path, every=3)
-    k = np.ones((KEYFRAME_ERODE,) * 2, np.uint8)
-    for c, q in enumerate(foreground_maps(cap, "000004")):
-        key = cv2.erode(truth["000003"][c].astype(np.uint8), k).astype(bool)
-        assert key.sum() > 100
-        assert np.array_equal(q > 127, truth["000004"][c] | key)
+    _FakePose.process = process
+    try:
+        got = [person_probabilities(imgs, [("t", c) for c in range(4)]) for imgs in frames]
+    finally:
+        _FakePose.process = orig
+    for imgs, maps in zip(frames, got):
+        assert all(np.array_equal(q, person_probability(im, ("s", c)))
+                   for c, (im, q) in enumerate(zip(imgs, maps)))
+    assert len(seen) == 4
+    for calls in seen.values():     # one camera per network, its frames in order
+        c = next(c for c in range(4) if np.array_equal(calls[0], frames[0][c][:, :, ::-1]))
+        assert all(np.array_equal(x, frames[i][c][:, :, ::-1]) for i, x in enumerate(calls))

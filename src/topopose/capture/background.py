@@ -31,20 +31,9 @@ p = 1 / (1 + exp(−(d − threshold) / (threshold / 4))). Pixels that were neve
 (0-255), at ``scale`` of the image size, and fused into the hull by
 :func:`topopose.hull.soft.soft_carve` (Franco & Boyer's occupancy grid).
 
-``"person+sequence"``: the background is learned with the person network's masks
-(:mod:`.segment`) on ``person_samples`` frames excluding the subject: per pixel the median of
-the samples where the network's mask, dilated by ``person_dilate`` pixels, is not the person
-(near the subject in every sample: where the mask itself is not; :func:`clean_background`).
-Pixels never free in any sample (the subject covered them in every sample) vote for the
-subject with p = 0.75 (``NEVER_FREE``): on the Pose2Sim recording a weaker vote cut the torso.
-Every frame is then the colour probability against that clean background (fast), raised to
-the network's mask of its keyframe (every ``person_every``-th frame is segmented), eroded by
-``KEYFRAME_ERODE`` pixels: the colour model misses the capped head and skin in front of a beige
-wall. No subject zone is needed (step 2 is skipped): the capture volume of ``"person"`` and
-``"person+sequence"`` is the box of the sampled frames' hulls from the network's masks
-(:func:`topopose.hull.hull.fit_box` at the set-up's scale), grown by ``zone_margin`` / 3
-(before, ``"person"`` segmented 32 sampled frames at full size in the first frame's hull
-stage: 10–40 s).
+``"person"`` learns no background (the network alone, :mod:`.segment`). Without
+``[capture.volume]`` its capture volume is fitted to the first frame's silhouettes and grows when
+the subject reaches its border (:func:`topopose.hull.hull.capture_box`).
 
 ``"selfie"`` uses MediaPipe's selfie-segmentation network (an optional dependency whose model
 ships inside the wheel, see :mod:`.segment`) on the zone's bounding rectangle;
@@ -64,13 +53,7 @@ import numpy as np
 from ..errors import InputError
 from .camera import Camera
 
-SEQUENCE_METHODS = ("sequence", "selfie", "sequence+selfie", "person", "person+sequence")
-#: methods whose set-up runs the person network (:mod:`.segment`) on the sampled frames
-PERSON_METHODS = ("person", "person+sequence")
-#: "person+sequence": probability (× 255) of the pixels the subject covered in every sample
-NEVER_FREE = 191
-#: "person+sequence": erosion (pixels at ``scale``, square) of a keyframe's network mask
-KEYFRAME_ERODE = 5
+SEQUENCE_METHODS = ("sequence", "selfie", "sequence+selfie", "person")
 
 
 def scaled_camera(cam: Camera, scale: float) -> Camera:
@@ -199,44 +182,6 @@ def _zone_background(stack, guess, zone, reveal):
     return bg, kn
 
 
-def _free_median(x, busy):
-    """Per pixel the lower median of the samples ``x`` (N, h, w, 3) where ``busy`` (N, h, w)
-    is False, and whether there was one."""
-    x = x.astype(np.float32)
-    x[busy] = np.nan
-    x.sort(axis=0)                                   # NaN (busy) last
-    n = (~busy).sum(axis=0)
-    mid = np.maximum(n - 1, 0) // 2
-    return np.take_along_axis(x, mid[None, :, :, None], axis=0)[0], n > 0
-
-
-def clean_background(stack, person, dilate: int) -> tuple:
-    """Background of one camera from samples and the person network's masks of them.
-
-    Parameters
-    ----------
-    stack : (N, h, w, 3) uint8 samples
-    person : (N, h, w) bool person masks (a sample whose camera found no one: all True)
-    dilate : pixels the masks are grown by (the network's edges are soft)
-
-    Returns
-    -------
-    (image (h, w, 3) uint8, known (h, w) bool): per pixel the (lower) median of the samples
-    where it is free of the dilated person mask, else (a pixel near the subject in every
-    sample) of those free of the mask itself; pixels inside the mask in every sample
-    (``known`` False) are inpainted from the known ones (OpenCV's Telea).
-    """
-    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * dilate + 1,) * 2)
-    grown = np.stack([cv2.dilate(m.astype(np.uint8), k) for m in person]).astype(bool)
-    far, known_far = _free_median(stack, grown)
-    near, known = _free_median(stack, np.asarray(person, bool))
-    bg = np.where(known_far[:, :, None], far, np.where(known[:, :, None], near, 0))
-    bg = bg.astype(np.uint8)
-    if not known.all():
-        bg = cv2.inpaint(bg, (~known).astype(np.uint8), 5, cv2.INPAINT_TELEA)
-    return bg, known
-
-
 def learn_backgrounds(samples, cameras, params, unit) -> tuple:
     """Background models of every camera from ``samples`` (list over cameras of (N, h, w, 3)
     uint8 stacks of downscaled frames) and the downscaled ``cameras`` (module docstring), and
@@ -301,8 +246,7 @@ def capture_backgrounds(cap) -> list:
     p = cap.options["silhouettes"]
     s = float(p["scale"])
     cams = [scaled_camera(c, s) for c in cap.cameras]
-    person = p["method"] in PERSON_METHODS
-    names = sample_frames(cap.frames, int(p["person_samples" if person else "samples"]))
+    names = sample_frames(cap.frames, int(p["samples"]))
     src = _frame_source(cap)
     if src is None:
         raise InputError(f"{cap.path or 'capture'}: no colour frames (images/ or videos/) to "
@@ -333,57 +277,21 @@ def capture_backgrounds(cap) -> list:
     unit = 1.0 / _UNITS.get(cap.units, 1.0)
     stacks = [np.stack(x) for x in stacks]
     times = {"decode": time.perf_counter() - t0}
-    if person:
-        from .segment import person_probabilities
-
-        masks = [[] for _ in cams]
-        for i in range(len(stacks[0])):
-            qs = person_probabilities([x[i] for x in stacks],
-                                      [(id(cap), c) for c in range(len(cams))])
-            for c, q in enumerate(qs):
-                masks[c].append(q > 127)
-        times["network"] = time.perf_counter() - t0 - sum(times.values())
-        d = int(p["person_dilate"])
-        models = [SequenceBackground(*(clean_background(x, np.stack(m), d)
-                                       if p["method"] == "person+sequence" else (None, None)),
-                                     None, cam) for x, m, cam in zip(stacks, masks, cams)]
-    else:
-        models, region = learn_backgrounds(stacks, cams, p, unit)
+    models, region = learn_backgrounds(stacks, cams, p, unit)
     times["background"] = time.perf_counter() - t0 - sum(times.values())
     cap.cache[key] = models
     box = None
-    if person:
-        # the masks' hulls hold the whole subject (and the cones' phantom volume): a third of
-        # the margin covers the frames between the samples (the full margin: 25 % right frames
-        # with "person" instead of 31 %, a coarser grid)
-        box = _person_box(cams, masks, float(p["zone_margin"]) * unit / 3)
-    elif region is not None:
+    if region is not None:
         pts, vs = region
         m = 2 * float(p["zone_margin"]) * unit      # the hull may reach beyond the motion
         box = (pts.min(axis=0) - vs / 2 - m, pts.max(axis=0) + vs / 2 + m)
-    times["volume"] = time.perf_counter() - t0 - sum(times.values())
     cap.cache[("setup_seconds",)] = times     # where the set-up's time went (benchmarks)
     cap.cache[("subject_box",)] = box
     return models
 
 
-def _person_box(cameras, masks, margin):
-    """Box of the union of the sampled frames' hulls from the person masks (the cones' box
-    shrunk by coarse passes, :func:`topopose.hull.hull.fit_box`, at the set-up's scale), grown
-    by ``margin`` (or None)."""
-    from ..hull.hull import fit_box
-
-    boxes = [fit_box(cameras, [m[i] for m in masks], 0) for i in range(len(masks[0]))]
-    boxes = [b for b in boxes if b is not None]
-    if not boxes:
-        return None
-    return (np.min([b[0] for b in boxes], axis=0) - margin,
-            np.max([b[1] for b in boxes], axis=0) + margin)
-
-
 def subject_box(cap):
-    """(lo, hi) of the 3D region the subject sweeps, grown by 2 × ``zone_margin`` (person
-    methods: the sampled masks' hulls, grown by ``zone_margin`` / 3), or None."""
+    """(lo, hi) of the 3D region the subject sweeps, grown by 2 × ``zone_margin`` (or None)."""
     capture_backgrounds(cap)
     return cap.cache[("subject_box",)]
 
@@ -414,19 +322,11 @@ def foreground_maps(cap, frame, images=None) -> list:
         cap.cache["foreground_last"] = (ck, out)
         return out
     bgs = capture_backgrounds(cap)
-    if method == "person+sequence":
-        keys = _keyframe_maps(cap, frame, small, int(p["person_every"]))
     out = []
     for c, (img, bg) in enumerate(zip(small, bgs)):
         q = None
-        if method in ("sequence", "sequence+selfie", "person+sequence"):
+        if method in ("sequence", "sequence+selfie"):
             q = foreground_probability(img, bg, p)
-        if method == "person+sequence":
-            # never free at set-up: the subject covered the pixel in every sample, a vote for it
-            q[~bg.known] = NEVER_FREE
-            # raised to the network's (eroded) mask of the frame's keyframe: the colour model
-            # misses the capped head and skin in front of a beige wall
-            q = np.maximum(q, keys[c])
         if method in ("selfie", "sequence+selfie"):
             from .segment import selfie_probability
             q2 = selfie_probability(img, bg.zone, stream=(id(cap), c))
@@ -448,33 +348,6 @@ def foreground_maps(cap, frame, images=None) -> list:
     return out
 
 
-def _keyframe_maps(cap, frame, small, every: int) -> list:
-    """``"person+sequence"``: the person network's maps of the frame's keyframe (frame index
-    rounded down to a multiple of ``every``; the frame itself when it is one), eroded by
-    ``KEYFRAME_ERODE`` pixels (the subject moved since), one per camera. The latest keyframe
-    is cached, so that frames read in order segment each keyframe once."""
-    from .segment import person_probabilities
-
-    idx = cap.cache.get("frame_index")
-    if idx is None or len(idx) != len(cap.frames):
-        idx = cap.cache["frame_index"] = {f: i for i, f in enumerate(cap.frames)}
-    i = idx[frame]
-    k = (i // every) * every
-    hit = cap.cache.get("person_keyframe")
-    if hit is not None and hit[0] == k:
-        return hit[1]
-    if k != i:
-        from .io import read_images
-        s = float(cap.options["silhouettes"]["scale"])
-        small = [downscale(im, cam, s) for im, cam in
-                 zip(read_images(cap, cap.frames[k]), cap.cameras)]
-    kern = np.ones((KEYFRAME_ERODE,) * 2, np.uint8)
-    maps = [cv2.erode(q, kern) for q in
-            person_probabilities(small, [(id(cap), c) for c in range(len(small))])]
-    cap.cache["person_keyframe"] = (k, maps)
-    return maps
-
-
 def masks_from_maps(cap, maps) -> list:
     """Boolean silhouettes at the calibration size from probability maps (p > 0.5)."""
     out = []
@@ -490,12 +363,8 @@ def check_params(path, p) -> None:
     """Validate the sequence-method fields of ``[silhouettes]``."""
     if not 0.05 <= float(p["scale"]) <= 1.0:
         raise InputError(f"{path}: [silhouettes] field 'scale' must be in [0.05, 1], got {p['scale']!r}")
-    if int(p["person_every"]) < 1:
-        raise InputError(f"{path}: [silhouettes] field 'person_every' must be ≥ 1, "
-                         f"got {p['person_every']!r}")
-    for k in ("samples", "person_samples"):
-        if int(p[k]) < 3:
-            raise InputError(f"{path}: [silhouettes] field {k!r} must be ≥ 3, got {p[k]!r}")
+    if int(p["samples"]) < 3:
+        raise InputError(f"{path}: [silhouettes] field 'samples' must be ≥ 3, got {p['samples']!r}")
     for k in ("p_detect", "p_false"):
         if not 0.0 < float(p[k]) < 1.0:
             raise InputError(f"{path}: [silhouettes] field {k!r} must be in (0, 1), got {p[k]!r}")

@@ -42,30 +42,19 @@ SILHOUETTE_DEFAULTS = {
     "uncertain": 0.5,      # weight of the vote of pixels whose background was never revealed
     "zone_margin": 0.15,   # growth (metres) of the 3D box the subject sweeps
     "fusion": "auto",      # "soft": Franco & Boyer occupancy grid from probabilities; "hard": p > 0.5 masks;
-                           # "auto": hard for methods "person" (sharp masks) and "person+sequence"
-                           # (real recording: soft 0 % right frames, hard 6–18 % over the variants
-                           # tried), soft for the others
+                           # "auto": hard for method "person" (sharp masks), soft for the others
     "p_detect": 0.99,      # soft fusion: P(pixel foreground | voxel occupied)
     "p_false": 0.4,        # soft fusion: P(pixel foreground | voxel empty)
     "occupancy": 0.5,      # soft fusion: posterior occupancy above which a voxel is in the hull
     "open3d": 1,           # soft fusion: 3D opening of the hull by a (2k + 1)³ cube (0: none)
     "selfie_floor": 0.0,   # selfie: the network's probability is raised to at least this (a weak "no")
-    "person_samples": 8,   # "person", "person+sequence": frames the person network segments at set-up
-    "person_dilate": 3,    # "person+sequence": pixels (at scale) the network's masks grow by
-    "person_every": 4,     # "person+sequence": the network also runs on every k-th frame (keyframe)
 }
-#: Defaults that differ per method (fields the user sets win): "person+sequence" compares
-#: colours against a clean background, so a smaller distortion is the subject, and a darker
-#: pixel of the same colour is less often a shadow (skin in front of a beige wall); measured
-#: on the Pose2Sim recording (benchmarks/real.py)
-METHOD_DEFAULTS = {"person+sequence": {"threshold": 20.0, "shadow": 0.85}}
 _SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (int, float), "open": int,
               "close": int, "min_area": int, "fill_holes": int, "scale": (int, float),
               "samples": int, "reveal": (int, float), "shadow": (int, float), "uncertain": (int, float),
               "zone_margin": (int, float), "fusion": str, "p_detect": (int, float),
               "p_false": (int, float), "occupancy": (int, float), "open3d": int,
-              "selfie_floor": (int, float), "person_samples": int, "person_dilate": int,
-              "person_every": int}
+              "selfie_floor": (int, float)}
 _CAPTURE_KEYS = {"up", "units", "fps", "volume", "size_policy"}
 #: What to do with an image whose size differs from its camera's calibration size
 SIZE_POLICIES = ("error", "scale", "pad")
@@ -222,7 +211,6 @@ def read_capture_options(path, cameras=()) -> dict:
     s = data.get("silhouettes", {})
     if not isinstance(s, dict):
         raise InputError(f"{path}: 'silhouettes' must be a table ([silhouettes])")
-    out["silhouettes"].update(METHOD_DEFAULTS.get(s.get("method"), {}))
     for k, v in s.items():
         if k not in _SIL_TYPES:
             raise InputError(f"{path}: [silhouettes] unknown field '{k}' "
@@ -237,7 +225,7 @@ def read_capture_options(path, cameras=()) -> dict:
                          f"got {out['silhouettes']['median']}")
     if out["silhouettes"]["method"] not in ("diff", "mog2", "knn", *SEQUENCE_METHODS):
         raise InputError(f"{path}: [silhouettes] field 'method' must be \"diff\", \"mog2\", \"knn\", "
-                         f"\"sequence\", \"selfie\", \"sequence+selfie\", \"person\" or \"person+sequence\", "
+                         f"\"sequence\", \"selfie\", \"sequence+selfie\" or \"person\", "
                          f"got {out['silhouettes']['method']!r}")
     if out["silhouettes"]["fusion"] not in ("auto", "soft", "hard"):
         raise InputError(f"{path}: [silhouettes] field 'fusion' must be \"auto\", \"soft\" or \"hard\", "

@@ -438,8 +438,8 @@ def prefetch(cap: Capture, frames, depth: int = 4):
         # the reader computes the foreground probabilities (the soft hull's input); the
         # background model is learned first, here
         from .background import capture_backgrounds, foreground_maps
-        if cap.options["silhouettes"]["method"] != "person" or cap.volume is None:
-            capture_backgrounds(cap)     # "person": only for the capture volume
+        if cap.options["silhouettes"]["method"] != "person":
+            capture_backgrounds(cap)
 
         def work(f, images):
             return foreground_maps(cap, f, image_list(cap, f, images) if images is not None

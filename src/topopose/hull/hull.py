@@ -114,10 +114,10 @@ def _fallback_box(cameras) -> tuple:
     return lo - pad, hi + pad
 
 
-def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None):
+def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None, sats=None):
     """Shrink a box to the cells of a coarse grid that may hold hull points (conservative):
     a cell is dropped when its projected bounding rectangle (one-pixel margin) misses the
-    silhouette in more than ``tolerance`` cameras."""
+    silhouette in more than ``tolerance`` cameras. ``sats``: the masks' integral images."""
     ext = hi - lo
     vs = float(ext.max()) / res
     if not vs > 0:
@@ -131,7 +131,7 @@ def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None):
     r = np.empty(tuple(shape) + (4,), dtype=np.int64)
     for q, m in enumerate(masks):
         K.block_rects(geo, intr, q, 1.0, shape[0], shape[1], shape[2], 1, float(1 << 24), r)
-        sat = cv2.integral(np.ascontiguousarray(m, dtype=np.uint8))
+        sat = cv2.integral(np.ascontiguousarray(m, dtype=np.uint8)) if sats is None else sats[q]
         inv = r[..., 0] == K.INVALID
         h, w = m.shape
         x0 = np.clip(r[..., 0], 0, w - 1)
@@ -172,8 +172,9 @@ def fit_box(cameras, masks, tolerance: int = 0, within=None) -> tuple | None:
         lo, hi = b
         passes = 2
     intr = np.stack([camera_intrinsics(c) for c in cameras])
+    sats = [cv2.integral(np.ascontiguousarray(m, dtype=np.uint8)) for m in masks]
     for _ in range(passes):
-        r = _coarse_shrink(cameras, masks, lo, hi, tolerance, intr=intr)
+        r = _coarse_shrink(cameras, masks, lo, hi, tolerance, intr=intr, sats=sats)
         if r is None:
             return None
         lo, hi = r

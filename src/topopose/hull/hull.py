@@ -474,7 +474,7 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
         if user_box is not None:
             within = user_box
         else:
-            glo, ghi = capture_box(cap, tolerance, masks)
+            glo, ghi = capture_box(cap, tolerance)
             grow = 0.25 * (ghi - glo)
             within = (glo - grow, ghi + grow)
         box = fit_box(cap.cameras, masks, tolerance, within=within)

@@ -75,6 +75,32 @@ def _cams(k=1):
     return out
 
 
+def test_voxel_pixels_match_camera_project():
+    """The soft hull's projection table (one kernel pass) against ``Camera.project`` of every
+    voxel centre (NumPy), for pinhole, radial-tangential and fisheye cameras: equal except at
+    exact half-pixel edges (rounding); voxels behind a camera are -1."""
+    from _capture_testutils import ring
+
+    cams = (ring(n=2, size=(64, 48), f=60) + ring(n=2, size=(64, 48), f=60,
+                                                  dist=(-0.2, 0.05, 0.002, -0.001, 0.01))
+            + ring(n=2, size=(64, 48), f=60, fisheye=True, dist=(0.1, -0.05, 0.01, 0.0)))
+    origin, vs, shape = np.array([-3.5, -3.2, -0.5]), 0.1, (70, 64, 30)   # cameras inside
+    pix = voxel_pixels(cams, origin, vs, shape)
+    ijk = np.stack(np.meshgrid(*[np.arange(n) for n in shape], indexing="ij"), -1).reshape(-1, 3)
+    X = origin + vs * ijk
+    for c, cam in enumerate(cams):
+        uv = cam.project(X)
+        front = cam.to_camera(X)[:, 2] > 0
+        px = np.floor(uv + 0.5)
+        w, h = cam.size
+        ok = front & (px[:, 0] >= 0) & (px[:, 0] < w) & (px[:, 1] >= 0) & (px[:, 1] < h)
+        want = np.where(ok, px[:, 1] * w + px[:, 0], -1)
+        edge = np.any(np.abs(uv + 0.5 - np.round(uv + 0.5)) < 1e-7, axis=1)
+        assert ok.sum() > 1000 and (~front).sum() > 1000
+        assert np.all((pix[:, c] == want) | edge)
+        assert np.all(pix[~front, c] == -1)
+
+
 def test_soft_fusion_matches_the_posterior_oracle():
     """Every voxel of a tiny grid against the formula evaluated by hand (brute force)."""
     rng = np.random.default_rng(3)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import sys
 import types
 
+import cv2
 import numpy as np
 import pytest
 
@@ -88,3 +89,93 @@ def test_a_camera_where_no_one_is_found_does_not_vote(tmp_path, fake_mediapipe):
     maps = foreground_maps(cap, "000000")
     assert (maps[2] == 128).all()
     assert not (maps[1] == 128).all()
+
+
+
+# --- the capture volume of "person": fitted to the first frame, grown with the subject ---
+
+def _moving(tmp_path):
+    """No [capture.volume]: a capsule that stands still for two frames, then steps 0.35 m
+    aside and raises its top (frame 2)."""
+    cams = ring(n=4, size=(160, 120), f=200)
+    rng = np.random.default_rng(4)
+    empty = [rng.integers(0, 120, (c.size[1], c.size[0], 3)).astype(np.uint8) for c in cams]
+    ends = [((0.0, 0.0, 0.6), (0.05, 0.05, 1.2)), ((0.0, 0.0, 0.6), (0.05, 0.05, 1.2)),
+            ((0.35, 0.1, 0.6), (0.4, 0.1, 1.4))]
+    truth = {f"{i:06d}": capsule_masks(cams, a, b, 0.15) for i, (a, b) in enumerate(ends)}
+    frames = {f: [np.where(m[:, :, None], np.uint8([200, 220, 240]), bg)
+                  for m, bg in zip(ms, empty)] for f, ms in truth.items()}
+    root = write_capture(tmp_path / "cap", cams, {}, images=frames)
+    (root / "capture.toml").write_text(TOML.split("\n\n")[1])       # no volume
+    return load_capture(root), cams, ends, truth
+
+
+def _true_hull(cams, masks, vol):
+    """The hull of the true silhouettes on ``vol``'s grid, largest component (the oracle)."""
+    from topopose.hull import HullCarver, keep_largest_component
+
+    occ = HullCarver(cams, vol.origin, vol.voxel_size, vol.data.shape).carve(masks, 0).astype(bool)
+    keep_largest_component(occ)
+    return occ
+
+
+def test_person_volume_fitted_to_the_first_frame_grows_with_the_subject(tmp_path, fake_mediapipe):
+    """The first frame's volume holds that frame's capsule (with the margin) and no sampled
+    frame is read for it; frame 1 (same place) keeps it; frame 2 (the subject stepped out of
+    it) grows it to hold the new capsule, and its hull is the true silhouettes' hull on the
+    grown grid (not cut at the old border)."""
+    from topopose.capture import prefetch
+    from topopose.hull import capture_box
+
+    cap, cams, ends, truth = _moving(tmp_path)
+    with prefetch(cap, cap.frames):
+        h0 = visual_hull(cap, "000000", resolution=40)
+        box0 = capture_box(cap, 0, [])
+        h1 = visual_hull(cap, "000001", resolution=40)
+        h2 = visual_hull(cap, "000002", resolution=40)
+    assert ("sequence_backgrounds",) not in cap.cache and ("fitted_boxes", 0) not in cap.cache
+    a, b = (np.array(x) for x in ends[0])
+    m = 0.1 - 0.02        # ⅔ of zone_margin (0.15 m), less a pixel (≈ 1.5 cm at 3 m: the
+    #                       silhouettes sample pixel centres, so the hull may be that short)
+    assert np.all(box0[0] <= np.minimum(a, b) - 0.15 - m)
+    assert np.all(box0[1] >= np.maximum(a, b) + 0.15 + m)
+    assert np.all(box0[1] - box0[0] < np.abs(b - a) + 2 * (0.15 + m) + 1.0)   # cone phantoms
+    assert not h0.diagnostics["touches_border"] and "volume_grown" not in h0.diagnostics
+    assert "volume_grown" not in h1.diagnostics and h1.voxel_size == h0.voxel_size
+    assert h2.diagnostics["volume_grown"] and not h2.diagnostics["touches_border"]
+    lo, hi = capture_box(cap, 0, [])
+    a2, b2 = (np.array(x) for x in ends[2])
+    assert np.all(lo <= np.minimum(a2, b2) - 0.15 - m) and np.all(hi >= np.maximum(a2, b2) + 0.15 + m)
+    assert np.all(lo <= box0[0]) and np.all(hi >= box0[1])
+    for h, f in ((h0, "000000"), (h1, "000001"), (h2, "000002")):
+        t = _true_hull(cams, truth[f], h)
+        assert t.sum() > 200 and np.array_equal(h.data, t)
+
+
+def test_cameras_run_in_threads_each_on_its_own_network(fake_mediapipe):
+    """person_probabilities (one thread per camera) gives what the cameras one after the
+    other give, and each camera's images go to its own network, in frame order."""
+    from topopose.capture.segment import person_probabilities, person_probability
+
+    rng = np.random.default_rng(0)
+    frames = [[rng.integers(0, 256, (60, 80, 3)).astype(np.uint8) for _ in range(4)]
+              for _ in range(3)]
+    seen = {}
+    orig = _FakePose.process
+
+    def process(self, rgb):
+        seen.setdefault(id(self), []).append(rgb.copy())
+        return orig(self, rgb)
+
+    _FakePose.process = process
+    try:
+        got = [person_probabilities(imgs, [("t", c) for c in range(4)]) for imgs in frames]
+    finally:
+        _FakePose.process = orig
+    for imgs, maps in zip(frames, got):
+        assert all(np.array_equal(q, person_probability(im, ("s", c)))
+                   for c, (im, q) in enumerate(zip(imgs, maps)))
+    assert len(seen) == 4
+    for calls in seen.values():     # one camera per network, its frames in order
+        c = next(c for c in range(4) if np.array_equal(calls[0], frames[0][c][:, :, ::-1]))
+        assert all(np.array_equal(x, frames[i][c][:, :, ::-1]) for i, x in enumerate(calls))

@@ -31,6 +31,10 @@ p = 1 / (1 + exp(−(d − threshold) / (threshold / 4))). Pixels that were neve
 (0-255), at ``scale`` of the image size, and fused into the hull by
 :func:`topopose.hull.soft.soft_carve` (Franco & Boyer's occupancy grid).
 
+``"person"`` learns no background (the network alone, :mod:`.segment`). Without
+``[capture.volume]`` its capture volume is fitted to the first frame's silhouettes and grows when
+the subject reaches its border (:func:`topopose.hull.hull.capture_box`).
+
 ``"selfie"`` uses MediaPipe's selfie-segmentation network (an optional dependency whose model
 ships inside the wheel, see :mod:`.segment`) on the zone's bounding rectangle;
 ``"sequence+selfie"`` takes the network's probability, raised to the background model's where
@@ -40,6 +44,8 @@ caps), lowered where it is sure of the background (p < 0.05).
 from __future__ import annotations
 
 import math
+import time
+from concurrent.futures import ThreadPoolExecutor
 
 import cv2
 import numpy as np
@@ -235,36 +241,51 @@ def capture_backgrounds(cap) -> list:
     key = ("sequence_backgrounds",)
     if key in cap.cache:
         return cap.cache[key]
-    from .io import _frame_source, image_list
+    from .io import _frame_source, fit_size
 
     p = cap.options["silhouettes"]
     s = float(p["scale"])
     cams = [scaled_camera(c, s) for c in cap.cameras]
     names = sample_frames(cap.frames, int(p["samples"]))
-    stacks = [[] for _ in cap.cameras]
     src = _frame_source(cap)
     if src is None:
         raise InputError(f"{cap.path or 'capture'}: no colour frames (images/ or videos/) to "
                          f"learn the background from")
-    for f, images in src.sequential(names):      # videos: decoded forward, no seeking
-        try:
-            imgs = image_list(cap, f, images)
-        except InputError:
-            continue                        # an unreadable frame is not needed here
-        for c, (img, cam) in enumerate(zip(imgs, cap.cameras)):
-            stacks[c].append(downscale(img, cam, s))
-    if not stacks[0]:
+
+    def read(cam):         # one camera's samples, downscaled (videos: decoded forward)
+        out = {}
+        for f, images in src.sequential(names, [cam.name]):
+            im = images[cam.name]
+            if isinstance(im, InputError):
+                continue                   # an unreadable frame is not needed here
+            try:
+                out[f] = downscale(fit_size(cap, src.path(cam.name, f) or cam.name, im, cam),
+                                   cam, s)
+            except InputError:
+                continue
+        return out
+
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(len(cap.cameras)) as ex:   # OpenCV decodes without the GIL
+        got = list(ex.map(read, cap.cameras))
+    ok = [f for f in names if all(f in g for g in got)]
+    stacks = [[g[f] for f in ok] for g in got]
+    if not ok:
         raise InputError(f"{cap.path}: no readable frame to learn the background from")
     from .calibration import _UNITS
 
     unit = 1.0 / _UNITS.get(cap.units, 1.0)
-    models, region = learn_backgrounds([np.stack(x) for x in stacks], cams, p, unit)
+    stacks = [np.stack(x) for x in stacks]
+    times = {"decode": time.perf_counter() - t0}
+    models, region = learn_backgrounds(stacks, cams, p, unit)
+    times["background"] = time.perf_counter() - t0 - sum(times.values())
     cap.cache[key] = models
     box = None
     if region is not None:
         pts, vs = region
         m = 2 * float(p["zone_margin"]) * unit      # the hull may reach beyond the motion
         box = (pts.min(axis=0) - vs / 2 - m, pts.max(axis=0) + vs / 2 + m)
+    cap.cache[("setup_seconds",)] = times     # where the set-up's time went (benchmarks)
     cap.cache[("subject_box",)] = box
     return models
 
@@ -295,16 +316,17 @@ def foreground_maps(cap, frame, images=None) -> list:
         from .io import read_images
         images = read_images(cap, frame)
     small = [downscale(img, cam, s) for img, cam in zip(images, cap.cameras)]
-    # the network alone needs no background model
-    bgs = [None] * len(small) if method == "person" else capture_backgrounds(cap)
+    if method == "person":       # the network alone needs no background model
+        from .segment import person_probabilities
+        out = person_probabilities(small, [(id(cap), c) for c in range(len(small))])
+        cap.cache["foreground_last"] = (ck, out)
+        return out
+    bgs = capture_backgrounds(cap)
     out = []
     for c, (img, bg) in enumerate(zip(small, bgs)):
         q = None
         if method in ("sequence", "sequence+selfie"):
             q = foreground_probability(img, bg, p)
-        if method == "person":
-            from .segment import person_probability
-            q = person_probability(img, stream=(id(cap), c))
         if method in ("selfie", "sequence+selfie"):
             from .segment import selfie_probability
             q2 = selfie_probability(img, bg.zone, stream=(id(cap), c))

@@ -68,11 +68,12 @@ class ImageSource:
     def path(self, camera: str, frame: str):
         return self.files[camera].get(frame)
 
-    def sequential(self, frames):
-        """Yield ``(frame, {camera: image or InputError})`` for ``frames`` in order."""
+    def sequential(self, frames, cameras=None):
+        """Yield ``(frame, {camera: image or InputError})`` for ``frames`` in order (of
+        ``cameras`` only when given)."""
         for f in frames:
             out = {}
-            for cam in self.files:
+            for cam in (self.files if cameras is None else cameras):
                 try:
                     out[cam] = self.read(cam, f)
                 except InputError as exc:
@@ -217,15 +218,15 @@ class VideoSource:
     def path(self, camera: str, frame: str):
         return self.videos[camera]
 
-    def sequential(self, frames):
-        """Yield ``(frame, {camera: image or InputError})`` for ``frames`` in order, with
-        decoders of its own (decoding forward)."""
+    def sequential(self, frames, cameras=None):
+        """Yield ``(frame, {camera: image or InputError})`` for ``frames`` in order (of
+        ``cameras`` only when given), with decoders of its own (decoding forward)."""
         decoders = {}
         try:
             for f in frames:
                 i = self.frame_index(f)
                 out = {}
-                for cam in self.videos:
+                for cam in (self.videos if cameras is None else cameras):
                     try:
                         out[cam] = self._get(decoders, cam, i)
                     except InputError as exc:

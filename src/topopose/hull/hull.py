@@ -12,7 +12,8 @@ Grid: ``resolution`` voxels along the longest side of the capture volume. The ca
    part of the hull can be lost however thin). The capture's fitted volume is the union of the
    fitted boxes of up to 32 evenly spaced frames (all frames when there are fewer), computed once
    and cached on the capture. A fitted grid keeps one empty voxel all round (N − 2 voxels span
-   the fitted box).
+   the fitted box). Silhouette method ``"person"``: fitted to the first frame processed and
+   grown when a later frame's hull reaches its border (:func:`capture_box`).
 
 ``refocus=True`` (thesis §13.2.2.1: "refocus the grid on the subject at each frame") fits the
 box of each frame (three conservative coarse passes over the capture volume — a fitted one is
@@ -113,10 +114,10 @@ def _fallback_box(cameras) -> tuple:
     return lo - pad, hi + pad
 
 
-def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None):
+def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None, sats=None):
     """Shrink a box to the cells of a coarse grid that may hold hull points (conservative):
     a cell is dropped when its projected bounding rectangle (one-pixel margin) misses the
-    silhouette in more than ``tolerance`` cameras."""
+    silhouette in more than ``tolerance`` cameras. ``sats``: the masks' integral images."""
     ext = hi - lo
     vs = float(ext.max()) / res
     if not vs > 0:
@@ -130,7 +131,7 @@ def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None):
     r = np.empty(tuple(shape) + (4,), dtype=np.int64)
     for q, m in enumerate(masks):
         K.block_rects(geo, intr, q, 1.0, shape[0], shape[1], shape[2], 1, float(1 << 24), r)
-        sat = cv2.integral(np.ascontiguousarray(m, dtype=np.uint8))
+        sat = cv2.integral(np.ascontiguousarray(m, dtype=np.uint8)) if sats is None else sats[q]
         inv = r[..., 0] == K.INVALID
         h, w = m.shape
         x0 = np.clip(r[..., 0], 0, w - 1)
@@ -171,8 +172,9 @@ def fit_box(cameras, masks, tolerance: int = 0, within=None) -> tuple | None:
         lo, hi = b
         passes = 2
     intr = np.stack([camera_intrinsics(c) for c in cameras])
+    sats = [cv2.integral(np.ascontiguousarray(m, dtype=np.uint8)) for m in masks]
     for _ in range(passes):
-        r = _coarse_shrink(cameras, masks, lo, hi, tolerance, intr=intr)
+        r = _coarse_shrink(cameras, masks, lo, hi, tolerance, intr=intr, sats=sats)
         if r is None:
             return None
         lo, hi = r
@@ -279,16 +281,52 @@ def _soft_carve(cap, pix, maps, shape):
     return occ.view(bool), st
 
 
-def capture_box(cap, tolerance: int = 0) -> tuple:
+def _grows(cap) -> bool:
+    """The capture volume is fitted to the first frame processed and grows with the subject
+    (silhouette method ``"person"`` without ``[capture.volume]``)."""
+    return cap.volume is None and (cap.options.get("silhouettes") or {}).get("method") == "person"
+
+
+def _grown_box(cap, masks, tolerance, box=None):
+    """``"person"``: the box of the frame's hull (:func:`fit_box`) grown by ⅔ ``zone_margin``
+    (10 cm by default), joined with ``box`` (the current volume); None when the frame's hull is
+    empty and no ``box`` is given."""
+    from ..capture.calibration import _UNITS
+
+    b = fit_box(cap.cameras, masks, tolerance)
+    if b is None:
+        return box
+    m = float(cap.options["silhouettes"]["zone_margin"]) / _UNITS.get(cap.units, 1.0) * 2 / 3
+    lo, hi = b[0] - m, b[1] + m
+    if box is not None:
+        lo, hi = np.minimum(lo, box[0]), np.maximum(hi, box[1])
+    return lo, hi
+
+
+def capture_box(cap, tolerance: int = 0, masks=None) -> tuple:
     """The capture volume (lo, hi): ``cap.volume``, the box the subject sweeps (silhouettes
     learned from the sequence, :mod:`topopose.capture.background`), or fitted to sampled frames
-    (cached)."""
+    (cached).
+
+    Silhouette method ``"person"`` (no background model, no set-up): the box of the hull of
+    the first frame processed (its silhouettes ``masks``), grown by ⅔ ``zone_margin``, and
+    grown again by :func:`visual_hull` to a later frame's hull that reaches its border (so the
+    first frame costs one :func:`fit_box`, not 32 sampled frames segmented: on the Pose2Sim
+    recording 8–44 s before).
+    """
     if cap.volume is not None:
         lo, hi = (np.asarray(v, dtype=float) for v in cap.volume)
         return lo, hi
-    if (cap.options.get("silhouettes") or {}).get("method") in (
+    if _grows(cap) and masks is not None:
+        key = ("grown_box", tolerance)
+        if cap.cache.get(key) is None:
+            cap.cache[key] = _grown_box(cap, masks, tolerance)
+        if cap.cache[key] is not None:
+            return cap.cache[key]
+    elif (cap.options.get("silhouettes") or {}).get("method") in (
             "sequence", "selfie", "sequence+selfie"):
         from ..capture.background import subject_box
+
         box = subject_box(cap)
         if box is not None:
             return box
@@ -461,7 +499,8 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
         if user_box is not None:
             origin, vs, shape = grid_for_box(*user_box, resolution, margin=False)
         else:
-            origin, vs, shape = grid_for_box(*capture_box(cap, tolerance), resolution, margin=True)
+            origin, vs, shape = grid_for_box(*capture_box(cap, tolerance, masks), resolution,
+                                             margin=True)
     t["fit"] = (time.perf_counter() - t0) * 1e3
     t0 = time.perf_counter()
     if soft:
@@ -520,6 +559,19 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
             "empty": empty, "timings_ms": t,
             "work": {"blocks": int(st[0]), "voxel_tests": int(st[1]), "projections": int(st[2]),
                      "full_blocks": int(st[3]), "empty_blocks": int(st[4])}, **cdiag}
+    if touches and user_box is None and not refocus and _grows(cap):
+        # "person": the subject reached the border of the volume fitted so far: the volume
+        # grows to this frame's hull (and margin), and the frame is carved again on it
+        key = ("grown_box", tolerance)
+        old = cap.cache.get(key)
+        new = _grown_box(cap, masks, tolerance, old)
+        if old is not None and np.any((new[0] < old[0]) | (new[1] > old[1])):
+            cap.cache[key] = new
+            vol = visual_hull(cap, name, resolution, tolerance, refocus, keep_largest, volume,
+                              masks, consensus, max_removed)
+            vol.diagnostics["volume_grown"] = True
+            vol.diagnostics["timings_ms"]["silhouettes"] = t["silhouettes"]
+            return vol
     return Volume(occ, origin, vs, diag)
 
 

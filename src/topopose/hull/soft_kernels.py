@@ -4,6 +4,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .hull_kernels import _pixel
+
 
 @njit(cache=True)
 def fuse(pix, maps, offsets, llr, llr_out, bias, out, stats):
@@ -31,3 +33,18 @@ def fuse(pix, maps, offsets, llr, llr_out, bias, out, stats):
         else:
             out[i] = 0
     stats[0] = cnt
+
+
+@njit(cache=True)
+def grid_pixels(geo, intr, nx, ny, nz, out):
+    """``out`` (nx·ny·nz, C) int32: flat pixel index of every voxel centre (C order) in each
+    camera (``geo``, ``intr`` packed as for :mod:`.hull_kernels`, row stride ``intr[c, 14]``),
+    -1 when not in the image (:func:`.hull_kernels._pixel`)."""
+    C = geo.shape[0]
+    n = 0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                for c in range(C):
+                    out[n, c] = _pixel(geo, intr, c, float(i), float(j), float(k))
+                n += 1

@@ -69,7 +69,8 @@ import numpy as np
 FAT_OK, FAT_MAX = 0.04, 0.06          # the product confidence (models without a fitted one)
 FEATURES = ("distance", "thickness", "missing", "lost", "fat", "spurious", "spurious_length",
             "arc_dev", "head_low", "foot_high", "head_radius", "end_radius", "head_bend",
-            "head_offset", "head_reach", "trunk")
+            "head_offset", "head_reach", "trunk", "shape", "shape_max", "spurious_share",
+            "limb_sym")
 MODEL_PATH = Path(__file__).with_name("confidence_model.json")
 # the fitted logistic confidence (benchmarks/confidence.py --fit rewrites the file)
 CONFIDENCE_MODEL = json.loads(MODEL_PATH.read_text())
@@ -182,7 +183,8 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
          "fat": n_vox * vs ** 3 / height ** 3 if height > 0 else 0.0,
          "spurious": 0.0, "spurious_length": 0.0, "arc_dev": 0.0,
          "head_low": 0.0, "foot_high": 0.0, "head_radius": 0.0, "end_radius": 0.0,
-         "head_bend": 0.0, "head_offset": 0.0, "head_reach": 0.0, "trunk": 0.0}
+         "head_bend": 0.0, "head_offset": 0.0, "head_reach": 0.0, "trunk": 0.0,
+         "shape": 2.0, "shape_max": 3.0, "spurious_share": 1.0, "limb_sym": 0.0}
     if al is None:
         return f
     mapping = al.mapping or {}
@@ -190,10 +192,10 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
     used = {v for v in mapping.values() if v is not None}
     spur = [_branch_length(adj, v) for v, n in adj.items() if len(n) == 1 and v not in used]
     f["spurious"] = float(len(spur))
-    f["spurious_length"] = max(spur, default=0.0)
     padj = model.tree.adjacency()
     ptot = model.tree.total_weight() or 1.0
     dtot = data.total_weight() or 1.0
+    f["spurious_length"] = max(spur, default=0.0) / dtot
     dev = []
     for ppath, dpath in (al.pairs or []):
         pl = sum(w for a, b in zip(ppath[:-1], ppath[1:]) for y, w in padj.get(a, ()) if y == b)
@@ -201,6 +203,23 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
         if pl > 0 and dl > 0 and math.isfinite(pl) and math.isfinite(dl):
             dev.append(abs(math.log((dl / dtot) / (pl / ptot))))
     f["arc_dev"] = max(dev, default=0.0)
+    # the matched arcs' lengths relative to the matched total only: unmatched (spurious, e.g.
+    # phantom-volume) branches inflate the data tree's total and shorten every arc in ``arc_dev``
+    # and the distance with few cameras, not here
+    arcs = []
+    for ppath, dpath in (al.pairs or []):
+        pl = sum(w for a, b in zip(ppath[:-1], ppath[1:]) for y, w in padj.get(a, ()) if y == b)
+        dl = sum(w for a, b in zip(dpath[:-1], dpath[1:]) for y, w in adj.get(a, ()) if y == b)
+        if pl > 0 and dl > 0 and math.isfinite(pl) and math.isfinite(dl):
+            arcs.append((_stem(ppath[-1]), pl, dl))
+    pm, dm = sum(a[1] for a in arcs), sum(a[2] for a in arcs)
+    if arcs:
+        f["shape"] = sum(abs(dl / dm - pl / pm) for _, pl, dl in arcs)
+        f["shape_max"] = max(abs(math.log((dl / dm) / (pl / pm))) for _, pl, dl in arcs)
+        f["spurious_share"] = max(0.0, 1.0 - dm / dtot)
+        sym = [abs(math.log(ls[0] / ls[1])) for k in ("hand", "foot")
+               for ls in [[dl for s, _, dl in arcs if s == k]] if len(ls) == 2]
+        f["limb_sym"] = max(sym, default=0.0)
     pos = {p: data.positions.get(v) for p, v in mapping.items() if v is not None}
     def h(p):
         return sign * (float(np.asarray(pos[p])[ax]) - z0) / height if height > 0 else 0.0
@@ -256,6 +275,17 @@ def fitted_confidence(features: dict, share: float, min_share: float = 0.8,
             "confidence": round(fl * fh * fs, 4)}
 
 
+def replaces_threshold(model: dict = None) -> bool:
+    """Whether the fitted confidence ``model`` (default :data:`CONFIDENCE_MODEL`) decides
+    ``matched`` in place of the threshold T_d on the AHA distance (``"replaces_threshold"``)."""
+    return bool((CONFIDENCE_MODEL if model is None else model).get("replaces_threshold", False))
+
+
+def distance_only(error) -> bool:
+    """Whether a frame's rejection ``error`` is the AHA distance above T_d (and nothing else)."""
+    return bool(error) and str(error).startswith("AHA distance") and "inf" not in str(error)
+
+
 def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
                 min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m", al=None,
                 thickness_cost=0.0, reach=0) -> tuple:
@@ -293,11 +323,17 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
         radii = vertex_radii(vol, SimpleNamespace(vertices=mapped, positions=data.positions), reach)
     feats = frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al,
                            thickness_cost, radii)
-    if model.name in CONFIDENCE_MODEL.get("models", ()):
+    fitted = model.name in CONFIDENCE_MODEL.get("models", ())
+    if fitted:
         conf = fitted_confidence(feats, share, min_share)
     else:
         conf = frame_confidence(distance, threshold, share, missing, min_share,
                                 feats["fat"] if model.name == "human" else None)
+    if (fitted and min_confidence is not None and status == "rejected" and replaces_threshold()
+            and distance_only(error)):
+        # the fitted confidence has the distance among its features: it decides instead of T_d
+        # (with 4 cameras the phantom branches' deletion cost alone exceeds T_d)
+        status, error = "matched", None
     if status == "matched" and share < min_share:
         status = "rejected"
         total = n_vox + sum(dropped)

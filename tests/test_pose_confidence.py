@@ -69,8 +69,17 @@ def test_shipped_model_is_complete():
     m = C.CONFIDENCE_MODEL
     assert set(m["features"]) <= set(C.FEATURES)
     assert len(m["coef"]) == len(m["mean"]) == len(m["scale"]) == len(m["features"])
+    assert all(s > 0 for s in m["scale"]) and all(map(math.isfinite, m["coef"] + [m["intercept"]]))
     assert 0 < m["min_confidence"] < 1 and C.MIN_CONFIDENCE == m["min_confidence"]
-    assert "human" in m["models"]
+    assert "human" in m["models"] and isinstance(m["replaces_threshold"], bool)
+    assert C.MODEL_PATH.stat().st_size < 4000           # a few numbers, not data
+    # a minimum per camera count; fewer cameras than any: the strictest; never below a
+    # smaller camera count's (more cameras, a confidence more often right)
+    by = {int(k): v for k, v in m["min_confidence_by_cameras"].items()}
+    assert max(by.values()) == m["min_confidence"] == C.min_confidence_for(1)
+    for k in by:
+        assert C.min_confidence_for(k) == C.min_confidence_for(k + 1) == by[k]
+    assert C.min_confidence_for(None) == m["min_confidence"]
 
 
 @pytest.fixture(scope="module")
@@ -92,11 +101,14 @@ def clean():
 
 
 def test_clean_frames_pass_the_gate(clean):
-    _, _, out = clean
-    passed = [p.status == "matched" and p.diagnostics["confidence"] >= C.MIN_CONFIDENCE
+    cap, est, out = clean
+    assert est.min_confidence == C.min_confidence_for(8) <= C.MIN_CONFIDENCE
+    passed = [p.status == "matched" and p.diagnostics["confidence"] >= est.min_confidence
               for p, _ in out]
-    # every one (confidences 0.87–0.99 against the minimum 0.74 when refitted, 2026-11)
-    assert all(passed), [p.diagnostics["confidence"] for p, _ in out]
+    # confidences 0.89, 0.808, 0.98 against the 8-camera minimum 0.81 when refitted (2026-11):
+    # the minimum is chosen for precision 0.95, held-out right 8-camera frames pass ~3 in 4
+    conf = [p.diagnostics["confidence"] for p, _ in out]
+    assert sum(passed) >= 2 and min(conf) >= 0.75, conf
     assert set(out[0][0].diagnostics["confidence_factors"]) == {"fitted", "hull", "size"}
 
 
@@ -116,7 +128,7 @@ def test_swapped_head_and_hand_fail_the_gate(clean):
             f = C.frame_features(det.volume, int(det.volume.data.sum()), det.data, est.model,
                                  est.up, pose.distance, est.threshold, 0, sw, 0.0, radii)
             c = C.fitted_confidence(f, det.volume.diagnostics.get("largest_share", 1.0))
-            assert c["confidence"] < C.MIN_CONFIDENCE, (pose.frame, hand, f, c)
+            assert c["confidence"] < est.min_confidence, (pose.frame, hand, f, c)
 
 
 def test_spurious_limb_fails_the_gate(clean):
@@ -150,7 +162,7 @@ def test_spurious_limb_fails_the_gate(clean):
         bad = est.estimate(frame)
     finally:
         del est.hull
-    assert bad.diagnostics["confidence"] < C.MIN_CONFIDENCE
+    assert bad.diagnostics["confidence"] < est.min_confidence
     # the best guess is kept (the head, given the rod across the body axis, may be left
     # unplaced by the leaf-axis rule, pose/estimate.py LEAF_AXIS)
     assert bad.status == "rejected"
@@ -239,7 +251,7 @@ def test_the_fitted_confidence_decides_instead_of_the_distance_threshold():
     threshold stands; other rejections stand either way; the best guess is kept."""
     vol, n, data, model, al, radii = _frame()
     err = "AHA distance 0.900 above threshold T_d = 0.4"
-    args = (vol, n, data, model, (0, 0, 1), 0.9, 0.4, 0)
+    args = (vol, n, data, model, (0, 0, 1), 0.9, model.threshold, 0)
     st, e, d = C.judge_frame(*args, "rejected", err, min_confidence=0.0, al=al)
     assert (st, e) == ("matched", None) and C.replaces_threshold()
     st, e, d = C.judge_frame(*args, "rejected", err, min_confidence=1.0, al=al)
@@ -248,3 +260,33 @@ def test_the_fitted_confidence_decides_instead_of_the_distance_threshold():
     other = "3 parts unmatched (head, hand_1, hand_2)"
     assert C.judge_frame(*args, "rejected", other, min_confidence=0.0, al=al)[:2] == ("rejected", other)
     assert not C.distance_only("AHA distance inf above threshold T_d = 0.4")
+    # a T_d chosen by the caller (not the model's own) stands
+    chosen = (vol, n, data, model, (0, 0, 1), 0.9, model.threshold / 2, 0)
+    assert C.judge_frame(*chosen, "rejected", err, min_confidence=0.0, al=al)[:2] == ("rejected", err)
+
+
+def test_a_limb_cut_off_scores_below_the_intact_frame(clean):
+    """The hull with one forearm cut off (its voxels within 0.3 m of the hand's ground truth
+    erased, as a segmentation network that loses a hand would): each frame's confidence falls
+    below the intact frame's."""
+    cap, est, out = clean
+    hull = est.hull
+    for pose, det in out:
+        gt = np.asarray(cap.gt["frames"][pose.frame]["parts"]["hand_1"], float)
+
+        def cut(name, gt=gt):
+            vol = hull(name)
+            idx = np.argwhere(vol.data)
+            x = vol.origin + idx * vol.voxel_size
+            gone = idx[np.linalg.norm(x - gt, axis=1) < 0.3]
+            vol.data[tuple(gone.T)] = False
+            vol.diagnostics.pop("bbox", None)
+            vol.diagnostics["voxels"] = int(vol.data.sum())
+            return vol
+
+        est.hull = cut
+        try:
+            bad = est.estimate(pose.frame)
+        finally:
+            del est.hull
+        assert bad.diagnostics["confidence"] < pose.diagnostics["confidence"], pose.frame

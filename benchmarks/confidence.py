@@ -45,10 +45,6 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 BUILDS = ("average", "heavy", "child", "lean", "random")
 TOLERANCE = 0.08          # × subject height
-# the minimum keeps this share of the right calibration frames (out of fold): their precision
-# levels off near 0.95 from a minimum of ~0.85 on (some wrong frames look right to every
-# feature), so a precision target (0.98 before) only costs right frames
-KEEP = 0.9
 SWAP_WEIGHT = 0.1
 POSE_KINDS = ("separated", "all")   # the body benchmark's poses (quality.py body_captures)
 POSE_SEED0 = 100                    # their seeds: disjoint from quality.py's 21, 22
@@ -114,7 +110,7 @@ def candidate(r, model) -> bool:
     return r["status"] == "matched" or (replaces_threshold(model) and distance_only(r.get("error")))
 
 
-def capture_rows(cap, subject, build, cams, motion, seed) -> list:
+def capture_rows(cap, subject, build, setup, motion, seed) -> list:
     """Run the pipeline (gate off) on one capture; one row per processed frame, then the
     deliberate swaps."""
     from topopose.pose.confidence import temporal_confidence
@@ -131,7 +127,7 @@ def capture_rows(cap, subject, build, cams, motion, seed) -> list:
             continue
         dg = p.diagnostics
         fac = dg.get("confidence_factors") or {}
-        rows.append({"subject": subject, "build": build, "cameras": cams,
+        rows.append({"subject": subject, "build": build, "cameras": setup,
                      "motion": motion, "seed": seed, "frame": p.frame,
                      "status": p.status, "error": p.error, "good": s.quality in TP_CLASSES,
                      "quality": s.quality, "distance": p.distance,
@@ -139,9 +135,9 @@ def capture_rows(cap, subject, build, cams, motion, seed) -> list:
                      "features": dg["confidence_features"],
                      "time": fac.get("time"), "volume": fac.get("volume")})
     rows += swapped_rows(cap, est, out, ev, {"subject": subject, "build": build,
-                                             "cameras": cams, "motion": motion,
+                                             "cameras": setup, "motion": motion,
                                              "seed": seed})
-    print(f"{subject} {build or ''} set-up {cams} {motion} seed {seed}: "
+    print(f"{subject} {build or ''} set-up {setup} {motion} seed {seed}: "
           f"{len(poses)} frames",
           file=sys.stderr, flush=True)
     return rows

@@ -14,9 +14,8 @@ the calibration frames showed:
   it after any change of the pipeline (it fits on calibration seeds and reports held-out
   ones, before/after, in ``benchmarks/results/confidence.md``). The features of
   :func:`frame_features` but ``thickness`` and ``lost`` (guarded apart) are fitted
-  (L2-penalized). All are ratios (lengths over the hull's
-  height H or over tree weights), so the same capture at another scale gets the same
-  confidence;
+  (L2-penalized). All are ratios (lengths over the hull's height H or over tree weights), so
+  the same capture at another scale gets the same confidence;
 - **camera set-ups**: the calibration captures have 8 cameras (640×480, silhouette noise 1),
   4 cameras (640×480, noise 1) and 4 portrait phone-like cameras (544×960, noise 2, the
   blobby borders and holes of a segmentation network's mask). Fitted on 8 cameras only, the
@@ -30,8 +29,8 @@ the calibration frames showed:
   tree's weight outside the matched arcs) and ``limb_sym`` (arms' and legs' length ratios);
 - **T_d**: with ``"replaces_threshold"`` in the model (and the gate on) a frame rejected for its
   AHA distance alone (above the model's own T_d, not one the caller chose) is decided by the
-  confidence instead: the distance is one of its
-  features, and with 4 cameras it exceeds T_d for nearly every frame, right or wrong;
+  confidence instead: the distance is one of its features, and with 4 cameras it exceeds T_d
+  for nearly every frame, right or wrong;
 - a frame is *right* when it is a TP of issue 11 (every placed part within 0.08 × height of its
   ground truth, at most one part unplaced: "good" or "missing limb"); the calibration frames
   include the body benchmark's kind of poses (separated limbs, all random poses);
@@ -225,22 +224,18 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
     ptot = model.tree.total_weight() or 1.0
     dtot = data.total_weight() or 1.0
     f["spurious_length"] = max(spur, default=0.0) / dtot
-    dev = []
-    for ppath, dpath in (al.pairs or []):
-        pl = sum(w for a, b in zip(ppath[:-1], ppath[1:]) for y, w in padj.get(a, ()) if y == b)
-        dl = sum(w for a, b in zip(dpath[:-1], dpath[1:]) for y, w in adj.get(a, ()) if y == b)
-        if pl > 0 and dl > 0 and math.isfinite(pl) and math.isfinite(dl):
-            dev.append(abs(math.log((dl / dtot) / (pl / ptot))))
-    f["arc_dev"] = max(dev, default=0.0)
-    # the matched arcs' lengths relative to the matched total only: unmatched (spurious, e.g.
-    # phantom-volume) branches inflate the data tree's total and shorten every arc in ``arc_dev``
-    # and the distance with few cameras, not here
+    # each matched arc as (part at its lower end, model length, data length)
     arcs = []
     for ppath, dpath in (al.pairs or []):
         pl = sum(w for a, b in zip(ppath[:-1], ppath[1:]) for y, w in padj.get(a, ()) if y == b)
         dl = sum(w for a, b in zip(dpath[:-1], dpath[1:]) for y, w in adj.get(a, ()) if y == b)
         if pl > 0 and dl > 0 and math.isfinite(pl) and math.isfinite(dl):
             arcs.append((_stem(ppath[-1]), pl, dl))
+    f["arc_dev"] = max((abs(math.log((dl / dtot) / (pl / ptot))) for _, pl, dl in arcs),
+                       default=0.0)
+    # the same relative to the matched total only: unmatched (spurious, e.g. phantom-volume)
+    # branches inflate the data tree's total and shorten every arc in ``arc_dev`` and the
+    # distance with few cameras, not here
     pm, dm = sum(a[1] for a in arcs), sum(a[2] for a in arcs)
     if arcs:
         f["shape"] = sum(abs(dl / dm - pl / pm) for _, pl, dl in arcs)

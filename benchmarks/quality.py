@@ -20,7 +20,9 @@ hand (4 poor cameras): T_d = 3.5 (unnormalized scale) gives 10–20 %.
 
 - body (the MakeHuman mesh, issue 11): builds × seeds, separated and all poses, noise 0–2,
   50/100/150³, the thickness term on and off, the pruning of skeleton bumps on and off, the
-  head's body-axis check on and off, the head half way to its tip, scored at 0.08 × height for every part
+  head's body-axis check on and off, the head half way to its tip, the spine shift (pose/anatomy.py)
+  on and off, the head's tip levelled, a lost head recovered on the body axis, scored at 0.08 ×
+  height for every part
   (benchmarks/results/quality_body.{md,json}).
 
 "Limbs separated" (the thesis' dancer study: "each limb is clearly separated from others" in the
@@ -192,15 +194,29 @@ def body_rows(quick, out, suffix):
     row("body all-poses noise1 no-thickness", *body_study(allp, 100, thickness=0))
     row("body separated noise1 no-prune", *body_study(sep, 100, prune=0))
     row("body all-poses noise1 no-prune", *body_study(allp, 100, prune=0))
-    row("body separated noise1 leaf-axis", *body_study(sep, 100, leaf_axis=0.7))
-    row("body all-poses noise1 leaf-axis", *body_study(allp, 100, leaf_axis=0.7))
+    # the head from the alignment (peers of the head from the hull, pose/tips.py head_from_hull)
+    row("body separated noise1 no-hull-head", *body_study(sep, 100, head_from_hull=0))
+    row("body all-poses noise1 no-hull-head", *body_study(allp, 100, head_from_hull=0))
+    row("body separated noise1 leaf-axis", *body_study(sep, 100, leaf_axis=0.7, head_from_hull=0))
+    row("body all-poses noise1 leaf-axis", *body_study(allp, 100, leaf_axis=0.7, head_from_hull=0))
     # the same without the confidence gate (matched = the alignment's own T_d and missing parts)
     row("body separated noise1 gate-off", *body_study(sep, 100, gate=False))
     row("body all-poses noise1 gate-off", *body_study(allp, 100, gate=False))
-    row("body separated noise1 leaf-axis gate-off", *body_study(sep, 100, leaf_axis=0.7, gate=False))
-    row("body all-poses noise1 leaf-axis gate-off", *body_study(allp, 100, leaf_axis=0.7, gate=False))
-    row("body separated noise1 tip-half", *body_study(sep, 100, tip_fraction=0.5))
-    row("body all-poses noise1 tip-half", *body_study(allp, 100, tip_fraction=0.5))
+    row("body separated noise1 no-hull-head gate-off", *body_study(sep, 100, head_from_hull=0,
+                                                                    gate=False))
+    row("body all-poses noise1 no-hull-head gate-off", *body_study(allp, 100, head_from_hull=0,
+                                                                   gate=False))
+    row("body separated noise1 leaf-axis gate-off", *body_study(sep, 100, leaf_axis=0.7, gate=False,
+                                                                 head_from_hull=0))
+    row("body all-poses noise1 leaf-axis gate-off", *body_study(allp, 100, leaf_axis=0.7, gate=False,
+                                                                 head_from_hull=0))
+    row("body separated noise1 tip-half", *body_study(sep, 100, tip_fraction=0.5, head_from_hull=0))
+    row("body all-poses noise1 tip-half", *body_study(allp, 100, tip_fraction=0.5, head_from_hull=0))
+    # the spine shift of torso, crotch, head (pose/anatomy.py) off: its peer, gate on and off
+    row("body separated noise1 no-spine", *body_study(sep, 100, spine=False))
+    row("body all-poses noise1 no-spine", *body_study(allp, 100, spine=False))
+    row("body separated noise1 no-spine gate-off", *body_study(sep, 100, spine=False, gate=False))
+    row("body all-poses noise1 no-spine gate-off", *body_study(allp, 100, spine=False, gate=False))
     row("body separated noise1 two-pass", *body_study(sep, 100, two_pass=True))
     row("body all-poses noise1 two-pass", *body_study(allp, 100, two_pass=True))
     if not quick:
@@ -215,7 +231,10 @@ def body_rows(quick, out, suffix):
          "segment, the same for every part (`evaluate --tolerance 0.08`). TP rate = (good + "
          "missing limb) / frames, FP/match = (misplaced + bad) / (TP + FP) over matched frames; "
          "errors: median distance to the gt segment in cm (all parts of the matched frames of a "
-         "class). *separated*: distinct limbs at least 7.5 cm apart. *no-thickness*: "
+         "class). *separated*: distinct limbs at least 7.5 cm apart. *no-hull-head*: "
+         "`FrameEstimator(head_from_hull=0)`, the head from the alignment, the peer of the head "
+         "from the hull (`pose/tips.py`, on by default for the upright human; the leaf-axis and "
+         "tip-half rows are about the alignment's head and run without it too). *no-thickness*: "
          "`FrameEstimator(thickness=0)`, the peer of the thickness term; *no-prune*: "
          "`FrameEstimator(prune=0)`, the peer of the scale-axis pruning of skeleton bumps "
          "(`topopose.skeleton.prune`, default 2.0 for the human model); *leaf-axis*: "
@@ -226,7 +245,12 @@ def body_rows(quick, out, suffix):
          "*gate-off*: `FrameEstimator(gate=False)`, without the confidence gate (`pose/confidence.py`); "
          "*two-pass*: "
          "`topopose.pose.subject.two_pass` per capture (one subject), the subject's own lengths "
-         "from its confident frames.", "",
+         "from its confident frames; *no-spine*: `FrameEstimator(spine=False)`, the peer of the "
+         "spine shift (torso, crotch and head moved back from the hull's medial axis onto the "
+         "spine, against the front the feet give: `topopose.pose.anatomy`, on by default for the "
+         "human model). "
+         "Diagnosis of "
+         "the failing parts: `benchmarks/diagnose_body.py` (diagnose_body*.md).", "",
          "| configuration | res | frames | TP rate | FP/match | good | miss1 | partial | misplaced "
          "| bad | none | err good (cm) | err misplaced (cm) | ms/frame | alignment stage ms (median) |",
          "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]

@@ -170,3 +170,30 @@ def test_permutations_of_identical_limbs_are_all_alternatives():
     al = align(P, D)
     for k in range(4):
         assert set(al.alternatives[f"l{k}"]) == {1, 2, 3, 4}
+
+
+def test_human_feet_below_the_crotch():
+    """The human model's feet-below-crotch constraints (models/human.toml): a subject on one leg,
+    the other leg not seen, an arm out and raised as long as a leg. Without the constraints the
+    cheapest alignment hangs the missing foot on the raised arm's end (above the crotch); with
+    them no foot's image lies above the crotch's image."""
+    from topopose.pose import load_model
+
+    # data: torso junction T (1.3 m), head, one hand down, a long raised arm (leg-long), the
+    # crotch C (0.9 m) with one leg to the floor
+    pos = {"T": [0, 0, 1.3], "H": [0, 0, 1.6], "h1": [0.1, 0.3, 0.7], "arm": [-0.9, 0.0, 1.55],
+           "C": [0, 0, 0.9], "f1": [0, 0.1, 0.05]}
+    edges = [("T", "H", 0.3), ("T", "h1", 0.7), ("T", "arm", 0.95), ("T", "C", 0.4),
+             ("C", "f1", 0.9)]
+    D = Tree(edges, positions={k: np.array(v, float) for k, v in pos.items()})
+    with_c, without = load_model("human"), load_model("human", constraints=False)
+    feet = ("foot_1", "foot_2")
+    al0 = align(without.tree, D, method="aha", up=UP)
+    al1 = align(with_c.tree, D, method="aha", up=UP)
+    assert any(al0.mapping.get(f) == "arm" for f in feet)          # the failure the rule fixes
+    c = al1.mapping.get("crotch")
+    for f in feet:
+        v = al1.mapping.get(f)
+        if v is not None and c is not None:
+            assert pos[v][2] < pos[c][2]
+    assert not any(al1.mapping.get(f) == "arm" for f in feet)

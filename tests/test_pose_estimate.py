@@ -86,13 +86,18 @@ def test_leaf_axis_and_tip_fraction_in_the_estimator():
 
     cap = synthetic_capture("human", frames=2, seed=3, noise=0, separated=True)
     poses = {}
-    for key, kw in {"default": {}, "drop": {"leaf_axis": 1.01}, "t0": {"tip_fraction": 0.0},
-                    "t05": {"tip_fraction": 0.5}}.items():
-        est = FrameEstimator(cap, "human", 60, **kw)
+    off = {"head_from_hull": 0, "spine": False}   # the head from the alignment, the tip rule alone
+    for key, kw in {"hull": {"resolution": 100}, "default": off, "drop": {"leaf_axis": 1.01, **off},
+                    "t0": {"tip_fraction": 0.0, **off},
+                    "t05": {"tip_fraction": 0.5, **off}}.items():
+        kw = {"resolution": 60, **kw}       # the head from the hull needs a finer grid
+        est = FrameEstimator(cap, "human", **kw)
         poses[key] = [est.estimate(f, detail=True) for f in cap.frames]
-    ev = evaluate(cap.gt, [p for p, _ in poses["default"]])
-    for (p, _d), f in zip(poses["default"], ev.frames):
-        assert "off_axis" not in p.diagnostics and f.right["head"], f.errors
+    for key in ("default", "hull"):
+        ev = evaluate(cap.gt, [p for p, _ in poses[key]])
+        for (p, _d), f in zip(poses[key], ev.frames):
+            assert "off_axis" not in p.diagnostics and f.right["head"], f.errors
+            assert ("from_hull" in p.diagnostics) == (key == "hull")
     for p, _d in poses["drop"]:
         assert p.parts["head"] is None and p.diagnostics["off_axis"] == ["head"]
     for (p1, _), (p0, d0), (ph, _) in zip(poses["default"], poses["t0"], poses["t05"]):

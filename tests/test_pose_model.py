@@ -30,7 +30,9 @@ def test_contract_part_names_and_rooting():
     assert set(h.parts) == {"head", "torso", "crotch", "hand_1", "hand_2", "foot_1", "foot_2"}
     assert h.complete and h.root == "torso"            # highest degree part
     assert {(c.kind, c.parts) for c in h.constraints} == {("above", ("head", "torso")),
-                                                          ("above", ("torso", "crotch"))}
+                                                          ("above", ("torso", "crotch")),
+                                                          ("above", ("crotch", "foot_1")),
+                                                          ("above", ("crotch", "foot_2"))}
     assert sorted(map(sorted, h.interchangeable())) == [["foot_1", "foot_2"], ["hand_1", "hand_2"]]
     assert load_model("human", constraints=False).constraints == []
     hand = load_model("hand")

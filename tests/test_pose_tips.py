@@ -4,7 +4,8 @@ Oracle: analytic shapes whose surface point on the branch's axis is known."""
 import numpy as np
 
 from topopose.match.tree import Tree
-from topopose.pose.tips import end_direction, exit_point, extremity_tips, inscribed_radius
+from topopose.pose.tips import (end_direction, exit_point, extremity_tips, head_from_hull,
+                                 inscribed_radius, thick_top)
 from topopose.topology import thin
 
 
@@ -51,3 +52,44 @@ def test_head_tip_is_the_crown():
     data2 = Tree([("h", "n", 1.0), ("n", "m", 1.0)], positions={"h": tuple(end), "n": tuple(low),
                                                                 "m": (0.0, 0.0, 0.0)})
     assert extremity_tips(_Vol(vol), skel, data2, {"head": "n"}, ["head"]) == {}
+
+
+def _trunk_head_and_raised_arm(n=64):
+    """A box trunk (half-width 10), a ball head (radius 6, centre z = 42) on it, and a thin rod
+    (an arm, radius 2) rising beside the head higher than the crown (z up to 58)."""
+    z, y, x = np.indices((n, n, n))
+    trunk = (abs(x - 32) <= 10) & (abs(y - 32) <= 10) & (z >= 6) & (z <= 34)
+    head = (x - 32) ** 2 + (y - 32) ** 2 + (z - 42) ** 2 <= 36
+    arm = ((x - 46) ** 2 + (y - 32) ** 2 <= 4) & (z >= 20) & (z <= 58)
+    return trunk | head | arm
+
+
+def test_thick_top_skips_a_thin_arm_above_the_head():
+    vol = _trunk_head_and_raised_arm()
+    top, r = thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.4)   # axis 0 is up here
+    # largest inscribed radius ≈ 11 (the trunk) → thick means ≥ 4.4: the arm (2) is not, the
+    # head's core (radius 6) is: its highest point lies 6 − 4.4 ≈ 1.6 above the centre
+    assert abs(top[1] - 32) <= 1 and abs(top[2] - 32) <= 1
+    assert 42 <= top[0] <= 44 and r >= 4.4
+    # with the threshold below the arm's radius the arm wins (the oracle is not vacuous)
+    top2, _ = thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.1, min_voxels=1.0)
+    assert top2[0] >= 55 and abs(top2[2] - 46) <= 2
+    # a grid too coarse to tell a head from an arm by thickness: no answer
+    assert thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.1) is None           # 0.1 × 11 < 1.5 voxels
+    assert thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.4, min_voxels=5.0) is None
+
+
+def test_head_from_hull_is_the_crown_not_the_arm():
+    vol = _trunk_head_and_raised_arm()
+    torso = np.array([30.0, 32.0, 32.0])
+    head = head_from_hull(_Vol(vol), (1, 0, 0), torso, 0.4)
+    assert np.linalg.norm(head - (48, 32, 32)) <= 1.0          # crown of the ball: z = 42 + 6
+    # a leaning subject: the head's crown along torso → head, not straight up
+    z, y, x = np.indices(vol.shape)
+    lean = vol & ~((x - 32) ** 2 + (y - 32) ** 2 + (z - 42) ** 2 <= 36)
+    lean |= (x - 38) ** 2 + (y - 32) ** 2 + (z - 40) ** 2 <= 36     # head moved sideways
+    head = head_from_hull(_Vol(lean), (1, 0, 0), torso, 0.4)
+    d = np.array([40, 32, 38]) - torso
+    crown = np.array([40, 32, 38]) + 6 * d / np.linalg.norm(d)
+    assert np.linalg.norm(head - crown) <= 1.5
+    assert head_from_hull(_Vol(np.zeros((5, 5, 5), bool)), (1, 0, 0), torso) is None

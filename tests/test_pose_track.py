@@ -228,3 +228,28 @@ def test_a_part_on_another_groups_previous_position_is_flagged():
     assert near[0] is None and list(near[1]) == [True] and list(near[2]) == [False]
     # the torso is not another group: a hand near it is not suspicious
     assert list(on_other_parts(poses, [True] * 3, ["hand_1"], [], 0.1)[1]) == [False]
+
+
+def test_when_nearly_every_frame_is_rejected_the_rejected_frames_are_tracked():
+    """A recording whose frames all miss T_d (status rejected, as the real 4-camera recording):
+    the misplaced parts are held only because the rejected frames become observations
+    (FEW_USABLE); with ``few=0`` they are left as the per-frame result put them."""
+    import copy
+    from dataclasses import replace
+
+    human = load_model("human")
+    poses, (h1, h2, f1, f2) = _walking(misplace=(12, 20))
+    poses = [replace(p, status="rejected", error="AHA distance 0.6 above threshold T_d = 0.4")
+             if i != 3 else p for i, p in enumerate(poses)]
+    off = track(copy.deepcopy(poses), human, few=0)
+    out = track(poses, human)
+    name_f2 = _identity_of(out, f2, ["foot_1", "foot_2"])[0]
+    for i, p in enumerate(out):
+        if i in (12, 20):
+            assert name_f2 in p.diagnostics["predicted"]
+            assert np.linalg.norm(p.parts[name_f2] - f2[i]) < 0.1
+        else:
+            assert "predicted" not in p.diagnostics
+    assert all(p.status == "rejected" for i, p in enumerate(out) if i != 3)   # status untouched
+    assert not any(p.diagnostics.get("predicted") for p in off)
+    assert all("track" not in p.diagnostics for i, p in enumerate(off) if i != 3)

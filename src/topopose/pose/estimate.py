@@ -128,6 +128,20 @@ class FrameEstimator:
     tip_fraction : float
         Move a tip part (``tips``) only this fraction of the way from its skeleton end to the
         hull's border (1, default: all the way; measured in :data:`LEAF_AXIS`).
+    spine : None, bool, float or dict
+        Move the body-axis parts (torso, crotch, head) back from the hull's medial axis onto
+        the spine (:mod:`topopose.pose.anatomy`): against the body's front, which the feet's
+        end directions give, by a share of the hull's largest inscribed-ball radius. None
+        (default): the model's entry of :data:`topopose.pose.anatomy.SPINE_SHIFT` (human;
+        complete models only; no front, no shift); False or 0: off; a number scales the
+        model's shares; a dict ``{part: share}`` replaces them. Measured in ``anatomy.py`` and
+        ``benchmarks/quality.py`` (quality_body.md, "no-spine" rows).
+    head_from_hull : float or None
+        Place the head part from the hull rather than from the alignment
+        (:func:`topopose.pose.tips.head_from_hull`, :data:`HEAD_FROM_HULL`): the highest hull
+        point thicker than this fraction of the hull's largest inscribed radius, prolonged
+        away from the torso to the hull's border. None: the model's entry when its head has
+        an "above" coordinate constraint (human, upright subjects: 0.4), else off; 0: off.
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -142,7 +156,8 @@ class FrameEstimator:
                  relation=None, fill=True, repair=None, junction_centroid=None, refocus=False,
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
-                 tip_fraction=1.0):
+                 tip_fraction=1.0, spine=None,
+                 head_from_hull=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -200,10 +215,17 @@ class FrameEstimator:
         cos = (rule[3] if rule else 0.0) if leaf_axis is None else float(leaf_axis)
         self.leaf_axis = (*rule[:3], cos) if rule and cos else None
         self.tip_fraction = float(tip_fraction)
+        # the head from the hull's highest thick point (pose/tips.py), for upright subjects
+        rule = HEAD_FROM_HULL.get(self.model.name)
+        frac = ((rule[2] if rule and any(c.kind == "above" and rule[0] in c.parts
+                                          for c in self.model.constraints) else 0.0)
+                if head_from_hull is None else float(head_from_hull))
+        self.head_from_hull = (rule[0], rule[1], frac) if rule and frac > 0 else None
         # leaf parts placed where their branch leaves the hull (pose/tips.py)
         stems = set(tips or ())
         self.tips = [p for p in self.model.parts if len(adj[p]) == 1 and self.model.complete
                      and p.rstrip("_0123456789") in stems]
+        self.spine = _spine_option(self.model, spine)
 
     def arc_cost(self, vol, data):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off."""
@@ -356,7 +378,17 @@ class FrameEstimator:
                 if parts.get(p) is not None:
                     parts[p] = (x if self.tip_fraction == 1.0
                                 else parts[p] + self.tip_fraction * (x - parts[p]))
-        missing = [p for p, x in parts.items() if x is None]
+        if self.spine:      # the spine lies behind the medial axis (pose/anatomy.py)
+            parts, diag_spine = self.spine_parts(vol, skel, data, al, parts)
+        missing = [p for p, x in parts.items() if x is None]   # by the alignment: the status
+        from_hull = []
+        if self.head_from_hull is not None:
+            from .tips import head_from_hull
+            head, anchor, frac = self.head_from_hull
+            x = head_from_hull(vol, self.up, parts.get(anchor), frac)
+            if x is not None:
+                parts[head] = x
+                from_hull.append(head)
         status, error = "matched", None
         if not math.isfinite(dist) or dist > self.threshold:
             status = "rejected"
@@ -382,8 +414,12 @@ class FrameEstimator:
             diag["thickness_cost"] = round(thick, 6)
         if self.prune > 0:
             diag["pruned_bumps"] = len(data.diagnostics.get("pruned_bumps", ()))
+        if from_hull:
+            diag["from_hull"] = from_hull
         if dropped:
             diag["off_axis"] = dropped
+        if self.spine:
+            diag["spine_shift"] = diag_spine
         if unordered:
             diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
         if self.curves:
@@ -397,6 +433,18 @@ class FrameEstimator:
                 diag["curves_error"] = f"{type(exc).__name__}: {exc}"
         pose = Pose(name, status, dist, parts, error, timings, diag)
         return (pose, det) if detail else pose
+
+    def spine_parts(self, vol, skel, data, al, parts):
+        """``parts`` with the body-axis parts moved back onto the spine
+        (:mod:`topopose.pose.anatomy`), and the shift applied (world units, or None)."""
+        from .anatomy import front_direction, hull_radius, spine_shift
+
+        feet = [p for p in self.model.parts if p.rstrip("_0123456789") == "foot"]
+        front = front_direction(vol, skel, data, al.mapping, feet, self.up)
+        if front is None:
+            return parts, None
+        r = hull_radius(vol)
+        return spine_shift(parts, front, r, self.spine), [round(float(x), 4) for x in -r * front]
 
     def _failed(self, name, reason, timings, t_all):
         timings["total"] = (time.perf_counter() - t_all) * 1e3
@@ -559,6 +607,25 @@ THICKNESS = {"human": {"head": (0.30, 0.85), "hand": (0.0, 0.40), "foot": (0.0, 
 # leaves the head unplaced in 69 of 100 frames and the frames with head, hands and feet within
 # 0.15 m fall from 31 % to 15 %: the default is off (0); ``leaf_axis=0.7`` turns it on.
 LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.0)}
+# The head from the hull (pose/tips.py, head_from_hull): (head, anchor, min_fraction) — the head
+# part is put where the direction anchor → the hull's highest point whose inscribed radius is
+# ≥ min_fraction × the hull's largest leaves the hull, whatever the alignment gave the head
+# (the status stays the alignment's: ``missing`` lists the parts it left unmatched;
+# ``diagnostics["from_hull"]`` names the head). On for models whose head carries an "above"
+# coordinate constraint (upright subjects). Real recording (benchmarks/real.py, person
+# silhouettes, 4 cameras, 100³; cached hulls, frames with head, hands and feet within 0.15 m):
+# off 32 → 0.4: 71 of 100 (0.3: 68, 0.35: 71, 0.45: 59, 0.5: 22); head median / p90 error
+# 0.122 / 0.370 → 0.068 / 0.096 m. Body subject (benchmarks/quality.py's body set, seeds 21, 22,
+# 100³, TP rate / FP per match, gate on | off): separated 0.79 / 0.031 | 0.86 / 0.096 → 0.81 /
+# 0.010 | 0.89 / 0.061, all poses 0.46 / 0.083 | 0.55 / 0.185 → 0.47 / 0.067 | 0.56 / 0.173;
+# head median error 5.6 → 2.1 cm. The window is narrow: on the body's 8-camera hulls raised
+# arms count as thick below 0.4 (separated, gate on: 0.3 → 0.64 / 0.214, 0.35 → 0.78 / 0.051,
+# 0.45 → 0.82 / 0.000); on the real recording's 4-camera hulls (a trunk inflated by phantom
+# volume) the head no longer does above it (0.45 → 59 right frames). On a coarse grid the rule
+# is skipped (thick radius below 1.5 voxels, :func:`~topopose.pose.tips.thick_top`): at 50³ the
+# body's trunk is 3–3.5 voxels thick and the rule cost separated frames 0.53 / 0.190 → 0.48 /
+# 0.266; at 100³ it is 5–6 voxels.
+HEAD_FROM_HULL = {"human": ("head", "torso", 0.4)}
 THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the largest within ± that
 
 
@@ -766,6 +833,20 @@ def default_gate(cap) -> bool:
     gate was on with fewer than 6 cameras only.) ``cap`` is kept for callers.
     """
     return True
+
+
+def _spine_option(model, spine):
+    """The spine shift shares of :class:`FrameEstimator` (``{part: share}``, empty: off):
+    None: the model's entry of :data:`topopose.pose.anatomy.SPINE_SHIFT` (complete models
+    only); False/0: off; a number: that multiple of the model's entry; a dict: the shares."""
+    from .anatomy import SPINE_SHIFT
+
+    base = SPINE_SHIFT.get(model.name, {}) if model.complete else {}
+    if spine is None or spine is True:
+        return dict(base)
+    if isinstance(spine, dict):
+        return {p: float(x) for p, x in spine.items() if p in model.parts}
+    return {p: float(spine) * x for p, x in base.items()} if spine else {}
 
 
 def _touches_border(a: np.ndarray) -> bool:

@@ -110,3 +110,54 @@ def extremity_tips(vol, skeleton, data, mapping: dict, leaf_parts, reach: float 
         r = inscribed_radius(vol.data, np.round((end - org) / vs).astype(int), 16)
         out[p] = exit_point(vol.data, org, vs, end, d, max_radii * max(r, 1.0) * vs)
     return out
+
+
+def thick_top(volume: np.ndarray, origin, voxel_size: float, up, min_fraction: float,
+              min_voxels: float = 1.5):
+    """The highest point (along ``up``) of ``volume`` (bool grid) whose inscribed ball radius
+    is at least ``min_fraction`` × the largest one (the trunk's), and that radius (world units);
+    None when the volume is empty or that radius is below ``min_voxels`` voxels (a coarse grid
+    cannot tell a head from an arm by thickness: body subject at 50³, ``HEAD_FROM_HULL``).
+
+    The head of an upright subject is the highest *thick* part: hands and forearms raised
+    beside or above it are thinner (see :func:`head_from_hull`)."""
+    from scipy.ndimage import distance_transform_edt
+
+    idx = np.argwhere(volume)
+    if not len(idx):
+        return None
+    lo, hi = idx.min(axis=0), idx.max(axis=0) + 1
+    sub = np.pad(volume[tuple(slice(a, b) for a, b in zip(lo, hi))], 1)
+    dt = distance_transform_edt(sub)
+    if min_fraction * dt.max() < min_voxels:
+        return None
+    ijk = np.argwhere(dt >= min_fraction * dt.max())
+    pts = (ijk - 1 + lo) * voxel_size + np.asarray(origin, float)
+    h = pts @ np.asarray(up, float)
+    top = h >= h.max() - voxel_size            # the top layer's thick voxels: their centroid
+    return pts[top].mean(axis=0), float(dt[tuple(ijk[top].T)].mean()) * voxel_size
+
+
+def head_from_hull(vol, up, anchor=None, min_fraction: float = 0.4, max_radii: float = 3.0):
+    """The head of an upright subject from the hull alone: from the highest thick point
+    (:func:`thick_top`), where the direction from ``anchor`` (the torso part) through it leaves
+    the hull (the crown), at most ``max_radii`` inscribed radii on; None for an empty hull or
+    one too coarse (:func:`thick_top`).
+
+    Thinning gives a head a branch only where the head stands out of the hull: with an arm
+    raised beside a leaning head (and, with few cameras, the phantom volume between them) the
+    head merges into the shoulder mass and the alignment puts the head part on the arm or on a
+    phantom branch (real recording, frames 28–74: head errors 0.2–0.45 m, no data leaf within
+    0.23 m of the head marker). Measured in :data:`topopose.pose.estimate.HEAD_FROM_HULL`: right
+    frames of the real recording 32 → 71 of 100, the body subject's head error 5.6 → 2.1 cm."""
+    top = thick_top(vol.data, vol.origin, float(vol.voxel_size), up, min_fraction)
+    if top is None:
+        return None
+    c, r = top
+    up = np.asarray(up, float)
+    d = up / np.linalg.norm(up)
+    if anchor is not None:
+        v = c - np.asarray(anchor, float)
+        if np.linalg.norm(v) > 0:
+            d = v / np.linalg.norm(v)
+    return exit_point(vol.data, vol.origin, float(vol.voxel_size), c, d, max_radii * r)

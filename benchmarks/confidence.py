@@ -1,27 +1,33 @@
 """Fit and check the per-frame confidence that decides ``matched`` (topopose.pose.confidence) on
 synthetic captures only: the anatomical ``body`` (builds average/heavy/child/lean/random, one
-per seed) and the capsule human, 4 and 8 cameras, walking and random poses, silhouette noise 1,
-100³; and the body benchmark's own kind of poses (``quality.py --only body``: separated limbs
-and all random poses, 8 cameras) on seeds POSE_SEED0… (disjoint from its 21, 22). A frame is
-*right* when it is a TP of issue 11, as in the body benchmark: quality "good" or "missing
-limb" (every placed part within 0.08 × height of its ground-truth segment, junctions too).
-The first half of the seeds fits the logistic confidence and chooses its minimum
-(calibration), the second half checks them (held out). The fit also sees each right frame
-with the head's and a hand's data vertices exchanged (wrong by ground truth, weighted
-SWAP_WEIGHT of the real frames), the failure issue 11 names. Features fitted:
-FIT_FEATURES (every feature of ``frame_features`` is stored in the rows, to try others).
+per seed) and the capsule human, walking and random poses, 100³, and the body benchmark's own
+kind of poses (``quality.py --only body``: separated limbs and all random poses) on seeds
+POSE_SEED0… (disjoint from its 21, 22), each in every camera set-up of SETUPS (8 cameras
+640×480 noise 1; 4 cameras 640×480 noise 1; 4 portrait phone-like cameras 544×960 noise 2).
+A frame is *right* when it is a TP of issue 11, as in the body benchmark: quality "good" or
+"missing limb" (every placed part within 0.08 × height of its ground-truth segment, junctions
+too). The first half of the seeds fits the logistic confidence and chooses its minimum
+(calibration), the second half checks them (held out). The fit sees the frames matched or
+rejected for their AHA distance alone (the fitted confidence replaces T_d), and each right
+frame with the head's and a hand's data vertices exchanged (wrong by ground truth, weighted
+SWAP_WEIGHT of the real frames), the failure issue 11 names. Features fitted: FIT_FEATURES.
 
 Refit after a pipeline change (one command; it rewrites the package's coefficients,
 ``src/topopose/pose/confidence_model.json``, and the results .md/.json)::
 
-    python benchmarks/confidence.py --fit          # ~8 min on 2 cores, ~2,000 frames
+    PYTHONPATH=src:/tmp/mpenv python benchmarks/confidence.py --fit --body-benchmark --real
+
+(~20 min on 2 cores, ~3,000 frames; ``/tmp/mpenv``: wherever mediapipe is installed, for the
+real recording's person silhouettes; without mediapipe the real check is skipped.)
 
 Without ``--fit`` it only reports (the shipped coefficients against the previous product
 confidence, same frames); with it the shipped model before the refit is a row too. A table of
-precision / recall at other minima (held out, 8 cameras) shows the trade-off;
-``--body-benchmark`` applies the same rules to quality.py's own body frames (seeds 21, 22: a
-check, never fitted on). ``--rows results/confidence.json`` reuses the frames of an earlier run
-(no pipeline run: for trying features).
+precision / recall at other minima (held out, per set-up) shows the trade-off;
+``--body-benchmark`` applies the same rules to quality.py's own body frames (seeds 21, 22, 8
+cameras: a check, never fitted on); ``--real`` to the real recording of ``benchmarks/real.py``
+(Pose2Sim's balancing trial, 4 phone cameras, person silhouettes: a check, never fitted on).
+``--rows results/confidence.json`` reuses the frames of an earlier run (no pipeline run: for
+trying features).
 """
 from __future__ import annotations
 
@@ -39,44 +45,72 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 BUILDS = ("average", "heavy", "child", "lean", "random")
 TOLERANCE = 0.08          # × subject height
-# the minimum keeps this share of the right calibration frames (out of fold): their precision
-# levels off near 0.95 from a minimum of ~0.85 on (some wrong frames look right to every
-# feature), so a precision target (0.98 before) only costs right frames
-KEEP = 0.9
 SWAP_WEIGHT = 0.1
 POSE_KINDS = ("separated", "all")   # the body benchmark's poses (quality.py body_captures)
 POSE_SEED0 = 100                    # their seeds: disjoint from quality.py's 21, 22
-FIT_FEATURES = ("distance", "missing", "arc_dev", "head_low", "head_radius", "head_bend",
-                "head_offset", "head_reach", "trunk")
+FIT_FEATURES = ("distance", "missing", "shape", "shape_max", "spurious_share", "head_low",
+                "head_radius", "head_bend", "head_offset", "head_reach", "trunk", "limb_sym",
+                "spurious", "spurious_length", "arc_dev", "end_radius", "foot_high", "fat")
+# camera set-ups: name → (cameras, image size (w, h), silhouette noise level). "4p": four
+# portrait phone-like cameras (1088×1920 at half scale) with the noisier
+# masks of a segmentation network (level 2: borders ±2 px, false blobs, holes)
+SETUPS = {"8": (8, (640, 480), 1), "4": (4, (640, 480), 1), "4p": (4, (544, 960), 2)}
+# the minimum: the smallest whose out-of-fold precision of matched reaches this in every set-up
+PRECISION = 0.95
+MIN_COUNT = 10          # (a set-up with fewer matched frames at a minimum does not judge it)
 
 
 def collect(a) -> list:
-    """Run the pipeline (gate off) on every capture; one row per processed frame."""
+    """Run the pipeline (gate off) on every capture of every set-up (:data:`SETUPS`); one row
+    per processed frame."""
     from quality import BODY_MARGIN
     from topopose.capture.synth import synthetic_capture
 
     rows = []
-    for subject in a.subjects.split(","):
-        seeds = a.seeds if subject != "body" else a.body_seeds
-        for cams, motion, seed in itertools.product((4, 8), ("walk", "random"), range(seeds)):
-            build = BUILDS[seed % len(BUILDS)] if subject == "body" else None
-            cap = synthetic_capture(subject, frames=a.frames, seed=seed, cameras=cams,
-                                    noise=1, motion=motion, build=build)
-            rows += capture_rows(cap, subject, build, cams, motion, seed)
-    # the poses of the body benchmark (quality.py --only body: separated limbs / all random
-    # poses, 8 cameras), on seeds POSE_SEED0… disjoint from its 21, 22
-    if "body" in a.subjects.split(","):
-        pose_seeds = range(POSE_SEED0, POSE_SEED0 + a.pose_seeds)
-        for kind, seed in itertools.product(POSE_KINDS, pose_seeds):
-            build = BUILDS[seed % len(BUILDS)]
-            sep = kind == "separated"
-            cap = synthetic_capture("body", frames=a.pose_frames, seed=seed, cameras=8, noise=1,
-                                    separated=sep, build=build, margin=BODY_MARGIN if sep else None)
-            rows += capture_rows(cap, "body", build, 8, kind, seed)
+    for setup in a.setups.split(","):
+        cams, size, noise = SETUPS[setup]
+        for subject in a.subjects.split(","):
+            seeds = a.seeds if subject != "body" else a.body_seeds
+            for motion, seed in itertools.product(("walk", "random"), range(seeds)):
+                build = BUILDS[seed % len(BUILDS)] if subject == "body" else None
+                cap = synthetic_capture(subject, frames=a.frames, seed=seed, cameras=cams,
+                                        size=size, noise=noise, motion=motion, build=build)
+                rows += capture_rows(cap, subject, build, setup, motion, seed)
+        # the poses of the body benchmark (quality.py --only body: separated limbs / all random
+        # poses), on seeds POSE_SEED0… disjoint from its 21, 22
+        if "body" in a.subjects.split(","):
+            pose_seeds = range(POSE_SEED0, POSE_SEED0 + a.pose_seeds)
+            for kind, seed in itertools.product(POSE_KINDS, pose_seeds):
+                build = BUILDS[seed % len(BUILDS)]
+                sep = kind == "separated"
+                cap = synthetic_capture("body", frames=a.pose_frames, seed=seed, cameras=cams,
+                                        size=size, noise=noise, separated=sep, build=build,
+                                        margin=BODY_MARGIN if sep else None)
+                rows += capture_rows(cap, "body", build, setup, kind, seed)
     return rows
 
 
-def capture_rows(cap, subject, build, cams, motion, seed) -> list:
+def minimum(r, model) -> float:
+    """The minimum of ``model`` for the camera count of row ``r``'s set-up."""
+    from topopose.pose.confidence import min_confidence_for
+
+    return min_confidence_for(SETUPS[r["cameras"]][0], model)
+
+
+def fixed(model, t) -> dict:
+    """``model`` with the minimum ``t`` whatever the camera count."""
+    return {**model, "min_confidence": t, "min_confidence_by_cameras": {}}
+
+
+def candidate(r, model) -> bool:
+    """Whether the frame of row ``r`` reaches the gate of ``model``: matched before the gate, or
+    rejected for its AHA distance alone when the model replaces T_d."""
+    from topopose.pose.confidence import distance_only, replaces_threshold
+
+    return r["status"] == "matched" or (replaces_threshold(model) and distance_only(r.get("error")))
+
+
+def capture_rows(cap, subject, build, setup, motion, seed) -> list:
     """Run the pipeline (gate off) on one capture; one row per processed frame, then the
     deliberate swaps."""
     from topopose.pose.confidence import temporal_confidence
@@ -93,19 +127,17 @@ def capture_rows(cap, subject, build, cams, motion, seed) -> list:
             continue
         dg = p.diagnostics
         fac = dg.get("confidence_factors") or {}
-        rows.append({"subject": subject, "build": build, "cameras": cams,
+        rows.append({"subject": subject, "build": build, "cameras": setup,
                      "motion": motion, "seed": seed, "frame": p.frame,
-                     "status": p.status, "good": s.quality in TP_CLASSES,
+                     "status": p.status, "error": p.error, "good": s.quality in TP_CLASSES,
                      "quality": s.quality, "distance": p.distance,
                      "wrong": sorted(k for k, v in s.right.items() if v is False),
-                     "parts": {k: None if v is None else np.round(v, 4).tolist()
-                               for k, v in p.parts.items()},
                      "features": dg["confidence_features"],
                      "time": fac.get("time"), "volume": fac.get("volume")})
     rows += swapped_rows(cap, est, out, ev, {"subject": subject, "build": build,
-                                             "cameras": cams, "motion": motion,
+                                             "cameras": setup, "motion": motion,
                                              "seed": seed})
-    print(f"{subject} {build or ''} {cams} cameras {motion} seed {seed}: "
+    print(f"{subject} {build or ''} set-up {setup} {motion} seed {seed}: "
           f"{len(poses)} frames",
           file=sys.stderr, flush=True)
     return rows
@@ -130,7 +162,8 @@ def swapped_rows(cap, est, out, ev, like):
     from topopose.pose.pose import Pose
     rows = []
     for (p, det), s in zip(out, ev.frames):
-        if p.status != "matched" or s.quality not in TP_CLASSES:
+        if not candidate({"status": p.status, "error": p.error}, {"replaces_threshold": True}) \
+                or s.quality not in TP_CLASSES:
             continue
         al = det.alignment
         radii = vertex_radii(det.volume, det.data, est.thickness_reach)
@@ -143,9 +176,9 @@ def swapped_rows(cap, est, out, ev, like):
                                p.diagnostics.get("thickness_cost", 0.0), radii)
             parts = {**p.parts, "head": p.parts[hand], hand: p.parts["head"]}
             q = score(cap, [Pose(p.frame, "matched", p.distance, parts)], est.model).frames[0].quality
-            rows.append({**like, "frame": p.frame, "status": "matched", "good": q in TP_CLASSES,
-                         "quality": q, "features": f, "time": None, "volume": None,
-                         "augmented": hand, "wrong": [], "parts": {}})
+            rows.append({**like, "frame": p.frame, "status": p.status, "error": p.error,
+                         "good": q in TP_CLASSES, "quality": q, "features": f, "time": None,
+                         "volume": None, "augmented": hand, "wrong": []})
     return rows
 
 
@@ -164,34 +197,53 @@ def _fit(rows, features, l2):
     mean, scale = real.mean(axis=0), real.std(axis=0)
     scale[scale == 0] = 1.0
     coef, icpt = fit_logistic((X - mean) / scale, y, l2, weights=w)
-    return {"models": ["human"], "features": list(features), "mean": mean.round(6).tolist(),
-            "scale": scale.round(6).tolist(), "coef": coef.round(4).tolist(),
-            "intercept": round(icpt, 4)}
+    return {"models": ["human"], "replaces_threshold": True, "features": list(features),
+            "mean": mean.round(6).tolist(), "scale": scale.round(6).tolist(),
+            "coef": coef.round(4).tolist(), "intercept": round(icpt, 4)}
 
 
 def fit(rows, features, half, l2):
-    """Coefficients on the calibration seeds' base-matched frames (gate off, status
-    "matched"), and the largest minimum (0.30–0.99, step 0.01) that keeps KEEP of the right
-    calibration frames — judged on out-of-fold confidences
-    (two folds by seed parity, each scored by a model fitted on the other), which behave like
-    held-out ones: the in-sample confidences of the wrong frames are optimistic."""
+    """Coefficients on the calibration seeds' candidate frames (matched, or rejected for their
+    AHA distance alone: the fitted confidence replaces T_d), and per camera count the smallest
+    minimum (0.30–0.99, step 0.01) whose precision of matched reaches PRECISION in every
+    set-up of that many cameras (of at least MIN_COUNT matched frames) at it and every higher
+    minimum (``min_confidence_by_cameras``; ``min_confidence``: the largest, for fewer cameras
+    than any) —
+    judged on out-of-fold confidences (two folds by seed parity, each scored by a model fitted
+    on the other), which behave like held-out ones: the in-sample confidences of the wrong
+    frames are optimistic."""
     from topopose.pose.confidence import logistic_confidence
 
-    cal = [r for r in rows if r["seed"] < half_of(r, half) and r["status"] == "matched"]
+    flag = {"replaces_threshold": True}
+    cal = [r for r in rows if r["seed"] < half_of(r, half) and candidate(r, flag)]
     model = _fit(cal, features, l2)
     oof = []
     for k in (0, 1):
         m = _fit([r for r in cal if r["seed"] % 2 != k], features, l2)
-        oof += [(logistic_confidence(r["features"], m), r["good"]) for r in cal
+        oof += [(logistic_confidence(r["features"], m), r["good"], r["cameras"]) for r in cal
                 if r["seed"] % 2 == k and not r.get("augmented")]
-    c = np.array([x for x, _ in oof])
-    y = np.array([g for _, g in oof], bool)
-    best = 0.30
-    for t in np.arange(0.30, 0.991, 0.01):
-        if (c[y] >= t).mean() >= KEEP:
+    by = {}
+    for n in sorted({SETUPS[x[2]][0] for x in oof}):
+        best = 0.99
+        for t in np.arange(0.99, 0.295, -0.01):
+            ok = True
+            for setup in {x[2] for x in oof if SETUPS[x[2]][0] == n}:
+                y = [g for c, g, s in oof if s == setup and c >= t]
+                ok &= len(y) < MIN_COUNT or np.mean(y) >= PRECISION
+            if not ok:
+                break
             best = round(float(t), 2)
-    model["min_confidence"] = best
+        by[str(n)] = best
+    model["min_confidence_by_cameras"] = by
+    model["min_confidence"] = max(by.values())
     return model
+
+
+def mins(model) -> str:
+    """The minima of ``model`` as text (per camera count when it has them)."""
+    by = model.get("min_confidence_by_cameras") or {}
+    return (", ".join(f"{v} ({k} cameras)" for k, v in sorted(by.items(), key=lambda x: int(x[0])))
+            or str(model["min_confidence"]))
 
 
 def half_of(r, half):
@@ -223,26 +275,28 @@ def report(rows, model, half, kinds, before=None):
         r["confidence_t"] = round(c * tv, 4)
         if before is not None:
             r["confidence_before"] = fitted_confidence(f, 1.0 - f["lost"], model=before)["confidence"]
-    rules = [("no gate", lambda r: True),
-             ("previous: product × time ≥ 0.7", lambda r: r["product"] >= 0.7),
-             (f"new: fitted ≥ {model['min_confidence']}",
-              lambda r: r["confidence"] >= model["min_confidence"]),
-             (f"new × time factors ≥ {model['min_confidence']} (not used)",
-              lambda r: r["confidence_t"] >= model["min_confidence"])]
+    base = lambda r: r["status"] == "matched"                     # noqa: E731
+    rules = [("no gate (T_d)", base),
+             ("previous: product × time ≥ 0.7", lambda r: base(r) and r["product"] >= 0.7),
+             (f"new: fitted ≥ {mins(model)}",
+              lambda r: candidate(r, model) and r["confidence"] >= minimum(r, model)),
+             (f"new × time factors ≥ {mins(model)} (not used)",
+              lambda r: candidate(r, model) and r["confidence_t"] >= minimum(r, model))]
     if before is not None:          # the shipped model before this refit, on the same frames
-        rules.insert(2, (f"before refit: fitted ≥ {before['min_confidence']}",
-                         lambda r: r["confidence_before"] >= before["min_confidence"]))
+        rules.insert(2, (f"before refit: fitted ≥ {mins(before)}",
+                         lambda r: candidate(r, before)
+                         and r["confidence_before"] >= minimum(r, before)))
     table = []
     for part, sel in (("calibration", lambda r: r["seed"] < half_of(r, half)),
                       ("held out", lambda r: r["seed"] >= half_of(r, half))):
-        for cams in (4, 8, None):
+        for cams in list(dict.fromkeys(r["cameras"] for r in rows)) + [None]:
             for name, rule in rules:
                 rs = [r for r in rows if sel(r) and (cams is None or r["cameras"] == cams)]
-                row = {"seeds": part, "cameras": cams or "4+8", "rule": name}
+                row = {"seeds": part, "cameras": cams or "all", "rule": name}
                 groups = [("all", rs)] + [("/".join(k), [r for r in rs if (r["subject"], r["motion"]) == k])
                                           for k in kinds]
                 for g, rr in groups:
-                    m = [r for r in rr if r["status"] == "matched" and rule(r)]
+                    m = [r for r in rr if rule(r)]
                     good = sum(r["good"] for r in rr)
                     tp = sum(r["good"] for r in m)
                     row[g] = {"matched": len(m), "good": good,
@@ -255,20 +309,22 @@ def report(rows, model, half, kinds, before=None):
 MINIMA = (0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.94, 0.97)
 
 
-def curve(rows, half, kinds, minima=MINIMA):
-    """Held-out, 8 cameras: precision / recall of the right frames per group at each minimum
+def curve(rows, half, kinds, model, minima=MINIMA):
+    """Held-out, per set-up: precision / recall of the right frames per group at each minimum
     of the fitted confidence (``r["confidence"]``, set by :func:`report`), and without gate."""
-    rs = [r for r in rows if r["seed"] >= half_of(r, half) and r["cameras"] == 8]
     out = []
-    for t in (None,) + tuple(minima):
-        row = {"min": t}
-        for k in [None] + list(kinds):
-            rr = [r for r in rs if k is None or (r["subject"], r["motion"]) == k]
-            m = [r for r in rr if r["status"] == "matched" and (t is None or r["confidence"] >= t)]
-            tp, good = sum(r["good"] for r in m), sum(r["good"] for r in rr)
-            row["all" if k is None else "/".join(k)] = (
-                round(tp / len(m), 3) if m else None, round(tp / good, 3) if good else None)
-        out.append(row)
+    for setup in dict.fromkeys(r["cameras"] for r in rows):
+        rs = [r for r in rows if r["seed"] >= half_of(r, half) and r["cameras"] == setup]
+        for t in (None,) + tuple(minima):
+            row = {"setup": setup, "min": t}
+            for k in [None] + list(kinds):
+                rr = [r for r in rs if k is None or (r["subject"], r["motion"]) == k]
+                m = [r for r in rr if (r["status"] == "matched" if t is None else
+                                       candidate(r, model) and r["confidence"] >= t)]
+                tp, good = sum(r["good"] for r in m), sum(r["good"] for r in rr)
+                row["all" if k is None else "/".join(k)] = (
+                    round(tp / len(m), 3) if m else None, round(tp / good, 3) if good else None)
+            out.append(row)
     return out
 
 
@@ -282,14 +338,15 @@ def swap_summary(aug, model, half):
         c = [fitted_confidence(r["features"], 1.0 - r["features"]["lost"], model=model)["confidence"]
              for r in wrong]
         out[part] = {"wrong": len(wrong),
-                     "rejected": sum(x < model["min_confidence"] for x in c)}
+                     "rejected": sum(x < minimum(r, model) for x, r in zip(c, wrong))}
     return out
 
 
 def separation(rows, features, half):
     """Per feature: median among right and among wrong base-matched calibration frames."""
     out = {}
-    cal = [r for r in rows if r["seed"] < half_of(r, half) and r["status"] == "matched"]
+    cal = [r for r in rows if r["seed"] < half_of(r, half)
+           and candidate(r, {"replaces_threshold": True})]
     for f in features:
         g = [r["features"][f] for r in cal if r["good"]]
         b = [r["features"][f] for r in cal if not r["good"]]
@@ -305,7 +362,7 @@ def body_benchmark(models, frames=12, seeds=(21, 22)):
     Scored as quality.py (TP rate = TP / frames, FP/match = FP / (TP + FP)). Checks only: these
     seeds are never fitted on."""
     from quality import BODY_TOLERANCE, body_captures
-    from topopose.pose.confidence import fitted_confidence
+    from topopose.pose.confidence import fitted_confidence, min_confidence_for
     from topopose.pose.estimate import FrameEstimator
     from topopose.pose.quality import evaluate
 
@@ -321,12 +378,13 @@ def body_benchmark(models, frames=12, seeds=(21, 22)):
         for name, m in models.items():
             tp = fp = 0
             for p, s in frames_:
-                if p.status != "matched":
+                if not (p.status == "matched" if m is None else
+                        candidate({"status": p.status, "error": p.error}, m)):
                     continue
                 if m is not None:
                     f = p.diagnostics["confidence_features"]
                     c = fitted_confidence(f, 1.0 - f["lost"], model=m)["confidence"]
-                    if c < m["min_confidence"]:
+                    if c < min_confidence_for(len(cap.cameras), m):
                         continue
                 tp += s.quality in TP_CLASSES
                 fp += s.quality in ("misplaced", "bad")
@@ -335,6 +393,41 @@ def body_benchmark(models, frames=12, seeds=(21, 22)):
                                      "tp_rate": round(tp / len(frames_), 3),
                                      "fp_per_match": round(fp / (tp + fp), 3) if tp + fp else None}
         print(f"body benchmark {kind}: {len(frames_)} frames", file=sys.stderr, flush=True)
+    return out
+
+
+def real_check(recording, models, method="person"):
+    """The real recording (``benchmarks/real.py``: Pose2Sim's balancing trial, 4 phone cameras,
+    silhouettes by ``method``; never fitted on), run once with the gate off; each rule (name →
+    fitted model, or None: T_d only) decides ``matched`` from the frames' features. Right = head,
+    both hands and both feet within real.RIGHT (0.15 m) of Pose2Sim's 3D result."""
+    import tempfile
+
+    import real as R
+    from topopose.pose.confidence import fitted_confidence, min_confidence_for
+
+    rec = Path(recording)
+    cameras = len(list((rec / "videos").iterdir()))
+    ref = R.read_trc(rec / "reference" / "pose2sim_3d.trc")
+    with tempfile.TemporaryDirectory() as tmp:
+        res, poses = R.run_method(rec, method, 100, 0, Path(tmp), ref)
+    frames = [{"frame": p.frame, "right": row["right"], "status": p.status, "error": p.error,
+               "features": p.diagnostics.get("confidence_features")}
+              for p, row in zip(poses, res["rows"]) if p.status != "failed"]
+    out = {"recording": str(rec), "method": method, "frames": len(poses),
+           "right": sum(f["right"] for f in frames), "rules": {}, "rows": frames}
+    for name, m in models.items():
+        conf = [None if m is None else fitted_confidence(
+            f["features"], 1.0 - f["features"]["lost"], model=m)["confidence"] for f in frames]
+        ok = [f for f, c in zip(frames, conf)
+              if (f["status"] == "matched" if m is None else
+                  candidate(f, m) and c >= min_confidence_for(cameras, m))]
+        tp = sum(f["right"] for f in ok)
+        out["rules"][name] = {"matched": len(ok), "right_matched": tp,
+                              "precision": round(tp / len(ok), 3) if ok else None,
+                              "confidence_right": None if m is None else
+                              [c for f, c in zip(frames, conf) if f["right"]]}
+    print(f"real {method}: {len(poses)} frames", file=sys.stderr, flush=True)
     return out
 
 
@@ -355,6 +448,12 @@ def main(argv=None):
     ap.add_argument("--fit", action="store_true",
                     help="refit and rewrite src/topopose/pose/confidence_model.json")
     ap.add_argument("--rows", help="reuse the frames of an earlier run's .json")
+    ap.add_argument("--setups", default=",".join(SETUPS),
+                    help="camera set-ups, of SETUPS (8: 8 cameras 640×480 noise 1; 4: 4 cameras "
+                         "640×480 noise 1; 4p: 4 portrait cameras 544×960 noise 2)")
+    ap.add_argument("--real", nargs="?", const=str(HERE / "data" / "pose2sim_balancing"),
+                    help="also check the rules on the real recording (benchmarks/real.py's, "
+                         "person silhouettes: needs mediapipe; ~2 min; never fitted on)")
     ap.add_argument("--l2", type=float, default=1.0)
     ap.add_argument("--body-benchmark", action="store_true",
                     help="also check the rules on quality.py's body frames (seeds 21, 22; ~2 min)")
@@ -364,6 +463,7 @@ def main(argv=None):
         old = json.loads(Path(a.rows).read_text())
         rows, a.frames, a.seeds, a.body_seeds = (old["rows"], old["frames_per_capture"],
                                                  old["seeds"], old["body_seeds"])
+        a.setups = old.get("setups", a.setups)
         a.pose_seeds, a.pose_frames = old.get("pose_seeds", 0), old.get("pose_frames", 0)
     else:
         rows = collect(a)
@@ -373,41 +473,56 @@ def main(argv=None):
     if a.fit:
         model = fit(rows, FIT_FEATURES, half, a.l2)
         model["fitted_by"] = "python benchmarks/confidence.py --fit"
-        model["frames"] = sum(r["seed"] < half_of(r, half) and r["status"] == "matched"
-                              for r in rows)
+        model["frames"] = sum(r["seed"] < half_of(r, half)
+                              and candidate(r, {"replaces_threshold": True}) for r in rows)
         C.MODEL_PATH.write_text(json.dumps(model, indent=1) + "\n")
     real = [r for r in rows if not r.get("augmented")]
     kinds = kinds_of(subjects, a.pose_seeds)
     table = report(real, model, half, kinds, before if a.fit else None)
-    trade = curve(real, half, kinds, sorted(set(MINIMA) | {model["min_confidence"]}))
+    chosen = set((model.get("min_confidence_by_cameras") or {}).values()) | {model["min_confidence"]}
+    trade = curve(real, half, kinds, model, sorted(set(MINIMA) | chosen))
     swaps = swap_summary([r for r in rows if r.get("augmented")], model, half)
     out = {"machine": machine(), "frames": len(real), "swaps": swaps, "frames_per_capture": a.frames,
-           "seeds": a.seeds, "body_seeds": a.body_seeds, "pose_seeds": a.pose_seeds,
+           "setups": a.setups, "seeds": a.seeds, "body_seeds": a.body_seeds, "pose_seeds": a.pose_seeds,
            "pose_frames": a.pose_frames, "model": model,
            "separation": separation(real, model["features"], half), "table": table,
            "curve": trade,
            "rows": rows}
+    rules = {"no gate": None}
+    if a.fit:
+        rules[f"before refit ≥ {mins(before)}"] = before
+    rules[f"fitted ≥ {mins(model)} (shipped)"] = model
+    for t in MINIMA:
+        rules.setdefault(f"fitted ≥ {t}", fixed(model, t))
+    if a.real:
+        if not (Path(a.real) / "videos").is_dir():
+            print(f"{a.real}: recording not found: the real check is skipped", file=sys.stderr)
+        else:
+            try:
+                import mediapipe  # noqa: F401
+                out["real"] = real_check(a.real, rules)
+            except ImportError:
+                print("mediapipe not installed: the real check is skipped", file=sys.stderr)
     if a.body_benchmark:
-        rules = {"no gate": None}
-        if a.fit:
-            rules[f"before refit ≥ {before['min_confidence']}"] = before
-        rules[f"fitted ≥ {model['min_confidence']} (shipped)"] = model
-        for t in MINIMA:
-            rules.setdefault(f"fitted ≥ {t}", {**model, "min_confidence": t})
         out["body_benchmark"] = body_benchmark(rules)
     res = results_dir()
-    (res / "confidence.json").write_text(json.dumps(out, indent=1))
+    (res / "confidence.json").write_text(json.dumps(out, separators=(",", ":")))
     groups = ["all"] + ["/".join(k) for k in kinds]
-    L = ["# The per-frame confidence that decides `matched` (synthetic subjects only)", "",
-         f"{len(real)} processed frames ({', '.join(subjects)}; 4 and 8 cameras × walk/random; "
+    setups = "; ".join(f"{k}: {c} cameras {w}×{h} noise {n}" for k in a.setups.split(",")
+                       for c, (w, h), n in [SETUPS[k]])
+    L = ["# The per-frame confidence that decides `matched` (fitted on synthetic subjects only)",
+         "",
+         f"{len(real)} processed frames ({', '.join(subjects)}; camera set-ups {setups}; "
+         "each × walk/random; "
          f"body: {a.body_seeds} seeds, build by seed ({', '.join(BUILDS)}); human: {a.seeds} "
          f"seeds; {a.frames} frames each; and the body benchmark's poses, body/separated and "
          f"body/all as `quality.py --only body` but seeds {POSE_SEED0}–"
-         f"{POSE_SEED0 + a.pose_seeds - 1}, 8 cameras, {a.pose_frames} frames each; noise 1, "
+         f"{POSE_SEED0 + a.pose_seeds - 1}, each set-up, {a.pose_frames} frames each; "
          f"100³). Right = quality \"good\" or \"missing limb\" (issue 11's TP) at {TOLERANCE} × "
          f"height for every part. Calibration = the first half of the seeds (fits the "
-         f"coefficients, and the minimum: the largest keeping {KEEP:.0%} of the right frames "
-         f"there, out of fold), held out = the rest. "
+         f"coefficients on the frames matched or rejected for their AHA distance alone — the "
+         f"fitted confidence replaces T_d — and the minimum: the smallest whose out-of-fold "
+         f"precision of matched reaches {PRECISION} in every set-up), held out = the rest. "
          f"Machine: {out['machine']['cpu']}, {out['machine']['date']}. Written by "
          "`benchmarks/confidence.py`.", "",
          "Cells: matched frames / right frames present, precision of matched, recall of the "
@@ -418,12 +533,12 @@ def main(argv=None):
         cells = [f"{t[g]['matched']}/{t[g]['good']}, P {t[g]['precision']}, R {t[g]['recall']}"
                  for g in groups]
         L.append(f"| {t['seeds']} | {t['cameras']} | {t['rule']} | " + " | ".join(cells) + " |")
-    L += ["", "Held out, 8 cameras: precision / recall of the right frames at other minima of the "
-          "fitted confidence (the trade-off the minimum chooses).", "",
-          "| minimum | " + " | ".join(groups) + " |",
-          "| --- | " + " | ".join("---" for _ in groups) + " |"]
+    L += ["", "Held out, per set-up: precision / recall of the right frames at other minima of "
+          "the fitted confidence (the trade-off the minimum chooses).", "",
+          "| set-up | minimum | " + " | ".join(groups) + " |",
+          "| --- | --- | " + " | ".join("---" for _ in groups) + " |"]
     for t in trade:
-        L.append(f"| {'no gate' if t['min'] is None else t['min']} | "
+        L.append(f"| {t['setup']} | {'no gate (T_d)' if t['min'] is None else t['min']} | "
                  + " | ".join(f"P {t[g][0]}, R {t[g][1]}" for g in groups) + " |")
     if a.body_benchmark:
         bb = out["body_benchmark"]
@@ -439,12 +554,22 @@ def main(argv=None):
                 (lambda v: f"TP {v['tp_rate']} ({v['tp']}/{v['right']} right), FP/match "
                            f"{v['fp_per_match']} ({v['fp']})")(bb[f"{k}|{n}"])
                 for k in POSE_KINDS) + " |")
+    if "real" in out:
+        rr = out["real"]
+        L += ["", f"The real recording (`benchmarks/real.py`: Pose2Sim's balancing trial, 4 phone "
+              f"cameras 1088×1920, {rr['method']} silhouettes, 100³; never fitted on): "
+              f"{rr['right']} of {rr['frames']} frames right (head, both hands, both feet within "
+              "0.15 m of Pose2Sim's 3D result); each rule on the same run's frames.", "",
+              "| rule | matched | right among them | precision of matched |",
+              "| --- | --- | --- | --- |"]
+        for n, v in rr["rules"].items():
+            L.append(f"| {n} | {v['matched']} | {v['right_matched']} | {v['precision']} |")
     L += ["", "Deliberate head ↔ hand swaps of the right matched frames (wrong by ground truth; "
           "the calibration half's are fitted on too): share the gate rejects — "
           + "; ".join(f"{k}: {v['rejected']}/{v['wrong']}" for k, v in swaps.items()) + "."]
     L += ["", "## Model (`src/topopose/pose/confidence_model.json`)", "",
           f"confidence = σ(b + Σ c_i (x_i − mean_i) / scale_i), b = {model['intercept']}, "
-          f"`matched` needs ≥ {model['min_confidence']}.", "",
+          f"`matched` needs ≥ {mins(model)}.", "",
           "| feature | coefficient | mean | scale | median right / wrong (calibration) |",
           "| --- | --- | --- | --- | --- |"]
     for f, c, m, s in zip(model["features"], model["coef"], model["mean"], model["scale"]):

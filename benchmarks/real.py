@@ -101,10 +101,12 @@ def make_capture(rec: Path, out: Path, method: str, extra: str = "") -> None:
         f'[silhouettes]\nmethod = "{method}"\n{extra}')
 
 
-def summarize(poses, ref, frames_index) -> dict:
+def summarize(poses, ref, frames_index, min_confidence) -> dict:
+    """Scores of ``poses`` judged without the gate; *gated*: matched with the confidence gate at
+    ``min_confidence`` (:func:`topopose.pose.confidence.passes_gate`, as ``run`` decides)."""
     errs, right, matched_right, matched = [], 0, 0, 0
     per = {k: [] for k in ("head", "hand", "foot")}
-    from topopose.pose.confidence import MIN_CONFIDENCE
+    from topopose.pose.confidence import passes_gate
 
     rows, gated, gated_right = [], 0, 0
     for p in poses:
@@ -115,9 +117,9 @@ def summarize(poses, ref, frames_index) -> dict:
         if p.status == "matched":
             matched += 1
             matched_right += ok
-            if (p.diagnostics.get("confidence") or 0) >= MIN_CONFIDENCE:   # run --confidence-gate
-                gated += 1
-                gated_right += ok
+        if passes_gate(p.status, p.error, p.diagnostics.get("confidence"), min_confidence):
+            gated += 1
+            gated_right += ok
         if e is not None:
             per["head"].append(e["head"])
             per["hand"] += [e["hand_L"], e["hand_R"]]
@@ -142,24 +144,27 @@ def summarize(poses, ref, frames_index) -> dict:
             "failed": sum(p.status == "failed" for p in poses), "errors": stats, "rows": rows}
 
 
-def as_run(poses, model, up, gate: bool) -> list:
+def as_run(poses, model, up, min_confidence) -> list:
     """The poses as ``topopose run`` writes them (:func:`topopose.pose.run.run`): the confidence
-    gate's decision when ``gate`` (the run's default, :func:`~topopose.pose.estimate.default_gate`),
+    gate's decision at ``min_confidence`` unless None (the run's default gate,
+    :func:`~topopose.pose.estimate.default_gate`, at its minimum for the camera count),
     then :func:`~topopose.pose.motion.process_sequence` (track, skeleton, sides), the mirror
     names turned back into numbered parts for scoring. ``poses`` are left as they are."""
     import copy
 
     from topopose.pose.chirality import numbered
-    from topopose.pose.confidence import MIN_CONFIDENCE
+    from topopose.pose.confidence import passes_gate
     from topopose.pose.motion import process_sequence
 
     ps = copy.deepcopy(poses)
-    if gate:
+    if min_confidence is not None:
         for p in ps:
             c = p.diagnostics.get("confidence")
-            if p.status == "matched" and c is not None and c < MIN_CONFIDENCE:
+            if passes_gate(p.status, p.error, c, min_confidence):
+                p.status, p.error = "matched", None
+            elif p.status == "matched":
                 p.status = "rejected"
-                p.error = f"confidence {c:.2f} below {MIN_CONFIDENCE:g}"
+                p.error = f"confidence {c if c is None else round(c, 2)} below {min_confidence:g}"
     motion = process_sequence(ps, model, up, track=True, sides=True, skeleton=True)
     return [numbered(p, model) for p in motion.poses]
 
@@ -195,9 +200,10 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
             t_rest = time.perf_counter() - t1
     temporal_confidence(poses, {f: i for i, f in enumerate(cap.frames)}, gate=False)
     idx = {f: i for i, f in enumerate(cap.frames)}
-    res = summarize(poses, ref, idx)
-    run_poses = as_run(poses, est.model, cap.up_vector, default_gate(cap))
-    res["as_run"] = summarize(run_poses, ref, idx)
+    mc = est.min_confidence                   # the run's minimum for this camera count
+    res = summarize(poses, ref, idx, mc)
+    run_poses = as_run(poses, est.model, cap.up_vector, mc if default_gate(cap) else None)
+    res["as_run"] = summarize(run_poses, ref, idx, mc)
     res["as_run"]["predicted"] = sum(bool(p.diagnostics.get("predicted")) for p in run_poses)
     stages = {}
     for p in poses[1:]:

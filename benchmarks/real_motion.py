@@ -170,7 +170,7 @@ def score(raw, final, trc_path, ref, model):
     poses and the exported TRC (read back)."""
     from real import RIGHT, frame_errors
 
-    from topopose.pose.confidence import MIN_CONFIDENCE
+    from topopose.pose.confidence import min_confidence_for, replaces_threshold
     from topopose.pose.export import read_trc
 
     names, _t, trc = read_trc(trc_path)
@@ -180,7 +180,9 @@ def score(raw, final, trc_path, ref, model):
         e = frame_errors(p.parts, ref, i) if p.status != "failed" else None
         right.append(e is not None and all(v <= RIGHT for v in e.values()))
     aha = [p.distance is not None and p.distance <= model.threshold for p in raw]
-    gated = [a and (p.diagnostics.get("confidence") or 0) >= MIN_CONFIDENCE for a, p in zip(aha, raw)]
+    mc = min_confidence_for(4)                           # the run's minimum for 4 cameras
+    gated = [(a or replaces_threshold()) and (p.diagnostics.get("confidence") or 0) >= mc
+             for a, p in zip(aha, raw)]
     markers = []
     for i in range(n):
         w = trc[i][:, [2, 0, 1]]                          # TRC (X, Y, Z) = world (y, z, x)

@@ -35,7 +35,7 @@ def test_features_of_a_hand_built_frame():
     assert f["distance"] == pytest.approx(0.5)
     assert f["thickness"] == pytest.approx(0.3)
     assert f["fat"] == pytest.approx(1000 * 0.001 / 1.0)
-    assert f["spurious"] == 1 and f["spurious_length"] == pytest.approx(0.1)
+    assert f["spurious"] == 1 and f["spurious_length"] == pytest.approx(0.1 / 2.0)  # of the total
     ptot, dtot = model.tree.total_weight(), 2.0
     want = max(abs(math.log((0.3 / dtot) / (0.27 / ptot))), abs(math.log((0.3 / dtot) / (0.3 / ptot))))
     assert f["arc_dev"] == pytest.approx(want, abs=1e-4)
@@ -69,8 +69,17 @@ def test_shipped_model_is_complete():
     m = C.CONFIDENCE_MODEL
     assert set(m["features"]) <= set(C.FEATURES)
     assert len(m["coef"]) == len(m["mean"]) == len(m["scale"]) == len(m["features"])
+    assert all(s > 0 for s in m["scale"]) and all(map(math.isfinite, m["coef"] + [m["intercept"]]))
     assert 0 < m["min_confidence"] < 1 and C.MIN_CONFIDENCE == m["min_confidence"]
-    assert "human" in m["models"]
+    assert "human" in m["models"] and isinstance(m["replaces_threshold"], bool)
+    assert C.MODEL_PATH.stat().st_size < 4000           # a few numbers, not data
+    # a minimum per camera count; fewer cameras than any: the strictest; never below a
+    # smaller camera count's (more cameras, a confidence more often right)
+    by = {int(k): v for k, v in m["min_confidence_by_cameras"].items()}
+    assert max(by.values()) == m["min_confidence"] == C.min_confidence_for(1)
+    for k in by:
+        assert C.min_confidence_for(k) == C.min_confidence_for(k + 1) == by[k]
+    assert C.min_confidence_for(None) == m["min_confidence"]
 
 
 @pytest.fixture(scope="module")
@@ -92,11 +101,14 @@ def clean():
 
 
 def test_clean_frames_pass_the_gate(clean):
-    _, _, out = clean
-    passed = [p.status == "matched" and p.diagnostics["confidence"] >= C.MIN_CONFIDENCE
+    cap, est, out = clean
+    assert est.min_confidence == C.min_confidence_for(8) <= C.MIN_CONFIDENCE
+    passed = [p.status == "matched" and p.diagnostics["confidence"] >= est.min_confidence
               for p, _ in out]
-    # every one (confidences 0.87–0.99 against the minimum 0.74 when refitted, 2026-11)
-    assert all(passed), [p.diagnostics["confidence"] for p, _ in out]
+    # confidences 0.89, 0.808, 0.98 against the 8-camera minimum 0.81 when refitted (2026-11):
+    # the minimum is chosen for precision 0.95, held-out right 8-camera frames pass ~3 in 4
+    conf = [p.diagnostics["confidence"] for p, _ in out]
+    assert sum(passed) >= 2 and min(conf) >= 0.75, conf
     assert set(out[0][0].diagnostics["confidence_factors"]) == {"fitted", "hull", "size"}
 
 
@@ -116,7 +128,7 @@ def test_swapped_head_and_hand_fail_the_gate(clean):
             f = C.frame_features(det.volume, int(det.volume.data.sum()), det.data, est.model,
                                  est.up, pose.distance, est.threshold, 0, sw, 0.0, radii)
             c = C.fitted_confidence(f, det.volume.diagnostics.get("largest_share", 1.0))
-            assert c["confidence"] < C.MIN_CONFIDENCE, (pose.frame, hand, f, c)
+            assert c["confidence"] < est.min_confidence, (pose.frame, hand, f, c)
 
 
 def test_spurious_limb_fails_the_gate(clean):
@@ -150,7 +162,7 @@ def test_spurious_limb_fails_the_gate(clean):
         bad = est.estimate(frame)
     finally:
         del est.hull
-    assert bad.diagnostics["confidence"] < C.MIN_CONFIDENCE
+    assert bad.diagnostics["confidence"] < est.min_confidence
     # the best guess is kept (the head, given the rod across the body axis, may be left
     # unplaced by the leaf-axis rule, pose/estimate.py LEAF_AXIS)
     assert bad.status == "rejected"
@@ -170,3 +182,111 @@ def test_time_factors_are_told_not_applied_to_the_fitted_confidence():
     C.temporal_confidence(ps, {p.frame: i for i, p in enumerate(ps)})
     assert ps[3].diagnostics["confidence_factors"]["time"] < 0.01       # told
     assert all(p.status == "matched" and p.diagnostics["confidence"] == 0.97 for p in ps)
+
+
+def _frame(scale=1.0, spurious=False):
+    """A hand-built frame with every model arc matched (lengths known), scaled by ``scale``
+    (hull, positions and tree weights alike); ``spurious``: an unmatched branch added."""
+    a = np.zeros((12, 12, 12), bool)
+    a[1:11, 1:11, 1:11] = True
+    vol = Volume(a, (0.3 * scale, -0.2 * scale, 0.0), 0.1 * scale)
+    P = {"t": (0.5, 0.5, 0.7), "c": (0.5, 0.5, 0.4), "h": (0.55, 0.5, 1.0),
+         "a1": (0.1, 0.5, 0.5), "a2": (0.9, 0.5, 0.6), "f1": (0.4, 0.5, 0.1),
+         "f2": (0.6, 0.5, 0.3), "s": (0.5, 0.9, 0.7)}
+    edges = [("t", "h", 0.3), ("t", "a1", 0.6), ("t", "a2", 0.4), ("t", "c", 0.3),
+             ("c", "f1", 0.8), ("c", "f2", 0.8)] + ([("t", "s", 0.5)] if spurious else [])
+    off = np.array([0.3, -0.2, 0.0])
+    data = Tree([(u, v, w * scale) for u, v, w in edges],
+                positions={k: scale * (np.array(v) + off) for k, v in P.items()
+                           if spurious or k != "s"})
+    model = load_model("human")
+    mapping = {"torso": "t", "crotch": "c", "head": "h", "hand_1": "a1", "hand_2": "a2",
+               "foot_1": "f1", "foot_2": "f2"}
+    pairs = [(["torso", "head"], ["t", "h"]), (["torso", "crotch"], ["t", "c"]),
+             (["torso", "hand_1"], ["t", "a1"]), (["torso", "hand_2"], ["t", "a2"]),
+             (["crotch", "foot_1"], ["c", "f1"]), (["crotch", "foot_2"], ["c", "f2"])]
+    al = SimpleNamespace(mapping=mapping, pairs=pairs)
+    radii = {"h": 0.6, "a1": 0.2, "a2": 0.3, "f1": 0.25, "f2": 0.1}
+    return vol, int(a.sum()), data, model, al, radii
+
+
+def test_matched_shape_features_by_hand():
+    """``shape`` (L1 of the matched arcs' length shares against the model's), ``shape_max``
+    (largest |log| ratio), ``limb_sym`` (|log| of the arms' and of the legs' length ratio),
+    ``spurious_share`` (data weight outside the matched arcs), computed by hand."""
+    vol, n, data, model, al, radii = _frame()
+    f = C.frame_features(vol, n, data, model, (0, 0, 1), 0.2, 0.4, 0, al, 0.0, radii)
+    pw = {(u, v): w for u, v, w in model.tree.edges}
+    pl = [pw[("torso", "head")], pw[("torso", "crotch")], pw[("torso", "hand_1")],
+          pw[("torso", "hand_2")], pw[("crotch", "foot_1")], pw[("crotch", "foot_2")]]
+    dl = [0.3, 0.3, 0.6, 0.4, 0.8, 0.8]
+    ds, ps = np.array(dl) / sum(dl), np.array(pl) / sum(pl)
+    assert f["shape"] == pytest.approx(np.abs(ds - ps).sum(), abs=1e-4)
+    assert f["shape_max"] == pytest.approx(np.abs(np.log(ds / ps)).max(), abs=1e-4)
+    assert f["limb_sym"] == pytest.approx(math.log(0.6 / 0.4), abs=1e-4)
+    assert f["spurious_share"] == pytest.approx(0.0, abs=1e-6)
+    g = C.frame_features(vol, n, *_frame(spurious=True)[2:3], model, (0, 0, 1), 0.2, 0.4, 0,
+                         al, 0.0, radii)
+    # an unmatched (e.g. phantom-volume) branch: the matched shape is unchanged, arc_dev is not
+    for k in ("shape", "shape_max", "limb_sym"):
+        assert g[k] == pytest.approx(f[k], abs=1e-6), k
+    assert g["spurious_share"] == pytest.approx(0.5 / 3.7, abs=1e-4)
+    assert g["arc_dev"] != pytest.approx(f["arc_dev"], abs=1e-3)
+
+
+def test_features_and_confidence_do_not_depend_on_scale():
+    """The same frame twice as large (hull, positions, arc lengths; the AHA distance of
+    normalized trees is unchanged): every feature and the confidence are the same."""
+    f1, f2 = [C.frame_features(*(lambda v, n, d, m, al, r: (v, n, d, m, (0, 0, 1), 0.3, 0.4, 0,
+                                                            al, 0.0, r))(*_frame(s, True)))
+              for s in (1.0, 2.0)]
+    for k in C.FEATURES:
+        assert f2[k] == pytest.approx(f1[k], abs=2e-5), k
+    assert C.fitted_confidence(f1, 1.0) == C.fitted_confidence(f2, 1.0)
+
+
+def test_the_fitted_confidence_decides_instead_of_the_distance_threshold():
+    """With the gate on, a frame rejected for its AHA distance alone is matched when its
+    confidence reaches the minimum (the distance is one of its features); without the gate the
+    threshold stands; other rejections stand either way; the best guess is kept."""
+    vol, n, data, model, al, radii = _frame()
+    err = "AHA distance 0.900 above threshold T_d = 0.4"
+    args = (vol, n, data, model, (0, 0, 1), 0.9, model.threshold, 0)
+    st, e, d = C.judge_frame(*args, "rejected", err, min_confidence=0.0, al=al)
+    assert (st, e) == ("matched", None) and C.replaces_threshold()
+    st, e, d = C.judge_frame(*args, "rejected", err, min_confidence=1.0, al=al)
+    assert st == "rejected" and e.startswith("confidence")
+    assert C.judge_frame(*args, "rejected", err, min_confidence=None, al=al)[:2] == ("rejected", err)
+    other = "3 parts unmatched (head, hand_1, hand_2)"
+    assert C.judge_frame(*args, "rejected", other, min_confidence=0.0, al=al)[:2] == ("rejected", other)
+    assert not C.distance_only("AHA distance inf above threshold T_d = 0.4")
+    # a T_d chosen by the caller (not the model's own) stands
+    chosen = (vol, n, data, model, (0, 0, 1), 0.9, model.threshold / 2, 0)
+    assert C.judge_frame(*chosen, "rejected", err, min_confidence=0.0, al=al)[:2] == ("rejected", err)
+
+
+def test_a_limb_cut_off_scores_below_the_intact_frame(clean):
+    """The hull with one forearm cut off (its voxels within 0.3 m of the hand's ground truth
+    erased, as a segmentation network that loses a hand would): each frame's confidence falls
+    below the intact frame's."""
+    cap, est, out = clean
+    hull = est.hull
+    for pose, det in out:
+        gt = np.asarray(cap.gt["frames"][pose.frame]["parts"]["hand_1"], float)
+
+        def cut(name, gt=gt):
+            vol = hull(name)
+            idx = np.argwhere(vol.data)
+            x = vol.origin + idx * vol.voxel_size
+            gone = idx[np.linalg.norm(x - gt, axis=1) < 0.3]
+            vol.data[tuple(gone.T)] = False
+            vol.diagnostics.pop("bbox", None)
+            vol.diagnostics["voxels"] = int(vol.data.sum())
+            return vol
+
+        est.hull = cut
+        try:
+            bad = est.estimate(pose.frame)
+        finally:
+            del est.hull
+        assert bad.diagnostics["confidence"] < pose.diagnostics["confidence"], pose.frame

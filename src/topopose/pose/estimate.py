@@ -159,7 +159,7 @@ class FrameEstimator:
                  tip_fraction=1.0, spine=None,
                  head_from_hull=None):
         from ..match import Matcher
-        from .confidence import MIN_CONFIDENCE
+        from .confidence import min_confidence_for
 
         self.min_share = float(min_share)
         # the fitted confidence knows upright subjects only (its head features look up): without
@@ -172,7 +172,8 @@ class FrameEstimator:
         self.cap = cap
         self.model: Model = load_model(model, constraints=constraints)
         if self.min_confidence is None and self.model.name == "human":
-            self.min_confidence = MIN_CONFIDENCE   # calibrated for the human model only
+            # calibrated for the human model only, per number of cameras
+            self.min_confidence = min_confidence_for(len(cap.cameras))
         self.resolution = int(resolution)
         if self.resolution < 8:
             raise InputError(f"--resolution: {resolution} is too small (at least 8 voxels)")

@@ -297,19 +297,26 @@ def time_breakdown(rec: Path, n: int = 20) -> dict:
 
 def _picture(cap, est, poses, res, path):
     """Silhouettes with the reprojected parts and the hull/skeleton of a matched, right frame
-    (else the best-confidence one), and of a wrong one."""
+    (else the best-confidence one) at ``path``, and of the worst wrong frame (largest error of
+    head, hands, feet) at ``path`` with suffix ``_wrong``."""
     from topopose.viz.view import render_frame
 
     rows = {r["frame"]: r for r in res["rows"]}
     good = [p for p in poses if p.status == "matched" and rows[p.frame]["right"]]
     pick = good[len(good) // 2] if good else max(
         (p for p in poses if p.status != "failed"), key=lambda p: p.diagnostics.get("confidence", 0))
-    pose, det = est.estimate(pick.frame, detail=True)
-    pose = pick
-    render_frame(str(path), est.model, pose, det, cap=cap, silhouettes=True, up=cap.up_vector,
-                 title=f"Pose2Sim balancing, frame {pick.frame}: {pick.status}, confidence "
-                       f"{pick.diagnostics.get('confidence')}, "
-                       f"{'right' if rows[pick.frame]['right'] else 'wrong'} (≤ 0.15 m)")
+    wrong = [p for p in poses if rows[p.frame]["errors"] and not rows[p.frame]["right"]]
+    worst = max(wrong, key=lambda p: max(rows[p.frame]["errors"].values()), default=None)
+    for p, out in ((pick, Path(path)), (worst, Path(path).with_name(Path(path).stem + "_wrong.png"))):
+        if p is None:
+            continue
+        _, det = est.estimate(p.frame, detail=True)
+        e = rows[p.frame]["errors"] or {}
+        render_frame(str(out), est.model, p, det, cap=cap, silhouettes=True, up=cap.up_vector,
+                     title=f"Pose2Sim balancing, frame {p.frame}: {p.status}, confidence "
+                           f"{p.diagnostics.get('confidence')}, "
+                           f"{'right' if rows[p.frame]['right'] else 'wrong'} (≤ 0.15 m); largest "
+                           f"error {max(e.values(), default=float('nan')):.2f} m")
     return pick.frame
 
 

@@ -9,6 +9,7 @@ import pytest
 
 from topopose.hull import Volume
 from topopose.match.tree import Tree
+from topopose.pose import Pose
 from topopose.pose import confidence as C
 from topopose.pose.model import load_model
 
@@ -255,7 +256,10 @@ def test_the_fitted_confidence_decides_instead_of_the_distance_threshold():
     st, e, d = C.judge_frame(*args, "rejected", err, min_confidence=0.0, al=al)
     assert (st, e) == ("matched", None) and C.replaces_threshold()
     st, e, d = C.judge_frame(*args, "rejected", err, min_confidence=1.0, al=al)
-    assert st == "rejected" and e.startswith("confidence")
+    assert st == "rejected" and e == f"{err}; confidence 0.00 below 1"   # both reasons
+    from topopose.pose.track import gated_only
+
+    assert not gated_only(Pose("f", st, 0.9, {}, e))   # not a frame only the gate rejected
     assert C.judge_frame(*args, "rejected", err, min_confidence=None, al=al)[:2] == ("rejected", err)
     other = "3 parts unmatched (head, hand_1, hand_2)"
     assert C.judge_frame(*args, "rejected", other, min_confidence=0.0, al=al)[:2] == ("rejected", other)

@@ -367,8 +367,10 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
             and distance_only(error) and threshold == model.threshold):
         # the fitted confidence has the distance among its features: it decides instead of the
         # model's own T_d (a T_d the caller chose stands); with 4 cameras the phantom branches'
-        # deletion cost alone exceeds T_d
-        status, error = "matched", None
+        # deletion cost alone exceeds T_d (kept in the reason if the confidence rejects it too)
+        status, error, above_td = "matched", None, error
+    else:
+        above_td = None
     if status == "matched" and share < min_share:
         status = "rejected"
         total = n_vox + sum(dropped)
@@ -379,6 +381,8 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     elif status == "matched" and min_confidence is not None and conf["confidence"] < min_confidence:
         status = "rejected"
         error = f"confidence {conf['confidence']:.2f} below {min_confidence:g}"
+        if above_td:           # not a frame only the gate rejected (track.gated_only)
+            error = f"{above_td}; {error}"
     metre = _UNITS.get(units, 1.0)
     diag = {"hull_litres": round(n_vox * (vol.voxel_size * metre) ** 3 * 1000.0, 2),
             "largest_share": round(share, 4), "components_dropped": dropped[:5],

@@ -73,20 +73,14 @@ def front_direction(vol, skeleton, data, mapping: dict, feet, up, reach: float =
     return acc / length
 
 
-def hull_radius(vol) -> float:
+def hull_radius(vol, edt=None) -> float:
     """The hull's largest inscribed-ball radius in world units (exact Euclidean distance
-    transform on the hull's bounding box)."""
-    from scipy import ndimage
+    transform on the hull's bounding box; ``edt``: :func:`.tips.inscribed_distances` of
+    ``vol.data`` if already computed)."""
+    from .tips import inscribed_distances
 
-    a = vol.data
-    bbox = (vol.diagnostics or {}).get("bbox")
-    if bbox is not None:
-        lo = [max(int(x) - 1, 0) for x in bbox[0]]
-        hi = [min(int(x) + 2, n) for x, n in zip(bbox[1], a.shape)]
-        a = a[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]
-    if not a.any():
-        return 0.0
-    return float(ndimage.distance_transform_edt(np.pad(a, 1)).max()) * float(vol.voxel_size)
+    edt = inscribed_distances(vol.data) if edt is None else edt
+    return 0.0 if edt is None else float(edt[0].max()) * float(vol.voxel_size)
 
 
 def spine_shift(parts: dict, front, radius: float, shares: dict) -> dict:

@@ -378,14 +378,18 @@ class FrameEstimator:
                 if parts.get(p) is not None:
                     parts[p] = (x if self.tip_fraction == 1.0
                                 else parts[p] + self.tip_fraction * (x - parts[p]))
+        edt = None
+        if self.spine or self.head_from_hull is not None:     # inscribed radii, once a frame
+            from .tips import inscribed_distances
+            edt = inscribed_distances(vol.data)
         if self.spine:      # the spine lies behind the medial axis (pose/anatomy.py)
-            parts, diag_spine = self.spine_parts(vol, skel, data, al, parts)
+            parts, diag_spine = self.spine_parts(vol, skel, data, al, parts, edt)
         missing = [p for p, x in parts.items() if x is None]   # by the alignment: the status
         from_hull = []
         if self.head_from_hull is not None:
             from .tips import head_from_hull
             head, anchor, frac = self.head_from_hull
-            x = head_from_hull(vol, self.up, parts.get(anchor), frac)
+            x = head_from_hull(vol, self.up, parts.get(anchor), frac, edt=edt)
             if x is not None:
                 parts[head] = x
                 from_hull.append(head)
@@ -434,7 +438,7 @@ class FrameEstimator:
         pose = Pose(name, status, dist, parts, error, timings, diag)
         return (pose, det) if detail else pose
 
-    def spine_parts(self, vol, skel, data, al, parts):
+    def spine_parts(self, vol, skel, data, al, parts, edt=None):
         """``parts`` with the body-axis parts moved back onto the spine
         (:mod:`topopose.pose.anatomy`), and the shift applied (world units, or None)."""
         from .anatomy import front_direction, hull_radius, spine_shift
@@ -443,7 +447,7 @@ class FrameEstimator:
         front = front_direction(vol, skel, data, al.mapping, feet, self.up)
         if front is None:
             return parts, None
-        r = hull_radius(vol)
+        r = hull_radius(vol, edt)
         return spine_shift(parts, front, r, self.spine), [round(float(x), 4) for x in -r * front]
 
     def _failed(self, name, reason, timings, t_all):

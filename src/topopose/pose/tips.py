@@ -112,23 +112,35 @@ def extremity_tips(vol, skeleton, data, mapping: dict, leaf_parts, reach: float 
     return out
 
 
+def inscribed_distances(volume: np.ndarray):
+    """Euclidean distance transform of ``volume`` (bool grid) on its bounding box padded by one
+    empty voxel: ``(dt, lo)``, voxel ``ijk`` of the grid at ``dt[ijk - lo + 1]``; None when the
+    volume is empty. One per frame serves :func:`thick_top` and
+    :func:`topopose.pose.anatomy.hull_radius`."""
+    from scipy.ndimage import distance_transform_edt
+
+    axes = [np.flatnonzero(volume.any(axis=tuple(k for k in range(3) if k != a))) for a in range(3)]
+    if not len(axes[0]):
+        return None
+    lo = np.array([a[0] for a in axes])
+    hi = np.array([a[-1] + 1 for a in axes])
+    return distance_transform_edt(np.pad(volume[tuple(slice(a, b) for a, b in zip(lo, hi))], 1)), lo
+
+
 def thick_top(volume: np.ndarray, origin, voxel_size: float, up, min_fraction: float,
-              min_voxels: float = 1.5):
+              min_voxels: float = 1.5, edt=None):
     """The highest point (along ``up``) of ``volume`` (bool grid) whose inscribed ball radius
     is at least ``min_fraction`` × the largest one (the trunk's), and that radius (world units);
     None when the volume is empty or that radius is below ``min_voxels`` voxels (a coarse grid
     cannot tell a head from an arm by thickness: body subject at 50³, ``HEAD_FROM_HULL``).
+    ``edt``: :func:`inscribed_distances` of ``volume`` if already computed.
 
     The head of an upright subject is the highest *thick* part: hands and forearms raised
     beside or above it are thinner (see :func:`head_from_hull`)."""
-    from scipy.ndimage import distance_transform_edt
-
-    idx = np.argwhere(volume)
-    if not len(idx):
+    edt = inscribed_distances(volume) if edt is None else edt
+    if edt is None:
         return None
-    lo, hi = idx.min(axis=0), idx.max(axis=0) + 1
-    sub = np.pad(volume[tuple(slice(a, b) for a, b in zip(lo, hi))], 1)
-    dt = distance_transform_edt(sub)
+    dt, lo = edt
     if min_fraction * dt.max() < min_voxels:
         return None
     ijk = np.argwhere(dt >= min_fraction * dt.max())
@@ -138,7 +150,8 @@ def thick_top(volume: np.ndarray, origin, voxel_size: float, up, min_fraction: f
     return pts[top].mean(axis=0), float(dt[tuple(ijk[top].T)].mean()) * voxel_size
 
 
-def head_from_hull(vol, up, anchor=None, min_fraction: float = 0.4, max_radii: float = 3.0):
+def head_from_hull(vol, up, anchor=None, min_fraction: float = 0.4, max_radii: float = 3.0,
+                   edt=None):
     """The head of an upright subject from the hull alone: from the highest thick point
     (:func:`thick_top`), where the direction from ``anchor`` (the torso part) through it leaves
     the hull (the crown), at most ``max_radii`` inscribed radii on; None for an empty hull or
@@ -149,8 +162,9 @@ def head_from_hull(vol, up, anchor=None, min_fraction: float = 0.4, max_radii: f
     head merges into the shoulder mass and the alignment puts the head part on the arm or on a
     phantom branch (real recording, frames 28–74: head errors 0.2–0.45 m, no data leaf within
     0.23 m of the head marker). Measured in :data:`topopose.pose.estimate.HEAD_FROM_HULL`: right
-    frames of the real recording 32 → 71 of 100, the body subject's head error 5.6 → 2.1 cm."""
-    top = thick_top(vol.data, vol.origin, float(vol.voxel_size), up, min_fraction)
+    frames of the real recording 32 → 71 of 100, the body subject's head error 5.6 → 2.1 cm.
+    ``edt``: :func:`inscribed_distances` of the hull if already computed."""
+    top = thick_top(vol.data, vol.origin, float(vol.voxel_size), up, min_fraction, edt=edt)
     if top is None:
         return None
     c, r = top

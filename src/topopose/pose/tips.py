@@ -117,14 +117,15 @@ def inscribed_distances(volume: np.ndarray):
     empty voxel: ``(dt, lo)``, voxel ``ijk`` of the grid at ``dt[ijk - lo + 1]``; None when the
     volume is empty. One per frame serves :func:`thick_top` and
     :func:`topopose.pose.anatomy.hull_radius`."""
-    from scipy.ndimage import distance_transform_edt
+    import edt
 
     axes = [np.flatnonzero(volume.any(axis=tuple(k for k in range(3) if k != a))) for a in range(3)]
     if not len(axes[0]):
         return None
     lo = np.array([a[0] for a in axes])
     hi = np.array([a[-1] + 1 for a in axes])
-    return distance_transform_edt(np.pad(volume[tuple(slice(a, b) for a, b in zip(lo, hi))], 1)), lo
+    sub = np.pad(volume[tuple(slice(a, b) for a, b in zip(lo, hi))], 1).astype(np.uint8)
+    return edt.edt(sub, black_border=False, parallel=1), lo     # = scipy's, 2–6× faster
 
 
 def thick_top(volume: np.ndarray, origin, voxel_size: float, up, min_fraction: float,

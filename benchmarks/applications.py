@@ -320,9 +320,10 @@ DETECT_MARGINS = (0.0, 0.05, 0.08)
 
 
 #: the ``body`` subject's rig points nearest to what the pipeline calls each part (measured in
-#: benchmarks/results/applications.md: the skeleton's head end lies at the skull's base, its
-#: hand end at the wrist, its torso junction at mid-chest, its crotch at the pelvis' top)
-BODY_PART_JOINTS = {"head": "Head_head", "torso": "Spine1_head", "crotch": "Hips_head",
+#: benchmarks/results/applications.md: the head is the crown, where the hull's highest thick
+#: point leaves the hull (pose/tips.py head_from_hull), the hand end at the wrist, the torso
+#: junction at mid-chest, the crotch at the pelvis' top)
+BODY_PART_JOINTS = {"head": "Head_tail", "torso": "Spine1_head", "crotch": "Hips_head",
                     "hand_1": "LeftHand_head", "hand_2": "RightHand_head"}
 
 
@@ -690,8 +691,9 @@ def main(argv=None):
                      f"{pr(c['good_stable'])} | {e['not_good']} / {e['borderline']} / {e['stable_good']} |")
     bj = {n: det_summary["body"][n].get("truth_joints") for n in pose_names}
     if any(bj.values()):
-        L += ["", "*Definitions.* The pipeline's head is the end of the head's skeleton branch, "
-              "which lies at the skull's base (rig point `Head_head`: vertical offset below), its "
+        L += ["", "*Definitions.* The pipeline's head is the crown (for the upright human the "
+              "head is taken from the hull, `pose/tips.py` `head_from_hull`: rig point "
+              "`Head_tail`, vertical offset below), its "
               "hands at the wrists, its torso at mid-chest, its crotch at the pelvis' top; gt.json's "
               "head is the crown minus the head's radius, its hands the fingertips minus the "
               "hand's radius, its torso the neck base, its crotch the hip centre. Evaluating the "

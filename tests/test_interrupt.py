@@ -24,7 +24,9 @@ sys.exit(main(sys.argv[1:]))
 def test_ctrl_c_with_workers_is_one_line(tmp_path):
     from topopose.capture import synthesize
 
-    cap = synthesize(tmp_path / "cap", subject="human", frames=40, seed=2, cameras=6,
+    N = 160      # long enough that the run is still going when Ctrl-C comes (7 frames/s here)
+
+    cap = synthesize(tmp_path / "cap", subject="human", frames=N, seed=2, cameras=6,
                      size=(240, 180), separated=True)
     out = tmp_path / "p.jsonl"
     env = dict(os.environ, PYTHONPATH=SRC)
@@ -44,7 +46,7 @@ def test_ctrl_c_with_workers_is_one_line(tmp_path):
     _, err = p.communicate(timeout=120)
     err = err.decode().replace("\r", "\n")
     assert "faster in this process" not in err               # the Dask workers did run
-    lines = [x for x in err.splitlines() if x.strip() and "frame/s" not in x and "/40 [" not in x]
+    lines = [x for x in err.splitlines() if x.strip() and "frame/s" not in x and f"/{N} [" not in x]
     assert p.returncode == 130, err[-2000:]
     assert "Traceback" not in err and lines == ["topopose: interrupted"], err[-2000:]
     from topopose.pose import read_poses

@@ -416,7 +416,8 @@ class FrameEstimator:
         status, error, extra = judge_frame(
             vol, n_vox, data, self.model, self.up, dist, self.threshold, len(missing), status,
             error, self.min_share, self.min_confidence if self.gate else None, self.cap.units,
-            al=al, thickness_cost=thick, reach=self.thickness_reach, radii=radii)
+            al=al, thickness_cost=thick, reach=self.thickness_reach,
+            radius_map=radii)
         diag = {"model": self.model.name, "resolution": self.resolution,
                 "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
                 "skeleton_voxels": int(data.diagnostics.get("n_voxels", -1)),

@@ -306,12 +306,17 @@ class FrameEstimator:
             # incomplete model: the skeleton end pinned where the infinite limb leaves the
             # grid is the border vertex (a mask, not "grid": fingertips touching the grid
             # side must not become infinite limbs too)
+            sq = None
             if self.prune > 0:         # bumps of the surface are no limbs (skeleton.prune)
                 from ..skeleton.prune import prune_bumps
-
+                if self.spine or self.head_from_hull is not None:
+                    # the distance transform the placement needs anyway gives the ball radii
+                    from .tips import hull_box, squared_distances
+                    sq = squared_distances(vol.data, hull_box(vol))
                 skel, data, _ = prune_bumps(skel, vol.data, self.prune, vol.origin,
                                             vol.voxel_size,
-                                            border=None if self.model.complete else keep)
+                                            border=None if self.model.complete else keep,
+                                            squared=sq)
                 det.skeleton = skel
             else:
                 data = data_tree(skel, origin=vol.origin, voxel_size=vol.voxel_size,
@@ -389,7 +394,7 @@ class FrameEstimator:
         edt = None
         if self.spine or self.head_from_hull is not None:     # inscribed radii, once a frame
             from .tips import inscribed_distances
-            edt = inscribed_distances(vol.data, box)
+            edt = inscribed_distances(vol.data, box, sq)
         if self.spine:      # the spine lies behind the medial axis (pose/anatomy.py)
             parts, diag_spine = self.spine_parts(vol, skel, data, al, parts, edt, sk_vox)
         missing = [p for p, x in parts.items() if x is None]   # by the alignment: the status

@@ -113,7 +113,8 @@ def main(argv=None):
              f"{cap.cameras[0].size[0]}×{cap.cameras[0].size[1]} in memory; each stage timed per "
              f"frame, minimum of {repeats} repeats, mean over frames. Default pipeline settings: "
              f"hull = consensus hull (tolerance 1 restricted to 1 voxel around the strict hull, "
-             f"both from one carve), cavity fill, D6I1D thinning, data tree (with bump pruning), AHA "
+             f"both from one carve), cavity fill, D6I1D thinning, data tree (with bump pruning and the "
+             f"frame's Euclidean distance transform, which the placement reuses), AHA "
              f"(with the thickness term); placement = the parts from the alignment (extremity "
              f"tips, spine shift, head from the hull), the frame's judgement (confidence) and "
              f"the skeleton curves. The total is the whole FrameEstimator.estimate call.", "",

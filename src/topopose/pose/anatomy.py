@@ -40,7 +40,7 @@ SPINE_SHIFT = {"human": {"torso": 0.32, "crotch": 0.34, "head": 0.17}}
 
 
 def front_direction(vol, skeleton, data, mapping: dict, feet, up, reach: float = 4.0,
-                    min_agreement: float = 1.0):
+                    min_agreement: float = 1.0, voxels=None):
     """The body's forward direction on the ground plane, from its feet, or None.
 
     Each foot matched to a data leaf gives the end direction of its skeleton branch
@@ -48,9 +48,10 @@ def front_direction(vol, skeleton, data, mapping: dict, feet, up, reach: float =
     projected on the plane normal to ``up`` and made unit; the result is their mean, made
     unit, when its length is at least ``min_agreement`` (two feet within 120° of each other:
     1.0; one foot: 1.0 as well) — None otherwise (no foot, feet pointing apart, a foot
-    pointing straight up or down)."""
+    pointing straight up or down). ``voxels``: :func:`topopose.pose.tips.skeleton_voxels` of
+    ``skeleton`` if already computed."""
     vs = float(vol.voxel_size)
-    pts = np.argwhere(skeleton) * vs + np.asarray(vol.origin, float)
+    pts = (np.argwhere(skeleton) if voxels is None else voxels) * vs + np.asarray(vol.origin, float)
     up = np.asarray(up, float)
     up = up / np.linalg.norm(up)
     acc, n = np.zeros(3), 0

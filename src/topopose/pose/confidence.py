@@ -322,7 +322,7 @@ def passes_gate(status, error, confidence, min_confidence) -> bool:
 
 def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
                 min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m", al=None,
-                thickness_cost=0.0, reach=0) -> tuple:
+                thickness_cost=0.0, reach=0, radius_map=None) -> tuple:
     """Status, reason and diagnostics of one frame from what the stages know.
 
     A ``matched`` frame becomes ``rejected`` when the hull's largest component holds less than
@@ -331,7 +331,8 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     fitted one (:func:`fitted_confidence`) for the models of :data:`CONFIDENCE_MODEL`, else
     the product (:func:`frame_confidence`). ``al``: the alignment (its mapping and matched
     arcs give the features), ``thickness_cost``: the part of its distance paid to the
-    thickness term, ``reach``: of :func:`topopose.pose.estimate.vertex_radii`.
+    thickness term, ``reach`` and ``radius_map`` (its ``radii``, if already computed): of
+    :func:`topopose.pose.estimate.vertex_radii`.
 
     Returns
     -------
@@ -354,7 +355,8 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
 
         from .estimate import vertex_radii
         mapped = [v for v in (al.mapping or {}).values() if v is not None]
-        radii = vertex_radii(vol, SimpleNamespace(vertices=mapped, positions=data.positions), reach)
+        radii = vertex_radii(vol, SimpleNamespace(vertices=mapped, positions=data.positions), reach,
+                             radius_map)
     feats = frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al,
                            thickness_cost, radii)
     fitted = model.name in CONFIDENCE_MODEL.get("models", ())

@@ -46,7 +46,8 @@ def resample(points, n=N_SAMPLES) -> np.ndarray:
     return np.stack([np.interp(t, s, p[:, c]) for c in range(3)], axis=1)
 
 
-def arc_curves(skeleton, origin, voxel_size, data, alignment, model, parts, n=N_SAMPLES) -> dict:
+def arc_curves(skeleton, origin, voxel_size, data, alignment, model, parts, n=N_SAMPLES,
+               voxels=None) -> dict:
     """Curve of each matched model arc (see the module docstring).
 
     Parameters
@@ -57,12 +58,13 @@ def arc_curves(skeleton, origin, voxel_size, data, alignment, model, parts, n=N_
     alignment : Alignment (``alignment.arc(u, v)``: data path of model arc u–v)
     model : Model
     parts : dict part -> position or None (the frame's part positions)
+    voxels : ndarray, optional (:func:`topopose.pose.tips.skeleton_voxels` of ``skeleton``)
 
     Returns
     -------
     dict child part -> ndarray (n, 3), from the parent part to the child part.
     """
-    idx = np.argwhere(skeleton)
+    idx = np.argwhere(skeleton) if voxels is None else voxels
     if len(idx) < 2:
         return {}
     world = np.asarray(origin, float) + idx * float(voxel_size)

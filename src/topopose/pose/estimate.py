@@ -227,11 +227,12 @@ class FrameEstimator:
                      and p.rstrip("_0123456789") in stems]
         self.spine = _spine_option(self.model, spine)
 
-    def arc_cost(self, vol, data):
-        """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off."""
+    def arc_cost(self, vol, data, radii=None):
+        """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off.
+        ``radii``: :func:`taxicab_radii` of ``vol`` if already computed."""
         if not self.thickness:
             return None
-        return thickness_arc_cost(vertex_radii(vol, data, self.thickness_reach),
+        return thickness_arc_cost(vertex_radii(vol, data, self.thickness_reach, radii),
                                   self.thickness_profile, self.thickness,
                                   root=self.model.root, root_arc=self._root_arc)
 
@@ -305,12 +306,17 @@ class FrameEstimator:
             # incomplete model: the skeleton end pinned where the infinite limb leaves the
             # grid is the border vertex (a mask, not "grid": fingertips touching the grid
             # side must not become infinite limbs too)
+            sq = None
             if self.prune > 0:         # bumps of the surface are no limbs (skeleton.prune)
                 from ..skeleton.prune import prune_bumps
-
+                if self.spine or self.head_from_hull is not None:
+                    # the distance transform the placement needs anyway gives the ball radii
+                    from .tips import hull_box, squared_distances
+                    sq = squared_distances(vol.data, hull_box(vol))
                 skel, data, _ = prune_bumps(skel, vol.data, self.prune, vol.origin,
                                             vol.voxel_size,
-                                            border=None if self.model.complete else keep)
+                                            border=None if self.model.complete else keep,
+                                            squared=sq)
                 det.skeleton = skel
             else:
                 data = data_tree(skel, origin=vol.origin, voxel_size=vol.voxel_size,
@@ -328,7 +334,9 @@ class FrameEstimator:
             det.data = data
             stage = "alignment"
             t0 = time.perf_counter()
-            arc_cost = self.arc_cost(vol, data)
+            # once a frame: the thickness term and judge_frame (which computes it when None)
+            radii = taxicab_radii(vol) if self.thickness else None
+            arc_cost = self.arc_cost(vol, data, radii)
             al = self.matcher.align(data, data_root=data_root, arc_cost=arc_cost)
             thick = matched_arc_cost(al, arc_cost)
             unordered = []
@@ -358,6 +366,10 @@ class FrameEstimator:
 
         # T_d applies to the length distance of §12.1.1; the thickness term only chooses the
         # alignment (see THICKNESS for the measurement)
+        t0 = time.perf_counter()       # "placement": parts, judgement and curves of the frame
+        from .tips import hull_box, skeleton_voxels
+        box = hull_box(vol)
+        sk_vox = skeleton_voxels(skel, box)     # the skeleton's voxels, once a frame
         dist = float(al.distance) - thick
         parts = {}
         for p in self.model.parts:
@@ -374,16 +386,17 @@ class FrameEstimator:
         on_skeleton = dict(parts)      # the skeleton curves end at the branch ends
         if self.tips:
             from .tips import extremity_tips
-            for p, x in extremity_tips(vol, skel, data, al.mapping, self.tips).items():
+            for p, x in extremity_tips(vol, skel, data, al.mapping, self.tips,
+                                          voxels=sk_vox).items():
                 if parts.get(p) is not None:
                     parts[p] = (x if self.tip_fraction == 1.0
                                 else parts[p] + self.tip_fraction * (x - parts[p]))
         edt = None
         if self.spine or self.head_from_hull is not None:     # inscribed radii, once a frame
             from .tips import inscribed_distances
-            edt = inscribed_distances(vol.data)
+            edt = inscribed_distances(vol.data, box, sq)
         if self.spine:      # the spine lies behind the medial axis (pose/anatomy.py)
-            parts, diag_spine = self.spine_parts(vol, skel, data, al, parts, edt)
+            parts, diag_spine = self.spine_parts(vol, skel, data, al, parts, edt, sk_vox)
         missing = [p for p, x in parts.items() if x is None]   # by the alignment: the status
         from_hull = []
         if self.head_from_hull is not None:
@@ -408,8 +421,8 @@ class FrameEstimator:
         status, error, extra = judge_frame(
             vol, n_vox, data, self.model, self.up, dist, self.threshold, len(missing), status,
             error, self.min_share, self.min_confidence if self.gate else None, self.cap.units,
-            al=al, thickness_cost=thick, reach=self.thickness_reach)
-        timings["total"] = (time.perf_counter() - t_all) * 1e3
+            al=al, thickness_cost=thick, reach=self.thickness_reach,
+            radius_map=radii)
         diag = {"model": self.model.name, "resolution": self.resolution,
                 "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
                 "skeleton_voxels": int(data.diagnostics.get("n_voxels", -1)),
@@ -432,19 +445,21 @@ class FrameEstimator:
             try:
                 # (the model's [[joint]] positions along arcs are fractions of these curves)
                 diag["curves"] = arc_curves(skel, vol.origin, vol.voxel_size, data, al,
-                                            self.model, on_skeleton)
+                                            self.model, on_skeleton, voxels=sk_vox)
             except Exception as exc:           # never costs the frame its pose
                 diag["curves_error"] = f"{type(exc).__name__}: {exc}"
+        timings["placement"] = (time.perf_counter() - t0) * 1e3
+        timings["total"] = (time.perf_counter() - t_all) * 1e3
         pose = Pose(name, status, dist, parts, error, timings, diag)
         return (pose, det) if detail else pose
 
-    def spine_parts(self, vol, skel, data, al, parts, edt=None):
+    def spine_parts(self, vol, skel, data, al, parts, edt=None, voxels=None):
         """``parts`` with the body-axis parts moved back onto the spine
         (:mod:`topopose.pose.anatomy`), and the shift applied (world units, or None)."""
         from .anatomy import front_direction, hull_radius, spine_shift
 
         feet = [p for p in self.model.parts if p.rstrip("_0123456789") == "foot"]
-        front = front_direction(vol, skel, data, al.mapping, feet, self.up)
+        front = front_direction(vol, skel, data, al.mapping, feet, self.up, voxels=voxels)
         if front is None:
             return parts, None
         r = hull_radius(vol, edt)
@@ -633,12 +648,10 @@ HEAD_FROM_HULL = {"human": ("head", "torso", 0.4)}
 THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the largest within ± that
 
 
-def vertex_radii(vol, data, reach: int = 0) -> dict:
-    """Inscribed-ball radius of the hull at every data vertex, relative to the hull's largest:
-    the taxicab distance transform (:func:`scipy.ndimage.distance_transform_cdt`, 20× faster
-    than the exact EDT) on the hull's bounding box, its largest value within ``reach`` voxels
-    of the vertex (0: at the vertex; a vertex whose voxel is background — an I-component
-    centroid off the hull — takes the largest of its 3×3×3 neighbourhood)."""
+def taxicab_radii(vol):
+    """The taxicab distance transform of the hull on its bounding box grown by one voxel
+    (:func:`scipy.ndimage.distance_transform_cdt`): ``(dt, lo)``, voxel ``ijk`` at
+    ``dt[ijk - lo]``. One per frame serves every :func:`vertex_radii` of the frame."""
     from scipy import ndimage
 
     a = vol.data
@@ -648,7 +661,17 @@ def vertex_radii(vol, data, reach: int = 0) -> dict:
         bbox = ([int(o[0]) for o in occ], [int(o[-1]) for o in occ])
     lo = [max(int(x) - 1, 0) for x in bbox[0]]
     hi = [min(int(x) + 2, n) for x, n in zip(bbox[1], a.shape)]
-    dt = ndimage.distance_transform_cdt(a[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]], "taxicab")
+    return ndimage.distance_transform_cdt(a[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]], "taxicab"), lo
+
+
+def vertex_radii(vol, data, reach: int = 0, radii=None) -> dict:
+    """Inscribed-ball radius of the hull at every data vertex, relative to the hull's largest:
+    the taxicab distance transform (:func:`scipy.ndimage.distance_transform_cdt`, 20× faster
+    than the exact EDT) on the hull's bounding box, its largest value within ``reach`` voxels
+    of the vertex (0: at the vertex; a vertex whose voxel is background — an I-component
+    centroid off the hull — takes the largest of its 3×3×3 neighbourhood). ``radii``:
+    :func:`taxicab_radii` of ``vol`` if already computed."""
+    dt, lo = taxicab_radii(vol) if radii is None else radii
     ref = float(dt.max()) or 1.0
     org, vs = np.asarray(vol.origin, float), float(vol.voxel_size)
     out = {}

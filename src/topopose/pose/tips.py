@@ -63,8 +63,36 @@ def inscribed_radius(volume: np.ndarray, ijk, limit: int) -> float:
     return float(min(np.sqrt(((out - limit) ** 2).sum(axis=1)).min(), limit))
 
 
+def hull_box(vol):
+    """The hull's bounding box as ``(lo, hi)`` voxel arrays (``hi`` exclusive):
+    ``vol.diagnostics["bbox"]`` (inclusive, left by :func:`topopose.visual_hull`) when there
+    is one, else from the axis projections of ``vol.data``; None when the hull is empty."""
+    bb = (getattr(vol, "diagnostics", None) or {}).get("bbox")
+    if bb:
+        return np.asarray(bb[0], int), np.asarray(bb[1], int) + 1
+    return _box(vol.data)
+
+
+def _box(volume: np.ndarray):
+    axes = [np.flatnonzero(volume.any(axis=tuple(k for k in range(3) if k != a))) for a in range(3)]
+    if not len(axes[0]):
+        return None
+    return np.array([a[0] for a in axes]), np.array([a[-1] + 1 for a in axes])
+
+
+def skeleton_voxels(skeleton: np.ndarray, box=None) -> np.ndarray:
+    """``np.argwhere(skeleton)`` (same rows, same order), scanning only ``box`` = ``(lo, hi)``
+    (:func:`hull_box`: the skeleton lies in its hull) when given. One per frame serves
+    :func:`extremity_tips`, :func:`topopose.pose.anatomy.front_direction` and
+    :func:`topopose.pose.curves.arc_curves`."""
+    if box is None:
+        return np.argwhere(skeleton)
+    lo, hi = box
+    return np.argwhere(skeleton[tuple(slice(a, b) for a, b in zip(lo, hi))]) + np.asarray(lo)
+
+
 def extremity_tips(vol, skeleton, data, mapping: dict, leaf_parts, reach: float = 4.0,
-                   max_radii: float = 1.5) -> dict:
+                   max_radii: float = 1.5, voxels=None) -> dict:
     """Tip of each leaf part matched to a data leaf (see module docstring).
 
     Parameters
@@ -84,6 +112,8 @@ def extremity_tips(vol, skeleton, data, mapping: dict, leaf_parts, reach: float 
     max_radii : float
         Longest prolongation, in inscribed-ball radii of the hull at the skeleton end (a branch
         ending in a phantom volume, or whose direction is off, is not followed far).
+    voxels : ndarray, optional
+        :func:`skeleton_voxels` of ``skeleton`` if already computed.
 
     Returns
     -------
@@ -92,7 +122,7 @@ def extremity_tips(vol, skeleton, data, mapping: dict, leaf_parts, reach: float 
     """
     vs = float(vol.voxel_size)
     org = np.asarray(vol.origin, float)
-    pts = np.argwhere(skeleton) * vs + org
+    pts = (np.argwhere(skeleton) if voxels is None else voxels) * vs + org
     if not len(pts):
         return {}
     out = {}
@@ -112,20 +142,32 @@ def extremity_tips(vol, skeleton, data, mapping: dict, leaf_parts, reach: float 
     return out
 
 
-def inscribed_distances(volume: np.ndarray):
-    """Euclidean distance transform of ``volume`` (bool grid) on its bounding box padded by one
-    empty voxel: ``(dt, lo)``, voxel ``ijk`` of the grid at ``dt[ijk - lo + 1]``; None when the
-    volume is empty. One per frame serves :func:`thick_top` and
-    :func:`topopose.pose.anatomy.hull_radius`."""
+def squared_distances(volume: np.ndarray, box=None):
+    """Squared Euclidean distance transform of ``volume`` (bool grid) on its bounding box
+    padded by one empty voxel: ``(dt², lo)``, voxel ``ijk`` of the grid at ``dt²[ijk - lo + 1]``
+    (whole numbers, float32); None when the volume is empty. ``box``: the bounding box
+    ``(lo, hi)`` if known (:func:`hull_box`). Its square root is :func:`inscribed_distances`;
+    at a voxel it is :func:`topopose.skeleton.prune.ball_radius` squared (the padding is
+    background, nearer than any background beyond it)."""
     import edt
 
-    axes = [np.flatnonzero(volume.any(axis=tuple(k for k in range(3) if k != a))) for a in range(3)]
-    if not len(axes[0]):
+    box = _box(volume) if box is None else box
+    if box is None:
         return None
-    lo = np.array([a[0] for a in axes])
-    hi = np.array([a[-1] + 1 for a in axes])
-    sub = np.pad(volume[tuple(slice(a, b) for a, b in zip(lo, hi))], 1).astype(np.uint8)
-    return edt.edt(sub, black_border=False, parallel=1), lo     # = scipy's, 2–6× faster
+    lo, hi = box
+    sub = volume[tuple(slice(a, b) for a, b in zip(lo, hi))]
+    sub = np.pad(sub.view(np.uint8) if sub.dtype == bool else sub.astype(np.uint8), 1)
+    return edt.edtsq(sub, black_border=False, parallel=1), lo     # = scipy's, 2–6× faster
+
+
+def inscribed_distances(volume: np.ndarray, box=None, squared=None):
+    """Euclidean distance transform of ``volume`` (bool grid) on its bounding box padded by one
+    empty voxel: ``(dt, lo)``, voxel ``ijk`` of the grid at ``dt[ijk - lo + 1]``; None when the
+    volume is empty. ``box``: the bounding box ``(lo, hi)`` if known (:func:`hull_box`);
+    ``squared``: :func:`squared_distances` of ``volume`` if already computed. One per frame
+    serves :func:`thick_top` and :func:`topopose.pose.anatomy.hull_radius`."""
+    sq = squared_distances(volume, box) if squared is None else squared
+    return None if sq is None else (np.sqrt(sq[0]), sq[1])   # = edt.edt, bit for bit
 
 
 def thick_top(volume: np.ndarray, origin, voxel_size: float, up, min_fraction: float,

@@ -47,7 +47,7 @@ def ball_radius(hull: np.ndarray, voxel, start: int = 8) -> float:
 
 def prune_bumps(skeleton: np.ndarray, hull: np.ndarray, ratio: float, origin=(0.0, 0.0, 0.0),
                 voxel_size=1.0, border=None, max_rounds: int = 6, measure: str = "contain",
-                **tree_options):
+                squared=None, **tree_options):
     """Remove the leaf branches of ``skeleton`` that are bumps of ``hull`` (scale axis, see the
     module docstring); return ``(skeleton, tree, pruned)``.
 
@@ -73,6 +73,9 @@ def prune_bumps(skeleton: np.ndarray, hull: np.ndarray, ratio: float, origin=(0.
     max_rounds : int
         Each round prunes at most one branch per junction (the shortest candidate), then the
         tree is rebuilt.
+    squared : (ndarray, lo), optional
+        :func:`topopose.pose.tips.squared_distances` of ``hull`` if already computed: the
+        radii are read there (equal to :func:`ball_radius`) instead of searched.
 
     Returns
     -------
@@ -88,6 +91,14 @@ def prune_bumps(skeleton: np.ndarray, hull: np.ndarray, ratio: float, origin=(0.
         tree.diagnostics["pruned_bumps"] = pruned
         return skel, tree, pruned
     vs = float(voxel_size)
+    if squared is None:
+        def radius_at(x):
+            return ball_radius(hull, x)
+    else:
+        sq, off = squared[0], np.asarray(squared[1], np.int64) - 1
+
+        def radius_at(x):
+            return float(np.sqrt(float(sq[tuple(np.asarray(x, np.int64) - off)])))
     bmask = None if border is None or isinstance(border, str) else border.reshape(-1)
     for _ in range(int(max_rounds)):
         adj = tree.adjacency()
@@ -115,7 +126,7 @@ def prune_bumps(skeleton: np.ndarray, hull: np.ndarray, ratio: float, origin=(0.
                 else:
                     c = (np.asarray(tree.positions[u], float) - np.asarray(origin, float)) / vs
                     x = coords[own[np.argmin(((coords[own] - c) ** 2).sum(1))]]
-                    radius[u] = ball_radius(hull, x)
+                    radius[u] = radius_at(x)
             r = radius[u]
             sel = mine | (edge == eindex[frozenset((u, v))])
             if r <= 0 or not sel.any():
@@ -126,7 +137,7 @@ def prune_bumps(skeleton: np.ndarray, hull: np.ndarray, ratio: float, origin=(0.
             else:
                 # scale axis: the branch's balls must fit in the junction's ball scaled by ratio
                 c = (np.asarray(tree.positions[u], float) - np.asarray(origin, float)) / vs
-                reach = max(float(np.linalg.norm(x - c)) + ball_radius(hull, x)
+                reach = max(float(np.linalg.norm(x - c)) + radius_at(x)
                             for x in coords[sel])
                 bump = reach < ratio * r
             if bump and (u not in best or length < best[u][0]):

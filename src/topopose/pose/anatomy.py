@@ -20,11 +20,12 @@ offset).
 
 Training figures (seeds 41, 42, gate off,
 matched frames good / missing limb / misplaced): separated 84 / 16 / 14 without the shift →
-91 / 16 / 7 with it (head share 0: 89 / 16 / 9; shares × 1.4: 92 / 16 / 6); all poses 45 / 26 / 14 → 47 / 27 / 11. Held-out seeds 21, 22 (``benchmarks/
-quality.py``, quality_body.md, *no-spine* rows; TP rate / FP per
-match, gate off): separated 0.86 / 0.096 → 0.88 / 0.079, all poses 0.55 / 0.185 → 0.58 /
-0.136; gate on unchanged (0.79 / 0.031, 0.46 / 0.083: the gate had rejected the frames the
-shift mends). The capsule human's ground truth lies on
+91 / 16 / 7 with it (head share 0: 89 / 16 / 9; shares × 1.4: 92 / 16 / 6); all poses
+45 / 26 / 14 → 47 / 27 / 11. Held-out seeds 21, 22 (``benchmarks/quality.py``, quality_body.md,
+*no-spine* rows, final pipeline of issue 11's fifth session — head from the hull, refitted
+confidence; TP rate / FP per match): gate on, separated 0.83 / 0.029 → 0.85 / 0.010, all poses
+0.56 / 0.118 → 0.60 / 0.053; gate off 0.89 / 0.061 → 0.91 / 0.044 and 0.56 / 0.173 → 0.61 /
+0.099. The capsule human's ground truth lies on
 its capsules' axis: there the shift only adds 1.5–2.5 cm to the torso and crotch errors
 (classes unchanged, seed 0, 80 frames).
 """

@@ -14,7 +14,10 @@ import pytest
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 
 DRIVER = r"""
-import importlib, sys
+import importlib, signal, sys
+# a test started in the background by a non-interactive shell inherits SIGINT ignored (POSIX);
+# a terminal's Ctrl-C reaches a foreground process whose Python turns it into KeyboardInterrupt
+signal.signal(signal.SIGINT, signal.default_int_handler)
 R = importlib.import_module("topopose.pose.run")
 R.MIN_FRAMES_PER_WORKER = 0            # use the workers even for this small capture
 from topopose.cli import main

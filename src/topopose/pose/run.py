@@ -445,7 +445,8 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
         old = signal.signal(signal.SIGINT, signal.SIG_IGN)
         try:
             cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=40)
+                                   dashboard_address=None, silence_logs=50)   # CRITICAL only: a
+                                   # worker heartbeat that outlives the scheduler on Ctrl-C logs ERROR
         finally:
             signal.signal(signal.SIGINT, old)
         client = Client(cluster)

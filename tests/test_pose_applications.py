@@ -690,3 +690,67 @@ def test_body_truth_groups_the_nearest_vertex_bone():
     assert set(np.unique(truth[grid])) == set(range(1, 7))
     alt = S.synthetic_truth(vol, body, names, bone_arc=lambda b: "torso-head")
     assert np.all(alt[grid] == 1) and np.all(alt[~grid] == 0)
+
+
+def _trunk_and_head():
+    """A trunk (cylinder r 5, z 2..22), a neck (r 2, z 23..25) and a head (ball r 4 about
+    z 29; the crown at z 33), on the axis x = y = 8; voxels of 0.5 at origin (1, 2, 3)."""
+    from topopose.hull.volume import Volume
+
+    x, y, z = np.mgrid[0:17, 0:17, 0:36]
+    rr = np.hypot(x - 8, y - 8)
+    head = np.sqrt(rr ** 2 + (z - 29) ** 2) <= 4
+    hull = ((z >= 2) & (z <= 22) & (rr <= 5)) | ((z >= 23) & (z <= 25) & (rr <= 2)) | head
+    vol = Volume(hull, origin=(1.0, 2.0, 3.0), voxel_size=0.5)
+    world = lambda k: vol.world(np.array([8, 8, k]))                      # noqa: E731
+    pose = SimpleNamespace(parts={"head": world(33), "torso": world(20), "crotch": world(3)},
+                           diagnostics={"from_hull": ["head"]})
+    return vol, head, z, pose
+
+
+def test_head_placed_from_the_hull_gets_a_seed_inside_the_head():
+    """No head branch in the skeleton (the estimator placed the head from the hull): the stand-in
+    seed runs from half-way between the torso part and the crown up to the crown, inside the
+    neck and head; a branch that ends short is extended from its end to the crown only."""
+    vol, head, z, pose = _trunk_and_head()
+    names = ["torso-head", "torso-crotch"]
+    seeds = np.zeros(vol.data.shape, np.int32)
+    seeds[8, 8, 3:21] = 2
+    bones = S.hull_part_seeds(vol.data, seeds, pose, names, vol.origin, vol.voxel_size)
+    new = np.argwhere(seeds == 1)
+    assert len(new) >= 6 and vol.data[tuple(new.T)].all()
+    assert new[:, 2].min() >= 26 and new[:, 2].max() == 33 and (new[:, :2] == 8).all()
+    assert head[tuple(new[new[:, 2] >= 26].T)].all()           # the seed lies inside the head
+    assert len(bones) == 1 and bones[0][2] == 1 and np.allclose(bones[0][1], [8, 8, 33])
+    assert (seeds[8, 8, 3:21] == 2).all()                        # other labels untouched
+    stub = np.zeros(vol.data.shape, np.int32)                    # a branch ending at z = 24
+    stub[8, 8, 21:25] = 1
+    S.hull_part_seeds(vol.data, stub, pose, names, vol.origin, vol.voxel_size,
+                      skeleton_index=np.flatnonzero(stub))
+    assert (stub[8, 8, 21:34] == 1).all() and (stub == 1).sum() == 13
+    no_hull = SimpleNamespace(parts=pose.parts, diagnostics={})  # head on its branch: nothing
+    s0 = np.zeros(vol.data.shape, np.int32)
+    assert S.hull_part_seeds(vol.data, s0, no_hull, names, vol.origin, vol.voxel_size) == [] \
+        and not s0.any()
+
+
+def test_segment_labels_a_head_without_a_skeleton_branch():
+    """The skeleton is the trunk's axis only (no head branch, the head arc deleted): without the
+    pose the head part labels nothing; with it the head ball goes to the head, the trunk stays
+    the trunk's."""
+    from topopose import data_tree
+
+    vol, head, z, pose = _trunk_and_head()
+    skel = np.zeros(vol.data.shape, bool)
+    skel[8, 8, 3:21] = True
+    t = data_tree(skel)
+    ends = sorted(t.vertices, key=lambda v: t.positions[v][2])
+    al = SimpleNamespace(arcs={("torso", "head"): None, ("torso", "crotch"): [ends[-1], ends[0]]},
+                         mapping={"torso": ends[-1], "crotch": ends[0], "head": None})
+    names = ["torso-head", "torso-crotch"]
+    plain, _ = S.segment(vol, skel, al, t, names=names)
+    assert not (plain == 1).any()
+    lab, _ = S.segment(vol, skel, al, t, names=names, pose=pose)
+    assert np.mean(lab[head] == 1) > 0.95
+    trunk = vol.data & (z <= 20)
+    assert np.mean(lab[trunk] == 2) > 0.99 and not lab[~vol.data].any()

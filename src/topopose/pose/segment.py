@@ -423,7 +423,8 @@ HULL_PART_START = 0.5
 
 def hull_part_seeds(hull, seeds, pose, names, origin, voxel_size, start=None,
                     skeleton_index=None) -> list:
-    """Seeds for the parts placed from the hull whose arc has no skeleton voxel (in place).
+    """Seeds for the parts placed from the hull whose skeleton branch is missing or short
+    (``seeds`` changed in place).
 
     The estimator places the head from the hull when thinning gives it no branch
     (``pose.diagnostics["from_hull"]``, :func:`topopose.pose.tips.head_from_hull`: the
@@ -530,7 +531,8 @@ def segment(volume, skeleton, alignment, data=None, *, names=None, connectivity:
             raise InputError("segment: the bones need the hull as a topopose.Volume (origin, "
                              "voxel size), not a bare array")
         bones = [((a - o) / h, (b - o) / h, lab)
-                 for a, b, lab in bone_segments(pose, model, names, limb_start)] + hull_bones
+                 for a, b, lab in bone_segments(pose, model, names, limb_start)]
+        bones = bones + hull_bones if bones else None
     return flood_labels(hull, seeds, connectivity, weighting, bbox=bbox, delay=delay, bones=bones,
                         bone_weight=bone_weight, band=band), names
 

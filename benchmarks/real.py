@@ -137,11 +137,33 @@ def summarize(poses, ref, frames_index, min_confidence) -> dict:
                     "p90": round(float(np.percentile(v, 90)), 3) if v.size else None,
                     "placed": int(v.size)}
     return {"frames": n, "matched": matched, "matched_share": round(matched / n, 3),
+            "confidence_curve": confidence_curve(rows),
             "right": right, "right_share": round(right / n, 3),
             "matched_precision": round(matched_right / matched, 3) if matched else None,
             "gated_matched": gated,
             "gated_precision": round(gated_right / gated, 3) if gated else None,
             "failed": sum(p.status == "failed" for p in poses), "errors": stats, "rows": rows}
+
+
+def confidence_curve(rows, precisions=(1.0, 0.95, 0.9, 0.8, 0.0)) -> list:
+    """How many right frames the confidence gate lets through, at which precision: for each
+    target precision, the lowest gate threshold (:func:`~topopose.pose.confidence.passes_gate`
+    at a frame's confidence) whose passing frames are right in at least that share, the frames
+    passing and the right ones among them (None, 0, 0: no threshold reaches it)."""
+    from topopose.pose.confidence import passes_gate
+
+    levels = sorted({r["confidence"] for r in rows if r["confidence"] is not None}, reverse=True)
+    out = []
+    for target in precisions:
+        best = {"precision_target": target, "threshold": None, "passing": 0, "right": 0}
+        for t in levels:
+            ok = [r["right"] for r in rows
+                  if passes_gate(r["status"], r["error"], r["confidence"], t)]
+            if ok and sum(ok) / len(ok) >= target:
+                best = {"precision_target": target, "threshold": round(float(t), 3),
+                        "passing": len(ok), "right": int(sum(ok))}
+        out.append(best)
+    return out
 
 
 def as_run(poses, model, up, min_confidence) -> list:
@@ -221,6 +243,7 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
                               (cap.cache.get(("setup_seconds",)) or {}).items()},
         "first_frame_stages_ms": {k: round(v, 1) for k, v in poses[0].timings_ms.items()},
     }
+    res["min_confidence"] = mc
     res["method"] = method
     if picture is not None:
         with warnings.catch_warnings():
@@ -412,6 +435,18 @@ def report(doc) -> str:
     L += _table(["silhouettes", "right per frame", "right as `run` writes it",
                  "matched (gate on)", "frames with a held part",
                  "head med / p90", "hands med / p90", "feet med / p90"], rows)
+    L += ["", "## Precision of `matched` against recall", "",
+          "How many right frames a confidence gate lets through (per frame, as the first table): "
+          "the lowest threshold on the frame's confidence whose passing frames are right in at "
+          "least the target share (the run's default threshold in parentheses: "
+          + ", ".join(f"{n} {r.get('min_confidence')}" for n, r in doc["methods"].items()) + ").", ""]
+    rows = []
+    for name, r in doc["methods"].items():
+        for c in r.get("confidence_curve", []):
+            rows.append([name, f"{100 * c['precision_target']:.0f} %", c["threshold"],
+                         c["passing"], f"{c['right']} of {r['right']}"])
+    L += _table(["silhouettes", "precision at least", "confidence threshold", "frames passing",
+                 "right frames passing"], rows)
     L += ["", "## Speed (one process)", ""]
     rows = []
     for name, r in doc["methods"].items():

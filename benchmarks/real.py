@@ -21,7 +21,8 @@ Two columns of the same run: *per frame* (each frame's :class:`FrameEstimator` r
 confidence gate off so both decisions are scored) and *as ``run`` writes it* (:func:`as_run`:
 the run's default gate decision, then the sequence stages ``topopose run`` applies,
 :func:`topopose.pose.motion.process_sequence`: identities over time with misplaced parts held
-at their prediction, the kinematic skeleton, left/right).
+at their prediction or snapped to the free skeleton leaf nearest it, the kinematic skeleton,
+left/right). *Precision of matched against recall*: :func:`confidence_curve`.
 
 Speed: end to end from the videos, one process as ``topopose run`` (a reader thread decodes
 the 4 videos and computes the foreground probabilities ahead of the hull, skeleton and
@@ -145,7 +146,7 @@ def summarize(poses, ref, frames_index, min_confidence) -> dict:
             "failed": sum(p.status == "failed" for p in poses), "errors": stats, "rows": rows}
 
 
-def confidence_curve(rows, precisions=(1.0, 0.95, 0.9, 0.8, 0.0)) -> list:
+def confidence_curve(rows, precisions=(1.0, 0.95, 0.9, 0.8, 0.75, 0.7, 0.0)) -> list:
     """How many right frames the confidence gate lets through, at which precision: for each
     target precision, the lowest gate threshold (:func:`~topopose.pose.confidence.passes_gate`
     at a frame's confidence) whose passing frames are right in at least that share, the frames
@@ -227,6 +228,7 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     run_poses = as_run(poses, est.model, cap.up_vector, mc if default_gate(cap) else None)
     res["as_run"] = summarize(run_poses, ref, idx, mc)
     res["as_run"]["predicted"] = sum(bool(p.diagnostics.get("predicted")) for p in run_poses)
+    res["as_run"]["snapped"] = sum(bool(p.diagnostics.get("snapped")) for p in run_poses)
     stages = {}
     for p in poses[1:]:
         for k, v in p.timings_ms.items():
@@ -421,7 +423,8 @@ def report(doc) -> str:
                  "hands med / p90", "feet med / p90", "failed"], rows)
     L += ["", "## As `topopose run` writes it", "",
           "The same run's poses after the run's default confidence gate and its sequence stages "
-          "(tracking: misplaced numbered parts held at their prediction, flagged `predicted`; "
+          "(tracking: misplaced numbered parts held at their prediction, flagged `predicted`, or "
+          "moved to the free skeleton leaf nearest it, flagged `snapped`; "
           "kinematic skeleton; left/right), scored the same way.", ""]
     rows = []
     for name, r in doc["methods"].items():
@@ -430,10 +433,11 @@ def report(doc) -> str:
             continue
         e = a["errors"]
         rows.append([name, f"{100 * r['right_share']:.0f} %", f"{100 * a['right_share']:.0f} %",
-                     f"{a['matched']}/{a['frames']}", a.get("predicted", 0),
+                     f"{a['matched']}/{a['frames']}",
+                     f"{a.get('predicted', 0)} / {a.get('snapped', 0)}",
                      *(f"{e[k]['median']} / {e[k]['p90']}" for k in ("head", "hand", "foot"))])
     L += _table(["silhouettes", "right per frame", "right as `run` writes it",
-                 "matched (gate on)", "frames with a held part",
+                 "matched (gate on)", "frames with a held / snapped part",
                  "head med / p90", "hands med / p90", "feet med / p90"], rows)
     L += ["", "## Precision of `matched` against recall", "",
           "How many right frames a confidence gate lets through (per frame, as the first table): "
@@ -442,9 +446,10 @@ def report(doc) -> str:
           + ", ".join(f"{n} {r.get('min_confidence')}" for n, r in doc["methods"].items()) + ").", ""]
     rows = []
     for name, r in doc["methods"].items():
-        for c in r.get("confidence_curve", []):
-            rows.append([name, f"{100 * c['precision_target']:.0f} %", c["threshold"],
-                         c["passing"], f"{c['right']} of {r['right']}"])
+        for c in r.get("confidence_curve", []) if r["right"] else []:
+            rows.append([name, f"{100 * c['precision_target']:.0f} %" if c["precision_target"]
+                         else "any (every frame)", c["threshold"], c["passing"],
+                         f"{c['right']} of {r['right']}"])
     L += _table(["silhouettes", "precision at least", "confidence threshold", "frames passing",
                  "right frames passing"], rows)
     L += ["", "## Speed (one process)", ""]

@@ -335,3 +335,26 @@ def test_free_leaves_are_the_unmatched_degree_one_vertices():
     tree = Tree([(0, 1, 1.0), (0, 2, 1.0), (0, 3, 1.0), (3, 4, 1.0)], positions=pos)
     assert free_leaves(tree, {"head": 1, "torso": 0}) == [[2.0, 1.0, 0.0], [4.0, 2.0, 0.0]]
     assert free_leaves(tree, {"a": 1, "b": 2, "c": 4, "d": None}) == []
+
+
+def test_estimator_records_free_leaves_and_nothing_else_changes():
+    """A synthetic capsule human: the frame's ``free_leaves`` are the data tree's degree-1
+    vertices the alignment left unmatched (brute force over the edges); switched off
+    (``FrameEstimator.leaves = False``) the pose is the same, without them."""
+    from topopose.capture import synthetic_capture
+    from topopose.pose import FrameEstimator
+
+    cap = synthetic_capture("human", frames=1, seed=5, noise=1)
+    est = FrameEstimator(cap, "human", resolution=60)
+    p, det = est.estimate(0, detail=True)
+    ends = [v for v in det.data.vertices
+            if sum(v in (a, b) for a, b, _ in det.data.edges) == 1]
+    mapped = set(det.alignment.mapping.values())
+    want = sorted(np.round(det.data.positions[v], 4).tolist() for v in ends if v not in mapped)
+    assert sorted(p.diagnostics["free_leaves"]) == want
+    assert len(ends) > len(want)                       # the matched extremities are left out
+    est.leaves = False
+    q = est.estimate(0)
+    assert "free_leaves" not in q.diagnostics and q.status == p.status
+    for k, x in p.parts.items():
+        assert (x is None and q.parts[k] is None) or np.array_equal(x, q.parts[k])

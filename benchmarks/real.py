@@ -21,7 +21,8 @@ Two columns of the same run: *per frame* (each frame's :class:`FrameEstimator` r
 confidence gate off so both decisions are scored) and *as ``run`` writes it* (:func:`as_run`:
 the run's default gate decision, then the sequence stages ``topopose run`` applies,
 :func:`topopose.pose.motion.process_sequence`: identities over time with misplaced parts held
-at their prediction, the kinematic skeleton, left/right).
+at their prediction or snapped to the free skeleton leaf nearest it, the kinematic skeleton,
+left/right). *Precision of matched against recall*: :func:`confidence_curve`.
 
 Speed: end to end from the videos, one process as ``topopose run`` (a reader thread decodes
 the 4 videos and computes the foreground probabilities ahead of the hull, skeleton and
@@ -137,11 +138,33 @@ def summarize(poses, ref, frames_index, min_confidence) -> dict:
                     "p90": round(float(np.percentile(v, 90)), 3) if v.size else None,
                     "placed": int(v.size)}
     return {"frames": n, "matched": matched, "matched_share": round(matched / n, 3),
+            "confidence_curve": confidence_curve(rows),
             "right": right, "right_share": round(right / n, 3),
             "matched_precision": round(matched_right / matched, 3) if matched else None,
             "gated_matched": gated,
             "gated_precision": round(gated_right / gated, 3) if gated else None,
             "failed": sum(p.status == "failed" for p in poses), "errors": stats, "rows": rows}
+
+
+def confidence_curve(rows, precisions=(1.0, 0.95, 0.9, 0.8, 0.75, 0.7, 0.0)) -> list:
+    """How many right frames the confidence gate lets through, at which precision: for each
+    target precision, the lowest gate threshold (:func:`~topopose.pose.confidence.passes_gate`
+    at a frame's confidence) whose passing frames are right in at least that share, the frames
+    passing and the right ones among them (None, 0, 0: no threshold reaches it)."""
+    from topopose.pose.confidence import passes_gate
+
+    levels = sorted({r["confidence"] for r in rows if r["confidence"] is not None}, reverse=True)
+    out = []
+    for target in precisions:
+        best = {"precision_target": target, "threshold": None, "passing": 0, "right": 0}
+        for t in levels:
+            ok = [r["right"] for r in rows
+                  if passes_gate(r["status"], r["error"], r["confidence"], t)]
+            if ok and sum(ok) / len(ok) >= target:
+                best = {"precision_target": target, "threshold": round(float(t), 3),
+                        "passing": len(ok), "right": int(sum(ok))}
+        out.append(best)
+    return out
 
 
 def as_run(poses, model, up, min_confidence) -> list:
@@ -205,6 +228,7 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     run_poses = as_run(poses, est.model, cap.up_vector, mc if default_gate(cap) else None)
     res["as_run"] = summarize(run_poses, ref, idx, mc)
     res["as_run"]["predicted"] = sum(bool(p.diagnostics.get("predicted")) for p in run_poses)
+    res["as_run"]["snapped"] = sum(bool(p.diagnostics.get("snapped")) for p in run_poses)
     stages = {}
     for p in poses[1:]:
         for k, v in p.timings_ms.items():
@@ -221,6 +245,7 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
                               (cap.cache.get(("setup_seconds",)) or {}).items()},
         "first_frame_stages_ms": {k: round(v, 1) for k, v in poses[0].timings_ms.items()},
     }
+    res["min_confidence"] = mc
     res["method"] = method
     if picture is not None:
         with warnings.catch_warnings():
@@ -398,7 +423,8 @@ def report(doc) -> str:
                  "hands med / p90", "feet med / p90", "failed"], rows)
     L += ["", "## As `topopose run` writes it", "",
           "The same run's poses after the run's default confidence gate and its sequence stages "
-          "(tracking: misplaced numbered parts held at their prediction, flagged `predicted`; "
+          "(tracking: misplaced numbered parts held at their prediction, flagged `predicted`, or "
+          "moved to the free skeleton leaf nearest it, flagged `snapped`; "
           "kinematic skeleton; left/right), scored the same way.", ""]
     rows = []
     for name, r in doc["methods"].items():
@@ -407,11 +433,25 @@ def report(doc) -> str:
             continue
         e = a["errors"]
         rows.append([name, f"{100 * r['right_share']:.0f} %", f"{100 * a['right_share']:.0f} %",
-                     f"{a['matched']}/{a['frames']}", a.get("predicted", 0),
+                     f"{a['matched']}/{a['frames']}",
+                     f"{a.get('predicted', 0)} / {a.get('snapped', 0)}",
                      *(f"{e[k]['median']} / {e[k]['p90']}" for k in ("head", "hand", "foot"))])
     L += _table(["silhouettes", "right per frame", "right as `run` writes it",
-                 "matched (gate on)", "frames with a held part",
+                 "matched (gate on)", "frames with a held / snapped part",
                  "head med / p90", "hands med / p90", "feet med / p90"], rows)
+    L += ["", "## Precision of `matched` against recall", "",
+          "How many right frames a confidence gate lets through (per frame, as the first table): "
+          "the lowest threshold on the frame's confidence whose passing frames are right in at "
+          "least the target share (the run's default threshold in parentheses: "
+          + ", ".join(f"{n} {r.get('min_confidence')}" for n, r in doc["methods"].items()) + ").", ""]
+    rows = []
+    for name, r in doc["methods"].items():
+        for c in r.get("confidence_curve", []) if r["right"] else []:
+            rows.append([name, f"{100 * c['precision_target']:.0f} %" if c["precision_target"]
+                         else "any (every frame)", c["threshold"], c["passing"],
+                         f"{c['right']} of {r['right']}"])
+    L += _table(["silhouettes", "precision at least", "confidence threshold", "frames passing",
+                 "right frames passing"], rows)
     L += ["", "## Speed (one process)", ""]
     rows = []
     for name, r in doc["methods"].items():

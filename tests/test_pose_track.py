@@ -253,3 +253,108 @@ def test_when_nearly_every_frame_is_rejected_the_rejected_frames_are_tracked():
     assert all(p.status == "rejected" for i, p in enumerate(out) if i != 3)   # status untouched
     assert not any(p.diagnostics.get("predicted") for p in off)
     assert all("track" not in p.diagnostics for i, p in enumerate(off) if i != 3)
+
+
+def _phantom_jump(n=16, jump=(8, 9, 10), seed=2):
+    """Two hands moving smoothly (1 cm / frame); in the frames ``jump`` the per-frame result puts
+    hand 0 at the end of a phantom branch 0.6 m away (beyond the gate), while the real hand's
+    leaf is in the frame's free leaves (noisy by ≤ 1 cm), with a decoy leaf 0.5 m away."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n, dtype=float)
+    a = np.stack([0.01 * t, 0.3 + 0 * t, 1.2 + 0 * t], axis=1)
+    b = np.stack([0.01 * t, -0.3 + 0 * t, 1.2 + 0 * t], axis=1)
+    obs, cands = [], []
+    for i in range(n):
+        o = np.stack([a[i], b[i]])
+        free = [a[i] + np.array([0.0, 0.0, 0.5])]                     # decoy
+        if i in jump:
+            o[0] = a[i] + np.array([0.0, -0.6, -0.2])                  # phantom branch end
+            free.append(a[i] + rng.uniform(-0.006, 0.006, 3))          # the real hand's leaf
+        obs.append(o)
+        cands.append(np.array(free))
+    return t, obs, cands, a, b
+
+
+def test_outlier_snaps_to_the_free_leaf_nearest_its_prediction():
+    t, obs, cands, a, b = _phantom_jump()
+    before = [o.copy() for o in obs]
+    perm, seg, held, pred, snapped = assign_identities(t, obs, gate=0.3, reinit=3, detail=True,
+                                                       candidates=cands)
+    assert all(np.array_equal(x, y) for x, y in zip(obs, before))    # input not modified
+    moved = ~np.isnan(snapped).any(axis=2)
+    assert list(np.flatnonzero(moved[:, 0])) == [8, 9, 10] and not moved[:, 1].any()
+    for i in (8, 9, 10):
+        assert np.linalg.norm(snapped[i, 0] - a[i]) < 0.011        # the real hand, not the decoy
+    assert set(seg) == {0} and [list(p) for p in perm] == [[0, 1]] * len(t)
+    assert not held.any()
+    assert np.linalg.norm(pred[11, 0] - a[11]) < 0.03               # the track kept following a
+    # without candidates the phantom branch is followed after `reinit` frames
+    perm, seg, held, pred = assign_identities(t, obs, gate=0.3, reinit=3, detail=True)
+    assert len(set(seg)) > 1 and np.linalg.norm(pred[11, 0] - a[11]) > 0.3
+    # a real arm moving fast but within the gate is never moved, even next to a free leaf
+    # nearer its prediction; nor is a part of a track not yet established (frames < reinit)
+    t2, obs2, _, a2, _ = _phantom_jump(jump=())
+    obs2[8][0] = a2[8] + [0.0, 0.0, 0.25]
+    obs2[1][0] = a2[1] + [0.0, 0.0, 0.6]
+    near = [np.array([a2[i] + [0.0, 0.0, 0.01]]) for i in range(len(t2))]
+    *_, snapped = assign_identities(t2, obs2, gate=0.3, reinit=3, detail=True, candidates=near)
+    assert np.isnan(snapped).all()
+    # a snap radius below the leaf's distance to the prediction: no snap
+    *_, snapped = assign_identities(t, obs, gate=0.3, reinit=3, detail=True, candidates=cands,
+                                    snap=0.002)
+    assert np.isnan(snapped).all()
+
+
+def test_track_moves_a_snapped_part_to_its_leaf_and_flags_it():
+    human = load_model("human")
+    poses, (h1, h2, f1, f2) = _walking()
+    for i, p in enumerate(poses):
+        p.diagnostics["free_leaves"] = [[round(float(c), 4) for c in h1[i] + [0, 0, 0.45]]]
+    wrong = h1[14] + np.array([0.0, -0.5, 0.2])
+    k = min(("hand_1", "hand_2"), key=lambda nm: np.linalg.norm(poses[14].parts[nm] - h1[14]))
+    poses[14].parts[k] = wrong
+    poses[14].diagnostics["free_leaves"].append([float(c) for c in h1[14]])
+    out = track(poses, human)
+    name = _identity_of(out, h1, ["hand_1", "hand_2"])[0]
+    assert len(set(_identity_of(out, h1, ["hand_1", "hand_2"]))) == 1
+    q = out[14]
+    assert q.diagnostics["snapped"] == [name] and "predicted" not in q.diagnostics
+    assert np.allclose(q.parts[name], h1[14]) and np.allclose(q.diagnostics["misplaced"][name], wrong, atol=1e-4)
+    assert name not in q.diagnostics["curves"]
+    assert all("snapped" not in p.diagnostics for i, p in enumerate(out) if i != 14)
+    off = track(poses, human, snap=False)[14]
+    assert "snapped" not in off.diagnostics and np.allclose(off.parts[name], wrong)
+
+
+def test_free_leaves_are_the_unmatched_degree_one_vertices():
+    from topopose.match.tree import Tree
+    from topopose.pose.track import free_leaves
+
+    # a star 0 – {1, 2, 3} with a tail 3 – 4: leaves 1, 2, 4
+    pos = {v: np.array([v, 0.5 * v, 0.0]) for v in range(5)}
+    tree = Tree([(0, 1, 1.0), (0, 2, 1.0), (0, 3, 1.0), (3, 4, 1.0)], positions=pos)
+    assert free_leaves(tree, {"head": 1, "torso": 0}) == [[2.0, 1.0, 0.0], [4.0, 2.0, 0.0]]
+    assert free_leaves(tree, {"a": 1, "b": 2, "c": 4, "d": None}) == []
+
+
+def test_estimator_records_free_leaves_and_nothing_else_changes():
+    """A synthetic capsule human: the frame's ``free_leaves`` are the data tree's degree-1
+    vertices the alignment left unmatched (brute force over the edges); switched off
+    (``FrameEstimator.leaves = False``) the pose is the same, without them."""
+    from topopose.capture import synthetic_capture
+    from topopose.pose import FrameEstimator
+
+    cap = synthetic_capture("human", frames=1, seed=5, noise=1)
+    est = FrameEstimator(cap, "human", resolution=60)
+    p, det = est.estimate(0, detail=True)
+    ends = [v for v in det.data.vertices
+            if sum(v in (a, b) for a, b, _ in det.data.edges) == 1]
+    mapped = set(det.alignment.mapping.values())
+    want = sorted(np.round(det.data.positions[v], 4).tolist() for v in ends if v not in mapped)
+    assert sorted(p.diagnostics["free_leaves"]) == want
+    assert len(ends) > len(want)                       # the matched extremities are left out
+    est.leaves = False
+    q = est.estimate(0)
+    assert "free_leaves" not in q.diagnostics and q.status == p.status
+    for k, x in p.parts.items():
+        assert (x is None and q.parts[k] is None) or np.array_equal(x, q.parts[k])

@@ -237,6 +237,7 @@ class FrameEstimator:
                                   root=self.model.root, root_arc=self._root_arc)
 
     curves = True    # record the skeleton curve of each matched arc (pose.curves)
+    leaves = True    # record the data tree's unmatched leaves (pose.track: snapping)
 
     # ------------------------------------------------------------------ stages
     def hull(self, frame):
@@ -448,6 +449,9 @@ class FrameEstimator:
                                             self.model, on_skeleton, voxels=sk_vox)
             except Exception as exc:           # never costs the frame its pose
                 diag["curves_error"] = f"{type(exc).__name__}: {exc}"
+        if self.leaves:      # candidates for a misplaced numbered part (pose.track)
+            from .track import free_leaves
+            diag["free_leaves"] = free_leaves(data, al.mapping)
         timings["placement"] = (time.perf_counter() - t0) * 1e3
         timings["total"] = (time.perf_counter() - t_all) * 1e3
         pose = Pose(name, status, dist, parts, error, timings, diag)

@@ -15,8 +15,14 @@ from (:func:`implausible_reach`: a hand put on a foot), or where a part of anoth
 a frame before (:func:`on_other_parts`) — and its track is established, the
 per-frame result misplaced it: the part is *held* at its identity's prediction, flagged
 (``diagnostics["predicted"]``, its per-frame position in ``diagnostics["misplaced"]``), never
-silently. Other outliers re-initialize their identity only when they are consistently
-different for ``reinit`` frames (a trajectory of their own). Tracking is *lost* when no
+silently. An outlier of an established identity whose frame has a free skeleton leaf (one no
+part was matched to, ``diagnostics["free_leaves"]``) within half the gate of its prediction is
+*snapped* to the nearest such leaf instead (``diagnostics["snapped"]``): with few cameras the
+per-frame result puts a hand on a phantom branch of the hull while the real hand's branch is
+left unmatched (the real recording, ``benchmarks/real.py``: hands 0.64 m off in 3 frames, right
+as ``run`` writes it 68 → 71 of 100; synthetic 8-camera walks, ``benchmarks/tracking.py``:
+nothing snapped, figures unchanged). Other outliers re-initialize their identity only when
+they are consistently different for ``reinit`` frames (a trajectory of their own). Tracking is *lost* when no
 identity was updated for ``max_gap`` frames; the new segment takes the per-frame numbering, or,
 after a gap of at most ``relink`` frames, the numbering that keeps each part on its side of
 the part its limb hangs from (positions relative to the torso for the hands; only their
@@ -65,7 +71,7 @@ def relabel(pose, mapping: dict):
         d = diag.get(key)
         if isinstance(d, dict):
             diag[key] = {mapping.get(k, k): v for k, v in d.items()}
-    for key in ("missing", "predicted"):
+    for key in ("missing", "predicted", "snapped"):
         if isinstance(diag.get(key), list):
             diag[key] = [mapping.get(k, k) for k in diag[key]]
     return replace(pose, parts=parts, diagnostics=diag)
@@ -75,6 +81,19 @@ def gated_only(pose) -> bool:
     """A frame the alignment accepted but the confidence gate rejected
     (:mod:`topopose.pose.confidence`)."""
     return pose.status == "rejected" and str(pose.error or "").startswith("confidence ")
+
+
+def free_leaves(data, mapping) -> list:
+    """Positions (lists of 3 floats, rounded to 0.1 mm) of the data tree's leaves (degree-1
+    vertices) that no model part was matched to: where a misplaced numbered part may really be
+    (:func:`assign_identities`' ``candidates``)."""
+    deg = {}
+    for u, v, _ in data.edges:
+        deg[u] = deg.get(u, 0) + 1
+        deg[v] = deg.get(v, 0) + 1
+    used = {v for v in mapping.values() if v is not None}
+    return [[round(float(c), 4) for c in data.positions[v]] for v, d in sorted(deg.items())
+            if d == 1 and v not in used and data.positions.get(v) is not None]
 
 
 def body_scale(poses) -> float:
@@ -89,7 +108,8 @@ def body_scale(poses) -> float:
 
 
 def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, misplaced=None,
-                      reinit=3, anchors=None, relink=None, up=None, detail=False):
+                      reinit=3, anchors=None, relink=None, up=None, detail=False,
+                      candidates=None, snap=None):
     """Track one interchangeable group.
 
     Parameters
@@ -122,7 +142,14 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
     up : None or (n, 3) the subject's up axis per frame (the trunk); with it, when the anchor
         travelled across the gap, only the lateral components (across the travel and the up
         axis) are compared: a foot swings forward and back, it stays on its side
-    detail : also return ``held`` and ``predicted``
+    detail : also return ``held`` and ``predicted`` (and ``snapped`` with ``candidates``)
+    candidates : None or a list of n entries, None or (m, 3) positions where a part of the
+        group may be instead of where the frame put it (the skeleton's unmatched leaves,
+        :func:`free_leaves`). An outlier of an established identity (beyond the gate, ``reinit``
+        inlier updates in a row) moves to the candidate nearest the identity's prediction when
+        that one lies within ``snap`` of it and nearer than the observation: the observation
+        then counts as an inlier at the candidate (*snapped*), each candidate used once
+    snap : largest distance between a prediction and a candidate; default ``gate`` / 2
 
     Returns
     -------
@@ -132,6 +159,8 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
     held : (n, k) bool, observation j of frame i held (only with ``detail``)
     predicted : (n, k, 3) the prediction of identity a in frame i, NaN when none (only with
         ``detail``)
+    snapped : (n, k, 3) the candidate observation j of frame i moved to, NaN when none (only
+        with ``detail`` and ``candidates``)
     """
     n = len(times)
     perm = [None] * n
@@ -139,6 +168,8 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
     kmax = max((len(o) for o in observations if o is not None), default=0)
     held = np.zeros((n, kmax), dtype=bool)
     predicted = np.full((n, kmax, 3), np.nan)
+    snapped = np.full((n, kmax, 3), np.nan)
+    snap = 0.5 * gate if snap is None else float(snap)
     last = prev = last_t = prev_t = None
     seg = -1
     relink = 3 * max_gap if relink is None else relink
@@ -150,7 +181,7 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
         obs = observations[i]
         if obs is None:
             continue
-        obs = np.asarray(obs, dtype=float)
+        obs = np.array(obs, dtype=float)           # a copy: a snapped observation moves
         k = len(obs)
         seen = ~np.isnan(obs).any(axis=1)
         bad = (np.zeros(k, dtype=bool) if misplaced is None or misplaced[i] is None
@@ -180,6 +211,20 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
             dt = np.maximum(times[i] - last_t, 1.0)       # the gate widens over gaps
             outlier = np.array([seen[j] and cost[p[j], j] > gate * (1 + 0.5 * (dt[p[j]] - 1))
                                 for j in range(k)])
+            if candidates is not None and candidates[i] is not None and len(candidates[i]):
+                # an outlier of an established track moves to the free skeleton leaf nearest
+                # its prediction (the frame put the part on another branch: a phantom one)
+                free = np.asarray(candidates[i], dtype=float).reshape(-1, 3)
+                for j in np.flatnonzero(outlier):
+                    a = p[j]
+                    if streak[a] < reinit or np.isnan(pred[a]).any() or not len(free):
+                        continue
+                    d = np.linalg.norm(free - pred[a], axis=1)
+                    m = int(np.argmin(d))
+                    if d[m] <= snap and d[m] < cost[a, j]:
+                        obs[j] = snapped[i, j] = free[m]
+                        outlier[j] = False
+                        free = np.delete(free, m, axis=0)
             # only an established track (``reinit`` inlier updates in a row) holds a part: the
             # prediction of a track that follows unrelated poses means nothing
             held[i, :k] = outlier & bad & (streak[p] >= reinit)
@@ -244,7 +289,8 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
                 rel[a] = obs[j] - anchors[i]
                 rel_anchor = anchors[i]
     if detail:
-        return perm, segment, held, predicted
+        return ((perm, segment, held, predicted) if candidates is None
+                else (perm, segment, held, predicted, snapped))
     return perm, segment
 
 
@@ -299,7 +345,7 @@ def on_other_parts(poses, usable, group, others, radius):
 
 
 def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, reinit=3,
-          few=FEW_USABLE) -> list:
+          few=FEW_USABLE, snap=True) -> list:
     """Give the numbered parts of a sequence stable identities (see the module docstring).
 
     Parameters
@@ -311,6 +357,8 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
         dt frames without update); default 0.25 × the median extent of the subject
         (:func:`body_scale`), 45 cm for a standing adult
     velocity, reinit : see :func:`assign_identities`
+    snap : move outliers to the frame's free skeleton leaves (``diagnostics["free_leaves"]``,
+        :func:`free_leaves`) as :func:`assign_identities` does with ``candidates``
     use_rejected : frames only the confidence gate rejected (:func:`gated_only`) are
         observations too: the gate rejects many right frames, whose gaps would otherwise lose
         the tracks (``benchmarks/tracking.py``, walks: identity switches on matched frames per
@@ -326,7 +374,9 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
     placed at its identity's prediction (None when there is none), listed in
     ``diagnostics["predicted"]``, its per-frame position kept in ``diagnostics["misplaced"]``
     and its skeleton curve dropped (the kinematic fit then bridges the frame, flagged
-    ``interpolated``).
+    ``interpolated``). A *snapped* part is placed at its free leaf, listed in
+    ``diagnostics["snapped"]``, its per-frame position in ``diagnostics["misplaced"]``, its
+    curve dropped.
     """
     poses = sorted(poses, key=lambda p: p.frame)
     if gate is None:
@@ -358,16 +408,20 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
         hang = parent.get(group[0])
         anchors = np.array([np.asarray(p.parts[hang], float) if u and p.parts.get(hang) is not None
                             else np.full(3, np.nan) for p, u in zip(poses, usable)])
-        perm, seg, held, pred = assign_identities(times, obs, gate, max_gap, velocity,
-                                                  misplaced=bad, reinit=reinit, anchors=anchors,
-                                                  up=up, detail=True)
+        cands = ([None if not u else p.diagnostics.get("free_leaves")
+                  for p, u in zip(poses, usable)] if snap else None)
+        perm, seg, held, pred, *moved = assign_identities(
+            times, obs, gate, max_gap, velocity, misplaced=bad, reinit=reinit, anchors=anchors,
+            up=up, detail=True, candidates=cands)
         stem = str(group[0]).rpartition("_")[0]
         for i, p in enumerate(perm):
             if p is None:
                 continue
             q = relabel(out[i], {group[j]: group[p[j]] for j in range(len(group))})
             diag = {**q.diagnostics, "track": {**q.diagnostics.get("track", {}), stem: int(seg[i])}}
-            if held[i].any():
+            moved_i = (np.zeros(len(group), bool) if not moved
+                       else ~np.isnan(moved[0][i, :len(group)]).any(axis=1))
+            if held[i].any() or moved_i.any():
                 parts = dict(q.parts)
                 curves = dict(diag.get("curves") or {})
                 mis = dict(diag.get("misplaced") or {})
@@ -379,7 +433,18 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
                     parts[name] = None if np.isnan(x).any() else x.copy()
                     curves.pop(name, None)
                     prd.append(name)
-                diag.update(misplaced=mis, predicted=sorted(prd))
+                snp = list(diag.get("snapped") or [])
+                for j in np.flatnonzero(moved_i):
+                    name = group[p[j]]
+                    mis[name] = [round(float(c), 5) for c in parts[name]]
+                    parts[name] = moved[0][i, j].copy()
+                    curves.pop(name, None)
+                    snp.append(name)
+                diag.update(misplaced=mis)
+                if prd:
+                    diag["predicted"] = sorted(prd)
+                if snp:
+                    diag["snapped"] = sorted(snp)
                 if "curves" in diag:
                     diag["curves"] = curves
                 q = replace(q, parts=parts)

@@ -82,7 +82,7 @@ FAT_OK, FAT_MAX = 0.04, 0.06          # the product confidence (models without a
 FEATURES = ("distance", "thickness", "missing", "lost", "fat", "spurious", "spurious_length",
             "arc_dev", "head_low", "foot_high", "head_radius", "end_radius", "head_bend",
             "head_offset", "head_reach", "trunk", "shape", "shape_max", "spurious_share",
-            "limb_sym")
+            "limb_sym", "matched_distance")
 MODEL_PATH = Path(__file__).with_name("confidence_model.json")
 # the fitted logistic confidence (benchmarks/confidence.py --fit rewrites the file)
 CONFIDENCE_MODEL = json.loads(MODEL_PATH.read_text())
@@ -162,11 +162,15 @@ def _branch_length(adj, leaf) -> float:
 
 
 def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al=None,
-                   thickness_cost=0.0, radii=None) -> dict:
+                   thickness_cost=0.0, radii=None, missing_cost=0.0) -> dict:
     """What one frame's stages know about how far to trust it, as numbers (the inputs of the
     logistic confidence, :data:`FEATURES`).
 
-    - ``distance``: AHA length distance / T_d (3 when infinite);
+    - ``distance``: AHA length distance / T_d (3 when infinite); ``matched_distance``: the
+      same without what the unmatched leaf parts cost (``missing_cost``,
+      :func:`topopose.pose.estimate.missing_cost`): a missing limb of §13.2.2 (an arm lying on
+      the body has no branch) is a right frame, and its deleted arm alone costs the alignment
+      its model weight (0.18 of the human's), more than half of T_d;
     - ``thickness``: the thickness arc cost paid by the matched arcs (a hand placed on a thick
       branch, a head on a thin one; :func:`topopose.pose.estimate.thickness_arc_cost`);
     - ``missing``: parts left unmatched;
@@ -204,8 +208,10 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
     vs = float(vol.voxel_size)
     height = (hi_i - lo_i + 1) * vs
     z0 = vol.origin[ax] + (lo_i if sign > 0 else hi_i) * vs
-    f = {"distance": 3.0 if distance is None or not math.isfinite(distance)
-         else min(float(distance) / threshold, 3.0),
+    inf = distance is None or not math.isfinite(distance)
+    f = {"distance": 3.0 if inf else min(float(distance) / threshold, 3.0),
+         "matched_distance": 3.0 if inf else min(max(float(distance) - float(missing_cost), 0.0)
+                                                 / threshold, 3.0),
          "thickness": min(float(thickness_cost or 0.0), 5.0),
          "missing": float(missing), "lost": 1.0 - share,
          "fat": n_vox * vs ** 3 / height ** 3 if height > 0 else 0.0,
@@ -322,7 +328,7 @@ def passes_gate(status, error, confidence, min_confidence) -> bool:
 
 def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
                 min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m", al=None,
-                thickness_cost=0.0, reach=0, radius_map=None) -> tuple:
+                thickness_cost=0.0, reach=0, radius_map=None, missing_cost=0.0) -> tuple:
     """Status, reason and diagnostics of one frame from what the stages know.
 
     A ``matched`` frame becomes ``rejected`` when the hull's largest component holds less than
@@ -358,7 +364,7 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
         radii = vertex_radii(vol, SimpleNamespace(vertices=mapped, positions=data.positions), reach,
                              radius_map)
     feats = frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al,
-                           thickness_cost, radii)
+                           thickness_cost, radii, missing_cost)
     fitted = model.name in CONFIDENCE_MODEL.get("models", ())
     if fitted:
         conf = fitted_confidence(feats, share, min_share)

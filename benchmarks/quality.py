@@ -217,6 +217,15 @@ def body_rows(quick, out, suffix):
     row("body all-poses noise1 no-spine", *body_study(allp, 100, spine=False))
     row("body separated noise1 no-spine gate-off", *body_study(sep, 100, spine=False, gate=False))
     row("body all-poses noise1 no-spine gate-off", *body_study(allp, 100, spine=False, gate=False))
+    # the torso put back on the trunk line (pose/anatomy.py torso_on_trunk) off: its peer
+    row("body separated noise1 no-trunk", *body_study(sep, 100, trunk=False))
+    row("body all-poses noise1 no-trunk", *body_study(allp, 100, trunk=False))
+    # T_d on the whole distance rather than the matched parts' (estimate.MATCHED_DISTANCE); it
+    # acts without the gate only (with it the fitted confidence decides instead of T_d)
+    row("body separated noise1 whole-distance gate-off", *body_study(sep, 100, gate=False,
+                                                                      matched_distance=False))
+    row("body all-poses noise1 whole-distance gate-off", *body_study(allp, 100, gate=False,
+                                                                      matched_distance=False))
     row("body separated noise1 two-pass", *body_study(sep, 100, two_pass=True))
     row("body all-poses noise1 two-pass", *body_study(allp, 100, two_pass=True))
     if not quick:
@@ -248,7 +257,13 @@ def body_rows(quick, out, suffix):
          "from its confident frames; *no-spine*: `FrameEstimator(spine=False)`, the peer of the "
          "spine shift (torso, crotch and head moved back from the hull's medial axis onto the "
          "spine, against the front the feet give: `topopose.pose.anatomy`, on by default for the "
-         "human model). "
+         "human model); *no-trunk*: `FrameEstimator(trunk=False)`, the peer of the torso put "
+         "back on the trunk line crotch → head when the alignment slid it down to the crotch "
+         "(an arm along the trunk; `topopose.pose.anatomy.torso_on_trunk`); *whole-distance*: "
+         "`FrameEstimator(matched_distance=False)`, T_d on the whole AHA distance, the peer of "
+         "T_d on the matched parts' distance (a missing limb's deleted arm not counted; "
+         "`topopose.pose.estimate.MATCHED_DISTANCE`; without the gate only, with it the "
+         "confidence decides). "
          "Diagnosis of "
          "the failing parts: `benchmarks/diagnose_body.py` (diagnose_body*.md).", "",
          "| configuration | res | frames | TP rate | FP/match | good | miss1 | partial | misplaced "

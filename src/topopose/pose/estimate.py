@@ -169,7 +169,7 @@ class FrameEstimator:
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
                  tip_fraction=1.0, spine=None,
-                 head_from_hull=None, trunk=None, matched_distance=None):
+                 head_from_hull=None, trunk=None, matched_distance=None, trunk_features=True):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -238,6 +238,7 @@ class FrameEstimator:
         self.tips = [p for p in self.model.parts if len(adj[p]) == 1 and self.model.complete
                      and p.rstrip("_0123456789") in stems]
         self.spine = _spine_option(self.model, spine)
+        self.trunk_features = bool(trunk_features)
         self.matched_distance = (MATCHED_DISTANCE.get(self.model.name, False)
                                  if matched_distance is None else bool(matched_distance))
         from .anatomy import TORSO_ON_TRUNK
@@ -450,7 +451,8 @@ class FrameEstimator:
             vol, n_vox, data, self.model, self.up, dist, self.threshold, len(missing), status,
             error, self.min_share, self.min_confidence if self.gate else None, self.cap.units,
             al=al, thickness_cost=thick, reach=self.thickness_reach,
-            radius_map=radii, missing_cost=mcost)
+            radius_map=radii, missing_cost=mcost,
+            trunk=self.trunk if self.trunk_features else None)
         diag = {"model": self.model.name, "resolution": self.resolution,
                 "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
                 "skeleton_voxels": int(data.diagnostics.get("n_voxels", -1)),

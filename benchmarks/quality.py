@@ -21,8 +21,9 @@ hand (4 poor cameras): T_d = 3.5 (unnormalized scale) gives 10–20 %.
 - body (the MakeHuman mesh, issue 11): builds × seeds, separated and all poses, noise 0–2,
   50/100/150³, the thickness term on and off, the pruning of skeleton bumps on and off, the
   head's body-axis check on and off, the head half way to its tip, the spine shift (pose/anatomy.py)
-  on and off, the head's tip levelled, a lost head recovered on the body axis, scored at 0.08 ×
-  height for every part
+  on and off, the head's tip levelled, a lost head recovered on the body axis, the torso put
+  back on the trunk line on and off, T_d on the matched parts' or the whole distance, scored at
+  0.08 × height for every part
   (benchmarks/results/quality_body.{md,json}).
 
 "Limbs separated" (the thesis' dancer study: "each limb is clearly separated from others" in the

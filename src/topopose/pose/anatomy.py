@@ -47,8 +47,12 @@ SPINE_SHIFT = {"human": {"torso": 0.32, "crotch": 0.34, "head": 0.17}}
 # 0.59–0.60 of crotch → head (median; 5–95 %: 0.53–0.71); the torso of the alignment is right
 # (within 0.08 × height) in 116 of 119 separated and 100 of 118 all-pose frames, and lies below
 # 0.35 of crotch → head in 9 and 24 of them (right in 7 and 9); put at 0.6 there: 117 and 115
-# right (at 0.6 in every frame: 117 and 116). Held-out figures: ``benchmarks/quality.py``
-# (quality_body.md, *no-trunk* rows).
+# right (at 0.6 in every frame: 117 and 116). The confidence's features see the torso so placed
+# (``FrameEstimator(trunk_features=True)``, pose/confidence.py ``frame_features(trunk=...)``),
+# else it still rejects the mended frames for their short trunk. Same training frames with the
+# gate (TP rate / FP per match, separated; all poses): off 0.883 / 0.036; 0.650 / 0.071 → on,
+# features as matched 0.892 / 0.027; 0.658 / 0.060 → on, features as placed 0.892 / 0.036; 0.683
+# / 0.057. Held-out figures: ``benchmarks/quality.py`` (quality_body.md, *no-trunk* rows).
 TORSO_ON_TRUNK = {"human": ("torso", "crotch", "head", 0.35, 0.6)}
 
 

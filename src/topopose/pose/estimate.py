@@ -142,6 +142,9 @@ class FrameEstimator:
         model's entry of :data:`topopose.pose.anatomy.TORSO_ON_TRUNK` (human; complete models
         only); False: off; a tuple ``(part, lower, upper, min_fraction, fraction)`` replaces it.
         Measured there and in ``benchmarks/quality.py`` (quality_body.md, "no-trunk" rows).
+    trunk_features : bool
+        The confidence's features see the torso as ``trunk`` places it (default) rather than
+        at its matched data vertex (measured in :data:`topopose.pose.anatomy.TORSO_ON_TRUNK`).
     matched_distance : bool or None
         T_d judges the AHA distance without what the unmatched leaf parts cost
         (:func:`missing_cost`; at most ``max_missing`` of them): a frame whose only defect is a

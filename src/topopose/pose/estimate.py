@@ -143,8 +143,10 @@ class FrameEstimator:
         only); False: off; a tuple ``(part, lower, upper, min_fraction, fraction)`` replaces it.
         Measured there and in ``benchmarks/quality.py`` (quality_body.md, "no-trunk" rows).
     trunk_features : bool
-        The confidence's features see the torso as ``trunk`` places it (default) rather than
-        at its matched data vertex (measured in :data:`topopose.pose.anatomy.TORSO_ON_TRUNK`).
+        The confidence's features see the torso as ``trunk`` places it rather than at its
+        matched data vertex (default off: measured in
+        :data:`topopose.pose.anatomy.TORSO_ON_TRUNK`, it helped the training seeds and cost the
+        held-out ones a wrong frame more in each set).
     matched_distance : bool or None
         T_d judges the AHA distance without what the unmatched leaf parts cost
         (:func:`missing_cost`; at most ``max_missing`` of them): a frame whose only defect is a
@@ -172,7 +174,7 @@ class FrameEstimator:
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
                  tip_fraction=1.0, spine=None,
-                 head_from_hull=None, trunk=None, matched_distance=None, trunk_features=True):
+                 head_from_hull=None, trunk=None, matched_distance=None, trunk_features=False):
         from ..match import Matcher
         from .confidence import min_confidence_for
 

@@ -117,7 +117,6 @@ def spine_shift(parts: dict, front, radius: float, shares: dict) -> dict:
     return out
 
 
-
 def torso_on_trunk(parts: dict, rule) -> tuple:
     """``parts`` with ``rule``'s part (the torso) moved to ``fraction`` of the way lower end →
     upper end (crotch → head) when it lies below ``min_fraction`` of it (its projection on that

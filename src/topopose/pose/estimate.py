@@ -799,7 +799,7 @@ def matched_arc_cost(al, arc_cost) -> float:
 
 def missing_cost(pattern, al) -> float:
     """What the unmatched leaf parts of the alignment ``al`` cost it: the normalized weight of
-    each model leaf arc whose leaf maps to no data vertex (deleted, γ(w, 0) = w, §9.3)."""
+    each model leaf arc whose leaf maps to no data vertex (a deleted arc costs γ(w, 0) = w)."""
     if not math.isfinite(al.distance):
         return 0.0
     adj = pattern.adjacency()

@@ -50,7 +50,8 @@ POSE_KINDS = ("separated", "all")   # the body benchmark's poses (quality.py bod
 POSE_SEED0 = 100                    # their seeds: disjoint from quality.py's 21, 22
 FIT_FEATURES = ("distance", "missing", "shape", "shape_max", "spurious_share", "head_low",
                 "head_radius", "head_bend", "head_offset", "head_reach", "trunk", "limb_sym",
-                "spurious", "spurious_length", "arc_dev", "end_radius", "foot_high", "fat")
+                "spurious", "spurious_length", "arc_dev", "end_radius", "foot_high", "fat",
+                "matched_distance")
 # camera set-ups: name → (cameras, image size (w, h), silhouette noise level). "4p": four
 # portrait phone-like cameras (1088×1920 at half scale) with the noisier
 # masks of a segmentation network (level 2: borders ±2 px, false blobs, holes)
@@ -173,7 +174,9 @@ def swapped_rows(cap, est, out, ev, like):
             f = frame_features(det.volume, p.diagnostics["hull_voxels"], det.data, est.model,
                                est.up, p.distance, est.threshold, len(p.diagnostics["missing"]),
                                SimpleNamespace(mapping=m, pairs=al.pairs),
-                               p.diagnostics.get("thickness_cost", 0.0), radii)
+                               p.diagnostics.get("thickness_cost", 0.0), radii,
+                               p.diagnostics.get("missing_cost", 0.0),
+                               est.trunk if est.trunk_features else None)
             parts = {**p.parts, "head": p.parts[hand], hand: p.parts["head"]}
             q = score(cap, [Pose(p.frame, "matched", p.distance, parts)], est.model).frames[0].quality
             rows.append({**like, "frame": p.frame, "status": p.status, "error": p.error,

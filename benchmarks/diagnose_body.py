@@ -83,7 +83,11 @@ def run(caps, options, pictures=0, tag=""):
             rec = {"capture": (cap.gt["synth"].get("build") or {}).get("name"),
                    "seed": cap.gt["synth"].get("seed"), "frame": f,
                    "separated": bool(g.get("separated")), "status": pose.status,
-                   "quality": fs.quality, "parts": parts, "height": h}
+                   "quality": fs.quality, "parts": parts, "height": h,
+                   "distance": pose.distance, "error": pose.error,
+                   "missing": (pose.diagnostics or {}).get("missing"),
+                   "confidence": (pose.diagnostics or {}).get("confidence"),
+                   "features": (pose.diagnostics or {}).get("confidence_features")}
             recs.append(rec)
             if pictures and rec["quality"] in ("misplaced", "missing limb") \
                     and shown[rec["quality"]] < pictures and pose.status == "matched":

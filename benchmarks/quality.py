@@ -21,8 +21,9 @@ hand (4 poor cameras): T_d = 3.5 (unnormalized scale) gives 10–20 %.
 - body (the MakeHuman mesh, issue 11): builds × seeds, separated and all poses, noise 0–2,
   50/100/150³, the thickness term on and off, the pruning of skeleton bumps on and off, the
   head's body-axis check on and off, the head half way to its tip, the spine shift (pose/anatomy.py)
-  on and off, the head's tip levelled, a lost head recovered on the body axis, scored at 0.08 ×
-  height for every part
+  on and off, the head's tip levelled, a lost head recovered on the body axis, the torso put
+  back on the trunk line on and off, T_d on the matched parts' or the whole distance, scored at
+  0.08 × height for every part
   (benchmarks/results/quality_body.{md,json}).
 
 "Limbs separated" (the thesis' dancer study: "each limb is clearly separated from others" in the
@@ -217,6 +218,17 @@ def body_rows(quick, out, suffix):
     row("body all-poses noise1 no-spine", *body_study(allp, 100, spine=False))
     row("body separated noise1 no-spine gate-off", *body_study(sep, 100, spine=False, gate=False))
     row("body all-poses noise1 no-spine gate-off", *body_study(allp, 100, spine=False, gate=False))
+    # the torso put back on the trunk line (pose/anatomy.py torso_on_trunk) off: its peer
+    row("body separated noise1 no-trunk", *body_study(sep, 100, trunk=False))
+    row("body all-poses noise1 no-trunk", *body_study(allp, 100, trunk=False))
+    row("body separated noise1 trunk-features", *body_study(sep, 100, trunk_features=True))
+    row("body all-poses noise1 trunk-features", *body_study(allp, 100, trunk_features=True))
+    # T_d on the whole distance rather than the matched parts' (estimate.MATCHED_DISTANCE); it
+    # acts without the gate only (with it the fitted confidence decides instead of T_d)
+    row("body separated noise1 whole-distance gate-off", *body_study(sep, 100, gate=False,
+                                                                      matched_distance=False))
+    row("body all-poses noise1 whole-distance gate-off", *body_study(allp, 100, gate=False,
+                                                                      matched_distance=False))
     row("body separated noise1 two-pass", *body_study(sep, 100, two_pass=True))
     row("body all-poses noise1 two-pass", *body_study(allp, 100, two_pass=True))
     if not quick:
@@ -248,7 +260,15 @@ def body_rows(quick, out, suffix):
          "from its confident frames; *no-spine*: `FrameEstimator(spine=False)`, the peer of the "
          "spine shift (torso, crotch and head moved back from the hull's medial axis onto the "
          "spine, against the front the feet give: `topopose.pose.anatomy`, on by default for the "
-         "human model). "
+         "human model); *no-trunk*: `FrameEstimator(trunk=False)`, the peer of the torso put "
+         "back on the trunk line crotch → head when the alignment slid it down to the crotch "
+         "(an arm along the trunk; `topopose.pose.anatomy.torso_on_trunk`); *trunk-features*: "
+         "`FrameEstimator(trunk_features=True)`, the confidence's features computed with the "
+         "torso so placed (off by default); *whole-distance*: "
+         "`FrameEstimator(matched_distance=False)`, T_d on the whole AHA distance, the peer of "
+         "T_d on the matched parts' distance (a missing limb's deleted arm not counted; "
+         "`topopose.pose.estimate.MATCHED_DISTANCE`; without the gate only, with it the "
+         "confidence decides). "
          "Diagnosis of "
          "the failing parts: `benchmarks/diagnose_body.py` (diagnose_body*.md).", "",
          "| configuration | res | frames | TP rate | FP/match | good | miss1 | partial | misplaced "

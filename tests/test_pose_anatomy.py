@@ -5,7 +5,7 @@ radius is known, and the ground truth of a ``body`` frame (its front and its spi
 import numpy as np
 
 from topopose.match.tree import Tree
-from topopose.pose.anatomy import front_direction, hull_radius, spine_shift
+from topopose.pose.anatomy import front_direction, hull_radius, spine_shift, torso_on_trunk
 
 
 class _Vol:
@@ -112,3 +112,23 @@ def test_body_frame_the_shift_points_to_the_back():
     assert len(cos) >= 2
     assert min(cos) > 0.7
     assert np.mean(gain) > 0
+
+
+def test_torso_on_trunk_moves_only_a_torso_slid_down():
+    rule = ("torso", "crotch", "head", 0.35, 0.6)
+    base = {"crotch": np.array([0.0, 0.0, 1.0]), "head": np.array([0.0, 0.2, 2.0])}
+    # at the crotch (a contracted torso–crotch arc), and 0.3 of the way up but off the line:
+    # both below 0.35 of crotch → head, both put at 0.6 of it
+    for torso in ((0.0, 0.0, 1.0), (0.5, 0.06, 1.3)):
+        out, moved = torso_on_trunk({**base, "torso": np.array(torso)}, rule)
+        assert moved and np.allclose(out["torso"], [0.0, 0.12, 1.6])
+        assert out["crotch"] is base["crotch"] and out["head"] is base["head"]
+    # at 0.4 (above 0.35): unchanged, the same object
+    t = np.array([0.3, 0.08, 1.4])
+    out, moved = torso_on_trunk({**base, "torso": t}, rule)
+    assert not moved and out["torso"] is t
+    # a part unplaced, or crotch and head at one point: nothing moves
+    for parts in ({**base, "torso": np.zeros(3), "head": None},
+                  {"crotch": base["crotch"], "head": base["crotch"], "torso": np.zeros(3)}):
+        out, moved = torso_on_trunk(parts, rule)
+        assert not moved and out is parts

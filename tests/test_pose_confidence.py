@@ -50,6 +50,11 @@ def test_features_of_a_hand_built_frame():
     g = C.frame_features(vol, int(a.sum()), data, model, (0, 0, 1), 0.2, 0.4, 0, al)
     assert g["head_bend"] == pytest.approx(1.0) and g["head_offset"] == pytest.approx(0.3)
     assert g["head_low"] == pytest.approx(0.4)
+    # a deleted limb's cost taken off: (0.2 − 0.12) / 0.4; without one, the whole distance
+    m = C.frame_features(vol, int(a.sum()), data, model, (0, 0, 1), 0.2, 0.4, 1, al,
+                         missing_cost=0.12)
+    assert m["matched_distance"] == pytest.approx(0.2) and m["distance"] == pytest.approx(0.5)
+    assert g["matched_distance"] == pytest.approx(0.5)
 
 
 def test_logistic_fit_recovers_known_coefficients():

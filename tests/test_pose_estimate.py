@@ -1,4 +1,5 @@
 """Per-frame helpers: cavity filling (topology: cavities go, tunnels stay)."""
+import pytest
 import numpy as np
 from scipy import ndimage
 
@@ -104,3 +105,23 @@ def test_leaf_axis_and_tip_fraction_in_the_estimator():
         v = d0.alignment.mapping["head"]
         np.testing.assert_allclose(p0.parts["head"], d0.data.positions[v])
         np.testing.assert_allclose(ph.parts["head"], 0.5 * (p0.parts["head"] + p1.parts["head"]))
+
+
+def test_missing_cost_is_the_deleted_leaf_arcs_weight():
+    """A data star lacking one of the model's three limbs: the alignment deletes that limb's
+    arc (γ(w, 0) = w), and the distance without it is Σ |w − w'| of the matched arcs."""
+    from topopose.match import align
+    from topopose.match.tree import Tree
+    from topopose.pose.estimate import missing_cost
+
+    pattern = Tree([("c", "a", 0.4), ("c", "b", 0.35), ("c", "d", 0.25)])
+    al = align(pattern, Tree([("x", "p", 0.42), ("x", "q", 0.33)]), method="aha",
+               pattern_root="c", data_root="x")
+    assert al.mapping["d"] is None
+    assert missing_cost(pattern, al) == pytest.approx(0.25)
+    assert al.distance - missing_cost(pattern, al) == pytest.approx(0.02 + 0.02)
+    # every limb matched: nothing to take off
+    full = align(pattern, Tree([("x", "p", 0.42), ("x", "q", 0.33), ("x", "r", 0.2)]),
+                 method="aha", pattern_root="c", data_root="x")
+    assert all(v is not None for v in full.mapping.values())
+    assert missing_cost(pattern, full) == 0.0

@@ -108,6 +108,36 @@ def test_unsure_frame_keeps_numbered_names_and_time_decides():
     assert "hand_1" in out3[1].parts
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_one_hand_found_is_named_by_its_side_of_the_trunk(seed):
+    rng = np.random.default_rng(20 + seed)
+    parts, curves = _body(rng.uniform(0, 2 * np.pi), rng)
+    lost = ("left_hand", "right_hand")[seed % 2]             # merged with the body: not found
+    parts[lost] = None
+    del curves[lost]
+    pose, m = _numbered_frame("000000", parts, curves, seed >= 2, False)
+    out = assign_sides([pose], HUMAN, UP)[0]
+    kept = "right_hand" if lost == "left_hand" else "left_hand"
+    assert np.allclose(out.parts[kept], parts[kept])
+    assert out.parts[lost] is None
+    assert out.diagnostics["chirality"][m[kept]]["confidence"] > 0.5
+
+
+def test_a_segment_whose_frames_disagree_does_not_decide_a_weak_frame():
+    rng = np.random.default_rng(5)
+    frames = []
+    for i, swap in enumerate((True, True, False)):               # unrelated poses the tracker
+        pr, cv = _body(1.0, rng)                                 # joined: sides disagree
+        frames.append(_numbered_frame(f"{i:06d}", pr, cv, swap, swap)[0])
+    pr, cv = _body(1.0, rng, knee=0.0, toe=0.0)
+    frames.append(_numbered_frame("000003", pr, cv, True, True)[0])
+    for p in frames:
+        p.diagnostics["track"] = {"hand": 0, "foot": 0}
+    out = assign_sides(frames, HUMAN, UP)
+    assert "hand_1" in out[3].parts                              # unsure: numbered names kept
+    assert all("left_hand" in q.parts for q in out[:3])          # the strong ones decide alone
+
+
 def test_dog_sides_from_its_axis():
     dog = load_model("dog")
     R = _rotz(2.0)
@@ -253,9 +283,10 @@ def _crossed_legs_sequence(n, rng):
 
 
 def test_a_long_tracked_segment_overrules_one_frame_with_crossed_legs():
-    from topopose.pose.chirality import OVERRULE_MIN
+    from topopose.pose.chirality import COHERENT, OVERRULE_MIN
     rng = np.random.default_rng(2)
-    poses, truth = _crossed_legs_sequence(OVERRULE_MIN + 1, rng)
+    n = max(OVERRULE_MIN + 1, int(np.ceil(2 / (1 - COHERENT))) + 1)   # coherent despite one
+    poses, truth = _crossed_legs_sequence(n, rng)
     k = len(poses) // 2
     assert frame_scores(poses[k], HUMAN, UP)[1] <= -0.5          # strong, wrong
     out = assign_sides(poses, HUMAN, UP)

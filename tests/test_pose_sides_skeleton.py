@@ -259,12 +259,42 @@ def test_frame_without_head_keeps_a_skeleton_with_held_joints():
     assert set(b.joints) == set(tree.names) and "interpolated" not in b.diagnostics
     assert sorted(b.diagnostics["held_joints"]) == ["neck", "skull"]
     assert "held_joints" not in a.diagnostics
-    assert np.allclose(b.joints["chest"], parts["torso"])
-    for k in tree.names:                       # the same body: the held joints too
-        assert np.linalg.norm(b.joints[k] - a.joints[k]) < 1e-6, k
+    assert np.linalg.norm(b.joints["chest"] - parts["torso"]) < 0.01   # root refined a little
+    for k in tree.names:                       # the same body: the held joints too (the
+        assert np.linalg.norm(b.joints[k] - a.joints[k]) < 1e-3, k   # root refined on fewer)
     # the lone frame has no earlier fit to hold from: no skeleton, not a wrong one
     alone, _, _ = fit_sequence([cut], HUMAN)
     assert alone[0].joints == {}
+
+
+def test_an_arm_unseen_after_an_unrelated_frame_hangs_along_the_trunk():
+    """Not the frame before (a capture of unrelated poses): no earlier arm to hold; the unseen
+    arm's shoulder is its mate's turned half about the trunk axis (the body is symmetric: the
+    true shoulder), the rest of the arm hangs along the trunk; the frame right after a frame
+    of the same body holds that frame's arm instead."""
+    rng = np.random.default_rng(8)
+    parts, curves = _body(0.9, rng)
+    full, _ = _numbered_frame("000000", parts, curves, False, False)
+    parts2, curves2 = _body(0.9, rng)
+    cut, m = _numbered_frame("000005", parts2, curves2, False, False)
+    cut.parts["hand_2"] = None                            # the right hand: not found
+    del cut.diagnostics["curves"]["hand_2"]
+    out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
+    b = out[1]
+    assert sorted(b.diagnostics["held_joints"]) == ["elbow_2", "fingertip_2", "shoulder_2",
+                                                    "wrist_2"]
+    truth = _true_joints(_numbered_frame("x", parts2, curves2, False, False)[0], tree)
+    assert np.linalg.norm(b.joints["shoulder_2"] - truth["shoulder_2"]) < 0.02
+    down = parts2["crotch"] - parts2["torso"]
+    down /= np.linalg.norm(down)
+    for a, c in (("shoulder_2", "elbow_2"), ("elbow_2", "wrist_2"), ("wrist_2", "fingertip_2")):
+        d = b.joints[c] - b.joints[a]
+        assert np.dot(d, down) / np.linalg.norm(d) > 0.999
+    # the frame right after the same body: the arm of that frame, not the rest pose
+    cut.frame = "000001"
+    out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
+    rel = [q.joints["wrist_2"] - q.joints["chest"] for q in out]
+    assert np.linalg.norm(rel[1] - rel[0]) < 0.02
 
 
 def _crossed_legs_sequence(n, rng):

@@ -22,14 +22,17 @@ lateral difference ``s``: near 0 when the facing is weak (both feet end-on) or t
 side by side along the facing. Over a sequence, a frame whose own score is weak (below
 ``strong``) takes the sum of the scores of its tracking segment (:mod:`.track`: the identities
 are the same), so time only steadies the per-frame decision. A segment whose frames disagree
-(``|Σ score| < COHERENT · Σ |score|``) holds no identity to use — the tracker joins unrelated
-poses of a random-pose capture — and its frames decide alone (development seeds 21–33, random
-poses: wrong sides with time 39 → 14 of 1002, single frame 12; walks 41–46: 370/370 right,
-unchanged); a frame whose confidence stays
-below ``min_confidence`` keeps the numbered names. A strong frame is overruled only by at least
-``OVERRULE_MIN`` other frames of a coherent segment whose mean score is strong and opposite (legs
-crossing on a one-legged balancing subject turn the hips' order for a frame or two; measured
-on the Pose2Sim balancing trial, ``benchmarks/real_motion.py``).
+(coherence ``|Σ score| / Σ |score|`` below ``COH_WEAK``) holds no identity to use — the tracker
+joins unrelated poses of a random-pose capture — and its weak frames decide alone. Development
+seeds 21–33 (random poses, 1002 frames × pairs): wrong sides with time 39 → 16, right 960 →
+968 (single frame: 12 wrong, 964 right); walks 41–46: 370/370 right, unchanged; on the
+Pose2Sim balancing trial (``benchmarks/real_motion.py``) ``COH_WEAK`` above 0.7 leaves 19 more
+frames unsure (one long segment's coherence is 0.7–0.75): 0.3 keeps it unchanged. A frame
+whose confidence stays below ``min_confidence`` keeps the numbered names. A strong frame is
+overruled only by at least ``OVERRULE_MIN`` other frames of a segment of coherence
+``COHERENT`` whose mean score is strong and opposite (legs crossing on a one-legged balancing
+subject turn the hips' order for a frame or two; measured on the Pose2Sim balancing trial,
+``benchmarks/real_motion.py``).
 """
 from __future__ import annotations
 
@@ -39,7 +42,8 @@ from .track import relabel
 
 F0 = 0.05          # facing strength scale (m): a planted foot gives 0.1–0.2
 OVERRULE_MIN = 5   # frames of a tracking segment that can overrule a frame's strong decision
-COHERENT = 0.8     # a tracking segment's |sum of scores| / sum of |scores| to be used
+COHERENT = 0.8     # a segment's coherence |Σ score| / Σ |score| for overruling a strong frame
+COH_WEAK = 0.3     # ... for deciding a weak frame
 S0 = 0.05          # lateral separation scale (m): shoulders / hips are 0.3–0.4 apart
 
 
@@ -181,10 +185,10 @@ def assign_sides(poses, model, up, min_confidence=0.3, use_time=True, strong=0.5
             key = ("seg", seg) if seg is not None else ("frame", p.frame)
             own, others = sc[i_pair], seg_n[key] - 1
             mean = (seg_sum[key] - own) / max(others, 1)       # the rest of the segment
-            coherent = abs(seg_sum[key]) >= COHERENT * seg_abs[key]
-            overruled = (coherent and others >= OVERRULE_MIN and abs(mean) >= strong
+            coh = abs(seg_sum[key]) / max(seg_abs[key], 1e-12)
+            overruled = (coh >= COHERENT and others >= OVERRULE_MIN and abs(mean) >= strong
                          and mean * own < 0)
-            z = seg_sum[key] if overruled or (abs(own) < strong and coherent) else own
+            z = seg_sum[key] if overruled or (abs(own) < strong and coh >= COH_WEAK) else own
             conf = float(min(1.0, abs(z)))
             if conf >= min_confidence:
                 mapping = ({parts[0]: names[0], parts[1]: names[1]} if z > 0

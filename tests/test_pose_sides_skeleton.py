@@ -108,6 +108,36 @@ def test_unsure_frame_keeps_numbered_names_and_time_decides():
     assert "hand_1" in out3[1].parts
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_one_hand_found_is_named_by_its_side_of_the_trunk(seed):
+    rng = np.random.default_rng(20 + seed)
+    parts, curves = _body(rng.uniform(0, 2 * np.pi), rng)
+    lost = ("left_hand", "right_hand")[seed % 2]             # merged with the body: not found
+    parts[lost] = None
+    del curves[lost]
+    pose, m = _numbered_frame("000000", parts, curves, seed >= 2, False)
+    out = assign_sides([pose], HUMAN, UP)[0]
+    kept = "right_hand" if lost == "left_hand" else "left_hand"
+    assert np.allclose(out.parts[kept], parts[kept])
+    assert out.parts[lost] is None
+    assert out.diagnostics["chirality"][m[kept]]["confidence"] > 0.5
+
+
+def test_a_segment_whose_frames_disagree_does_not_decide_a_weak_frame():
+    rng = np.random.default_rng(5)
+    frames = []
+    for i, swap in enumerate((True, True, True, False, False)):  # unrelated poses the tracker
+        pr, cv = _body(1.0, rng)                                 # joined: sides disagree
+        frames.append(_numbered_frame(f"{i:06d}", pr, cv, swap, swap)[0])
+    pr, cv = _body(1.0, rng, knee=0.0, toe=0.0)
+    frames.append(_numbered_frame("000005", pr, cv, True, True)[0])
+    for p in frames:
+        p.diagnostics["track"] = {"hand": 0, "foot": 0}
+    out = assign_sides(frames, HUMAN, UP)
+    assert "hand_1" in out[5].parts        # their sum is strong, yet: unsure, numbered names kept
+    assert all("left_hand" in q.parts for q in out[:5])          # the strong ones decide alone
+
+
 def test_dog_sides_from_its_axis():
     dog = load_model("dog")
     R = _rotz(2.0)
@@ -229,12 +259,42 @@ def test_frame_without_head_keeps_a_skeleton_with_held_joints():
     assert set(b.joints) == set(tree.names) and "interpolated" not in b.diagnostics
     assert sorted(b.diagnostics["held_joints"]) == ["neck", "skull"]
     assert "held_joints" not in a.diagnostics
-    assert np.allclose(b.joints["chest"], parts["torso"])
-    for k in tree.names:                       # the same body: the held joints too
-        assert np.linalg.norm(b.joints[k] - a.joints[k]) < 1e-6, k
+    assert np.linalg.norm(b.joints["chest"] - parts["torso"]) < 0.01   # root refined a little
+    for k in tree.names:                       # the same body: the held joints too (the
+        assert np.linalg.norm(b.joints[k] - a.joints[k]) < 1e-3, k   # root refined on fewer)
     # the lone frame has no earlier fit to hold from: no skeleton, not a wrong one
     alone, _, _ = fit_sequence([cut], HUMAN)
     assert alone[0].joints == {}
+
+
+def test_an_arm_unseen_after_an_unrelated_frame_hangs_along_the_trunk():
+    """Not the frame before (a capture of unrelated poses): no earlier arm to hold; the unseen
+    arm's shoulder is its mate's turned half about the trunk axis (the body is symmetric: the
+    true shoulder), the rest of the arm hangs along the trunk; the frame right after a frame
+    of the same body holds that frame's arm instead."""
+    rng = np.random.default_rng(8)
+    parts, curves = _body(0.9, rng)
+    full, _ = _numbered_frame("000000", parts, curves, False, False)
+    parts2, curves2 = _body(0.9, rng)
+    cut, m = _numbered_frame("000005", parts2, curves2, False, False)
+    cut.parts["hand_2"] = None                            # the right hand: not found
+    del cut.diagnostics["curves"]["hand_2"]
+    out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
+    b = out[1]
+    assert sorted(b.diagnostics["held_joints"]) == ["elbow_2", "fingertip_2", "shoulder_2",
+                                                    "wrist_2"]
+    truth = _true_joints(_numbered_frame("x", parts2, curves2, False, False)[0], tree)
+    assert np.linalg.norm(b.joints["shoulder_2"] - truth["shoulder_2"]) < 0.02
+    down = parts2["crotch"] - parts2["torso"]
+    down /= np.linalg.norm(down)
+    for a, c in (("shoulder_2", "elbow_2"), ("elbow_2", "wrist_2"), ("wrist_2", "fingertip_2")):
+        d = b.joints[c] - b.joints[a]
+        assert np.dot(d, down) / np.linalg.norm(d) > 0.999
+    # the frame right after the same body: the arm of that frame, not the rest pose
+    cut.frame = "000001"
+    out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
+    rel = [q.joints["wrist_2"] - q.joints["chest"] for q in out]
+    assert np.linalg.norm(rel[1] - rel[0]) < 0.02
 
 
 def _crossed_legs_sequence(n, rng):
@@ -253,9 +313,10 @@ def _crossed_legs_sequence(n, rng):
 
 
 def test_a_long_tracked_segment_overrules_one_frame_with_crossed_legs():
-    from topopose.pose.chirality import OVERRULE_MIN
+    from topopose.pose.chirality import COHERENT, OVERRULE_MIN
     rng = np.random.default_rng(2)
-    poses, truth = _crossed_legs_sequence(OVERRULE_MIN + 1, rng)
+    n = max(OVERRULE_MIN + 1, int(np.ceil(2 / (1 - COHERENT))) + 1)   # coherent despite one
+    poses, truth = _crossed_legs_sequence(n, rng)
     k = len(poses) // 2
     assert frame_scores(poses[k], HUMAN, UP)[1] <= -0.5          # strong, wrong
     out = assign_sides(poses, HUMAN, UP)

@@ -35,6 +35,7 @@ import argparse
 import itertools
 import json
 import sys
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -185,9 +186,10 @@ def swapped_rows(cap, est, out, ev, like):
     return rows
 
 
-def _fit(rows, features, l2):
+def _fit(rows, features, l2, kind="logistic"):
     """The deliberate swaps weigh SWAP_WEIGHT × the real frames' count in all (they are
-    many and easy: at full weight the model becomes a swap detector)."""
+    many and easy: at full weight the model becomes a swap detector). ``kind``: "logistic"
+    (L2 penalty ``l2``) or "trees" (:func:`_fit_trees`)."""
     from topopose.pose.confidence import fit_logistic
 
     X = np.array([[r["features"][f] for f in features] for r in rows], float)
@@ -196,6 +198,8 @@ def _fit(rows, features, l2):
     w = np.ones(len(rows))
     if aug.any():
         w[aug] = SWAP_WEIGHT * (~aug).sum() / aug.sum()
+    if kind == "trees":
+        return _fit_trees(X, y, w, features)
     real = X[~aug]                      # standardized on the real frames
     mean, scale = real.mean(axis=0), real.std(axis=0)
     scale[scale == 0] = 1.0
@@ -205,26 +209,47 @@ def _fit(rows, features, l2):
             "coef": coef.round(4).tolist(), "intercept": round(icpt, 4)}
 
 
-def fit(rows, features, half, l2):
-    """Coefficients on the calibration seeds' candidate frames (matched, or rejected for their
-    AHA distance alone: the fitted confidence replaces T_d), and per camera count the smallest
-    minimum (0.30–0.99, step 0.01) whose precision of matched reaches PRECISION in every
-    set-up of that many cameras (of at least MIN_COUNT matched frames) at it and every higher
-    minimum (``min_confidence_by_cameras``; ``min_confidence``: the largest, for fewer cameras
-    than any) —
+# the boosted trees (scikit-learn's GradientBoostingClassifier, log-loss): few shallow trees
+TREES = {"n_estimators": 100, "max_depth": 2, "learning_rate": 0.1}
+
+
+def _fit_trees(X, y, w, features, **params):
+    from sklearn.ensemble import GradientBoostingClassifier
+
+    from topopose.pose.confidence import trees_from_sklearn
+
+    gb = GradientBoostingClassifier(random_state=0, **{**TREES, **params})
+    return trees_from_sklearn(gb.fit(X, y.astype(int), sample_weight=w), features)
+
+
+def fit(rows, features, half, l2, kind="logistic"):
+    """Coefficients (or trees, ``kind``) on the calibration seeds' candidate frames (matched,
+    or rejected for their AHA distance alone: the fitted confidence replaces T_d), and per
+    camera count the smallest minimum (0.30–0.99, step 0.01) whose precision of matched
+    reaches PRECISION in every set-up of that many cameras (of at least MIN_COUNT matched
+    frames) at it and every higher minimum (``min_confidence_by_cameras``;
+    ``min_confidence``: the largest, for fewer cameras than any) —
     judged on out-of-fold confidences (two folds by seed parity, each scored by a model fitted
     on the other), which behave like held-out ones: the in-sample confidences of the wrong
     frames are optimistic."""
-    from topopose.pose.confidence import logistic_confidence
+    from topopose.pose.confidence import model_confidence
 
     flag = {"replaces_threshold": True}
     cal = [r for r in rows if r["seed"] < half_of(r, half) and candidate(r, flag)]
-    model = _fit(cal, features, l2)
+    model = _fit(cal, features, l2, kind)
     oof = []
     for k in (0, 1):
-        m = _fit([r for r in cal if r["seed"] % 2 != k], features, l2)
-        oof += [(logistic_confidence(r["features"], m), r["good"], r["cameras"]) for r in cal
+        m = _fit([r for r in cal if r["seed"] % 2 != k], features, l2, kind)
+        oof += [(model_confidence(r["features"], m), r["good"], r["cameras"]) for r in cal
                 if r["seed"] % 2 == k and not r.get("augmented")]
+    model["min_confidence_by_cameras"] = minima(oof)
+    model["min_confidence"] = max(model["min_confidence_by_cameras"].values())
+    return model
+
+
+def minima(oof) -> dict:
+    """Per camera count (str), the minimum of :func:`fit` from (confidence, right, set-up)
+    triples."""
     by = {}
     for n in sorted({SETUPS[x[2]][0] for x in oof}):
         best = 0.99
@@ -237,9 +262,7 @@ def fit(rows, features, half, l2):
                 break
             best = round(float(t), 2)
         by[str(n)] = best
-    model["min_confidence_by_cameras"] = by
-    model["min_confidence"] = max(by.values())
-    return model
+    return by
 
 
 def mins(model) -> str:
@@ -369,7 +392,7 @@ def body_benchmark(models, frames=12, seeds=(21, 22)):
     from topopose.pose.estimate import FrameEstimator
     from topopose.pose.quality import evaluate
 
-    out = {}
+    out = {"rows": []}
     for kind in POSE_KINDS:
         frames_ = []
         for cap in body_captures(kind == "separated", 1, seeds, frames):
@@ -378,6 +401,11 @@ def body_benchmark(models, frames=12, seeds=(21, 22)):
             ev = evaluate(cap.gt, poses, model=est.model,
                           tolerance=BODY_TOLERANCE * float(cap.gt["height"]), junction_factor=1.0)
             frames_ += list(zip(poses, ev.frames))
+        # the frames themselves (for refits without re-running the pipeline)
+        out["rows"] += [{"kind": kind, "frame": p.frame, "status": p.status, "error": p.error,
+                         "quality": s.quality, "cameras": len(cap.cameras),
+                         "features": p.diagnostics.get("confidence_features")}
+                        for p, s in frames_ if p.status != "failed"]
         for name, m in models.items():
             tp = fp = 0
             for p, s in frames_:
@@ -458,6 +486,9 @@ def main(argv=None):
                     help="also check the rules on the real recording (benchmarks/real.py's, "
                          "person silhouettes: needs mediapipe; ~2 min; never fitted on)")
     ap.add_argument("--l2", type=float, default=1.0)
+    ap.add_argument("--kind", choices=("logistic", "trees"), default="trees",
+                    help="the model --fit fits: boosted trees (TREES; needs scikit-learn, the "
+                         "bench extra) or the logistic regression")
     ap.add_argument("--body-benchmark", action="store_true",
                     help="also check the rules on quality.py's body frames (seeds 21, 22; ~2 min)")
     a = ap.parse_args(argv)
@@ -474,11 +505,12 @@ def main(argv=None):
             "pose": max(1, a.pose_seeds // 2)}
     model = before = C.CONFIDENCE_MODEL
     if a.fit:
-        model = fit(rows, FIT_FEATURES, half, a.l2)
+        model = fit(rows, FIT_FEATURES, half, a.l2, a.kind)
         model["fitted_by"] = "python benchmarks/confidence.py --fit"
         model["frames"] = sum(r["seed"] < half_of(r, half)
                               and candidate(r, {"replaces_threshold": True}) for r in rows)
-        C.MODEL_PATH.write_text(json.dumps(model, indent=1) + "\n")
+        C.MODEL_PATH.write_text("{\n" + ",\n".join(f" {json.dumps(k)}: {json.dumps(v)}"
+                                                    for k, v in model.items()) + "\n}\n")
     real = [r for r in rows if not r.get("augmented")]
     kinds = kinds_of(subjects, a.pose_seeds)
     table = report(real, model, half, kinds, before if a.fit else None)
@@ -508,6 +540,7 @@ def main(argv=None):
                 print("mediapipe not installed: the real check is skipped", file=sys.stderr)
     if a.body_benchmark:
         out["body_benchmark"] = body_benchmark(rules)
+        out["body_rows"] = out["body_benchmark"].pop("rows")
     res = results_dir()
     (res / "confidence.json").write_text(json.dumps(out, separators=(",", ":")))
     groups = ["all"] + ["/".join(k) for k in kinds]
@@ -570,14 +603,26 @@ def main(argv=None):
     L += ["", "Deliberate head ↔ hand swaps of the right matched frames (wrong by ground truth; "
           "the calibration half's are fitted on too): share the gate rejects — "
           + "; ".join(f"{k}: {v['rejected']}/{v['wrong']}" for k, v in swaps.items()) + "."]
-    L += ["", "## Model (`src/topopose/pose/confidence_model.json`)", "",
-          f"confidence = σ(b + Σ c_i (x_i − mean_i) / scale_i), b = {model['intercept']}, "
-          f"`matched` needs ≥ {mins(model)}.", "",
-          "| feature | coefficient | mean | scale | median right / wrong (calibration) |",
-          "| --- | --- | --- | --- | --- |"]
-    for f, c, m, s in zip(model["features"], model["coef"], model["mean"], model["scale"]):
-        L.append(f"| {f} | {c} | {m} | {s} | {out['separation'][f][0]} / "
-                 f"{out['separation'][f][1]} |")
+    L += ["", "## Model (`src/topopose/pose/confidence_model.json`)", ""]
+    if model.get("kind") == "trees":
+        splits = Counter(model["features"][f] for t in model["trees"]
+                         for f, l in zip(t["feature"], t["left"]) if l >= 0)
+        L += [f"confidence = σ(b + Σ_t v_t(x)): {len(model['trees'])} boosted trees of depth ≤ "
+              f"{TREES['max_depth']} (scikit-learn GradientBoostingClassifier {TREES}), "
+              f"b = {model['base']:.4f}, `matched` needs ≥ {mins(model)}.", "",
+              "| feature | splits on it | median right / wrong (calibration) |",
+              "| --- | --- | --- |"]
+        for f in model["features"]:
+            L.append(f"| {f} | {splits[f]} | {out['separation'][f][0]} / "
+                     f"{out['separation'][f][1]} |")
+    else:
+        L += [f"confidence = σ(b + Σ c_i (x_i − mean_i) / scale_i), b = {model['intercept']}, "
+              f"`matched` needs ≥ {mins(model)}.", "",
+              "| feature | coefficient | mean | scale | median right / wrong (calibration) |",
+              "| --- | --- | --- | --- | --- |"]
+        for f, c, m, s in zip(model["features"], model["coef"], model["mean"], model["scale"]):
+            L.append(f"| {f} | {c} | {m} | {s} | {out['separation'][f][0]} / "
+                     f"{out['separation'][f][1]} |")
     (res / "confidence.md").write_text("\n".join(L) + "\n")
     print("\n".join(L))
 

@@ -123,6 +123,53 @@ def logistic_confidence(features: dict, model: dict = None) -> float:
     return 1.0 / (1.0 + math.exp(-max(min(z, 50.0), -50.0)))
 
 
+def tree_confidence(features: dict, model: dict = None) -> float:
+    """σ(b + Σ_t v_t(x)) over the boosted trees of ``model`` (``"kind": "trees"``): each tree
+    (parallel lists ``feature``, ``threshold``, ``left``, ``right``, ``value``; a leaf has
+    ``left`` −1) is walked from node 0 to the left while x[feature] ≤ threshold (x as float32,
+    as scikit-learn compares), and gives its leaf's value (learning rate included); ``base``:
+    b, the log-odds before the first tree."""
+    m = CONFIDENCE_MODEL if model is None else model
+    x = np.array([float(features[f]) for f in m["features"]], np.float32)
+    z = float(m["base"])
+    for t in m["trees"]:
+        i = 0
+        while t["left"][i] >= 0:
+            i = t["left"][i] if float(x[t["feature"][i]]) <= t["threshold"][i] else t["right"][i]
+        z += t["value"][i]
+    return 1.0 / (1.0 + math.exp(-max(min(z, 50.0), -50.0)))
+
+
+def trees_from_sklearn(gb, features) -> dict:
+    """A fitted binary scikit-learn GradientBoostingClassifier ``gb`` (on the columns
+    ``features``) as a tree model of :func:`tree_confidence`: per tree its nodes' feature,
+    threshold, children and leaf value × learning rate; ``base``: the log-odds before the first
+    tree (what ``benchmarks/confidence.py --fit --kind trees`` writes; scikit-learn is not
+    needed to evaluate it)."""
+    lr = gb.learning_rate
+    trees = []
+    for est in gb.estimators_[:, 0]:
+        t = est.tree_
+        leaf = t.children_left < 0
+        trees.append({"feature": np.where(leaf, 0, t.feature).tolist(),
+                      "threshold": np.where(leaf, 0.0, t.threshold).tolist(),
+                      "left": t.children_left.tolist(), "right": t.children_right.tolist(),
+                      "value": np.where(leaf, lr * t.value[:, 0, 0], 0.0).tolist()})
+    x0 = np.zeros((1, len(features)))
+    base = float(gb.decision_function(x0)[0]
+                 - sum(lr * e.predict(x0.astype(np.float32))[0] for e in gb.estimators_[:, 0]))
+    return {"models": ["human"], "replaces_threshold": True, "kind": "trees",
+            "features": list(features), "base": base, "trees": trees}
+
+
+def model_confidence(features: dict, model: dict = None) -> float:
+    """The probability of a right frame by the fitted ``model`` (default
+    :data:`CONFIDENCE_MODEL`): :func:`tree_confidence` for ``"kind": "trees"``, else
+    :func:`logistic_confidence`."""
+    m = CONFIDENCE_MODEL if model is None else model
+    return (tree_confidence if m.get("kind") == "trees" else logistic_confidence)(features, m)
+
+
 def leaf_count(tree) -> int:
     deg = {}
     for e in tree.edges:
@@ -311,7 +358,7 @@ def fitted_confidence(features: dict, share: float, min_share: float = 0.8,
     :func:`logistic_confidence` times the guards ``hull`` (split hull, as
     :func:`frame_confidence`) and ``size`` (hull volume / H³ outside what the calibration
     frames showed)."""
-    fl = logistic_confidence(features, model)
+    fl = model_confidence(features, model)
     fh = float(np.clip((share - min_share) / max(0.95 - min_share, 1e-9), 0.0, 1.0))
     r = float(features["fat"])
     fs = float(np.clip(min((r - SLIM_MIN) / (SLIM_OK - SLIM_MIN), (SIZE_MAX - r) / (SIZE_MAX - SIZE_OK)),

@@ -58,6 +58,7 @@ FIT_FEATURES = ("distance", "missing", "shape", "shape_max", "spurious_share", "
 # masks of a segmentation network (level 2: borders ±2 px, false blobs, holes)
 SETUPS = {"8": (8, (640, 480), 1), "4": (4, (640, 480), 1), "4p": (4, (544, 960), 2)}
 # the minimum: the smallest whose out-of-fold precision of matched reaches this in every set-up
+# and every group of it (subject and motion or pose kind)
 PRECISION = 0.95
 MIN_COUNT = 10          # (a set-up with fewer matched frames at a minimum does not judge it)
 
@@ -210,7 +211,7 @@ def _fit(rows, features, l2, kind="logistic"):
 
 
 # the boosted trees (scikit-learn's GradientBoostingClassifier, log-loss): few shallow trees
-TREES = {"n_estimators": 100, "max_depth": 2, "learning_rate": 0.1}
+TREES = {"n_estimators": 100, "max_depth": 3, "learning_rate": 0.1}
 
 
 def _fit_trees(X, y, w, features, **params):
@@ -226,8 +227,9 @@ def fit(rows, features, half, l2, kind="logistic"):
     """Coefficients (or trees, ``kind``) on the calibration seeds' candidate frames (matched,
     or rejected for their AHA distance alone: the fitted confidence replaces T_d), and per
     camera count the smallest minimum (0.30–0.99, step 0.01) whose precision of matched
-    reaches PRECISION in every set-up of that many cameras (of at least MIN_COUNT matched
-    frames) at it and every higher minimum (``min_confidence_by_cameras``;
+    reaches PRECISION in every set-up of that many cameras and in every group (subject, motion
+    or pose kind) of it (each of at least MIN_COUNT matched frames) at it and every higher
+    minimum (``min_confidence_by_cameras``;
     ``min_confidence``: the largest, for fewer cameras than any) —
     judged on out-of-fold confidences (two folds by seed parity, each scored by a model fitted
     on the other), which behave like held-out ones: the in-sample confidences of the wrong
@@ -240,23 +242,26 @@ def fit(rows, features, half, l2, kind="logistic"):
     oof = []
     for k in (0, 1):
         m = _fit([r for r in cal if r["seed"] % 2 != k], features, l2, kind)
-        oof += [(model_confidence(r["features"], m), r["good"], r["cameras"]) for r in cal
-                if r["seed"] % 2 == k and not r.get("augmented")]
+        for r in cal:
+            if r["seed"] % 2 == k and not r.get("augmented"):
+                c = model_confidence(r["features"], m)
+                oof += [(c, r["good"], r["cameras"]),
+                        (c, r["good"], r["cameras"], r["subject"], r["motion"])]
     model["min_confidence_by_cameras"] = minima(oof)
     model["min_confidence"] = max(model["min_confidence_by_cameras"].values())
     return model
 
 
 def minima(oof) -> dict:
-    """Per camera count (str), the minimum of :func:`fit` from (confidence, right, set-up)
-    triples."""
+    """Per camera count (str), the minimum of :func:`fit` from (confidence, right, set-up[,
+    group]) tuples: precision in every set-up (and every group of it, when given)."""
     by = {}
     for n in sorted({SETUPS[x[2]][0] for x in oof}):
         best = 0.99
         for t in np.arange(0.99, 0.295, -0.01):
             ok = True
-            for setup in {x[2] for x in oof if SETUPS[x[2]][0] == n}:
-                y = [g for c, g, s in oof if s == setup and c >= t]
+            for setup in {x[2:] for x in oof if SETUPS[x[2]][0] == n}:
+                y = [x[1] for x in oof if x[2:] == setup and x[0] >= t]
                 ok &= len(y) < MIN_COUNT or np.mean(y) >= PRECISION
             if not ok:
                 break
@@ -381,55 +386,58 @@ def separation(rows, features, half):
     return out
 
 
-def body_benchmark(models, frames=12, seeds=(21, 22)):
+def body_benchmark(models, frames=12, seeds=(21, 22), cached=None):
     """The body benchmark's own frames (quality.py body_captures: 5 builds × seeds 21, 22,
-    separated / all poses, 8 cameras, noise 1, 100³), run once with the gate off; each rule
-    (name → fitted model, or None: no gate) decides ``matched`` from the frames' features.
-    Scored as quality.py (TP rate = TP / frames, FP/match = FP / (TP + FP)). Checks only: these
-    seeds are never fitted on."""
+    separated / all poses, 8 cameras, noise 1, 100³), run once with the gate off (or
+    ``cached``: the ``rows`` of an earlier call); each rule (name → fitted model, or None: no
+    gate) decides ``matched`` from the frames' features. Scored as quality.py (TP rate = TP /
+    frames, FP/match = FP / (TP + FP)). Checks only: these seeds are never fitted on."""
     from quality import BODY_TOLERANCE, body_captures
     from topopose.pose.confidence import fitted_confidence, min_confidence_for
     from topopose.pose.estimate import FrameEstimator
     from topopose.pose.quality import evaluate
 
-    out = {"rows": []}
+    out = {"rows": list(cached or [])}
     for kind in POSE_KINDS:
-        frames_ = []
-        for cap in body_captures(kind == "separated", 1, seeds, frames):
-            est = FrameEstimator(cap, "human", 100, gate=False)
-            poses = [est.estimate(f) for f in cap.frames]
-            ev = evaluate(cap.gt, poses, model=est.model,
-                          tolerance=BODY_TOLERANCE * float(cap.gt["height"]), junction_factor=1.0)
-            frames_ += list(zip(poses, ev.frames))
-        # the frames themselves (for refits without re-running the pipeline)
-        out["rows"] += [{"kind": kind, "frame": p.frame, "status": p.status, "error": p.error,
-                         "quality": s.quality, "cameras": len(cap.cameras),
-                         "features": p.diagnostics.get("confidence_features")}
-                        for p, s in frames_ if p.status != "failed"]
+        if cached is None:
+            for cap in body_captures(kind == "separated", 1, seeds, frames):
+                est = FrameEstimator(cap, "human", 100, gate=False)
+                poses = [est.estimate(f) for f in cap.frames]
+                ev = evaluate(cap.gt, poses, model=est.model,
+                              tolerance=BODY_TOLERANCE * float(cap.gt["height"]),
+                              junction_factor=1.0)
+                # the frames themselves (for refits without re-running the pipeline)
+                out["rows"] += [{"kind": kind, "frame": p.frame, "status": p.status,
+                                 "error": p.error, "quality": s.quality,
+                                 "cameras": len(cap.cameras),
+                                 "features": p.diagnostics.get("confidence_features")}
+                                for p, s in zip(poses, ev.frames)]
+        rows = [r for r in out["rows"] if r["kind"] == kind]
         for name, m in models.items():
             tp = fp = 0
-            for p, s in frames_:
-                if not (p.status == "matched" if m is None else
-                        candidate({"status": p.status, "error": p.error}, m)):
+            for r in rows:
+                if r["status"] == "failed" or not (r["status"] == "matched" if m is None
+                                                   else candidate(r, m)):
                     continue
                 if m is not None:
-                    f = p.diagnostics["confidence_features"]
+                    f = r["features"]
                     c = fitted_confidence(f, 1.0 - f["lost"], model=m)["confidence"]
-                    if c < min_confidence_for(len(cap.cameras), m):
+                    if c < min_confidence_for(r["cameras"], m):
                         continue
-                tp += s.quality in TP_CLASSES
-                fp += s.quality in ("misplaced", "bad")
-            right = sum(s.quality in TP_CLASSES for _, s in frames_)
-            out[f"{kind}|{name}"] = {"frames": len(frames_), "right": right, "tp": tp, "fp": fp,
-                                     "tp_rate": round(tp / len(frames_), 3),
+                tp += r["quality"] in TP_CLASSES
+                fp += r["quality"] in ("misplaced", "bad")
+            right = sum(r["quality"] in TP_CLASSES for r in rows)
+            out[f"{kind}|{name}"] = {"frames": len(rows), "right": right, "tp": tp, "fp": fp,
+                                     "tp_rate": round(tp / len(rows), 3),
                                      "fp_per_match": round(fp / (tp + fp), 3) if tp + fp else None}
-        print(f"body benchmark {kind}: {len(frames_)} frames", file=sys.stderr, flush=True)
+        print(f"body benchmark {kind}: {len(rows)} frames", file=sys.stderr, flush=True)
     return out
 
 
-def real_check(recording, models, method="person"):
+def real_check(recording, models, method="person", cached=None):
     """The real recording (``benchmarks/real.py``: Pose2Sim's balancing trial, 4 phone cameras,
-    silhouettes by ``method``; never fitted on), run once with the gate off; each rule (name →
+    silhouettes by ``method``; never fitted on), run once with the gate off (or ``cached``: the
+    result of an earlier call); each rule (name →
     fitted model, or None: T_d only) decides ``matched`` from the frames' features. Right = head,
     both hands and both feet within real.RIGHT (0.15 m) of Pose2Sim's 3D result."""
     import tempfile
@@ -438,14 +446,18 @@ def real_check(recording, models, method="person"):
     from topopose.pose.confidence import fitted_confidence, min_confidence_for
 
     rec = Path(recording)
-    cameras = len(list((rec / "videos").iterdir()))
-    ref = R.read_trc(rec / "reference" / "pose2sim_3d.trc")
-    with tempfile.TemporaryDirectory() as tmp:
-        res, poses = R.run_method(rec, method, 100, 0, Path(tmp), ref)
-    frames = [{"frame": p.frame, "right": row["right"], "status": p.status, "error": p.error,
-               "features": p.diagnostics.get("confidence_features")}
-              for p, row in zip(poses, res["rows"]) if p.status != "failed"]
-    out = {"recording": str(rec), "method": method, "frames": len(poses),
+    if cached is None:
+        cameras = len(list((rec / "videos").iterdir()))
+        ref = R.read_trc(rec / "reference" / "pose2sim_3d.trc")
+        with tempfile.TemporaryDirectory() as tmp:
+            res, poses = R.run_method(rec, method, 100, 0, Path(tmp), ref)
+        frames = [{"frame": p.frame, "right": row["right"], "status": p.status, "error": p.error,
+                   "features": p.diagnostics.get("confidence_features")}
+                  for p, row in zip(poses, res["rows"]) if p.status != "failed"]
+        n = len(poses)
+    else:
+        cameras, frames, n = cached.get("cameras", 4), cached["rows"], cached["frames"]
+    out = {"recording": str(rec), "method": method, "frames": n, "cameras": cameras,
            "right": sum(f["right"] for f in frames), "rules": {}, "rows": frames}
     for name, m in models.items():
         conf = [None if m is None else fitted_confidence(
@@ -458,7 +470,7 @@ def real_check(recording, models, method="person"):
                               "precision": round(tp / len(ok), 3) if ok else None,
                               "confidence_right": None if m is None else
                               [c for f, c in zip(frames, conf) if f["right"]]}
-    print(f"real {method}: {len(poses)} frames", file=sys.stderr, flush=True)
+    print(f"real {method}: {n} frames", file=sys.stderr, flush=True)
     return out
 
 
@@ -493,6 +505,7 @@ def main(argv=None):
                     help="also check the rules on quality.py's body frames (seeds 21, 22; ~2 min)")
     a = ap.parse_args(argv)
     subjects = a.subjects.split(",")
+    old = {}
     if a.rows:
         old = json.loads(Path(a.rows).read_text())
         rows, a.frames, a.seeds, a.body_seeds = (old["rows"], old["frames_per_capture"],
@@ -529,7 +542,10 @@ def main(argv=None):
     rules[f"fitted ≥ {mins(model)} (shipped)"] = model
     for t in MINIMA:
         rules.setdefault(f"fitted ≥ {t}", fixed(model, t))
-    if a.real:
+    if a.real and old.get("real"):              # the recording's frames of the earlier run
+        out["real"] = real_check(old["real"]["recording"], rules, old["real"]["method"],
+                                 old["real"])
+    elif a.real:
         if not (Path(a.real) / "videos").is_dir():
             print(f"{a.real}: recording not found: the real check is skipped", file=sys.stderr)
         else:
@@ -539,7 +555,7 @@ def main(argv=None):
             except ImportError:
                 print("mediapipe not installed: the real check is skipped", file=sys.stderr)
     if a.body_benchmark:
-        out["body_benchmark"] = body_benchmark(rules)
+        out["body_benchmark"] = body_benchmark(rules, cached=old.get("body_rows"))
         out["body_rows"] = out["body_benchmark"].pop("rows")
     res = results_dir()
     (res / "confidence.json").write_text(json.dumps(out, separators=(",", ":")))

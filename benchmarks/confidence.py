@@ -6,7 +6,8 @@ POSE_SEED0… (disjoint from its 21, 22), each in every camera set-up of SETUPS 
 640×480 noise 1; 4 cameras 640×480 noise 1; 4 portrait phone-like cameras 544×960 noise 2).
 A frame is *right* when it is a TP of issue 11, as in the body benchmark: quality "good" or
 "missing limb" (every placed part within 0.08 × height of its ground-truth segment, junctions
-too). The first half of the seeds fits the logistic confidence and chooses its minimum
+too). The first half of the seeds fits the confidence (``--kind``: boosted trees, TREES, the
+default, needing scikit-learn; or the logistic regression) and chooses its minimum
 (calibration), the second half checks them (held out). The fit sees the frames matched or
 rejected for their AHA distance alone (the fitted confidence replaces T_d), and each right
 frame with the head's and a hand's data vertices exchanged (wrong by ground truth, weighted
@@ -26,8 +27,9 @@ precision / recall at other minima (held out, per set-up) shows the trade-off;
 ``--body-benchmark`` applies the same rules to quality.py's own body frames (seeds 21, 22, 8
 cameras: a check, never fitted on); ``--real`` to the real recording of ``benchmarks/real.py``
 (Pose2Sim's balancing trial, 4 phone cameras, person silhouettes: a check, never fitted on).
-``--rows results/confidence.json`` reuses the frames of an earlier run (no pipeline run: for
-trying features).
+``--rows results/confidence.json`` reuses the frames of an earlier run, its body-benchmark and
+real-recording frames too (no pipeline run: for trying features and models; the kinds of model
+are compared by ``benchmarks/confidence_models.py``).
 """
 from __future__ import annotations
 

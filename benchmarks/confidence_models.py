@@ -205,7 +205,8 @@ def main(argv=None):
     (dst / f"{name}.json").write_text(json.dumps(out, indent=1))
     f = lambda t: "—" if t[0] is None else f"P {t[0]}, R {t[1]} ({t[2]})"  # noqa: E731
     L = ["# Kinds of confidence model on the same frames (`benchmarks/confidence_models.py`)", "",
-         f"Frames: `{a.rows}` (benchmarks/confidence.py: {len([r for r in rows if not r.get('augmented')])} "
+         f"Frames: `{a.rows}` (benchmarks/confidence.py: "
+         f"{sum(not r.get('augmented') for r in rows)} "
          "synthetic frames of set-ups 8, 4, 4p; calibration = first half of the seeds, held out = "
          "the rest; the body benchmark's frames, seeds 21, 22, 8 cameras; the real recording, 4 "
          f"phone cameras, {len(real)} frames). Machine: {out['machine']['cpu']}, "

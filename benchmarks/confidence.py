@@ -6,7 +6,8 @@ POSE_SEED0… (disjoint from its 21, 22), each in every camera set-up of SETUPS 
 640×480 noise 1; 4 cameras 640×480 noise 1; 4 portrait phone-like cameras 544×960 noise 2).
 A frame is *right* when it is a TP of issue 11, as in the body benchmark: quality "good" or
 "missing limb" (every placed part within 0.08 × height of its ground-truth segment, junctions
-too). The first half of the seeds fits the logistic confidence and chooses its minimum
+too). The first half of the seeds fits the confidence (``--kind``: boosted trees, TREES, the
+default, needing scikit-learn; or the logistic regression) and chooses its minimum
 (calibration), the second half checks them (held out). The fit sees the frames matched or
 rejected for their AHA distance alone (the fitted confidence replaces T_d), and each right
 frame with the head's and a hand's data vertices exchanged (wrong by ground truth, weighted
@@ -26,8 +27,9 @@ precision / recall at other minima (held out, per set-up) shows the trade-off;
 ``--body-benchmark`` applies the same rules to quality.py's own body frames (seeds 21, 22, 8
 cameras: a check, never fitted on); ``--real`` to the real recording of ``benchmarks/real.py``
 (Pose2Sim's balancing trial, 4 phone cameras, person silhouettes: a check, never fitted on).
-``--rows results/confidence.json`` reuses the frames of an earlier run (no pipeline run: for
-trying features).
+``--rows results/confidence.json`` reuses the frames of an earlier run, its body-benchmark and
+real-recording frames too (no pipeline run: for trying features and models; the kinds of model
+are compared by ``benchmarks/confidence_models.py``).
 """
 from __future__ import annotations
 
@@ -35,6 +37,7 @@ import argparse
 import itertools
 import json
 import sys
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -57,6 +60,7 @@ FIT_FEATURES = ("distance", "missing", "shape", "shape_max", "spurious_share", "
 # masks of a segmentation network (level 2: borders ±2 px, false blobs, holes)
 SETUPS = {"8": (8, (640, 480), 1), "4": (4, (640, 480), 1), "4p": (4, (544, 960), 2)}
 # the minimum: the smallest whose out-of-fold precision of matched reaches this in every set-up
+# and every group of it (subject and motion or pose kind)
 PRECISION = 0.95
 MIN_COUNT = 10          # (a set-up with fewer matched frames at a minimum does not judge it)
 
@@ -185,9 +189,10 @@ def swapped_rows(cap, est, out, ev, like):
     return rows
 
 
-def _fit(rows, features, l2):
+def _fit(rows, features, l2, kind="logistic"):
     """The deliberate swaps weigh SWAP_WEIGHT × the real frames' count in all (they are
-    many and easy: at full weight the model becomes a swap detector)."""
+    many and easy: at full weight the model becomes a swap detector). ``kind``: "logistic"
+    (L2 penalty ``l2``) or "trees" (:func:`_fit_trees`)."""
     from topopose.pose.confidence import fit_logistic
 
     X = np.array([[r["features"][f] for f in features] for r in rows], float)
@@ -196,6 +201,8 @@ def _fit(rows, features, l2):
     w = np.ones(len(rows))
     if aug.any():
         w[aug] = SWAP_WEIGHT * (~aug).sum() / aug.sum()
+    if kind == "trees":
+        return _fit_trees(X, y, w, features)
     real = X[~aug]                      # standardized on the real frames
     mean, scale = real.mean(axis=0), real.std(axis=0)
     scale[scale == 0] = 1.0
@@ -205,41 +212,64 @@ def _fit(rows, features, l2):
             "coef": coef.round(4).tolist(), "intercept": round(icpt, 4)}
 
 
-def fit(rows, features, half, l2):
-    """Coefficients on the calibration seeds' candidate frames (matched, or rejected for their
-    AHA distance alone: the fitted confidence replaces T_d), and per camera count the smallest
-    minimum (0.30–0.99, step 0.01) whose precision of matched reaches PRECISION in every
-    set-up of that many cameras (of at least MIN_COUNT matched frames) at it and every higher
-    minimum (``min_confidence_by_cameras``; ``min_confidence``: the largest, for fewer cameras
-    than any) —
+# the boosted trees (scikit-learn's GradientBoostingClassifier, log-loss): few shallow trees
+TREES = {"n_estimators": 100, "max_depth": 3, "learning_rate": 0.1}
+
+
+def _fit_trees(X, y, w, features, **params):
+    from sklearn.ensemble import GradientBoostingClassifier
+
+    from topopose.pose.confidence import trees_from_sklearn
+
+    gb = GradientBoostingClassifier(random_state=0, **{**TREES, **params})
+    return trees_from_sklearn(gb.fit(X, y.astype(int), sample_weight=w), features)
+
+
+def fit(rows, features, half, l2, kind="logistic"):
+    """Coefficients (or trees, ``kind``) on the calibration seeds' candidate frames (matched,
+    or rejected for their AHA distance alone: the fitted confidence replaces T_d), and per
+    camera count the smallest minimum (0.30–0.99, step 0.01) whose precision of matched
+    reaches PRECISION in every set-up of that many cameras and in every group (subject, motion
+    or pose kind) of it (each of at least MIN_COUNT matched frames) at it and every higher
+    minimum (``min_confidence_by_cameras``;
+    ``min_confidence``: the largest, for fewer cameras than any) —
     judged on out-of-fold confidences (two folds by seed parity, each scored by a model fitted
     on the other), which behave like held-out ones: the in-sample confidences of the wrong
     frames are optimistic."""
-    from topopose.pose.confidence import logistic_confidence
+    from topopose.pose.confidence import model_confidence
 
     flag = {"replaces_threshold": True}
     cal = [r for r in rows if r["seed"] < half_of(r, half) and candidate(r, flag)]
-    model = _fit(cal, features, l2)
+    model = _fit(cal, features, l2, kind)
     oof = []
     for k in (0, 1):
-        m = _fit([r for r in cal if r["seed"] % 2 != k], features, l2)
-        oof += [(logistic_confidence(r["features"], m), r["good"], r["cameras"]) for r in cal
-                if r["seed"] % 2 == k and not r.get("augmented")]
+        m = _fit([r for r in cal if r["seed"] % 2 != k], features, l2, kind)
+        for r in cal:
+            if r["seed"] % 2 == k and not r.get("augmented"):
+                c = model_confidence(r["features"], m)
+                oof += [(c, r["good"], r["cameras"]),
+                        (c, r["good"], r["cameras"], r["subject"], r["motion"])]
+    model["min_confidence_by_cameras"] = minima(oof)
+    model["min_confidence"] = max(model["min_confidence_by_cameras"].values())
+    return model
+
+
+def minima(oof) -> dict:
+    """Per camera count (str), the minimum of :func:`fit` from (confidence, right, set-up[,
+    group]) tuples: precision in every set-up (and every group of it, when given)."""
     by = {}
     for n in sorted({SETUPS[x[2]][0] for x in oof}):
         best = 0.99
         for t in np.arange(0.99, 0.295, -0.01):
             ok = True
-            for setup in {x[2] for x in oof if SETUPS[x[2]][0] == n}:
-                y = [g for c, g, s in oof if s == setup and c >= t]
+            for setup in {x[2:] for x in oof if SETUPS[x[2]][0] == n}:
+                y = [x[1] for x in oof if x[2:] == setup and x[0] >= t]
                 ok &= len(y) < MIN_COUNT or np.mean(y) >= PRECISION
             if not ok:
                 break
             best = round(float(t), 2)
         by[str(n)] = best
-    model["min_confidence_by_cameras"] = by
-    model["min_confidence"] = max(by.values())
-    return model
+    return by
 
 
 def mins(model) -> str:
@@ -358,50 +388,58 @@ def separation(rows, features, half):
     return out
 
 
-def body_benchmark(models, frames=12, seeds=(21, 22)):
+def body_benchmark(models, frames=12, seeds=(21, 22), cached=None):
     """The body benchmark's own frames (quality.py body_captures: 5 builds × seeds 21, 22,
-    separated / all poses, 8 cameras, noise 1, 100³), run once with the gate off; each rule
-    (name → fitted model, or None: no gate) decides ``matched`` from the frames' features.
-    Scored as quality.py (TP rate = TP / frames, FP/match = FP / (TP + FP)). Checks only: these
-    seeds are never fitted on."""
+    separated / all poses, 8 cameras, noise 1, 100³), run once with the gate off (or
+    ``cached``: the ``rows`` of an earlier call); each rule (name → fitted model, or None: no
+    gate) decides ``matched`` from the frames' features. Scored as quality.py (TP rate = TP /
+    frames, FP/match = FP / (TP + FP)). Checks only: these seeds are never fitted on."""
     from quality import BODY_TOLERANCE, body_captures
     from topopose.pose.confidence import fitted_confidence, min_confidence_for
     from topopose.pose.estimate import FrameEstimator
     from topopose.pose.quality import evaluate
 
-    out = {}
+    out = {"rows": list(cached or [])}
     for kind in POSE_KINDS:
-        frames_ = []
-        for cap in body_captures(kind == "separated", 1, seeds, frames):
-            est = FrameEstimator(cap, "human", 100, gate=False)
-            poses = [est.estimate(f) for f in cap.frames]
-            ev = evaluate(cap.gt, poses, model=est.model,
-                          tolerance=BODY_TOLERANCE * float(cap.gt["height"]), junction_factor=1.0)
-            frames_ += list(zip(poses, ev.frames))
+        if cached is None:
+            for cap in body_captures(kind == "separated", 1, seeds, frames):
+                est = FrameEstimator(cap, "human", 100, gate=False)
+                poses = [est.estimate(f) for f in cap.frames]
+                ev = evaluate(cap.gt, poses, model=est.model,
+                              tolerance=BODY_TOLERANCE * float(cap.gt["height"]),
+                              junction_factor=1.0)
+                # the frames themselves (for refits without re-running the pipeline)
+                out["rows"] += [{"kind": kind, "frame": p.frame, "status": p.status,
+                                 "error": p.error, "quality": s.quality,
+                                 "cameras": len(cap.cameras),
+                                 "features": p.diagnostics.get("confidence_features")}
+                                for p, s in zip(poses, ev.frames)]
+        rows = [r for r in out["rows"] if r["kind"] == kind]
         for name, m in models.items():
             tp = fp = 0
-            for p, s in frames_:
-                if not (p.status == "matched" if m is None else
-                        candidate({"status": p.status, "error": p.error}, m)):
+            for r in rows:
+                if r["status"] == "failed" or not (r["status"] == "matched" if m is None
+                                                   else candidate(r, m)):
                     continue
                 if m is not None:
-                    f = p.diagnostics["confidence_features"]
+                    f = r["features"]
                     c = fitted_confidence(f, 1.0 - f["lost"], model=m)["confidence"]
-                    if c < min_confidence_for(len(cap.cameras), m):
+                    if c < min_confidence_for(r["cameras"], m):
                         continue
-                tp += s.quality in TP_CLASSES
-                fp += s.quality in ("misplaced", "bad")
-            right = sum(s.quality in TP_CLASSES for _, s in frames_)
-            out[f"{kind}|{name}"] = {"frames": len(frames_), "right": right, "tp": tp, "fp": fp,
-                                     "tp_rate": round(tp / len(frames_), 3),
+                tp += r["quality"] in TP_CLASSES
+                fp += r["quality"] in ("misplaced", "bad")
+            right = sum(r["quality"] in TP_CLASSES for r in rows)
+            out[f"{kind}|{name}"] = {"frames": len(rows), "right": right, "tp": tp, "fp": fp,
+                                     "tp_rate": round(tp / len(rows), 3),
                                      "fp_per_match": round(fp / (tp + fp), 3) if tp + fp else None}
-        print(f"body benchmark {kind}: {len(frames_)} frames", file=sys.stderr, flush=True)
+        print(f"body benchmark {kind}: {len(rows)} frames", file=sys.stderr, flush=True)
     return out
 
 
-def real_check(recording, models, method="person"):
+def real_check(recording, models, method="person", cached=None):
     """The real recording (``benchmarks/real.py``: Pose2Sim's balancing trial, 4 phone cameras,
-    silhouettes by ``method``; never fitted on), run once with the gate off; each rule (name →
+    silhouettes by ``method``; never fitted on), run once with the gate off (or ``cached``: the
+    result of an earlier call); each rule (name →
     fitted model, or None: T_d only) decides ``matched`` from the frames' features. Right = head,
     both hands and both feet within real.RIGHT (0.15 m) of Pose2Sim's 3D result."""
     import tempfile
@@ -410,14 +448,18 @@ def real_check(recording, models, method="person"):
     from topopose.pose.confidence import fitted_confidence, min_confidence_for
 
     rec = Path(recording)
-    cameras = len(list((rec / "videos").iterdir()))
-    ref = R.read_trc(rec / "reference" / "pose2sim_3d.trc")
-    with tempfile.TemporaryDirectory() as tmp:
-        res, poses = R.run_method(rec, method, 100, 0, Path(tmp), ref)
-    frames = [{"frame": p.frame, "right": row["right"], "status": p.status, "error": p.error,
-               "features": p.diagnostics.get("confidence_features")}
-              for p, row in zip(poses, res["rows"]) if p.status != "failed"]
-    out = {"recording": str(rec), "method": method, "frames": len(poses),
+    if cached is None:
+        cameras = len(list((rec / "videos").iterdir()))
+        ref = R.read_trc(rec / "reference" / "pose2sim_3d.trc")
+        with tempfile.TemporaryDirectory() as tmp:
+            res, poses = R.run_method(rec, method, 100, 0, Path(tmp), ref)
+        frames = [{"frame": p.frame, "right": row["right"], "status": p.status, "error": p.error,
+                   "features": p.diagnostics.get("confidence_features")}
+                  for p, row in zip(poses, res["rows"]) if p.status != "failed"]
+        n = len(poses)
+    else:
+        cameras, frames, n = cached.get("cameras", 4), cached["rows"], cached["frames"]
+    out = {"recording": str(rec), "method": method, "frames": n, "cameras": cameras,
            "right": sum(f["right"] for f in frames), "rules": {}, "rows": frames}
     for name, m in models.items():
         conf = [None if m is None else fitted_confidence(
@@ -430,7 +472,7 @@ def real_check(recording, models, method="person"):
                               "precision": round(tp / len(ok), 3) if ok else None,
                               "confidence_right": None if m is None else
                               [c for f, c in zip(frames, conf) if f["right"]]}
-    print(f"real {method}: {len(poses)} frames", file=sys.stderr, flush=True)
+    print(f"real {method}: {n} frames", file=sys.stderr, flush=True)
     return out
 
 
@@ -458,10 +500,14 @@ def main(argv=None):
                     help="also check the rules on the real recording (benchmarks/real.py's, "
                          "person silhouettes: needs mediapipe; ~2 min; never fitted on)")
     ap.add_argument("--l2", type=float, default=1.0)
+    ap.add_argument("--kind", choices=("logistic", "trees"), default="trees",
+                    help="the model --fit fits: boosted trees (TREES; needs scikit-learn, the "
+                         "bench extra) or the logistic regression")
     ap.add_argument("--body-benchmark", action="store_true",
                     help="also check the rules on quality.py's body frames (seeds 21, 22; ~2 min)")
     a = ap.parse_args(argv)
     subjects = a.subjects.split(",")
+    old = {}
     if a.rows:
         old = json.loads(Path(a.rows).read_text())
         rows, a.frames, a.seeds, a.body_seeds = (old["rows"], old["frames_per_capture"],
@@ -474,11 +520,12 @@ def main(argv=None):
             "pose": max(1, a.pose_seeds // 2)}
     model = before = C.CONFIDENCE_MODEL
     if a.fit:
-        model = fit(rows, FIT_FEATURES, half, a.l2)
+        model = fit(rows, FIT_FEATURES, half, a.l2, a.kind)
         model["fitted_by"] = "python benchmarks/confidence.py --fit"
         model["frames"] = sum(r["seed"] < half_of(r, half)
                               and candidate(r, {"replaces_threshold": True}) for r in rows)
-        C.MODEL_PATH.write_text(json.dumps(model, indent=1) + "\n")
+        C.MODEL_PATH.write_text("{\n" + ",\n".join(f" {json.dumps(k)}: {json.dumps(v)}"
+                                                    for k, v in model.items()) + "\n}\n")
     real = [r for r in rows if not r.get("augmented")]
     kinds = kinds_of(subjects, a.pose_seeds)
     table = report(real, model, half, kinds, before if a.fit else None)
@@ -497,7 +544,10 @@ def main(argv=None):
     rules[f"fitted ≥ {mins(model)} (shipped)"] = model
     for t in MINIMA:
         rules.setdefault(f"fitted ≥ {t}", fixed(model, t))
-    if a.real:
+    if a.real and old.get("real"):              # the recording's frames of the earlier run
+        out["real"] = real_check(old["real"]["recording"], rules, old["real"]["method"],
+                                 old["real"])
+    elif a.real:
         if not (Path(a.real) / "videos").is_dir():
             print(f"{a.real}: recording not found: the real check is skipped", file=sys.stderr)
         else:
@@ -507,7 +557,8 @@ def main(argv=None):
             except ImportError:
                 print("mediapipe not installed: the real check is skipped", file=sys.stderr)
     if a.body_benchmark:
-        out["body_benchmark"] = body_benchmark(rules)
+        out["body_benchmark"] = body_benchmark(rules, cached=old.get("body_rows"))
+        out["body_rows"] = out["body_benchmark"].pop("rows")
     res = results_dir()
     (res / "confidence.json").write_text(json.dumps(out, separators=(",", ":")))
     groups = ["all"] + ["/".join(k) for k in kinds]
@@ -570,14 +621,26 @@ def main(argv=None):
     L += ["", "Deliberate head ↔ hand swaps of the right matched frames (wrong by ground truth; "
           "the calibration half's are fitted on too): share the gate rejects — "
           + "; ".join(f"{k}: {v['rejected']}/{v['wrong']}" for k, v in swaps.items()) + "."]
-    L += ["", "## Model (`src/topopose/pose/confidence_model.json`)", "",
-          f"confidence = σ(b + Σ c_i (x_i − mean_i) / scale_i), b = {model['intercept']}, "
-          f"`matched` needs ≥ {mins(model)}.", "",
-          "| feature | coefficient | mean | scale | median right / wrong (calibration) |",
-          "| --- | --- | --- | --- | --- |"]
-    for f, c, m, s in zip(model["features"], model["coef"], model["mean"], model["scale"]):
-        L.append(f"| {f} | {c} | {m} | {s} | {out['separation'][f][0]} / "
-                 f"{out['separation'][f][1]} |")
+    L += ["", "## Model (`src/topopose/pose/confidence_model.json`)", ""]
+    if model.get("kind") == "trees":
+        splits = Counter(model["features"][f] for t in model["trees"]
+                         for f, l in zip(t["feature"], t["left"]) if l >= 0)
+        L += [f"confidence = σ(b + Σ_t v_t(x)): {len(model['trees'])} boosted trees of depth ≤ "
+              f"{TREES['max_depth']} (scikit-learn GradientBoostingClassifier {TREES}), "
+              f"b = {model['base']:.4f}, `matched` needs ≥ {mins(model)}.", "",
+              "| feature | splits on it | median right / wrong (calibration) |",
+              "| --- | --- | --- |"]
+        for f in model["features"]:
+            L.append(f"| {f} | {splits[f]} | {out['separation'][f][0]} / "
+                     f"{out['separation'][f][1]} |")
+    else:
+        L += [f"confidence = σ(b + Σ c_i (x_i − mean_i) / scale_i), b = {model['intercept']}, "
+              f"`matched` needs ≥ {mins(model)}.", "",
+              "| feature | coefficient | mean | scale | median right / wrong (calibration) |",
+              "| --- | --- | --- | --- | --- |"]
+        for f, c, m, s in zip(model["features"], model["coef"], model["mean"], model["scale"]):
+            L.append(f"| {f} | {c} | {m} | {s} | {out['separation'][f][0]} / "
+                     f"{out['separation'][f][1]} |")
     (res / "confidence.md").write_text("\n".join(L) + "\n")
     print("\n".join(L))
 

@@ -1,6 +1,7 @@
 """The fitted per-frame confidence (topopose.pose.confidence): its features on a hand-built
 frame, the logistic fit against known coefficients, and the gate against ground truth — a clean
 frame passes, the same frame with a swapped part assignment or an added spurious limb does not."""
+import json
 import math
 from types import SimpleNamespace
 
@@ -71,14 +72,57 @@ def test_logistic_fit_recovers_known_coefficients():
     assert C.logistic_confidence({"x": 3, "y": 0.5, "z": 9}, model) == pytest.approx(1 / (1 + math.exp(-z)))
 
 
+def test_tree_confidence_by_hand():
+    # oracle: two stumps and a depth-2 tree walked by hand (left when x ≤ threshold)
+    stump = lambda f, t, lo, hi: {"feature": [f, 0, 0], "threshold": [t, 0.0, 0.0],  # noqa: E731
+                                  "left": [1, -1, -1], "right": [2, -1, -1], "value": [0, lo, hi]}
+    deep = {"feature": [0, 1, 0, 0, 0], "threshold": [0.5, 2.0, 0, 0, 0],
+            "left": [1, 3, -1, -1, -1], "right": [2, 4, -1, -1, -1], "value": [0, 0, 0.7, -0.2, 0.4]}
+    model = {"kind": "trees", "features": ["a", "b"], "base": -0.1,
+             "trees": [stump(0, 1.0, -1.0, 1.0), stump(1, 0.0, 0.3, -0.3), deep]}
+    sig = lambda z: 1 / (1 + math.exp(-z))                                     # noqa: E731
+    for a, b, z in [(1.0, 0.0, -0.1 - 1.0 + 0.3 + 0.7),     # a = threshold: left
+                    (0.2, 2.5, -0.1 - 1.0 - 0.3 + 0.4),
+                    (0.2, 2.0, -0.1 - 1.0 - 0.3 - 0.2),
+                    (3.0, -1.0, -0.1 + 1.0 + 0.3 + 0.7)]:
+        assert C.tree_confidence({"a": a, "b": b}, model) == pytest.approx(sig(z))
+        assert C.model_confidence({"a": a, "b": b}, model) == C.tree_confidence({"a": a, "b": b}, model)
+
+
+def test_tree_model_equals_sklearn():
+    sk = pytest.importorskip("sklearn.ensemble")
+    rng = np.random.default_rng(1)
+    X = rng.normal(size=(600, 4))
+    y = (X[:, 0] + X[:, 1] ** 2 - X[:, 2] * X[:, 3] + rng.normal(size=600) > 0.8).astype(int)
+    gb = sk.GradientBoostingClassifier(n_estimators=40, max_depth=3, learning_rate=0.2,
+                                       random_state=0).fit(X, y, sample_weight=rng.random(600) + 0.2)
+    model = json.loads(json.dumps(C.trees_from_sklearn(gb, list("abcd"))))    # as stored
+    # random inputs, and inputs exactly at the split thresholds (the ≤ side)
+    thr = [t for tr in model["trees"] for t, l in zip(tr["threshold"], tr["left"]) if l >= 0]
+    Xt = np.vstack([rng.normal(size=(300, 4)) * 2,
+                    np.array(rng.choice(thr, size=(100, 4)), np.float32)])
+    ours = [C.tree_confidence(dict(zip("abcd", x)), model) for x in Xt]
+    np.testing.assert_allclose(ours, gb.predict_proba(Xt)[:, 1], rtol=0, atol=1e-12)
+
+
 def test_shipped_model_is_complete():
     m = C.CONFIDENCE_MODEL
     assert set(m["features"]) <= set(C.FEATURES)
-    assert len(m["coef"]) == len(m["mean"]) == len(m["scale"]) == len(m["features"])
-    assert all(s > 0 for s in m["scale"]) and all(map(math.isfinite, m["coef"] + [m["intercept"]]))
+    if m.get("kind") == "trees":
+        k = len(m["features"])
+        for t in m["trees"]:
+            n = len(t["left"])
+            assert all(len(t[x]) == n for x in ("feature", "threshold", "right", "value"))
+            assert all(0 <= f < k for f in t["feature"]) and math.isfinite(m["base"])
+            assert all(-1 == l == r or 0 < l < n and 0 < r < n
+                       for l, r in zip(t["left"], t["right"]))               # noqa: E741
+        assert C.MODEL_PATH.stat().st_size < 100000    # a few thousand nodes, not data
+    else:
+        assert len(m["coef"]) == len(m["mean"]) == len(m["scale"]) == len(m["features"])
+        assert all(s > 0 for s in m["scale"]) and all(map(math.isfinite, m["coef"] + [m["intercept"]]))
+        assert C.MODEL_PATH.stat().st_size < 4000       # a few numbers, not data
     assert 0 < m["min_confidence"] < 1 and C.MIN_CONFIDENCE == m["min_confidence"]
     assert "human" in m["models"] and isinstance(m["replaces_threshold"], bool)
-    assert C.MODEL_PATH.stat().st_size < 4000           # a few numbers, not data
     # a minimum per camera count; fewer cameras than any: the strictest; never below a
     # smaller camera count's (more cameras, a confidence more often right)
     by = {int(k): v for k, v in m["min_confidence_by_cameras"].items()}

@@ -162,7 +162,7 @@ def test_body_crouch_the_crotch_reaches_the_pelvis():
     seg = cap.gt["frames"][f]["segments"]["crotch"]
     tol = 0.08 * cap.gt["height"]
     old = FrameEstimator(cap, "human", 100, gate=False, crotch_drop=False).estimate(f)
-    new = FrameEstimator(cap, "human", 100, gate=False).estimate(f)
+    new = FrameEstimator(cap, "human", 100, gate=False, crotch_drop=True).estimate(f)
     assert old.status == new.status == "matched"
     assert point_segment_distance(old.parts["crotch"], *seg) > tol
     assert np.asarray(old.parts["crotch"])[2] > max(np.asarray(seg)[:, 2])    # high

@@ -145,10 +145,11 @@ class FrameEstimator:
     crotch_drop : None, bool or tuple
         With the spine shift, move the crotch further down (along the up vector) and back by
         shares of the hull's largest inscribed radius (:func:`topopose.pose.anatomy.
-        crotch_drop`): the legs' junction rises into the mass of flexed hips. None or True
-        (default): the model's entry of :data:`topopose.pose.anatomy.CROTCH_DROP` (human;
-        complete models only); False: off; a tuple ``(part, down, back)`` replaces it.
-        Measured there and in ``benchmarks/quality.py`` (quality_body.md, "no-crotch-drop").
+        crotch_drop`): the legs' junction rises into the mass of flexed hips. True: the
+        model's entry of :data:`topopose.pose.anatomy.CROTCH_DROP` (human; complete models
+        only); None or False (default): off — it wins the held-out separated frames and loses
+        a few all-pose ones; a tuple ``(part, down, back)`` replaces it. Measured there and in
+        ``benchmarks/quality.py`` (quality_body.md, "crotch-drop" rows).
     trunk_features : bool
         The confidence's features see the torso as ``trunk`` places it rather than at its
         matched data vertex (default off: measured in
@@ -260,7 +261,7 @@ class FrameEstimator:
             tuple(trunk) if isinstance(trunk, (tuple, list)) else None)
         from .anatomy import CROTCH_DROP
         rule = CROTCH_DROP.get(self.model.name) if self.model.complete else None
-        self.crotch_drop = rule if (crotch_drop is None or crotch_drop is True) and rule else (
+        self.crotch_drop = rule if crotch_drop is True and rule else (
             tuple(crotch_drop) if isinstance(crotch_drop, (tuple, list)) else None)
 
     def arc_cost(self, vol, data, radii=None):

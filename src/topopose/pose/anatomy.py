@@ -74,7 +74,11 @@ TORSO_ON_TRUNK = {"human": ("torso", "crotch", "head", 0.35, 0.6)}
 # off, separated 0.93 / 0.067 → 0.96 / 0.034 (misplaced 9 → 5 of 120, past the 0.95 target),
 # all poses 0.73 / 0.111 → 0.72 / 0.121 (misplaced 24 → 25); gate on, separated 0.85 / 0.010
 # either way, all poses 0.60 / 0.053 → 0.58 / 0.079; 50³ separated 0.53 / 0.232 → 0.51 / 0.256;
-# the crotch's median error 2.9 → 3.7 cm (separated). It loses all-pose frames held out: off by
+# the crotch's median error 2.9 → 3.7 cm (separated). Dev seeds 41, 42 through the same study
+# (gate on; off): separated 0.892 / 0.027 → 0.892 / 0.027; 0.908 / 0.052 → 0.917 / 0.043,
+# all poses 0.658 / 0.060 → 0.650 / 0.071; 0.800 / 0.086 → 0.783 / 0.105 (misplaced 16 → 18;
+# part of it the torso's trunk line drawn from the lowered crotch: dropped after
+# :func:`torso_on_trunk` instead, 16 → 17). It loses all-pose frames, dev and held out: off by
 # default (``FrameEstimator(crotch_drop=True)``).
 CROTCH_DROP = {"human": ("crotch", 0.35, 0.10)}
 

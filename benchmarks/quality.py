@@ -220,7 +220,8 @@ def body_rows(quick, out, suffix):
     row("body all-poses noise1 no-spine gate-off", *body_study(allp, 100, spine=False, gate=False))
     # the crotch lowered into the flexed hips (pose/anatomy.py crotch_drop; off by default) and
     # the hands prolonged to the hull's border like the head (pose/tips.py): peers of the default
-    for tag, opt in (("crotch-drop", {"crotch_drop": True}), ("hand-tips", {"tips": ("head", "hand")})):
+    for tag, opt in (("crotch-drop", {"crotch_drop": True}),
+                     ("hand-tips", {"tips": ("head", "hand")})):
         row(f"body separated noise1 {tag}", *body_study(sep, 100, **opt))
         row(f"body all-poses noise1 {tag}", *body_study(allp, 100, **opt))
         row(f"body separated noise1 {tag} gate-off", *body_study(sep, 100, gate=False, **opt))

@@ -112,9 +112,8 @@ class FrameEstimator:
         on ``body`` (quality_body.md, "hand-tips" rows; TP rate / FP per match, gate on): held
         out (seeds 21, 22) separated 0.85 / 0.010 either way, all poses 0.60 / 0.053 either way
         (misplaced 24 → 23 over all frames; hands' median error 1.7 → 2.1 cm); dev seeds 41, 42
-        separated 0.892 / 0.027 → 0.883 / 0.036, all poses 0.658 / 0.060 → 0.675 / 0.036: a hand
-        at the elbow of a folded forearm reaches past it, a straight arm's hand goes too far;
-        not the default.
+        separated 0.892 / 0.027 → 0.883 / 0.036, all poses 0.658 / 0.060 → 0.675 / 0.036 (it
+        loses the separated frames it was meant for, cause not studied): not the default.
     prune : float or None
         Remove the skeleton's bumps before the data tree (:func:`topopose.skeleton.prune.
         prune_bumps`, scale-axis ball containment): leaf branches whose inscribed balls stay

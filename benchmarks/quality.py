@@ -218,6 +218,14 @@ def body_rows(quick, out, suffix):
     row("body all-poses noise1 no-spine", *body_study(allp, 100, spine=False))
     row("body separated noise1 no-spine gate-off", *body_study(sep, 100, spine=False, gate=False))
     row("body all-poses noise1 no-spine gate-off", *body_study(allp, 100, spine=False, gate=False))
+    # the crotch lowered into the flexed hips (pose/anatomy.py crotch_drop; off by default) and
+    # the hands prolonged to the hull's border like the head (pose/tips.py): peers of the default
+    for tag, opt in (("crotch-drop", {"crotch_drop": True}),
+                     ("hand-tips", {"tips": ("head", "hand")})):
+        row(f"body separated noise1 {tag}", *body_study(sep, 100, **opt))
+        row(f"body all-poses noise1 {tag}", *body_study(allp, 100, **opt))
+        row(f"body separated noise1 {tag} gate-off", *body_study(sep, 100, gate=False, **opt))
+        row(f"body all-poses noise1 {tag} gate-off", *body_study(allp, 100, gate=False, **opt))
     # the torso put back on the trunk line (pose/anatomy.py torso_on_trunk) off: its peer
     row("body separated noise1 no-trunk", *body_study(sep, 100, trunk=False))
     row("body all-poses noise1 no-trunk", *body_study(allp, 100, trunk=False))
@@ -260,7 +268,11 @@ def body_rows(quick, out, suffix):
          "from its confident frames; *no-spine*: `FrameEstimator(spine=False)`, the peer of the "
          "spine shift (torso, crotch and head moved back from the hull's medial axis onto the "
          "spine, against the front the feet give: `topopose.pose.anatomy`, on by default for the "
-         "human model); *no-trunk*: `FrameEstimator(trunk=False)`, the peer of the torso put "
+         "human model); *crotch-drop*: `FrameEstimator(crotch_drop=True)`, the crotch lowered and "
+         "moved back into the flexed hips (`topopose.pose.anatomy.crotch_drop`, off by "
+         "default); *hand-tips*: `FrameEstimator(tips=('head', 'hand'))`, the hands prolonged "
+         "to the hull's border like the head (`topopose.pose.tips`, head only by default); "
+         "*no-trunk*: `FrameEstimator(trunk=False)`, the peer of the torso put "
          "back on the trunk line crotch → head when the alignment slid it down to the crotch "
          "(an arm along the trunk; `topopose.pose.anatomy.torso_on_trunk`); *trunk-features*: "
          "`FrameEstimator(trunk_features=True)`, the confidence's features computed with the "

@@ -5,7 +5,8 @@ radius is known, and the ground truth of a ``body`` frame (its front and its spi
 import numpy as np
 
 from topopose.match.tree import Tree
-from topopose.pose.anatomy import front_direction, hull_radius, spine_shift, torso_on_trunk
+from topopose.pose.anatomy import (crotch_drop, front_direction, hull_radius, spine_shift,
+                                   torso_on_trunk)
 
 
 class _Vol:
@@ -132,3 +133,38 @@ def test_torso_on_trunk_moves_only_a_torso_slid_down():
                   {"crotch": base["crotch"], "head": base["crotch"], "torso": np.zeros(3)}):
         out, moved = torso_on_trunk(parts, rule)
         assert not moved and out is parts
+
+
+def test_crotch_drop_moves_down_and_back_by_the_shares():
+    parts = {"crotch": np.array([1.0, 2.0, 3.0]), "torso": np.array([1.0, 2.0, 4.0])}
+    front = np.array([0.0, 1.0, 0.0])
+    out = crotch_drop(parts, (0, 0, 2), front, 0.2, ("crotch", 0.5, 0.25))
+    assert np.allclose(out["crotch"], [1.0, 2.0 - 0.05, 3.0 - 0.1])
+    assert out["torso"] is parts["torso"] and np.allclose(parts["crotch"], [1, 2, 3])
+    for f, r in ((None, 0.2), (front, 0.0)):          # no front, no radius: unchanged
+        assert np.allclose(crotch_drop(parts, (0, 0, 1), f, r, ("crotch", 0.5, 0.25))["crotch"],
+                           parts["crotch"])
+    assert crotch_drop({"crotch": None}, (0, 0, 1), front, 0.2, ("crotch", 0.5, 0.25)) == {
+        "crotch": None}
+
+
+def test_body_crouch_the_crotch_reaches_the_pelvis():
+    """Oracle: the gt pelvis segment of a `body` frame with flexed hips (heavy build, seed 43,
+    frame 2: hips flexed 92–96°, trunk bent 34°) — the legs' junction, spine-shifted, lies
+    beyond 0.08 × height above it; lowered by the crotch drop it lies within."""
+    from topopose.capture import synthetic_capture
+    from topopose.pose import FrameEstimator
+    from topopose.pose.quality import point_segment_distance
+
+    cap = synthetic_capture(subject="body", frames=12, seed=43, noise=1, separated=True,
+                            cameras=8, build="heavy", margin=0.075)
+    f = cap.frames[2]
+    seg = cap.gt["frames"][f]["segments"]["crotch"]
+    tol = 0.08 * cap.gt["height"]
+    old = FrameEstimator(cap, "human", 100, gate=False, crotch_drop=False).estimate(f)
+    new = FrameEstimator(cap, "human", 100, gate=False, crotch_drop=True).estimate(f)
+    assert old.status == new.status == "matched"
+    assert point_segment_distance(old.parts["crotch"], *seg) > tol
+    assert np.asarray(old.parts["crotch"])[2] > max(np.asarray(seg)[:, 2])    # high
+    assert point_segment_distance(new.parts["crotch"], *seg) <= tol
+    assert np.asarray(new.parts["crotch"])[2] < np.asarray(old.parts["crotch"])[2]

@@ -108,7 +108,12 @@ class FrameEstimator:
         a head's branch ends near the ball's centre, 0.10–0.15 m below the crown; the ends of
         thin hands and feet are within 2 cm of their tips, and prolonging them to the hull's
         border lands 1–2 cm further on the real recording and on the ``body`` subject
-        (``benchmarks/real.py``, ``benchmarks/quality.py``). ``()``: off.
+        (``benchmarks/real.py``, ``benchmarks/quality.py``). ``()``: off. ``("head", "hand")``
+        on ``body`` (quality_body.md, "hand-tips" rows; TP rate / FP per match, gate on): held
+        out (seeds 21, 22) separated 0.85 / 0.010 either way, all poses 0.60 / 0.053 either way
+        (misplaced 24 → 23 over all frames; hands' median error 1.7 → 2.1 cm); dev seeds 41, 42
+        separated 0.892 / 0.027 → 0.883 / 0.036, all poses 0.658 / 0.060 → 0.675 / 0.036 (it
+        loses the separated frames it was meant for, cause not studied): not the default.
     prune : float or None
         Remove the skeleton's bumps before the data tree (:func:`topopose.skeleton.prune.
         prune_bumps`, scale-axis ball containment): leaf branches whose inscribed balls stay
@@ -142,6 +147,14 @@ class FrameEstimator:
         model's entry of :data:`topopose.pose.anatomy.TORSO_ON_TRUNK` (human; complete models
         only); False: off; a tuple ``(part, lower, upper, min_fraction, fraction)`` replaces it.
         Measured there and in ``benchmarks/quality.py`` (quality_body.md, "no-trunk" rows).
+    crotch_drop : None, bool or tuple
+        With the spine shift, move the crotch further down (along the up vector) and back by
+        shares of the hull's largest inscribed radius (:func:`topopose.pose.anatomy.
+        crotch_drop`): the legs' junction rises into the mass of flexed hips. True: the
+        model's entry of :data:`topopose.pose.anatomy.CROTCH_DROP` (human; complete models
+        only); None or False (default): off — it wins the held-out separated frames and loses
+        a few all-pose ones; a tuple ``(part, down, back)`` replaces it. Measured there and in
+        ``benchmarks/quality.py`` (quality_body.md, "crotch-drop" rows).
     trunk_features : bool
         The confidence's features see the torso as ``trunk`` places it rather than at its
         matched data vertex (default off: measured in
@@ -174,7 +187,8 @@ class FrameEstimator:
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
                  tip_fraction=1.0, spine=None,
-                 head_from_hull=None, trunk=None, matched_distance=None, trunk_features=False):
+                 head_from_hull=None, trunk=None, matched_distance=None, trunk_features=False,
+                 crotch_drop=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -250,6 +264,10 @@ class FrameEstimator:
         rule = TORSO_ON_TRUNK.get(self.model.name) if self.model.complete else None
         self.trunk = rule if (trunk is None or trunk is True) and rule else (
             tuple(trunk) if isinstance(trunk, (tuple, list)) else None)
+        from .anatomy import CROTCH_DROP
+        rule = CROTCH_DROP.get(self.model.name) if self.model.complete else None
+        self.crotch_drop = rule if crotch_drop is True and rule else (
+            tuple(crotch_drop) if isinstance(crotch_drop, (tuple, list)) else None)
 
     def arc_cost(self, vol, data, radii=None):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off.
@@ -498,14 +516,17 @@ class FrameEstimator:
     def spine_parts(self, vol, skel, data, al, parts, edt=None, voxels=None):
         """``parts`` with the body-axis parts moved back onto the spine
         (:mod:`topopose.pose.anatomy`), and the shift applied (world units, or None)."""
-        from .anatomy import front_direction, hull_radius, spine_shift
+        from .anatomy import crotch_drop, front_direction, hull_radius, spine_shift
 
         feet = [p for p in self.model.parts if p.rstrip("_0123456789") == "foot"]
         front = front_direction(vol, skel, data, al.mapping, feet, self.up, voxels=voxels)
         if front is None:
             return parts, None
         r = hull_radius(vol, edt)
-        return spine_shift(parts, front, r, self.spine), [round(float(x), 4) for x in -r * front]
+        parts = spine_shift(parts, front, r, self.spine)
+        if self.crotch_drop is not None:
+            parts = crotch_drop(parts, self.up, front, r, self.crotch_drop)
+        return parts, [round(float(x), 4) for x in -r * front]
 
     def _failed(self, name, reason, timings, t_all):
         timings["total"] = (time.perf_counter() - t_all) * 1e3

@@ -289,8 +289,8 @@ def analyse(raw, cap, model):
             fa = arm_errors(tree.names, Pf, gj, held_names)
             for (sides, kind, e), (_, _, e0) in zip(fa, arm_errors(tree.names, P0, gj, held_names,
                                                                     fa[0][0] if fa else None)):
-                arms.setdefault(kind, []).append((e, e0))
-            frame_kind = "holds joints" if held_names else "sees every part"
+                arms.setdefault(kind, []).append((e, None if np.isnan(e0) else e0))
+            frame_kind = "holding joints" if held_names else "seeing every part"
             frames_by.setdefault(frame_kind, []).append(err_fit[-1])
     out = {"frames": len(raw),
            "matched": sum(p.matched for p in raw), "good": ev.counts.get("good", 0),
@@ -556,14 +556,16 @@ def report(rows, info, real=None):
               "- the same run with the previous joint definitions and fit (tips at the branch "
               "end, shoulders of the first calibration, inner weight 0.3): MPJPE "
               f"{100 * np.median(pooled_before):.1f} cm ({len(pooled_before)} frames)",
-              "- where the error comes from: MPJPE median over the frames that "
+              "- where the error comes from: MPJPE median over the frames "
               + ", ".join(f"{k} {100 * np.median(v):.1f} cm ({len(v)} frames)"
-                          for k in ("sees every part", "holds joints")
+                          for k in ("seeing every part", "holding joints")
                           for v in [[x for r in rs for x in r["frames_by"].get(k, [])]] if v)
               + "; per true arm kind, median of the arm's mean shoulder/elbow/wrist error, fit "
               "(initial placement; a held arm has none, its guess is the rest pose or the last "
-              "frame's): " + ", ".join(
-                  f"{k} {100 * np.median([f for f, _ in v]):.1f} ({100 * np.nanmedian([i for _, i in v]):.1f}) cm, {len(v)} arms"
+              "frame's; raised: wrist above the shoulder, bent: elbow angle < 135°): " + ", ".join(
+                  f"{k} {100 * np.median([f for f, _ in v]):.1f} "
+                  + ("" if k == "held" else f"({100 * np.median([i for _, i in v if i is not None]):.1f}) ")
+                  + f"cm, {len(v)} arms"
                   for k in ARM_KINDS for v in [[x for r in rs for x in r["arms"].get(k, [])]] if v),
               "- per joint, median over all matched frames (cm), now ← previous definitions: "
               + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pj0.get(j, [np.nan])):.1f}"

@@ -267,10 +267,12 @@ def test_frame_without_head_keeps_a_skeleton_with_held_joints():
     assert alone[0].joints == {}
 
 
-def test_an_arm_unseen_after_an_unrelated_frame_hangs_along_the_trunk():
+def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_forward():
     """Not the frame before (a capture of unrelated poses): no earlier arm to hold; the unseen
     arm's shoulder is its mate's turned half about the trunk axis (the body is symmetric: the
-    true shoulder), the rest of the arm hangs along the trunk; the frame right after a frame
+    true shoulder), the upper arm hangs along the trunk, the forearm and hand point forward
+    (the toes' direction across the trunk; the toes of _body point 0.2 m forward, the ankle
+    is 5 cm above them, so within 20°); the frame right after a frame
     of the same body holds that frame's arm instead."""
     rng = np.random.default_rng(8)
     parts, curves = _body(0.9, rng)
@@ -287,9 +289,13 @@ def test_an_arm_unseen_after_an_unrelated_frame_hangs_along_the_trunk():
     assert np.linalg.norm(b.joints["shoulder_2"] - truth["shoulder_2"]) < 0.02
     down = parts2["crotch"] - parts2["torso"]
     down /= np.linalg.norm(down)
-    for a, c in (("shoulder_2", "elbow_2"), ("elbow_2", "wrist_2"), ("wrist_2", "fingertip_2")):
+    forward = _rotz(0.9) @ [1.0, 0.0, 0.0]               # the body's facing (its toes)
+    d = b.joints["elbow_2"] - b.joints["shoulder_2"]     # the upper arm hangs
+    assert np.dot(d, down) / np.linalg.norm(d) > 0.999
+    for a, c in (("elbow_2", "wrist_2"), ("wrist_2", "fingertip_2")):   # folded forward
         d = b.joints[c] - b.joints[a]
-        assert np.dot(d, down) / np.linalg.norm(d) > 0.999
+        d /= np.linalg.norm(d)
+        assert np.dot(d, forward) > np.cos(np.radians(20)) and abs(np.dot(d, down)) < 0.35, d
     # the frame right after the same body: the arm of that frame, not the rest pose
     cut.frame = "000001"
     out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)

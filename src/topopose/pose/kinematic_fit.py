@@ -370,7 +370,8 @@ def _continues(prev, start, dt):
 FOLD = np.radians(90.0)   # an unseen arm's forearm and hand: folded forward by this angle from
                           # hanging (development seeds 31–35, 5 × 40 random poses, gate on,
                           # MPJPE median of the fit: 0° 7.14, 60° 7.05, 90° 6.80, 120° 6.85,
-                          # 150° 7.05 cm; the upper arm tilted forward 20°: 7.08 cm)
+                          # 150° 7.05 cm; the upper arm tilted forward 20°: 7.08 cm; walks
+                          # 41–43: 5.47 cm either way, their frames holding joints 8.0 → 8.4)
 
 
 def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:

@@ -313,6 +313,33 @@ BONES_COMPARED = (("upper arm", "elbow_1", "Shoulder", "Elbow"), ("forearm", "wr
                   ("thigh", "knee_1", "Hip", "Knee"), ("shank", "ankle_1", "Knee", "Ankle"))
 
 
+def widths(markers, ref):
+    """Shoulder and hip widths (m, median over the frames that have both markers) and their
+    ratio, ours (exported markers) against Pose2Sim's: whether a shoulder difference is a
+    landmark convention (Pose2Sim's shoulders at the outer shoulder) or our placement. The
+    MakeHuman rig's ratio (shoulder ``Arm_head`` / hip ``UpLeg_head`` widths of the synthetic
+    ``body`` subject, average build, first frame of a walk) beside them."""
+    from topopose.capture import load_capture, synthesize
+
+    def med(get):
+        v = [np.linalg.norm(a - b) for a, b in map(get, range(len(markers)))
+             if a is not None and b is not None and not (np.isnan(a).any() or np.isnan(b).any())]
+        return round(float(np.median(v)), 3) if v else None
+    out = {}
+    for k, (a, b) in {"shoulder": ("LShoulder", "RShoulder"), "hip": ("LHip", "RHip")}.items():
+        out[k] = [med(lambda i: (markers[i].get(a), markers[i].get(b))),
+                  med(lambda i: (ref[a][i], ref[b][i]))]
+    out["shoulder/hip"] = [None if None in (out["shoulder"][w], out["hip"][w]) else
+                           round(out["shoulder"][w] / out["hip"][w], 2) for w in (0, 1)]
+    with tempfile.TemporaryDirectory() as tmp:
+        synthesize(tmp, subject="body", frames=1, seed=0, cameras=2, noise=0, motion="walk",
+                   build="average")
+        j = {k: np.asarray(v) for k, v in next(iter(load_capture(tmp).gt["frames"].values()))["joints"].items()}
+    rig = [float(np.linalg.norm(j[f"Left{x}"] - j[f"Right{x}"])) for x in ("Arm_head", "UpLeg_head")]
+    out["rig (shoulder, hip, ratio)"] = [round(rig[0], 3), round(rig[1], 3), round(rig[0] / rig[1], 2)]
+    return out
+
+
 def _fmt(v):
     return "–" if v is None else f"{100 * v:.1f}"
 
@@ -356,6 +383,9 @@ def report(doc) -> str:
     L += ["Bone lengths (ours: constant over the sequence, median over its frames' initial "
           "placements; Pose2Sim: left side, median over frames), m: "
           + ", ".join(f"{k} {a} vs {b}" for k, (a, b) in doc["bone_lengths_vs_pose2sim_m"].items()),
+          "", "Widths (ours vs Pose2Sim, m; median over frames): "
+          + ", ".join(f"{k} {' vs '.join(map(str, v))}"
+                      for k, v in doc.get("widths_vs_pose2sim_m", {}).items()),
           "", f"Picture: `{doc['picture']}`.", ""]
     return "\n".join(L)
 
@@ -396,6 +426,7 @@ def main(argv=None):
                name: [round(float(motion.lengths[motion.tree.names.index(j)]), 3),
                       round(float(np.median(np.linalg.norm(ref[f"{sd}{a}"] - ref[f"{sd}{b}"], axis=1))), 3)]
                for name, j, a, b in BONES_COMPARED for sd in "L"},
+           "widths_vs_pose2sim_m": widths(markers, ref),
            "scores": s}
     (out / "real_motion.json").write_text(json.dumps(doc, indent=1))
     (out / "real_motion.md").write_text(report(doc))

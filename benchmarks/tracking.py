@@ -160,6 +160,46 @@ def mpjpe(frames_err):
             {k: [float(x) for x in v] for k, v in per_joint.items()})
 
 
+ARM_RIG = (("shoulder", "Arm_head"), ("elbow", "ForeArm_head"), ("wrist", "Hand_head"))
+ARM_KINDS = ("held", "raised", "bent", "straight")
+
+
+def arm_kind(gj, side, held):
+    """The kind of a true arm (``side`` Left/Right): ``held`` (its hand not found: the fit's
+    arm is a guess), ``raised`` (wrist above the shoulder), ``bent`` (elbow angle < 135°),
+    else ``straight``."""
+    if held:
+        return "held"
+    s, e, w = (np.asarray(gj[side + r]) for _, r in ARM_RIG)
+    if w[2] > s[2]:
+        return "raised"
+    u, v = s - e, w - e
+    cos = np.dot(u, v) / max(np.linalg.norm(u) * np.linalg.norm(v), 1e-12)
+    return "bent" if cos > np.cos(np.radians(135)) else "straight"
+
+
+def arm_errors(names, P, gj, held, sides=None):
+    """Per arm of the frame: (sides, kind, mean error of its shoulder, elbow, wrist); our arms
+    (numbered) paired with the true Left/Right by the smaller total error, or as ``sides``."""
+    ours = {}
+    for j, nm in enumerate(names):
+        base, _, k = nm.rpartition("_")
+        if base in dict(ARM_RIG) and k.isdigit():
+            ours.setdefault(k, {})[base] = P[j]
+    if len(ours) != 2:
+        return []
+    ks = sorted(ours)
+
+    def err(k, side):
+        return float(np.mean([np.linalg.norm(ours[k][n] - np.asarray(gj[side + r]))
+                              for n, r in ARM_RIG]))
+    if sides is None:
+        d0 = err(ks[0], "Left") + err(ks[1], "Right")
+        d1 = err(ks[0], "Right") + err(ks[1], "Left")
+        sides = ("Left", "Right") if d0 <= d1 else ("Right", "Left")
+    return [(sides, arm_kind(gj, sd, f"wrist_{k}" in held), err(k, sd)) for sd, k in zip(sides, ks)]
+
+
 # The joint definitions and fit weight before issue 15's MPJPE work, measured beside the
 # current ones in the same run: tips at the branch end (no ``beyond``), shoulders of the first
 # calibration, inner weight 0.3.
@@ -225,6 +265,7 @@ def analyse(raw, cap, model):
     single = assign_sides(fitted, model, cap.up_vector, use_time=False)
     # MPJPE: fitted (numbered joints, before renaming) and the initial placement
     err_fit, err_init, err_good, err_before, err_seen = [], [], [], [], []
+    arms, frames_by = {}, {}          # arm kind → [(fit, placement)]; frame kind
     good_frames = {fs.frame for fs in ev.frames if fs.quality == "good"}
     for p, q in zip(fitted, before):
         if not p.matched:
@@ -240,7 +281,17 @@ def analyse(raw, cap, model):
                 err_good.append(err_fit[-1])
         if q.joints and not q.diagnostics.get("interpolated"):
             err_before.append(joint_errors(tree0.names, np.array([q.joints[n] for n in tree0.names]), gj))
-        err_init.append(joint_errors(tree.names, initial_placement(p, tree), gj))
+        P0 = initial_placement(p, tree)
+        err_init.append(joint_errors(tree.names, P0, gj))
+        if p.joints and not p.diagnostics.get("interpolated"):
+            held_names = p.diagnostics.get("held_joints") or []
+            Pf = np.array([p.joints[n] for n in tree.names])
+            fa = arm_errors(tree.names, Pf, gj, held_names)
+            for (sides, kind, e), (_, _, e0) in zip(fa, arm_errors(tree.names, P0, gj, held_names,
+                                                                    fa[0][0] if fa else None)):
+                arms.setdefault(kind, []).append((e, None if np.isnan(e0) else e0))
+            frame_kind = "holding joints" if held_names else "seeing every part"
+            frames_by.setdefault(frame_kind, []).append(err_fit[-1])
     out = {"frames": len(raw),
            "matched": sum(p.matched for p in raw), "good": ev.counts.get("good", 0),
            "switches_raw": identity_switches(raw, gt),
@@ -254,6 +305,7 @@ def analyse(raw, cap, model):
            "mpjpe_fit": mpjpe(err_fit), "mpjpe_init": mpjpe(err_init),
            "mpjpe_fit_good": mpjpe(err_good), "mpjpe_before": mpjpe(err_before),
            "mpjpe_fit_seen": mpjpe(err_seen),
+           "arms": arms, "frames_by": {k: mpjpe(v)[3] for k, v in frames_by.items()},
            "bone_lengths": {tree.names[j]: float(L[j]) for j in range(len(L)) if tree.parents[j] >= 0},
            "seconds": {"track": t_track, "fit": t_fit, "sides": t_sides}}
     return out, sided, tree
@@ -504,6 +556,17 @@ def report(rows, info, real=None):
               "- the same run with the previous joint definitions and fit (tips at the branch "
               "end, shoulders of the first calibration, inner weight 0.3): MPJPE "
               f"{100 * np.median(pooled_before):.1f} cm ({len(pooled_before)} frames)",
+              "- where the error comes from: MPJPE median over the frames "
+              + ", ".join(f"{k} {100 * np.median(v):.1f} cm ({len(v)} frames)"
+                          for k in ("seeing every part", "holding joints")
+                          for v in [[x for r in rs for x in r["frames_by"].get(k, [])]] if v)
+              + "; per true arm kind, median of the arm's mean shoulder/elbow/wrist error, fit "
+              "(initial placement; a held arm has none, its guess is the rest pose or the last "
+              "frame's; raised: wrist above the shoulder, bent: elbow angle < 135°): " + ", ".join(
+                  f"{k} {100 * np.median([f for f, _ in v]):.1f} "
+                  + ("" if k == "held" else f"({100 * np.median([i for _, i in v if i is not None]):.1f}) ")
+                  + f"cm, {len(v)} arms"
+                  for k in ARM_KINDS for v in [[x for r in rs for x in r["arms"].get(k, [])]] if v),
               "- per joint, median over all matched frames (cm), now ← previous definitions: "
               + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pj0.get(j, [np.nan])):.1f}"
                           for j, v in pj.items())]

@@ -267,10 +267,12 @@ def test_frame_without_head_keeps_a_skeleton_with_held_joints():
     assert alone[0].joints == {}
 
 
-def test_an_arm_unseen_after_an_unrelated_frame_hangs_along_the_trunk():
+def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_forward():
     """Not the frame before (a capture of unrelated poses): no earlier arm to hold; the unseen
     arm's shoulder is its mate's turned half about the trunk axis (the body is symmetric: the
-    true shoulder), the rest of the arm hangs along the trunk; the frame right after a frame
+    true shoulder), the upper arm hangs along the trunk, the forearm and hand point forward
+    (the toes' direction across the trunk; the toes of _body point 0.2 m forward, the ankle
+    is 5 cm above them, so within 20°); the frame right after a frame
     of the same body holds that frame's arm instead."""
     rng = np.random.default_rng(8)
     parts, curves = _body(0.9, rng)
@@ -287,9 +289,13 @@ def test_an_arm_unseen_after_an_unrelated_frame_hangs_along_the_trunk():
     assert np.linalg.norm(b.joints["shoulder_2"] - truth["shoulder_2"]) < 0.02
     down = parts2["crotch"] - parts2["torso"]
     down /= np.linalg.norm(down)
-    for a, c in (("shoulder_2", "elbow_2"), ("elbow_2", "wrist_2"), ("wrist_2", "fingertip_2")):
+    forward = _rotz(0.9) @ [1.0, 0.0, 0.0]               # the body's facing (its toes)
+    d = b.joints["elbow_2"] - b.joints["shoulder_2"]     # the upper arm hangs
+    assert np.dot(d, down) / np.linalg.norm(d) > 0.999
+    for a, c in (("elbow_2", "wrist_2"), ("wrist_2", "fingertip_2")):   # folded forward
         d = b.joints[c] - b.joints[a]
-        assert np.dot(d, down) / np.linalg.norm(d) > 0.999
+        d /= np.linalg.norm(d)
+        assert np.dot(d, forward) > np.cos(np.radians(20)) and abs(np.dot(d, down)) < 0.35, d
     # the frame right after the same body: the arm of that frame, not the rest pose
     cut.frame = "000001"
     out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
@@ -329,3 +335,36 @@ def test_a_long_tracked_segment_overrules_one_frame_with_crossed_legs():
     # without time, the single frame decides alone
     out = assign_sides(poses, HUMAN, UP, use_time=False)
     assert np.allclose(out[k].parts["left_foot"], truth[k]["right_foot"])
+
+
+def test_chain_fit_finds_the_elbow_at_the_corner_of_a_bent_arm_curve():
+    """Oracle: an arm curve bent 90° at a known elbow, true bone lengths, no placement target
+    for the elbow and wrist: the chain's elbow lands on the curve's corner (the relative arc
+    length alone, the initial placement, misses it by several cm)."""
+    from topopose.pose.kinematic_fit import bone_lengths, fit_frame, initial_placement
+
+    tree = kinematic_tree(HUMAN)
+    parts, curves = _body(0.0, np.random.default_rng(3))
+    torso = parts["torso"]
+    S = torso + [0.0, 0.2, 0.05]
+    E = S + [0.0, 0.03, -0.27]                      # upper arm down, forearm forward
+    W = E + [0.26, 0.0, 0.0]
+    H = W + [0.08, 0.0, 0.0]
+    parts["left_hand"], curves["left_hand"] = H, resample([torso, S, E, W, H], 64)
+    pose, _ = _numbered_frame("000000", parts, curves, False, False)
+    P0 = initial_placement(pose, tree)
+    L = bone_lengths(P0[None], tree)
+    el, wr = tree.names.index("elbow_1"), tree.names.index("wrist_1")
+    sh, tip = tree.names.index("shoulder_1"), tree.names.index("fingertip_1")
+    L[el], L[wr] = np.linalg.norm(E - P0[sh]), np.linalg.norm(W - E)
+    L[tip] = np.linalg.norm(P0[tip] - W)
+    target = P0.copy()
+    target[[el, wr]] = np.nan
+    P, rms = fit_frame(target, pose.diagnostics["curves"], L, tree, root_steps=0)
+    assert np.linalg.norm(P0[el] - E) > 0.04         # the placement misses the corner
+    assert np.linalg.norm(P[el] - E) < 0.02, np.linalg.norm(P[el] - E)
+    assert np.linalg.norm(P[wr] - W) < 0.03, np.linalg.norm(P[wr] - W)
+    # the wrong bone lengths (the upper arm 20 % short, as the placements give) miss it
+    L[el] *= 0.8
+    Pb, _ = fit_frame(target, pose.diagnostics["curves"], L, tree, root_steps=0)
+    assert np.linalg.norm(Pb[el] - E) > np.linalg.norm(P[el] - E) + 0.02

@@ -108,7 +108,7 @@ FEATURES = ("distance", "thickness", "missing", "lost", "fat", "spurious", "spur
             "head_offset", "head_reach", "trunk", "shape", "shape_max", "spurious_share",
             "limb_sym", "matched_distance")
 MODEL_PATH = Path(__file__).with_name("confidence_model.json")
-# the fitted logistic confidence (benchmarks/confidence.py --fit rewrites the file)
+# the fitted confidence model: trees or logistic (benchmarks/confidence.py --fit rewrites the file)
 CONFIDENCE_MODEL = json.loads(MODEL_PATH.read_text())
 MIN_CONFIDENCE = float(CONFIDENCE_MODEL["min_confidence"])
 # size guard of the fitted confidence, hull volume / H³: 1 inside [SLIM_OK, SIZE_OK], 0 below

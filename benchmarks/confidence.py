@@ -179,8 +179,7 @@ def swapped_rows(cap, est, out, ev, like):
                                est.up, p.distance, est.threshold, len(p.diagnostics["missing"]),
                                SimpleNamespace(mapping=m, pairs=al.pairs),
                                p.diagnostics.get("thickness_cost", 0.0), radii,
-                               p.diagnostics.get("missing_cost", 0.0),
-                               est.trunk if est.trunk_features else None)
+                               p.diagnostics.get("missing_cost", 0.0))
             parts = {**p.parts, "head": p.parts[hand], hand: p.parts["head"]}
             q = score(cap, [Pose(p.frame, "matched", p.distance, parts)], est.model).frames[0].quality
             rows.append({**like, "frame": p.frame, "status": p.status, "error": p.error,

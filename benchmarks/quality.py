@@ -229,8 +229,6 @@ def body_rows(quick, out, suffix):
     # the torso put back on the trunk line (pose/anatomy.py torso_on_trunk) off: its peer
     row("body separated noise1 no-trunk", *body_study(sep, 100, trunk=False))
     row("body all-poses noise1 no-trunk", *body_study(allp, 100, trunk=False))
-    row("body separated noise1 trunk-features", *body_study(sep, 100, trunk_features=True))
-    row("body all-poses noise1 trunk-features", *body_study(allp, 100, trunk_features=True))
     # T_d on the whole distance rather than the matched parts' (estimate.MATCHED_DISTANCE); it
     # acts without the gate only (with it the fitted confidence decides instead of T_d)
     row("body separated noise1 whole-distance gate-off", *body_study(sep, 100, gate=False,
@@ -274,9 +272,7 @@ def body_rows(quick, out, suffix):
          "to the hull's border like the head (`topopose.pose.tips`, head only by default); "
          "*no-trunk*: `FrameEstimator(trunk=False)`, the peer of the torso put "
          "back on the trunk line crotch → head when the alignment slid it down to the crotch "
-         "(an arm along the trunk; `topopose.pose.anatomy.torso_on_trunk`); *trunk-features*: "
-         "`FrameEstimator(trunk_features=True)`, the confidence's features computed with the "
-         "torso so placed (off by default); *whole-distance*: "
+         "(an arm along the trunk; `topopose.pose.anatomy.torso_on_trunk`); *whole-distance*: "
          "`FrameEstimator(matched_distance=False)`, T_d on the whole AHA distance, the peer of "
          "T_d on the matched parts' distance (a missing limb's deleted arm not counted; "
          "`topopose.pose.estimate.MATCHED_DISTANCE`; without the gate only, with it the "

@@ -22,8 +22,8 @@ Training figures (seeds 41, 42, gate off,
 matched frames good / missing limb / misplaced): separated 84 / 16 / 14 without the shift →
 91 / 16 / 7 with it (head share 0: 89 / 16 / 9; shares × 1.4: 92 / 16 / 6); all poses
 45 / 26 / 14 → 47 / 27 / 11. Held-out seeds 21, 22 (``benchmarks/quality.py``, quality_body.md,
-*no-spine* rows, final pipeline of issue 11's fifth session — head from the hull, refitted
-confidence; TP rate / FP per match): gate on, separated 0.83 / 0.029 → 0.85 / 0.010, all poses
+*no-spine* rows, with the head from the hull and the logistic confidence of that run; TP rate
+/ FP per match): gate on, separated 0.83 / 0.029 → 0.85 / 0.010, all poses
 0.56 / 0.118 → 0.60 / 0.053; gate off 0.89 / 0.061 → 0.91 / 0.044 and 0.56 / 0.173 → 0.61 /
 0.099. The capsule human's ground truth lies on
 its capsules' axis: there the shift only adds 1.5–2.5 cm to the torso and crotch errors
@@ -47,9 +47,9 @@ SPINE_SHIFT = {"human": {"torso": 0.32, "crotch": 0.34, "head": 0.17}}
 # 0.59–0.60 of crotch → head (median; 5–95 %: 0.53–0.71); the torso of the alignment is right
 # (within 0.08 × height) in 116 of 119 separated and 100 of 118 all-pose frames, and lies below
 # 0.35 of crotch → head in 9 and 24 of them (right in 7 and 9); put at 0.6 there: 117 and 115
-# right (at 0.6 in every frame: 117 and 116). The confidence's features can see the torso so
-# placed (``FrameEstimator(trunk_features=True)``, pose/confidence.py ``frame_features(trunk=
-# ...)``; off by default). Same training frames with the gate (TP rate / FP per match,
+# right (at 0.6 in every frame: 117 and 116). Tried and dropped: the confidence's features
+# computed with the torso so placed (figures "features as placed" below). Same training frames
+# with the gate (TP rate / FP per match,
 # separated; all poses): off 0.883 / 0.036; 0.650 / 0.071 → on (default) 0.892 / 0.027; 0.658
 # / 0.060 → on, features as placed 0.892 / 0.036; 0.683 / 0.057. Held-out seeds 21, 22
 # (``benchmarks/quality.py``, quality_body.md, *no-trunk* rows): with the gate the same figures

@@ -233,7 +233,7 @@ def _branch_length(adj, leaf) -> float:
 
 
 def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al=None,
-                   thickness_cost=0.0, radii=None, missing_cost=0.0, trunk=None) -> dict:
+                   thickness_cost=0.0, radii=None, missing_cost=0.0) -> dict:
     """What one frame's stages know about how far to trust it, as numbers (the inputs of the
     logistic confidence, :data:`FEATURES`).
 
@@ -261,8 +261,6 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
       the largest |log(data share / model share)|; ``spurious_share``: the data tree's weight
       outside the matched arcs; ``limb_sym``: the larger |log| of the two arms' and of the two
       legs' length ratio;
-    - ``trunk`` (argument): the rule of :func:`topopose.pose.anatomy.torso_on_trunk`, applied
-      to the data vertices' positions first (the torso the pose reports; None: as matched);
     - ``head_radius``, ``end_radius``: the hull's inscribed-ball radius at the head and the
       largest at a hand or foot, relative to the hull's largest (``radii``: per data vertex,
       :func:`topopose.pose.estimate.vertex_radii`; absent: 0).
@@ -324,9 +322,6 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
                for ls in [[dl for s, _, dl in arcs if s == k]] if len(ls) == 2]
         f["limb_sym"] = max(sym, default=0.0)
     pos = {p: data.positions.get(v) for p, v in mapping.items() if v is not None}
-    if trunk is not None:       # the torso as the pose places it (pose/anatomy.py)
-        from .anatomy import torso_on_trunk
-        pos = torso_on_trunk(pos, trunk)[0]
     def h(p):
         return sign * (float(np.asarray(pos[p])[ax]) - z0) / height if height > 0 else 0.0
     heads = [p for p in pos if _stem(p) == "head" and pos[p] is not None]
@@ -404,8 +399,7 @@ def passes_gate(status, error, confidence, min_confidence) -> bool:
 
 def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
                 min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m", al=None,
-                thickness_cost=0.0, reach=0, radius_map=None, missing_cost=0.0,
-                trunk=None) -> tuple:
+                thickness_cost=0.0, reach=0, radius_map=None, missing_cost=0.0) -> tuple:
     """Status, reason and diagnostics of one frame from what the stages know.
 
     A ``matched`` frame becomes ``rejected`` when the hull's largest component holds less than
@@ -441,7 +435,7 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
         radii = vertex_radii(vol, SimpleNamespace(vertices=mapped, positions=data.positions), reach,
                              radius_map)
     feats = frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al,
-                           thickness_cost, radii, missing_cost, trunk)
+                           thickness_cost, radii, missing_cost)
     fitted = model.name in CONFIDENCE_MODEL.get("models", ())
     if fitted:
         conf = fitted_confidence(feats, share, min_share)

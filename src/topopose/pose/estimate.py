@@ -155,11 +155,6 @@ class FrameEstimator:
         only); None or False (default): off — it wins the held-out separated frames and loses
         a few all-pose ones; a tuple ``(part, down, back)`` replaces it. Measured there and in
         ``benchmarks/quality.py`` (quality_body.md, "crotch-drop" rows).
-    trunk_features : bool
-        The confidence's features see the torso as ``trunk`` places it rather than at its
-        matched data vertex (default off: measured in
-        :data:`topopose.pose.anatomy.TORSO_ON_TRUNK`, it helped the training seeds and cost the
-        held-out ones a wrong frame more in each set).
     matched_distance : bool or None
         T_d judges the AHA distance without what the unmatched leaf parts cost
         (:func:`missing_cost`; at most ``max_missing`` of them): a frame whose only defect is a
@@ -187,8 +182,7 @@ class FrameEstimator:
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
                  tip_fraction=1.0, spine=None,
-                 head_from_hull=None, trunk=None, matched_distance=None, trunk_features=False,
-                 crotch_drop=None):
+                 head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -257,17 +251,11 @@ class FrameEstimator:
         self.tips = [p for p in self.model.parts if len(adj[p]) == 1 and self.model.complete
                      and p.rstrip("_0123456789") in stems]
         self.spine = _spine_option(self.model, spine)
-        self.trunk_features = bool(trunk_features)
         self.matched_distance = (MATCHED_DISTANCE.get(self.model.name, False)
                                  if matched_distance is None else bool(matched_distance))
-        from .anatomy import TORSO_ON_TRUNK
-        rule = TORSO_ON_TRUNK.get(self.model.name) if self.model.complete else None
-        self.trunk = rule if (trunk is None or trunk is True) and rule else (
-            tuple(trunk) if isinstance(trunk, (tuple, list)) else None)
-        from .anatomy import CROTCH_DROP
-        rule = CROTCH_DROP.get(self.model.name) if self.model.complete else None
-        self.crotch_drop = rule if crotch_drop is True and rule else (
-            tuple(crotch_drop) if isinstance(crotch_drop, (tuple, list)) else None)
+        from .anatomy import CROTCH_DROP, TORSO_ON_TRUNK
+        self.trunk = _rule_option(self.model, TORSO_ON_TRUNK, trunk, default=True)
+        self.crotch_drop = _rule_option(self.model, CROTCH_DROP, crotch_drop, default=False)
 
     def arc_cost(self, vol, data, radii=None):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off.
@@ -475,8 +463,7 @@ class FrameEstimator:
             vol, n_vox, data, self.model, self.up, dist, self.threshold, len(missing), status,
             error, self.min_share, self.min_confidence if self.gate else None, self.cap.units,
             al=al, thickness_cost=thick, reach=self.thickness_reach,
-            radius_map=radii, missing_cost=mcost,
-            trunk=self.trunk if self.trunk_features else None)
+            radius_map=radii, missing_cost=mcost)
         diag = {"model": self.model.name, "resolution": self.resolution,
                 "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
                 "skeleton_voxels": int(data.diagnostics.get("n_voxels", -1)),
@@ -946,6 +933,17 @@ def default_gate(cap) -> bool:
     gate was on with fewer than 6 cameras only.) ``cap`` is kept for callers.
     """
     return True
+
+
+def _rule_option(model, table, option, default: bool):
+    """A per-model rule option of :class:`FrameEstimator` (``trunk``, ``crotch_drop``): the
+    model's entry of ``table`` (complete models only) when ``option`` is True, or None and
+    ``default``; a tuple or list replaces it; anything else (False): off (None)."""
+    if isinstance(option, (tuple, list)):
+        return tuple(option)
+    if option is True or (option is None and default):
+        return table.get(model.name) if model.complete else None
+    return None
 
 
 def _spine_option(model, spine):

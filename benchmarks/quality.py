@@ -218,9 +218,11 @@ def body_rows(quick, out, suffix):
     row("body all-poses noise1 no-spine", *body_study(allp, 100, spine=False))
     row("body separated noise1 no-spine gate-off", *body_study(sep, 100, spine=False, gate=False))
     row("body all-poses noise1 no-spine gate-off", *body_study(allp, 100, spine=False, gate=False))
-    # the crotch lowered into the flexed hips (pose/anatomy.py crotch_drop; off by default) and
+    # the crotch not lowered into the flexed hips (pose/anatomy.py crotch_drop, on by default),
+    # lowered without the floor above the legs' gap, and
     # the hands prolonged to the hull's border like the head (pose/tips.py): peers of the default
-    for tag, opt in (("crotch-drop", {"crotch_drop": True}),
+    for tag, opt in (("no-crotch-drop", {"crotch_drop": False}),
+                     ("crotch-drop-no-floor", {"crotch_drop": ("crotch", 0.35, 0.10)}),
                      ("hand-tips", {"tips": ("head", "hand")})):
         row(f"body separated noise1 {tag}", *body_study(sep, 100, **opt))
         row(f"body all-poses noise1 {tag}", *body_study(allp, 100, **opt))
@@ -266,9 +268,11 @@ def body_rows(quick, out, suffix):
          "from its confident frames; *no-spine*: `FrameEstimator(spine=False)`, the peer of the "
          "spine shift (torso, crotch and head moved back from the hull's medial axis onto the "
          "spine, against the front the feet give: `topopose.pose.anatomy`, on by default for the "
-         "human model); *crotch-drop*: `FrameEstimator(crotch_drop=True)`, the crotch lowered and "
-         "moved back into the flexed hips (`topopose.pose.anatomy.crotch_drop`, off by "
-         "default); *hand-tips*: `FrameEstimator(tips=('head', 'hand'))`, the hands prolonged "
+         "human model); *no-crotch-drop*: `FrameEstimator(crotch_drop=False)`, the peer of the "
+         "crotch lowered and moved back into the flexed hips, no lower than 0.5 × the hull's "
+         "radius above the gap between the legs (`topopose.pose.anatomy.crotch_drop`, on by "
+         "default); *crotch-drop-no-floor*: the same drop without that floor "
+         "(`crotch_drop=('crotch', 0.35, 0.1)`); *hand-tips*: `FrameEstimator(tips=('head', 'hand'))`, the hands prolonged "
          "to the hull's border like the head (`topopose.pose.tips`, head only by default); "
          "*no-trunk*: `FrameEstimator(trunk=False)`, the peer of the torso put "
          "back on the trunk line crotch → head when the alignment slid it down to the crotch "

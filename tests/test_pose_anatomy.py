@@ -5,8 +5,8 @@ radius is known, and the ground truth of a ``body`` frame (its front and its spi
 import numpy as np
 
 from topopose.match.tree import Tree
-from topopose.pose.anatomy import (crotch_drop, front_direction, hull_radius, spine_shift,
-                                   torso_on_trunk)
+from topopose.pose.anatomy import (crotch_drop, front_direction, hull_radius, room_below,
+                                   spine_shift, torso_on_trunk)
 
 
 class _Vol:
@@ -146,6 +146,55 @@ def test_crotch_drop_moves_down_and_back_by_the_shares():
                            parts["crotch"])
     assert crotch_drop({"crotch": None}, (0, 0, 1), front, 0.2, ("crotch", 0.5, 0.25)) == {
         "crotch": None}
+
+
+def _hips(flexed: bool, n=40):
+    """A voxel hull (z up, +y the front) of a trunk block (x 8–31, y 10–21, z 22–39) on two legs
+    (x 8–17 and 22–31): upright, vertical legs down to z 0 with the gap between them (x 18–21)
+    from z 21 down; flexed (sitting), the thighs forward and horizontal, a 10-voxel slab under
+    the whole trunk (z 12–21) with no gap beneath its middle."""
+    v = np.zeros((n, n, n), bool)
+    v[8:32, 10:22, 22:40] = True
+    if flexed:
+        v[8:32, 10:36, 12:22] = True
+    else:
+        v[8:18, 10:22, 0:22] = True
+        v[22:32, 10:22, 0:22] = True
+    return _Vol(v)
+
+
+def test_room_below_is_the_distance_to_the_hull_border():
+    """Oracle: the hulls of :func:`_hips`, their lower borders counted by hand."""
+    up = np.array([0.0, 0.0, 1.0])
+    x = np.array([20.0, 15.0, 25.0])             # above the legs' gap (its top: z 21)
+    assert room_below(_hips(False), x, up, 30.0) == 4.0     # first outside sample: z 21
+    assert room_below(_hips(True), x, up, 30.0) == 14.0     # the slab's bottom is z 12
+    assert room_below(_hips(True), x, up, 5.0) == 5.0       # the limit
+    assert room_below(_hips(False), np.array([12.0, 15.0, 25.0]), 2 * up, 30.0) == 26.0
+
+
+def test_crotch_drop_floor_fires_on_flexed_hips_not_on_an_upright_stance():
+    """The rule's floor (:data:`CROTCH_DROP`'s fourth entry): with the hips flexed (a slab of
+    thigh beneath the junction) the crotch drops the whole down share; upright, the gap between
+    the legs right beneath it, it drops only to ``floor`` × radius above the gap."""
+    from topopose.pose.anatomy import CROTCH_DROP
+
+    up, front = np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])
+    c = np.array([20.0, 15.0, 25.0])
+    part, down, back, floor = CROTCH_DROP["human"]
+    r = 6.0                                        # drop 2.1, floor 3: room 4 upright, 14 flexed
+    flexed = crotch_drop({part: c}, up, front, r, CROTCH_DROP["human"], _hips(True))[part]
+    assert np.allclose(flexed, c - down * r * up - back * r * front)
+    upright = crotch_drop({part: c}, up, front, r, CROTCH_DROP["human"], _hips(False))[part]
+    assert np.isclose(upright[2], c[2] - (4.0 - floor * r))        # 1 voxel down, not 2.1
+    assert np.isclose(upright[1], c[1] - back * r)
+    c2 = np.array([20.0, 15.0, 23.0])              # right above the gap: no drop at all
+    assert np.isclose(crotch_drop({part: c2}, up, front, r, CROTCH_DROP["human"],
+                                  _hips(False))[part][2], 23.0)
+    # without the hull, or a rule of three entries: the whole drop
+    for rule, vol in ((CROTCH_DROP["human"], None), ((part, down, back), _hips(False))):
+        assert np.allclose(crotch_drop({part: c}, up, front, r, rule, vol)[part],
+                           c - down * r * up - back * r * front)
 
 
 def test_body_crouch_the_crotch_reaches_the_pelvis():

@@ -78,9 +78,17 @@ TORSO_ON_TRUNK = {"human": ("torso", "crotch", "head", 0.35, 0.6)}
 # (gate on; off): separated 0.892 / 0.027 → 0.892 / 0.027; 0.908 / 0.052 → 0.917 / 0.043,
 # all poses 0.658 / 0.060 → 0.650 / 0.071; 0.800 / 0.086 → 0.783 / 0.105 (misplaced 16 → 18;
 # part of it the torso's trunk line drawn from the lowered crotch: dropped after
-# :func:`torso_on_trunk` instead, 16 → 17). It loses all-pose frames, dev and held out: off by
-# default (``FrameEstimator(crotch_drop=True)``).
-CROTCH_DROP = {"human": ("crotch", 0.35, 0.10)}
+# :func:`torso_on_trunk` instead, 16 → 17). It loses all-pose frames, dev and held out.
+# The frame it lost (dev seeds 41–43, all poses, lean 42 frame 4: a legs-apart stance whose
+# junction already sat at the crotch, 0.07 × height *below* the hip centre) has the hull's
+# gap between the legs right beneath the crotch: 0.26 × the radius, where the near misses it
+# mends have 1.0–2.4 (clean frames: 5–95 % 0.8–1.7). Hence the fourth entry, the *floor*: the
+# drop stops ``floor`` × radius above the hull's lower border straight beneath the crotch
+# (:func:`room_below`). Dev seeds 41, 42, 43 (5 builds × 12 frames, gate off, every frame whose
+# other parts are right; crotch beyond 0.08 × height, no drop → drop → drop with floor 0.5):
+# separated 4 → 1 → 1, all poses 4 → 4 → 3 (floor 0.3–0.9 alike; a drop growing with the room,
+# k × (room − d0), d0 0.8–1.1, k 0.25–1: separated 1–2, all poses 3, not kept).
+CROTCH_DROP = {"human": ("crotch", 0.35, 0.10, 0.5)}
 
 
 def front_direction(vol, skeleton, data, mapping: dict, feet, up, reach: float = 4.0,
@@ -160,16 +168,37 @@ def torso_on_trunk(parts: dict, rule) -> tuple:
     return out, True
 
 
-def crotch_drop(parts: dict, up, front, radius: float, rule) -> dict:
+def room_below(vol, x, up, limit: float) -> float:
+    """Distance from ``x`` straight down (against ``up``) to the first voxel outside the hull
+    ``vol`` (its grid, half-voxel steps), at most ``limit`` (world units)."""
+    vs = float(vol.voxel_size)
+    o = np.asarray(vol.origin, float)
+    step = -0.5 * vs * np.asarray(up, float) / np.linalg.norm(up)
+    shape = np.asarray(vol.data.shape)
+    x = np.asarray(x, float)
+    for k in range(1, int(np.ceil(limit / (0.5 * vs))) + 1):
+        q = np.round((x + k * step - o) / vs).astype(int)
+        if np.any(q < 0) or np.any(q >= shape) or not vol.data[tuple(q)]:
+            return min(k * 0.5 * vs, limit)
+    return float(limit)
+
+
+def crotch_drop(parts: dict, up, front, radius: float, rule, vol=None) -> dict:
     """``parts`` with ``rule``'s part moved down (along ``up``) by its down share and back
     (against ``front``) by its extra back share, × ``radius``. ``rule``: ``(part, down,
-    back)``, e.g. :data:`CROTCH_DROP`; unchanged when the part is unplaced, ``front`` is None
-    or ``radius`` ≤ 0."""
-    part, down, back = rule
+    back[, floor])``, e.g. :data:`CROTCH_DROP`; with ``floor`` and the hull ``vol`` the drop
+    stops ``floor`` × ``radius`` above the hull's border beneath the part (:func:`room_below`:
+    the gap between the legs). Unchanged when the part is unplaced, ``front`` is None or
+    ``radius`` ≤ 0."""
+    part, down, back = rule[:3]
     if parts.get(part) is None or front is None or radius <= 0:
         return dict(parts)
     up = np.asarray(up, float) / np.linalg.norm(up)
+    x = np.asarray(parts[part], float)
+    drop = down * radius
+    if len(rule) > 3 and vol is not None:
+        floor = rule[3] * radius
+        drop = min(drop, max(0.0, room_below(vol, x, up, drop + floor) - floor))
     out = dict(parts)
-    out[part] = (np.asarray(parts[part], float) - down * radius * up
-                 - back * radius * np.asarray(front, float))
+    out[part] = x - drop * up - back * radius * np.asarray(front, float)
     return out

@@ -152,9 +152,9 @@ class FrameEstimator:
         shares of the hull's largest inscribed radius (:func:`topopose.pose.anatomy.
         crotch_drop`): the legs' junction rises into the mass of flexed hips. True: the
         model's entry of :data:`topopose.pose.anatomy.CROTCH_DROP` (human; complete models
-        only); None or False (default): off — it wins the held-out separated frames and loses
-        a few all-pose ones; a tuple ``(part, down, back)`` replaces it. Measured there and in
-        ``benchmarks/quality.py`` (quality_body.md, "crotch-drop" rows).
+        only), and None (default) too — the drop stops above the hull's gap between the legs;
+        False: off; a tuple ``(part, down, back[, floor])`` replaces it. Measured there and in
+        ``benchmarks/quality.py`` (quality_body.md, "no-crotch-drop" rows).
     matched_distance : bool or None
         T_d judges the AHA distance without what the unmatched leaf parts cost
         (:func:`missing_cost`; at most ``max_missing`` of them): a frame whose only defect is a
@@ -255,7 +255,7 @@ class FrameEstimator:
                                  if matched_distance is None else bool(matched_distance))
         from .anatomy import CROTCH_DROP, TORSO_ON_TRUNK
         self.trunk = _rule_option(self.model, TORSO_ON_TRUNK, trunk, default=True)
-        self.crotch_drop = _rule_option(self.model, CROTCH_DROP, crotch_drop, default=False)
+        self.crotch_drop = _rule_option(self.model, CROTCH_DROP, crotch_drop, default=True)
 
     def arc_cost(self, vol, data, radii=None):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off.
@@ -512,7 +512,7 @@ class FrameEstimator:
         r = hull_radius(vol, edt)
         parts = spine_shift(parts, front, r, self.spine)
         if self.crotch_drop is not None:
-            parts = crotch_drop(parts, self.up, front, r, self.crotch_drop)
+            parts = crotch_drop(parts, self.up, front, r, self.crotch_drop, vol)
         return parts, [round(float(x), 4) for x in -r * front]
 
     def _failed(self, name, reason, timings, t_all):

@@ -55,6 +55,10 @@ FIT_FEATURES = ("distance", "missing", "shape", "shape_max", "spurious_share", "
                 "head_radius", "head_bend", "head_offset", "head_reach", "trunk", "limb_sym",
                 "spurious", "spurious_length", "arc_dev", "end_radius", "foot_high", "fat",
                 "matched_distance")
+# candidate features of the trunk's junctions and thickness ratios (issue 11; `--features
+# +junctions` adds them to FIT_FEATURES)
+JUNCTION_FEATURES = ("crotch_radius", "torso_radius", "hip_flex", "crotch_room", "head_torso",
+                     "head_placed_offset", "head_placed_bend")
 # camera set-ups: name → (cameras, image size (w, h), silhouette noise level). "4p": four
 # portrait phone-like cameras (1088×1920 at half scale) with the noisier
 # masks of a segmentation network (level 2: borders ±2 px, false blobs, holes)
@@ -179,7 +183,8 @@ def swapped_rows(cap, est, out, ev, like):
                                est.up, p.distance, est.threshold, len(p.diagnostics["missing"]),
                                SimpleNamespace(mapping=m, pairs=al.pairs),
                                p.diagnostics.get("thickness_cost", 0.0), radii,
-                               p.diagnostics.get("missing_cost", 0.0))
+                               p.diagnostics.get("missing_cost", 0.0),
+                               {**p.parts, "head": p.parts[hand]})
             parts = {**p.parts, "head": p.parts[hand], hand: p.parts["head"]}
             q = score(cap, [Pose(p.frame, "matched", p.distance, parts)], est.model).frames[0].quality
             rows.append({**like, "frame": p.frame, "status": p.status, "error": p.error,
@@ -475,6 +480,17 @@ def real_check(recording, models, method="person", cached=None):
     return out
 
 
+def fit_features(spec: str) -> tuple:
+    """The features of ``--features``: FIT_FEATURES when empty; ``+junctions`` or ``+a,b``:
+    FIT_FEATURES and JUNCTION_FEATURES or a, b; otherwise the comma list itself."""
+    if not spec:
+        return FIT_FEATURES
+    if spec.startswith("+"):
+        extra = JUNCTION_FEATURES if spec == "+junctions" else tuple(spec[1:].split(","))
+        return FIT_FEATURES + tuple(f for f in extra if f not in FIT_FEATURES)
+    return tuple(spec.split(","))
+
+
 def main(argv=None):
     from _machine import machine, results_dir
     from topopose.pose import confidence as C
@@ -502,6 +518,9 @@ def main(argv=None):
     ap.add_argument("--kind", choices=("logistic", "trees"), default="trees",
                     help="the model --fit fits: boosted trees (TREES; needs scikit-learn, the "
                          "bench extra) or the logistic regression")
+    ap.add_argument("--features", default="",
+                    help="features fitted: comma list (default FIT_FEATURES); '+junctions': "
+                         "FIT_FEATURES and JUNCTION_FEATURES; '+a,b': FIT_FEATURES and a, b")
     ap.add_argument("--body-benchmark", action="store_true",
                     help="also check the rules on quality.py's body frames (seeds 21, 22; ~2 min)")
     a = ap.parse_args(argv)
@@ -519,7 +538,7 @@ def main(argv=None):
             "pose": max(1, a.pose_seeds // 2)}
     model = before = C.CONFIDENCE_MODEL
     if a.fit:
-        model = fit(rows, FIT_FEATURES, half, a.l2, a.kind)
+        model = fit(rows, fit_features(a.features), half, a.l2, a.kind)
         model["fitted_by"] = "python benchmarks/confidence.py --fit"
         model["frames"] = sum(r["seed"] < half_of(r, half)
                               and candidate(r, {"replaces_threshold": True}) for r in rows)

@@ -33,7 +33,8 @@ def test_features_of_a_hand_built_frame():
     pairs = [(["torso", "head"], ["t", "h"]), (["torso", "crotch"], ["t", "c"])]
     al = SimpleNamespace(mapping=mapping, pairs=pairs)
     f = C.frame_features(vol, int(a.sum()), data, model, (0, 0, 1), 0.2, 0.4, 0, al, 0.3,
-                         {"h": 0.6, "a1": 0.2, "a2": 0.3, "f1": 0.25, "f2": 0.1})
+                         {"h": 0.6, "a1": 0.2, "a2": 0.3, "f1": 0.25, "f2": 0.1, "t": 0.8,
+                          "c": 0.9})
     assert f["distance"] == pytest.approx(0.5)
     assert f["thickness"] == pytest.approx(0.3)
     assert f["fat"] == pytest.approx(1000 * 0.001 / 1.0)
@@ -46,6 +47,28 @@ def test_features_of_a_hand_built_frame():
     assert f["head_radius"] == 0.6 and f["end_radius"] == 0.3
     assert f["head_bend"] == pytest.approx(0.0, abs=1e-6) and f["head_offset"] == pytest.approx(0.0, abs=1e-6)
     assert f["head_reach"] == pytest.approx(0.3) and f["trunk"] == pytest.approx(0.3)
+    # junction radii, head / torso; trunk +z, feet at (−0.1, −0.3) and (0.1, −0.1) from the
+    # crotch: cosines −3/√10 and −1/√2; the hull below the crotch (z 0.4): 0.35 deep, capped at
+    # 0.2 × H
+    assert f["crotch_radius"] == 0.9 and f["torso_radius"] == 0.8
+    assert f["head_torso"] == pytest.approx(0.75)
+    assert f["hip_flex"] == pytest.approx(1 - (3 / math.sqrt(10) + 1 / math.sqrt(2)) / 2, abs=1e-4)
+    assert f["crotch_room"] == pytest.approx(0.2)
+    data.positions["c"] = np.array([0.5, 0.5, 0.17])       # samples 0.12, 0.07 in; 0.02 out
+    k = C.frame_features(vol, int(a.sum()), data, model, (0, 0, 1), 0.2, 0.4, 0, al)
+    assert k["crotch_room"] == pytest.approx(0.15) and k["head_torso"] == 0.0
+    data.positions["c"] = np.array([0.5, 0.5, 0.4])
+    # the placed parts (a head from the hull 0.3 beside the torso, at its height): bend 1,
+    # offset 0.3 / H; without them, or with the head unplaced: 0
+    placed = {"crotch": (0.5, 0.5, 0.4), "torso": (0.5, 0.5, 0.7), "head": (0.8, 0.5, 0.7)}
+    q = C.frame_features(vol, int(a.sum()), data, model, (0, 0, 1), 0.2, 0.4, 0, al,
+                         parts=placed)
+    assert q["head_placed_bend"] == pytest.approx(1.0)
+    assert q["head_placed_offset"] == pytest.approx(0.3)
+    assert f["head_placed_bend"] == f["head_placed_offset"] == 0.0
+    q = C.frame_features(vol, int(a.sum()), data, model, (0, 0, 1), 0.2, 0.4, 0, al,
+                         parts={**placed, "head": None})
+    assert q["head_placed_offset"] == 0.0
     # the head bent sideways by 90°: bend 1, offset = its distance from the trunk line
     data.positions["h"] = np.array([0.8, 0.5, 0.7])
     g = C.frame_features(vol, int(a.sum()), data, model, (0, 0, 1), 0.2, 0.4, 0, al)

@@ -106,7 +106,8 @@ FAT_OK, FAT_MAX = 0.04, 0.06          # the product confidence (models without a
 FEATURES = ("distance", "thickness", "missing", "lost", "fat", "spurious", "spurious_length",
             "arc_dev", "head_low", "foot_high", "head_radius", "end_radius", "head_bend",
             "head_offset", "head_reach", "trunk", "shape", "shape_max", "spurious_share",
-            "limb_sym", "matched_distance")
+            "limb_sym", "matched_distance", "crotch_radius", "torso_radius", "hip_flex",
+            "crotch_room", "head_torso", "head_placed_offset", "head_placed_bend")
 MODEL_PATH = Path(__file__).with_name("confidence_model.json")
 # the fitted confidence model: trees or logistic (benchmarks/confidence.py --fit rewrites the file)
 CONFIDENCE_MODEL = json.loads(MODEL_PATH.read_text())
@@ -233,7 +234,7 @@ def _branch_length(adj, leaf) -> float:
 
 
 def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al=None,
-                   thickness_cost=0.0, radii=None, missing_cost=0.0) -> dict:
+                   thickness_cost=0.0, radii=None, missing_cost=0.0, parts=None) -> dict:
     """What one frame's stages know about how far to trust it, as numbers (the inputs of the
     logistic confidence, :data:`FEATURES`).
 
@@ -263,7 +264,19 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
       legs' length ratio;
     - ``head_radius``, ``end_radius``: the hull's inscribed-ball radius at the head and the
       largest at a hand or foot, relative to the hull's largest (``radii``: per data vertex,
-      :func:`topopose.pose.estimate.vertex_radii`; absent: 0).
+      :func:`topopose.pose.estimate.vertex_radii`; absent: 0); ``crotch_radius``,
+      ``torso_radius``: the same at the crotch and the torso (junctions in the trunk's mass,
+      not on a limb); ``head_torso``: head radius / torso radius (0 without a torso radius);
+    - ``hip_flex``: 1 + the mean over the feet of the cosine of the angle between crotch →
+      torso and crotch → foot (0: legs straight below the trunk, 1: at a right angle, as
+      sitting);
+      ``crotch_room``: the hull's depth straight below the crotch / H (at most 0.2; the gap
+      between the legs is right beneath a standing crotch, flexed hips put thigh there:
+      :func:`topopose.pose.anatomy.room_below`);
+    - ``head_placed_offset``, ``head_placed_bend``: ``head_offset`` and ``head_bend`` of the
+      *placed* parts (``parts``: the pose's positions — the head from the hull, the trunk moved
+      back onto the spine), where the features above see the alignment's data vertices only (a
+      head the alignment left unmatched has none: 0 there).
     """
     vd = vol.diagnostics or {}
     share = float(vd.get("largest_share", 1.0))
@@ -289,7 +302,9 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
          "spurious": 0.0, "spurious_length": 0.0, "arc_dev": 0.0,
          "head_low": 0.0, "foot_high": 0.0, "head_radius": 0.0, "end_radius": 0.0,
          "head_bend": 0.0, "head_offset": 0.0, "head_reach": 0.0, "trunk": 0.0,
-         "shape": 2.0, "shape_max": 3.0, "spurious_share": 1.0, "limb_sym": 0.0}
+         "shape": 2.0, "shape_max": 3.0, "spurious_share": 1.0, "limb_sym": 0.0,
+         "crotch_radius": 0.0, "torso_radius": 0.0, "hip_flex": 0.0, "crotch_room": 0.0,
+         "head_torso": 0.0, "head_placed_offset": 0.0, "head_placed_bend": 0.0}
     if al is None:
         return f
     mapping = al.mapping or {}
@@ -347,6 +362,29 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
         r = {p: radii.get(v, 0.0) for p, v in mapping.items() if v is not None}
         f["head_radius"] = max((r[p] for p in r if _stem(p) == "head"), default=0.0)
         f["end_radius"] = max((r[p] for p in r if _stem(p) in ("hand", "foot")), default=0.0)
+        f["crotch_radius"], f["torso_radius"] = r.get("crotch", 0.0), r.get("torso", 0.0)
+        if f["torso_radius"] > 0:
+            f["head_torso"] = f["head_radius"] / f["torso_radius"]
+    if len(trunk) == 2 and feet:
+        t, c = trunk
+        legs = [np.asarray(pos[p], float) - c for p in feet]
+        legs = [v / np.linalg.norm(v) for v in legs if np.linalg.norm(v) > 0]
+        n = float(np.linalg.norm(t - c))
+        if legs and n > 0:
+            f["hip_flex"] = 1.0 + float(np.mean(legs, axis=0) @ (t - c)) / n
+    pp = [None if parts is None or parts.get(p) is None else np.asarray(parts[p], float)
+          for p in ("head", "torso", "crotch")]
+    if all(x is not None for x in pp) and height > 0:
+        x, t, c = pp
+        axis, hv = t - c, x - t
+        n, hn = float(np.linalg.norm(axis)), float(np.linalg.norm(hv))
+        if n > 0 and hn > 0:
+            f["head_placed_bend"] = 1.0 - float(hv @ axis) / (hn * n)
+            f["head_placed_offset"] = float(np.linalg.norm(np.cross(x - c, axis / n))) / height
+    if pos.get("crotch") is not None and height > 0:
+        from .anatomy import room_below
+        f["crotch_room"] = room_below(vol, pos["crotch"], sign * np.eye(3)[ax],
+                                      0.2 * height) / height
     return {k: round(float(v), 5) for k, v in f.items()}
 
 
@@ -399,7 +437,8 @@ def passes_gate(status, error, confidence, min_confidence) -> bool:
 
 def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
                 min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m", al=None,
-                thickness_cost=0.0, reach=0, radius_map=None, missing_cost=0.0) -> tuple:
+                thickness_cost=0.0, reach=0, radius_map=None, missing_cost=0.0,
+                parts=None) -> tuple:
     """Status, reason and diagnostics of one frame from what the stages know.
 
     A ``matched`` frame becomes ``rejected`` when the hull's largest component holds less than
@@ -409,7 +448,8 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     the product (:func:`frame_confidence`). ``al``: the alignment (its mapping and matched
     arcs give the features), ``thickness_cost``: the part of its distance paid to the
     thickness term, ``reach`` and ``radius_map`` (its ``radii``, if already computed): of
-    :func:`topopose.pose.estimate.vertex_radii`.
+    :func:`topopose.pose.estimate.vertex_radii`; ``parts``: the placed positions (features
+    ``head_placed_*``).
 
     Returns
     -------
@@ -435,7 +475,7 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
         radii = vertex_radii(vol, SimpleNamespace(vertices=mapped, positions=data.positions), reach,
                              radius_map)
     feats = frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al,
-                           thickness_cost, radii, missing_cost)
+                           thickness_cost, radii, missing_cost, parts)
     fitted = model.name in CONFIDENCE_MODEL.get("models", ())
     if fitted:
         conf = fitted_confidence(feats, share, min_share)

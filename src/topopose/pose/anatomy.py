@@ -87,7 +87,10 @@ TORSO_ON_TRUNK = {"human": ("torso", "crotch", "head", 0.35, 0.6)}
 # (:func:`room_below`). Dev seeds 41, 42, 43 (5 builds × 12 frames, gate off, every frame whose
 # other parts are right; crotch beyond 0.08 × height, no drop → drop → drop with floor 0.5):
 # separated 4 → 1 → 1, all poses 4 → 4 → 3 (floor 0.3–0.9 alike; a drop growing with the room,
-# k × (room − d0), d0 0.8–1.1, k 0.25–1: separated 1–2, all poses 3, not kept).
+# k × (room − d0), d0 0.8–1.1, k 0.25–1: separated 1–2, all poses 3, not kept). Held out
+# (quality_body.md, *no-crotch-drop* and *crotch-drop-no-floor* rows, gate off; TP rate / FP
+# per match, none → drop without → with the floor): separated 0.93 / 0.067 → 0.96 / 0.034 →
+# 0.96 / 0.034, all poses 0.73 / 0.111 → 0.72 / 0.121 → 0.73 / 0.111: on by default.
 CROTCH_DROP = {"human": ("crotch", 0.35, 0.10, 0.5)}
 
 

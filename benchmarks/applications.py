@@ -431,8 +431,9 @@ def pipeline_points(frame, former=False):
 def detection_row(pose, frame, up, rng=None):
     """Each named pose's detected value (per margin) and truth on one frame: ``truth`` on the gt
     points corresponding to the pipeline's parts (:func:`pipeline_points`), ``truth_former`` on
-    the former correspondence, ``truth_gt`` on gt.json's parts; whether the truth is stable (:func:`stable_truth`), and each part's offset
-    estimate − corresponding point (numbered parts paired optimally)."""
+    the former correspondence, ``truth_gt`` on gt.json's parts; whether the truth is stable
+    (:func:`stable_truth`), and each part's offset estimate − corresponding point (numbered
+    parts paired optimally)."""
     from topopose.pose.detect import detect, evaluate, load_library, up_frame
 
     gt, former = pipeline_points(frame), pipeline_points(frame, former=True)

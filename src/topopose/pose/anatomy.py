@@ -58,6 +58,9 @@ SPINE_SHIFT = {"human": {"torso": 0.32, "crotch": 0.34, "head": 0.17}}
 # whatever the status, all poses misplaced 26 → 24. It helps the training frames and costs the
 # held-out ones nothing: kept on.
 TORSO_ON_TRUNK = {"human": ("torso", "crotch", "head", 0.35, 0.6)}
+# The torso drawn towards its place on the trunk line (:func:`trunk_blend`): model name →
+# (part, lower end, upper end, fraction, weight). To be measured.
+TRUNK_BLEND = {"human": ("torso", "crotch", "head", 0.6, 0.5)}
 # The crotch lowered and moved further back when the spine shift applies (:func:`crotch_drop`):
 # model name → (part, down share, extra back share) × the hull's largest inscribed radius. The
 # legs' junction of the skeleton lies in the thick mass of pelvis and thighs; when the hips are
@@ -158,6 +161,21 @@ def torso_on_trunk(parts: dict, rule) -> tuple:
     out = dict(parts)
     out[part] = a + fraction * u
     return out, True
+
+
+def trunk_blend(parts: dict, rule) -> dict:
+    """``parts`` with ``rule``'s part (the torso) moved ``weight`` of the way from where it is
+    to ``fraction`` of the way lower end → upper end (crotch → head). ``rule``: ``(part,
+    lower, upper, fraction, weight)``, e.g. :data:`TRUNK_BLEND`; unchanged when one of the
+    three is unplaced."""
+    part, lo, hi, fraction, weight = rule
+    pts = [parts.get(p) for p in (part, lo, hi)]
+    if any(x is None for x in pts):
+        return dict(parts)
+    x, a, b = (np.asarray(p, float) for p in pts)
+    out = dict(parts)
+    out[part] = (1.0 - weight) * x + weight * (a + fraction * (b - a))
+    return out
 
 
 def crotch_drop(parts: dict, up, front, radius: float, rule) -> dict:

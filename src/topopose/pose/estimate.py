@@ -167,6 +167,19 @@ class FrameEstimator:
         point thicker than this fraction of the hull's largest inscribed radius, prolonged
         away from the torso to the hull's border. None: the model's entry when its head has
         an "above" coordinate constraint (human, upright subjects: 0.4), else off; 0: off.
+    trunk_blend : None, bool, float or tuple
+        Draw the torso ``weight`` of the way towards its place on the trunk line crotch → head
+        (:func:`topopose.pose.anatomy.trunk_blend`, after ``trunk``): arms folded on the chest
+        pull the skeleton's shoulder junction forward and sideways. None or True (default): the
+        model's entry of :data:`topopose.pose.anatomy.TRUNK_BLEND` (human; complete models
+        only); False or 0: off; a number: that weight with the model's entry; a tuple replaces
+        it. Measured there.
+    short_arm : float or None
+        Leave a hand unplaced when its data path from the torso is shorter than this fraction
+        of the longest leg path (crotch → foot) and every other part is placed
+        (:func:`short_limb`, :data:`SHORT_ARM`): a forearm folded onto the body ends the arm's
+        skeleton branch at the elbow, where the hand was placed. None: the model's entry
+        (human: measured there); 0: off.
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -182,7 +195,8 @@ class FrameEstimator:
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
                  tip_fraction=1.0, spine=None,
-                 head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None):
+                 head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
+                 short_arm=None, trunk_blend=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -253,9 +267,18 @@ class FrameEstimator:
         self.spine = _spine_option(self.model, spine)
         self.matched_distance = (MATCHED_DISTANCE.get(self.model.name, False)
                                  if matched_distance is None else bool(matched_distance))
-        from .anatomy import CROTCH_DROP, TORSO_ON_TRUNK
+        from .anatomy import CROTCH_DROP, TORSO_ON_TRUNK, TRUNK_BLEND
         self.trunk = _rule_option(self.model, TORSO_ON_TRUNK, trunk, default=True)
+        if isinstance(trunk_blend, (int, float)) and not isinstance(trunk_blend, bool):
+            rule = TRUNK_BLEND.get(self.model.name) if self.model.complete else None
+            self.trunk_blend = (*rule[:4], float(trunk_blend)) if rule and trunk_blend else None
+        else:
+            self.trunk_blend = _rule_option(self.model, TRUNK_BLEND, trunk_blend, default=True)
         self.crotch_drop = _rule_option(self.model, CROTCH_DROP, crotch_drop, default=False)
+        # a hand whose branch ends at the elbow (SHORT_ARM): (hands, torso, crotch, feet, ratio)
+        rule = SHORT_ARM.get(self.model.name) if self.model.complete else None
+        ratio = (rule[4] if rule else 0.0) if short_arm is None else float(short_arm)
+        self.short_arm = (*rule[:4], ratio) if rule and ratio > 0 else None
 
     def arc_cost(self, vol, data, radii=None):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off.
@@ -414,6 +437,12 @@ class FrameEstimator:
                 and off_axis_leaf(data, al.mapping, *self.leaf_axis)):
             dropped.append(self.leaf_axis[0])
             parts[self.leaf_axis[0]] = None
+        short = []
+        if self.short_arm is not None and all(x is not None for x in parts.values()):
+            p = short_limb(data, al.mapping, *self.short_arm)
+            if p is not None:
+                short.append(p)
+                parts[p] = None
         on_skeleton = dict(parts)      # the skeleton curves end at the branch ends
         if self.tips:
             from .tips import extremity_tips
@@ -441,6 +470,9 @@ class FrameEstimator:
         if self.trunk is not None:       # a torso slid down to the crotch (pose/anatomy.py)
             from .anatomy import torso_on_trunk
             parts, on_trunk = torso_on_trunk(parts, self.trunk)
+        if self.trunk_blend is not None:     # arms on the chest pull the junction forward
+            from .anatomy import trunk_blend
+            parts = trunk_blend(parts, self.trunk_blend)
         status, error = "matched", None
         mcost = missing_cost(self.pattern, al)
         # T_d judges what the matched parts cost (MATCHED_DISTANCE): a missing limb is a right
@@ -477,6 +509,8 @@ class FrameEstimator:
             diag["from_hull"] = from_hull
         if dropped:
             diag["off_axis"] = dropped
+        if short:
+            diag["short_arm"] = short
         if on_trunk:
             diag["on_trunk"] = self.trunk[0]
         if self.spine:
@@ -676,6 +710,9 @@ THICKNESS = {"human": {"head": (0.30, 0.85), "hand": (0.0, 0.40), "foot": (0.0, 
 # leaves the head unplaced in 69 of 100 frames and the frames with head, hands and feet within
 # 0.15 m fall from 31 % to 15 %: the default is off (0); ``leaf_axis=0.7`` turns it on.
 LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.0)}
+# A hand whose arm branch ends at the elbow is left unplaced (short_limb, FrameEstimator(
+# short_arm=...)): model name → (hands, arm base, leg base, feet, min ratio). To be measured.
+SHORT_ARM = {"human": (("hand_1", "hand_2"), "torso", "crotch", ("foot_1", "foot_2"), 0.3)}
 # The head from the hull (pose/tips.py, head_from_hull): (head, anchor, min_fraction) — the head
 # part is put where the direction anchor → the hull's highest point whose inscribed radius is
 # ≥ min_fraction × the hull's largest leaves the hull, whatever the alignment gave the head
@@ -868,6 +905,29 @@ def off_axis_leaf(data, mapping, leaf, junction, axis_end, min_cos) -> bool:
     if na == 0 or nb == 0:
         return False
     return float(a @ b) / (na * nb) < min_cos
+
+
+def short_limb(data, mapping, limbs, base, leg_base, legs, min_ratio):
+    """The part of ``limbs`` (the hands) whose data path from ``base``'s vertex (the torso) is
+    the shortest, when it is shorter than ``min_ratio`` × the longest data path from
+    ``leg_base`` (the crotch) to one of ``legs`` (the feet); else None (also when ``base``,
+    ``leg_base`` or every leg is unmatched). A real arm's branch, shoulder centre → hand, is
+    about 0.8 of a leg's; one that ends at the elbow (a forearm folded onto the body, fused with
+    it in the hull) is shorter than the upper arm, and the hand placed at its end is wrong."""
+    adj = data.adjacency()
+
+    def length(a, b):
+        u, v = mapping.get(a), mapping.get(b)
+        return None if u is None or v is None else path_length(adj, u, v)
+
+    leg = max((x for x in (length(leg_base, f) for f in legs) if x is not None), default=None)
+    if not leg:
+        return None
+    arms = [(x, p) for p, x in ((p, length(base, p)) for p in limbs) if x is not None]
+    if not arms:
+        return None
+    x, p = min(arms)
+    return p if x < min_ratio * leg else None
 
 
 def junction_position(al, data, part, v):

@@ -712,7 +712,7 @@ THICKNESS = {"human": {"head": (0.30, 0.85), "hand": (0.0, 0.40), "foot": (0.0, 
 LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.0)}
 # A hand whose arm branch ends at the elbow is left unplaced (short_limb, FrameEstimator(
 # short_arm=...)): model name → (hands, arm base, leg base, feet, min ratio). To be measured.
-SHORT_ARM = {"human": (("hand_1", "hand_2"), "torso", "crotch", ("foot_1", "foot_2"), 0.3)}
+SHORT_ARM = {"human": (("hand_1", "hand_2"), "torso", "crotch", ("foot_1", "foot_2"), 0.35)}
 # The head from the hull (pose/tips.py, head_from_hull): (head, anchor, min_fraction) — the head
 # part is put where the direction anchor → the hull's highest point whose inscribed radius is
 # ≥ min_fraction × the hull's largest leaves the hull, whatever the alignment gave the head

@@ -59,7 +59,20 @@ SPINE_SHIFT = {"human": {"torso": 0.32, "crotch": 0.34, "head": 0.17}}
 # held-out ones nothing: kept on.
 TORSO_ON_TRUNK = {"human": ("torso", "crotch", "head", 0.35, 0.6)}
 # The torso drawn towards its place on the trunk line (:func:`trunk_blend`): model name →
-# (part, lower end, upper end, fraction, weight). To be measured.
+# (part, lower end, upper end, fraction, weight). Arms folded on the chest or hanging against
+# it add volume in front of and beside the trunk, and the shoulder junction of the skeleton
+# moves with it: the torso near misses of the all-pose frames lie 0.05 × height in front of
+# the chest and 0.02–0.03 sideways and down (diagnose_body_heldout.md). The trunk line crotch →
+# head (the head from the hull's crown) does not see the arms, but alone it is a coarser
+# estimate (the chest at 0.53–0.71 of it, see TORSO_ON_TRUNK): half way between the two. Dev
+# seeds 41, 42 (5 builds × 12 frames, 100³, noise 1, gate off; TP rate / FP per match), weight
+# 0 / 0.25 / 0.5 / 0.75 / 1: all poses 0.800 / 0.086, 0.808 / 0.076 (0.25–0.75), 0.800 / 0.086;
+# separated 0.908 / 0.052 → 0.917 / 0.043 (0.25–1). Torso beyond 0.08 × height among the all-pose
+# frames with torso, crotch and head placed: 3 → 1 at 0.5 (median error 0.33 → 0.38 × the
+# tolerance). Tried and dropped: the torso moved further back than the spine shift (0.1 / 0.2 /
+# 0.3 × the hull's radius: wrong torsos 3 → 3 / 4 / 6), projected onto the trunk line at its
+# own height (3 → 3, median error 0.61 × the tolerance). Held-out figures:
+# ``benchmarks/quality.py`` (quality_body.md, "no-trunk-blend" rows).
 TRUNK_BLEND = {"human": ("torso", "crotch", "head", 0.6, 0.5)}
 # The crotch lowered and moved further back when the spine shift applies (:func:`crotch_drop`):
 # model name → (part, down share, extra back share) × the hull's largest inscribed radius. The

@@ -711,7 +711,19 @@ THICKNESS = {"human": {"head": (0.30, 0.85), "hand": (0.0, 0.40), "foot": (0.0, 
 # 0.15 m fall from 31 % to 15 %: the default is off (0); ``leaf_axis=0.7`` turns it on.
 LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.0)}
 # A hand whose arm branch ends at the elbow is left unplaced (short_limb, FrameEstimator(
-# short_arm=...)): model name → (hands, arm base, leg base, feet, min ratio). To be measured.
+# short_arm=...)): model name → (hands, arm base, leg base, feet, min ratio). With a forearm
+# folded onto the chest or the belly (elbow bent 100–120°, the arm rotated inwards) the hull
+# fuses forearm and trunk, the arm's skeleton branch ends at the elbow and the alignment puts the
+# hand there (0.1–0.2 of the normalized tree against 0.18 for the model's arm; deleting the arm
+# would cost 0.18): "hand at the elbow" was the commonest misplaced all-pose frame
+# (benchmarks/diagnose_body.py). Only when every other part is placed (a second missing part
+# would make the frame partial), the shorter hand. The ratio of the torso → hand path to the
+# longest crotch → foot path, `body` dev seeds 41, 42 (5 builds × 12 frames, 100³, noise 1, gate
+# off): right hands of separated frames 1 % / 5 % / median 0.39 / 0.49 / 0.69; 0.35 lies below.
+# All-pose frames, TP rate / FP per match: off 0.800 / 0.086, ratio 0.25–0.45 0.817 / 0.067
+# (the same 2 misplaced frames become "missing limb"); separated frames unchanged. The hand's
+# inscribed radius and the path alone (normalized weights) did not separate wrong from right
+# hands. Held-out figures: benchmarks/quality.py (quality_body.md, "no-short-arm" rows).
 SHORT_ARM = {"human": (("hand_1", "hand_2"), "torso", "crotch", ("foot_1", "foot_2"), 0.35)}
 # The head from the hull (pose/tips.py, head_from_hull): (head, anchor, min_fraction) — the head
 # part is put where the direction anchor → the hull's highest point whose inscribed radius is

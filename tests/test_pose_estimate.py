@@ -175,3 +175,29 @@ def test_short_arm_and_trunk_blend_in_the_estimator():
         r = line.estimate(f)
         c, hd = np.asarray(r.parts["crotch"]), np.asarray(r.parts["head"])
         assert np.allclose(r.parts["torso"], c + 0.6 * (hd - c))
+
+
+def test_placed_missing_counts_a_head_from_the_hull_as_placed():
+    """``body`` heavy build, seed 41, all poses, frame 0 (an arm on the body): the alignment
+    leaves the head and that hand unmatched, the head is placed from the hull. Counted on the
+    placed parts (default) the frame is matched, one hand missing — right by its ground truth
+    (the oracle: ``evaluate`` at 0.08 × height); counted on the alignment's, or without the head
+    from the hull, two parts are missing and the frame is rejected."""
+    from topopose.capture import synthetic_capture
+    from topopose.pose import FrameEstimator, load_model
+    from topopose.pose.quality import evaluate
+
+    cap = synthetic_capture(subject="body", frames=12, seed=41, noise=1, separated=False,
+                            cameras=8, build="heavy")
+    f = cap.frames[0]
+    p = FrameEstimator(cap, "human", 100, gate=False).estimate(f)
+    assert p.status == "matched", p.error
+    assert len(p.diagnostics["missing"]) == 2 and "head" in p.diagnostics["missing"]
+    assert p.diagnostics["from_hull"] == ["head"]
+    assert sum(x is None for x in p.parts.values()) == 1
+    ev = evaluate(cap.gt, [p], model=load_model("human"), tolerance=0.08 * cap.gt["height"],
+                  junction_factor=1.0)
+    assert ev.frames[0].quality == "missing limb"
+    for kw in ({"placed_missing": False}, {"head_from_hull": 0}):
+        q = FrameEstimator(cap, "human", 100, gate=False, **kw).estimate(f)
+        assert q.status == "rejected" and "parts unmatched" in q.error, kw

@@ -174,6 +174,11 @@ class FrameEstimator:
         model's entry of :data:`topopose.pose.anatomy.TRUNK_BLEND` (human; complete models
         only); False or 0: off; a number: that weight with the model's entry; a tuple replaces
         it. Measured there.
+    placed_missing : bool or None
+        ``max_missing`` counts the parts left without a position once placed — a head the
+        alignment left unmatched but placed from the hull (``head_from_hull``) is placed — rather
+        than the alignment's unmatched parts (:data:`PLACED_MISSING`; ``diagnostics["missing"]``
+        stays the alignment's). None: the model's entry (human: on); False: off.
     short_arm : float or None
         Leave a hand unplaced when its data path from the torso is shorter than this fraction
         of the longest leg path (crotch → foot) and every other part is placed
@@ -196,7 +201,7 @@ class FrameEstimator:
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
                  tip_fraction=1.0, spine=None,
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
-                 short_arm=None, trunk_blend=None):
+                 short_arm=None, trunk_blend=None, placed_missing=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -275,6 +280,8 @@ class FrameEstimator:
         else:
             self.trunk_blend = _rule_option(self.model, TRUNK_BLEND, trunk_blend, default=True)
         self.crotch_drop = _rule_option(self.model, CROTCH_DROP, crotch_drop, default=False)
+        self.placed_missing = (PLACED_MISSING.get(self.model.name, False)
+                               if placed_missing is None else bool(placed_missing))
         # a hand whose branch ends at the elbow (SHORT_ARM): (hands, torso, crotch, feet, ratio)
         rule = SHORT_ARM.get(self.model.name) if self.model.complete else None
         ratio = (rule[4] if rule else 0.0) if short_arm is None else float(short_arm)
@@ -483,7 +490,9 @@ class FrameEstimator:
             error = f"AHA distance {dist:.3f} above threshold T_d = {self.threshold:g}"
             if judged != dist:
                 error += f" ({judged:.3f} without the unmatched parts)"
-        elif len(missing) > self.max_missing:
+        elif len(missing) > self.max_missing and (
+                not self.placed_missing
+                or sum(x is None for x in parts.values()) > self.max_missing):
             status = "rejected"
             error = f"{len(missing)} parts unmatched ({', '.join(missing)})"
             if unordered:
@@ -724,6 +733,9 @@ LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.0)}
 # (the same 2 misplaced frames become "missing limb"); separated frames unchanged. The hand's
 # inscribed radius and the path alone (normalized weights) did not separate wrong from right
 # hands. Held-out figures: benchmarks/quality.py (quality_body.md, "no-short-arm" rows).
+# max_missing on the parts placed (FrameEstimator(placed_missing=...)): model name → on. To be
+# measured.
+PLACED_MISSING = {"human": True}
 SHORT_ARM = {"human": (("hand_1", "hand_2"), "torso", "crotch", ("foot_1", "foot_2"), 0.35)}
 # The head from the hull (pose/tips.py, head_from_hull): (head, anchor, min_fraction) — the head
 # part is put where the direction anchor → the hull's highest point whose inscribed radius is

@@ -71,8 +71,9 @@ TORSO_ON_TRUNK = {"human": ("torso", "crotch", "head", 0.35, 0.6)}
 # frames with torso, crotch and head placed: 3 → 1 at 0.5 (median error 0.33 → 0.38 × the
 # tolerance). Tried and dropped: the torso moved further back than the spine shift (0.1 / 0.2 /
 # 0.3 × the hull's radius: wrong torsos 3 → 3 / 4 / 6), projected onto the trunk line at its
-# own height (3 → 3, median error 0.61 × the tolerance). Held-out figures:
-# ``benchmarks/quality.py`` (quality_body.md, "no-trunk-blend" rows).
+# own height (3 → 3, median error 0.61 × the tolerance). Held out (``benchmarks/quality.py``,
+# quality_body.md, "no-trunk-blend" rows; gate off): all poses 0.77 / 0.080 → 0.79 / 0.050
+# (misplaced 21 → 18), separated 0.93 / 0.067 either way.
 TRUNK_BLEND = {"human": ("torso", "crotch", "head", 0.6, 0.5)}
 # The crotch lowered and moved further back when the spine shift applies (:func:`crotch_drop`):
 # model name → (part, down share, extra back share) × the hull's largest inscribed radius. The

@@ -184,7 +184,7 @@ class FrameEstimator:
         of the longest leg path (crotch → foot) and every other part is placed
         (:func:`short_limb`, :data:`SHORT_ARM`): a forearm folded onto the body ends the arm's
         skeleton branch at the elbow, where the hand was placed. None: the model's entry
-        (human: measured there); 0: off.
+        (human: 0.35, measured there); 0: off.
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -732,7 +732,9 @@ LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.0)}
 # All-pose frames, TP rate / FP per match: off 0.800 / 0.086, ratio 0.25–0.45 0.817 / 0.067
 # (the same 2 misplaced frames become "missing limb"); separated frames unchanged. The hand's
 # inscribed radius and the path alone (normalized weights) did not separate wrong from right
-# hands. Held-out figures: benchmarks/quality.py (quality_body.md, "no-short-arm" rows).
+# hands. Held out (benchmarks/quality.py, quality_body.md, "no-short-arm" rows; gate off): all
+# poses 0.77 / 0.080 → 0.79 / 0.050 (misplaced 21 → 18), separated 0.93 / 0.067 either way.
+SHORT_ARM = {"human": (("hand_1", "hand_2"), "torso", "crotch", ("foot_1", "foot_2"), 0.35)}
 # max_missing on the parts placed (FrameEstimator(placed_missing=...)): model name → on. With an
 # arm on the body the alignment often leaves the head unmatched as well (a short head branch
 # pruned or absorbed into the shoulders); the head from the hull (HEAD_FROM_HULL) places it,
@@ -740,10 +742,10 @@ LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.0)}
 # position — a "missing limb" frame, right by §13.2.2. `body` dev seeds 41, 42 (5 builds × 12
 # frames, 100³, noise 1, gate off; TP rate / FP per match, with SHORT_ARM and TRUNK_BLEND): all
 # poses 0.825 / 0.057 → 0.842 / 0.056 (2 right frames more matched, no wrong one), separated
-# 0.917 / 0.043 either way. Held-out figures: benchmarks/quality.py (quality_body.md,
-# "no-placed-missing" rows).
+# 0.917 / 0.043 either way. Held out (benchmarks/quality.py, quality_body.md,
+# "no-placed-missing" rows; gate off): all poses 0.78 / 0.051 → 0.79 / 0.050, separated 0.93 /
+# 0.067 either way.
 PLACED_MISSING = {"human": True}
-SHORT_ARM = {"human": (("hand_1", "hand_2"), "torso", "crotch", ("foot_1", "foot_2"), 0.35)}
 # The head from the hull (pose/tips.py, head_from_hull): (head, anchor, min_fraction) — the head
 # part is put where the direction anchor → the hull's highest point whose inscribed radius is
 # ≥ min_fraction × the hull's largest leaves the hull, whatever the alignment gave the head
@@ -943,7 +945,7 @@ def short_limb(data, mapping, limbs, base, leg_base, legs, min_ratio):
     the shortest, when it is shorter than ``min_ratio`` × the longest data path from
     ``leg_base`` (the crotch) to one of ``legs`` (the feet); else None (also when ``base``,
     ``leg_base`` or every leg is unmatched). A real arm's branch, shoulder centre → hand, is
-    about 0.8 of a leg's; one that ends at the elbow (a forearm folded onto the body, fused with
+    about 0.7 of a leg's (``body``, median); one that ends at the elbow (a forearm folded onto the body, fused with
     it in the hull) is shorter than the upper arm, and the hand placed at its end is wrong."""
     adj = data.adjacency()
 

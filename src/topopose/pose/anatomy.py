@@ -107,7 +107,8 @@ TRUNK_BLEND = {"human": ("torso", "crotch", "head", 0.6, 0.5)}
 # k × (room − d0), d0 0.8–1.1, k 0.25–1: separated 1–2, all poses 3, not kept). Held out
 # (quality_body.md, *no-crotch-drop* and *crotch-drop-no-floor* rows, gate off; TP rate / FP
 # per match, none → drop without → with the floor): separated 0.93 / 0.067 → 0.96 / 0.034 →
-# 0.96 / 0.034, all poses 0.73 / 0.111 → 0.72 / 0.121 → 0.73 / 0.111: on by default.
+# 0.96 / 0.034, all poses 0.79 / 0.050 → 0.78 / 0.060 → 0.79 / 0.050 (before SHORT_ARM and
+# TRUNK_BLEND: 0.73 / 0.111 → 0.72 / 0.121 → 0.73 / 0.111): on by default.
 CROTCH_DROP = {"human": ("crotch", 0.35, 0.10, 0.5)}
 
 

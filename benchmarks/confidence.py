@@ -57,10 +57,10 @@ BASE_FEATURES = ("distance", "missing", "shape", "shape_max", "spurious_share", 
                  "matched_distance")
 # the trunk's junctions, thickness ratios and the placed head (issue 11, h11b), chosen on this
 # benchmark's own frames (never quality.py's seeds 21, 22): held-out seeds, 8 cameras, recall of
-# the right frames at precision 0.95 0.923 → 0.947 with them (all poses 0.894 → 0.936), ROC AUC
-# 0.859 → 0.869; at the minimum each fit chooses (0.72 → 0.64) precision / recall 0.956 / 0.916
-# → 0.953 / 0.947 (before h11a's short-arm rules: 0.962 / 0.815 → 0.947 / 0.912). Alone each
-# gave less (docs/tried.md).
+# the right frames at precision 0.95 0.908 → 0.922 with them (all poses 0.907 → 0.977); at the
+# minimum each fit chooses (0.87 → 0.75) precision / recall 0.962 / 0.815 → 0.947 / 0.912 (on
+# the pipeline after h11a's short-arm rules: 0.923 → 0.947; 0.72 → 0.64, 0.956 / 0.916 → 0.953
+# / 0.947). Alone each gave less (docs/tried.md).
 JUNCTION_FEATURES = ("crotch_radius", "torso_radius", "hip_flex", "crotch_room", "head_torso",
                      "head_placed_offset", "head_placed_bend")
 FIT_FEATURES = BASE_FEATURES + JUNCTION_FEATURES

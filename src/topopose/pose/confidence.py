@@ -79,9 +79,9 @@ held out, 8 cameras: precision / recall 0.936 / 0.799 → 0.949 / 0.781, body wa
 **The trunk's junctions** (issue 11): ``crotch_radius``, ``torso_radius``, ``head_torso``,
 ``hip_flex``, ``crotch_room`` and the placed head's ``head_placed_offset`` / ``head_placed_bend``
 are fitted too (``benchmarks/confidence.py`` ``JUNCTION_FEATURES``; held-out seeds of the
-calibration, 8 cameras: recall of the right frames at precision 0.95 0.923 → 0.947; body
-benchmark, seeds 21, 22, TP rate / FP per match: separated 0.925 / 0.009 against 0.892 / 0.018
-refitted without them, all poses 0.767 / 0.052 against 0.742 / 0.033; ``docs/body_accuracy.md``).
+calibration, 8 cameras: recall of the right frames at precision 0.95 0.908 → 0.922; body
+benchmark, seeds 21, 22, TP rate / FP per match: separated 0.908 / 0.009 against 0.758 / 0.000
+refitted without them; ``docs/body_accuracy.md``).
 
 **Missing limbs** (issue 11): ``matched_distance`` (the distance without the unmatched leaf
 parts' deletion cost) is a feature of the trees (a logistic refit gave it no weight,

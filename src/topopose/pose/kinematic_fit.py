@@ -63,6 +63,7 @@ class KinematicTree:
     trunk: tuple = ()              # (from part, to part)
     beyond: list = None            # tip joints: past the end part, × the curve length
     limbs: frozenset = frozenset()  # the model's limb parts (``[[mirror]]`` parts)
+    width: list = None             # (along the trunk, outward) × hull radius, from the junction
 
     @property
     def root(self) -> int:
@@ -101,7 +102,7 @@ def kinematic_tree(model) -> KinematicTree:
     if not model.joints:
         raise InputError(f"model {model.name!r}: no [[joint]] declared; the full skeleton needs "
                          "joints along the arcs (see topopose.pose.model)")
-    names, base, arc, at, offset, beyond = [], [], [], [], [], []
+    names, base, arc, at, offset, beyond, width = [], [], [], [], [], [], []
     arcs = model_arcs(model)
     for u, v in arcs:
         for js in model.joints:
@@ -119,6 +120,7 @@ def kinematic_tree(model) -> KinematicTree:
                     break
             names.append(js.name + suffix)
             offset.append(tuple(float(x) for x in js.offset))
+            width.append(tuple(float(x) for x in js.width))
             beyond.append(float(js.beyond) if t == 1.0 else 0.0)
             base.append(js.name)
             arc.append((u, v))
@@ -159,7 +161,7 @@ def kinematic_tree(model) -> KinematicTree:
                          f"{roots}); put a joint at at = 0 or 1 where arcs meet")
     return KinematicTree(names, base, parents, arc, at, offset,
                          tuple(model.facing.get("trunk", ())), beyond,
-                         frozenset(x for parts, _names in model.mirrors for x in parts))
+                         frozenset(x for parts, _names in model.mirrors for x in parts), width)
 
 
 TIP_DIRECTION = 0.1      # the tip direction: along the curve's last 10 % (see _along)
@@ -206,10 +208,21 @@ def frame_curves(pose, tree: KinematicTree, spine=None) -> dict:
     return {v: np.asarray(c, float) + s if v not in tree.limbs else c for v, c in curves.items()}
 
 
-def initial_placement(pose, tree: KinematicTree, spine=None) -> np.ndarray:
+def _beside(tree, j) -> bool:
+    """Whether joint ``j`` lies beside its curve (an ``offset`` or a ``width``)."""
+    return any(tree.offset[j]) or bool(tree.width and any(tree.width[j]))
+
+
+def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.ndarray:
     """(n_joints, 3) joints at their relative arc length on the frame's curves (NaN: no curve);
     the trunk's curves and the offset joints moved back by ``spine`` (default
-    :data:`SPINE_BACK`) × the frame's spine shift (:func:`frame_curves`)."""
+    :data:`SPINE_BACK`) × the frame's spine shift (:func:`frame_curves`). A joint with a
+    ``width`` (hips), when the hull radius is known (``radius``, else the length of the frame's
+    spine shift) and its mirror mate placed: at its arc's start (the junction) moved along the
+    trunk and outward (the direction from its mate's curve point to its own, across the trunk)
+    by ``width`` × the radius — the hull's largest inscribed radius scales with girth, the
+    trunk's length does not (development seeds: half shoulder width / radius 1.16–1.46 over
+    four builds, / trunk length 0.39–0.76); otherwise as its ``offset`` says."""
     curves = frame_curves(pose, tree, spine)
     out = np.full((len(tree.names), 3), np.nan)
     for j, ((u, v), t) in enumerate(zip(tree.arc, tree.at)):
@@ -221,7 +234,7 @@ def initial_placement(pose, tree: KinematicTree, spine=None) -> np.ndarray:
             x = pose.parts.get(u if t == 0.0 else v)  # when the arc's far part is missing)
             if x is not None:
                 out[j] = np.asarray(x, dtype=float)
-    if tree.trunk and any(any(o) for o in tree.offset):
+    if tree.trunk and any(_beside(tree, j) for j in range(len(tree.names))):
         a, b = (pose.parts.get(x) for x in tree.trunk)
         if a is None or b is None:
             return out
@@ -231,11 +244,25 @@ def initial_placement(pose, tree: KinematicTree, spine=None) -> np.ndarray:
             return out
         ax /= S
         moved = out.copy()
+        s = pose.diagnostics.get("spine_shift")
+        radius = radius if radius is not None else (
+            float(np.linalg.norm(s)) if s is not None else None)
         for j, (along, outward) in enumerate(tree.offset):
-            if not (along or outward) or np.isnan(out[j]).any():
+            if not _beside(tree, j) or np.isnan(out[j]).any():
                 continue
-            moved[j] = out[j] + along * S * ax
             mates = [k for k in range(len(tree.names)) if k != j and tree.base[k] == tree.base[j]]
+            c = curves.get(tree.arc[j][1])
+            if (radius and tree.width and any(tree.width[j]) and len(mates) == 1
+                    and c is not None and not np.isnan(out[mates[0]]).any()):
+                lat = out[j] - out[mates[0]]
+                lat -= np.dot(lat, ax) * ax
+                n = np.linalg.norm(lat)
+                if n > 0:
+                    w_al, w_out = tree.width[j]
+                    moved[j] = (np.asarray(c, float)[0] + w_al * radius * ax
+                                + w_out * radius * lat / n)
+                    continue
+            moved[j] = out[j] + along * S * ax
             if outward and len(mates) == 1 and not np.isnan(out[mates[0]]).any():
                 lat = out[j] - out[mates[0]]
                 lat -= np.dot(lat, ax) * ax
@@ -244,12 +271,14 @@ def initial_placement(pose, tree: KinematicTree, spine=None) -> np.ndarray:
                     moved[j] += outward * S * lat / n
         spine = SPINE_BACK if spine is None else spine
         if spine and pose.diagnostics.get("spine_shift") is not None and tree.limbs:
-            moved[[any(o) for o in tree.offset]] += spine * np.asarray(
+            moved[[_beside(tree, j) for j in range(len(tree.names))]] += spine * np.asarray(
                 pose.diagnostics["spine_shift"], float)
         out = moved
     return out
 
 
+WIDTH_RADIUS = "sequence"   # the hull radius of the joints' ``width``: the sequence's median
+                            # (a subject's girth is constant) or "frame" (each frame's own)
 BONE_QUANTILE = 70   # percent; see bone_lengths
 
 
@@ -319,7 +348,7 @@ def fit_frame(target, curves, L, tree: KinematicTree, start=None, inner_weight=1
     n = len(tree.names)
     P = np.full((n, 3), np.nan)
     P[tree.root] = target[tree.root] if root is None else root
-    w = np.where(np.array([t in (0.0, 1.0) or any(o) for t, o in zip(tree.at, tree.offset)]),
+    w = np.where(np.array([t in (0.0, 1.0) or _beside(tree, j) for j, t in enumerate(tree.at)]),
                  1.0, inner_weight)
     rms = []
     for (u, v), js in tree.chains().items():
@@ -487,7 +516,10 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     """
     poses = sorted(poses, key=lambda p: p.frame)
     tree = kinematic_tree(model)
-    init = np.stack([initial_placement(p, tree, spine) if p.matched
+    radius = [np.linalg.norm(p.diagnostics["spine_shift"]) for p in poses
+              if p.matched and p.diagnostics.get("spine_shift") is not None]
+    radius = float(np.median(radius)) if radius and WIDTH_RADIUS == "sequence" else None
+    init = np.stack([initial_placement(p, tree, spine, radius) if p.matched
                      else np.full((len(tree.names), 3), np.nan) for p in poses]) \
         if poses else np.zeros((0, len(tree.names), 3))
     L = bone_lengths(init, tree, quantile)

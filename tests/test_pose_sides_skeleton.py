@@ -450,3 +450,32 @@ def test_joint_width_field_round_trips_and_is_checked():
     next(j for j in d["joint"] if j["name"] == "hip")["width"] = [0.1]
     with pytest.raises(InputError, match="width"):
         model_from_dict(d)
+
+
+def test_raised_arm_joints_at_their_raised_fraction():
+    """A hand above the chest junction (along the trunk): the elbow and wrist at their
+    ``at_raised`` of the arm's curve; a hand below it: at their ``at``."""
+    from topopose.pose.kinematic_fit import _along, initial_placement
+
+    rng = np.random.default_rng(5)
+    tree = kinematic_tree(HUMAN)
+    parts, curves = _body(0.2, rng)
+    R = _rotz(0.2)
+    sh = parts["torso"] + R @ [0.0, 0.2, 0.05]
+    up_hand = parts["torso"] + R @ [0.1, 0.35, 0.6]        # the left hand raised
+    parts["left_hand"] = up_hand
+    curves["left_hand"] = resample([parts["torso"], sh, up_hand], 64)
+    pose, _ = _numbered_frame("000000", parts, curves, False, False)
+    P = initial_placement(pose, tree)
+    spec = {j.name: j for j in HUMAN.joints}
+    for name in ("elbow", "wrist"):
+        assert spec[name].at_raised is not None and spec[name].at_raised != spec[name].at
+        up = P[tree.names.index(name + "_1")]
+        down = P[tree.names.index(name + "_2")]
+        assert np.allclose(up, _along(curves["left_hand"], spec[name].at_raised))
+        assert np.allclose(down, _along(curves["right_hand"], spec[name].at))
+    d = HUMAN.to_dict()
+    d["joint"] = [dict(j) for j in d["joint"]]
+    next(j for j in d["joint"] if j["name"] == "elbow")["at_raised"] = 1.5
+    with pytest.raises(InputError, match="at_raised"):
+        model_from_dict(d)

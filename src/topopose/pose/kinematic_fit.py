@@ -64,6 +64,7 @@ class KinematicTree:
     beyond: list = None            # tip joints: past the end part, × the curve length
     limbs: frozenset = frozenset()  # the model's limb parts (``[[mirror]]`` parts)
     width: list = None             # (along the trunk, outward) × hull radius, from the junction
+    at_raised: list = None         # at when the arc's end part is past its start along the trunk
 
     @property
     def root(self) -> int:
@@ -102,15 +103,17 @@ def kinematic_tree(model) -> KinematicTree:
     if not model.joints:
         raise InputError(f"model {model.name!r}: no [[joint]] declared; the full skeleton needs "
                          "joints along the arcs (see topopose.pose.model)")
-    names, base, arc, at, offset, beyond, width = [], [], [], [], [], [], []
+    names, base, arc, at, offset, beyond, width, raised = [], [], [], [], [], [], [], []
     arcs = model_arcs(model)
     for u, v in arcs:
         for js in model.joints:
             a, b = js.arc
+            r = None if js.at_raised is None else float(js.at_raised)
             if a in (u, _stem(u)) and b in (v, _stem(v)):
                 t = float(js.at)
             elif b in (u, _stem(u)) and a in (v, _stem(v)):
                 t = 1.0 - float(js.at)
+                r = None if r is None else 1.0 - r
             else:
                 continue
             suffix = ""
@@ -121,6 +124,7 @@ def kinematic_tree(model) -> KinematicTree:
             names.append(js.name + suffix)
             offset.append(tuple(float(x) for x in js.offset))
             width.append(tuple(float(x) for x in js.width))
+            raised.append(r)
             beyond.append(float(js.beyond) if t == 1.0 else 0.0)
             base.append(js.name)
             arc.append((u, v))
@@ -161,7 +165,8 @@ def kinematic_tree(model) -> KinematicTree:
                          f"{roots}); put a joint at at = 0 or 1 where arcs meet")
     return KinematicTree(names, base, parents, arc, at, offset,
                          tuple(model.facing.get("trunk", ())), beyond,
-                         frozenset(x for parts, _names in model.mirrors for x in parts), width)
+                         frozenset(x for parts, _names in model.mirrors for x in parts), width,
+                         raised)
 
 
 TIP_DIRECTION = 0.1      # the tip direction: along the curve's last 10 % (see _along)
@@ -222,11 +227,24 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.
     trunk and outward (the direction from its mate's curve point to its own, across the trunk)
     by ``width`` × the radius — the hull's largest inscribed radius scales with girth, the
     trunk's length does not (development seeds: half shoulder width / radius 1.16–1.46 over
-    four builds, / trunk length 0.39–0.76); otherwise as its ``offset`` says."""
+    four builds, / trunk length 0.39–0.76); otherwise as its ``offset`` says. A joint with an
+    ``at_raised`` (elbows, wrists) is there instead of ``at`` when its arc's end part lies past
+    its first part along the trunk (a hand above the chest junction: the arm's curve runs
+    up through the shoulder's mass before the arm leaves it)."""
     curves = frame_curves(pose, tree, spine)
     out = np.full((len(tree.names), 3), np.nan)
+    ax = None
+    if tree.trunk and tree.at_raised and any(r is not None for r in tree.at_raised):
+        a, b = (pose.parts.get(x) for x in tree.trunk)
+        if a is not None and b is not None:
+            ax = np.asarray(b, float) - np.asarray(a, float)
     for j, ((u, v), t) in enumerate(zip(tree.arc, tree.at)):
         c = curves.get(v)
+        if ax is not None and tree.at_raised[j] is not None:
+            pu, pv = pose.parts.get(u), pose.parts.get(v)
+            if pu is not None and pv is not None and \
+                    np.dot(np.asarray(pv, float) - np.asarray(pu, float), ax) > 0:
+                t = tree.at_raised[j]          # a raised limb (see the model's at_raised)
         beyond = tree.beyond[j] if tree.beyond else 0.0
         if c is not None:
             out[j] = _along(c, t, beyond)

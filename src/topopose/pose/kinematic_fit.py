@@ -11,10 +11,14 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    (``offset``: shoulders and hips lie beside the curve's path from the chest junction) is moved
    along the trunk and away from its mirror partner by the declared fractions of the trunk.
    A joint at a part (``at = 0``, or ``at = 1`` without ``beyond``) whose arc has no curve in
-   the frame (the far part missing, e.g. no head) is at that part.
-2. **Bone lengths** — each bone's median over the matched frames of the initial placement, a
-   mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length; constant over the
-   sequence.
+   the frame (the far part missing, e.g. no head) is at that part. The trunk's curves and the
+   joints beside them move back by :data:`SPINE_BACK` × the frame's spine shift (the spine
+   lies behind the medial axis, :func:`frame_curves`); a joint with a ``width`` (hips) sits
+   beside its arc's junction by ``width`` × the hull radius (the sequence's median); a joint
+   with an ``at_raised`` (elbows, wrists) is there when its limb is raised.
+2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
+   the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
+   constant over the sequence.
 3. **Fit** — per matched frame, the root at its initial placement (the model root part) and one
    direction per bone (``P_child = P_parent + L · d/|d|``, so lengths stay exactly constant),
    arc chain by arc chain from the root down, by :func:`scipy.optimize.least_squares` on: the

@@ -16,7 +16,8 @@
 2. Pose detection (§13.3.2.1): synthetic sequences whose poses are drawn to contain the named
    poses (hands up, one hand up, arms spread, inverted bodies) among random ones; each named
    pose evaluated on the pipeline's matched frames and on the ground truth of the same frames
-   (the truth: the points corresponding to the pipeline's, :func:`pipeline_points`); precision
+   (the truth: the points corresponding to the pipeline's, :func:`pipeline_points`; beside it
+   the former correspondence and gt.json's own parts); precision
    and recall, with the class balance, on all matched frames, on the *good* ones (the
    per-frame matcher's errors apart) and on good frames whose truth is stable under 3 cm, and
    with the undecided band; the wrong decisions by cause; the truth on gt.json's own parts.
@@ -380,38 +381,62 @@ DETECT_MARGINS = (0.0, 0.05, 0.08)
 #: the ``body`` subject's rig points nearest to what the pipeline outputs for each part (median
 #: distance pipeline − point on 90 matched body frames, seeds 1–4 and 11: head `Head_tail` 4.1 cm
 #: against gt.json's head 8.3; hand `*Hand_tail` 3.3 against 7.2; torso `Spine1_head` 6.3
-#: against 10.1; crotch `Hips_head` 4.4 against 5.7): the head is the crown, where the hull's
+#: against 10.1; crotch `Hips_head` 4.4 against 5.7; on 73 good frames of the detection sampler,
+#: seeds 1–2: foot `*Foot_tail` 5.5 against 8.0): the head is the crown, where the hull's
 #: highest thick point leaves the hull (pose/tips.py head_from_hull), the hand the hand bone's
-#: end (mid-hand), the torso junction mid-chest, the crotch the pelvis' top
+#: end (mid-hand), the foot the foot bone's end (the ball of the foot, mid-foot), the torso
+#: junction mid-chest, the crotch the pelvis' top
 BODY_PART_JOINTS = {"head": "Head_tail", "torso": "Spine1_head", "crotch": "Hips_head",
-                    "hand_1": "LeftHand_tail", "hand_2": "RightHand_tail"}
+                    "hand_1": "LeftHand_tail", "hand_2": "RightHand_tail",
+                    "foot_1": "LeftFoot_tail", "foot_2": "RightFoot_tail"}
+#: the capsule human's pelvis centre above its hip line (synth_subjects.human_build: the pelvis
+#: ellipsoid's centre 2 cm above the root, the crotch 2 cm below it), m
+PELVIS_CENTRE = 0.04
 
 
-def pipeline_points(frame):
+#: the former correspondence (``pipeline_points(frame, former=True)``), reported beside: hands and
+#: feet gt.json's axis ends, the crotch its hip line, the body's feet gt.json's
+FORMER_JOINTS = {k: v for k, v in BODY_PART_JOINTS.items() if not k.startswith("foot")}
+
+
+def pipeline_points(frame, former=False):
     """The ground-truth points that correspond to what the pipeline outputs for each part, from a
     gt.json frame: ``body`` (rig joints recorded): :data:`BODY_PART_JOINTS`; capsule human: the
     head is the crown (the end of gt.json's head segment; pipeline − crown 2.3 cm median on 37
     upright frames, against 7.8 cm to gt.json's head 8 cm below it), the torso the middle of
-    the torso segment (neck base → chest: 4.8 against 11.5 cm); the other parts gt.json's."""
+    the torso segment (neck base → chest: 4.8 against 11.5 cm), the hands and feet the middle
+    of their last bone (mid-hand, mid-foot, as the body's: the skeleton's branch ends 7 cm
+    short of gt.json's axis end, along the bone — pipeline − gt.json along the hand −7.0 cm,
+    sd 3.7, across it 1.3 cm median; foot −7.2 cm; 564 good frames, seeds 3–4), the crotch
+    the pelvis' centre :data:`PELVIS_CENTRE` up the body axis from gt.json's hip line (where
+    the legs' and the trunk's branches meet: pipeline − gt.json +3.6 cm up the body, sd 4.4).
+    ``former``: the former correspondence (:data:`FORMER_JOINTS`)."""
     gt, joints, seg = frame["parts"], frame.get("joints") or {}, frame.get("segments") or {}
+    table = FORMER_JOINTS if former else BODY_PART_JOINTS
     if all(j in joints for j in BODY_PART_JOINTS.values()):
-        return {**gt, **{k: joints[j] for k, j in BODY_PART_JOINTS.items()}}
+        return {**gt, **{k: joints[j] for k, j in table.items()}}
     out = dict(gt)
     if "head" in seg:
         out["head"] = seg["head"][1]
-    if "torso" in seg:
-        out["torso"] = list(np.mean(np.asarray(seg["torso"], float), axis=0))
+    for k in ("torso",) if former else ("torso", "hand_1", "hand_2", "foot_1", "foot_2"):
+        if k in seg:
+            out[k] = list(np.mean(np.asarray(seg[k], float), axis=0))
+    if "crotch" in seg and gt.get("crotch") is not None and not former:
+        s = np.asarray(seg["crotch"], float)
+        axis = (s[1] - s[0]) / np.linalg.norm(s[1] - s[0])
+        out["crotch"] = list(np.asarray(gt["crotch"], float) + PELVIS_CENTRE * axis)
     return out
 
 
 def detection_row(pose, frame, up, rng=None):
     """Each named pose's detected value (per margin) and truth on one frame: ``truth`` on the gt
-    points corresponding to the pipeline's parts (:func:`pipeline_points`), ``truth_gt`` on
-    gt.json's parts; whether the truth is stable (:func:`stable_truth`), and each part's offset
-    estimate − corresponding point (numbered parts paired optimally)."""
+    points corresponding to the pipeline's parts (:func:`pipeline_points`), ``truth_former`` on
+    the former correspondence, ``truth_gt`` on gt.json's parts; whether the truth is stable
+    (:func:`stable_truth`), and each part's offset estimate − corresponding point (numbered
+    parts paired optimally)."""
     from topopose.pose.detect import detect, evaluate, load_library, up_frame
 
-    gt = pipeline_points(frame)
+    gt, former = pipeline_points(frame), pipeline_points(frame, former=True)
     rng = rng if rng is not None else np.random.default_rng(0)
     library, aliases = load_library()
     det = {}
@@ -419,6 +444,7 @@ def detection_row(pose, frame, up, rng=None):
         t = evaluate(p.expr, gt, up, aliases)
         det[n] = {"truth": t, "stable": t is not None and stable_truth(p.expr, gt, up, aliases, t, rng),
                   "truth_gt": evaluate(p.expr, frame["parts"], up, aliases),
+                  "truth_former": evaluate(p.expr, former, up, aliases),
                   **{f"m{m:g}": detect([pose], p.expr, up=up, aliases=aliases, margin=m)[0]["value"]
                      for m in DETECT_MARGINS}}
     est = {k: np.asarray(v, float) for k, v in pose.parts.items() if v is not None}
@@ -650,14 +676,21 @@ def main(argv=None):
     margin_counts = {label: {n: {f"{m:g}": detection_counts(rows, n, m) for m in DETECT_MARGINS}
                              for n in pose_names} for label, rows in sets}
     good = lambda r, d: r.get("quality") == "good"  # noqa: E731
-    views = {"all": None, "good": good, "good_stable": lambda r, d: good(r, d) and d["stable"]}
+    views = {"all": None, "good": good, "good_stable": lambda r, d: good(r, d) and d["stable"],
+             "stable": lambda r, d: d["stable"]}
     det_summary = {label: {n: {**{v: detection_counts(rows, n, keep=k) for v, k in views.items()},
                                "causes": error_causes(rows, n),
-                               "truth_gt": detection_counts(rows, n, truth="truth_gt")}
+                               "truth_gt": detection_counts(rows, n, truth="truth_gt"),
+                               "truth_former": detection_counts(rows, n, truth="truth_former")}
                            for n in pose_names} for label, rows in sets}
     offsets = {}
     body_rows = bdet["rows"] + [r for r in seg if r["subject"] == "body"]
-    for label, rows in (("human", [r for d in det.values() for r in d["rows"]]), ("body", body_rows)):
+    human_sets = [(f"human {k}", d["rows"]) for k, d in det.items() if k != "acrobatic"]
+    if "acrobatic" in det:         # no coordinate constraints: the head is the extremity tip
+        rows = det["acrobatic"]["rows"]
+        human_sets += [("human acrobatic, upright frames", [r for r in rows if r["tag"] != "inverted"]),
+                       ("human acrobatic, inverted frames", [r for r in rows if r["tag"] == "inverted"])]
+    for label, rows in human_sets + [("body", body_rows)]:
         by = {}
         for r in rows:
             for k, (dz, dd) in r["part_offsets"].items():
@@ -740,10 +773,15 @@ def main(argv=None):
           "Truth = the same description evaluated on the ground-truth points that correspond to "
           "what the pipeline outputs for each part (`pipeline_points`: the pipeline's head is the "
           "crown, placed from the hull by `pose/tips.py` `head_from_hull`; body: head → rig point "
-          "`Head_tail` (crown), hands → `*Hand_tail` (mid-hand), torso → `Spine1_head` "
-          "(mid-chest), crotch → `Hips_head`; capsule human: head → the crown (end of gt.json's "
-          "head segment), torso → the middle of its torso segment; the rest gt.json's parts; "
-          "offsets pipeline − point below). *human upright / acrobatic*: "
+          "`Head_tail` (crown), hands → `*Hand_tail` (mid-hand), feet → `*Foot_tail` "
+          "(mid-foot), torso → `Spine1_head` (mid-chest), crotch → `Hips_head`; capsule human: "
+          "head → the crown (end of gt.json's head segment), torso → the middle of its torso "
+          "segment, hands and feet → the middle of their last bone (mid-hand, mid-foot: the "
+          "skeleton's branch ends 7 cm short of gt.json's axis end, along the bone), crotch → "
+          "the pelvis' centre, 4 cm up the body axis from gt.json's hip line; offsets pipeline − "
+          "point below; the hand, foot and crotch correspondences were measured on the "
+          "development seeds 3–4 (capsule human) and 1–2 (body), not on the seeds reported). "
+          "*human upright / acrobatic*: "
           "capsule human, sequences drawn to contain the named poses (generator tags below), 2 "
           "seeds × 100 frames. *body*: the MakeHuman subject (random builds), sequences drawn "
           "to contain the named poses (`body_detection_sampler`: hands up in a V, one hand up, "
@@ -756,7 +794,12 @@ def main(argv=None):
           "matcher's misplaced parts. *Stable*: the truth keeps its value when every gt part "
           "moves by N(0, 3 cm) (20 draws); the others sit at a decision boundary (a hand at head "
           "height). Wrong decisions by cause: the frame is not good (matcher) / good but the "
-          "truth is borderline / good and stable.", ""]
+          "truth is borderline / good and stable. The headline is *P / R, all* (margin 0, "
+          "every decided matched frame); *P / R, stable truth* scores the borderline frames "
+          "apart (as PASCAL VOC leaves its *difficult* objects out), an extra view, not the "
+          "figure; *P / R, former truth*: all frames against the former correspondence "
+          "(hands and feet gt.json's axis ends, the crotch its hip line, the body's feet "
+          "gt.json's).", ""]
     for kind, d in det.items():
         L.append(f"*human {kind}* ({'model constraints on' if d['constraints'] else 'no coordinate constraints (--no-constraints)'}): "
                  f"{d['matched']} matched of {d['frames']} frames; generator tags {d['tags']}.")
@@ -764,8 +807,9 @@ def main(argv=None):
              f"{bdet.get('tags')}.")
     L += ["", "| subject | pose | truth true / matched | missing | precision / recall, all | "
           "good frames | P / R, good | good, stable frames | P / R, good and stable | "
-          "wrong: not good / borderline / stable |",
-          "|---|---|---|---|---|---|---|---|---|---|"]
+          "wrong: not good / borderline / stable | stable-truth frames | P / R, stable truth "
+          "(extra) | P / R, former truth |",
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for label, rows in sets:
         for n in pose_names:
             c = det_summary[label][n]
@@ -774,7 +818,9 @@ def main(argv=None):
             e = c["causes"]
             L.append(f"| {label} | {n} | {c['all']['truth_true']} / {len(rows)} | "
                      f"{c['all']['missing']} | {pr(c['all'])} | {ng} | {pr(c['good'])} | {ns} | "
-                     f"{pr(c['good_stable'])} | {e['not_good']} / {e['borderline']} / {e['stable_good']} |")
+                     f"{pr(c['good_stable'])} | {e['not_good']} / {e['borderline']} / {e['stable_good']} | "
+                     f"{sum(c['stable'][k] for k in ('tp', 'fp', 'fn', 'tn'))} | {pr(c['stable'])} | "
+                     f"{pr(c['truth_former'])} |")
     L += ["", "*Definitions.* gt.json's head is the crown minus the head's radius (the head's "
           "centre), its hands the fingertips minus the hand's radius, its torso the neck base, "
           "its crotch the hip centre: not the points the pipeline outputs. The truth on gt.json's "
@@ -797,7 +843,10 @@ def main(argv=None):
                          f"{c['missing'] / max(1, len(rows)):.0%} | {c['tp']} | {c['fp']} | "
                          f"{c['fn']} | {f3(c['precision'])} | {f3(c['recall'])} |")
     L += ["", f"Where the pipeline puts a part vs the corresponding ground-truth point (matched frames; up: the capture's up "
-          "axis; hands and feet paired optimally): the expressions compare these points.", "",
+          "axis — in inverted frames + is towards the feet; hands and feet paired optimally): "
+          "the expressions compare these points. *human acrobatic* runs without coordinate "
+          "constraints, so without the head from the hull (`head_from_hull`): its head is the "
+          "head branch's extremity tip (`extremity_tips`), which stops short of the crown.", "",
           "| subject | part | frames | vertical offset mean (m) | sd | distance median (m) | p90 |",
           "|---|---|---|---|---|---|---|"]
     for label, by in offsets.items():

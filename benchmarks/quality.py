@@ -229,6 +229,15 @@ def body_rows(quick, out, suffix):
     # the torso put back on the trunk line (pose/anatomy.py torso_on_trunk) off: its peer
     row("body separated noise1 no-trunk", *body_study(sep, 100, trunk=False))
     row("body all-poses noise1 no-trunk", *body_study(allp, 100, trunk=False))
+    # a hand on an arm branch that ends at the elbow left unplaced (estimate.SHORT_ARM), the
+    # torso drawn towards the trunk line (anatomy.TRUNK_BLEND) and max_missing on the placed
+    # parts (estimate.PLACED_MISSING) off: their peers, gate on and off
+    for tag, opt in (("no-short-arm", {"short_arm": 0}), ("no-trunk-blend", {"trunk_blend": 0}),
+                     ("no-short-arm no-trunk-blend", {"short_arm": 0, "trunk_blend": 0}),
+                     ("no-placed-missing", {"placed_missing": False})):
+        for gate, gtag in ((None, ""), (False, " gate-off")):
+            row(f"body separated noise1 {tag}{gtag}", *body_study(sep, 100, gate=gate, **opt))
+            row(f"body all-poses noise1 {tag}{gtag}", *body_study(allp, 100, gate=gate, **opt))
     # T_d on the whole distance rather than the matched parts' (estimate.MATCHED_DISTANCE); it
     # acts without the gate only (with it the fitted confidence decides instead of T_d)
     row("body separated noise1 whole-distance gate-off", *body_study(sep, 100, gate=False,
@@ -272,7 +281,15 @@ def body_rows(quick, out, suffix):
          "to the hull's border like the head (`topopose.pose.tips`, head only by default); "
          "*no-trunk*: `FrameEstimator(trunk=False)`, the peer of the torso put "
          "back on the trunk line crotch → head when the alignment slid it down to the crotch "
-         "(an arm along the trunk; `topopose.pose.anatomy.torso_on_trunk`); *whole-distance*: "
+         "(an arm along the trunk; `topopose.pose.anatomy.torso_on_trunk`); *no-short-arm*: "
+         "`FrameEstimator(short_arm=0)`, the peer of a hand on an arm branch shorter than 0.35 × "
+         "the leg's left unplaced (a forearm folded onto the body: the branch ends at the elbow; "
+         "`topopose.pose.estimate.SHORT_ARM`); *no-trunk-blend*: `FrameEstimator(trunk_blend=0)`, "
+         "the peer of the torso drawn half way towards 0.6 of crotch → head (arms on the chest "
+         "pull the shoulder junction forward; `topopose.pose.anatomy.TRUNK_BLEND`); "
+         "*no-placed-missing*: `FrameEstimator(placed_missing=False)`, the peer of the missing "
+         "parts counted once placed (a head the alignment left unmatched but placed from the hull "
+         "is placed; `topopose.pose.estimate.PLACED_MISSING`); *whole-distance*: "
          "`FrameEstimator(matched_distance=False)`, T_d on the whole AHA distance, the peer of "
          "T_d on the matched parts' distance (a missing limb's deleted arm not counted; "
          "`topopose.pose.estimate.MATCHED_DISTANCE`; without the gate only, with it the "

@@ -168,3 +168,18 @@ def test_body_crouch_the_crotch_reaches_the_pelvis():
     assert np.asarray(old.parts["crotch"])[2] > max(np.asarray(seg)[:, 2])    # high
     assert point_segment_distance(new.parts["crotch"], *seg) <= tol
     assert np.asarray(new.parts["crotch"])[2] < np.asarray(old.parts["crotch"])[2]
+
+
+def test_trunk_blend_draws_the_torso_towards_the_trunk_line():
+    from topopose.pose.anatomy import trunk_blend
+
+    base = {"crotch": np.array([0.0, 0.0, 1.0]), "head": np.array([0.0, 0.2, 2.0])}
+    line = np.array([0.0, 0.12, 1.6])               # 0.6 of crotch → head
+    torso = np.array([0.0, 0.3, 1.7])               # forward of the line (arms on the chest)
+    for w, want in ((0.0, torso), (0.5, 0.5 * (torso + line)), (1.0, line)):
+        out = trunk_blend({**base, "torso": torso}, ("torso", "crotch", "head", 0.6, w))
+        assert np.allclose(out["torso"], want), w
+        assert out["crotch"] is base["crotch"] and out["head"] is base["head"]
+    # a part unplaced: nothing moves
+    parts = {**base, "torso": torso, "head": None}
+    assert trunk_blend(parts, ("torso", "crotch", "head", 0.6, 0.5))["torso"] is torso

@@ -125,3 +125,79 @@ def test_missing_cost_is_the_deleted_leaf_arcs_weight():
                  method="aha", pattern_root="c", data_root="x")
     assert all(v is not None for v in full.mapping.values())
     assert missing_cost(pattern, full) == 0.0
+
+
+def test_short_limb_drops_a_hand_shorter_than_the_ratio_of_the_leg():
+    """A hand whose tree path from the torso is below the ratio × the longest crotch → foot
+    path is named (the shorter of two); otherwise, or with the torso or the legs unmatched,
+    None. Oracle: the path lengths the test built."""
+    from topopose.match import Tree
+    from topopose.pose.estimate import short_limb
+
+    def tree(arm1, arm2, leg=1.0):
+        # torso 0, crotch 1, feet 2, 3 (legs leg and 0.8 leg), hands 4, 5 (via a shoulder 6)
+        return Tree([(0, 1, 0.3), (1, 2, leg), (1, 3, 0.8 * leg), (0, 6, 0.1), (6, 4, arm1 - 0.1),
+                     (0, 5, arm2)])
+
+    m = {"torso": 0, "crotch": 1, "foot_1": 2, "foot_2": 3, "hand_1": 4, "hand_2": 5}
+    args = (("hand_1", "hand_2"), "torso", "crotch", ("foot_1", "foot_2"))
+    assert short_limb(tree(0.8, 0.7), m, *args, 0.35) is None           # both arms long
+    assert short_limb(tree(0.8, 0.3), m, *args, 0.35) == "hand_2"       # 0.3 < 0.35 × 1.0
+    assert short_limb(tree(0.3, 0.8), m, *args, 0.35) == "hand_1"
+    assert short_limb(tree(0.3, 0.2), m, *args, 0.35) == "hand_2"       # the shorter one
+    assert short_limb(tree(0.8, 0.4), m, *args, 0.35) is None           # 0.4 ≥ 0.35
+    assert short_limb(tree(0.8, 0.4, leg=2.0), m, *args, 0.35) == "hand_2"   # the longest leg
+    assert short_limb(tree(0.8, 0.3), {**m, "torso": None}, *args, 0.35) is None
+    assert short_limb(tree(0.8, 0.3), {**m, "foot_1": None, "foot_2": None}, *args, 0.35) is None
+
+
+def test_short_arm_and_trunk_blend_in_the_estimator():
+    """Capsule human, limbs apart: the default short-arm ratio drops no hand (its arms are
+    longer than the legs' half); an impossible ratio drops one (missing, diagnostics
+    "short_arm", a "missing limb" frame); trunk_blend=1 puts the torso at 0.6 of crotch → head."""
+    from topopose.capture import synthetic_capture
+    from topopose.pose import FrameEstimator
+
+    cap = synthetic_capture("human", frames=2, seed=3, noise=0, separated=True)
+    default = FrameEstimator(cap, "human", 60)
+    drop = FrameEstimator(cap, "human", 60, short_arm=5.0)
+    line = FrameEstimator(cap, "human", 60, trunk_blend=1.0)
+    assert default.short_arm is not None and default.trunk_blend is not None
+    assert FrameEstimator(cap, "human", 60, short_arm=0, trunk_blend=False).short_arm is None
+    for f in cap.frames:
+        p = default.estimate(f)
+        assert "short_arm" not in p.diagnostics
+        assert all(x is not None for x in p.parts.values())
+        q = drop.estimate(f)
+        assert q.diagnostics["short_arm"] and len(q.diagnostics["short_arm"]) == 1
+        h = q.diagnostics["short_arm"][0]
+        assert h.startswith("hand") and q.parts[h] is None and q.diagnostics["missing"] == [h]
+        r = line.estimate(f)
+        c, hd = np.asarray(r.parts["crotch"]), np.asarray(r.parts["head"])
+        assert np.allclose(r.parts["torso"], c + 0.6 * (hd - c))
+
+
+def test_placed_missing_counts_a_head_from_the_hull_as_placed():
+    """``body`` heavy build, seed 41, all poses, frame 0 (an arm on the body): the alignment
+    leaves the head and that hand unmatched, the head is placed from the hull. Counted on the
+    placed parts (default) the frame is matched, one hand missing — right by its ground truth
+    (the oracle: ``evaluate`` at 0.08 × height); counted on the alignment's, or without the head
+    from the hull, two parts are missing and the frame is rejected."""
+    from topopose.capture import synthetic_capture
+    from topopose.pose import FrameEstimator, load_model
+    from topopose.pose.quality import evaluate
+
+    cap = synthetic_capture(subject="body", frames=12, seed=41, noise=1, separated=False,
+                            cameras=8, build="heavy")
+    f = cap.frames[0]
+    p = FrameEstimator(cap, "human", 100, gate=False).estimate(f)
+    assert p.status == "matched", p.error
+    assert len(p.diagnostics["missing"]) == 2 and "head" in p.diagnostics["missing"]
+    assert p.diagnostics["from_hull"] == ["head"]
+    assert sum(x is None for x in p.parts.values()) == 1
+    ev = evaluate(cap.gt, [p], model=load_model("human"), tolerance=0.08 * cap.gt["height"],
+                  junction_factor=1.0)
+    assert ev.frames[0].quality == "missing limb"
+    for kw in ({"placed_missing": False}, {"head_from_hull": 0}):
+        q = FrameEstimator(cap, "human", 100, gate=False, **kw).estimate(f)
+        assert q.status == "rejected" and "parts unmatched" in q.error, kw

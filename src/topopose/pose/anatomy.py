@@ -58,6 +58,23 @@ SPINE_SHIFT = {"human": {"torso": 0.32, "crotch": 0.34, "head": 0.17}}
 # whatever the status, all poses misplaced 26 → 24. It helps the training frames and costs the
 # held-out ones nothing: kept on.
 TORSO_ON_TRUNK = {"human": ("torso", "crotch", "head", 0.35, 0.6)}
+# The torso drawn towards its place on the trunk line (:func:`trunk_blend`): model name →
+# (part, lower end, upper end, fraction, weight). Arms folded on the chest or hanging against
+# it add volume in front of and beside the trunk, and the shoulder junction of the skeleton
+# moves with it: the torso near misses of the all-pose frames lie 0.05 × height in front of
+# the chest and 0.02–0.03 sideways and down (diagnose_body_heldout.md). The trunk line crotch →
+# head (the head from the hull's crown) does not see the arms, but alone it is a coarser
+# estimate (the chest at 0.53–0.71 of it, see TORSO_ON_TRUNK): half way between the two. Dev
+# seeds 41, 42 (5 builds × 12 frames, 100³, noise 1, gate off; TP rate / FP per match), weight
+# 0 / 0.25 / 0.5 / 0.75 / 1: all poses 0.800 / 0.086, 0.808 / 0.076 (0.25–0.75), 0.800 / 0.086;
+# separated 0.908 / 0.052 → 0.917 / 0.043 (0.25–1). Torso beyond 0.08 × height among the all-pose
+# frames with torso, crotch and head placed: 3 → 1 at 0.5 (median error 0.33 → 0.38 × the
+# tolerance). Tried and dropped: the torso moved further back than the spine shift (0.1 / 0.2 /
+# 0.3 × the hull's radius: wrong torsos 3 → 3 / 4 / 6), projected onto the trunk line at its
+# own height (3 → 3, median error 0.61 × the tolerance). Held out (``benchmarks/quality.py``,
+# quality_body.md, "no-trunk-blend" rows; gate off): all poses 0.77 / 0.080 → 0.79 / 0.050
+# (misplaced 21 → 18), separated 0.93 / 0.067 either way.
+TRUNK_BLEND = {"human": ("torso", "crotch", "head", 0.6, 0.5)}
 # The crotch lowered and moved further back when the spine shift applies (:func:`crotch_drop`):
 # model name → (part, down share, extra back share) × the hull's largest inscribed radius. The
 # legs' junction of the skeleton lies in the thick mass of pelvis and thighs; when the hips are
@@ -158,6 +175,21 @@ def torso_on_trunk(parts: dict, rule) -> tuple:
     out = dict(parts)
     out[part] = a + fraction * u
     return out, True
+
+
+def trunk_blend(parts: dict, rule) -> dict:
+    """``parts`` with ``rule``'s part (the torso) moved ``weight`` of the way from where it is
+    to ``fraction`` of the way lower end → upper end (crotch → head). ``rule``: ``(part,
+    lower, upper, fraction, weight)``, e.g. :data:`TRUNK_BLEND`; unchanged when one of the
+    three is unplaced."""
+    part, lo, hi, fraction, weight = rule
+    pts = [parts.get(p) for p in (part, lo, hi)]
+    if any(x is None for x in pts):
+        return dict(parts)
+    x, a, b = (np.asarray(p, float) for p in pts)
+    out = dict(parts)
+    out[part] = (1.0 - weight) * x + weight * (a + fraction * (b - a))
+    return out
 
 
 def crotch_drop(parts: dict, up, front, radius: float, rule) -> dict:

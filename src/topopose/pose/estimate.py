@@ -167,6 +167,24 @@ class FrameEstimator:
         point thicker than this fraction of the hull's largest inscribed radius, prolonged
         away from the torso to the hull's border. None: the model's entry when its head has
         an "above" coordinate constraint (human, upright subjects: 0.4), else off; 0: off.
+    trunk_blend : None, bool, float or tuple
+        Draw the torso ``weight`` of the way towards its place on the trunk line crotch → head
+        (:func:`topopose.pose.anatomy.trunk_blend`, after ``trunk``): arms folded on the chest
+        pull the skeleton's shoulder junction forward and sideways. None or True (default): the
+        model's entry of :data:`topopose.pose.anatomy.TRUNK_BLEND` (human; complete models
+        only); False or 0: off; a number: that weight with the model's entry; a tuple replaces
+        it. Measured there.
+    placed_missing : bool or None
+        ``max_missing`` counts the parts left without a position once placed — a head the
+        alignment left unmatched but placed from the hull (``head_from_hull``) is placed — rather
+        than the alignment's unmatched parts (:data:`PLACED_MISSING`; ``diagnostics["missing"]``
+        stays the alignment's). None: the model's entry (human: on); False: off.
+    short_arm : float or None
+        Leave a hand unplaced when its data path from the torso is shorter than this fraction
+        of the longest leg path (crotch → foot) and every other part is placed
+        (:func:`short_limb`, :data:`SHORT_ARM`): a forearm folded onto the body ends the arm's
+        skeleton branch at the elbow, where the hand was placed. None: the model's entry
+        (human: 0.35, measured there); 0: off.
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -182,7 +200,8 @@ class FrameEstimator:
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
                  tip_fraction=1.0, spine=None,
-                 head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None):
+                 head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
+                 short_arm=None, trunk_blend=None, placed_missing=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -253,9 +272,20 @@ class FrameEstimator:
         self.spine = _spine_option(self.model, spine)
         self.matched_distance = (MATCHED_DISTANCE.get(self.model.name, False)
                                  if matched_distance is None else bool(matched_distance))
-        from .anatomy import CROTCH_DROP, TORSO_ON_TRUNK
+        from .anatomy import CROTCH_DROP, TORSO_ON_TRUNK, TRUNK_BLEND
         self.trunk = _rule_option(self.model, TORSO_ON_TRUNK, trunk, default=True)
+        if isinstance(trunk_blend, (int, float)) and not isinstance(trunk_blend, bool):
+            rule = TRUNK_BLEND.get(self.model.name) if self.model.complete else None
+            self.trunk_blend = (*rule[:4], float(trunk_blend)) if rule and trunk_blend else None
+        else:
+            self.trunk_blend = _rule_option(self.model, TRUNK_BLEND, trunk_blend, default=True)
         self.crotch_drop = _rule_option(self.model, CROTCH_DROP, crotch_drop, default=False)
+        self.placed_missing = (PLACED_MISSING.get(self.model.name, False)
+                               if placed_missing is None else bool(placed_missing))
+        # a hand whose branch ends at the elbow (SHORT_ARM): (hands, torso, crotch, feet, ratio)
+        rule = SHORT_ARM.get(self.model.name) if self.model.complete else None
+        ratio = (rule[4] if rule else 0.0) if short_arm is None else float(short_arm)
+        self.short_arm = (*rule[:4], ratio) if rule and ratio > 0 else None
 
     def arc_cost(self, vol, data, radii=None):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off.
@@ -414,6 +444,12 @@ class FrameEstimator:
                 and off_axis_leaf(data, al.mapping, *self.leaf_axis)):
             dropped.append(self.leaf_axis[0])
             parts[self.leaf_axis[0]] = None
+        short = []
+        if self.short_arm is not None and all(x is not None for x in parts.values()):
+            p = short_limb(data, al.mapping, *self.short_arm)
+            if p is not None:
+                short.append(p)
+                parts[p] = None
         on_skeleton = dict(parts)      # the skeleton curves end at the branch ends
         if self.tips:
             from .tips import extremity_tips
@@ -441,6 +477,9 @@ class FrameEstimator:
         if self.trunk is not None:       # a torso slid down to the crotch (pose/anatomy.py)
             from .anatomy import torso_on_trunk
             parts, on_trunk = torso_on_trunk(parts, self.trunk)
+        if self.trunk_blend is not None:     # arms on the chest pull the junction forward
+            from .anatomy import trunk_blend
+            parts = trunk_blend(parts, self.trunk_blend)
         status, error = "matched", None
         mcost = missing_cost(self.pattern, al)
         # T_d judges what the matched parts cost (MATCHED_DISTANCE): a missing limb is a right
@@ -451,7 +490,9 @@ class FrameEstimator:
             error = f"AHA distance {dist:.3f} above threshold T_d = {self.threshold:g}"
             if judged != dist:
                 error += f" ({judged:.3f} without the unmatched parts)"
-        elif len(missing) > self.max_missing:
+        elif len(missing) > self.max_missing and (
+                not self.placed_missing
+                or sum(x is None for x in parts.values()) > self.max_missing):
             status = "rejected"
             error = f"{len(missing)} parts unmatched ({', '.join(missing)})"
             if unordered:
@@ -477,6 +518,8 @@ class FrameEstimator:
             diag["from_hull"] = from_hull
         if dropped:
             diag["off_axis"] = dropped
+        if short:
+            diag["short_arm"] = short
         if on_trunk:
             diag["on_trunk"] = self.trunk[0]
         if self.spine:
@@ -676,6 +719,33 @@ THICKNESS = {"human": {"head": (0.30, 0.85), "hand": (0.0, 0.40), "foot": (0.0, 
 # leaves the head unplaced in 69 of 100 frames and the frames with head, hands and feet within
 # 0.15 m fall from 31 % to 15 %: the default is off (0); ``leaf_axis=0.7`` turns it on.
 LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.0)}
+# A hand whose arm branch ends at the elbow is left unplaced (short_limb, FrameEstimator(
+# short_arm=...)): model name → (hands, arm base, leg base, feet, min ratio). With a forearm
+# folded onto the chest or the belly (elbow bent 100–120°, the arm rotated inwards) the hull
+# fuses forearm and trunk, the arm's skeleton branch ends at the elbow and the alignment puts the
+# hand there (0.1–0.2 of the normalized tree against 0.18 for the model's arm; deleting the arm
+# would cost 0.18): "hand at the elbow" was the commonest misplaced all-pose frame
+# (benchmarks/diagnose_body.py). Only when every other part is placed (a second missing part
+# would make the frame partial), the shorter hand. The ratio of the torso → hand path to the
+# longest crotch → foot path, `body` dev seeds 41, 42 (5 builds × 12 frames, 100³, noise 1, gate
+# off): right hands of separated frames 1 % / 5 % / median 0.39 / 0.49 / 0.69; 0.35 lies below.
+# All-pose frames, TP rate / FP per match: off 0.800 / 0.086, ratio 0.25–0.45 0.817 / 0.067
+# (the same 2 misplaced frames become "missing limb"); separated frames unchanged. The hand's
+# inscribed radius and the path alone (normalized weights) did not separate wrong from right
+# hands. Held out (benchmarks/quality.py, quality_body.md, "no-short-arm" rows; gate off): all
+# poses 0.77 / 0.080 → 0.79 / 0.050 (misplaced 21 → 18), separated 0.93 / 0.067 either way.
+SHORT_ARM = {"human": (("hand_1", "hand_2"), "torso", "crotch", ("foot_1", "foot_2"), 0.35)}
+# max_missing on the parts placed (FrameEstimator(placed_missing=...)): model name → on. With an
+# arm on the body the alignment often leaves the head unmatched as well (a short head branch
+# pruned or absorbed into the shoulders); the head from the hull (HEAD_FROM_HULL) places it,
+# yet the frame was rejected for two unmatched parts although only the arm's hand is without a
+# position — a "missing limb" frame, right by §13.2.2. `body` dev seeds 41, 42 (5 builds × 12
+# frames, 100³, noise 1, gate off; TP rate / FP per match, with SHORT_ARM and TRUNK_BLEND): all
+# poses 0.825 / 0.057 → 0.842 / 0.056 (2 right frames more matched, no wrong one), separated
+# 0.917 / 0.043 either way. Held out (benchmarks/quality.py, quality_body.md,
+# "no-placed-missing" rows; gate off): all poses 0.78 / 0.051 → 0.79 / 0.050, separated 0.93 /
+# 0.067 either way.
+PLACED_MISSING = {"human": True}
 # The head from the hull (pose/tips.py, head_from_hull): (head, anchor, min_fraction) — the head
 # part is put where the direction anchor → the hull's highest point whose inscribed radius is
 # ≥ min_fraction × the hull's largest leaves the hull, whatever the alignment gave the head
@@ -868,6 +938,29 @@ def off_axis_leaf(data, mapping, leaf, junction, axis_end, min_cos) -> bool:
     if na == 0 or nb == 0:
         return False
     return float(a @ b) / (na * nb) < min_cos
+
+
+def short_limb(data, mapping, limbs, base, leg_base, legs, min_ratio):
+    """The part of ``limbs`` (the hands) whose data path from ``base``'s vertex (the torso) is
+    the shortest, when it is shorter than ``min_ratio`` × the longest data path from
+    ``leg_base`` (the crotch) to one of ``legs`` (the feet); else None (also when ``base``,
+    ``leg_base`` or every leg is unmatched). A real arm's branch, shoulder centre → hand, is
+    about 0.7 of a leg's (``body``, median); one that ends at the elbow (a forearm folded onto the body, fused with
+    it in the hull) is shorter than the upper arm, and the hand placed at its end is wrong."""
+    adj = data.adjacency()
+
+    def length(a, b):
+        u, v = mapping.get(a), mapping.get(b)
+        return None if u is None or v is None else path_length(adj, u, v)
+
+    leg = max((x for x in (length(leg_base, f) for f in legs) if x is not None), default=None)
+    if not leg:
+        return None
+    arms = [(x, p) for p, x in ((p, length(base, p)) for p in limbs) if x is not None]
+    if not arms:
+        return None
+    x, p = min(arms)
+    return p if x < min_ratio * leg else None
 
 
 def junction_position(al, data, part, v):

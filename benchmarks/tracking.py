@@ -31,9 +31,9 @@ is measured beside its peer in the same run:
   matched frames of the per-frame mean; against the initial placement (joints at their ``at``
   on the curves, no fit), against the fit before the trunk's joints were moved back, the bone
   lengths taken at their 70th percentile, the hips placed from the legs' junction and the
-  raised arms' elbows and wrists further along (:func:`main_fit`), and against the same fit with the previous joint definitions
-  (:data:`PREVIOUS`, on :func:`main_fit`: tips at the branch end, shoulders of the first calibration,
-  inner weight 0.3). Joint → rig: neck ``Neck_head``, skull ``Head_head``, pelvis mean of
+  raised arms' elbows and wrists further along (:func:`main_fit`), and against the same fit
+  with the previous joint definitions (:data:`PREVIOUS`, on :func:`main_fit`: tips at the
+  branch end, shoulders of the first calibration, inner weight 0.3). Joint → rig: neck ``Neck_head``, skull ``Head_head``, pelvis mean of
   the ``UpLeg`` heads, shoulder ``Arm_head``, elbow ``ForeArm_head``, wrist ``Hand_head``,
   fingertip ``fingertip_l/r``, hip ``UpLeg_head``, knee ``Leg_head``, ankle ``Foot_head``,
   toe ``toe_l/r``; chest (the curve's shoulder-centre junction) has no rig joint.
@@ -583,8 +583,7 @@ def report(rows, info, real=None):
               f"{100 * np.median(pooled_before):.1f} cm ({len(pooled_before)} frames)",
               "- the same run with the fit before the trunk's joints moved back, the bone lengths "
               "at their 70th percentile, the hips from the legs' junction and the raised arms' "
-              "`at_raised` (issue 15, h15; "
-              "`main_fit`): MPJPE "
+              "`at_raised` (issue 15; `main_fit`): MPJPE "
               f"{100 * np.median(pooled_main):.1f} cm ({len(pooled_main)} frames)",
               "- where the error comes from: MPJPE median over the frames "
               + ", ".join(f"{k} {100 * np.median(v):.1f} cm ({len(v)} frames)"

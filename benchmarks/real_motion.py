@@ -380,7 +380,10 @@ def report(doc) -> str:
               f", tracked {r['switches_tracked']} ({r['switches_raw'] * k:.0f} → "
               f"{r['switches_tracked'] * k:.0f} per 500 frames); {r['held']} part-frames held "
               "by the tracker", ""]
-    L += ["Bone lengths (ours: constant over the sequence, median over its frames' initial "
+    from topopose.pose.kinematic_fit import BONE_QUANTILE
+
+    L += ["Bone lengths (ours: constant over the sequence, the "
+          f"{BONE_QUANTILE}th percentile over its frames' initial "
           "placements; Pose2Sim: left side, median over frames), m: "
           + ", ".join(f"{k} {a} vs {b}" for k, (a, b) in doc["bone_lengths_vs_pose2sim_m"].items()),
           "", "Widths (ours vs Pose2Sim, m; median over frames): "

@@ -368,3 +368,114 @@ def test_chain_fit_finds_the_elbow_at_the_corner_of_a_bent_arm_curve():
     L[el] *= 0.8
     Pb, _ = fit_frame(target, pose.diagnostics["curves"], L, tree, root_steps=0)
     assert np.linalg.norm(Pb[el] - E) > np.linalg.norm(P[el] - E) + 0.02
+
+
+def test_bone_lengths_quantile_recovers_a_chain_shortened_in_some_frames():
+    """A chain of known lengths whose placement shortens some frames' bones (a curve cut short
+    at a junction): the 70th percentile gives the true lengths, the median does not."""
+    from topopose.pose.kinematic_fit import bone_lengths
+
+    rng = np.random.default_rng(3)
+    tree = kinematic_tree(HUMAN)
+    order = tree.order()
+    true_L = rng.uniform(0.1, 0.4, len(tree.names))
+    n = 40
+    init = np.zeros((n, len(tree.names), 3))
+    short = np.zeros(n, dtype=bool)
+    short[rng.permutation(n)[:int(0.55 * n)]] = True       # 55 % of the frames cut short
+    for f in range(n):
+        init[f, tree.root] = rng.normal(size=3)
+        for j in order[1:]:
+            d = rng.normal(size=3)
+            k = rng.uniform(0.6, 0.9) if short[f] else 1.0
+            init[f, j] = init[f, tree.parents[j]] + k * true_L[j] * d / np.linalg.norm(d)
+    L = bone_lengths(init, tree)                           # 70th percentile (the default)
+    med = bone_lengths(init, tree, quantile=50)
+    # mirror bones pool their samples: the true length is shared by construction only when
+    # the mates' lengths agree, so compare the unpaired bones and each pair's mean
+    for j, p in enumerate(tree.parents):
+        if p < 0:
+            continue
+        mates = [k for k in range(len(tree.names)) if tree.base[k] == tree.base[j]
+                 and tree.base[tree.parents[k]] == tree.base[p]]
+        if len(mates) == 1:
+            assert abs(L[j] - true_L[j]) < 1e-9
+            assert med[j] < 0.95 * true_L[j]
+
+
+def test_hips_from_the_junction_by_hull_radius_and_spine_shift():
+    """Hips with a ``width``: at the legs' junction moved along the trunk and outward by width ×
+    the hull radius (the spine shift's length), then back with the trunk; the trunk's curves
+    move back by SPINE_BACK × the spine shift, the limbs' curves do not."""
+    from topopose.pose.kinematic_fit import SPINE_BACK, frame_curves, initial_placement
+
+    rng = np.random.default_rng(4)
+    tree = kinematic_tree(HUMAN)
+    parts, curves = _body(0.7, rng)
+    pose, _ = _numbered_frame("000000", parts, curves, False, False)
+    R = _rotz(0.7)
+    back = -R[:, 0]                                        # the body faces R @ x
+    r = 0.14
+    pose.diagnostics["spine_shift"] = list(r * back)
+    c = frame_curves(pose, tree)
+    assert np.allclose(c["head"], np.asarray(curves["head"]) + SPINE_BACK * r * back)
+    assert np.allclose(c["hand_1"], curves["left_hand"])
+    P = initial_placement(pose, tree)
+    w_al, w_out = next(j.width for j in HUMAN.joints if j.name == "hip")
+    assert w_out > 0
+    ax = parts["torso"] - parts["crotch"]
+    ax /= np.linalg.norm(ax)
+    for k, sg in (("1", 1.0), ("2", -1.0)):               # foot_1 is the left one here
+        left = R @ np.array([0.0, 1.0, 0.0])
+        want = (parts["crotch"] + w_al * r * ax + sg * w_out * r * left
+                + SPINE_BACK * r * back)
+        assert np.allclose(P[tree.names.index("hip_" + k)], want, atol=1e-9)
+    # twice the radius: twice as far beside the junction (girth, not trunk length)
+    P2 = initial_placement(pose, tree, radius=2 * r)
+    h = tree.names.index("hip_1")
+    assert np.allclose(P2[h] - P[h], w_al * r * ax + w_out * r * (R @ [0.0, 1.0, 0.0]))
+    # no spine shift, no radius: the offset along the leg's curve, no move back
+    pose.diagnostics["spine_shift"] = None
+    P0 = initial_placement(pose, tree)
+    assert np.allclose(frame_curves(pose, tree)["head"], curves["head"])
+    assert not np.allclose(P0[h], P[h] - SPINE_BACK * r * back)
+
+
+def test_joint_width_field_round_trips_and_is_checked():
+    d = HUMAN.to_dict()
+    m = model_from_dict(d)
+    assert next(j.width for j in m.joints if j.name == "hip") == \
+        next(j.width for j in HUMAN.joints if j.name == "hip")
+    d["joint"] = [dict(j) for j in d["joint"]]
+    next(j for j in d["joint"] if j["name"] == "hip")["width"] = [0.1]
+    with pytest.raises(InputError, match="width"):
+        model_from_dict(d)
+
+
+def test_raised_arm_joints_at_their_raised_fraction():
+    """A hand above the chest junction (along the trunk): the elbow and wrist at their
+    ``at_raised`` of the arm's curve; a hand below it: at their ``at``."""
+    from topopose.pose.kinematic_fit import _along, initial_placement
+
+    rng = np.random.default_rng(5)
+    tree = kinematic_tree(HUMAN)
+    parts, curves = _body(0.2, rng)
+    R = _rotz(0.2)
+    sh = parts["torso"] + R @ [0.0, 0.2, 0.05]
+    up_hand = parts["torso"] + R @ [0.1, 0.35, 0.6]        # the left hand raised
+    parts["left_hand"] = up_hand
+    curves["left_hand"] = resample([parts["torso"], sh, up_hand], 64)
+    pose, _ = _numbered_frame("000000", parts, curves, False, False)
+    P = initial_placement(pose, tree)
+    spec = {j.name: j for j in HUMAN.joints}
+    for name in ("elbow", "wrist"):
+        assert spec[name].at_raised is not None and spec[name].at_raised != spec[name].at
+        up = P[tree.names.index(name + "_1")]
+        down = P[tree.names.index(name + "_2")]
+        assert np.allclose(up, _along(curves["left_hand"], spec[name].at_raised))
+        assert np.allclose(down, _along(curves["right_hand"], spec[name].at))
+    d = HUMAN.to_dict()
+    d["joint"] = [dict(j) for j in d["joint"]]
+    next(j for j in d["joint"] if j["name"] == "elbow")["at_raised"] = 1.5
+    with pytest.raises(InputError, match="at_raised"):
+        model_from_dict(d)

@@ -11,10 +11,14 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    (``offset``: shoulders and hips lie beside the curve's path from the chest junction) is moved
    along the trunk and away from its mirror partner by the declared fractions of the trunk.
    A joint at a part (``at = 0``, or ``at = 1`` without ``beyond``) whose arc has no curve in
-   the frame (the far part missing, e.g. no head) is at that part.
-2. **Bone lengths** — each bone's median over the matched frames of the initial placement, a
-   mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length; constant over the
-   sequence.
+   the frame (the far part missing, e.g. no head) is at that part. The trunk's curves and the
+   joints beside them move back by :data:`SPINE_BACK` × the frame's spine shift (the spine
+   lies behind the medial axis, :func:`frame_curves`); a joint with a ``width`` (hips) sits
+   beside its arc's junction by ``width`` × the hull radius (the sequence's median); a joint
+   with an ``at_raised`` (elbows, wrists) is there when its limb is raised.
+2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
+   the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
+   constant over the sequence.
 3. **Fit** — per matched frame, the root at its initial placement (the model root part) and one
    direction per bone (``P_child = P_parent + L · d/|d|``, so lengths stay exactly constant),
    arc chain by arc chain from the root down, by :func:`scipy.optimize.least_squares` on: the
@@ -62,6 +66,9 @@ class KinematicTree:
     offset: list = None            # (along the trunk, outward) per joint, in trunk lengths
     trunk: tuple = ()              # (from part, to part)
     beyond: list = None            # tip joints: past the end part, × the curve length
+    limbs: frozenset = frozenset()  # the model's limb parts (``[[mirror]]`` parts)
+    width: list = None             # (along the trunk, outward) × hull radius, from the junction
+    at_raised: list = None         # at when the arc's end part is past its start along the trunk
 
     @property
     def root(self) -> int:
@@ -100,15 +107,17 @@ def kinematic_tree(model) -> KinematicTree:
     if not model.joints:
         raise InputError(f"model {model.name!r}: no [[joint]] declared; the full skeleton needs "
                          "joints along the arcs (see topopose.pose.model)")
-    names, base, arc, at, offset, beyond = [], [], [], [], [], []
+    names, base, arc, at, offset, beyond, width, raised = [], [], [], [], [], [], [], []
     arcs = model_arcs(model)
     for u, v in arcs:
         for js in model.joints:
             a, b = js.arc
+            r = None if js.at_raised is None else float(js.at_raised)
             if a in (u, _stem(u)) and b in (v, _stem(v)):
                 t = float(js.at)
             elif b in (u, _stem(u)) and a in (v, _stem(v)):
                 t = 1.0 - float(js.at)
+                r = None if r is None else 1.0 - r
             else:
                 continue
             suffix = ""
@@ -118,6 +127,8 @@ def kinematic_tree(model) -> KinematicTree:
                     break
             names.append(js.name + suffix)
             offset.append(tuple(float(x) for x in js.offset))
+            width.append(tuple(float(x) for x in js.width))
+            raised.append(r)
             beyond.append(float(js.beyond) if t == 1.0 else 0.0)
             base.append(js.name)
             arc.append((u, v))
@@ -157,7 +168,9 @@ def kinematic_tree(model) -> KinematicTree:
         raise InputError(f"model {model.name!r}: the joints form {len(roots)} trees (roots "
                          f"{roots}); put a joint at at = 0 or 1 where arcs meet")
     return KinematicTree(names, base, parents, arc, at, offset,
-                         tuple(model.facing.get("trunk", ())), beyond)
+                         tuple(model.facing.get("trunk", ())), beyond,
+                         frozenset(x for parts, _names in model.mirrors for x in parts), width,
+                         raised)
 
 
 TIP_DIRECTION = 0.1      # the tip direction: along the curve's last 10 % (see _along)
@@ -182,12 +195,62 @@ def _along(curve, t, beyond=0.0):
     return out
 
 
-def initial_placement(pose, tree: KinematicTree) -> np.ndarray:
-    """(n_joints, 3) joints at their relative arc length on the frame's curves (NaN: no curve)."""
+SPINE_BACK = 0.15   # the trunk's joints moved back by this × the frame's spine shift (see
+                    # :func:`frame_curves`; development seeds 41–43 walks, 21–24 random, MPJPE
+                    # median with the shoulders and hips moved too: 0 → 0.15 → 0.25 → 0.35:
+                    # walks 5.47 → 5.31 → 5.31 → 5.41, random 7.34 → 7.12 → 7.22 → 7.13 cm)
+
+
+def frame_curves(pose, tree: KinematicTree, spine=None) -> dict:
+    """The frame's skeleton curves, those of the trunk's arcs (arcs not ending at a limb, a
+    ``[[mirror]]`` part: head, crotch) moved back by ``spine`` × ``diagnostics["spine_shift"]``
+    (:mod:`topopose.pose.anatomy`: the hull's largest inscribed radius against the front the
+    feet tell; absent when the feet tell none: no move). The skeleton curve runs through the
+    hull's middle, the rig's spine, neck, pelvis, shoulder and hip joints lie behind it: after
+    the fit they sat 2–4 cm in front of the truth (development seeds, medians: neck 2.5–3.7,
+    pelvis 2.7–4.4, hips 3.5–3.7 cm). The joints with an ``offset`` (shoulders, hips) move
+    back by the same amount (:func:`initial_placement`)."""
     curves = pose.diagnostics.get("curves") or {}
+    spine = SPINE_BACK if spine is None else spine
+    s = pose.diagnostics.get("spine_shift")
+    if not spine or s is None or not tree.limbs:
+        return curves
+    s = spine * np.asarray(s, float)
+    return {v: np.asarray(c, float) + s if v not in tree.limbs else c for v, c in curves.items()}
+
+
+def _beside(tree, j) -> bool:
+    """Whether joint ``j`` lies beside its curve (an ``offset`` or a ``width``)."""
+    return any(tree.offset[j]) or bool(tree.width and any(tree.width[j]))
+
+
+def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.ndarray:
+    """(n_joints, 3) joints at their relative arc length on the frame's curves (NaN: no curve);
+    the trunk's curves and the offset joints moved back by ``spine`` (default
+    :data:`SPINE_BACK`) × the frame's spine shift (:func:`frame_curves`). A joint with a
+    ``width`` (hips), when the hull radius is known (``radius``, else the length of the frame's
+    spine shift) and its mirror mate placed: at its arc's start (the junction) moved along the
+    trunk and outward (the direction from its mate's curve point to its own, across the trunk)
+    by ``width`` × the radius — the hull's largest inscribed radius scales with girth, the
+    trunk's length does not (development seeds: half shoulder width / radius 1.16–1.46 over
+    four builds, / trunk length 0.39–0.76); otherwise as its ``offset`` says. A joint with an
+    ``at_raised`` (elbows, wrists) is there instead of ``at`` when its arc's end part lies past
+    its first part along the trunk (a hand above the chest junction: the arm's curve runs
+    up through the shoulder's mass before the arm leaves it)."""
+    curves = frame_curves(pose, tree, spine)
     out = np.full((len(tree.names), 3), np.nan)
+    ax = None
+    if tree.trunk and tree.at_raised and any(r is not None for r in tree.at_raised):
+        a, b = (pose.parts.get(x) for x in tree.trunk)
+        if a is not None and b is not None:
+            ax = np.asarray(b, float) - np.asarray(a, float)
     for j, ((u, v), t) in enumerate(zip(tree.arc, tree.at)):
         c = curves.get(v)
+        if ax is not None and tree.at_raised[j] is not None:
+            pu, pv = pose.parts.get(u), pose.parts.get(v)
+            if pu is not None and pv is not None and \
+                    np.dot(np.asarray(pv, float) - np.asarray(pu, float), ax) > 0:
+                t = tree.at_raised[j]          # a raised limb (see the model's at_raised)
         beyond = tree.beyond[j] if tree.beyond else 0.0
         if c is not None:
             out[j] = _along(c, t, beyond)
@@ -195,7 +258,7 @@ def initial_placement(pose, tree: KinematicTree) -> np.ndarray:
             x = pose.parts.get(u if t == 0.0 else v)  # when the arc's far part is missing)
             if x is not None:
                 out[j] = np.asarray(x, dtype=float)
-    if tree.trunk and any(any(o) for o in tree.offset):
+    if tree.trunk and any(_beside(tree, j) for j in range(len(tree.names))):
         a, b = (pose.parts.get(x) for x in tree.trunk)
         if a is None or b is None:
             return out
@@ -205,23 +268,52 @@ def initial_placement(pose, tree: KinematicTree) -> np.ndarray:
             return out
         ax /= S
         moved = out.copy()
+        s = pose.diagnostics.get("spine_shift")
+        radius = radius if radius is not None else (
+            float(np.linalg.norm(s)) if s is not None else None)
         for j, (along, outward) in enumerate(tree.offset):
-            if not (along or outward) or np.isnan(out[j]).any():
+            if not _beside(tree, j) or np.isnan(out[j]).any():
                 continue
-            moved[j] = out[j] + along * S * ax
             mates = [k for k in range(len(tree.names)) if k != j and tree.base[k] == tree.base[j]]
+            c = curves.get(tree.arc[j][1])
+            if (radius and tree.width and any(tree.width[j]) and len(mates) == 1
+                    and c is not None and not np.isnan(out[mates[0]]).any()):
+                lat = out[j] - out[mates[0]]
+                lat -= np.dot(lat, ax) * ax
+                n = np.linalg.norm(lat)
+                if n > 0:
+                    w_al, w_out = tree.width[j]
+                    moved[j] = (np.asarray(c, float)[0] + w_al * radius * ax
+                                + w_out * radius * lat / n)
+                    continue
+            moved[j] = out[j] + along * S * ax
             if outward and len(mates) == 1 and not np.isnan(out[mates[0]]).any():
                 lat = out[j] - out[mates[0]]
                 lat -= np.dot(lat, ax) * ax
                 n = np.linalg.norm(lat)
                 if n > 0:
                     moved[j] += outward * S * lat / n
+        spine = SPINE_BACK if spine is None else spine
+        if spine and pose.diagnostics.get("spine_shift") is not None and tree.limbs:
+            moved[[_beside(tree, j) for j in range(len(tree.names))]] += spine * np.asarray(
+                pose.diagnostics["spine_shift"], float)
         out = moved
     return out
 
 
-def bone_lengths(init: np.ndarray, tree: KinematicTree) -> np.ndarray:
-    """Median length of each bone (child joint index) over the frames, mirror bones pooled."""
+WIDTH_RADIUS = "sequence"   # the hull radius of the joints' ``width``: the sequence's median
+                            # (a subject's girth is constant) or "frame" (each frame's own)
+BONE_QUANTILE = 70   # percent; see bone_lengths (development seeds as SPINE_BACK, with it:
+                     # 50 → 70 walks 5.31 → 5.12, random 7.12 → 7.00 cm)
+
+
+def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None) -> np.ndarray:
+    """Length of each bone (child joint index): the ``quantile`` (default
+    :data:`BONE_QUANTILE`) % of its lengths over the frames, mirror bones pooled. The joints
+    at fixed relative arc lengths shorten a bone when its curve is cut short (the junction of
+    a raised arm, a bent limb's curve cutting the corner): the median upper arm was 10 % short
+    on walks, 20–25 % on random poses (development seeds)."""
+    quantile = BONE_QUANTILE if quantile is None else quantile
     L = np.full(len(tree.names), np.nan)
     pooled = {}
     for j, p in enumerate(tree.parents):
@@ -232,7 +324,7 @@ def bone_lengths(init: np.ndarray, tree: KinematicTree) -> np.ndarray:
     for j, p in enumerate(tree.parents):
         if p >= 0:
             v = pooled[(tree.base[j], tree.base[p])]
-            L[j] = float(np.median(v)) if v else np.nan
+            L[j] = float(np.percentile(v, quantile)) if v else np.nan
     return L
 
 
@@ -281,7 +373,7 @@ def fit_frame(target, curves, L, tree: KinematicTree, start=None, inner_weight=1
     n = len(tree.names)
     P = np.full((n, 3), np.nan)
     P[tree.root] = target[tree.root] if root is None else root
-    w = np.where(np.array([t in (0.0, 1.0) or any(o) for t, o in zip(tree.at, tree.offset)]),
+    w = np.where(np.array([t in (0.0, 1.0) or _beside(tree, j) for j, t in enumerate(tree.at)]),
                  1.0, inner_weight)
     rms = []
     for (u, v), js in tree.chains().items():
@@ -419,7 +511,8 @@ def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
     return out
 
 
-def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0):
+def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=None,
+                 quantile=None):
     """Fit the full skeleton to every matched frame of a sequence (see the module docstring).
 
     Parameters
@@ -433,6 +526,10 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0):
         101–116, 8 walks and 6 random-pose sequences, gate off, MPJPE median): 0.3 → 1.0 →
         2.0 gives walks 4.88 → 4.44 → 4.45 cm, random poses 6.76 → 6.29 → 6.17 cm (the
         initial placement: 4.50 and 6.03 cm)
+    spine : the trunk's joints moved back by this × the spine shift (:func:`frame_curves`;
+        default :data:`SPINE_BACK`, 0: off)
+    quantile : percentile of the bone lengths (:func:`bone_lengths`; default
+        :data:`BONE_QUANTILE`, 50: the median)
 
     Returns
     -------
@@ -444,15 +541,18 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0):
     """
     poses = sorted(poses, key=lambda p: p.frame)
     tree = kinematic_tree(model)
-    init = np.stack([initial_placement(p, tree) if p.matched
+    radius = [np.linalg.norm(p.diagnostics["spine_shift"]) for p in poses
+              if p.matched and p.diagnostics.get("spine_shift") is not None]
+    radius = float(np.median(radius)) if radius and WIDTH_RADIUS == "sequence" else None
+    init = np.stack([initial_placement(p, tree, spine, radius) if p.matched
                      else np.full((len(tree.names), 3), np.nan) for p in poses]) \
         if poses else np.zeros((0, len(tree.names), 3))
-    L = bone_lengths(init, tree)
+    L = bone_lengths(init, tree, quantile)
     n_f = len(poses)
     P = np.full_like(init, np.nan)
     rms = [None] * n_f
     prev, t = None, frame_index(poses)
-    limbs = {x for parts, _names in model.mirrors for x in parts}
+    limbs = tree.limbs
     if not np.isnan(L[[j for j in range(len(L)) if tree.parents[j] >= 0]]).any():
         for i, p in enumerate(poses):
             if not p.matched:
@@ -463,7 +563,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0):
                 start[miss] = prev[miss] - prev[tree.root] + np.nan_to_num(start[tree.root])
             elif miss.any():                      # an unrelated pose before: the rest pose
                 start = rest_fill(start, p, tree, L, limbs)
-            Pi, r = fit_frame(init[i], p.diagnostics.get("curves") or {}, L, tree,
+            Pi, r = fit_frame(init[i], frame_curves(p, tree, spine), L, tree,
                               start=None if np.isnan(start).any() else start,
                               inner_weight=inner_weight)
             if Pi is not None:

@@ -45,6 +45,11 @@ File format (TOML, DESIGN.md "Model tree file")::
     offset = [0.2, 0.1]     # optional: joint beside the curve, in trunk lengths: along the
                             # trunk ([facing] trunk = [from, to]) and outward (away from the
                             # same joint of the mirror partner); e.g. shoulders, hips
+    width = [-0.3, 0.7]     # optional: instead, the joint beside the arc's start (the
+                            # junction), in hull radii (the hull's largest inscribed ball:
+                            # girth): along the trunk and outward; e.g. hips
+    at_raised = 0.65        # optional: ``at`` when the arc's end part lies past its first
+                            # part along the trunk (a hand above the chest junction)
 
 Mirror pairs: once :mod:`.chirality` knows the subject's left, ``parts[0]`` (the one on the
 subject's left) is output as ``names[0]`` and ``parts[1]`` as ``names[1]``; the numbered
@@ -76,7 +81,7 @@ _EDGE_KEYS = {"parts", "length"}
 _CONSTRAINT_KEYS = {"kind", "parts", "axis", "relation"}
 _MIRROR_KEYS = {"parts", "names"}
 _FACING_KEYS = {"feet", "axis", "trunk"}
-_JOINT_KEYS = {"name", "arc", "at", "offset", "beyond"}
+_JOINT_KEYS = {"name", "arc", "at", "offset", "beyond", "width", "at_raised"}
 
 
 @dataclass(frozen=True)
@@ -89,6 +94,10 @@ class JointSpec:
     at: float
     offset: tuple = (0.0, 0.0)     # (along the trunk, outward from the mirror partner) × trunk
     beyond: float = 0.0            # a tip joint (at = 1): past the end part, × the curve length
+    width: tuple = (0.0, 0.0)      # (along the trunk, outward) × the hull radius, from the
+                                   # arc's start (replaces offset where the radius is known)
+    at_raised: float = None        # at when the arc's end part is past its first part along the
+                                   # trunk ([facing] trunk = [from, to]): a raised hand
 
 
 @dataclass
@@ -208,6 +217,9 @@ class Model:
             out["joint"] = [{"name": j.name, "arc": list(j.arc), "at": float(j.at)}
                             | ({"offset": [float(x) for x in j.offset]} if any(j.offset) else {})
                             | ({"beyond": float(j.beyond)} if j.beyond else {})
+                            | ({"width": [float(x) for x in j.width]} if any(j.width) else {})
+                            | ({"at_raised": float(j.at_raised)} if j.at_raised is not None
+                               else {})
                             for j in self.joints]
         return out
 
@@ -296,6 +308,17 @@ def validate_model(m: Model) -> None:
             raise InputError(f"{jw}: field 'offset' must be two numbers [along, outward]")
         if any(j.offset) and len(m.facing.get("trunk", ())) != 2:
             raise InputError(f"{jw}: an offset needs [facing] trunk = [from, to] (two parts)")
+        if (not isinstance(j.width, (list, tuple)) or len(j.width) != 2
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                           for x in j.width)):
+            raise InputError(f"{jw}: field 'width' must be two numbers [along, outward]")
+        if any(j.width) and len(m.facing.get("trunk", ())) != 2:
+            raise InputError(f"{jw}: a width needs [facing] trunk = [from, to] (two parts)")
+        if j.at_raised is not None and (
+                isinstance(j.at_raised, bool) or not isinstance(j.at_raised, (int, float))
+                or not 0.0 < float(j.at_raised) < 1.0 or len(m.facing.get("trunk", ())) != 2):
+            raise InputError(f"{jw}: field 'at_raised' must be a number in (0, 1), with [facing] "
+                             f"trunk = [from, to]; got {j.at_raised!r}")
         if (not isinstance(j.arc, (list, tuple)) or len(j.arc) != 2
                 or not all(isinstance(x, str) for x in j.arc)):
             raise InputError(f"{jw}: field 'arc' must be two part names (or numbered stems)")
@@ -448,12 +471,14 @@ def model_from_dict(d: dict, source: str = "model") -> Model:
     for i, j in enumerate(d.get("joint") or []):
         if not isinstance(j, dict) or not {"name", "arc", "at"} <= set(j) <= _JOINT_KEYS:
             raise InputError(f"{source}: joint[{i}]: expected a table with name, arc, at "
-                             "(and optional offset, beyond)")
+                             "(and optional offset, beyond, width, at_raised)")
         off = j.get("offset", (0.0, 0.0))
         joints.append(JointSpec(j["name"], tuple(j["arc"]) if isinstance(j["arc"], list)
                                 else j["arc"], j["at"],
                                 tuple(off) if isinstance(off, list) else off,
-                                j.get("beyond", 0.0)))
+                                j.get("beyond", 0.0),
+                                tuple(j["width"]) if isinstance(j.get("width"), list)
+                                else j.get("width", (0.0, 0.0)), j.get("at_raised")))
     return Model(name=name, tree=tree, root=meta.get("root"), complete=complete,
                  threshold=meta.get("threshold"), description=meta.get("description", ""),
                  source=source, mirrors=mirrors, facing=dict(facing), joints=joints)

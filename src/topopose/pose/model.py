@@ -302,18 +302,15 @@ def validate_model(m: Model) -> None:
         jw = f"{where}: joint[{i}]"
         if not isinstance(j.name, str) or not j.name:
             raise InputError(f"{jw}: field 'name' must be a non-empty string")
-        if (not isinstance(j.offset, (list, tuple)) or len(j.offset) != 2
-                or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                           for x in j.offset)):
-            raise InputError(f"{jw}: field 'offset' must be two numbers [along, outward]")
-        if any(j.offset) and len(m.facing.get("trunk", ())) != 2:
-            raise InputError(f"{jw}: an offset needs [facing] trunk = [from, to] (two parts)")
-        if (not isinstance(j.width, (list, tuple)) or len(j.width) != 2
-                or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                           for x in j.width)):
-            raise InputError(f"{jw}: field 'width' must be two numbers [along, outward]")
-        if any(j.width) and len(m.facing.get("trunk", ())) != 2:
-            raise InputError(f"{jw}: a width needs [facing] trunk = [from, to] (two parts)")
+        for field in ("offset", "width"):
+            pair = getattr(j, field)
+            if (not isinstance(pair, (list, tuple)) or len(pair) != 2
+                    or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                               for x in pair)):
+                raise InputError(f"{jw}: field '{field}' must be two numbers [along, outward]")
+            if any(pair) and len(m.facing.get("trunk", ())) != 2:
+                raise InputError(f"{jw}: field '{field}' needs [facing] trunk = [from, to] "
+                                 "(two parts)")
         if j.at_raised is not None and (
                 isinstance(j.at_raised, bool) or not isinstance(j.at_raised, (int, float))
                 or not 0.0 < float(j.at_raised) < 1.0 or len(m.facing.get("trunk", ())) != 2):

@@ -160,8 +160,11 @@ def extremity_tips(vol, skeleton, data, mapping: dict, leaf_parts, reach: float 
 #: constraints (benchmarks/applications.py's acrobatic set): head median error to the crown
 #: 6.4 → 4.0 cm, bias along the body axis −4.5 → −1.5 cm; ask-a-question P / R 0.806 / 0.879
 #: → 0.950 / 0.864, hands-up 0.889 / 0.918 → 0.892 / 0.951 (the cap of 3 radii along the
-#: end direction alone: 0.906 / 0.951 and 0.855 / 0.894). Held-out seeds 1–2:
-#: benchmarks/results/applications.md.
+#: end direction alone: 0.906 / 0.951 and 0.855 / 0.894). Held out (seeds 1–2,
+#: benchmarks/applications.py, peer ``tip_anchor=False`` in the same run): head median error
+#: 6.6 → 4.0 cm; hands-up 0.903 / 0.848 → 0.897 / 0.924, ask-a-question 0.808 / 0.894 → 0.906 /
+#: 0.879, wide-spread-arms 0.842 / 0.941 → 0.865 / 0.941, acrobatic 0.989 / 1.000 either way.
+#: Upright subjects (the head from the hull) are unchanged: the hull places that head.
 TIP_ANCHOR = {"human": {"head": ("torso", 3.0)}}
 
 

@@ -530,12 +530,15 @@ def bench_detection(n_frames, seeds, log):
     from topopose.pose.estimate import FrameEstimator
 
     out = {}
-    for kind, constraints in (("upright", True), ("acrobatic", False)):
+    # "acrobatic no-tip-anchor": the peer of the head tip prolonged from the torso
+    # (pose/tips.py TIP_ANCHOR), the head along its branch's own end direction, 1.5 radii
+    for kind, constraints, opts in (("upright", True, {}), ("acrobatic", False, {}),
+                                    ("acrobatic no-tip-anchor", False, {"tip_anchor": False})):
         tags, frames, rows = {}, 0, []
         rng = np.random.default_rng(0)
         for seed in seeds:
-            cap = capture(detection_sampler(kind), n_frames, seed)
-            est = FrameEstimator(cap, "human", RES, constraints=constraints)
+            cap = capture(detection_sampler(kind.split()[0]), n_frames, seed)
+            est = FrameEstimator(cap, "human", RES, constraints=constraints, **opts)
             r, n = _detection_rows(cap, est, rng, tags)
             rows += r
             frames += n
@@ -846,7 +849,10 @@ def main(argv=None):
           "axis — in inverted frames + is towards the feet; hands and feet paired optimally): "
           "the expressions compare these points. *human acrobatic* runs without coordinate "
           "constraints, so without the head from the hull (`head_from_hull`): its head is the "
-          "head branch's extremity tip (`extremity_tips`), which stops short of the crown.", "",
+          "head branch's extremity tip (`extremity_tips`), prolonged from the torso's data "
+          "vertex through the branch end to the hull's border, at most 3 inscribed radii "
+          "(`TIP_ANCHOR`); *human acrobatic no-tip-anchor* is its peer, the tip along the "
+          "branch's own end direction, at most 1.5 radii (`FrameEstimator(tip_anchor=False)`).", "",
           "| subject | part | frames | vertical offset mean (m) | sd | distance median (m) | p90 |",
           "|---|---|---|---|---|---|---|"]
     for label, by in offsets.items():

@@ -93,3 +93,28 @@ def test_head_from_hull_is_the_crown_not_the_arm():
     crown = np.array([40, 32, 38]) + 6 * d / np.linalg.norm(d)
     assert np.linalg.norm(head - crown) <= 1.5
     assert head_from_hull(_Vol(np.zeros((5, 5, 5), bool)), (1, 0, 0), torso) is None
+
+
+def test_head_tip_from_the_torso_past_a_bent_branch_end():
+    """A head branch whose last voxels come in at 45° (a spur towards a cheek): along its own
+    end direction the tip lands on the side of the head; from the torso vertex through the
+    branch end (``anchors``, TIP_ANCHOR) it lands on the crown."""
+    vol, c, r = _head_on_neck()
+    end = c + (4, 0, 0)                                   # on the axis, 4 voxels below the crown
+    skel = np.zeros_like(vol)
+    for k in range(1, 4):                                 # the spur: from below and the side
+        skel[tuple((end - (k, 0, k)).astype(int))] = True
+    skel[tuple(end.astype(int))] = True
+    torso = c - (14, 0, 0)
+    skel[tuple(torso.astype(int))] = True
+    data = Tree([("h", "t", 1.0)], positions={"h": tuple(end), "t": tuple(torso)})
+    crown = c + (r, 0, 0)
+    args = (_Vol(vol), skel, data, {"head": "h", "torso": "t"}, ["head"])
+    own = extremity_tips(*args)["head"]
+    anchored = extremity_tips(*args, anchors={"head": ("torso", 3.0)})["head"]
+    assert np.linalg.norm(own - crown) > 2.5              # sent sideways by the spur
+    assert np.linalg.norm(anchored - crown) <= 1.0
+    # an unmatched anchor falls back to the branch's own end direction
+    none = extremity_tips(_Vol(vol), skel, data, {"head": "h"}, ["head"],
+                          anchors={"head": ("torso", 3.0)})["head"]
+    assert np.allclose(none, own)

@@ -161,6 +161,12 @@ class FrameEstimator:
         missing limb (§13.2.2 counts it right) is no longer rejected for its deleted arm's
         cost. None: the model's entry of :data:`MATCHED_DISTANCE` (human: on); ``Pose.distance``
         stays the whole distance. Measured there.
+    tip_anchor : None, bool or dict
+        Prolong these tip leaves away from an anchor part's data vertex rather than along their
+        branch's end direction (``{leaf: (anchor, max_radii)}``,
+        :data:`topopose.pose.tips.TIP_ANCHOR`). None or True: the model's entry, without the
+        leaf that ``head_from_hull`` places (human without coordinate constraints: the head,
+        from the torso, at most 3 radii); False: off; a dict replaces it. Measured there.
     head_from_hull : float or None
         Place the head part from the hull rather than from the alignment
         (:func:`topopose.pose.tips.head_from_hull`, :data:`HEAD_FROM_HULL`): the highest hull
@@ -199,7 +205,7 @@ class FrameEstimator:
                  relation=None, fill=True, repair=None, junction_centroid=None, refocus=False,
                  min_share=0.8, gate=None, min_confidence=None, thickness=None,
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
-                 tip_fraction=1.0, spine=None,
+                 tip_fraction=1.0, spine=None, tip_anchor=None,
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
                  short_arm=None, trunk_blend=None, placed_missing=None):
         from ..match import Matcher
@@ -269,6 +275,16 @@ class FrameEstimator:
         stems = set(tips or ())
         self.tips = [p for p in self.model.parts if len(adj[p]) == 1 and self.model.complete
                      and p.rstrip("_0123456789") in stems]
+        # tips prolonged away from an anchor part (TIP_ANCHOR), where the hull does not place them
+        from .tips import TIP_ANCHOR
+        if isinstance(tip_anchor, dict):
+            self.tip_anchor = dict(tip_anchor)
+        elif tip_anchor is None or tip_anchor is True:
+            placed = {self.head_from_hull[0]} if self.head_from_hull else set()
+            self.tip_anchor = {p: r for p, r in TIP_ANCHOR.get(self.model.name, {}).items()
+                               if p not in placed}
+        else:
+            self.tip_anchor = {}
         self.spine = _spine_option(self.model, spine)
         self.matched_distance = (MATCHED_DISTANCE.get(self.model.name, False)
                                  if matched_distance is None else bool(matched_distance))
@@ -454,7 +470,7 @@ class FrameEstimator:
         if self.tips:
             from .tips import extremity_tips
             for p, x in extremity_tips(vol, skel, data, al.mapping, self.tips,
-                                          voxels=sk_vox).items():
+                                          voxels=sk_vox, anchors=self.tip_anchor).items():
                 if parts.get(p) is not None:
                     parts[p] = (x if self.tip_fraction == 1.0
                                 else parts[p] + self.tip_fraction * (x - parts[p]))

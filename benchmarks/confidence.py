@@ -49,6 +49,11 @@ sys.path.insert(0, str(HERE))
 BUILDS = ("average", "heavy", "child", "lean", "random")
 TOLERANCE = 0.08          # × subject height
 SWAP_WEIGHT = 0.1
+# deliberate spurious limbs (:func:`rod_rows`): per capture, this many right matched frames get
+# a rod of ROD_LENGTH (m) added to the hull, each weighted as a real frame (they are real
+# pipeline runs, on a hull with a limb the subject does not have)
+RODS = 2
+ROD_LENGTH = (0.25, 0.5)
 POSE_KINDS = ("separated", "all")   # the body benchmark's poses (quality.py body_captures)
 POSE_SEED0 = 100                    # their seeds: disjoint from quality.py's 21, 22
 BASE_FEATURES = ("distance", "missing", "shape", "shape_max", "spurious_share", "head_low",
@@ -149,9 +154,9 @@ def capture_rows(cap, subject, build, setup, motion, seed) -> list:
                      "wrong": sorted(k for k, v in s.right.items() if v is False),
                      "features": dg["confidence_features"],
                      "time": fac.get("time"), "volume": fac.get("volume")})
-    rows += swapped_rows(cap, est, out, ev, {"subject": subject, "build": build,
-                                             "cameras": setup, "motion": motion,
-                                             "seed": seed})
+    like = {"subject": subject, "build": build, "cameras": setup, "motion": motion, "seed": seed}
+    rows += swapped_rows(cap, est, out, ev, like)
+    rows += rod_rows(cap, est, out, ev, like)
     print(f"{subject} {build or ''} set-up {setup} {motion} seed {seed}: "
           f"{len(poses)} frames",
           file=sys.stderr, flush=True)
@@ -199,18 +204,77 @@ def swapped_rows(cap, est, out, ev, like):
     return rows
 
 
+def add_rod(vol, start, direction, length):
+    """``vol`` with a rod (3 × 3 voxels across, one voxel high) from ``start`` along unit
+    ``direction`` for ``length`` m, stopped 2 voxels from the grid's border: a limb the subject
+    does not have (as ``tests/test_pose_confidence.py::test_spurious_limb_fails_the_gate``)."""
+    vs = vol.voxel_size
+    for s in np.arange(0.0, length, vs / 2):
+        i = np.round((start + s * direction - vol.origin) / vs).astype(int)
+        if np.any(i < 2) or np.any(i > np.array(vol.data.shape) - 3):
+            break
+        vol.data[i[0] - 1:i[0] + 2, i[1] - 1:i[1] + 2, i[2]] = True
+    vol.diagnostics.pop("bbox", None)
+    vol.diagnostics["voxels"] = int(vol.data.sum())
+    return vol
+
+
+def rod_rows(cap, est, out, ev, like, rods=RODS):
+    """A spurious limb made on purpose: for ``rods`` right, matched frames of the capture
+    (random, seeded by the capture), a rod of ROD_LENGTH added to the hull, attached on the
+    ground-truth trunk (crotch → torso → beyond, at random) and pointing away from the real
+    limbs (of 32 directions, elevation −30°…+45°, the one whose tip is farthest from head,
+    hands and feet), the frame re-run; wrong by construction (``augmented``: "rod")."""
+    rng = np.random.default_rng([like["seed"], len(cap.cameras), sum(map(ord, like["motion"]))])
+    ok = [i for i, ((p, _), s) in enumerate(zip(out, ev.frames))
+          if candidate({"status": p.status, "error": p.error}, {"replaces_threshold": True})
+          and s.quality in TP_CLASSES]
+    rows = []
+    for k in rng.permutation(ok)[:rods]:
+        frame = cap.frames[k]
+        parts = {n: np.asarray(v, float) for n, v in cap.gt["frames"][frame]["parts"].items()
+                 if v is not None}
+        if "torso" not in parts or "crotch" not in parts:
+            continue
+        start = parts["crotch"] + rng.uniform(0.2, 1.2) * (parts["torso"] - parts["crotch"])
+        length = rng.uniform(*ROD_LENGTH)
+        ends = [parts[n] for n in ("head", "hand_1", "hand_2", "foot_1", "foot_2") if n in parts]
+        az = rng.uniform(0, 2 * np.pi, 32)
+        el = rng.uniform(-np.pi / 6, np.pi / 4, 32)
+        dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], 1)
+        d = max(dirs, key=lambda u: min(np.linalg.norm(start + length * u - e) for e in ends))
+        hull = est.hull
+        est.hull = lambda name: add_rod(hull(name), start, d, length)
+        try:
+            p = est.estimate(frame)
+        finally:
+            del est.hull
+        if p.status == "failed":
+            continue
+        dg = p.diagnostics
+        rows.append({**like, "frame": p.frame, "status": p.status, "error": p.error,
+                     "good": False, "quality": "rod", "features": dg["confidence_features"],
+                     "time": None, "volume": None, "augmented": "rod", "wrong": [],
+                     "rod": {"length": round(float(length), 3),
+                             "start": np.round(start, 3).tolist(),
+                             "direction": np.round(d, 3).tolist()}})
+    return rows
+
+
 def _fit(rows, features, l2, kind="logistic"):
     """The deliberate swaps weigh SWAP_WEIGHT × the real frames' count in all (they are
-    many and easy: at full weight the model becomes a swap detector). ``kind``: "logistic"
+    many and easy: at full weight the model becomes a swap detector); the deliberate spurious
+    limbs (rods, few) weigh as real frames. ``kind``: "logistic"
     (L2 penalty ``l2``) or "trees" (:func:`_fit_trees`)."""
     from topopose.pose.confidence import fit_logistic
 
     X = np.array([[r["features"][f] for f in features] for r in rows], float)
     y = np.array([r["good"] for r in rows], float)
     aug = np.array([bool(r.get("augmented")) for r in rows])
+    swap = np.array([r.get("augmented") not in (None, False, "rod") for r in rows])
     w = np.ones(len(rows))
-    if aug.any():
-        w[aug] = SWAP_WEIGHT * (~aug).sum() / aug.sum()
+    if swap.any():
+        w[swap] = SWAP_WEIGHT * (~aug).sum() / swap.sum()
     if kind == "trees":
         return _fit_trees(X, y, w, features)
     real = X[~aug]                      # standardized on the real frames
@@ -375,12 +439,17 @@ def swap_summary(aug, model, half):
     from topopose.pose.confidence import fitted_confidence
 
     out = {}
-    for part, sel in (("calibration", lambda r: r["seed"] < half_of(r, half)),
-                      ("held out", lambda r: r["seed"] >= half_of(r, half))):
-        wrong = [r for r in aug if sel(r) and not r["good"]]
+    for (kind, part), sel in (
+            (("swaps", "calibration"), lambda r: r["seed"] < half_of(r, half)),
+            (("swaps", "held out"), lambda r: r["seed"] >= half_of(r, half)),
+            (("rods", "calibration"), lambda r: r["seed"] < half_of(r, half)),
+            (("rods", "held out"), lambda r: r["seed"] >= half_of(r, half))):
+        wrong = [r for r in aug if sel(r) and not r["good"]
+                 and (r["augmented"] == "rod") == (kind == "rods")
+                 and candidate(r, {"replaces_threshold": True})]
         c = [fitted_confidence(r["features"], 1.0 - r["features"]["lost"], model=model)["confidence"]
              for r in wrong]
-        out[part] = {"wrong": len(wrong),
+        out[f"{kind}, {part}"] = {"wrong": len(wrong),
                      "rejected": sum(x < minimum(r, model) for x, r in zip(c, wrong))}
     return out
 
@@ -643,8 +712,11 @@ def main(argv=None):
               "| --- | --- | --- | --- |"]
         for n, v in rr["rules"].items():
             L.append(f"| {n} | {v['matched']} | {v['right_matched']} | {v['precision']} |")
-    L += ["", "Deliberate head ↔ hand swaps of the right matched frames (wrong by ground truth; "
-          "the calibration half's are fitted on too): share the gate rejects — "
+    L += ["", "Deliberate head ↔ hand swaps of the right matched frames (wrong by ground truth) "
+          f"and deliberate spurious limbs ({RODS} right matched frames per capture re-run with "
+          f"a rod of {ROD_LENGTH[0]}–{ROD_LENGTH[1]} m added to the hull on the trunk, pointing "
+          "away from the real limbs; wrong by construction), reaching the gate; the calibration "
+          "half's are fitted on too: share the gate rejects — "
           + "; ".join(f"{k}: {v['rejected']}/{v['wrong']}" for k, v in swaps.items()) + "."]
     L += ["", "## Model (`src/topopose/pose/confidence_model.json`)", ""]
     if model.get("kind") == "trees":

@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from topopose.hull.volume import add_rod
 from topopose.pose.quality import TP_CLASSES
 
 HERE = Path(__file__).resolve().parent
@@ -206,21 +207,6 @@ def swapped_rows(cap, est, out, ev, like):
                          "good": q in TP_CLASSES, "quality": q, "features": f, "time": None,
                          "volume": None, "augmented": hand, "wrong": []})
     return rows
-
-
-def add_rod(vol, start, direction, length):
-    """``vol`` with a rod (3 × 3 voxels across, one voxel high) from ``start`` along unit
-    ``direction`` for ``length`` m, stopped 2 voxels from the grid's border: a limb the subject
-    does not have (as ``tests/test_pose_confidence.py::test_spurious_limb_fails_the_gate``)."""
-    vs = vol.voxel_size
-    for s in np.arange(0.0, length, vs / 2):
-        i = np.round((start + s * direction - vol.origin) / vs).astype(int)
-        if np.any(i < 2) or np.any(i > np.array(vol.data.shape) - 3):
-            break
-        vol.data[i[0] - 1:i[0] + 2, i[1] - 1:i[1] + 2, i[2]] = True
-    vol.diagnostics.pop("bbox", None)
-    vol.diagnostics["voxels"] = int(vol.data.sum())
-    return vol
 
 
 def rod_rows(cap, est, out, ev, like, rods=RODS):

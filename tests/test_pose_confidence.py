@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from topopose.hull import Volume
+from topopose.hull.volume import add_rod
 from topopose.match.tree import Tree
 from topopose.pose import Pose
 from topopose.pose import confidence as C
@@ -217,20 +218,7 @@ def test_spurious_limb_fails_the_gate(clean):
             for t in np.linspace(0, 2 * math.pi, 16, endpoint=False)]
     d = max(dirs, key=lambda u: min(np.linalg.norm(torso + 0.4 * u - h) for h in hands))
     hull = est.hull
-
-    def with_rod(name):
-        vol = hull(name)
-        vs = vol.voxel_size
-        for s in np.arange(0.0, 0.45, vs / 2):
-            i = np.round((torso + s * d - vol.origin) / vs).astype(int)
-            if np.any(i < 2) or np.any(i > np.array(vol.data.shape) - 3):
-                break
-            vol.data[i[0] - 1:i[0] + 2, i[1] - 1:i[1] + 2, i[2]] = True
-        vol.diagnostics.pop("bbox", None)
-        vol.diagnostics["voxels"] = int(vol.data.sum())
-        return vol
-
-    est.hull = with_rod
+    est.hull = lambda name: add_rod(hull(name), torso, d, 0.45)
     try:
         bad = est.estimate(frame)
     finally:
@@ -366,3 +354,17 @@ def test_a_limb_cut_off_scores_below_the_intact_frame(clean):
         finally:
             del est.hull
         assert bad.diagnostics["confidence"] < pose.diagnostics["confidence"], pose.frame
+
+
+def test_add_rod_voxels():
+    """The spurious rod: at each half-voxel step a 3 × 3 square in the grid's first two axes,
+    one voxel along the third; along +x from the centre voxel for 4.6 voxel sizes (centres
+    10–14, hand-counted: voxels 9–15 × 9–11), and stopped 2 voxels before the border."""
+    vol = Volume(np.zeros((20, 20, 20), bool), np.zeros(3), 0.5)
+    add_rod(vol, np.array([5.0, 5.0, 5.0]), np.array([1.0, 0.0, 0.0]), 2.3)
+    expected = np.zeros((20, 20, 20), bool)
+    expected[9:16, 9:12, 10] = True
+    assert np.array_equal(vol.data, expected)
+    assert vol.diagnostics["voxels"] == 21
+    add_rod(vol, np.array([5.0, 5.0, 5.0]), np.array([0.0, 1.0, 0.0]), 100.0)
+    assert vol.data[9:12, 9:19, 10].all() and not vol.data[:, 19:, :].any()

@@ -64,3 +64,19 @@ class Volume:
         if data.dtype != bool:
             raise InputError(f"{path}: field 'volume' must be boolean, got {data.dtype}")
         return cls(data, origin, vs)
+
+
+def add_rod(vol, start, direction, length):
+    """``vol`` (changed in place) with a rod from ``start`` along the unit ``direction`` for
+    ``length`` world units — at each half-voxel step a 3 × 3 square of voxels in the grid's first
+    two axes, one voxel along the third — stopped 2 voxels from the grid's border: a limb the subject does not have, to check that the confidence gate
+    rejects it (``benchmarks/confidence.py``, ``tests/test_pose_confidence.py``)."""
+    vs = vol.voxel_size
+    for s in np.arange(0.0, length, vs / 2):
+        i = np.round((start + s * direction - vol.origin) / vs).astype(int)
+        if np.any(i < 2) or np.any(i > np.array(vol.data.shape) - 3):
+            break
+        vol.data[i[0] - 1:i[0] + 2, i[1] - 1:i[1] + 2, i[2]] = True
+    vol.diagnostics.pop("bbox", None)
+    vol.diagnostics["voxels"] = int(vol.data.sum())
+    return vol

@@ -240,6 +240,18 @@ def _branch_length(adj, leaf) -> float:
             return n
 
 
+def _head_bend_offset(x, t, c, height) -> tuple:
+    """(1 − cos of the angle between torso → head and crotch → torso, the head's distance from
+    the line crotch → torso / ``height``) for head ``x``, torso ``t``, crotch ``c``; (0, 0)
+    when two of them coincide."""
+    axis, hv = t - c, x - t
+    n, hn = float(np.linalg.norm(axis)), float(np.linalg.norm(hv))
+    if n == 0 or hn == 0:
+        return 0.0, 0.0
+    return (1.0 - float(hv @ axis) / (hn * n),
+            float(np.linalg.norm(np.cross(x - c, axis / n))) / height)
+
+
 def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al=None,
                    thickness_cost=0.0, radii=None, missing_cost=0.0, parts=None) -> dict:
     """What one frame's stages know about how far to trust it, as numbers (the inputs of the
@@ -356,15 +368,9 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
     if len(trunk) == 2 and heads and height > 0:
         t, c = trunk
         x = np.asarray(pos[heads[0]], float)
-        axis = t - c
-        n = float(np.linalg.norm(axis))
-        f["trunk"] = n / height
-        hv = x - t
-        hn = float(np.linalg.norm(hv))
-        f["head_reach"] = hn / height
-        if n > 0 and hn > 0:
-            f["head_bend"] = 1.0 - float(hv @ axis) / (hn * n)
-            f["head_offset"] = float(np.linalg.norm(np.cross(x - c, axis / n))) / height
+        f["trunk"] = float(np.linalg.norm(t - c)) / height
+        f["head_reach"] = float(np.linalg.norm(x - t)) / height
+        f["head_bend"], f["head_offset"] = _head_bend_offset(x, t, c, height)
     if radii:
         r = {p: radii.get(v, 0.0) for p, v in mapping.items() if v is not None}
         f["head_radius"] = max((r[p] for p in r if _stem(p) == "head"), default=0.0)
@@ -382,12 +388,7 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
     pp = [None if parts is None or parts.get(p) is None else np.asarray(parts[p], float)
           for p in ("head", "torso", "crotch")]
     if all(x is not None for x in pp) and height > 0:
-        x, t, c = pp
-        axis, hv = t - c, x - t
-        n, hn = float(np.linalg.norm(axis)), float(np.linalg.norm(hv))
-        if n > 0 and hn > 0:
-            f["head_placed_bend"] = 1.0 - float(hv @ axis) / (hn * n)
-            f["head_placed_offset"] = float(np.linalg.norm(np.cross(x - c, axis / n))) / height
+        f["head_placed_bend"], f["head_placed_offset"] = _head_bend_offset(*pp, height)
     if pos.get("crotch") is not None and height > 0:
         from .anatomy import room_below
         f["crotch_room"] = room_below(vol, pos["crotch"], sign * np.eye(3)[ax],

@@ -191,6 +191,18 @@ class FrameEstimator:
         (:func:`short_limb`, :data:`SHORT_ARM`): a forearm folded onto the body ends the arm's
         skeleton branch at the elbow, where the hand was placed. None: the model's entry
         (human: 0.35, measured there); 0: off.
+    hand_trunk : float or None
+        Leave a hand unplaced when it lies closer than this many hull radii to the trunk's
+        thick core and every other part is placed (:func:`topopose.pose.anatomy.hand_on_trunk`,
+        :data:`topopose.pose.anatomy.HAND_ON_TRUNK`): a forearm folded onto the body ends the
+        arm's branch at the elbow or runs it on inside the trunk's surface. None: the model's
+        entry (human: 1.3, measured there); 0: off.
+    head_ball : float or None
+        With ``head_from_hull``, the hull's top must hold a ball of this fraction of the hull's
+        largest inscribed radius within 1.5 of those radii (:func:`topopose.pose.tips.
+        thick_top`, :data:`topopose.pose.tips.HEAD_BALL`), else the next highest thick point
+        is tried: a raised fist is as thick as ``head_from_hull``'s fraction. None: the
+        model's entry (human: 0.46, measured there); 0: off.
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -207,7 +219,8 @@ class FrameEstimator:
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
                  tip_fraction=1.0, spine=None, tip_anchor=None,
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
-                 short_arm=None, trunk_blend=None, placed_missing=None):
+                 short_arm=None, trunk_blend=None, placed_missing=None, hand_trunk=None,
+                 head_ball=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -302,6 +315,16 @@ class FrameEstimator:
         rule = SHORT_ARM.get(self.model.name) if self.model.complete else None
         ratio = (rule[4] if rule else 0.0) if short_arm is None else float(short_arm)
         self.short_arm = (*rule[:4], ratio) if rule and ratio > 0 else None
+        # a hand next to the trunk's core (HAND_ON_TRUNK): (hands, core, reach)
+        from .anatomy import HAND_ON_TRUNK
+        rule = HAND_ON_TRUNK.get(self.model.name) if self.model.complete else None
+        reach = (rule[2] if rule else 0.0) if hand_trunk is None else float(hand_trunk)
+        self.hand_trunk = (*rule[:2], reach) if rule and reach > 0 else None
+        # the head from the hull holds a head-sized ball (tips.HEAD_BALL): (ball, reach)
+        from .tips import HEAD_BALL
+        rule = HEAD_BALL.get(self.model.name)
+        ball = (rule[0] if rule else 0.0) if head_ball is None else float(head_ball)
+        self.head_ball = (ball, rule[1] if rule else 1.5) if ball > 0 else None
 
     def arc_cost(self, vol, data, radii=None):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off.
@@ -475,8 +498,8 @@ class FrameEstimator:
                     parts[p] = (x if self.tip_fraction == 1.0
                                 else parts[p] + self.tip_fraction * (x - parts[p]))
         edt = None
-        if self.spine or self.head_from_hull is not None:     # inscribed radii, once a frame
-            from .tips import inscribed_distances
+        if self.spine or self.head_from_hull is not None or self.hand_trunk is not None:
+            from .tips import inscribed_distances      # inscribed radii, once a frame
             edt = inscribed_distances(vol.data, box, sq)
         if self.spine:      # the spine lies behind the medial axis (pose/anatomy.py)
             parts, diag_spine = self.spine_parts(vol, skel, data, al, parts, edt, sk_vox)
@@ -485,10 +508,19 @@ class FrameEstimator:
         if self.head_from_hull is not None:
             from .tips import head_from_hull
             head, anchor, frac = self.head_from_hull
-            x = head_from_hull(vol, self.up, parts.get(anchor), frac, edt=edt)
+            x = head_from_hull(vol, self.up, parts.get(anchor), frac, edt=edt,
+                               ball=self.head_ball)
             if x is not None:
                 parts[head] = x
                 from_hull.append(head)
+        on_core = []      # after the head from the hull: a head it placed counts as placed
+        if self.hand_trunk is not None and all(x is not None for x in parts.values()):
+            from .anatomy import hand_on_trunk
+            p = hand_on_trunk(parts, self.hand_trunk, vol, edt)
+            if p is not None:
+                on_core.append(p)
+                parts[p] = None
+                missing.append(p)
         on_trunk = False
         if self.trunk is not None:       # a torso slid down to the crotch (pose/anatomy.py)
             from .anatomy import torso_on_trunk
@@ -536,6 +568,8 @@ class FrameEstimator:
             diag["off_axis"] = dropped
         if short:
             diag["short_arm"] = short
+        if on_core:
+            diag["hand_on_trunk"] = on_core
         if on_trunk:
             diag["on_trunk"] = self.trunk[0]
         if self.spine:

@@ -176,8 +176,16 @@ TIP_ANCHOR = {"human": {"head": ("torso", 3.0)}}
 #: ones (separated; all poses 0.52–); ball 0.45 / 0.47 at reach 1.5: wrong heads 4 → 3
 #: separated, 1 → 0 all poses, TP rate / FP per match 0.922 / 0.051 → 0.928 / 0.046 and 0.833
 #: / 0.062 → 0.839 / 0.056 (ball 0.5: separated unchanged; reach 2 with ball 0.55–0.6: all
-#: poses unchanged).
-HEAD_BALL = {"human": (0.46, 1.5)}
+#: poses unchanged). The ball also tells a fist from a head where the thickness alone cannot: on
+#: a coarse grid (the child at 100³, an adult at 50³: 0.4 × the largest radius is below the 1.5
+#: voxels at which :func:`thick_top` gives up) the rule now applies down to ``min_voxels`` 1.2
+#: (the third entry); there the head came from the alignment, which put it on a raised hand or
+#: at the crotch. With the torso re-derived from the new head (TORSO_ON_TRUNK, TRUNK_BLEND),
+#: dev seeds 41–43 at 100³, TP rate / FP per match: separated 0.922 / 0.051 → 0.928 / 0.046
+#: (min_voxels 1.5) → 0.933 / 0.040 (1.2; 1.0 the same), wrong heads 4 → 3 → 1; all poses
+#: 0.833 / 0.062 → 0.839 / 0.056 either way; at 50³ (seeds 41, 42, separated) 0.575 / 0.355 →
+#: 0.575 / 0.355 → 0.625 / 0.299, wrong heads 11 → 11 → 5.
+HEAD_BALL = {"human": (0.46, 1.5, 1.2)}
 
 
 def _anchor_direction(data, mapping, end, rule):
@@ -277,9 +285,10 @@ def head_from_hull(vol, up, anchor=None, min_fraction: float = 0.4, max_radii: f
     0.23 m of the head marker). Measured in :data:`topopose.pose.estimate.HEAD_FROM_HULL`: right
     frames of the real recording 32 → 71 of 100, the body subject's head error 5.6 → 2.1 cm.
     ``edt``: :func:`inscribed_distances` of the hull if already computed; ``ball``: ``(ball,
-    reach)`` of :func:`thick_top` (:data:`HEAD_BALL`), None: off."""
+    reach, min_voxels)`` of :func:`thick_top` (:data:`HEAD_BALL`), None: off."""
     top = thick_top(vol.data, vol.origin, float(vol.voxel_size), up, min_fraction, edt=edt,
-                    **({} if ball is None else {"ball": ball[0], "reach": ball[1]}))
+                    **({} if ball is None else {"ball": ball[0], "reach": ball[1],
+                                                "min_voxels": ball[2]}))
     if top is None:
         return None
     c, r = top

@@ -124,7 +124,10 @@ CROTCH_DROP = {"human": ("crotch", 0.35, 0.10, 0.5)}
 # median 0.97 / 1.43 / 3.07; separated right hands 1 % 1.43. TP rate / FP per match, off →
 # reach 1.0 / 1.2 / 1.3 / 1.5 / 1.7: all poses 0.833 / 0.062 → 0.844 / 0.050, 0.850 / 0.044,
 # 0.856 / 0.037 (1.3–1.7; right hands dropped 5, 8, 14 frames at 1.3, 1.5, 1.7); separated
-# 0.922 / 0.051 → 0.928 / 0.046 (1.3–1.5).
+# 0.922 / 0.051 → 0.928 / 0.046 (1.3–1.5) (offline on the run's frames). Held out
+# (``benchmarks/quality.py``, quality_body.md, *no-hand-trunk* rows; gate off): all poses 0.79 /
+# 0.050 → 0.81 / 0.030 (misplaced 18 → 14 of 120), separated 0.97 / 0.025 → 0.97 / 0.017;
+# gate on all poses 0.72 / 0.034 → 0.72 / 0.022, separated 0.91 / 0.000 either way.
 HAND_ON_TRUNK = {"human": (("hand_1", "hand_2"), 0.6, 1.3)}
 
 

@@ -318,7 +318,8 @@ def foreground_maps(cap, frame, images=None) -> list:
     small = [downscale(img, cam, s) for img, cam in zip(images, cap.cameras)]
     if method == "person":       # the network alone needs no background model
         from .segment import person_probabilities
-        out = person_probabilities(small, [(id(cap), c) for c in range(len(small))])
+        index = cap.frames.index(frame) if p.get("person_track") else None
+        out = person_probabilities(small, [(id(cap), c) for c in range(len(small))], index)
         cap.cache["foreground_last"] = (ck, out)
         return out
     bgs = capture_backgrounds(cap)

@@ -211,3 +211,27 @@ def test_tracking_mode_keeps_a_graph_per_run_of_consecutive_frames(fake_mediapip
     runs = sorted(graphs.values())
     assert runs == [[0, 1, 2], [0, 1, 2], [2], [2], [3], [3], [5, 6], [5, 6]]
     assert _FakePose.made == 8
+
+
+def test_cut_and_person_track_fields(tmp_path, fake_mediapipe):
+    """``cut``: a pixel is subject when its probability exceeds it (hard fusion); it and
+    ``person_track`` (a boolean) are validated with the file and field named."""
+    from topopose import InputError
+    from topopose.capture.background import masks_from_maps
+
+    cap, _, _ = _scene(tmp_path)
+    q = np.zeros((cap.cameras[0].size[1], cap.cameras[0].size[0]), np.uint8)
+    q[0, :6] = [0, 76, 77, 127, 128, 255]
+    for cut, want in ((0.3, [0, 0, 1, 1, 1, 1]), (0.5, [0, 0, 0, 0, 1, 1])):
+        cap.options["silhouettes"]["cut"] = cut
+        m = masks_from_maps(cap, [q] * len(cap.cameras))[0]
+        assert m[0, :6].tolist() == [bool(x) for x in want] and m.sum() == sum(want)
+    root = tmp_path / "cap"
+    for extra, field in (("person_track = 1", "person_track"), ("cut = 1.5", "cut"),
+                         ("cut = true", "cut")):
+        (root / "capture.toml").write_text(TOML + extra + "\n")
+        with pytest.raises(InputError, match=field):
+            load_capture(root)
+    (root / "capture.toml").write_text(TOML + "person_track = false\ncut = 0.4\n")
+    opts = load_capture(root).options["silhouettes"]
+    assert opts["person_track"] is False and opts["cut"] == 0.4

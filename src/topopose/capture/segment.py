@@ -4,22 +4,23 @@ method = "person"``, ``"selfie"`` or ``"sequence+selfie"``).
 ``"person"``: MediaPipe's legacy *pose* solution (``mediapipe.solutions.pose``, BlazePose
 GHUM "full" model, inside the ``mediapipe`` wheel up to 0.10.14) with its segmentation output:
 the network finds the person, crops a region of interest around the whole body and returns a
-full-body person probability. Each image is segmented alone (``static_image_mode``): in
-tracking mode the mask of a frame depended on the frames segmented before it (the region of
-interest and the mask smoothing carry over), so a frame asked twice, or out of order, changed. Only that probability is used (its
-landmarks are not): the pose still comes from the hull's geometry. When it finds no one in a
-camera's image, that camera's probability is 0.5 everywhere (no vote).
+full-body person probability. Only that probability is used (its landmarks are not): the
+pose still comes from the hull's geometry. When it finds no one in a camera's image, that
+camera's probability is 0.5 everywhere (no vote).
 
 The network's input is fixed-size (BlazePose: the detector sees 224 × 224, the landmark and
 segmentation network a 256 × 256 crop around the person): its compute does not depend on the
-image's size, so segmenting a crop around the subject would not cut it (measured in
-``benchmarks/real.py``: 26 / 26 / 29 ms of CPU per image at 0.125 / 0.25 / 0.5 of
-1088 × 1920). What can be skipped is the *detector*: ``[silhouettes] person_track = true``
-runs MediaPipe in tracking mode (the region of interest comes from the previous frame's
-landmarks; the detector runs only when the person is lost), without mask smoothing. A graph is
-kept per camera and per run of consecutive frames: a frame that does not follow the camera's
-previous one starts a new graph (the detector runs, as in static mode), so a frame's mask
-depends only on the consecutive frames before it in that run.
+image's size, so segmenting a crop around the subject would not cut it (26 / 26 / 29 ms of
+CPU per image at 0.125 / 0.25 / 0.5 of 1088 × 1920, ``benchmarks/real.py`` times it). What can
+be skipped is the *detector*: ``[silhouettes] person_track = true`` (default) runs MediaPipe in
+tracking mode (the region of interest comes from the previous frame's landmarks; the detector
+runs only when the person is lost), without mask smoothing: 67 instead of 105–110 ms of CPU
+per 4-camera frame of the Pose2Sim recording, as many frames right
+(``benchmarks/results/real.md``). A graph is kept per camera and per run of consecutive
+frames: a frame that does not follow the camera's previous one (asked again, out of order)
+starts a new graph, which runs the detector as static mode does, so a frame's mask depends
+only on the consecutive frames before it in that run. ``false``: every image segmented alone
+(``static_image_mode``).
 
 MediaPipe's legacy *selfie segmentation* model (``mediapipe.solutions.selfie_segmentation``,
 the general 256 × 256 model, ~250 kB, inside the ``mediapipe`` wheel up to 0.10.14: nothing is

@@ -45,14 +45,14 @@ _LOCK = threading.Lock()     # guards _LOCKS and _POOL
 _POOL = []                   # the threads that run several cameras' networks at once
 
 
-def _process(make, key, rgb):
-    """Run the network ``_MODEL[key]`` (made by ``make()`` on first use) on an RGB image.
-    MediaPipe's graph wants increasing timestamps: calls are serialized, and a graph that
-    failed (e.g. a frame asked again out of order) is rebuilt once."""
+def _process(make, key, rgb, fresh=False):
+    """Run the network ``_MODEL[key]`` (made by ``make()`` on first use, or anew when
+    ``fresh``) on an RGB image. MediaPipe's graph wants increasing timestamps: calls are
+    serialized, and a graph that failed (e.g. a frame asked again out of order) is rebuilt once."""
     with _LOCK:
         lock = _LOCKS.setdefault(key, threading.Lock())
     with lock:
-        if key not in _MODEL:
+        if fresh or key not in _MODEL:
             _MODEL[key] = make()
         try:
             return _MODEL[key].process(rgb)
@@ -92,20 +92,13 @@ def person_probability(img: np.ndarray, stream="", index=None) -> np.ndarray:
     network (module docstring); 128 everywhere when it finds no one. ``stream``: the camera.
     ``index``: the frame's index in its sequence, for tracking mode (None: static mode); a
     frame that does not follow the stream's previous one starts a new graph."""
-    key = ("person", stream)
-    make = _pose
+    key, make, fresh = ("person", stream), _pose, False
     if index is not None:
-        key = ("person-track", stream)
-        make = lambda: _pose(track=True)          # noqa: E731
+        key, make = ("person-track", stream), lambda: _pose(track=True)   # noqa: E731
         with _LOCK:
             fresh = _LAST.get(key) != index - 1
             _LAST[key] = index
-        if fresh:
-            with _LOCK:
-                lock = _LOCKS.setdefault(key, threading.Lock())
-            with lock:
-                _MODEL.pop(key, None)
-    res = _process(make, key, np.ascontiguousarray(img[:, :, ::-1]))
+    res = _process(make, key, np.ascontiguousarray(img[:, :, ::-1]), fresh)
     if res.segmentation_mask is None:
         return np.full(img.shape[:2], 128, dtype=np.uint8)
     return np.clip(res.segmentation_mask * 255 + 0.5, 0, 255).astype(np.uint8)

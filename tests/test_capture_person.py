@@ -32,8 +32,12 @@ class _FakePose:
     made = 0
 
     def __init__(self, **kwargs):
-        assert kwargs["enable_segmentation"] and kwargs["static_image_mode"]
+        assert kwargs["enable_segmentation"]
+        # tracking mode (person_track) without the mask smoothing across frames
+        assert kwargs["static_image_mode"] or kwargs["smooth_segmentation"] is False
+        self.static = kwargs["static_image_mode"]
         type(self).made += 1
+        self.number = type(self).made
 
     def process(self, rgb):
         if tuple(rgb[0, 0]) == (255, 0, 0):
@@ -51,6 +55,7 @@ def fake_mediapipe(monkeypatch):
         monkeypatch.setitem(sys.modules, name, types.ModuleType(name))
     monkeypatch.setitem(sys.modules, "mediapipe.python.solutions.pose", mod)
     monkeypatch.setattr(segment, "_MODEL", {})
+    monkeypatch.setattr(segment, "_LAST", {})
     _FakePose.made = 0
 
 
@@ -179,3 +184,54 @@ def test_cameras_run_in_threads_each_on_its_own_network(fake_mediapipe):
     for calls in seen.values():     # one camera per network, its frames in order
         c = next(c for c in range(4) if np.array_equal(calls[0], frames[0][c][:, :, ::-1]))
         assert all(np.array_equal(x, frames[i][c][:, :, ::-1]) for i, x in enumerate(calls))
+
+
+def test_tracking_mode_keeps_a_graph_per_run_of_consecutive_frames(fake_mediapipe):
+    """person_track: one tracking graph per camera while frames follow each other; a frame that
+    does not follow the camera's previous one (asked again, skipped, out of order) gets a new
+    graph, so its mask does not depend on frames outside its run."""
+    from topopose.capture import segment
+
+    graphs = {}
+    orig = _FakePose.process
+
+    def process(self, rgb):
+        assert not self.static
+        graphs.setdefault(self.number, []).append(int(rgb[0, 0, 0]))
+        return orig(self, rgb)
+
+    _FakePose.process = process
+    try:
+        for i in (0, 1, 2, 2, 5, 6, 3):
+            img = np.full((20, 30, 3), i, np.uint8)
+            q = segment.person_probabilities([img, img], [("a", 0), ("a", 1)], i)
+            assert len(q) == 2 and q[0].shape == (20, 30)
+    finally:
+        _FakePose.process = orig
+    runs = sorted(graphs.values())
+    assert runs == [[0, 1, 2], [0, 1, 2], [2], [2], [3], [3], [5, 6], [5, 6]]
+    assert _FakePose.made == 8
+
+
+def test_cut_and_person_track_fields(tmp_path, fake_mediapipe):
+    """``cut``: a pixel is subject when its probability exceeds it (hard fusion); it and
+    ``person_track`` (a boolean) are validated with the file and field named."""
+    from topopose import InputError
+    from topopose.capture.background import masks_from_maps
+
+    cap, _, _ = _scene(tmp_path)
+    q = np.zeros((cap.cameras[0].size[1], cap.cameras[0].size[0]), np.uint8)
+    q[0, :6] = [0, 76, 77, 127, 128, 255]
+    for cut, want in ((0.3, [0, 0, 1, 1, 1, 1]), (0.5, [0, 0, 0, 0, 1, 1])):
+        cap.options["silhouettes"]["cut"] = cut
+        m = masks_from_maps(cap, [q] * len(cap.cameras))[0]
+        assert m[0, :6].tolist() == [bool(x) for x in want] and m.sum() == sum(want)
+    root = tmp_path / "cap"
+    for extra, field in (("person_track = 1", "person_track"), ("cut = 1.5", "cut"),
+                         ("cut = true", "cut")):
+        (root / "capture.toml").write_text(TOML + extra + "\n")
+        with pytest.raises(InputError, match=field):
+            load_capture(root)
+    (root / "capture.toml").write_text(TOML + "person_track = false\ncut = 0.4\n")
+    opts = load_capture(root).options["silhouettes"]
+    assert opts["person_track"] is False and opts["cut"] == 0.4

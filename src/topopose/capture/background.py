@@ -318,7 +318,8 @@ def foreground_maps(cap, frame, images=None) -> list:
     small = [downscale(img, cam, s) for img, cam in zip(images, cap.cameras)]
     if method == "person":       # the network alone needs no background model
         from .segment import person_probabilities
-        out = person_probabilities(small, [(id(cap), c) for c in range(len(small))])
+        index = cap.frames.index(frame) if p.get("person_track") else None
+        out = person_probabilities(small, [(id(cap), c) for c in range(len(small))], index)
         cap.cache["foreground_last"] = (ck, out)
         return out
     bgs = capture_backgrounds(cap)
@@ -349,10 +350,12 @@ def foreground_maps(cap, frame, images=None) -> list:
 
 
 def masks_from_maps(cap, maps) -> list:
-    """Boolean silhouettes at the calibration size from probability maps (p > 0.5)."""
+    """Boolean silhouettes at the calibration size from probability maps (p > ``[silhouettes]
+    cut``, default 0.5)."""
+    cut = int(255 * float(cap.options["silhouettes"].get("cut", 0.5)))
     out = []
     for q, cam in zip(maps, cap.cameras):
-        m = (q > 127).astype(np.uint8)
+        m = (q > cut).astype(np.uint8)
         if m.shape != (cam.size[1], cam.size[0]):
             m = cv2.resize(m, tuple(cam.size), interpolation=cv2.INTER_NEAREST)
         out.append(m.astype(bool))
@@ -365,6 +368,8 @@ def check_params(path, p) -> None:
         raise InputError(f"{path}: [silhouettes] field 'scale' must be in [0.05, 1], got {p['scale']!r}")
     if int(p["samples"]) < 3:
         raise InputError(f"{path}: [silhouettes] field 'samples' must be ≥ 3, got {p['samples']!r}")
+    if not 0.0 < float(p.get("cut", 0.5)) < 1.0:
+        raise InputError(f"{path}: [silhouettes] field 'cut' must be in (0, 1), got {p['cut']!r}")
     for k in ("p_detect", "p_false"):
         if not 0.0 < float(p[k]) < 1.0:
             raise InputError(f"{path}: [silhouettes] field {k!r} must be in (0, 1), got {p[k]!r}")

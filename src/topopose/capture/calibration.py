@@ -48,13 +48,15 @@ SILHOUETTE_DEFAULTS = {
     "occupancy": 0.5,      # soft fusion: posterior occupancy above which a voxel is in the hull
     "open3d": 1,           # soft fusion: 3D opening of the hull by a (2k + 1)³ cube (0: none)
     "selfie_floor": 0.0,   # selfie: the network's probability is raised to at least this (a weak "no")
+    "person_track": True,  # person: MediaPipe's tracking mode (detector skipped between frames)
+    "cut": 0.5,            # hard fusion: a pixel is subject when its probability exceeds this
 }
 _SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (int, float), "open": int,
               "close": int, "min_area": int, "fill_holes": int, "scale": (int, float),
               "samples": int, "reveal": (int, float), "shadow": (int, float), "uncertain": (int, float),
               "zone_margin": (int, float), "fusion": str, "p_detect": (int, float),
               "p_false": (int, float), "occupancy": (int, float), "open3d": int,
-              "selfie_floor": (int, float)}
+              "selfie_floor": (int, float), "person_track": bool, "cut": (int, float)}
 _CAPTURE_KEYS = {"up", "units", "fps", "volume", "size_policy"}
 #: What to do with an image whose size differs from its camera's calibration size
 SIZE_POLICIES = ("error", "scale", "pad")
@@ -215,7 +217,7 @@ def read_capture_options(path, cameras=()) -> dict:
         if k not in _SIL_TYPES:
             raise InputError(f"{path}: [silhouettes] unknown field '{k}' "
                              f"(known: {', '.join(sorted(_SIL_TYPES))})")
-        if isinstance(v, bool) or not isinstance(v, _SIL_TYPES[k]):
+        if (isinstance(v, bool) != (_SIL_TYPES[k] is bool)) or not isinstance(v, _SIL_TYPES[k]):
             raise InputError(f"{path}: [silhouettes] field '{k}' has the wrong type ({v!r})")
         if k not in ("method", "fusion") and v < 0:
             raise InputError(f"{path}: [silhouettes] field '{k}' must be ≥ 0, got {v!r}")

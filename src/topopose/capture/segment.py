@@ -4,11 +4,23 @@ method = "person"``, ``"selfie"`` or ``"sequence+selfie"``).
 ``"person"``: MediaPipe's legacy *pose* solution (``mediapipe.solutions.pose``, BlazePose
 GHUM "full" model, inside the ``mediapipe`` wheel up to 0.10.14) with its segmentation output:
 the network finds the person, crops a region of interest around the whole body and returns a
-full-body person probability. Each image is segmented alone (``static_image_mode``): in
-tracking mode the mask of a frame depended on the frames segmented before it (the region of
-interest and the mask smoothing carry over), so a frame asked twice, or out of order, changed. Only that probability is used (its
-landmarks are not): the pose still comes from the hull's geometry. When it finds no one in a
-camera's image, that camera's probability is 0.5 everywhere (no vote).
+full-body person probability. Only that probability is used (its landmarks are not): the
+pose still comes from the hull's geometry. When it finds no one in a camera's image, that
+camera's probability is 0.5 everywhere (no vote).
+
+The network's input is fixed-size (BlazePose: the detector sees 224 × 224, the landmark and
+segmentation network a 256 × 256 crop around the person): its compute does not depend on the
+image's size, so segmenting a crop around the subject would not cut it (26 / 26 / 29 ms of
+CPU per image at 0.125 / 0.25 / 0.5 of 1088 × 1920, ``benchmarks/real.py`` times it). What can
+be skipped is the *detector*: ``[silhouettes] person_track = true`` (default) runs MediaPipe in
+tracking mode (the region of interest comes from the previous frame's landmarks; the detector
+runs only when the person is lost), without mask smoothing: 67 instead of 105–110 ms of CPU
+per 4-camera frame of the Pose2Sim recording, as many frames right
+(``benchmarks/results/real.md``). A graph is kept per camera and per run of consecutive
+frames: a frame that does not follow the camera's previous one (asked again, out of order)
+starts a new graph, which runs the detector as static mode does, so a frame's mask depends
+only on the consecutive frames before it in that run. ``false``: every image segmented alone
+(``static_image_mode``).
 
 MediaPipe's legacy *selfie segmentation* model (``mediapipe.solutions.selfie_segmentation``,
 the general 256 × 256 model, ~250 kB, inside the ``mediapipe`` wheel up to 0.10.14: nothing is
@@ -33,14 +45,14 @@ _LOCK = threading.Lock()     # guards _LOCKS and _POOL
 _POOL = []                   # the threads that run several cameras' networks at once
 
 
-def _process(make, key, rgb):
-    """Run the network ``_MODEL[key]`` (made by ``make()`` on first use) on an RGB image.
-    MediaPipe's graph wants increasing timestamps: calls are serialized, and a graph that
-    failed (e.g. a frame asked again out of order) is rebuilt once."""
+def _process(make, key, rgb, fresh=False):
+    """Run the network ``_MODEL[key]`` (made by ``make()`` on first use, or anew when
+    ``fresh``) on an RGB image. MediaPipe's graph wants increasing timestamps: calls are
+    serialized, and a graph that failed (e.g. a frame asked again out of order) is rebuilt once."""
     with _LOCK:
         lock = _LOCKS.setdefault(key, threading.Lock())
     with lock:
-        if key not in _MODEL:
+        if fresh or key not in _MODEL:
             _MODEL[key] = make()
         try:
             return _MODEL[key].process(rgb)
@@ -60,36 +72,50 @@ def _selfie():
     return selfie_segmentation.SelfieSegmentation(model_selection=0)
 
 
-def _pose():
+def _pose(track=False):
     try:
         from mediapipe.python.solutions import pose
     except ImportError:
         raise InputError("[silhouettes] method \"person\" needs MediaPipe ≤ 0.10.14 "
                          "(pip install \"topopose[segment]\")") from None
+    if track:
+        return pose.Pose(static_image_mode=False, model_complexity=1, enable_segmentation=True,
+                         smooth_landmarks=False, smooth_segmentation=False)
     return pose.Pose(static_image_mode=True, model_complexity=1, enable_segmentation=True)
 
 
-def person_probability(img: np.ndarray, stream="") -> np.ndarray:
+_LAST = {}                   # tracking: stream → index of the frame it segmented last
+
+
+def person_probability(img: np.ndarray, stream="", index=None) -> np.ndarray:
     """uint8 (h, w) full-body person probability (× 255) of a BGR image from MediaPipe's pose
-    network (module docstring); 128 everywhere when it finds no one. ``stream``: the camera."""
-    res = _process(_pose, ("person", stream), np.ascontiguousarray(img[:, :, ::-1]))
+    network (module docstring); 128 everywhere when it finds no one. ``stream``: the camera.
+    ``index``: the frame's index in its sequence, for tracking mode (None: static mode); a
+    frame that does not follow the stream's previous one starts a new graph."""
+    key, make, fresh = ("person", stream), _pose, False
+    if index is not None:
+        key, make = ("person-track", stream), lambda: _pose(track=True)   # noqa: E731
+        with _LOCK:
+            fresh = _LAST.get(key) != index - 1
+            _LAST[key] = index
+    res = _process(make, key, np.ascontiguousarray(img[:, :, ::-1]), fresh)
     if res.segmentation_mask is None:
         return np.full(img.shape[:2], 128, dtype=np.uint8)
     return np.clip(res.segmentation_mask * 255 + 0.5, 0, 255).astype(np.uint8)
 
 
-def person_probabilities(images, streams) -> list:
+def person_probabilities(images, streams, index=None) -> list:
     """:func:`person_probability` of several cameras' images at once, one thread per camera
     (MediaPipe releases the GIL while its graph runs: on 2 idle cores the 4 cameras of the
     Pose2Sim recording took 111 ms instead of 174 ms one after the other; ``benchmarks/real.py``
-    times both)."""
+    times both). ``index``: tracking mode (:func:`person_probability`)."""
     if len(images) == 1:
-        return [person_probability(images[0], streams[0])]
+        return [person_probability(images[0], streams[0], index)]
     with _LOCK:
         if not _POOL:
             from concurrent.futures import ThreadPoolExecutor
             _POOL.append(ThreadPoolExecutor(4, thread_name_prefix="topopose-person"))
-    return list(_POOL[0].map(person_probability, images, streams))
+    return list(_POOL[0].map(person_probability, images, streams, [index] * len(images)))
 
 
 def selfie_probability(img: np.ndarray, zone: np.ndarray | None = None, stream="") -> np.ndarray:

@@ -203,7 +203,8 @@ class FrameEstimator:
         thick_top`, :data:`topopose.pose.tips.HEAD_BALL`), else the next highest thick point
         is tried: a raised fist is as thick as ``head_from_hull``'s fraction. With it the head
         comes from the hull on coarser grids too (down to 1.2 voxels of thickness rather than
-        1.5). None: the model's entry (human: 0.46, measured there); 0: off.
+        1.5). None: the model's entry (human: 0.46 with 6 cameras or more, measured there);
+        0: off.
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -324,8 +325,9 @@ class FrameEstimator:
         # the head from the hull holds a head-sized ball (tips.HEAD_BALL): (ball, reach)
         from .tips import HEAD_BALL
         rule = HEAD_BALL.get(self.model.name)
-        ball = (rule[0] if rule else 0.0) if head_ball is None else float(head_ball)
-        self.head_ball = ((ball, *(rule[1:] if rule else (1.5, 1.5))) if ball > 0 else None)
+        ball = ((rule[0] if rule and len(cap.cameras) >= rule[3] else 0.0) if head_ball is None
+                else float(head_ball))
+        self.head_ball = ((ball, *(rule[1:3] if rule else (1.5, 1.5))) if ball > 0 else None)
 
     def arc_cost(self, vol, data, radii=None):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off.

@@ -415,6 +415,16 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
 DROP_PARTS = ("head", "hand_1", "hand_2", "foot_1", "foot_2")
 
 
+def untrusted_part(confidences: dict, minimum: float):
+    """The part whose removal explains a frame's doubt: of ``confidences`` (part → confidence
+    of the frame without it), the one scoring highest, if it reaches ``minimum`` and no other
+    part scores as high (a tie — both hands' removal alike — names no one part: None)."""
+    ranked = sorted(confidences.items(), key=lambda kv: -kv[1])
+    if not ranked or ranked[0][1] < minimum or (len(ranked) > 1 and ranked[1][1] >= ranked[0][1]):
+        return None
+    return ranked[0][0]
+
+
 def drop_part_features(vol, n_vox, data, model, up, distance, threshold, missing, al,
                        thickness_cost, radii, missing_cost, parts, part) -> dict:
     """:func:`frame_features` of the frame with ``part`` left unplaced: its data vertex and
@@ -557,19 +567,15 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
             and str(error).split("; ")[-1].startswith("confidence")
             and parts and all(x is not None for x in parts.values())):
         # per-part trust: the frame without the one part that explains the doubt
-        best = None
-        for part in drop_parts:
-            if parts.get(part) is None:
-                continue
-            fp = drop_part_features(vol, n_vox, data, model, up, distance, threshold, missing,
-                                    al, thickness_cost, radii, missing_cost, parts, part)
-            cp = fitted_confidence(fp, share, min_share)
-            if best is None or cp["confidence"] > best[1]["confidence"]:
-                best = (part, cp)
-        if best is not None and best[1]["confidence"] >= min_drop_for(min_confidence):
-            untrusted = best[0]
+        cps = {part: fitted_confidence(drop_part_features(
+                   vol, n_vox, data, model, up, distance, threshold, missing, al,
+                   thickness_cost, radii, missing_cost, parts, part), share, min_share)
+               for part in drop_parts if parts.get(part) is not None}
+        untrusted = untrusted_part({p: c["confidence"] for p, c in cps.items()},
+                                   min_drop_for(min_confidence))
+        if untrusted is not None:
             status, error = "matched", None
-            conf = {**best[1], "all_parts": conf["confidence"]}
+            conf = {**cps[untrusted], "all_parts": conf["confidence"]}
     metre = _UNITS.get(units, 1.0)
     diag = {"hull_litres": round(n_vox * (vol.voxel_size * metre) ** 3 * 1000.0, 2),
             "largest_share": round(share, 4), "components_dropped": dropped[:5],

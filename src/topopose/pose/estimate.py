@@ -532,6 +532,7 @@ class FrameEstimator:
         if extra.get("untrusted"):     # per-part trust: unplaced, its best guess kept
             extra["untrusted_guess"] = np.round(parts[extra["untrusted"]], 6).tolist()
             parts = {**parts, extra["untrusted"]: None}
+            on_skeleton[extra["untrusted"]] = None      # no curve for it either
         diag = {"model": self.model.name, "resolution": self.resolution,
                 "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
                 "skeleton_voxels": int(data.diagnostics.get("n_voxels", -1)),

@@ -400,3 +400,18 @@ def test_part_trust_unplaces_the_part_that_explains_the_doubt(clean, monkeypatch
     assert trusted.diagnostics["confidence"] >= 0.5 > trusted.diagnostics["confidence_all_parts"]
     assert np.allclose(trusted.diagnostics["untrusted_guess"], whole.parts[p1], atol=1e-5)
     assert all(np.allclose(trusted.parts[p], whole.parts[p]) for p in whole.parts if p != p1)
+
+
+def test_untrusted_part_needs_one_part_above_the_rest():
+    """The part named is the single best one reaching the minimum; a tie or nothing above the
+    minimum names none (brute force over small tables)."""
+    assert C.untrusted_part({"head": 0.8, "hand_1": 0.6}, 0.7) == "head"
+    assert C.untrusted_part({"hand_1": 0.8, "hand_2": 0.8, "head": 0.1}, 0.7) is None
+    assert C.untrusted_part({"hand_1": 0.69, "foot_1": 0.5}, 0.7) is None
+    assert C.untrusted_part({}, 0.7) is None
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        cs = {p: float(x) for p, x in zip(C.DROP_PARTS, rng.choice([0.2, 0.5, 0.8, 0.9], 5))}
+        got = C.untrusted_part(cs, 0.75)
+        top = [p for p, c in cs.items() if c == max(cs.values())]
+        assert got == (top[0] if len(top) == 1 and cs[top[0]] >= 0.75 else None)

@@ -29,13 +29,14 @@ precision / recall at other minima (held out, per set-up) shows the trade-off;
 ``--body-benchmark`` applies the same rules to quality.py's own body frames (seeds 21, 22, 8
 cameras: a check, never fitted on); ``--real`` to the real recording of ``benchmarks/real.py``
 (Pose2Sim's balancing trial, 4 phone cameras, person silhouettes: a check, never fitted on).
-``--rows results/confidence.json`` reuses the frames of an earlier run, its body-benchmark and
+``--rows results/confidence.json.gz`` reuses the frames of an earlier run, its body-benchmark and
 real-recording frames too (no pipeline run: for trying features and models; the kinds of model
 are compared by ``benchmarks/confidence_models.py``).
 """
 from __future__ import annotations
 
 import argparse
+import gzip
 import itertools
 import json
 import sys
@@ -661,7 +662,7 @@ def fit_features(spec: str) -> tuple:
 
 def main(argv=None):
     global ROD_WEIGHT, DROP_WEIGHT
-    from _machine import machine, results_dir
+    from _machine import machine, read_rows, results_dir
     from topopose.pose import confidence as C
 
     ap = argparse.ArgumentParser()
@@ -703,7 +704,7 @@ def main(argv=None):
     subjects = a.subjects.split(",")
     old = {}
     if a.rows:
-        old = json.loads(Path(a.rows).read_text())
+        old = read_rows(a.rows)
         rows, a.frames, a.seeds, a.body_seeds = (old["rows"], old["frames_per_capture"],
                                                  old["seeds"], old["body_seeds"])
         a.setups = old.get("setups", a.setups)
@@ -754,7 +755,8 @@ def main(argv=None):
         out["body_benchmark"] = body_benchmark(rules, cached=old.get("body_rows"))
         out["body_rows"] = out["body_benchmark"].pop("rows")
     res = results_dir()
-    (res / "confidence.json").write_text(json.dumps(out, separators=(",", ":")))
+    # the rows (each frame with its one-part-left-out variants) are large: gzip, for --rows
+    (res / "confidence.json.gz").write_bytes(gzip.compress(json.dumps(out, separators=(",", ":")).encode(), 9))
     groups = ["all"] + ["/".join(k) for k in kinds]
     setups = "; ".join(f"{k}: {c} cameras {w}×{h} noise {n}" for k in a.setups.split(",")
                        for c, (w, h), n in [SETUPS[k]])

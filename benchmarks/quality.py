@@ -248,6 +248,9 @@ def body_rows(quick, out, suffix):
                                                                       matched_distance=False))
     row("body all-poses noise1 whole-distance gate-off", *body_study(allp, 100, gate=False,
                                                                       matched_distance=False))
+    # per-part trust (pose/confidence.py judge_frame, DROP_PARTS) off: its peer, gate on
+    row("body separated noise1 no-part-trust", *body_study(sep, 100, part_trust=False))
+    row("body all-poses noise1 no-part-trust", *body_study(allp, 100, part_trust=False))
     row("body separated noise1 two-pass", *body_study(sep, 100, two_pass=True))
     row("body all-poses noise1 two-pass", *body_study(allp, 100, two_pass=True))
     if not quick:

@@ -212,6 +212,11 @@ class FrameEstimator:
         ``matched`` also needs the frame's confidence (:mod:`.confidence`) ≥ ``min_confidence``.
         None (default): :func:`default_gate` (on), off with ``constraints=False`` (the fitted
         confidence knows upright subjects only).
+    part_trust : bool or None
+        Per-part trust (:func:`topopose.pose.confidence.judge_frame`): a frame the gate alone
+        rejects is matched without the one extremity (head, hand, foot) whose removal makes
+        the confidence reach the minimum; that part is unplaced, its guess kept in
+        ``diagnostics["untrusted_guess"]``. None (default) or True: on; False: off.
     """
 
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
@@ -221,8 +226,8 @@ class FrameEstimator:
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
                  tip_fraction=1.0, spine=None, tip_anchor=None,
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
-                 short_arm=None, trunk_blend=None, placed_missing=None, hand_trunk=None,
-                 head_ball=None):
+                 short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
+                 hand_trunk=None, head_ball=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -233,6 +238,8 @@ class FrameEstimator:
         # inverted one
         self.gate = ((default_gate(cap) and constraints) if gate is None else bool(gate))
         self.min_confidence = None if min_confidence is None else float(min_confidence)
+        # per-part trust (pose/confidence.py judge_frame, DROP_PARTS): None/True on, False off
+        self.part_trust = part_trust is not False
 
         self.cap = cap
         self.model: Model = load_model(model, constraints=constraints)
@@ -523,6 +530,7 @@ class FrameEstimator:
             if p is not None:
                 on_core.append(p)
                 parts[p] = None
+                on_skeleton[p] = None      # no curve to the elbow either
                 missing.append(p)
         on_trunk = False
         if self.trunk is not None:       # a torso slid down to the crotch (pose/anatomy.py)
@@ -549,13 +557,18 @@ class FrameEstimator:
             if unordered:
                 error += "; no co-optimal alignment satisfies the betweenness constraint"
         # what the hull lost and how far to trust the frame (topopose.pose.confidence)
-        from .confidence import judge_frame
+        from .confidence import DROP_PARTS, judge_frame
 
         status, error, extra = judge_frame(
             vol, n_vox, data, self.model, self.up, dist, self.threshold, len(missing), status,
             error, self.min_share, self.min_confidence if self.gate else None, self.cap.units,
             al=al, thickness_cost=thick, reach=self.thickness_reach,
-            radius_map=radii, missing_cost=mcost, parts=parts)
+            radius_map=radii, missing_cost=mcost, parts=parts,
+            drop_parts=DROP_PARTS if self.part_trust else ())
+        if extra.get("untrusted"):     # per-part trust: unplaced, its best guess kept
+            extra["untrusted_guess"] = np.round(parts[extra["untrusted"]], 6).tolist()
+            parts = {**parts, extra["untrusted"]: None}
+            on_skeleton[extra["untrusted"]] = None      # no curve for it either
         diag = {"model": self.model.name, "resolution": self.resolution,
                 "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
                 "skeleton_voxels": int(data.diagnostics.get("n_voxels", -1)),

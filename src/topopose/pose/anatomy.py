@@ -127,7 +127,8 @@ CROTCH_DROP = {"human": ("crotch", 0.35, 0.10, 0.5)}
 # 0.922 / 0.051 → 0.928 / 0.046 (1.3–1.5) (offline on the run's frames). Held out
 # (``benchmarks/quality.py``, quality_body.md, *no-hand-trunk* rows; gate off): all poses 0.79 /
 # 0.050 → 0.81 / 0.030 (misplaced 18 → 14 of 120), separated 0.97 / 0.025 → 0.97 / 0.017;
-# gate on all poses 0.72 / 0.034 → 0.72 / 0.022, separated 0.91 / 0.000 either way.
+# gate on (main's refit with per-part trust) 0.74 / 0.022 and 0.95 / 0.009 either way. Capsule
+# human (quality.md): TP rates unchanged, a few right hands become "missing limb".
 HAND_ON_TRUNK = {"human": (("hand_1", "hand_2"), 0.6, 1.3)}
 
 

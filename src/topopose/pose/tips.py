@@ -187,9 +187,9 @@ TIP_ANCHOR = {"human": {"head": ("torso", 3.0)}}
 #: 0.833 / 0.062 → 0.839 / 0.056 either way; at 50³ (seeds 41, 42, separated) 0.575 / 0.355 →
 #: 0.575 / 0.355 → 0.625 / 0.299, wrong heads 11 → 11 → 5. Held out (``benchmarks/quality.py``,
 #: quality_body.md, *no-head-ball* rows, with HAND_ON_TRUNK; gate off): separated 0.97 / 0.025
-#: → 0.97 / 0.017 (misplaced 4 → 3 of 120), all poses 0.81 / 0.030 either way; gate on the same
-#: (0.91 / 0.000; 0.72 / 0.022); 50³ separated, both rules against the previous run: good +
-#: missing limb 70 → 74 of 120, misplaced 47 → 43.
+#: → 0.97 / 0.017 (misplaced 4 → 3 of 120), all poses 0.81 / 0.030 either way; gate on
+#: separated 0.95 / 0.009 → 0.96 / 0.009, all poses 0.74 / 0.022 either way; 50³ separated, both
+#: rules against main's run: good + missing limb 70 → 76 of 120, misplaced 47 → 41.
 #: With few cameras the hull's trunk carries phantom volume and its largest radius grows, so a
 #: real head no longer holds 0.46 of it: on the real recording (4 cameras, ``benchmarks/real.py``,
 #: person silhouettes) the check set the head aside in 2 of 100 frames (head 0.03 → 0.29–0.33 m,

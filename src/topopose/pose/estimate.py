@@ -191,6 +191,10 @@ class FrameEstimator:
         (:func:`short_limb`, :data:`SHORT_ARM`): a forearm folded onto the body ends the arm's
         skeleton branch at the elbow, where the hand was placed. None: the model's entry
         (human: 0.35, measured there); 0: off.
+    keep_junctions : bool or None
+        Never contract a constrained model arc between two junctions (the human trunk, torso
+        above crotch): :data:`topopose.match.align.KEEP_CONSTRAINED_JUNCTIONS` (on) when None.
+        Measured in ``benchmarks/real_align.py``.
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -207,7 +211,7 @@ class FrameEstimator:
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
                  tip_fraction=1.0, spine=None, tip_anchor=None,
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
-                 short_arm=None, trunk_blend=None, placed_missing=None):
+                 short_arm=None, trunk_blend=None, placed_missing=None, keep_junctions=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -246,7 +250,10 @@ class FrameEstimator:
         self.junctions = ({p for p in self.model.parts if len(adj[p]) > 1}
                           if junction_centroid else set())
         self.up = np.asarray(cap.up_vector, dtype=float)
-        self.matcher = Matcher(self.pattern, method="aha", cut=False, up=self.up)
+        from ..match.align import KEEP_CONSTRAINED_JUNCTIONS
+        self.matcher = Matcher(self.pattern, method="aha", cut=False, up=self.up,
+                               keep_junctions=(KEEP_CONSTRAINED_JUNCTIONS if keep_junctions is None
+                                               else bool(keep_junctions)))
         self.warmup = None      # first run: the helper process of topopose._coldstart.start_warmup
         self.thickness_profile = (THICKNESS.get(self.model.name) if thickness_profile is None
                                   else dict(thickness_profile))

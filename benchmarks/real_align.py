@@ -7,13 +7,17 @@ wrong while a data-tree leaf lies within 0.10 m of a wrong part's reference poin
 *alignment/placement* stage of ``benchmarks/real_diagnose.py``), it compares the chosen
 alignment with the *right mapping* built from Pose2Sim's 3D result: each leaf part on the data
 leaf nearest its reference point, the torso on the tree median of the head and hand leaves,
-the crotch on the median of the torso and the foot leaves. Both are costed with the same terms
+the crotch on the median of the torso and the foot leaves; a part without a leaf within
+0.10 m is deleted (missing) in it (details in :func:`right_mapping`). Both are costed with the same terms
 (thesis §10, AHA with γ = |w − w′|, data normalized to total weight 1):
 
 - *length*: Σ over the model arcs |w − L| (L: the data path's length; a deleted model arc
   costs w) + the data weight left off every matched path (deleted spurious branches);
 - *thickness*: the arc cost term of ``FrameEstimator`` (``estimate.THICKNESS``);
-- the coordinate constraints of the human model (a violated one forbids the mapping).
+- the coordinate constraints of the human model (a violated one forbids the mapping);
+- *share edges*: two model arcs of the right mapping run over the same data edges (e.g. a
+  hand's leaf branches off a leg's path: the data tree's topology is wrong there, and no
+  alignment — a homeomorphism — can give the right mapping).
 
 The chosen alignment's terms are its own (``al.distance``, ``matched_arc_cost``); *trunk
 contracted*: its torso → crotch arc is deleted (both junctions on one data vertex). Each frame
@@ -74,40 +78,59 @@ def tree_median(adj, a, b, c):
 
 
 def mapping_terms(est, data, arc_cost, M) -> dict:
-    """Length and thickness terms of the full mapping ``M`` (part → data vertex)."""
+    """Length and thickness terms of the mapping ``M`` (part → data vertex, None: deleted)."""
     weights = {(u, v): w for u, v, w in est.pattern.edges}
     adj = data.adjacency()
-    lengths, edges, overlap = {}, set(), False
-    for a in ARCS:
+    lengths, edges, shared = {}, {}, set()
+    arcs = [a for a in ARCS if M[a[1]] is not None]
+    for a in arcs:
         p, L = tree_path(adj, M[a[0]], M[a[1]])
-        for e in zip(p[:-1], p[1:]):
-            overlap |= frozenset(e) in edges
-            edges.add(frozenset(e))
+        for e in map(frozenset, zip(p[:-1], p[1:])):
+            if e in edges:
+                shared.add(f"{edges[e][1]}/{a[1]}")
+            edges[e] = a
         lengths[a] = L
     length = (sum(abs(weights[a] - L) for a, L in lengths.items())
+              + sum(weights[a] for a in ARCS if a not in lengths)
               + data.total_weight() - sum(lengths.values()))
     thick = 0.0
     if arc_cost is not None:
-        C = arc_cost([a[0] for a in ARCS], [a[1] for a in ARCS], [M[a[0]] for a in ARCS],
-                     [M[a[1]] for a in ARCS])
+        C = arc_cost([a[0] for a in arcs], [a[1] for a in arcs], [M[a[0]] for a in arcs],
+                     [M[a[1]] for a in arcs])
         thick = float(np.trace(np.asarray(C)))
-    h = {p: float(data.positions[v] @ est.up) for p, v in M.items()}
+    h = {p: float(data.positions[v] @ est.up) for p, v in M.items() if v is not None}
     return {"length": round(length, 3), "thickness": round(thick, 3),
-            "violated": [f"{a} above {b}" for a, b in ABOVE if h[a] <= h[b]],
-            "shared_edges": overlap}
+            "violated": [f"{a} above {b}" for a, b in ABOVE if a in h and b in h and h[a] <= h[b]],
+            "shared_edges": sorted(shared), "missing": [p for p, v in M.items() if v is None]}
 
 
-def right_mapping(data, pts) -> dict:
+def right_mapping(data, pts, ref_hip) -> dict:
+    """Each leaf part on the data leaf nearest its reference point, or None (deleted, a
+    missing part) when none lies within ``real_diagnose.LEAF_NEAR``; the torso on the tree
+    median of the head and hand leaves (a foot leaf for a missing one), the crotch on the
+    median of the torso and the foot leaves (with a foot missing: the vertex of the path torso
+    → the other foot nearest the mid-hip reference)."""
     leaves = [v for v in data.vertices if data.degree(v) == 1]
 
     def near(P):
-        return min(leaves, key=lambda v: float(np.linalg.norm(data.positions[v] - P)))
+        v = min(leaves, key=lambda v: float(np.linalg.norm(data.positions[v] - P)))
+        return v if np.linalg.norm(data.positions[v] - P) <= real_diagnose.LEAF_NEAR else None
 
     M = {"head": near(pts["head"]), "hand_1": near(pts["hand_L"]), "hand_2": near(pts["hand_R"]),
          "foot_1": near(pts["foot_L"]), "foot_2": near(pts["foot_R"])}
     adj = data.adjacency()
-    M["torso"] = tree_median(adj, M["head"], M["hand_1"], M["hand_2"])
-    M["crotch"] = tree_median(adj, M["torso"], M["foot_1"], M["foot_2"])
+    up = [M[k] for k in ("head", "hand_1", "hand_2") if M[k] is not None]
+    feet = [M[k] for k in ("foot_1", "foot_2") if M[k] is not None]
+    if len(up) + len(feet) < 3 or not feet or len(set(up + feet)) < len(up + feet):
+        return None
+    M["torso"] = tree_median(adj, *(up + feet)[:3]) if len(up) >= 2 else None
+    if M["torso"] is None:
+        return None
+    if len(feet) == 2:
+        M["crotch"] = tree_median(adj, M["torso"], *feet)
+    else:
+        path, _ = tree_path(adj, M["torso"], feet[0])
+        M["crotch"] = min(path, key=lambda v: float(np.linalg.norm(data.positions[v] - ref_hip)))
     return M
 
 
@@ -115,7 +138,7 @@ def cause(ch, rt) -> str:
     if rt["violated"]:
         return "right mapping violates a constraint"
     if rt["shared_edges"]:
-        return "right mapping not a tree alignment (shared edges)"
+        return "no tree alignment gives it: " + ", ".join(rt["shared_edges"]) + " share edges"
     if ch["trunk_contracted"]:
         return "trunk contracted"
     dl = rt["length"] - ch["length"]
@@ -158,8 +181,13 @@ def run(est, cap, ref, volumes) -> dict:
             deleted = {frozenset(e) for e in (al.deleted_pattern or [])}
             ch = {"length": round(float(al.distance) - thick, 3), "thickness": round(thick, 3),
                   "trunk_contracted": frozenset(("torso", "crotch")) in deleted}
-            rt = mapping_terms(est, data, arc_cost, right_mapping(data, pts))
-            row.update(chosen=ch, right=rt, cause=cause(ch, rt))
+            g = {k: v[i] for k, v in ref.items()}
+            R = right_mapping(data, pts, (g["LHip"] + g["RHip"]) / 2)
+            if R is None:
+                row.update(chosen=ch, cause="no right mapping (two parts share a leaf or lack one)")
+            else:
+                rt = mapping_terms(est, data, arc_cost, R)
+                row.update(chosen=ch, right=rt, cause=cause(ch, rt))
         rows.append(row)
     stats = {}
     for k, v in per.items():
@@ -212,7 +240,8 @@ def main(argv=None):
         causes = {}
         for row in r["rows"]:
             if "cause" in row:
-                causes[row["cause"]] = causes.get(row["cause"], 0) + 1
+                k = row["cause"].split(":")[0]
+                causes[k] = causes.get(k, 0) + 1
         L += ["", f"## {name}", "", "Frames with a wrong part that has a leaf within 0.10 m, by "
               "the term that prefers the chosen (wrong) mapping: "
               + ", ".join(f"{k} {v}" for k, v in sorted(causes.items(), key=lambda x: -x[1])) + ".",
@@ -222,7 +251,8 @@ def main(argv=None):
         for row in r["rows"]:
             if "cause" not in row:
                 continue
-            ch, rt = row["chosen"], row["right"]
+            ch, rt = row["chosen"], row.get("right") or {"length": "–", "thickness": "–",
+                                                          "violated": []}
             wrong = ", ".join(f"{k} {v}" for k, v in row["wrong"].items())
             L.append(f"| {row['frame']} | {wrong} | {row['leaves']} | {ch['length']} / "
                      f"{ch['thickness']} | {'yes' if ch['trunk_contracted'] else ''} | "

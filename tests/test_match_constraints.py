@@ -230,3 +230,10 @@ def test_constrained_junction_arc_is_never_contracted():
     assert Matcher(P, "aha").align(D).distance == pytest.approx(1.5)
     free = Tree(P.edges, root="torso", constraints=P.constraints[1:])
     assert Matcher(free, "aha", keep_junctions=True).align(D).distance == pytest.approx(1.5)
+    # a single data vertex cannot keep the trunk (every alignment infinite): the thesis'
+    # alignment then, flagged (every pattern arc deleted: 0.7 + 0.7 + 0.3 + 1 + 1)
+    one = Tree([], vertices=["c"], positions={"c": (0, 0, 1)})
+    assert math.isinf(Matcher(P, "aha", keep_junctions=True)._P.delarc.max())
+    al = Matcher(P, "aha", keep_junctions=True).align(one)
+    assert al.distance == pytest.approx(3.7) and al.diagnostics.get("junctions_contracted")
+    assert "junctions_contracted" not in on.diagnostics

@@ -621,7 +621,9 @@ class Matcher:
     up : the up vector for coordinate constraints without an axis (§12.2.1)
     rtol : relative tolerance defining co-optimal alternatives
     keep_junctions : forbid deleting (contracting) a pattern arc between two junctions that
-        carries a coordinate constraint (:data:`KEEP_CONSTRAINED_JUNCTIONS`); default off
+        carries a coordinate constraint (:data:`KEEP_CONSTRAINED_JUNCTIONS`); default off. A
+        data tree too small to keep it (every alignment infinite) gets the thesis' alignment,
+        flagged ``diagnostics["junctions_contracted"]``
 
     Examples
     --------
@@ -661,9 +663,11 @@ class Matcher:
         self._c_signs = np.concatenate([c[1] for c in cc]).astype(float) if cc else np.zeros(0)
         self._c_up = np.array([c[2] for c in cc], float).reshape(-1, 3)
         self.betweenness = [c for c in cons if getattr(c, "kind", None) == "between"]
+        self._free = None       # keep_junctions: the thesis' AHA, when nothing else aligns
         if keep_junctions:
             kept = self.constrained_junction_arcs()
             if kept:
+                self._free = Matcher(pattern, method, cut, gamma, pattern_root, up, rtol)
                 delarc = P.delarc.copy()
                 delarc[kept] = np.inf
                 P.set_costs(delarc, False)
@@ -773,7 +777,12 @@ class Matcher:
                 self._c_ptr, self._c_items, self._c_signs, self._c_up, pos)
         if events.shape[0] and events[0, 0] < 0:  # pragma: no cover - the bound in traceback
             raise RuntimeError("align: traceback overflow")
-        return ctx.make(top, events)
+        al = ctx.make(top, events)
+        if self._free is not None and not math.isfinite(al.distance):
+            al = self._free.align(data, data_root, arc_cost)
+            if math.isfinite(al.distance):
+                al.diagnostics["junctions_contracted"] = True
+        return al
 
     def _tie(self, ew):
         """Round-off margin of the tie-breaking: 1e-12 of the largest finite weight involved."""

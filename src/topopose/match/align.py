@@ -663,11 +663,11 @@ class Matcher:
         self._c_signs = np.concatenate([c[1] for c in cc]).astype(float) if cc else np.zeros(0)
         self._c_up = np.array([c[2] for c in cc], float).reshape(-1, 3)
         self.betweenness = [c for c in cons if getattr(c, "kind", None) == "between"]
-        self._free = None       # keep_junctions: the thesis' AHA, when nothing else aligns
+        self.contractible = None    # keep_junctions: the thesis' AHA (a fallback)
         if keep_junctions:
             kept = self.constrained_junction_arcs()
             if kept:
-                self._free = Matcher(pattern, method, cut, gamma, pattern_root, up, rtol)
+                self.contractible = Matcher(pattern, method, cut, gamma, pattern_root, up, rtol)
                 delarc = P.delarc.copy()
                 delarc[kept] = np.inf
                 P.set_costs(delarc, False)
@@ -778,8 +778,8 @@ class Matcher:
         if events.shape[0] and events[0, 0] < 0:  # pragma: no cover - the bound in traceback
             raise RuntimeError("align: traceback overflow")
         al = ctx.make(top, events)
-        if self._free is not None and not math.isfinite(al.distance):
-            al = self._free.align(data, data_root, arc_cost)
+        if self.contractible is not None and not math.isfinite(al.distance):
+            al = self.contractible.align(data, data_root, arc_cost)
             if math.isfinite(al.distance):
                 al.diagnostics["junctions_contracted"] = True
         return al

@@ -193,8 +193,10 @@ class FrameEstimator:
         (human: 0.35, measured there); 0: off.
     keep_junctions : bool or None
         Never contract a constrained model arc between two junctions (the human trunk, torso
-        above crotch): :data:`topopose.match.align.KEEP_CONSTRAINED_JUNCTIONS` (on) when None.
-        Measured in ``benchmarks/real_align.py``.
+        above crotch) — unless only the contracted alignment passes T_d (a data tree with one
+        junction; flagged ``junctions_contracted`` in the alignment's diagnostics):
+        :data:`topopose.match.align.KEEP_CONSTRAINED_JUNCTIONS` (on) when None. Measured in
+        ``benchmarks/real_align.py``, ``docs/real_alignment.md``.
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -423,6 +425,18 @@ class FrameEstimator:
             arc_cost = self.arc_cost(vol, data, radii)
             al = self.matcher.align(data, data_root=data_root, arc_cost=arc_cost)
             thick = matched_arc_cost(al, arc_cost)
+            if self.matcher.contractible is not None:
+                # KEEP_CONSTRAINED_JUNCTIONS: the trunk contracted only when that alone passes T_d
+                def judged(a, t):
+                    return a.distance - t - (missing_cost(self.pattern, a)
+                                             if self.matched_distance else 0.0)
+                if judged(al, thick) > self.threshold:
+                    al2 = self.matcher.contractible.align(data, data_root=data_root,
+                                                          arc_cost=arc_cost)
+                    thick2 = matched_arc_cost(al2, arc_cost)
+                    if judged(al2, thick2) <= self.threshold:
+                        al, thick = al2, thick2
+                        al.diagnostics["junctions_contracted"] = True
             unordered = []
             if self.betweenness:
                 for c in self.model.constraints:

@@ -1,5 +1,7 @@
 """The machine a benchmark ran on, recorded beside its figures."""
 import datetime
+import gzip
+import json
 import os
 import platform
 import subprocess
@@ -36,3 +38,9 @@ def machine(**extra) -> dict:
             "threads": "NUMBA_NUM_THREADS=" + os.environ.get("NUMBA_NUM_THREADS", "unset")}
     info.update(extra)
     return info
+
+
+def read_rows(path) -> dict:
+    """A benchmark's saved JSON, gzip-compressed when its name ends in ``.gz``."""
+    p = Path(path)
+    return json.loads(gzip.decompress(p.read_bytes()) if p.suffix == ".gz" else p.read_text())

@@ -12,7 +12,7 @@ matched, right among them). Variants: the logistic regression on the shipped fea
 ``matched_distance``, with a 4-camera intercept or with 4-camera interactions (the camera
 count as an input), and gradient-boosted shallow trees (scikit-learn, the bench extra).
 
-    python benchmarks/confidence_models.py benchmarks/results/confidence.json
+    python benchmarks/confidence_models.py benchmarks/results/confidence.json.gz
 """
 from __future__ import annotations
 
@@ -168,7 +168,7 @@ GROUPS = True       # the minimum: precision in every set-up and every group of 
 
 
 def main(argv=None):
-    from _machine import machine, results_dir
+    from _machine import machine, read_rows, results_dir
 
     ap = argparse.ArgumentParser()
     ap.add_argument("rows", help="benchmarks/confidence.py's results .json (with body_rows, real)")
@@ -179,7 +179,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     global GROUPS
     GROUPS = not a.setups_only
-    d = json.loads(Path(a.rows).read_text())
+    d = read_rows(a.rows)
     rows = d["rows"]
     half = {"body": max(1, d["body_seeds"] // 2), "human": max(1, d["seeds"] // 2),
             "pose": max(1, d["pose_seeds"] // 2)}

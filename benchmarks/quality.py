@@ -236,7 +236,9 @@ def body_rows(quick, out, suffix):
     # parts (estimate.PLACED_MISSING) off: their peers, gate on and off
     for tag, opt in (("no-short-arm", {"short_arm": 0}), ("no-trunk-blend", {"trunk_blend": 0}),
                      ("no-short-arm no-trunk-blend", {"short_arm": 0, "trunk_blend": 0}),
-                     ("no-placed-missing", {"placed_missing": False})):
+                     ("no-placed-missing", {"placed_missing": False}),
+                     ("no-hand-trunk", {"hand_trunk": 0}), ("no-head-ball", {"head_ball": 0}),
+                     ("no-hand-trunk no-head-ball", {"hand_trunk": 0, "head_ball": 0})):
         for gate, gtag in ((None, ""), (False, " gate-off")):
             row(f"body separated noise1 {tag}{gtag}", *body_study(sep, 100, gate=gate, **opt))
             row(f"body all-poses noise1 {tag}{gtag}", *body_study(allp, 100, gate=gate, **opt))
@@ -246,6 +248,9 @@ def body_rows(quick, out, suffix):
                                                                       matched_distance=False))
     row("body all-poses noise1 whole-distance gate-off", *body_study(allp, 100, gate=False,
                                                                       matched_distance=False))
+    # per-part trust (pose/confidence.py judge_frame, DROP_PARTS) off: its peer, gate on
+    row("body separated noise1 no-part-trust", *body_study(sep, 100, part_trust=False))
+    row("body all-poses noise1 no-part-trust", *body_study(allp, 100, part_trust=False))
     row("body separated noise1 two-pass", *body_study(sep, 100, two_pass=True))
     row("body all-poses noise1 two-pass", *body_study(allp, 100, two_pass=True))
     if not quick:
@@ -293,7 +298,14 @@ def body_rows(quick, out, suffix):
          "pull the shoulder junction forward; `topopose.pose.anatomy.TRUNK_BLEND`); "
          "*no-placed-missing*: `FrameEstimator(placed_missing=False)`, the peer of the missing "
          "parts counted once placed (a head the alignment left unmatched but placed from the hull "
-         "is placed; `topopose.pose.estimate.PLACED_MISSING`); *whole-distance*: "
+         "is placed; `topopose.pose.estimate.PLACED_MISSING`); *no-hand-trunk*: "
+         "`FrameEstimator(hand_trunk=0)`, the peer of a hand within 1.3 hull radii of the "
+         "trunk's thick core left unplaced (a forearm folded onto the body, its branch ending at "
+         "the elbow or running on inside the trunk's surface; "
+         "`topopose.pose.anatomy.HAND_ON_TRUNK`); *no-head-ball*: `FrameEstimator(head_ball=0)`, "
+         "the peer of the head from the hull's top holding a ball of 0.46 × the hull's largest "
+         "radius within 1.5 of them (a raised fist is set aside; `topopose.pose.tips.HEAD_BALL`); "
+         "*whole-distance*: "
          "`FrameEstimator(matched_distance=False)`, T_d on the whole AHA distance, the peer of "
          "T_d on the matched parts' distance (a missing limb's deleted arm not counted; "
          "`topopose.pose.estimate.MATCHED_DISTANCE`; without the gate only, with it the "

@@ -538,8 +538,12 @@ def report(rows, info, real=None):
         pooled_good = [x for r in rs for x in r["mpjpe_fit_good"][3]]
         pooled_seen = [x for r in rs for x in r["mpjpe_fit_seen"][3]]
         held_frames = sum(r["held_frames"] for r in rs)
-        pj, pj0, pjm = {}, {}, {}
+        pj, pj0, pjm, pjs, pji = {}, {}, {}, {}, {}
         for r in rs:
+            for j, v in r["mpjpe_fit_seen"][4].items():
+                pjs.setdefault(j, []).extend(v)
+            for j, v in r["mpjpe_init"][4].items():
+                pji.setdefault(j, []).extend(v)
             for j, v in r["mpjpe_main"][4].items():
                 pjm.setdefault(j, []).extend(v)
             for j, v in r["mpjpe_fit"][4].items():
@@ -577,7 +581,12 @@ def report(rows, info, real=None):
               f"- the fit on the joints each frame saw (the joints of a part not found, "
               f"`held_joints`: placed from the previous frame or a rest pose, left out as the "
               f"initial placement leaves them; {held_frames} frames hold some): "
-              f"{100 * np.median(pooled_seen):.1f} cm ({len(pooled_seen)} frames)",
+              f"{100 * np.median(pooled_seen):.1f} cm ({len(pooled_seen)} frames) against the "
+              f"initial placement's {100 * np.median(pooled_init):.1f} cm on the same joints — "
+              "the initial placement has no joint for a part the frame lost, so the fit's "
+              "figure over all joints is not its peer; per joint, fit ← initial placement: "
+              + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pji.get(j, [np.nan])):.1f}"
+                          for j, v in pjs.items()),
               "- the same run with the previous joint definitions and fit (tips at the branch "
               "end, shoulders of the first calibration, inner weight 0.3): MPJPE "
               f"{100 * np.median(pooled_before):.1f} cm ({len(pooled_before)} frames)",

@@ -5,8 +5,8 @@ radius is known, and the ground truth of a ``body`` frame (its front and its spi
 import numpy as np
 
 from topopose.match.tree import Tree
-from topopose.pose.anatomy import (crotch_drop, front_direction, hull_radius, room_below,
-                                   spine_shift, torso_on_trunk)
+from topopose.pose.anatomy import (crotch_drop, front_direction, hand_on_trunk, hull_radius,
+                                   room_below, spine_shift, torso_on_trunk)
 
 
 class _Vol:
@@ -232,3 +232,32 @@ def test_trunk_blend_draws_the_torso_towards_the_trunk_line():
     # a part unplaced: nothing moves
     parts = {**base, "torso": torso, "head": None}
     assert trunk_blend(parts, ("torso", "crotch", "head", 0.6, 0.5))["torso"] is torso
+
+
+def test_hand_on_trunk_is_the_hand_next_to_the_core():
+    """A box trunk (half-width 8: core radius ≈ 9 voxels) with a thin arm (radius 2) out to
+    the side: a hand at the arm's far end is free, a hand on the trunk's side next to the
+    core. Oracle: the brute-force distance to the voxels of radius ≥ 0.6 × the largest."""
+    from topopose.pose.tips import inscribed_distances
+
+    n = 60
+    z, y, x = np.indices((n, n, n))
+    trunk = (abs(x - 20) <= 8) & (abs(y - 30) <= 8) & (z >= 10) & (z <= 50)
+    arm = ((y - 30) ** 2 + (z - 40) ** 2 <= 4) & (x >= 20) & (x <= 55)
+    vol = _Vol(trunk | arm, origin=(1.0, 2.0, 3.0), voxel_size=0.5)
+    edt = inscribed_distances(vol.data)
+    dt, lo = edt
+    core = np.argwhere(dt >= 0.6 * dt.max()) - 1 + lo
+    world = lambda v: np.asarray(vol.origin) + 0.5 * np.asarray(v, float)
+    free, near = world((40, 30, 55)), world((40, 30, 30))     # (z, y, x)
+    d_free = np.sqrt(((core - (40, 30, 55)) ** 2).sum(axis=1)).min() / dt.max()
+    d_near = np.sqrt(((core - (40, 30, 30)) ** 2).sum(axis=1)).min() / dt.max()
+    assert d_near < 1.3 < d_free                                    # the scene is what it says
+    rule = (("hand_1", "hand_2"), 0.6, 1.3)
+    assert hand_on_trunk({"hand_1": free, "hand_2": near}, rule, vol, edt) == "hand_2"
+    assert hand_on_trunk({"hand_1": free, "hand_2": None}, rule, vol, edt) is None
+    # the reach decides: beyond the free hand's distance both qualify, the nearer is named
+    wide = (("hand_1", "hand_2"), 0.6, d_free + 0.1)
+    assert hand_on_trunk({"hand_1": free, "hand_2": near}, wide, vol, edt) == "hand_2"
+    assert hand_on_trunk({"hand_1": free}, wide, vol, edt) == "hand_1"
+    assert hand_on_trunk({"hand_1": near}, rule, vol, None) is None

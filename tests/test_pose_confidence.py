@@ -368,3 +368,50 @@ def test_add_rod_voxels():
     assert vol.diagnostics["voxels"] == 21
     add_rod(vol, np.array([5.0, 5.0, 5.0]), np.array([0.0, 1.0, 0.0]), 100.0)
     assert vol.data[9:12, 9:19, 10].all() and not vol.data[:, 19:, :].any()
+
+
+def test_part_trust_unplaces_the_part_that_explains_the_doubt(clean, monkeypatch):
+    """Per-part trust (judge_frame ``drop_parts``): under a confidence that doubts a frame
+    only for its thickest hand or foot (a logistic model on ``end_radius`` alone, the
+    frame's own value far below its minimum, the next-thickest end's far above), the frame is
+    matched without exactly that part — found by the radii themselves, the oracle — whose
+    guess is kept; without per-part trust the same frame is rejected with every part."""
+    from topopose.pose.estimate import FrameEstimator, vertex_radii
+
+    cap, est, out = clean
+    pose, det = out[0]
+    radii = vertex_radii(det.volume, det.data, est.thickness_reach)
+    ends = {p: radii[v] for p, v in det.alignment.mapping.items()
+            if v is not None and p.rstrip("_12") in ("hand", "foot")}
+    (p1, r1), (_, r2) = sorted(ends.items(), key=lambda kv: -kv[1])[:2]
+    assert r1 > r2
+    model = {"models": ["human"], "replaces_threshold": True, "features": ["end_radius"],
+             "mean": [(r1 + r2) / 2], "scale": [(r1 - r2) / 20], "coef": [-1.0],
+             "intercept": 0.0, "min_confidence": 0.5, "min_confidence_by_cameras": {}}
+    monkeypatch.setattr(C, "CONFIDENCE_MODEL", model)
+    whole = FrameEstimator(cap, "human", 100, gate=True, min_confidence=0.5,
+                           part_trust=False).estimate(cap.frames[0])
+    assert whole.status == "rejected" and whole.diagnostics["confidence"] < 0.5
+    assert all(x is not None for x in whole.parts.values())
+    trusted = FrameEstimator(cap, "human", 100, gate=True,
+                             min_confidence=0.5).estimate(cap.frames[0])
+    assert trusted.status == "matched", trusted.error
+    assert trusted.diagnostics["untrusted"] == p1 and trusted.parts[p1] is None
+    assert trusted.diagnostics["confidence"] >= 0.5 > trusted.diagnostics["confidence_all_parts"]
+    assert np.allclose(trusted.diagnostics["untrusted_guess"], whole.parts[p1], atol=1e-5)
+    assert all(np.allclose(trusted.parts[p], whole.parts[p]) for p in whole.parts if p != p1)
+
+
+def test_untrusted_part_needs_one_part_above_the_rest():
+    """The part named is the single best one reaching the minimum; a tie or nothing above the
+    minimum names none (brute force over small tables)."""
+    assert C.untrusted_part({"head": 0.8, "hand_1": 0.6}, 0.7) == "head"
+    assert C.untrusted_part({"hand_1": 0.8, "hand_2": 0.8, "head": 0.1}, 0.7) is None
+    assert C.untrusted_part({"hand_1": 0.69, "foot_1": 0.5}, 0.7) is None
+    assert C.untrusted_part({}, 0.7) is None
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        cs = {p: float(x) for p, x in zip(C.DROP_PARTS, rng.choice([0.2, 0.5, 0.8, 0.9], 5))}
+        got = C.untrusted_part(cs, 0.75)
+        top = [p for p, c in cs.items() if c == max(cs.values())]
+        assert got == (top[0] if len(top) == 1 and cs[top[0]] >= 0.75 else None)

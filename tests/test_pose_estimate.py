@@ -201,3 +201,21 @@ def test_placed_missing_counts_a_head_from_the_hull_as_placed():
     for kw in ({"placed_missing": False}, {"head_from_hull": 0}):
         q = FrameEstimator(cap, "human", 100, gate=False, **kw).estimate(f)
         assert q.status == "rejected" and "parts unmatched" in q.error, kw
+
+
+def test_head_ball_needs_enough_cameras():
+    """The head-ball check of the head from the hull (tips.HEAD_BALL) applies from its minimum
+    number of cameras on (few cameras inflate the trunk); an explicit value always applies."""
+    from topopose.capture import synthetic_capture
+    from topopose.pose.estimate import FrameEstimator
+    from topopose.pose.tips import HEAD_BALL
+
+    ball, reach, voxels, cams = HEAD_BALL["human"]
+    for n in (cams - 2, cams, 8):
+        cap = synthetic_capture("human", frames=1, cameras=n, size=(160, 120))
+        est = FrameEstimator(cap, "human", 40)
+        assert est.head_ball == ((ball, reach, voxels) if n >= cams else None)
+        assert FrameEstimator(cap, "human", 40, head_ball=0.5).head_ball == (0.5, reach, voxels)
+        assert FrameEstimator(cap, "human", 40, head_ball=0).head_ball is None
+        assert FrameEstimator(cap, "human", 40, hand_trunk=0).hand_trunk is None
+        assert FrameEstimator(cap, "human", 40).hand_trunk[2] > 0

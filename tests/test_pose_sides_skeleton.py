@@ -270,10 +270,13 @@ def test_frame_without_head_keeps_a_skeleton_with_held_joints():
 def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_forward():
     """Not the frame before (a capture of unrelated poses): no earlier arm to hold; the unseen
     arm's shoulder is its mate's turned half about the trunk axis (the body is symmetric: the
-    true shoulder), the upper arm hangs along the trunk, the forearm and hand point forward
-    (the toes' direction across the trunk; the toes of _body point 0.2 m forward, the ankle
-    is 5 cm above them, so within 20°); the frame right after a frame
-    of the same body holds that frame's arm instead."""
+    true shoulder), the upper arm hangs along the trunk, the forearm and hand fold up by
+    ``FOLD`` from hanging, towards the front turned ``ACROSS`` the body (the toes' direction
+    across the trunk; the toes of _body point 0.2 m forward, the ankle is 5 cm above them, so
+    within 20°; across: towards the other shoulder); the frame right after a frame of the
+    same body holds that frame's arm instead."""
+    from topopose.pose.kinematic_fit import ACROSS, FOLD
+
     rng = np.random.default_rng(8)
     parts, curves = _body(0.9, rng)
     full, _ = _numbered_frame("000000", parts, curves, False, False)
@@ -292,10 +295,19 @@ def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_fo
     forward = _rotz(0.9) @ [1.0, 0.0, 0.0]               # the body's facing (its toes)
     d = b.joints["elbow_2"] - b.joints["shoulder_2"]     # the upper arm hangs
     assert np.dot(d, down) / np.linalg.norm(d) > 0.999
-    for a, c in (("elbow_2", "wrist_2"), ("wrist_2", "fingertip_2")):   # folded forward
+    inward = b.joints["shoulder_1"] - b.joints["shoulder_2"]
+    inward -= np.dot(inward, down) * down
+    inward /= np.linalg.norm(inward)
+    front = np.cos(ACROSS) * forward - np.sin(ACROSS) * np.cross(down, forward) * np.sign(
+        np.dot(np.cross(down, forward), -inward))      # forward turned across, towards inward
+    for a, c in (("elbow_2", "wrist_2"), ("wrist_2", "fingertip_2")):   # folded up and across
         d = b.joints[c] - b.joints[a]
         d /= np.linalg.norm(d)
-        assert np.dot(d, forward) > np.cos(np.radians(20)) and abs(np.dot(d, down)) < 0.35, d
+        assert abs(np.dot(d, -down) + np.cos(FOLD)) < 1e-6, d          # exactly FOLD from down
+        h = d - np.dot(d, down) * down                                  # across the trunk:
+        h /= np.linalg.norm(h)
+        assert np.dot(h, front) > np.cos(np.radians(20)), (h, front)    # the turned front
+        assert np.dot(h, inward) > np.sin(ACROSS) - 0.35, (h, inward)   # towards the other side
     # the frame right after the same body: the arm of that frame, not the rest pose
     cut.frame = "000001"
     out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)

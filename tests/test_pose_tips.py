@@ -118,3 +118,18 @@ def test_head_tip_from_the_torso_past_a_bent_branch_end():
     none = extremity_tips(_Vol(vol), skel, data, {"head": "h"}, ["head"],
                           anchors={"head": ("torso", 3.0)})["head"]
     assert np.allclose(none, own)
+
+
+def test_thick_top_ball_sets_a_raised_fist_aside():
+    """A fist (ball of radius 5) on a thin raised arm above the head: thick enough for
+    ``min_fraction`` 0.4 of the trunk's radius (≈ 11) but holding no ball of 0.55 × it; the
+    head (radius 6) does. Oracle: the centres of the analytic balls."""
+    vol = _trunk_head_and_raised_arm()
+    z, y, x = np.indices(vol.shape)
+    vol |= (x - 46) ** 2 + (y - 32) ** 2 + (z - 56) ** 2 <= 25         # the fist, centre z 56
+    top, _ = thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.4)
+    assert top[0] >= 56 and abs(top[2] - 46) <= 1                      # without: the fist
+    top, r = thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.4, ball=0.5, reach=1.5)
+    assert 42 <= top[0] <= 44 and abs(top[2] - 32) <= 1 and r >= 4.4   # with it: the head
+    # one try only: the fist is set aside and nothing is left to try
+    assert thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.4, ball=0.5, reach=1.5, tries=1) is None

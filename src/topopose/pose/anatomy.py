@@ -110,6 +110,26 @@ TRUNK_BLEND = {"human": ("torso", "crotch", "head", 0.6, 0.5)}
 # 0.96 / 0.034, all poses 0.79 / 0.050 → 0.78 / 0.060 → 0.79 / 0.050 (before SHORT_ARM and
 # TRUNK_BLEND: 0.73 / 0.111 → 0.72 / 0.121 → 0.73 / 0.111): on by default.
 CROTCH_DROP = {"human": ("crotch", 0.35, 0.10, 0.5)}
+# A hand on the trunk left unplaced (:func:`hand_on_trunk`): model name → (hands, core, reach).
+# A forearm folded onto the chest or the belly fuses with the trunk in the hull; the arm's
+# skeleton branch then ends at the elbow or runs on along the forearm inside the trunk's
+# surface, and the hand placed at its end lies at the elbow or the shoulder — on a branch of
+# ordinary length, which SHORT_ARM does not see. Such an end lies next to the trunk's thick
+# core (the hull's voxels whose inscribed radius is ≥ ``core`` × the largest), a free hand
+# away from it. The hand nearest the core, closer than ``reach`` × the hull's largest radius,
+# is left unplaced when every other part is placed (a *missing limb*, right by §13.2.2).
+# ``body`` dev seeds 41, 42, 43 (5 builds × 12 frames, 100³, noise 1, gate off; placed hands
+# of the run's frames, distance to the core ÷ largest radius, core 0.6): all poses, the wrong
+# hands 0.70–1.33 (14 of 17; 3 more at 2.7–3.1, on another limb), the right ones 1 % / 5 % /
+# median 0.97 / 1.43 / 3.07; separated right hands 1 % 1.43. TP rate / FP per match, off →
+# reach 1.0 / 1.2 / 1.3 / 1.5 / 1.7: all poses 0.833 / 0.062 → 0.844 / 0.050, 0.850 / 0.044,
+# 0.856 / 0.037 (1.3–1.7; right hands dropped 5, 8, 14 frames at 1.3, 1.5, 1.7); separated
+# 0.922 / 0.051 → 0.928 / 0.046 (1.3–1.5) (offline on the run's frames). Held out
+# (``benchmarks/quality.py``, quality_body.md, *no-hand-trunk* rows; gate off): all poses 0.79 /
+# 0.050 → 0.81 / 0.030 (misplaced 18 → 14 of 120), separated 0.97 / 0.025 → 0.97 / 0.017;
+# gate on (main's refit with per-part trust) 0.74 / 0.022 and 0.95 / 0.009 either way. Capsule
+# human (quality.md): TP rates unchanged, a few right hands become "missing limb".
+HAND_ON_TRUNK = {"human": (("hand_1", "hand_2"), 0.6, 1.3)}
 
 
 def front_direction(vol, skeleton, data, mapping: dict, feet, up, reach: float = 4.0,
@@ -238,3 +258,29 @@ def crotch_drop(parts: dict, up, front, radius: float, rule, vol=None) -> dict:
     out = dict(parts)
     out[part] = x - drop * up - back * radius * np.asarray(front, float)
     return out
+
+
+def hand_on_trunk(parts: dict, rule, vol, edt) -> str | None:
+    """The hand of ``rule`` (:data:`HAND_ON_TRUNK`: ``(hands, core, reach)``) nearest the
+    trunk's core — the hull's voxels whose inscribed radius is at least ``core`` × the largest
+    — when it lies closer to it than ``reach`` × that largest radius; else None (also without
+    a placed hand or a distance transform). ``edt``: :func:`.tips.inscribed_distances` of
+    ``vol.data``. A folded forearm fused with the trunk ends the arm's branch there."""
+    hands, core, reach = rule
+    if edt is None:
+        return None
+    dt, lo = edt
+    rmax = float(dt.max())
+    if rmax <= 0:
+        return None
+    ijk = np.argwhere(dt >= core * rmax) - 1 + np.asarray(lo)      # grid voxels of the core
+    best = None
+    for p in hands:
+        x = parts.get(p)
+        if x is None:
+            continue
+        v = (np.asarray(x, float) - np.asarray(vol.origin, float)) / float(vol.voxel_size)
+        d = float(np.sqrt(((ijk - v) ** 2).sum(axis=1).min()))
+        if d < reach * rmax and (best is None or d < best[0]):
+            best = (d, p)
+    return None if best is None else best[1]

@@ -191,6 +191,20 @@ class FrameEstimator:
         (:func:`short_limb`, :data:`SHORT_ARM`): a forearm folded onto the body ends the arm's
         skeleton branch at the elbow, where the hand was placed. None: the model's entry
         (human: 0.35, measured there); 0: off.
+    hand_trunk : float or None
+        Leave a hand unplaced when it lies closer than this many hull radii to the trunk's
+        thick core and every other part is placed (:func:`topopose.pose.anatomy.hand_on_trunk`,
+        :data:`topopose.pose.anatomy.HAND_ON_TRUNK`): a forearm folded onto the body ends the
+        arm's branch at the elbow or runs it on inside the trunk's surface. None: the model's
+        entry (human: 1.3, measured there); 0: off.
+    head_ball : float or None
+        With ``head_from_hull``, the hull's top must hold a ball of this fraction of the hull's
+        largest inscribed radius within 1.5 of those radii (:func:`topopose.pose.tips.
+        thick_top`, :data:`topopose.pose.tips.HEAD_BALL`), else the next highest thick point
+        is tried: a raised fist is as thick as ``head_from_hull``'s fraction. With it the head
+        comes from the hull on coarser grids too (down to 1.2 voxels of thickness rather than
+        1.5). None: the model's entry (human: 0.46 with 6 cameras or more, measured there);
+        0: off.
     keep_junctions : bool or None
         Never contract a constrained model arc between two junctions (the human trunk, torso
         above crotch) — unless only the contracted alignment passes T_d (a data tree with one
@@ -204,6 +218,11 @@ class FrameEstimator:
         ``matched`` also needs the frame's confidence (:mod:`.confidence`) ≥ ``min_confidence``.
         None (default): :func:`default_gate` (on), off with ``constraints=False`` (the fitted
         confidence knows upright subjects only).
+    part_trust : bool or None
+        Per-part trust (:func:`topopose.pose.confidence.judge_frame`): a frame the gate alone
+        rejects is matched without the one extremity (head, hand, foot) whose removal makes
+        the confidence reach the minimum; that part is unplaced, its guess kept in
+        ``diagnostics["untrusted_guess"]``. None (default) or True: on; False: off.
     """
 
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
@@ -213,7 +232,8 @@ class FrameEstimator:
                  thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
                  tip_fraction=1.0, spine=None, tip_anchor=None,
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
-                 short_arm=None, trunk_blend=None, placed_missing=None, keep_junctions=None):
+                 short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
+                 hand_trunk=None, head_ball=None, keep_junctions=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -224,6 +244,8 @@ class FrameEstimator:
         # inverted one
         self.gate = ((default_gate(cap) and constraints) if gate is None else bool(gate))
         self.min_confidence = None if min_confidence is None else float(min_confidence)
+        # per-part trust (pose/confidence.py judge_frame, DROP_PARTS): None/True on, False off
+        self.part_trust = part_trust is not False
 
         self.cap = cap
         self.model: Model = load_model(model, constraints=constraints)
@@ -311,6 +333,17 @@ class FrameEstimator:
         rule = SHORT_ARM.get(self.model.name) if self.model.complete else None
         ratio = (rule[4] if rule else 0.0) if short_arm is None else float(short_arm)
         self.short_arm = (*rule[:4], ratio) if rule and ratio > 0 else None
+        # a hand next to the trunk's core (HAND_ON_TRUNK): (hands, core, reach)
+        from .anatomy import HAND_ON_TRUNK
+        rule = HAND_ON_TRUNK.get(self.model.name) if self.model.complete else None
+        reach = (rule[2] if rule else 0.0) if hand_trunk is None else float(hand_trunk)
+        self.hand_trunk = (*rule[:2], reach) if rule and reach > 0 else None
+        # the head from the hull holds a head-sized ball (tips.HEAD_BALL): (ball, reach)
+        from .tips import HEAD_BALL
+        rule = HEAD_BALL.get(self.model.name)
+        ball = ((rule[0] if rule and len(cap.cameras) >= rule[3] else 0.0) if head_ball is None
+                else float(head_ball))
+        self.head_ball = ((ball, *(rule[1:3] if rule else (1.5, 1.5))) if ball > 0 else None)
 
     def arc_cost(self, vol, data, radii=None):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off.
@@ -496,8 +529,8 @@ class FrameEstimator:
                     parts[p] = (x if self.tip_fraction == 1.0
                                 else parts[p] + self.tip_fraction * (x - parts[p]))
         edt = None
-        if self.spine or self.head_from_hull is not None:     # inscribed radii, once a frame
-            from .tips import inscribed_distances
+        if self.spine or self.head_from_hull is not None or self.hand_trunk is not None:
+            from .tips import inscribed_distances      # inscribed radii, once a frame
             edt = inscribed_distances(vol.data, box, sq)
         if self.spine:      # the spine lies behind the medial axis (pose/anatomy.py)
             parts, diag_spine = self.spine_parts(vol, skel, data, al, parts, edt, sk_vox)
@@ -506,10 +539,20 @@ class FrameEstimator:
         if self.head_from_hull is not None:
             from .tips import head_from_hull
             head, anchor, frac = self.head_from_hull
-            x = head_from_hull(vol, self.up, parts.get(anchor), frac, edt=edt)
+            x = head_from_hull(vol, self.up, parts.get(anchor), frac, edt=edt,
+                               ball=self.head_ball)
             if x is not None:
                 parts[head] = x
                 from_hull.append(head)
+        on_core = []      # after the head from the hull: a head it placed counts as placed
+        if self.hand_trunk is not None and all(x is not None for x in parts.values()):
+            from .anatomy import hand_on_trunk
+            p = hand_on_trunk(parts, self.hand_trunk, vol, edt)
+            if p is not None:
+                on_core.append(p)
+                parts[p] = None
+                on_skeleton[p] = None      # no curve to the elbow either
+                missing.append(p)
         on_trunk = False
         if self.trunk is not None:       # a torso slid down to the crotch (pose/anatomy.py)
             from .anatomy import torso_on_trunk
@@ -535,13 +578,18 @@ class FrameEstimator:
             if unordered:
                 error += "; no co-optimal alignment satisfies the betweenness constraint"
         # what the hull lost and how far to trust the frame (topopose.pose.confidence)
-        from .confidence import judge_frame
+        from .confidence import DROP_PARTS, judge_frame
 
         status, error, extra = judge_frame(
             vol, n_vox, data, self.model, self.up, dist, self.threshold, len(missing), status,
             error, self.min_share, self.min_confidence if self.gate else None, self.cap.units,
             al=al, thickness_cost=thick, reach=self.thickness_reach,
-            radius_map=radii, missing_cost=mcost, parts=parts)
+            radius_map=radii, missing_cost=mcost, parts=parts,
+            drop_parts=DROP_PARTS if self.part_trust else ())
+        if extra.get("untrusted"):     # per-part trust: unplaced, its best guess kept
+            extra["untrusted_guess"] = np.round(parts[extra["untrusted"]], 6).tolist()
+            parts = {**parts, extra["untrusted"]: None}
+            on_skeleton[extra["untrusted"]] = None      # no curve for it either
         diag = {"model": self.model.name, "resolution": self.resolution,
                 "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
                 "skeleton_voxels": int(data.diagnostics.get("n_voxels", -1)),
@@ -557,6 +605,8 @@ class FrameEstimator:
             diag["off_axis"] = dropped
         if short:
             diag["short_arm"] = short
+        if on_core:
+            diag["hand_on_trunk"] = on_core
         if on_trunk:
             diag["on_trunk"] = self.trunk[0]
         if self.spine:

@@ -30,7 +30,7 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    placed joint in the frame keeps the bone directions of the last fitted frame when that is
    at most ``HOLD_FRAMES`` before and the same motion (``_continues``), else takes a rest pose
    (:func:`rest_fill`: a limb merged with the body hangs along the trunk, an arm's
-   forearm folded forward); its joints are
+   forearm folded up and across the trunk's front); its joints are
    listed in ``diagnostics["held_joints"]``, so a frame that lost one part still has a
    skeleton. On unrelated random poses the last frame's arm was 11.6 cm off (median MPJPE of
    the frames holding joints, development seeds 21–33), the rest pose 8.7 cm.
@@ -459,11 +459,33 @@ def _continues(prev, start, dt):
     return float(np.linalg.norm(d, axis=1).mean()) < HOLD_MAX
 
 
-FOLD = np.radians(90.0)   # an unseen arm's forearm and hand: folded forward by this angle from
-                          # hanging (development seeds 31–35, 5 × 40 random poses, gate on,
-                          # MPJPE median of the fit: 0° 7.14, 60° 7.05, 90° 6.80, 120° 6.85,
-                          # 150° 7.05 cm; the upper arm tilted forward 20°: 7.08 cm; walks
-                          # 41–43: 5.47 cm either way, their frames holding joints 8.0 → 8.4)
+FOLD = np.radians(130.0)  # an unseen arm's forearm and hand: folded forward and up by this angle
+                          # from hanging, and turned ACROSS the body (towards the other side)
+ACROSS = np.radians(30.0)  # by this angle about the trunk axis: a hand merged with the body lies
+                          # against the trunk's front (development seeds 21–28, 8 × 40 random
+                          # poses, gate on, the true unseen arm from its shoulder (down, out,
+                          # forward): elbow (19, 7, 10), wrist (−8, −10, 15) cm; MPJPE median of
+                          # the fit, FOLD / ACROSS: 90° / 0° 6.45, 110° / 0° 6.28, 110° / 30°
+                          # 6.20, 130° / 0° 6.20, 130° / 30° 6.13, 130° / 50° 6.19, 130° / 70°
+                          # 6.26 cm; frames holding joints 7.8 → 7.1 cm; walks 41–45 4.85 cm
+                          # either way: they hold the last frame's arm. Earlier, seeds 31–35
+                          # without ACROSS: 0° 7.14, 60° 7.05, 90° 6.80, 120° 6.85, 150° 7.05 cm;
+                          # the upper arm tilted forward and out: no gain, 6.11–6.29 cm)
+
+
+def _outward(P, tree, j, ax):
+    """Unit vector from the chest to the shoulder of joint j's arm (its arc's first joint),
+    across the trunk axis ``ax`` (zero when not defined)."""
+    s = j
+    while tree.parents[s] >= 0 and tree.arc[tree.parents[s]] == tree.arc[j]:
+        s = tree.parents[s]
+    c = tree.parents[s]
+    if c < 0:
+        return np.zeros(3)
+    v = P[s] - P[c]
+    v = v - np.dot(v, ax) * ax
+    n = np.linalg.norm(v)
+    return v / n if n > 0 else np.zeros(3)
 
 
 def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
@@ -472,8 +494,10 @@ def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
     (a half turn: shoulders, hips), the other bones along the trunk axis — down for the
     limbs (arcs ending at a ``[[mirror]]`` part), up for the others (the head) — except an
     arm's (a limb from the trunk's upper part) bones below its first one: folded forward by
-    ``FOLD`` (a hand merged with the body is mostly in front of it), forward being the seen
-    lower limbs' tip directions (the toes) across the trunk axis; without them, down."""
+    ``FOLD`` and turned ``ACROSS`` the body (a hand merged with the body lies against the
+    trunk's front), forward being the seen lower limbs' tip directions (the toes) across the
+    trunk axis, across the direction from the arm's shoulder to the chest; without a forward,
+    down."""
     out = start.copy()
     if not tree.trunk:
         return out
@@ -499,12 +523,13 @@ def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
         mates = [k for k in range(len(tree.names)) if k != j and tree.base[k] == tree.base[j]
                  and tree.parents[k] == p and not np.isnan(start[k]).any()]
         pp = tree.parents[p]
+        arm = fwd is not None and tree.arc[j][1] in limbs and tree.arc[j][0] == tree.trunk[1]
         if mates:
             v = start[mates[0]] - out[p]
             d = 2 * np.dot(v, ax) * ax - v
-        elif (fwd is not None and tree.arc[j][1] in limbs and tree.arc[j][0] == tree.trunk[1]
-              and pp >= 0 and tree.arc[pp] == tree.arc[j]):     # an arm below its elbow
-            d = -np.cos(FOLD) * ax + np.sin(FOLD) * fwd
+        elif arm and pp >= 0 and tree.arc[pp] == tree.arc[j]:     # an arm below its elbow
+            lat = _outward(out, tree, j, ax)
+            d = -np.cos(FOLD) * ax + np.sin(FOLD) * (np.cos(ACROSS) * fwd - np.sin(ACROSS) * lat)
         else:
             d = -ax if tree.arc[j][1] in limbs else ax
         out[j] = out[p] + L[j] * d / max(np.linalg.norm(d), 1e-12)

@@ -197,3 +197,43 @@ def test_human_feet_below_the_crotch():
         if v is not None and c is not None:
             assert pos[v][2] < pos[c][2]
     assert not any(al1.mapping.get(f) == "arm" for f in feet)
+
+
+def test_constrained_junction_arc_is_never_contracted():
+    """KEEP_CONSTRAINED_JUNCTIONS: a human-like pattern (trunk torso above crotch, 0.3) on a data
+    star of four limbs from one junction (two up of 1.0, two down of 0.7). Contracting the trunk
+    costs 0.3 and the four limbs 4 × 0.3 (hands 0.7 on the 1.0 branches, feet 1.0 on the 0.7
+    ones, the feet below): 1.5. Kept, the trunk needs a data path of its own: torso on the
+    junction, crotch on a down leaf (|0.3 − 0.7|), hands 0.6, both feet deleted (2.0) and the
+    other down branch (0.7): 3.7 — and the leaf-torso alternative ties (hands deleted 1.4, trunk
+    |0.3 − 1.0|, feet 0.6, an up branch 1.0)."""
+    from topopose.match import Matcher
+    from topopose.match.tree import Constraint, Tree
+
+    P = Tree([("torso", "hand_1", 0.7), ("torso", "hand_2", 0.7), ("torso", "crotch", 0.3),
+              ("crotch", "foot_1", 1.0), ("crotch", "foot_2", 1.0)], root="torso",
+             constraints=[Constraint("above", ("torso", "crotch")),
+                          Constraint("above", ("crotch", "foot_1")),
+                          Constraint("above", ("crotch", "foot_2"))])
+    D = Tree([("c", "u1", 1.0), ("c", "u2", 1.0), ("c", "d1", 0.7), ("c", "d2", 0.7)],
+             positions={"c": (0, 0, 1), "u1": (-0.5, 0, 1.9), "u2": (0.5, 0, 1.9),
+                        "d1": (-0.2, 0, 0.3), "d2": (0.2, 0, 0.3)})
+    off = Matcher(P, "aha", keep_junctions=False).align(D)
+    assert off.distance == pytest.approx(1.5)
+    assert off.mapping["torso"] == off.mapping["crotch"] == "c"
+    assert {off.mapping["foot_1"], off.mapping["foot_2"]} == {"d1", "d2"}
+    on = Matcher(P, "aha", keep_junctions=True).align(D)
+    assert on.distance == pytest.approx(3.7)
+    assert on.mapping["torso"] != on.mapping["crotch"]
+    assert ("torso", "crotch") not in on.deleted_pattern
+    # the thesis' AHA stays the Matcher's default; an unconstrained trunk stays contractible
+    assert Matcher(P, "aha").align(D).distance == pytest.approx(1.5)
+    free = Tree(P.edges, root="torso", constraints=P.constraints[1:])
+    assert Matcher(free, "aha", keep_junctions=True).align(D).distance == pytest.approx(1.5)
+    # a single data vertex cannot keep the trunk (every alignment infinite): the thesis'
+    # alignment then, flagged (every pattern arc deleted: 0.7 + 0.7 + 0.3 + 1 + 1)
+    one = Tree([], vertices=["c"], positions={"c": (0, 0, 1)})
+    assert math.isinf(Matcher(P, "aha", keep_junctions=True)._P.delarc.max())
+    al = Matcher(P, "aha", keep_junctions=True).align(one)
+    assert al.distance == pytest.approx(3.7) and al.diagnostics.get("junctions_contracted")
+    assert "junctions_contracted" not in on.diagnostics

@@ -54,6 +54,17 @@ METHODS = {"alignment": K.ALPHA, "alpha": K.ALPHA, "ha": K.ETA, "eta": K.ETA, "a
 METHOD_NAMES = {K.ALPHA: "alignment", K.ETA: "ha", K.AHA: "aha"}
 MAX_DEGREE = 14
 _NO_POS = np.zeros((0, 3))
+# A pattern arc between two junctions (both ends of degree > 1) that carries a coordinate
+# constraint is never deleted (contracted): its constraint says one end lies strictly above the
+# other, and a contracted arc puts both ends on one data vertex. Without it the human model's
+# trunk (torso above crotch, model weight 0.074 of 1) is contracted for that little cost, the
+# shoulders' and the hips' junctions become one, and the four limbs are told apart by their
+# lengths alone: on the real recording (benchmarks/real_align.py, 4 cameras) hands went onto
+# the toes and feet onto a wrist or the arm ends (errors ~1 m, frames 3, 6, 7, 89, 94, 95).
+# Leaf arcs are unaffected (a deleted leaf arc is a missing part, not a contraction). Measured
+# in benchmarks/real_align.py (results/real_align.md, docs/real_alignment.md). The default of
+# FrameEstimator(keep_junctions=None); Matcher and align() keep the thesis' AHA (False).
+KEEP_CONSTRAINED_JUNCTIONS = True
 
 
 # ---------------------------------------------------------------------- cost function
@@ -609,6 +620,10 @@ class Matcher:
     pattern_root : vertex or None; default the tree's own root (None: unrooted)
     up : the up vector for coordinate constraints without an axis (§12.2.1)
     rtol : relative tolerance defining co-optimal alternatives
+    keep_junctions : forbid deleting (contracting) a pattern arc between two junctions that
+        carries a coordinate constraint (:data:`KEEP_CONSTRAINED_JUNCTIONS`); default off. A
+        data tree too small to keep it (every alignment infinite) gets the thesis' alignment,
+        flagged ``diagnostics["junctions_contracted"]``
 
     Examples
     --------
@@ -620,7 +635,8 @@ class Matcher:
     """
 
     def __init__(self, pattern, method: str = "aha", cut: bool = False, gamma="abs",
-                 pattern_root=None, up=(0.0, 0.0, 1.0), rtol: float = 1e-9):
+                 pattern_root=None, up=(0.0, 0.0, 1.0), rtol: float = 1e-9,
+                 keep_junctions: bool = False):
         if not isinstance(method, str) or method.lower() not in METHODS:
             raise InputError(f"align: method={method!r} is unknown; expected 'aha', 'ha' or 'alignment'")
         self.mode = METHODS[method.lower()]
@@ -647,6 +663,27 @@ class Matcher:
         self._c_signs = np.concatenate([c[1] for c in cc]).astype(float) if cc else np.zeros(0)
         self._c_up = np.array([c[2] for c in cc], float).reshape(-1, 3)
         self.betweenness = [c for c in cons if getattr(c, "kind", None) == "between"]
+        self.contractible = None    # keep_junctions: the thesis' AHA (a fallback)
+        if keep_junctions:
+            kept = self.constrained_junction_arcs()
+            if kept:
+                self.contractible = Matcher(pattern, method, cut, gamma, pattern_root, up, rtol)
+                delarc = P.delarc.copy()
+                delarc[kept] = np.inf
+                P.set_costs(delarc, False)
+
+    def constrained_junction_arcs(self) -> list:
+        """Pattern items (arcs) whose both ends are junctions (degree > 1) and which carry a
+        coordinate constraint (:data:`KEEP_CONSTRAINED_JUNCTIONS`)."""
+        P = self._P
+        adj = self.pattern.adjacency()
+        out = []
+        for _, _, _, c in self._constraints:
+            a, b = P.index[c.parts[0]], P.index[c.parts[1]]
+            if len(adj[c.parts[0]]) > 1 and len(adj[c.parts[1]]) > 1:
+                out += [it for it in range(len(P.it_up))
+                        if {int(P.it_up[it]), int(P.node_v[P.it_node[it]])} == {a, b}]
+        return out
 
     # ------------------------------------------------------------------ constraints
     def _prepare_constraints(self, cons):
@@ -740,7 +777,12 @@ class Matcher:
                 self._c_ptr, self._c_items, self._c_signs, self._c_up, pos)
         if events.shape[0] and events[0, 0] < 0:  # pragma: no cover - the bound in traceback
             raise RuntimeError("align: traceback overflow")
-        return ctx.make(top, events)
+        al = ctx.make(top, events)
+        if self.contractible is not None and not math.isfinite(al.distance):
+            al = self.contractible.align(data, data_root, arc_cost)
+            if math.isfinite(al.distance):
+                al.diagnostics["junctions_contracted"] = True
+        return al
 
     def _tie(self, ew):
         """Round-off margin of the tie-breaking: 1e-12 of the largest finite weight involved."""

@@ -205,6 +205,12 @@ class FrameEstimator:
         comes from the hull on coarser grids too (down to 1.2 voxels of thickness rather than
         1.5). None: the model's entry (human: 0.46 with 6 cameras or more, measured there);
         0: off.
+    keep_junctions : bool or None
+        Never contract a constrained model arc between two junctions (the human trunk, torso
+        above crotch) — unless only the contracted alignment passes T_d (a data tree with one
+        junction; flagged ``junctions_contracted`` in the alignment's diagnostics):
+        :data:`topopose.match.align.KEEP_CONSTRAINED_JUNCTIONS` (on) when None. Measured in
+        ``benchmarks/real_align.py``, ``docs/real_alignment.md``.
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -227,7 +233,7 @@ class FrameEstimator:
                  tip_fraction=1.0, spine=None, tip_anchor=None,
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
                  short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
-                 hand_trunk=None, head_ball=None):
+                 hand_trunk=None, head_ball=None, keep_junctions=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -268,7 +274,10 @@ class FrameEstimator:
         self.junctions = ({p for p in self.model.parts if len(adj[p]) > 1}
                           if junction_centroid else set())
         self.up = np.asarray(cap.up_vector, dtype=float)
-        self.matcher = Matcher(self.pattern, method="aha", cut=False, up=self.up)
+        from ..match.align import KEEP_CONSTRAINED_JUNCTIONS
+        self.matcher = Matcher(self.pattern, method="aha", cut=False, up=self.up,
+                               keep_junctions=(KEEP_CONSTRAINED_JUNCTIONS if keep_junctions is None
+                                               else bool(keep_junctions)))
         self.warmup = None      # first run: the helper process of topopose._coldstart.start_warmup
         self.thickness_profile = (THICKNESS.get(self.model.name) if thickness_profile is None
                                   else dict(thickness_profile))
@@ -449,6 +458,18 @@ class FrameEstimator:
             arc_cost = self.arc_cost(vol, data, radii)
             al = self.matcher.align(data, data_root=data_root, arc_cost=arc_cost)
             thick = matched_arc_cost(al, arc_cost)
+            if self.matcher.contractible is not None:
+                # KEEP_CONSTRAINED_JUNCTIONS: the trunk contracted only when that alone passes T_d
+                def judged(a, t):
+                    return a.distance - t - (missing_cost(self.pattern, a)
+                                             if self.matched_distance else 0.0)
+                if judged(al, thick) > self.threshold:
+                    al2 = self.matcher.contractible.align(data, data_root=data_root,
+                                                          arc_cost=arc_cost)
+                    thick2 = matched_arc_cost(al2, arc_cost)
+                    if judged(al2, thick2) <= self.threshold:
+                        al, thick = al2, thick2
+                        al.diagnostics["junctions_contracted"] = True
             unordered = []
             if self.betweenness:
                 for c in self.model.constraints:

@@ -157,7 +157,7 @@ def main(argv=None):
     res = results_dir()
     (res / "confidence_real_torso.md").write_text("\n".join(L) + "\n")
     (res / "confidence_real_torso.json").write_text(json.dumps(
-        {"machine": machine(), "step": a.step, "rows": rows}, indent=1))
+        {"machine": machine(), "step": a.step, "rows": rows}, separators=(",", ":")))
     print("\n".join(L))
 
 

@@ -84,7 +84,7 @@ def camera_ring(volume, count=8, size=(640, 480), rng=None, distort=True, elevat
     135°, −154° around the subject: pairs 50° and 71° apart, each nearly opposite one of the
     other pair, so that opposite views see nearly the same outline and the hull keeps more
     phantom volume than with four cameras 90° apart): within a pair 40–80° apart, the second
-    pair 160–200° further round; heights, radius and aim as the ring's.
+    pair 160–200° further round; heights, radius and aim as the ring's (4 cameras only).
     """
     rng = np.random.default_rng(0) if rng is None else rng
     lo, hi = (np.asarray(v, float) for v in volume)
@@ -95,8 +95,10 @@ def camera_ring(volume, count=8, size=(640, 480), rng=None, distort=True, elevat
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     az0 = rng.uniform(0, 2 * np.pi)
     if layout == "pairs":
+        if count != 4:
+            raise InputError(f"synth: camera layout 'pairs' needs 4 cameras (got {count})")
         g1, g2, opp = rng.uniform(40, 80), rng.uniform(40, 80), rng.uniform(160, 200)
-        steps = np.radians([0.0, g1, opp, opp + g2, 90, 270, 135, 315][:count])
+        steps = np.radians([0.0, g1, opp, opp + g2])
     elif layout == "ring":
         steps = 2 * np.pi * np.arange(count) / count
     else:

@@ -46,7 +46,7 @@ from ..errors import InputError
 from .camera import Camera
 from .capture import Capture
 from .synth_geometry import ray_table, render
-from .synth_body import MeshBody, body_random, make_build, pose_body
+from .synth_body import MeshBody, body_balance, body_random, make_build, pose_body
 from .synth_subjects import BUILD, GAIT, MOTIONS, PARTS, RANDOM, SUBJECTS, human_walk, rz, ry
 
 # the body subject (:mod:`.synth_body`) poses the MakeHuman mesh with the capsule human's angles;
@@ -70,7 +70,8 @@ ELEVATION = {"spider": 35.0, "hand": 40.0}
 
 
 # ----------------------------------------------------------------------------- cameras
-def camera_ring(volume, count=8, size=(640, 480), rng=None, distort=True, elevation=None):
+def camera_ring(volume, count=8, size=(640, 480), rng=None, distort=True, elevation=None,
+                layout="ring"):
     """A ring of ``count`` cameras around ``volume`` looking at its centre.
 
     Radius twice the half-diagonal of the volume's footprint (at least 0.8), heights alternating
@@ -78,6 +79,12 @@ def camera_ring(volume, count=8, size=(640, 480), rng=None, distort=True, elevat
     chosen so the whole volume fits in the image (also after distortion). Every other camera
     gets a small lens distortion (k1, k2, p1, p2), which the silhouettes honour. ``elevation``
     (degrees): cameras look down from about that angle instead (flat subjects: the spider).
+    ``layout="pairs"``: the azimuths are not even but two pairs facing each other, as phones
+    set up around a person in a room (the Pose2Sim balancing recording: cameras at 12°, −38°,
+    135°, −154° around the subject: pairs 50° and 71° apart, each nearly opposite one of the
+    other pair, so that opposite views see nearly the same outline and the hull keeps more
+    phantom volume than with four cameras 90° apart): within a pair 40–80° apart, the second
+    pair 160–200° further round; heights, radius and aim as the ring's (4 cameras only).
     """
     rng = np.random.default_rng(0) if rng is None else rng
     lo, hi = (np.asarray(v, float) for v in volume)
@@ -87,9 +94,18 @@ def camera_ring(volume, count=8, size=(640, 480), rng=None, distort=True, elevat
     w, h = int(size[0]), int(size[1])
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     az0 = rng.uniform(0, 2 * np.pi)
+    if layout == "pairs":
+        if count != 4:
+            raise InputError(f"synth: camera layout 'pairs' needs 4 cameras (got {count})")
+        g1, g2, opp = rng.uniform(40, 80), rng.uniform(40, 80), rng.uniform(160, 200)
+        steps = np.radians([0.0, g1, opp, opp + g2])
+    elif layout == "ring":
+        steps = 2 * np.pi * np.arange(count) / count
+    else:
+        raise InputError(f"synth: camera layout must be 'ring' or 'pairs' (got {layout!r})")
     cams = []
     for i in range(count):
-        az = az0 + 2 * np.pi * i / count + np.radians(rng.uniform(-5, 5))
+        az = az0 + steps[i] + np.radians(rng.uniform(-5, 5))
         jitter = rng.uniform(-0.04, 0.04)
         if elevation is None:
             zc = centre[2] + ext[2] * (0.3 + (0.15 if i % 2 == 0 else -0.12) + jitter)
@@ -241,8 +257,10 @@ def _set_arm_part(body, vlo, vhi):
 
 
 def _random_frames(subject, n, rng, thickness, separated, vlo, vhi, margin, limb_margin=None,
-                   build=None):
+                   build=None, lean=0.0):
     build, sample = build or BUILD[subject], RANDOM[subject]
+    if lean and subject == "body":
+        sample = body_balance
     axes = (0, 1, 2) if subject == "hand" else (0, 1)
     skip = ("forearm",) if subject == "hand" else ()
     bodies = []
@@ -252,7 +270,10 @@ def _random_frames(subject, n, rng, thickness, separated, vlo, vhi, margin, limb
             body.limb_margin = limb_margin
             if separated and not body.separated():
                 continue
-            body = _grounded(body.transformed(_orientation(subject, rng), np.zeros(3)), subject)
+            R = _orientation(subject, rng)
+            if lean:            # tilted about a random horizontal axis by lean/3 … lean degrees
+                R = rz(rng.uniform(0, 360)) @ ry(rng.uniform(lean / 3, lean)) @ R
+            body = _grounded(body.transformed(R, np.zeros(3)), subject)
             lo, hi = body.extent(skip=skip)
             off = _fit_offset(lo, hi, vlo, vhi, margin, rng, axes)
             if off is None:
@@ -319,7 +340,7 @@ def _l(x):
 
 def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 480), noise=0,
                       motion="random", thickness=1.0, separated=False, fps=25, out=None, *,
-                      margin=None, build=None) -> Capture:
+                      margin=None, build=None, layout="ring", lean=0.0) -> Capture:
     """Synthetic capture in memory (``masks`` set, ``options["gt"]`` = the gt.json dict,
     ``options["bodies"]`` = the posed :class:`.synth_subjects.Body` of each frame, ``path`` None).
 
@@ -362,6 +383,13 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
         dict of :data:`.synth_body.BUILDS` keys. ``thickness`` multiplies its girths. Recorded
         in ``gt["synth"]["build"]``; per frame ``pose`` and ``placement`` re-pose the exact
         mesh (:func:`.synth_body.body_mesh`).
+    layout : "ring" | "pairs"
+        Camera azimuths (:func:`camera_ring`): even, or two facing pairs as phones in a room.
+    lean : float
+        Random poses only: each pose tilted about a random horizontal axis by ``lean``/3 …
+        ``lean`` degrees, then grounded (a leaning, balancing subject); the ``body`` then
+        stands on one leg with the other lifted sideways (:func:`.synth_body.body_balance`).
+        0 (default): upright.
     """
     _check_args(subject, frames, cameras, size, noise, motion, thickness, fps, separated)
     rng = np.random.default_rng(seed)
@@ -377,14 +405,14 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
         make = lambda pose, _thickness: pose_body(pose, props)  # noqa: E731
     if motion == "random":
         bodies = _random_frames(subject, int(frames), rng, thickness, separated, vlo, vhi, place,
-                                limb_margin, build=make)
+                                limb_margin, build=make, lean=float(lean))
     else:
         bodies, vlo, vhi = _motion_frames(subject, motion, int(frames), float(fps), rng, thickness,
                                           vlo, vhi, place, build=make)
     if subject == "hand":
         bodies = [_set_arm_part(b, vlo, vhi) for b in bodies]
     cams = camera_ring((vlo, vhi), int(cameras), (int(size[0]), int(size[1])), rng,
-                       elevation=ELEVATION.get(subject))
+                       elevation=ELEVATION.get(subject), layout=layout)
     tables = [ray_table(c) for c in cams]
     names = [f"{i:06d}" for i in range(int(frames))]
     masks, gframes = {}, {}
@@ -420,6 +448,10 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
                     else float(bodies[0].limb_margin)}}
     if subject == "body":
         gt["synth"]["build"] = bodies[0].build
+    if lean:
+        gt["synth"]["lean"] = float(lean)
+    if layout != "ring":
+        gt["synth"]["layout"] = layout
     cap = Capture(cams, names, None, "+z", "m", float(fps), (vlo.copy(), vhi.copy()),
                   {"gt": gt, "bodies": bodies}, masks)
     if out is not None:

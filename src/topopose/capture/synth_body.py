@@ -514,3 +514,16 @@ def body_random(rng) -> dict:
     if leg == "crouch":
         p["spine_flex"] = _u(rng, 10, 45)
     return p
+
+
+def body_balance(rng) -> dict:
+    """Random balancing pose: :func:`body_random` with one leg lifted sideways (hip abduction
+    30–80°, knee nearly straight) on the other, straight, leg — as the Pose2Sim balancing trial
+    (a subject on one leg, leaning away from the lifted one, arms out). The lean itself is the
+    placement's (``synthetic_capture(lean=…)``)."""
+    p = body_random(rng)
+    up, down = ("l", "r") if rng.random() < 0.5 else ("r", "l")
+    p.update({f"hip_abd_{up}": _u(rng, 30, 80), f"hip_flex_{up}": _u(rng, -15, 30),
+              f"knee_{up}": _u(rng, 0, 30), f"hip_abd_{down}": _u(rng, -5, 10),
+              f"hip_flex_{down}": _u(rng, -10, 10), f"knee_{down}": _u(rng, 0, 15)})
+    return p

@@ -110,7 +110,24 @@ model replaced: 1): few 4-camera frames are right at all (15–33 %) and the wro
 high. After the 2026-11-24 refit (minimum 0.90 with 4 cameras): held out 15 matched of 235 right
 frames (precision 0.933), 4 portrait cameras 2 of 151; the real recording none of its 67 right
 frames — their alignment head features and radius ratios lie outside the synthetic 4-camera
-right frames' (``confidence.md``, last table).
+right frames' (``confidence.md``, last table). Why (``benchmarks/confidence_real_torso.py``,
+``results/confidence_real_torso.md``): (1) the subject leans (trunk 27° from the vertical at
+the median, up to 49°) on one leg, and in half of the right frames (17 of 33) the *alignment's*
+torso vertex sits on another junction, 0.59 m from Pose2Sim's neck (the placed torso, moved back
+onto the spine, 0.14 m): those frames carry head_bend 1.55, head_offset 0.36, torso_radius 0.18,
+head_torso 1.67; the other half 0.37 / 0.15 / 1.0 / 0.36, near the synthetic right frames';
+(2) the radius features are relative to the hull's largest inscribed ball, which on the
+recording is 11 voxels (0.22 m, hull 0.12 m³) against 6 (0.15 m, 0.08–0.11 m³) on synthetic
+4-camera bodies, so a hand's 2 voxels give end_radius 0.18 instead of 0.33; (3) its smooth
+network masks grow fewer spurious branches (5–8 against 12–16 with noise level 2). The
+calibration set-up ``4r`` (``benchmarks/confidence.py``: the portrait phone cameras in two
+facing pairs as the recording's — ``synthetic_capture(layout="pairs")`` —, the volume fitted
+to the silhouettes, and balancing poses tilted up to 45° — ``lean``,
+:func:`topopose.capture.synth_body.body_balance`) reproduces (1) in part (a third of its right
+balancing frames, head_bend 1.1) but not (2): no set-up tried (facing pairs, fitted volume,
+lean, noise level 3) fattens the hull's trunk beyond 0.15 m. Refitted with it (not shipped,
+``results/confidence_refit_4r.md``) the recording still has no right frame at the 4-camera
+minimum (0.85), 8 right of 14 at 0.5, and the 8-camera held-out precision fell to 0.947.
 
 The confidence is reported for every frame. With the gate on (``FrameEstimator(gate=True)``,
 ``topopose run --confidence-gate on``; the default, :func:`topopose.pose.estimate.default_gate`),

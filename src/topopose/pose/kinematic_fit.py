@@ -340,7 +340,9 @@ SLIDE = True   # the model's ``slide`` bones take each frame's length (False: ev
                # neck / MPJPE: random 6.2 / 6.13 → 5.2 / 6.03 cm (the initial placement's neck
                # 5.2), walks 3.9 / 4.85 → 3.5 / 4.83 cm. Held lengths tried before: the neck's
                # 30th/50th percentile, no gain; the pelvis sliding too: hips 6.0 → 5.7, pelvis
-               # 5.9 → 6.6 cm, not kept)
+               # 5.9 → 6.6 cm, not kept). A BVH (constant offsets, :func:`~.export.write_bvh`)
+               # carries a sliding bone at its median length: its re-read joint is off by the
+               # slide; the JSONL, TRC and C3D carry the fitted positions
 
 
 def frame_lengths(target, L, tree: KinematicTree, slide=None) -> np.ndarray:

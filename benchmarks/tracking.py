@@ -36,7 +36,8 @@ is measured beside its peer in the same run:
   branch end, shoulders of the first calibration, inner weight 0.3). Joint → rig: neck ``Neck_head``, skull ``Head_head``, pelvis mean of
   the ``UpLeg`` heads, shoulder ``Arm_head``, elbow ``ForeArm_head``, wrist ``Hand_head``,
   fingertip ``fingertip_l/r``, hip ``UpLeg_head``, knee ``Leg_head``, ankle ``Foot_head``,
-  toe ``toe_l/r``; chest (the curve's shoulder-centre junction) has no rig joint.
+  toe ``toe_l/r``; chest (the curve's shoulder-centre junction) has no rig joint. Also the fit
+  with every bone constant (``slide=False``: the neck's bone from the chest junction too).
 
 The per-frame matching on the body is being improved elsewhere (issue 11): figures are as the
 per-frame result is, misses included. Writes ``tracking.md``, ``tracking.json`` and
@@ -274,6 +275,14 @@ def analyse(raw, cap, model):
     before, tree0, _ = fit_sequence(tracked, previous_definitions(model),
                                     inner_weight=PREVIOUS_INNER_WEIGHT, spine=0.0, quantile=50)
     mainf, treem, _ = main_fit(tracked, model)
+    fixed, _, _ = fit_sequence(tracked, model, slide=False)
+    err_fixed, err_fixed_seen = [], []       # every bone constant (the neck's too)
+    for q in fixed:
+        if q.matched and q.joints and not q.diagnostics.get("interpolated"):
+            P = np.array([q.joints[n] for n in tree.names])
+            err_fixed.append(joint_errors(tree.names, P, gt["frames"][q.frame]["joints"]))
+            P[[tree.names.index(h) for h in q.diagnostics.get("held_joints") or []]] = np.nan
+            err_fixed_seen.append(joint_errors(tree.names, P, gt["frames"][q.frame]["joints"]))
     err_main = []
     for q in mainf:
         if q.matched and q.joints and not q.diagnostics.get("interpolated"):
@@ -325,6 +334,7 @@ def analyse(raw, cap, model):
            "mpjpe_fit": mpjpe(err_fit), "mpjpe_init": mpjpe(err_init),
            "mpjpe_fit_good": mpjpe(err_good), "mpjpe_before": mpjpe(err_before),
            "mpjpe_fit_seen": mpjpe(err_seen), "mpjpe_main": mpjpe(err_main),
+           "mpjpe_fixed": mpjpe(err_fixed), "mpjpe_fixed_seen": mpjpe(err_fixed_seen),
            "arms": arms, "frames_by": {k: mpjpe(v)[3] for k, v in frames_by.items()},
            "bone_lengths": {tree.names[j]: float(L[j]) for j in range(len(L)) if tree.parents[j] >= 0},
            "seconds": {"track": t_track, "fit": t_fit, "sides": t_sides}}
@@ -538,8 +548,10 @@ def report(rows, info, real=None):
         pooled_good = [x for r in rs for x in r["mpjpe_fit_good"][3]]
         pooled_seen = [x for r in rs for x in r["mpjpe_fit_seen"][3]]
         held_frames = sum(r["held_frames"] for r in rs)
-        pj, pj0, pjm, pjs, pji = {}, {}, {}, {}, {}
+        pj, pj0, pjm, pjs, pji, pjx = {}, {}, {}, {}, {}, {}
         for r in rs:
+            for j, v in r["mpjpe_fixed_seen"][4].items():
+                pjx.setdefault(j, []).extend(v)
             for j, v in r["mpjpe_fit_seen"][4].items():
                 pjs.setdefault(j, []).extend(v)
             for j, v in r["mpjpe_init"][4].items():
@@ -586,6 +598,14 @@ def report(rows, info, real=None):
               "the initial placement has no joint for a part the frame lost, so the fit's "
               "figure over all joints is not its peer; per joint, fit ← initial placement: "
               + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pji.get(j, [np.nan])):.1f}"
+                          for j, v in pjs.items()),
+              "- the same run with every bone constant (`slide` off: the neck's bone from the "
+              "chest junction too; `fit_sequence(slide=False)`): MPJPE "
+              f"{100 * np.median([x for r in rs for x in r['mpjpe_fixed'][3]]):.1f} cm, on the "
+              "joints each frame saw "
+              f"{100 * np.median([x for r in rs for x in r['mpjpe_fixed_seen'][3]]):.1f} cm; per "
+              "joint on the joints each frame saw, now ← every bone constant: "
+              + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pjx.get(j, [np.nan])):.1f}"
                           for j, v in pjs.items()),
               "- the same run with the previous joint definitions and fit (tips at the branch "
               "end, shoulders of the first calibration, inner weight 0.3): MPJPE "

@@ -193,7 +193,7 @@ def test_fit_constant_bone_lengths_recovers_joints_and_fills_gaps():
     for i, p in enumerate(out):
         assert set(p.joints) == set(tree.names)
         for j, par in enumerate(tree.parents):
-            if par >= 0:
+            if par >= 0 and not tree.slide[j]:               # the neck slides (its own test)
                 d = np.linalg.norm(p.joints[tree.names[j]] - p.joints[tree.names[par]])
                 assert abs(d - L[j]) < 1e-9                  # exactly constant lengths
         err = max(np.linalg.norm(p.joints[k] - truth[i][k]) for k in tree.names)
@@ -490,4 +490,55 @@ def test_raised_arm_joints_at_their_raised_fraction():
     d["joint"] = [dict(j) for j in d["joint"]]
     next(j for j in d["joint"] if j["name"] == "elbow")["at_raised"] = 1.5
     with pytest.raises(InputError, match="at_raised"):
+        model_from_dict(d)
+
+
+def test_neck_slides_with_the_chest_junction():
+    """The chest (the curves' junction, the tree's root) slides along the spine from frame to
+    frame while the neck and head stay: with the neck's bone ``slide`` (its frame's length) the
+    fitted neck is its placement on the curve; with every bone constant (``slide=False``) the
+    neck keeps a fixed distance from the moving junction and leaves it (the truth: the neck's
+    placement on the frame's curve, which runs through the true neck)."""
+    from topopose.pose.kinematic_fit import frame_lengths, initial_placement
+
+    rng = np.random.default_rng(5)
+    tree = kinematic_tree(HUMAN)
+    assert [tree.names[j] for j in range(len(tree.names)) if tree.slide[j]] == ["neck"]
+    poses = []
+    for i, dz in enumerate([0.0, 0.08, -0.06, 0.12, 0.02, -0.04]):
+        parts, curves = _body(0.0, np.random.default_rng(7))     # one body, one place
+        neck_true = parts["torso"] + 0.58 * (parts["head"] - parts["torso"])
+        parts["torso"] = parts["torso"] + [0, 0, dz]              # the junction slides
+        # the head's curve: junction → true neck → head (the neck half-way up the curve)
+        head = resample([parts["torso"], neck_true, parts["head"]])
+        curves = {k: (head if k == "head" else resample(np.vstack([parts["torso"], c[1:]])))
+                  for k, c in curves.items()}
+        pose, _ = _numbered_frame(f"{i:06d}", parts, curves, False, False)
+        pose.diagnostics["curves"] = {k: v + rng.normal(scale=0.002, size=v.shape)
+                                      for k, v in pose.diagnostics["curves"].items()}
+        poses.append(pose)
+    k = tree.names.index("neck")
+    out, _, L = fit_sequence(poses, HUMAN, max_gap=0)
+    fixed, _, _ = fit_sequence(poses, HUMAN, max_gap=0, slide=False)
+    err_slide, err_fixed = [], []
+    for p, q in zip(out, fixed):
+        P0 = initial_placement(p, tree)
+        Lf = frame_lengths(P0, L, tree)
+        assert abs(Lf[k] - np.linalg.norm(P0[k] - P0[tree.root])) < 1e-12
+        assert abs(np.linalg.norm(p.joints["neck"] - p.joints["chest"]) - Lf[k]) < 1e-9
+        err_slide.append(np.linalg.norm(p.joints["neck"] - P0[k]))
+        err_fixed.append(np.linalg.norm(q.joints["neck"] - P0[k]))
+        assert abs(np.linalg.norm(q.joints["neck"] - q.joints["chest"]) - L[k]) < 1e-9
+    # the slide fit's remaining error: the root refined by the other joints (ROOT_STEPS)
+    assert max(err_slide) < 0.025, err_slide
+    assert max(err_fixed) > 0.05 and np.mean(err_fixed) > 2 * np.mean(err_slide), err_fixed
+
+
+def test_joint_slide_field_round_trips_and_is_checked():
+    d = HUMAN.to_dict()
+    assert [j["name"] for j in d["joint"] if j.get("slide")] == ["neck"]
+    assert [j.name for j in model_from_dict(d).joints if j.slide] == ["neck"]
+    d["joint"] = [dict(j) for j in d["joint"]]
+    next(j for j in d["joint"] if j["name"] == "neck")["slide"] = "yes"
+    with pytest.raises(InputError, match="slide"):
         model_from_dict(d)

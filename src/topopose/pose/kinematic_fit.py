@@ -18,7 +18,9 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    with an ``at_raised`` (elbows, wrists) is there when its limb is raised.
 2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
    the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
-   constant over the sequence.
+   constant over the sequence, except a joint declared ``slide`` (the neck: its parent, the
+   chest, is the skeleton curves' junction, which slides along the spine), whose bone takes
+   each frame's initial-placement length (:func:`frame_lengths`, :data:`SLIDE`).
 3. **Fit** — per matched frame, the root at its initial placement (the model root part) and one
    direction per bone (``P_child = P_parent + L · d/|d|``, so lengths stay exactly constant),
    arc chain by arc chain from the root down, by :func:`scipy.optimize.least_squares` on: the
@@ -69,6 +71,7 @@ class KinematicTree:
     limbs: frozenset = frozenset()  # the model's limb parts (``[[mirror]]`` parts)
     width: list = None             # (along the trunk, outward) × hull radius, from the junction
     at_raised: list = None         # at when the arc's end part is past its start along the trunk
+    slide: list = None             # the bone from its parent takes the frame's length (slide)
 
     @property
     def root(self) -> int:
@@ -107,7 +110,7 @@ def kinematic_tree(model) -> KinematicTree:
     if not model.joints:
         raise InputError(f"model {model.name!r}: no [[joint]] declared; the full skeleton needs "
                          "joints along the arcs (see topopose.pose.model)")
-    names, base, arc, at, offset, beyond, width, raised = [], [], [], [], [], [], [], []
+    names, base, arc, at, offset, beyond, width, raised, slide = ([] for _ in range(9))
     arcs = model_arcs(model)
     for u, v in arcs:
         for js in model.joints:
@@ -129,6 +132,7 @@ def kinematic_tree(model) -> KinematicTree:
             offset.append(tuple(float(x) for x in js.offset))
             width.append(tuple(float(x) for x in js.width))
             raised.append(r)
+            slide.append(bool(js.slide))
             beyond.append(float(js.beyond) if t == 1.0 else 0.0)
             base.append(js.name)
             arc.append((u, v))
@@ -170,7 +174,7 @@ def kinematic_tree(model) -> KinematicTree:
     return KinematicTree(names, base, parents, arc, at, offset,
                          tuple(model.facing.get("trunk", ())), beyond,
                          frozenset(x for parts, _names in model.mirrors for x in parts), width,
-                         raised)
+                         raised, slide)
 
 
 TIP_DIRECTION = 0.1      # the tip direction: along the curve's last 10 % (see _along)
@@ -326,6 +330,33 @@ def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None) -> np.nda
             v = pooled[(tree.base[j], tree.base[p])]
             L[j] = float(np.percentile(v, quantile)) if v else np.nan
     return L
+
+
+SLIDE = True   # the model's ``slide`` bones take each frame's length (False: every bone constant).
+               # The neck's parent, the chest, is the junction of the skeleton curves, not a
+               # joint: it slides along the spine (a raised arm pulls it up), so a constant
+               # chest → neck length put the fitted neck where the junction's error sends it
+               # (development seeds 21–28 random, 41–45 walks, gate on; fit, median over frames,
+               # neck / MPJPE: random 6.2 / 6.13 → 5.2 / 6.03 cm (the initial placement's neck
+               # 5.2), walks 3.9 / 4.85 → 3.5 / 4.83 cm. Held lengths tried before: the neck's
+               # 30th/50th percentile, no gain; the pelvis sliding too: hips 6.0 → 5.7, pelvis
+               # 5.9 → 6.6 cm, not kept). A BVH (constant offsets, :func:`~.export.write_bvh`)
+               # carries a sliding bone at its median length: its re-read joint is off by the
+               # slide; the JSONL, TRC and C3D carry the fitted positions
+
+
+def frame_lengths(target, L, tree: KinematicTree, slide=None) -> np.ndarray:
+    """The frame's bone lengths: ``L``, except the bones of the joints declared ``slide``
+    (when ``slide``, default :data:`SLIDE`): the distance of the joint's initial placement
+    ``target`` from its parent's, when both are placed."""
+    slide = SLIDE if slide is None else slide
+    out = L.copy()
+    if not slide or not tree.slide:
+        return out
+    for j, p in enumerate(tree.parents):
+        if tree.slide[j] and p >= 0 and not np.isnan(target[[j, p]]).any():
+            out[j] = float(np.linalg.norm(target[j] - target[p]))
+    return out
 
 
 def forward(root, dirs, L, tree: KinematicTree, order=None) -> np.ndarray:
@@ -537,7 +568,7 @@ def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
 
 
 def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=None,
-                 quantile=None):
+                 quantile=None, slide=None):
     """Fit the full skeleton to every matched frame of a sequence (see the module docstring).
 
     Parameters
@@ -555,6 +586,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         default :data:`SPINE_BACK`, 0: off)
     quantile : percentile of the bone lengths (:func:`bone_lengths`; default
         :data:`BONE_QUANTILE`, 50: the median)
+    slide : the ``slide`` bones at each frame's length (:func:`frame_lengths`; default
+        :data:`SLIDE`, False: every bone constant)
 
     Returns
     -------
@@ -562,7 +595,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         ``diagnostics["skeleton_rms"]`` (curve distance after the fit),
         ``["interpolated"]``, ``["smoothed"]``
     tree : KinematicTree
-    lengths : ndarray, the bone length of each joint's bone (NaN for the root)
+    lengths : ndarray, the bone length of each joint's bone (NaN for the root); a ``slide``
+        bone's is its sequence length, used where the frame has none
     """
     poses = sorted(poses, key=lambda p: p.frame)
     tree = kinematic_tree(model)
@@ -574,6 +608,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         if poses else np.zeros((0, len(tree.names), 3))
     L = bone_lengths(init, tree, quantile)
     n_f = len(poses)
+    Lf = np.tile(L, (n_f, 1))              # per frame: a sliding bone's length varies
     P = np.full_like(init, np.nan)
     rms = [None] * n_f
     prev, t = None, frame_index(poses)
@@ -588,7 +623,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
                 start[miss] = prev[miss] - prev[tree.root] + np.nan_to_num(start[tree.root])
             elif miss.any():                      # an unrelated pose before: the rest pose
                 start = rest_fill(start, p, tree, L, limbs)
-            Pi, r = fit_frame(init[i], frame_curves(p, tree, spine), L, tree,
+            Lf[i] = frame_lengths(init[i], L, tree, slide)
+            Pi, r = fit_frame(init[i], frame_curves(p, tree, spine), Lf[i], tree,
                               start=None if np.isnan(start).any() else start,
                               inner_weight=inner_weight)
             if Pi is not None:
@@ -604,7 +640,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
                 for i in range(a + 1, b):
                     s = (t[i] - t[a]) / (t[b] - t[a])
                     root = (1 - s) * P[a, tree.root] + s * P[b, tree.root]
-                    P[i] = forward(root, (1 - s) * D[a] + s * D[b], L, tree)
+                    P[i] = forward(root, (1 - s) * D[a] + s * D[b],
+                                   (1 - s) * Lf[a] + s * Lf[b], tree)
                     interp[i] = True
     smoothed = np.zeros(n_f, dtype=bool)
     if smooth:
@@ -626,7 +663,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
             D = savgol_filter(D, win, 2, axis=0)
             R = savgol_filter(R, win, 2, axis=0)
             for k, i in enumerate(range(a, b)):
-                P[i] = forward(R[k], D[k], L, tree)
+                P[i] = forward(R[k], D[k], Lf[i], tree)
                 smoothed[i] = True
     out = []
     for i, p in enumerate(poses):

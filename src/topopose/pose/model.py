@@ -50,6 +50,9 @@ File format (TOML, DESIGN.md "Model tree file")::
                             # girth): along the trunk and outward; e.g. hips
     at_raised = 0.65        # optional: ``at`` when the arc's end part lies past its first
                             # part along the trunk (a hand above the chest junction)
+    slide = true            # optional: the bone from the joint's parent has no constant
+                            # length (the parent is a junction of the skeleton curves that
+                            # slides along the trunk); e.g. the neck below the chest junction
 
 Mirror pairs: once :mod:`.chirality` knows the subject's left, ``parts[0]`` (the one on the
 subject's left) is output as ``names[0]`` and ``parts[1]`` as ``names[1]``; the numbered
@@ -81,7 +84,7 @@ _EDGE_KEYS = {"parts", "length"}
 _CONSTRAINT_KEYS = {"kind", "parts", "axis", "relation"}
 _MIRROR_KEYS = {"parts", "names"}
 _FACING_KEYS = {"feet", "axis", "trunk"}
-_JOINT_KEYS = {"name", "arc", "at", "offset", "beyond", "width", "at_raised"}
+_JOINT_KEYS = {"name", "arc", "at", "offset", "beyond", "width", "at_raised", "slide"}
 
 
 @dataclass(frozen=True)
@@ -98,6 +101,7 @@ class JointSpec:
                                    # arc's start (replaces offset where the radius is known)
     at_raised: float = None        # at when the arc's end part is past its first part along the
                                    # trunk ([facing] trunk = [from, to]): a raised hand
+    slide: bool = False            # the bone from its parent: the frame's length, not constant
 
 
 @dataclass
@@ -220,6 +224,7 @@ class Model:
                             | ({"width": [float(x) for x in j.width]} if any(j.width) else {})
                             | ({"at_raised": float(j.at_raised)} if j.at_raised is not None
                                else {})
+                            | ({"slide": True} if j.slide else {})
                             for j in self.joints]
         return out
 
@@ -316,6 +321,8 @@ def validate_model(m: Model) -> None:
                 or not 0.0 < float(j.at_raised) < 1.0 or len(m.facing.get("trunk", ())) != 2):
             raise InputError(f"{jw}: field 'at_raised' must be a number in (0, 1), with [facing] "
                              f"trunk = [from, to]; got {j.at_raised!r}")
+        if not isinstance(j.slide, bool):
+            raise InputError(f"{jw}: field 'slide' must be true or false, got {j.slide!r}")
         if (not isinstance(j.arc, (list, tuple)) or len(j.arc) != 2
                 or not all(isinstance(x, str) for x in j.arc)):
             raise InputError(f"{jw}: field 'arc' must be two part names (or numbered stems)")
@@ -468,14 +475,15 @@ def model_from_dict(d: dict, source: str = "model") -> Model:
     for i, j in enumerate(d.get("joint") or []):
         if not isinstance(j, dict) or not {"name", "arc", "at"} <= set(j) <= _JOINT_KEYS:
             raise InputError(f"{source}: joint[{i}]: expected a table with name, arc, at "
-                             "(and optional offset, beyond, width, at_raised)")
+                             "(and optional offset, beyond, width, at_raised, slide)")
         off = j.get("offset", (0.0, 0.0))
         joints.append(JointSpec(j["name"], tuple(j["arc"]) if isinstance(j["arc"], list)
                                 else j["arc"], j["at"],
                                 tuple(off) if isinstance(off, list) else off,
                                 j.get("beyond", 0.0),
                                 tuple(j["width"]) if isinstance(j.get("width"), list)
-                                else j.get("width", (0.0, 0.0)), j.get("at_raised")))
+                                else j.get("width", (0.0, 0.0)), j.get("at_raised"),
+                                j.get("slide", False)))
     return Model(name=name, tree=tree, root=meta.get("root"), complete=complete,
                  threshold=meta.get("threshold"), description=meta.get("description", ""),
                  source=source, mirrors=mirrors, facing=dict(facing), joints=joints)

@@ -193,7 +193,7 @@ def test_fit_constant_bone_lengths_recovers_joints_and_fills_gaps():
     for i, p in enumerate(out):
         assert set(p.joints) == set(tree.names)
         for j, par in enumerate(tree.parents):
-            if par >= 0 and not tree.slide[j]:               # the neck slides (its own test)
+            if par >= 0:
                 d = np.linalg.norm(p.joints[tree.names[j]] - p.joints[tree.names[par]])
                 assert abs(d - L[j]) < 1e-9                  # exactly constant lengths
         err = max(np.linalg.norm(p.joints[k] - truth[i][k]) for k in tree.names)
@@ -518,12 +518,12 @@ def test_neck_slides_with_the_chest_junction():
                                       for k, v in pose.diagnostics["curves"].items()}
         poses.append(pose)
     k = tree.names.index("neck")
-    out, _, L = fit_sequence(poses, HUMAN, max_gap=0)
-    fixed, _, _ = fit_sequence(poses, HUMAN, max_gap=0, slide=False)
+    out, _, L = fit_sequence(poses, HUMAN, max_gap=0, slide=True)
+    fixed, _, _ = fit_sequence(poses, HUMAN, max_gap=0)
     err_slide, err_fixed = [], []
     for p, q in zip(out, fixed):
         P0 = initial_placement(p, tree)
-        Lf = frame_lengths(P0, L, tree)
+        Lf = frame_lengths(P0, L, tree, slide=True)
         assert abs(Lf[k] - np.linalg.norm(P0[k] - P0[tree.root])) < 1e-12
         assert abs(np.linalg.norm(p.joints["neck"] - p.joints["chest"]) - Lf[k]) < 1e-9
         err_slide.append(np.linalg.norm(p.joints["neck"] - P0[k]))

@@ -18,9 +18,9 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    with an ``at_raised`` (elbows, wrists) is there when its limb is raised.
 2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
    the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
-   constant over the sequence, except a joint declared ``slide`` (the neck: its parent, the
-   chest, is the skeleton curves' junction, which slides along the spine), whose bone takes
-   each frame's initial-placement length (:func:`frame_lengths`, :data:`SLIDE`).
+   constant over the sequence (with :data:`SLIDE` on, off by default, a joint declared
+   ``slide`` — the neck: its parent, the chest, is the skeleton curves' junction, which slides
+   along the spine — takes each frame's initial-placement length, :func:`frame_lengths`).
 3. **Fit** — per matched frame, the root at its initial placement (the model root part) and one
    direction per bone (``P_child = P_parent + L · d/|d|``, so lengths stay exactly constant),
    arc chain by arc chain from the root down, by :func:`scipy.optimize.least_squares` on: the
@@ -332,17 +332,16 @@ def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None) -> np.nda
     return L
 
 
-SLIDE = True   # the model's ``slide`` bones take each frame's length (False: every bone constant).
-               # The neck's parent, the chest, is the junction of the skeleton curves, not a
-               # joint: it slides along the spine (a raised arm pulls it up), so a constant
-               # chest → neck length put the fitted neck where the junction's error sends it
-               # (development seeds 21–28 random, 41–45 walks, gate on; fit, median over frames,
-               # neck / MPJPE: random 6.2 / 6.13 → 5.2 / 6.03 cm (the initial placement's neck
-               # 5.2), walks 3.9 / 4.85 → 3.5 / 4.83 cm. Held lengths tried before: the neck's
-               # 30th/50th percentile, no gain; the pelvis sliding too: hips 6.0 → 5.7, pelvis
-               # 5.9 → 6.6 cm, not kept). A BVH (constant offsets, :func:`~.export.write_bvh`)
-               # carries a sliding bone at its median length: its re-read joint is off by the
-               # slide; the JSONL, TRC and C3D carry the fitted positions
+SLIDE = False  # the model's ``slide`` bones take each frame's length (False: every bone constant).
+               # Off by default: issue 15 asks for bone lengths constant over the sequence and a
+               # BVH (constant offsets, :func:`~.export.write_bvh`) whose re-read joints equal
+               # the fit's. On, the neck's bone from the chest (the curves' junction, not a
+               # joint: it slides along the spine, a raised arm pulls it up) takes each frame's
+               # length (development seeds 21–28 random, 41–45 walks, gate on; fit, median over
+               # frames, neck / MPJPE: random 6.2 / 6.13 → 5.2 / 6.03 cm, the initial
+               # placement's neck 5.2; walks 3.9 / 4.85 → 3.5 / 4.83 cm; benchmark in
+               # ``tracking.md``). Tried too: the neck's 30th/50th percentile, no gain; the
+               # pelvis sliding: hips 6.0 → 5.7, pelvis 5.9 → 6.6 cm
 
 
 def frame_lengths(target, L, tree: KinematicTree, slide=None) -> np.ndarray:

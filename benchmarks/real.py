@@ -205,9 +205,9 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     cdir = work / method.replace("+", "_")
     if cdir.exists():
         shutil.rmtree(cdir)
-    if method == "person+static":        # the previous pipeline: the detector on every frame
-        extra += "person_track = false\n"
-    make_capture(rec, cdir, "person" if method == "person+static" else method, extra)
+    if method == "person+track":         # MediaPipe's tracking mode (detector skipped)
+        extra += "person_track = true\n"
+    make_capture(rec, cdir, "person" if method == "person+track" else method, extra)
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")          # the "pad" policy warns for cam01/cam02
@@ -367,7 +367,7 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
-    ap.add_argument("--methods", default="sequence,selfie,sequence+selfie,person,person+static")
+    ap.add_argument("--methods", default="sequence,selfie,sequence+selfie,person,person+track")
     ap.add_argument("--resolution", type=int, default=100)
     ap.add_argument("--frames", type=int, default=0, help="first N frames only (0: all)")
     ap.add_argument("--out", default=str(HERE / "results" / "real"))

@@ -48,7 +48,7 @@ SILHOUETTE_DEFAULTS = {
     "occupancy": 0.5,      # soft fusion: posterior occupancy above which a voxel is in the hull
     "open3d": 1,           # soft fusion: 3D opening of the hull by a (2k + 1)³ cube (0: none)
     "selfie_floor": 0.0,   # selfie: the network's probability is raised to at least this (a weak "no")
-    "person_track": True,  # person: MediaPipe's tracking mode (detector skipped between frames)
+    "person_track": False,  # person: MediaPipe's tracking mode (detector skipped between frames)
     "cut": 0.5,            # hard fusion: a pixel is subject when its probability exceeds this
 }
 _SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (int, float), "open": int,

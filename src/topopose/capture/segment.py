@@ -12,15 +12,18 @@ The network's input is fixed-size (BlazePose: the detector sees 224 × 224, the 
 segmentation network a 256 × 256 crop around the person): its compute does not depend on the
 image's size, so segmenting a crop around the subject would not cut it (26 / 26 / 29 ms of
 CPU per image at 0.125 / 0.25 / 0.5 of 1088 × 1920, ``benchmarks/real.py`` times it). What can
-be skipped is the *detector*: ``[silhouettes] person_track = true`` (default) runs MediaPipe in
+be skipped is the *detector*: ``[silhouettes] person_track = true`` runs MediaPipe in
 tracking mode (the region of interest comes from the previous frame's landmarks; the detector
-runs only when the person is lost), without mask smoothing: 67 instead of 105–110 ms of CPU
-per 4-camera frame of the Pose2Sim recording, as many frames right
-(``benchmarks/results/real.md``). A graph is kept per camera and per run of consecutive
+runs only when the person is lost), without mask smoothing: 138 instead of 171 ms of CPU per
+4-camera frame of the Pose2Sim recording, the whole process (``benchmarks/results/real.md``).
+Off by default, so that a frame's mask never depends on the frames before it: on that
+recording tracking is right in as many frames per frame (66 %), fewer as ``topopose run``
+writes them (69 against 72 %), and its gate passed one wrong frame where the static mode
+passed none. A graph is kept per camera and per run of consecutive
 frames: a frame that does not follow the camera's previous one (asked again, out of order)
 starts a new graph, which runs the detector as static mode does, so a frame's mask depends
-only on the consecutive frames before it in that run. ``false``: every image segmented alone
-(``static_image_mode``).
+only on the consecutive frames before it in that run. ``false`` (default): every image
+segmented alone (``static_image_mode``).
 
 MediaPipe's legacy *selfie segmentation* model (``mediapipe.solutions.selfie_segmentation``,
 the general 256 × 256 model, ~250 kB, inside the ``mediapipe`` wheel up to 0.10.14: nothing is

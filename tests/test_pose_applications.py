@@ -529,6 +529,32 @@ def test_relation_sets_of_hand_computed_poses():
     assert C.relation_set(dict(t, s=None)) == {("l", "m", "r")}
 
 
+def test_similarity_of_a_frame_with_a_part_unplaced():
+    """A frame with a part unplaced is compared on the triples both frames define: the same pose
+    with a hand missing has similarity 1 with the whole pose (counted as absent relations it
+    would be |A ∩ B| / |A| < 1), and a different pose is judged on the shared parts only, which
+    a brute-force Jaccard over those parts' relation sets gives."""
+    parts = ["head", "hand_1", "hand_2", "torso", "foot_1"]
+    A = {"head": (0, 0, 2), "hand_1": (0, 1, 1), "hand_2": (0, -1, 1.5), "torso": (0, 0, 1),
+         "foot_1": (0, 0.2, 0)}
+    part = dict(A, hand_2=None)
+    Bp = {"head": (0, 0, 2), "hand_1": (0, 1, 2.5), "hand_2": None, "torso": (0, 0, 1),
+          "foot_1": (0.5, 0.9, 0.6)}
+    frames = [A, part, Bp]
+    M = C.relation_matrix(frames, parts)
+    V = C.defined_matrix(frames, parts)
+    assert V[0].all() and V[1].sum() == len(C.triples([p for p in parts if p != "hand_2"]))
+    S = C.similarity_matrix(M, None, defined=V)
+    assert S[0, 1] == 1.0
+    old = C.similarity_matrix(M, None)[0, 1]
+    assert old == pytest.approx(len(C.relation_set(part)) / len(C.relation_set(A))) and old < 1
+    shared = [p for p in parts if p != "hand_2"]
+    sa = C.relation_set({p: A[p] for p in shared})
+    sb = C.relation_set({p: Bp[p] for p in shared})
+    assert sa != sb
+    assert S[0, 2] == pytest.approx(len(sa & sb) / len(sa | sb))
+
+
 def test_similarity_renumbering_and_ari():
     parts = ["head", "hand_1", "hand_2", "torso"]
     A = {"head": (0, 0, 2), "hand_1": (0, 1, 1), "hand_2": (0, -1, 3), "torso": (0, 0, 1)}

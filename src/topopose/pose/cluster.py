@@ -11,7 +11,10 @@ cardinality of their union)."
   tell numbered limbs apart (hand_1 / hand_2 may swap between frames), so the similarity is the
   best one over the renumberings of numbered parts (parts ``name_1, name_2, ...`` sharing a
   base name) when there are at most ``max_renumberings`` of them (human: 2! × 2! = 4), and the
-  plain one otherwise.
+  plain one otherwise. A frame with a part unplaced (a missing limb) is compared with another
+  on the triples whose three parts both frames placed (``defined``): an unplaced part is not
+  known, not "between nothing" — counted as absent relations, one missing hand made a kick
+  frame a cluster of its own (``benchmarks/applications.py``: K found +5 in one of 3 runs).
 * :func:`cluster_poses`: average-linkage hierarchical clustering (SciPy) of 1 − similarity;
   cut at ``threshold``, at ``clusters`` clusters, or automatically at the best mean silhouette
   (``auto="silhouette"``, default) or at the largest gap between successive merge heights
@@ -109,17 +112,29 @@ def _permuted_columns(parts, perm) -> np.ndarray:
     return out
 
 
-def similarity_matrix(M: np.ndarray, parts=None, max_renumberings: int = 24) -> np.ndarray:
+def defined_matrix(frames_parts: list, parts: list) -> np.ndarray:
+    """Boolean (frames × triples) matrix: whether the frame placed all three parts of a triple."""
+    have = np.array([[pos.get(p) is not None for p in parts] for pos in frames_parts], bool)
+    idx = {p: i for i, p in enumerate(parts)}
+    T = np.array([[idx[a], idx[b], idx[c]] for a, b, c in triples(parts)], np.int64).reshape(-1, 3)
+    return have[:, T].all(axis=2)
+
+
+def similarity_matrix(M: np.ndarray, parts=None, max_renumberings: int = 24,
+                      defined: np.ndarray = None) -> np.ndarray:
     """Jaccard similarity |A ∩ B| / |A ∪ B| of the rows of a relation matrix (1 for two empty
-    sets), best over the renumberings of numbered ``parts`` (see the module docstring)."""
+    sets), best over the renumberings of numbered ``parts`` (see the module docstring).
+    ``defined`` (:func:`defined_matrix`; None: every triple): each pair of frames is compared
+    on the triples both define."""
     A = M.astype(np.float64)
-    size = A.sum(1)
+    V = np.ones_like(A) if defined is None else defined.astype(np.float64)
     perms = renumberings(parts, max_renumberings) if parts is not None else [None]
     best = None
     for perm in perms:
-        B = A if perm is None else A[:, np.argsort(_permuted_columns(list(parts), perm))]
+        cols = None if perm is None else np.argsort(_permuted_columns(list(parts), perm))
+        B, VB = (A, V) if cols is None else (A[:, cols], V[:, cols])
         inter = A @ B.T
-        union = size[:, None] + size[None, :] - inter
+        union = A @ VB.T + V @ B.T - inter
         with np.errstate(invalid="ignore", divide="ignore"):
             S = np.where(union > 0, inter / np.maximum(union, 1e-300), 1.0)
         best = S if best is None else np.maximum(best, S)
@@ -229,8 +244,9 @@ def cluster_poses(poses, *, clusters=None, threshold=None, auto="silhouette", re
             labels[i] = 0
         return Clustering(frames, labels, [frames[i] for i in used[:1]], len(used[:1]), "trivial",
                           used=used)
-    M = relation_matrix([plist[i] for i in used], list(parts), relation)
-    S = similarity_matrix(M, list(parts), max_renumberings)
+    fp = [plist[i] for i in used]
+    M = relation_matrix(fp, list(parts), relation)
+    S = similarity_matrix(M, list(parts), max_renumberings, defined_matrix(fp, list(parts)))
     D = 1.0 - S
     np.fill_diagonal(D, 0.0)
     Z = linkage(squareform(D, checks=False), method="average")

@@ -102,6 +102,23 @@ def make_capture(rec: Path, out: Path, method: str, extra: str = "") -> None:
         f'[silhouettes]\nmethod = "{method}"\n{extra}')
 
 
+def open_recording(path):
+    """The recording's folder and Pose2Sim's 3D result, or None (said) when it is absent."""
+    rec = Path(path)
+    if not (rec / "videos").is_dir():
+        print(f"{rec}: recording not found (needs videos/ and Calib.toml); pass its path")
+        return None
+    return rec, read_trc(rec / "reference" / "pose2sim_3d.trc")
+
+
+def person_capture(rec: Path, out: Path, settings=()):
+    """The recording as a loaded ``person`` capture in ``out`` (extra ``[silhouettes]`` lines)."""
+    import topopose as tp
+
+    make_capture(rec, out, "person", "".join(x + "\n" for x in settings))
+    return tp.load_capture(out)
+
+
 def summarize(poses, ref, frames_index, min_confidence) -> dict:
     """Scores of ``poses`` judged without the gate; *gated*: matched with the confidence gate at
     ``min_confidence`` (:func:`topopose.pose.confidence.passes_gate`, as ``run`` decides)."""

@@ -199,7 +199,6 @@ def run(est, cap, ref, volumes) -> dict:
 
 
 def main(argv=None):
-    import topopose as tp
     from _machine import machine
     from topopose.pose.estimate import FrameEstimator
 
@@ -209,16 +208,14 @@ def main(argv=None):
                     help="extra [silhouettes] setting, as benchmarks/real_diagnose.py")
     ap.add_argument("--out", default=str(HERE / "results" / "real_align"))
     a = ap.parse_args(argv)
-    rec = Path(a.recording)
-    if not (rec / "videos").is_dir():
-        print(f"{rec}: recording not found (needs videos/ and Calib.toml); pass its path")
+    opened = real.open_recording(a.recording)
+    if opened is None:
         return 2
-    ref = real.read_trc(rec / "reference" / "pose2sim_3d.trc")
+    rec, ref = opened
     runs = {}
     with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        real.make_capture(rec, Path(tmp) / "c", "person", "".join(x + "\n" for x in a.set))
-        cap = tp.load_capture(Path(tmp) / "c")
+        cap = real.person_capture(rec, Path(tmp) / "c", a.set)
         est = FrameEstimator(cap, "human", 100, gate=False)
         volumes = {cap.frame_name(f): est.hull(cap.frame_name(f)) for f in cap.frames}
         for name, keep in (("trunk rule off", False), ("trunk rule on (default)", True)):

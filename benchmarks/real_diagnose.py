@@ -128,7 +128,6 @@ def picture(cap, est, ref, frames, side, path):
 
 
 def main(argv=None):
-    import topopose as tp
     from _machine import machine
     from topopose.capture.background import foreground_maps
     from topopose.pose.estimate import FrameEstimator
@@ -138,16 +137,14 @@ def main(argv=None):
     ap.add_argument("--set", action="append", default=[])
     ap.add_argument("--out", default=str(HERE / "results" / "real_diagnose"))
     a = ap.parse_args(argv)
-    rec = Path(a.recording)
-    if not (rec / "videos").is_dir():
-        print(f"{rec}: recording not found (needs videos/ and Calib.toml); pass its path")
+    opened = real.open_recording(a.recording)
+    if opened is None:
         return 2
-    ref = real.read_trc(rec / "reference" / "pose2sim_3d.trc")
+    rec, ref = opened
     rows = []
     with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        real.make_capture(rec, Path(tmp) / "c", "person", "".join(x + "\n" for x in a.set))
-        cap = tp.load_capture(Path(tmp) / "c")
+        cap = real.person_capture(rec, Path(tmp) / "c", a.set)
         est = FrameEstimator(cap, "human", 100, gate=False)
         scale = float(cap.options["silhouettes"]["scale"])
         for i, f in enumerate(cap.frames):

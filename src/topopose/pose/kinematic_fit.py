@@ -566,8 +566,51 @@ def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
     return out
 
 
+HAND_HINTS = True   # an unseen arm's elbow towards its hand hint's end (:func:`hint_fill`)
+HINT_END = "wrist"  # the hint's end taken as the wrist ("wrist") or the elbow's direction
+
+
+def hint_fill(start, pose, tree: KinematicTree, L, unseen) -> np.ndarray:
+    """``start`` with each unseen arm that has a hand hint (``diagnostics["hand_hints"]``:
+    the curve of the branch of a hand the per-frame stage left unplaced — an arm branch
+    ending at the elbow (``short_arm``), a hand on the trunk's core (``hand_on_trunk``) or an
+    untrusted hand — from the chest junction to the branch end) bent at the hint: the arc's
+    second unseen joint (the elbow) moved to its parent (the shoulder, as ``start`` has it)
+    + its bone length towards the hint's end, the joints below it moved with it (their bone
+    directions, the rest pose's or the last frame's, kept). Only arcs whose joints are all
+    ``unseen`` (bool per joint: not placed by the frame)."""
+    hints = pose.diagnostics.get("hand_hints") or {}
+    out = start.copy()
+    for (u, v), js in tree.chains().items():
+        c = hints.get(v)
+        arm = js[1:]
+        if c is None or len(arm) < 2 or np.isnan(out[arm[0]]).any():
+            continue
+        end = np.asarray(c, float)[-1]
+        d = end - out[arm[0]]
+        if np.linalg.norm(d) <= 0 or np.isnan(out[arm]).any() or not unseen[arm].all():
+            continue
+        if HINT_END == "elbow" or len(arm) < 3:
+            e = out[arm[0]] + L[arm[1]] * d / np.linalg.norm(d)
+            out[arm[1:]] += e - out[arm[1]]
+            continue
+        # the end as the wrist: two bones (law of cosines), bent as ``start`` bends them
+        a, b, r = L[arm[1]], L[arm[2]], float(np.linalg.norm(d))
+        u = d / r
+        n = out[arm[1]] - out[arm[0]]
+        n = n - np.dot(n, u) * u
+        n = n / np.linalg.norm(n) if np.linalg.norm(n) > 1e-9 else np.zeros(3)
+        ca = np.clip((a * a + r * r - b * b) / (2 * a * r), -1.0, 1.0) if r < a + b else 1.0
+        e = out[arm[0]] + a * (ca * u + np.sqrt(1 - ca * ca) * n)
+        w = end - e
+        w = e + b * w / max(np.linalg.norm(w), 1e-12)
+        out[arm[3:]] += w - out[arm[2]]
+        out[arm[1]], out[arm[2]] = e, w
+    return out
+
+
 def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=None,
-                 quantile=None, slide=None):
+                 quantile=None, slide=None, hints=None):
     """Fit the full skeleton to every matched frame of a sequence (see the module docstring).
 
     Parameters
@@ -622,6 +665,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
                 start[miss] = prev[miss] - prev[tree.root] + np.nan_to_num(start[tree.root])
             elif miss.any():                      # an unrelated pose before: the rest pose
                 start = rest_fill(start, p, tree, L, limbs)
+            if miss.any() and (HAND_HINTS if hints is None else hints):
+                start = hint_fill(start, p, tree, L, miss)
             Lf[i] = frame_lengths(init[i], L, tree, slide)
             Pi, r = fit_frame(init[i], frame_curves(p, tree, spine), Lf[i], tree,
                               start=None if np.isnan(start).any() else start,

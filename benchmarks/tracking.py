@@ -38,6 +38,9 @@ is measured beside its peer in the same run:
   fingertip ``fingertip_l/r``, hip ``UpLeg_head``, knee ``Leg_head``, ankle ``Foot_head``,
   toe ``toe_l/r``; chest (the curve's shoulder-centre junction) has no rig joint. Also the fit
   with the neck's bone sliding (``slide=True``: its length from the chest junction per frame).
+* **hand hints** (``diagnostics["hand_hints"]``, :func:`~topopose.pose.kinematic_fit.hint_fill`):
+  each hint's end against the nearest true elbow and wrist, and the fit against the same fit
+  without them (``hints=False``): MPJPE, per joint, and the hinted unseen arms' error.
 
 The per-frame matching on the body is being improved elsewhere (issue 11): figures are as the
 per-frame result is, misses included. Writes ``tracking.md``, ``tracking.json`` and

@@ -617,8 +617,9 @@ class FrameEstimator:
             # skeleton curve of each matched arc, for left/right and the kinematic fit (§13.3.1)
             from .curves import arc_curves, model_arcs
             # hand hints: a hand unplaced by a rule (short_arm, hand_on_trunk, untrusted) whose
-            # branch is matched keeps that branch's curve, ending mostly at the elbow, for the
-            # kinematic fit (kinematic_fit.HAND_HINTS); parts, statuses and curves unchanged
+            # branch is matched keeps that branch's curve (its end: near the wrist, measured in
+            # benchmarks/tracking.py) in diagnostics["hand_hints"] for the kinematic fit
+            # (kinematic_fit.HAND_HINTS); parts, statuses and the other curves unchanged
             hinted = {p: data.positions.get(al.mapping.get(p)) for p in
                       short + on_core + ([extra["untrusted"]] if extra.get("untrusted") else [])
                       if al.mapping.get(p) is not None

@@ -590,10 +590,13 @@ def hint_fill(start, pose, tree: KinematicTree, L, unseen) -> np.ndarray:
     """``start`` with each unseen arm that has a hand hint (``diagnostics["hand_hints"]``:
     the curve of the branch of a hand the per-frame stage left unplaced — an arm branch
     ending at the elbow (``short_arm``), a hand on the trunk's core (``hand_on_trunk``) or an
-    untrusted hand — from the chest junction to the branch end) bent at the hint: the arc's
-    second unseen joint (the elbow) moved to its parent (the shoulder, as ``start`` has it)
-    + its bone length towards the hint's end, the joints below it moved with it (their bone
-    directions, the rest pose's or the last frame's, kept). Only arcs whose joints are all
+    untrusted hand — from the chest junction to the branch end) bent at the hint. With
+    :data:`HINT_END` ``"wrist"`` (default; the end lies near the wrist, not the elbow): the
+    shoulder kept (as ``start`` has it), the elbow and wrist by the law of cosines so that the
+    wrist is at the hint's end (on the line towards it, the arm straight, when out of reach),
+    bent in the plane of ``start``'s elbow (the rest pose's hanging upper arm or the last
+    frame's); with ``"elbow"``: the elbow a bone length from the shoulder towards the end.
+    The joints below keep ``start``'s bone directions. Only arcs whose joints are all
     ``unseen`` (bool per joint: not placed by the frame)."""
     hints = pose.diagnostics.get("hand_hints") or {}
     out = start.copy()
@@ -612,12 +615,12 @@ def hint_fill(start, pose, tree: KinematicTree, L, unseen) -> np.ndarray:
             continue
         # the end as the wrist: two bones (law of cosines), bent as ``start`` bends them
         a, b, r = L[arm[1]], L[arm[2]], float(np.linalg.norm(d))
-        u = d / r
+        t = d / r
         n = out[arm[1]] - out[arm[0]]
-        n = n - np.dot(n, u) * u
+        n = n - np.dot(n, t) * t
         n = n / np.linalg.norm(n) if np.linalg.norm(n) > 1e-9 else np.zeros(3)
         ca = np.clip((a * a + r * r - b * b) / (2 * a * r), -1.0, 1.0) if r < a + b else 1.0
-        e = out[arm[0]] + a * (ca * u + np.sqrt(1 - ca * ca) * n)
+        e = out[arm[0]] + a * (ca * t + np.sqrt(1 - ca * ca) * n)
         w = end - e
         w = e + b * w / max(np.linalg.norm(w), 1e-12)
         out[arm[3:]] += w - out[arm[2]]

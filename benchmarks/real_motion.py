@@ -400,7 +400,13 @@ def main(argv=None):
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
     ap.add_argument("--raw", default=None, help="per-frame poses.jsonl to reuse (or write)")
     ap.add_argument("--out", default=str(HERE / "results"))
+    ap.add_argument("--no-hand-hints", action="store_true",
+                    help="the kinematic fit without the hand hints (kinematic_fit.HAND_HINTS): "
+                         "the peer of the default")
     a = ap.parse_args(argv)
+    if a.no_hand_hints:
+        from topopose.pose import kinematic_fit
+        kinematic_fit.HAND_HINTS = False
     rec = Path(a.recording)
     if not (rec / "videos").is_dir() or not (rec / "reference" / "pose2sim_3d.trc").is_file():
         print(f"{rec}: recording not found (needs videos/, Calib.toml, reference/); pass its path")
@@ -423,6 +429,7 @@ def main(argv=None):
                 np.asarray(cap.up_vector, float))
     doc = {"recording": str(rec), "machine": machine(resolution=100, cameras=4),
            "threshold": model.threshold, "seconds": secs, "picture": "real_motion.png",
+           "hand_hints": not a.no_hand_hints,
            "bone_lengths_m": {motion.tree.names[j]: round(float(x), 4)
                               for j, x in enumerate(motion.lengths) if np.isfinite(x)},
            "bone_lengths_vs_pose2sim_m": {

@@ -38,6 +38,9 @@ is measured beside its peer in the same run:
   fingertip ``fingertip_l/r``, hip ``UpLeg_head``, knee ``Leg_head``, ankle ``Foot_head``,
   toe ``toe_l/r``; chest (the curve's shoulder-centre junction) has no rig joint. Also the fit
   with the neck's bone sliding (``slide=True``: its length from the chest junction per frame).
+* **hand hints** (``diagnostics["hand_hints"]``, :func:`~topopose.pose.kinematic_fit.hint_fill`):
+  each hint's end against the nearest true elbow and wrist, and the fit against the same fit
+  without them (``hints=False``): MPJPE, per joint, and the hinted unseen arms' error.
 
 The per-frame matching on the body is being improved elsewhere (issue 11): figures are as the
 per-frame result is, misses included. Writes ``tracking.md``, ``tracking.json`` and
@@ -276,6 +279,28 @@ def analyse(raw, cap, model):
                                     inner_weight=PREVIOUS_INNER_WEIGHT, spine=0.0, quantile=50)
     mainf, treem, _ = main_fit(tracked, model)
     fixed, _, _ = fit_sequence(tracked, model, slide=True)
+    nohint, _, _ = fit_sequence(tracked, model, hints=False)   # the peer of the hand hints
+    err_nohint, hinted = [], []      # hinted: (fit, without the hints) of each hinted arm
+    for p, q in zip(fitted, nohint):
+        if not (p.matched and p.joints and q.joints) or p.diagnostics.get("interpolated"):
+            continue
+        gj = gt["frames"][p.frame]["joints"]
+        Pq = np.array([q.joints[n] for n in tree.names])
+        err_nohint.append(joint_errors(tree.names, Pq, gj))
+        hints = p.diagnostics.get("hand_hints") or {}
+        held = p.diagnostics.get("held_joints") or []
+        fa = arm_errors(tree.names, np.array([p.joints[n] for n in tree.names]), gj, held)
+        for (sides, _, e), (_, _, e0), k in zip(
+                fa, arm_errors(tree.names, Pq, gj, held, fa[0][0] if fa else None), ("1", "2")):
+            if f"hand_{k}" in hints and f"wrist_{k}" in held:
+                hinted.append((e, e0))
+    hint_end = []        # each hint's end: distance to the nearest true elbow and wrist
+    for p in raw:
+        gj = gt["frames"][p.frame]["joints"]
+        for c in (p.diagnostics.get("hand_hints") or {}).values():
+            x = np.asarray(c, float)[-1]
+            hint_end.append([min(np.linalg.norm(x - np.asarray(gj[s + r])) for s in ("Left", "Right"))
+                             for r in ("ForeArm_head", "Hand_head")])
     err_fixed, err_fixed_seen = [], []       # the neck's bone sliding
     for q in fixed:
         if q.matched and q.joints and not q.diagnostics.get("interpolated"):
@@ -335,6 +360,7 @@ def analyse(raw, cap, model):
            "mpjpe_fit_good": mpjpe(err_good), "mpjpe_before": mpjpe(err_before),
            "mpjpe_fit_seen": mpjpe(err_seen), "mpjpe_main": mpjpe(err_main),
            "mpjpe_fixed": mpjpe(err_fixed), "mpjpe_fixed_seen": mpjpe(err_fixed_seen),
+           "mpjpe_nohint": mpjpe(err_nohint), "hinted_arms": hinted, "hint_end": hint_end,
            "arms": arms, "frames_by": {k: mpjpe(v)[3] for k, v in frames_by.items()},
            "bone_lengths": {tree.names[j]: float(L[j]) for j in range(len(L)) if tree.parents[j] >= 0},
            "seconds": {"track": t_track, "fit": t_fit, "sides": t_sides}}
@@ -563,6 +589,12 @@ def report(rows, info, real=None):
             for j, v in r["mpjpe_before"][4].items():
                 pj0.setdefault(j, []).extend(v)
         pooled_before = [x for r in rs for x in r["mpjpe_before"][3]]
+        pjh = {}
+        for r in rs:
+            for j, v in r["mpjpe_nohint"][4].items():
+                pjh.setdefault(j, []).extend(v)
+        he = np.array([x for r in rs for x in r["hint_end"]]).reshape(-1, 2)
+        hi = [x for r in rs for x in r["hinted_arms"]] or [(np.nan, np.nan)]
         pooled_main = [x for r in rs for x in r["mpjpe_main"][3]]
         held = sum(r["held"] for r in rs)
         wrong = sum(r["chirality_time"]["wrong"] for r in rs)
@@ -607,6 +639,22 @@ def report(rows, info, real=None):
               "joint on the joints each frame saw, now ← neck sliding: "
               + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pjx.get(j, [np.nan])):.1f}"
                           for j, v in pjs.items()),
+              "- hand hints (`hand_hints`: the branch of a hand the per-frame stage left unplaced "
+              "— short arm, hand on the trunk's core, untrusted — the unseen arm bent to reach "
+              "its end, `kinematic_fit.hint_fill`): the hint's end lies "
+              f"{100 * np.median(he[:, 0]):.1f} cm from the nearest true elbow (median; "
+              f"{np.mean(he[:, 0] < 0.05):.0%} within 5 cm) and "
+              f"{100 * np.median(he[:, 1]):.1f} cm from the nearest true wrist "
+              f"({np.mean(he[:, 1] < 0.05):.0%} within 5 cm, {np.mean(he[:, 1] < 0.10):.0%} "
+              f"within 10 cm; {len(he)} hints, all frames), so it is taken as the wrist; the "
+              "hinted unseen arms' mean shoulder/elbow/wrist error, fit ← without the hints "
+              f"(`hints=False`, rest pose or last frame): {100 * np.mean([a for a, _ in hi]):.1f} ← "
+              f"{100 * np.mean([b for _, b in hi]):.1f} cm (mean, {len(hi)} arms); MPJPE "
+              f"{100 * np.median(pooled):.1f} ← "
+              f"{100 * np.median([x for r in rs for x in r['mpjpe_nohint'][3]]):.1f} cm; per "
+              "joint, now ← without the hints: "
+              + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pjh.get(j, [np.nan])):.1f}"
+                          for j, v in pj.items()),
               "- the same run with the previous joint definitions and fit (tips at the branch "
               "end, shoulders of the first calibration, inner weight 0.3): MPJPE "
               f"{100 * np.median(pooled_before):.1f} cm ({len(pooled_before)} frames)",

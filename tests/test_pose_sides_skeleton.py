@@ -542,3 +542,48 @@ def test_joint_slide_field_round_trips_and_is_checked():
     next(j for j in d["joint"] if j["name"] == "neck")["slide"] = "yes"
     with pytest.raises(InputError, match="slide"):
         model_from_dict(d)
+
+
+@pytest.mark.parametrize("yaw", [0.4, 2.5])
+def test_an_unseen_arm_with_a_hand_hint_reaches_the_hint_end_with_its_wrist(yaw):
+    """A hand the per-frame stage left unplaced, its branch kept as a hint
+    (``diagnostics["hand_hints"]``, the per-frame stage's hint ends near the wrist:
+    benchmarks/tracking.py): the fit bends the unseen arm to reach the hint's end — wrist at
+    the end (here 0.8 × the arm's length from the shoulder, towards the true hand), the elbow a
+    bone length from both, bent the way the rest pose bends (down, its upper arm hangs), bone
+    lengths kept; an end beyond reach: the arm straight towards it. Without the hint
+    (``hints=False``) the rest pose folds the arm far away."""
+    rng = np.random.default_rng(3)
+    parts, curves = _body(yaw, rng)
+    full, _ = _numbered_frame("000000", parts, curves, False, False)
+    parts2, curves2 = _body(yaw, rng)
+    cut, _ = _numbered_frame("000005", parts2, curves2, False, False)
+    cut.parts["hand_2"] = None
+    del cut.diagnostics["curves"]["hand_2"]
+    off, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0, hints=False)
+    S = off[1].joints["shoulder_2"]                   # the hint does not move the shoulder
+    a, b = L[tree.names.index("elbow_2")], L[tree.names.index("wrist_2")]
+    u = parts2["hand_2" if "hand_2" in parts2 else "right_hand"] - S
+    u /= np.linalg.norm(u)
+    down = parts2["crotch"] - parts2["torso"]
+    down /= np.linalg.norm(down)
+    for k, straight in ((0.8, False), (1.3, True)):
+        end = S + k * (a + b) * u
+        cut.diagnostics["hand_hints"] = {"hand_2": resample([parts2["torso"], end], 32)}
+        out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
+        J = out[1].joints
+        assert "wrist_2" in out[1].diagnostics["held_joints"]
+        for j, n in enumerate(tree.names):                      # lengths constant
+            if tree.parents[j] >= 0:
+                assert abs(np.linalg.norm(J[n] - J[tree.names[tree.parents[j]]]) - L[j]) < 1e-6
+        assert np.linalg.norm(J["shoulder_2"] - S) < 1e-9
+        if straight:
+            assert np.linalg.norm(J["wrist_2"] - (S + (a + b) * u)) < 0.01
+        else:      # (bone directions as hint_fill set them; the fit's root steps move 2 mm)
+            assert np.linalg.norm(J["wrist_2"] - end) < 0.01
+            mid = S + np.dot(J["elbow_2"] - S, u) * u
+            n = down - np.dot(down, u) * u                # bent as the hanging upper arm:
+            e = J["elbow_2"] - mid                        # towards down, across the arm
+            assert np.dot(e, n) / np.linalg.norm(e) / np.linalg.norm(n) > 0.99
+        assert np.linalg.norm(off[1].joints["wrist_2"] - end) > 0.15
+        assert np.linalg.norm(J["wrist_1"] - off[1].joints["wrist_1"]) < 1e-9   # seen arm

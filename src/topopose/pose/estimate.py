@@ -615,11 +615,24 @@ class FrameEstimator:
             diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
         if self.curves:
             # skeleton curve of each matched arc, for left/right and the kinematic fit (§13.3.1)
-            from .curves import arc_curves
+            from .curves import arc_curves, model_arcs
+            # hand hints: a hand unplaced by a rule (short_arm, hand_on_trunk, untrusted) whose
+            # branch is matched keeps that branch's curve (its end: near the wrist, measured in
+            # benchmarks/tracking.py) in diagnostics["hand_hints"] for the kinematic fit
+            # (kinematic_fit.HAND_HINTS); parts, statuses and the other curves unchanged
+            hinted = {p: data.positions.get(al.mapping.get(p)) for p in
+                      short + on_core + ([extra["untrusted"]] if extra.get("untrusted") else [])
+                      if al.mapping.get(p) is not None
+                      and not any(u == p for u, _ in model_arcs(self.model))}     # leaves
+            hinted = {p: np.asarray(x, float) for p, x in hinted.items() if x is not None}
             try:
                 # (the model's [[joint]] positions along arcs are fractions of these curves)
-                diag["curves"] = arc_curves(skel, vol.origin, vol.voxel_size, data, al,
-                                            self.model, on_skeleton, voxels=sk_vox)
+                curves = arc_curves(skel, vol.origin, vol.voxel_size, data, al,
+                                    self.model, {**on_skeleton, **hinted}, voxels=sk_vox)
+                hints = {p: curves.pop(p) for p in hinted if p in curves}
+                diag["curves"] = curves
+                if hints:
+                    diag["hand_hints"] = hints
             except Exception as exc:           # never costs the frame its pose
                 diag["curves_error"] = f"{type(exc).__name__}: {exc}"
         if self.leaves:      # candidates for a misplaced numbered part (pose.track)

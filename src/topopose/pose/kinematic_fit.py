@@ -35,7 +35,11 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    forearm folded up and across the trunk's front); its joints are
    listed in ``diagnostics["held_joints"]``, so a frame that lost one part still has a
    skeleton. On unrelated random poses the last frame's arm was 11.6 cm off (median MPJPE of
-   the frames holding joints, development seeds 21–33), the rest pose 8.7 cm.
+   the frames holding joints, development seeds 21–33), the rest pose 8.7 cm. An unseen arm
+   whose hand the per-frame stage left unplaced while its branch was matched (a short arm,
+   a hand on the trunk's core, an untrusted hand: ``diagnostics["hand_hints"]``, the branch's
+   curve) is then bent to reach the hint's end with its wrist (:func:`hint_fill`,
+   :data:`HAND_HINTS`; ``fit_sequence(hints=False)``: off).
 4. **Gaps** — stretches of at most ``max_gap`` unfitted frames between fitted ones are filled
    by interpolating the root position and the bone directions (normalized linear), flagged
    ``diagnostics["interpolated"] = true``; never silently. Optional Savitzky–Golay smoothing
@@ -566,8 +570,66 @@ def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
     return out
 
 
+HAND_HINTS = True   # an unseen arm bent to reach its hand hint's end (:func:`hint_fill`)
+HINT_END = "wrist"  # the hint's end taken as the wrist ("wrist") or the elbow's direction
+                    # ("elbow": the upper arm towards it, the forearm as it was). Development
+                    # seeds 21–28 random, 41–43 walks (gate on, 80 hints): the end lies 18–29 cm
+                    # from the true elbow (median per rule and motion; none within 5 cm) but
+                    # 7–13 cm from the true wrist (the folded forearm's branch runs on to the
+                    # hand); MPJPE median, off → "elbow" → "wrist": random 6.50 → 6.56 → 6.29,
+                    # walks 5.05 → 5.00 → 5.00 cm; the held arms' mean shoulder/elbow/wrist
+                    # error, off → "wrist": random 17.1 → 15.6 (140 arms, 41 hinted), walks
+                    # 14.0 → 9.7 cm (42 arms). Benchmark seeds (tracking.py, gate on, same
+                    # run, without → with): walks MPJPE 4.76 → 4.69 cm, hinted arms 12.1 → 8.8
+                    # cm (101 arms); random 5.84 → 5.86 (mean 6.55 → 6.42; 13 frames better,
+                    # 10 worse), hinted arms 16.6 → 13.5 cm (23 arms). Gating the hint by its
+                    # reach (end beyond 1.0 / 1.2 × the arm, or within 0.3 / 0.5 of it): no gain
+
+
+def hint_fill(start, pose, tree: KinematicTree, L, unseen) -> np.ndarray:
+    """``start`` with each unseen arm that has a hand hint (``diagnostics["hand_hints"]``:
+    the curve of the branch of a hand the per-frame stage left unplaced — an arm branch
+    ending at the elbow (``short_arm``), a hand on the trunk's core (``hand_on_trunk``) or an
+    untrusted hand — from the chest junction to the branch end) bent at the hint. With
+    :data:`HINT_END` ``"wrist"`` (default; the end lies near the wrist, not the elbow): the
+    shoulder kept (as ``start`` has it), the elbow and wrist by the law of cosines so that the
+    wrist is at the hint's end (on the line towards it, the arm straight, when out of reach),
+    bent in the plane of ``start``'s elbow (the rest pose's hanging upper arm or the last
+    frame's); with ``"elbow"``: the elbow a bone length from the shoulder towards the end.
+    The joints below keep ``start``'s bone directions. Only arcs whose joints are all
+    ``unseen`` (bool per joint: not placed by the frame)."""
+    hints = pose.diagnostics.get("hand_hints") or {}
+    out = start.copy()
+    for (u, v), js in tree.chains().items():
+        c = hints.get(v)
+        arm = js[1:]
+        if c is None or len(arm) < 2 or np.isnan(out[arm[0]]).any():
+            continue
+        end = np.asarray(c, float)[-1]
+        d = end - out[arm[0]]
+        if np.linalg.norm(d) <= 0 or np.isnan(out[arm]).any() or not unseen[arm].all():
+            continue
+        if HINT_END == "elbow" or len(arm) < 3:
+            e = out[arm[0]] + L[arm[1]] * d / np.linalg.norm(d)
+            out[arm[1:]] += e - out[arm[1]]
+            continue
+        # the end as the wrist: two bones (law of cosines), bent as ``start`` bends them
+        a, b, r = L[arm[1]], L[arm[2]], float(np.linalg.norm(d))
+        t = d / r
+        n = out[arm[1]] - out[arm[0]]
+        n = n - np.dot(n, t) * t
+        n = n / np.linalg.norm(n) if np.linalg.norm(n) > 1e-9 else np.zeros(3)
+        ca = np.clip((a * a + r * r - b * b) / (2 * a * r), -1.0, 1.0) if r < a + b else 1.0
+        e = out[arm[0]] + a * (ca * t + np.sqrt(1 - ca * ca) * n)
+        w = end - e
+        w = e + b * w / max(np.linalg.norm(w), 1e-12)
+        out[arm[3:]] += w - out[arm[2]]
+        out[arm[1]], out[arm[2]] = e, w
+    return out
+
+
 def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=None,
-                 quantile=None, slide=None):
+                 quantile=None, slide=None, hints=None):
     """Fit the full skeleton to every matched frame of a sequence (see the module docstring).
 
     Parameters
@@ -587,6 +649,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         :data:`BONE_QUANTILE`, 50: the median)
     slide : the ``slide`` bones at each frame's length (:func:`frame_lengths`; default
         :data:`SLIDE`, False: every bone constant)
+    hints : an unseen arm bent to reach its hand hint (:func:`hint_fill`; default
+        :data:`HAND_HINTS`, False: the rest pose or the last frame's arm only)
 
     Returns
     -------
@@ -622,6 +686,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
                 start[miss] = prev[miss] - prev[tree.root] + np.nan_to_num(start[tree.root])
             elif miss.any():                      # an unrelated pose before: the rest pose
                 start = rest_fill(start, p, tree, L, limbs)
+            if miss.any() and (HAND_HINTS if hints is None else hints):
+                start = hint_fill(start, p, tree, L, miss)
             Lf[i] = frame_lengths(init[i], L, tree, slide)
             Pi, r = fit_frame(init[i], frame_curves(p, tree, spine), Lf[i], tree,
                               start=None if np.isnan(start).any() else start,

@@ -89,6 +89,14 @@ def frame_errors(parts: dict, ref: dict, i: int) -> dict:
     return out
 
 
+def estimated_frames(est, cap, ref):
+    """Each frame of ``cap`` through ``est`` with its stages (``detail=True``): (index, frame,
+    pose, detail, errors against ``ref`` — :func:`frame_errors`, None for a failed frame)."""
+    for i, f in enumerate(cap.frames):
+        p, det = est.estimate(f, detail=True)
+        yield i, f, p, det, (None if p.status == "failed" else frame_errors(p.parts, ref, i))
+
+
 def make_capture(rec: Path, out: Path, method: str, extra: str = "") -> None:
     """A capture folder over the recording as shipped: ``calibration.toml`` = ``Calib.toml``
     (tables ``cam_01`` … matched to the videos ``cam01`` … by name), ``videos`` linked, and a

@@ -156,12 +156,10 @@ def run(est, cap, ref, volumes) -> dict:
     est.hull = lambda name: volumes[name]
     rows, right = [], 0
     per = {"hand": [], "foot": [], "head": []}
-    for i, f in enumerate(cap.frames):
-        p, det = est.estimate(f, detail=True)
-        if p.status == "failed":
+    for i, f, p, det, e in real.estimated_frames(est, cap, ref):
+        if e is None:
             rows.append({"frame": f, "failed": p.error})
             continue
-        e = real.frame_errors(p.parts, ref, i)
         per["head"].append(e["head"])
         per["hand"] += [e["hand_L"], e["hand_R"]]
         per["foot"] += [e["foot_L"], e["foot_R"]]

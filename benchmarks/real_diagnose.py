@@ -147,12 +147,10 @@ def main(argv=None):
         cap = real.person_capture(rec, Path(tmp) / "c", a.set)
         est = FrameEstimator(cap, "human", 100, gate=False)
         scale = float(cap.options["silhouettes"]["scale"])
-        for i, f in enumerate(cap.frames):
-            p, det = est.estimate(f, detail=True)
-            if p.status == "failed":
+        for i, f, p, det, e in real.estimated_frames(est, cap, ref):
+            if e is None:
                 rows.append({"frame": f, "failed": p.error})
                 continue
-            e = real.frame_errors(p.parts, ref, i)
             bad = {k: v for k, v in e.items() if v > real.RIGHT}
             if not bad:
                 continue

@@ -101,15 +101,19 @@ unplaced, its guess kept. Refit of 2026-11-24 on the pipeline with short arm, tr
 placed missing, rods at weight 0.5, the size guard up to 0.11: held out, 8 cameras, precision /
 recall of the right frames 0.960 / 0.894 (model before) → 0.960 / 0.909 → **0.961 / 0.936** with
 per-part trust; body benchmark (seeds 21, 22, offline) separated 0.908 / 0.000 → 0.950 / 0.009,
-all poses 0.717 / 0.034 → 0.742 / 0.022 (``docs/body_accuracy.md``, "Per-part trust").
+all poses 0.717 / 0.034 → 0.742 / 0.022 (``docs/body_accuracy.md``, "Per-part trust"). Refitted
+again on the merged pipeline (hand on the trunk, head ball, trunk kept; the shipped model,
+minima 0.72 with 8 cameras, 0.91 with 4): held out, 8 cameras, 0.975 / 0.912 (the model before,
+on the new frames) → 0.973 / 0.935; body benchmark (offline) separated 0.958 / 0.009 → 0.967 /
+0.009, all poses 0.725 / 0.022 → 0.767 / 0.021 (``benchmarks/results/confidence.md``).
 
 **Not reached** (``confidence_models.md``): with 4 cameras no model reaches precision 0.95 for
 more than a few right frames (held out: 7 of 209 right frames with 4 cameras, none of 131 with
 the 4 portrait cameras; the real recording's 4 phone cameras: none of its ~67 right frames, the
 model replaced: 1): few 4-camera frames are right at all (15–33 %) and the wrong ones score as
-high. After the 2026-11-24 refit (minimum 0.90 with 4 cameras): held out 15 matched of 235 right
-frames (precision 0.933), 4 portrait cameras 2 of 151; the real recording none of its 67 right
-frames — their alignment head features and radius ratios lie outside the synthetic 4-camera
+high. After the refits of 2026-11-24 (minimum 0.90, then 0.91 with 4 cameras): held out 15, then
+14 matched of 235–249 right frames (precision 0.93), 4 portrait cameras 1–2 of 151–158; the real
+recording none of its 66–67 right frames — their alignment head features and radius ratios lie outside the synthetic 4-camera
 right frames' (``confidence.md``, last table). Why (``benchmarks/confidence_real_torso.py``,
 ``results/confidence_real_torso.md``): (1) the subject leans (trunk 27° from the vertical at
 the median, up to 49°) on one leg, and in half of the right frames (17 of 33) the *alignment's*

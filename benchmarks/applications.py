@@ -7,8 +7,9 @@
    human: the nearest primitive's link; grouped into the model's arcs; numbered limbs paired
    optimally) on the frames the quality study calls *good*,
    for the plain flooding (the thesis'), the former part-weighted default, the radius-weighted
-   flooding, the previous default (radius-weighted + the kinematic model's bones, limbs from
-   their first joint) and the default (limb starts, banded floods), on the held-out seeds and
+   flooding, the earlier default (radius-weighted + the kinematic model's bones, limbs from
+   their first joint), the previous default (limb starts, arm 45 % down the upper arm, banded
+   floods, bone weight 0.8) and the default (arm 35 %, bone weight 0.7), on the held-out seeds and
    on the development seeds the parameters were chosen on; time of the
    flooding call alone and of the whole segment step, beside the peer
    ``skimage.segmentation.watershed`` (constant image, markers, mask: the same multi-source
@@ -221,13 +222,17 @@ SEG_METHODS = {
     "part": lambda pose, model: {"weighting": "part"},
     "radius": lambda pose, model: {"weighting": "radius"},
     "first_joint": lambda pose, model: {"weighting": "radius", "pose": pose, "model": model,
-                                        "limb_start": {}, "band": np.inf},
+                                        "limb_start": {}, "band": np.inf, "bone_weight": 0.8},
+    "start145": lambda pose, model: {"weighting": "radius", "pose": pose, "model": model,
+                                     "limb_start": {"head": 0.5, "hand": 1.45, "foot": 1.0},
+                                     "bone_weight": 0.8},
     "default": lambda pose, model: {"weighting": "radius", "pose": pose, "model": model},
 }
 SEG_LABELS = {"none": "plain flooding (thesis)", "part": "part-weighted, BFS steps (former default)",
               "radius": "radius-weighted, chamfer steps",
-              "first_joint": "radius + bones, limbs from their first joint (previous default)",
-              "default": "radius + bones, limb starts (default)"}
+              "first_joint": "radius + bones, limbs from their first joint (earlier default)",
+              "start145": "radius + bones, arm 45 % down the upper arm, bone weight 0.8 (previous default)",
+              "default": "radius + bones, arm 35 % down the upper arm, bone weight 0.7 (default)"}
 def girdle_bone_arc(bone):
     """The other grouping of the ``body`` rig's girdle bones: the clavicle (``*Shoulder``, neck
     base → shoulder joint) and ``*HipJoint`` (hip centre → hip joint) lie on the model's
@@ -728,13 +733,18 @@ def main(argv=None):
          "former default (each part starts late by 1.5 × how much thinner it is than the "
          "thickest, in BFS steps); *radius* — the same with chamfer step lengths (3, 4, 5 for "
          "face, edge, corner steps ≈ 1, √2, √3) and radii, delay 1.25; *radius + bones* — given the frame's "
-         "pose, each part's own flood mixed (0.2 / 0.8) with the distance to its bones, the "
-         "model's joints placed on the skeleton curves: in the previous default a limb begins "
-         "at its first joint (shoulder, hip, neck) and each part's flood covers the whole "
-         "hull; in the default (`topopose.pose.segment.LIMB_START`) the head begins half-way "
-         "from the chest to the neck joint, the arm 45 % down the upper arm, the leg at the "
+         "pose, each part's own flood mixed (1 − w / w) with the distance to its bones, the "
+         "model's joints placed on the skeleton curves: in the earlier default (w = 0.8) a limb "
+         "begins at its first joint (shoulder, hip, neck) and each part's flood covers the whole "
+         "hull; in the previous default (w = 0.8) and the default (w = 0.7, "
+         "`topopose.pose.segment.LIMB_START`) the head begins half-way "
+         "from the chest to the neck joint, the arm 45 % (previous) or 35 % (default) down the "
+         "upper arm, the leg at the "
          "hip, and each part's flood runs only where its bones are within 3 voxels of the "
-         "nearest bone (`BAND`), all parts in one kernel.", "",
+         "nearest bone (`BAND`), all parts in one kernel. The default's arm start and bone "
+         "weight were re-chosen on the development seeds (38 good frames, a plateau: hand start "
+         "1–1.35 × weight 0.6–0.8 all within 0.896–0.900; a start per frame from the inscribed "
+         "radius along the arm's branch, 0.895–0.900: see `bone_segments`' docstring).", "",
          "| subject | frames | " + " | ".join(SEG_LABELS[k] for k in SEG_METHODS) + " |",
          "|---|---|" + "---|" * len(SEG_METHODS)]
     for key, d in seg_summary.items():
@@ -761,7 +771,7 @@ def main(argv=None):
               "| step | ms |", "|---|---|",
               f"| whole segment step, default (`tp.segment` with pose and model: skeleton labels, "
               f"bones, each part's flood on its band, one kernel) | {speed['segment_ms']:.2f} |",
-              f"| whole segment step, previous default (limbs from their first joint, each part's "
+              f"| whole segment step, earlier default (limbs from their first joint, each part's "
               f"flood over the whole hull) | {speed['segment_first_joint_ms']:.2f} |",
               f"| whole segment step, radius-weighted without bones (no pose given) | "
               f"{speed['segment_radius_ms']:.2f} |",

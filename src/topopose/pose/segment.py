@@ -87,7 +87,7 @@ def arc_names(model) -> list:
 #: where each limb's bones begin along the chain of its joints from the junction, per part
 #: stem: 1 at its first joint (neck, shoulder, hip), 0.5 half-way from the junction (chest,
 #: pelvis) to it, 1.5 half-way from it to the second joint (see :func:`bone_segments`)
-LIMB_START = {"head": 0.5, "hand": 1.45, "foot": 1.0}
+LIMB_START = {"head": 0.5, "hand": 1.35, "foot": 1.0}
 
 
 def bone_segments(pose, model, names=None, start=None) -> list:
@@ -108,6 +108,16 @@ def bone_segments(pose, model, names=None, start=None) -> list:
     0.906 / 0.904 / 0.894), hand 1.45 (1.3 / 1.45 / 1.6 → 0.905 / 0.906 / 0.904), foot 1
     (0.9 / 1.1 → 0.903 / 0.903). Checked again with the head seed of :func:`hull_part_seeds`
     (37 good frames, 0.900): hand 1.3 / 1.6 → 0.900 / 0.900, head 0.35 / 0.65 → 0.900 / 0.900.
+    Re-chosen with :func:`segment`'s ``bone_weight`` on the same seeds with the merged
+    pipeline's joints (38 good frames; hand × bone weight): hand 1 / 1.15 / 1.25 / 1.35 →
+    0.897 / 0.899 / 0.900 / 0.900 (weight 0.7), 0.896 / 0.898 / 0.899 / 0.900 (0.6); with
+    weight 0.8, hand 1 / 1.2 / 1.3 / 1.45 / 1.6 → 0.897 / 0.899 / 0.899 / 0.897 / 0.892:
+    a plateau (±0.002), hand 1.35 with weight 0.7 its top (0.9004). The hand's start trades
+    the arm's recall against the trunk's (1 → 1.45: arms 0.91 → 0.80, trunk 0.92 → 0.93). A
+    start per frame where the inscribed radius along the arm's skeleton branch falls to the
+    arm's own (the median past the shoulder joint, × 1 / 1.15 / 1.3 / 1.5) was no better:
+    0.896 / 0.895 / 0.898 / 0.900, its start scattering from 0.5 to 1.9 between frames (the
+    radius along a thinned branch is noisy near the junction).
 
     Returns ``[(A, B, label), ...]``: the bone's end points (capture units) and its label
     (1-based index into ``names``, default :func:`arc_names`); bones with a joint not placed
@@ -278,7 +288,7 @@ def _box(mask, bbox=None):
 
 
 def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", bbox=None,
-                 delay: float | None = None, bones=None, bone_weight: float = 0.8,
+                 delay: float | None = None, bones=None, bone_weight: float = 0.7,
                  band: float = BAND):
     """Flood ``mask`` from the labelled voxels of ``seeds`` (step 2 of §13.3.1.1).
 
@@ -314,10 +324,14 @@ def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", b
     against 0.9054; ``band`` 5: all of them) in 2.5 times less flooding time. The
     kinematic model's joints say where a limb begins (near its first joint, not at the
     junction inside the trunk; :data:`LIMB_START`) and the bones follow the limb's axis
-    where the curve skeleton bends into the trunk. ``bone_weight = 0.8`` was chosen with the
+    where the curve skeleton bends into the trunk. ``bone_weight = 0.7`` was chosen with the
     delay on the same seeds (limbs from their first joint: 0.897 / 0.898 / 0.894 / 0.875 for
     0.9 / 0.8 / 0.5 / 0, the bones alone 0.891; with the limb starts, 26 good frames: 0.904
-    / 0.906 / 0.905 for 0.7 / 0.8 / 0.9, delay 1 / 1.5: 0.904 / 0.904).
+    / 0.906 / 0.905 for 0.7 / 0.8 / 0.9, delay 1 / 1.5: 0.904 / 0.904; re-chosen with the
+    hand's start on the merged pipeline, 38 good frames: see :func:`bone_segments`; weight
+    0.9, delay 1 / 1.5, band 2 / 5 with hand 1.25: 0.896, 0.897 / 0.899, 0.900 / 0.899).
+    Subtracting each part's radius from its bone distance (the distance to a capsule's
+    surface) lets the thick trunk win everywhere: 0.876 (half the radius), 0.838 (all).
 
     ``weighting="part"`` (the former default, kept for comparison): the same idea in
     breadth-first steps (``delay`` 1.5 steps per step of the border distance
@@ -479,7 +493,7 @@ def hull_part_seeds(hull, seeds, pose, names, origin, voxel_size, start=None,
 
 def segment(volume, skeleton, alignment, data=None, *, names=None, connectivity: int = 26,
             weighting: str = "radius", delay: float | None = None, pose=None, model=None,
-            bone_weight: float = 0.8, limb_start=None, band: float = BAND):
+            bone_weight: float = 0.7, limb_start=None, band: float = BAND):
     """Body-part segmentation of a visual hull (thesis §13.3.1.1).
 
     Parameters

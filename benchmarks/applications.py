@@ -442,24 +442,38 @@ def detection_row(pose, frame, up, rng=None):
     from topopose.pose.detect import detect, evaluate, load_library, up_frame
 
     gt, former = pipeline_points(frame), pipeline_points(frame, former=True)
+    # the crotch dropped by the pipeline (spine shift and crotch drop, pose/anatomy.py) sits at
+    # the hip centre, gt.json's crotch: the correspondence measured before the drop existed
+    dropped = (pose.diagnostics or {}).get("spine_shift") is not None
+    hip = {**gt, "crotch": frame["parts"].get("crotch")} if dropped else gt
     rng = rng if rng is not None else np.random.default_rng(0)
     library, aliases = load_library()
+    est = {k: np.asarray(v, float) for k, v in pose.parts.items() if v is not None}
+    for a, b in (("hand_1", "hand_2"), ("foot_1", "foot_2")):
+        if a in est and b in est and (np.linalg.norm(est[a] - gt[b]) + np.linalg.norm(est[b] - gt[a])
+                                      < np.linalg.norm(est[a] - gt[a]) + np.linalg.norm(est[b] - gt[b])):
+            est[a], est[b] = est[b], est[a]
     det = {}
     for n, p in library.items():
         t = evaluate(p.expr, gt, up, aliases)
         det[n] = {"truth": t, "stable": t is not None and stable_truth(p.expr, gt, up, aliases, t, rng),
                   "truth_gt": evaluate(p.expr, frame["parts"], up, aliases),
                   "truth_former": evaluate(p.expr, former, up, aliases),
+                  "truth_hip": evaluate(p.expr, hip, up, aliases),
                   **{f"m{m:g}": detect([pose], p.expr, up=up, aliases=aliases, margin=m)[0]["value"]
                      for m in DETECT_MARGINS}}
-    est = {k: np.asarray(v, float) for k, v in pose.parts.items() if v is not None}
-    for a, b in (("hand_1", "hand_2"), ("foot_1", "foot_2")):
-        if a in est and b in est and (np.linalg.norm(est[a] - gt[b]) + np.linalg.norm(est[b] - gt[a])
-                                      < np.linalg.norm(est[a] - gt[a]) + np.linalg.norm(est[b] - gt[b])):
-            est[a], est[b] = est[b], est[a]
+        v = det[n]["m0"]
+        if v is not None and t is not None and v != t:
+            # the parts whose pipeline point, replaced by its corresponding truth point alone,
+            # makes the decision right (hands and feet paired as below)
+            det[n]["blame"] = [k for k in est if gt.get(k) is not None and evaluate(
+                p.expr, {**est, k: np.asarray(gt[k], float)}, up, aliases) == t]
     z = up_frame(up)[2]
     off = {k: [float((v - np.asarray(gt[k])) @ z), float(np.linalg.norm(v - np.asarray(gt[k])))]
            for k, v in est.items() if gt.get(k) is not None}
+    if dropped and "crotch" in est and frame["parts"].get("crotch") is not None:
+        d = est["crotch"] - np.asarray(frame["parts"]["crotch"], float)
+        off["crotch-at-hip-centre"] = [float(d @ z), float(np.linalg.norm(d))]
     return {"detect": det, "part_offsets": off}
 
 
@@ -495,6 +509,23 @@ def error_causes(rows, name):
         out["not_good" if r.get("quality") != "good" else
             "borderline" if not d["stable"] else "stable_good"] += 1
     return out
+
+
+def error_blame(rows, name):
+    """The wrong decisions (margin 0) by the part whose pipeline point alone, replaced by its
+    corresponding truth point, makes the decision right (``"none"``: no single part; several
+    parts counted each), and that part's offset pipeline − truth along the capture's up axis."""
+    out = {}
+    for r in rows:
+        d = r["detect"][name]
+        if "blame" not in d:
+            continue
+        for k in d["blame"] or ["none"]:
+            b = out.setdefault(k.split("_")[0], {"n": 0, "dz": []})
+            b["n"] += 1
+            if k in r["part_offsets"]:
+                b["dz"].append(r["part_offsets"][k][0])
+    return {k: {"n": v["n"], "dz_mean": _mean(v["dz"]) if v["dz"] else None} for k, v in out.items()}
 
 
 def stable_truth(expr, parts, up, aliases, value, rng):
@@ -689,7 +720,9 @@ def main(argv=None):
     det_summary = {label: {n: {**{v: detection_counts(rows, n, keep=k) for v, k in views.items()},
                                "causes": error_causes(rows, n),
                                "truth_gt": detection_counts(rows, n, truth="truth_gt"),
-                               "truth_former": detection_counts(rows, n, truth="truth_former")}
+                               "truth_former": detection_counts(rows, n, truth="truth_former"),
+                               "truth_hip": detection_counts(rows, n, truth="truth_hip"),
+                               "blame": error_blame(rows, n)}
                            for n in pose_names} for label, rows in sets}
     offsets = {}
     body_rows = bdet["rows"] + [r for r in seg if r["subject"] == "body"]
@@ -821,8 +854,8 @@ def main(argv=None):
     L += ["", "| subject | pose | truth true / matched | missing | precision / recall, all | "
           "good frames | P / R, good | good, stable frames | P / R, good and stable | "
           "wrong: not good / borderline / stable | stable-truth frames | P / R, stable truth "
-          "(extra) | P / R, former truth |",
-          "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+          "(extra) | P / R, former truth | P / R, crotch at the hip centre when dropped (extra) |",
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for label, rows in sets:
         for n in pose_names:
             c = det_summary[label][n]
@@ -833,7 +866,24 @@ def main(argv=None):
                      f"{c['all']['missing']} | {pr(c['all'])} | {ng} | {pr(c['good'])} | {ns} | "
                      f"{pr(c['good_stable'])} | {e['not_good']} / {e['borderline']} / {e['stable_good']} | "
                      f"{sum(c['stable'][k] for k in ('tp', 'fp', 'fn', 'tn'))} | {pr(c['stable'])} | "
-                     f"{pr(c['truth_former'])} |")
+                     f"{pr(c['truth_former'])} | {pr(c['truth_hip'])} |")
+    L += ["", "Which point makes each wrong decision (margin 0, all matched frames): the part "
+          "whose pipeline point alone, replaced by its corresponding truth point, makes the "
+          "decision right (*none*: no single part does; a decision two parts can each fix "
+          "counts for both), with that part's mean offset pipeline − truth along the up axis "
+          "over those decisions. The last column of the table above and the offset row "
+          "*crotch-at-hip-centre* below: the pipeline's crotch, when it was dropped (spine "
+          "shift and crotch drop of `pose/anatomy.py`, which moved it onto the hip centre after "
+          "the correspondence was measured), against gt.json's crotch (the hip centre) instead "
+          "of the pelvis' centre or `Hips_head`: an extra view, not the headline.", "",
+          "| subject | pose | wrong decisions by part (n, mean vertical offset m) |", "|---|---|---|"]
+    for label, rows in sets:
+        for n in pose_names:
+            b = det_summary[label][n]["blame"]
+            if b:
+                L.append(f"| {label} | {n} | " + ", ".join(
+                    f"{k} {v['n']}" + ("" if v["dz_mean"] is None else f" ({v['dz_mean']:+.3f})")
+                    for k, v in sorted(b.items(), key=lambda kv: -kv[1]["n"])) + " |")
     L += ["", "*Definitions.* gt.json's head is the crown minus the head's radius (the head's "
           "centre), its hands the fingertips minus the hand's radius, its torso the neck base, "
           "its crotch the hip centre: not the points the pipeline outputs. The truth on gt.json's "

@@ -459,6 +459,10 @@ def test_evaluate_on_hand_made_positions():
     # crotch: 0.5 below the shoulders; ball of diameter 1.8 centred at torso height holds it
     assert D.evaluate("order hand_1 crotch hand_2", Q) is True
     assert D.evaluate("order hand_1 crotch hand_2", dict(Q, crotch=(0, 0, 0.5))) is False
+    # R_b is the ball of diameter hand_1 hand_2 (thesis §12.2.2.1), not the projection on their
+    # line (R_p) nor an order along an axis: 0.95 from the hands' midpoint, radius 0.9
+    assert D.evaluate("order-p hand_1 crotch hand_2", dict(Q, crotch=(0, 0, 0.5))) is True
+    assert D.evaluate("order hand_1 crotch hand_2", dict(Q, crotch=(0, 0, 0.56))) is True
     assert D.evaluate("near hand_1 hand_2 1.9", Q) and not D.evaluate("near hand_1 hand_2 1.7", Q)
     assert D.evaluate("x-least head hand_1 or y-greatest head hand_2", P) is True
     # missing part: null; unknown part: null

@@ -331,7 +331,7 @@ def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", b
     hand's start on the merged pipeline, 38 good frames: see :func:`bone_segments`; weight
     0.9, delay 1 / 1.5, band 2 / 5 with hand 1.25: 0.896, 0.897 / 0.899, 0.900 / 0.899).
     Subtracting each part's radius from its bone distance (the distance to a capsule's
-    surface) lets the thick trunk win everywhere: 0.876 (half the radius), 0.838 (all).
+    surface) lets the thick trunk win everywhere (hand 1): 0.876 (half the radius), 0.838 (all).
 
     ``weighting="part"`` (the former default, kept for comparison): the same idea in
     breadth-first steps (``delay`` 1.5 steps per step of the border distance

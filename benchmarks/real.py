@@ -49,7 +49,9 @@ RIGHT = 0.15            # metres
 #: ``METHOD+VARIANT[+VARIANT]``: extra ``[silhouettes]`` lines of a variant of a method
 VARIANTS = {"track": "person_track = true\n",              # MediaPipe's tracking mode
             # the reader as it was before: FFmpeg's own threads, decoding in the reader thread
-            "oldreader": "decode_threads = 0\ndecode_ahead = 0\n"}
+            "oldreader": "decode_threads = 0\ndecode_ahead = 0\n",
+            # the hull carved from the full-size masks (not from the network's small ones)
+            "fullmasks": ""}
 HAND_EXT = 0.10         # metres beyond the wrist
 
 
@@ -248,6 +250,8 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     for o in opts:
         extra += VARIANTS[o]
     make_capture(rec, cdir, base, extra)
+    import topopose.capture.background as bg
+    bg.UPSAMPLED_MASKS = "fullmasks" not in opts
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")          # the "pad" policy warns for cam01/cam02

@@ -33,8 +33,9 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(real.DEFAULT))
-    ap.add_argument("--variants", default="person+oldreader,person,person+track+oldreader,person+track")
-    ap.add_argument("--peer", default="person+oldreader")
+    ap.add_argument("--variants", default="person+oldreader+fullmasks,person+oldreader,person,"
+                                          "person+track+oldreader+fullmasks,person+track")
+    ap.add_argument("--peer", default="person+oldreader+fullmasks")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--frames", type=int, default=0, help="first N frames only (0: all)")
     ap.add_argument("--out", default=str(HERE / "results" / "real_speed"))
@@ -102,7 +103,9 @@ def report(doc) -> str:
          "`benchmarks/real_speed.py`.", "",
          "Variants: `+oldreader` = the reader as it was (FFmpeg's own threads per video, decoding "
          "in the silhouettes' thread); without it, the new default (`[silhouettes] "
-         "decode_threads = 1`, `decode_ahead = 2`). `+track` = `person_track = true` (MediaPipe's "
+         "decode_threads = 1`, `decode_ahead = 2`). `+fullmasks` = the hull carved from the "
+         "full-size (1088 × 1920) masks as before, not from the network's 272 × 480 ones "
+         "(`capture.background.UpsampledMask`). `+track` = `person_track = true` (MediaPipe's "
          "tracking mode). Same poses: frames whose status and part positions are bit-identical "
          "to the peer's. Right: head, both hands and both feet within 0.15 m of Pose2Sim's 3D "
          "result.", ""]

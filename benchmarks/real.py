@@ -319,6 +319,8 @@ def time_breakdown(rec: Path, n: int = 20) -> dict:
     vids = sorted((rec / "videos").glob("*.mp4"))
     frames = [[] for _ in vids]
     out = {}
+    for v in vids:                           # warm-up: the first opening of a file costs more
+        cv2.VideoCapture(str(v)).read()
     t0, c0 = time.perf_counter(), time.process_time()
     for k, v in enumerate(vids):
         vc = cv2.VideoCapture(str(v))

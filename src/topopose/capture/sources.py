@@ -92,8 +92,9 @@ class _Decoder:
         self.failed_at = None                # frame at which decoding failed (then reopened)
 
     def _open(self):
-        # ``threads`` FFmpeg threads (0: its own choice). The default, one, spends less CPU:
-        # the decoders already run beside the silhouettes and the pipeline (benchmarks/real.py)
+        # ``threads`` FFmpeg threads (0: its own choice, one per core). One by default: the
+        # decoding thread already runs beside the silhouettes and the pipeline, and FFmpeg's
+        # own threads add CPU (benchmarks/real.py, "Where the time goes")
         self.vc = None
         if self.threads > 0:
             self.vc = cv2.VideoCapture(str(self.path), cv2.CAP_FFMPEG,
@@ -319,7 +320,8 @@ class Prefetcher:
     the consumer, into a bounded queue of ``depth`` frames.
 
     ``images`` comes from ``source.sequential(frames)`` (None when ``source`` is None), decoded
-    by a thread of its own one frame ahead of ``work`` (:func:`read_ahead`). Results
+    by a thread of its own up to ``ahead`` frames ahead of ``work`` (:func:`read_ahead`; 0:
+    decoded in the reader thread). Results
     (or the exception raised) are handed out by :meth:`take` in the same order.
     """
 

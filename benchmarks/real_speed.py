@@ -126,6 +126,9 @@ def report(doc) -> str:
                      [[v, "; ".join(f"{x['end_to_end_fps']} / {x['cpu_ms_per_frame']}" for x in r["rounds"])]
                       for v, r in doc["variants"].items()])
     L += ["", "## Where the time goes (per frame of 4 cameras, one thread at a time)", ""]
+    tm = doc.get("time_breakdown_machine")
+    if tm:
+        L += [f"Re-measured alone at {tm['date']}, load {tm['load_average']}.", ""]
     L += real._table(["step", "wall ms", "CPU ms"],
                      [[k, v["wall_ms"], v["cpu_ms"]] for k, v in doc["time_breakdown_per_frame"].items()])
     return "\n".join(L) + "\n"

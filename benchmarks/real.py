@@ -46,6 +46,12 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 DEFAULT = HERE / "data" / "pose2sim_balancing"
 RIGHT = 0.15            # metres
+#: ``METHOD+VARIANT[+VARIANT]``: extra ``[silhouettes]`` lines of a variant of a method
+VARIANTS = {"track": "person_track = true\n",              # MediaPipe's tracking mode
+            # the reader as it was before: FFmpeg's own threads, decoding in the reader thread
+            "oldreader": "decode_threads = 0\ndecode_ahead = 0\n",
+            # the hull carved from the full-size masks (not from the network's small ones)
+            "fullmasks": ""}
 HAND_EXT = 0.10         # metres beyond the wrist
 
 
@@ -217,6 +223,14 @@ def as_run(poses, model, up, min_confidence) -> list:
     return [numbered(p, model) for p in motion.poses]
 
 
+def same_poses(a, b) -> int:
+    """How many frames of two runs have the same status and bit-identical part positions."""
+    def key(p):
+        return p.frame, p.status, sorted((k, None if v is None else np.asarray(v, float).tobytes())
+                                         for k, v in p.parts.items())
+    return sum(key(x) == key(y) for x, y in zip(a, b))
+
+
 def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, extra=""):
     """Run the recording end to end from its videos (decoding and silhouettes in the reader
     thread, as ``topopose run`` does), score it, time it."""
@@ -230,9 +244,14 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     cdir = work / method.replace("+", "_")
     if cdir.exists():
         shutil.rmtree(cdir)
-    if method == "person+track":         # MediaPipe's tracking mode (detector skipped)
-        extra += "person_track = true\n"
-    make_capture(rec, cdir, "person" if method == "person+track" else method, extra)
+    base, *opts = method.split("+")
+    if base == "sequence" and opts and opts[0] == "selfie":
+        base, opts = "sequence+selfie", opts[1:]
+    for o in opts:
+        extra += VARIANTS[o]
+    make_capture(rec, cdir, base, extra)
+    import topopose.capture.background as bg
+    bg.UPSAMPLED_MASKS = "fullmasks" not in opts
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")          # the "pad" policy warns for cam01/cam02
@@ -244,11 +263,12 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
             t_setup = time.perf_counter() - t0    # background learned (prefetch learns it first)
             poses.append(est.estimate(frames[0]))
             t_first = time.perf_counter() - t0
-            t1, c1 = time.perf_counter(), time.process_time()
+            t1, c1, m1 = time.perf_counter(), time.process_time(), time.thread_time()
             for f in frames[1:]:
                 poses.append(est.estimate(f))
             t_rest = time.perf_counter() - t1
             c_rest = time.process_time() - c1     # every thread's CPU (reader included)
+            m_rest = time.thread_time() - m1      # this thread's: the geometric pipeline
     temporal_confidence(poses, {f: i for i, f in enumerate(cap.frames)}, gate=False)
     idx = {f: i for i, f in enumerate(cap.frames)}
     mc = est.min_confidence                   # the run's minimum for this camera count
@@ -270,6 +290,7 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
         # the process's CPU per frame (reader thread included): less sensitive to the other
         # processes on a shared machine; cores / CPU bounds the rate on an idle machine
         "cpu_ms_per_frame": round(1000 * c_rest / max(len(frames) - 1, 1), 2),
+        "main_thread_cpu_ms_per_frame": round(1000 * m_rest / max(len(frames) - 1, 1), 2),
         "stages_median_ms": {k: round(float(np.median(v)), 2) for k, v in stages.items()},
         # where the first frame's time went: the set-up's steps, then the first frame's stages
         "setup_breakdown_s": {k: round(v, 3) for k, v in
@@ -298,15 +319,22 @@ def time_breakdown(rec: Path, n: int = 20) -> dict:
     vids = sorted((rec / "videos").glob("*.mp4"))
     frames = [[] for _ in vids]
     out = {}
-    t0, c0 = time.perf_counter(), time.process_time()
-    for k, v in enumerate(vids):
+    for v in vids:                           # the frames kept for the steps below
         vc = cv2.VideoCapture(str(v))
-        for _ in range(n):
-            ok, f = vc.read()
-            if not ok:
-                break
-            frames[k].append(f)
-    out["decode 4 videos"] = ((time.perf_counter() - t0) / n, (time.process_time() - c0) / n)
+        frames[vids.index(v)] = [vc.read()[1] for _ in range(n)]
+
+    def decode(params):                      # decoding alone (the frames are not kept)
+        t0, c0 = time.perf_counter(), time.process_time()
+        for v in vids:
+            vc = cv2.VideoCapture(str(v), cv2.CAP_FFMPEG, params) if params else cv2.VideoCapture(str(v))
+            for _ in range(n):
+                if not vc.read()[0]:
+                    break
+        return (time.perf_counter() - t0) / n, (time.process_time() - c0) / n
+
+    out["decode 4 videos"] = decode([])     # FFmpeg's own threads
+    # as the reader decodes: one FFmpeg thread per video
+    out["decode 4 videos, 1 FFmpeg thread each"] = decode([cv2.CAP_PROP_N_THREADS, 1])
     p = dict(SILHOUETTE_DEFAULTS, method="sequence")
 
     def clock(name, fn):
@@ -396,6 +424,8 @@ def main(argv=None):
     ap.add_argument("--resolution", type=int, default=100)
     ap.add_argument("--frames", type=int, default=0, help="first N frames only (0: all)")
     ap.add_argument("--out", default=str(HERE / "results" / "real"))
+    ap.add_argument("--peer", default="person+oldreader",
+                    help="method the speed ratios and pose identity are measured against")
     ap.add_argument("--set", action="append", default=[],
                     help="extra [silhouettes] field, e.g. --set occupancy=0.9 (TOML value)")
     a = ap.parse_args(argv)
@@ -413,19 +443,27 @@ def main(argv=None):
             methods = [m for m in methods if "selfie" not in m and not m.startswith("person")]
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    results = {}
+    results, all_poses = {}, {}
     with tempfile.TemporaryDirectory() as tmp:
         for m in methods:
             pic = out.parent / f"real_{m.replace('+', '_')}_frame.png"
             res, poses = run_method(rec, m, a.resolution, a.frames, Path(tmp), ref, picture=pic,
                                     extra="".join(x + "\n" for x in a.set))
             res["picture"] = pic.name
-            results[m] = res
+            results[m], all_poses[m] = res, poses
             print(m, {k: res[k] for k in ("matched_share", "right_share", "matched_precision")},
                   "as run:", {k: res["as_run"][k] for k in ("matched_share", "right_share")},
                   res["errors"], res["speed"])
+    peer = results.get(a.peer)
+    for m, r in results.items():         # against the peer measured in the same run
+        if peer is not None:
+            r["speed"]["fps_ratio_to_peer"] = round(r["speed"]["end_to_end_fps"]
+                                                    / peer["speed"]["end_to_end_fps"], 2)
+            r["speed"]["cpu_ratio_to_peer"] = round(r["speed"]["cpu_ms_per_frame"]
+                                                    / peer["speed"]["cpu_ms_per_frame"], 2)
+            r["same_poses_as_peer"] = same_poses(all_poses[m], all_poses[a.peer])
     breakdown = time_breakdown(rec)
-    doc = {"recording": str(rec), "machine": machine(), "resolution": a.resolution,
+    doc = {"peer": a.peer if peer is not None else None,"recording": str(rec), "machine": machine(), "resolution": a.resolution,
            "time_breakdown_per_frame": breakdown,
            "silhouette_settings": a.set,
            "right_within_m": RIGHT, "hand_extension_m": HAND_EXT, "methods": results}
@@ -494,15 +532,22 @@ def report(doc) -> str:
                          f"{c['right']} of {r['right']}"])
     L += _table(["silhouettes", "precision at least", "confidence threshold", "frames passing",
                  "right frames passing"], rows)
-    L += ["", "## Speed (one process)", ""]
+    L += ["", "## Speed (one process)", "",
+          f"Ratios and pose identity against `{doc.get('peer')}` in the same run (`+oldreader`: "
+          "the reader as it was before the read-ahead thread, FFmpeg's own threads per video; "
+          "same poses: status and part positions bit-identical).", ""]
     rows = []
     for name, r in doc["methods"].items():
         s = r["speed"]
         rows.append([name, s["setup_s"], s["first_frame_s"], s["per_frame_ms"], s["end_to_end_fps"],
-                     s.get("cpu_ms_per_frame", ""),
+                     s.get("cpu_ms_per_frame", ""), s.get("fps_ratio_to_peer", ""),
+                     s.get("cpu_ratio_to_peer", ""),
+                     "" if r.get("same_poses_as_peer") is None
+                     else f"{r['same_poses_as_peer']}/{r['frames']}",
                      ", ".join(f"{k} {v}" for k, v in s["stages_median_ms"].items())])
     L += _table(["silhouettes", "set-up s (background)", "first frame s incl. set-up (target ≤ 2)",
                  "ms/frame after", "end-to-end frames/s (target ≥ 20)", "CPU ms/frame (all threads)",
+                 "frames/s ratio to peer", "CPU ratio to peer", "same poses as peer",
                  "stage medians ms (hull includes waiting for the reader)"], rows)
     L += ["", "## Where the first frame's time goes (s)", ""]
     L += _table(["silhouettes", "set-up steps", "first frame's stages"],

@@ -235,3 +235,33 @@ def test_cut_and_person_track_fields(tmp_path, fake_mediapipe):
     (root / "capture.toml").write_text(TOML + "person_track = false\ncut = 0.4\n")
     opts = load_capture(root).options["silhouettes"]
     assert opts["person_track"] is False and opts["cut"] == 0.4
+
+
+def test_downscaled_person_masks_carve_the_hull_of_their_upsampling(tmp_path, fake_mediapipe,
+                                                                     monkeypatch):
+    """``scale = 0.25``: the silhouettes are UpsampledMasks carrying the network's 40 × 30
+    masks, and the hull carved from those is the hull of the full-size (nearest-neighbour
+    upsampled) masks, voxel for voxel."""
+    import topopose.capture.background as bg
+    from topopose.capture.background import UpsampledMask
+    from topopose.hull import HullCarver
+
+    cap, _, _ = _scene(tmp_path)
+    (tmp_path / "cap" / "capture.toml").write_text(TOML.replace("scale = 1.0", "scale = 0.25"))
+    cap = load_capture(tmp_path / "cap")
+    masks = cap.silhouettes("000000")
+    assert all(isinstance(m, UpsampledMask) and m.small.shape == (30, 40) for m in masks)
+    for m in masks:
+        assert np.array_equal(m, np.repeat(np.repeat(m.small, 4, 0), 4, 1).astype(bool))
+    got = visual_hull(cap, "000000", resolution=40)
+    monkeypatch.setattr(bg, "UPSAMPLED_MASKS", False)
+    cap.cache.pop("foreground_last", None)
+    plain = cap.silhouettes("000000")
+    assert not any(isinstance(m, UpsampledMask) for m in plain)
+    cap.cache.clear()
+    want = visual_hull(cap, "000000", resolution=40)
+    assert want.data.sum() > 100 and np.array_equal(got.data, want.data)
+    carver = HullCarver(cap.cameras, got.origin, got.voxel_size, got.data.shape)
+    a = carver.carve(masks, 0).copy()
+    assert carver.fac.tolist() == [[4, 4]] * 4
+    assert np.array_equal(a, carver.carve(plain, 0)) and carver.fac.max() == 1

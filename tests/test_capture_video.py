@@ -321,3 +321,73 @@ def test_refocus_reaches_the_estimator(tmp_path, cams, scene):
     vol = FrameEstimator(cap, "human", 24, refocus=True).hull("000002")
     assert vol.diagnostics["grid"] == "refocus"
     assert build_parser().parse_args(["run", "X", "--refocus"]).refocus is True
+
+
+def test_read_ahead_yields_in_order_raises_in_place_and_stops():
+    """read_ahead: the same items in the same order as iterating directly, an exception of the
+    iterable raised at its place, an early close stopping the thread and closing the iterable."""
+    import threading
+
+    from topopose.capture.sources import read_ahead
+
+    for depth in (1, 2, 5):
+        assert list(read_ahead(iter(range(50)), depth)) == list(range(50))
+    assert list(read_ahead([], 2)) == []
+
+    def failing():
+        yield 1
+        yield 2
+        raise InputError("frame 3 broken")
+
+    got = []
+    with pytest.raises(InputError, match="frame 3 broken"):
+        for x in read_ahead(failing(), 2):
+            got.append(x)
+    assert got == [1, 2]
+
+    closed = threading.Event()
+
+    def endless():
+        try:
+            i = 0
+            while True:
+                yield i
+                i += 1
+        finally:
+            closed.set()
+
+    gen = read_ahead(endless(), 3)
+    assert [next(gen) for _ in range(4)] == [0, 1, 2, 3]
+    n_before = threading.active_count()
+    gen.close()
+    assert closed.wait(2.0)
+    assert threading.active_count() <= n_before
+
+
+def test_decode_fields_same_frames_and_validated(tmp_path, cams, scene):
+    """[silhouettes] decode_threads / decode_ahead: the prefetched silhouettes are the same with
+    FFmpeg's own threads and no read-ahead as with the defaults (one thread, 2 ahead); wrong
+    values name the file and the field."""
+    base = '[silhouettes]\nmethod = "diff"\n'
+    caps = {}
+    for name, extra in (("new", ""), ("old", "decode_threads = 0\ndecode_ahead = 0\n")):
+        caps[name] = load_capture(video_capture(tmp_path / name, cams, scene, "mp4v", ".mp4",
+                                                capture_toml=base + extra))
+    assert caps["new"].options["silhouettes"]["decode_threads"] == 1
+    assert caps["new"].options["silhouettes"]["decode_ahead"] == 2
+    assert caps["old"].options["frame_source"].threads == 0
+    out = {}
+    for name, cap in caps.items():
+        with prefetch(cap, cap.frames):
+            out[name] = [cap.silhouettes(f) for f in cap.frames]
+    for a, b in zip(out["new"], out["old"]):
+        assert all(np.array_equal(x, y) for x, y in zip(a, b))
+    for k, (extra, field) in enumerate((
+            ("decode_threads = -1", "decode_threads"), ("decode_ahead = 1.5", "decode_ahead"),
+            ("decode_threads = 65", "decode_threads"), ("decode_ahead = true", "decode_ahead"))):
+        root = tmp_path / f"bad{k}"
+        root.mkdir()
+        (root / "capture.toml").write_text(base + extra + "\n")
+        from topopose.capture.calibration import read_capture_options
+        with pytest.raises(InputError, match=rf"capture\.toml: \[silhouettes\] field '{field}'"):
+            read_capture_options(root / "capture.toml")

@@ -265,3 +265,44 @@ def test_components_without_cc3d_fallback(monkeypatch):
     lab, n = ndimage.label(occ, structure=np.ones((3, 3, 3), bool))
     sizes = np.bincount(lab.ravel())[1:]
     assert want.sum() == sizes.max() and sorted(sizes)[:-1][::-1] == got_dropped
+
+
+@pytest.mark.parametrize("dist,fisheye", [((0, 0, 0, 0), False),
+                                          ((-0.25, 0.08, 0.001, -0.002, -0.01), False)])
+def test_carving_from_small_masks_equals_their_upsampling(dist, fisheye):
+    """A silhouette given as an UpsampledMask (the small mask of the person method's maps) is
+    carved from the small mask: the same hull, voxel for voxel and with the same work counters,
+    as the upsampled full-size mask — and as brute force on it. cv2's nearest-neighbour
+    upsampling by an integer factor is pixel (u, v) → (u // f, v // f)."""
+    import cv2
+
+    from topopose.capture.background import UpsampledMask
+
+    cams = ring(n=5, f=500, dist=dist, fisheye=fisheye, size=(320, 240))
+    rng = np.random.default_rng(4)
+    full = capsule_masks(cams, (-0.3, 0.1, 0.5), (0.35, -0.1, 1.4), 0.18)
+    ups, plain = [], []
+    for k, (cam, m) in enumerate(zip(cams, full)):
+        fx, fy = [(4, 4), (2, 2), (4, 2), (1, 1), (8, 8)][k]
+        small = cv2.resize(m.astype(np.uint8), (320 // fx, 240 // fy), interpolation=cv2.INTER_AREA)
+        small[rng.random(small.shape) < 0.02] ^= 1          # specks: edges everywhere
+        big = cv2.resize(small, (320, 240), interpolation=cv2.INTER_NEAREST).astype(bool)
+        assert np.array_equal(big, np.repeat(np.repeat(small, fy, 0), fx, 1).astype(bool))
+        u = big.view(UpsampledMask)
+        u.small = small
+        ups.append(u)
+        plain.append(big.copy())
+    assert getattr(ups[0][1:], "small", None) is None        # derived arrays do not carry it
+    origin, vs, shape = np.array([-0.9, -0.8, 0.05]), 0.037, (47, 45, 52)
+    a = HullCarver(cams, origin, vs, shape)
+    b = HullCarver(cams, origin, vs, shape)
+    seen, edge = brute_force(cams, plain, origin, vs, shape)
+    for tolerance in (0, 1, 2):
+        got = a.carve(ups, tolerance=tolerance)
+        assert a.fac.tolist() == [[4, 4], [2, 2], [4, 2], [1, 1], [8, 8]]
+        want = b.carve(plain, tolerance=tolerance)
+        assert want.sum() > 500
+        assert np.array_equal(got, want)
+        assert np.array_equal(a.stats, b.stats)
+        assert not np.any((got != (seen >= len(cams) - tolerance)) & ~edge)
+    assert np.array_equal(a.carve(plain), b.carve(plain)) and a.fac.max() == 1

@@ -349,16 +349,38 @@ def foreground_maps(cap, frame, images=None) -> list:
     return out
 
 
+#: False: :func:`masks_from_maps` returns plain full-size masks (the hull then sums every pixel
+#: of them; ``benchmarks/real_speed.py`` measures the difference)
+UPSAMPLED_MASKS = True
+
+
+class UpsampledMask(np.ndarray):
+    """A boolean silhouette at the calibration size that is the nearest-neighbour upsampling of
+    ``small`` (uint8 0/1, an integer factor smaller on each axis): the hull carver reads
+    ``small`` instead (:meth:`topopose.hull.carver.HullCarver.load_masks`). Arrays derived from
+    it (slices, copies, results of operations) do not carry ``small``."""
+
+    small = None
+
+
 def masks_from_maps(cap, maps) -> list:
     """Boolean silhouettes at the calibration size from probability maps (p > ``[silhouettes]
-    cut``, default 0.5)."""
+    cut``, default 0.5). A map an integer factor smaller than its image gives an
+    :class:`UpsampledMask`."""
     cut = int(255 * float(cap.options["silhouettes"].get("cut", 0.5)))
     out = []
     for q, cam in zip(maps, cap.cameras):
         m = (q > cut).astype(np.uint8)
+        small = None
         if m.shape != (cam.size[1], cam.size[0]):
+            small = m
             m = cv2.resize(m, tuple(cam.size), interpolation=cv2.INTER_NEAREST)
-        out.append(m.astype(bool))
+        m = m.astype(bool)
+        h, w = small.shape if small is not None else (0, 0)
+        if UPSAMPLED_MASKS and small is not None and cam.size[0] % w == 0 and cam.size[1] % h == 0:
+            m = m.view(UpsampledMask)
+            m.small = small
+        out.append(m)
     return out
 
 

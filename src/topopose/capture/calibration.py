@@ -50,13 +50,17 @@ SILHOUETTE_DEFAULTS = {
     "selfie_floor": 0.0,   # selfie: the network's probability is raised to at least this (a weak "no")
     "person_track": False,  # person: MediaPipe's tracking mode (detector skipped between frames)
     "cut": 0.5,            # hard fusion: a pixel is subject when its probability exceeds this
+    # reading videos (any method; capture/sources.py)
+    "decode_threads": 1,   # FFmpeg threads per video (0: FFmpeg's own choice, one per core)
+    "decode_ahead": 2,     # frames decoded ahead of the silhouettes by a thread of their own (0: none)
 }
 _SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (int, float), "open": int,
               "close": int, "min_area": int, "fill_holes": int, "scale": (int, float),
               "samples": int, "reveal": (int, float), "shadow": (int, float), "uncertain": (int, float),
               "zone_margin": (int, float), "fusion": str, "p_detect": (int, float),
               "p_false": (int, float), "occupancy": (int, float), "open3d": int,
-              "selfie_floor": (int, float), "person_track": bool, "cut": (int, float)}
+              "selfie_floor": (int, float), "person_track": bool, "cut": (int, float),
+              "decode_threads": int, "decode_ahead": int}
 _CAPTURE_KEYS = {"up", "units", "fps", "volume", "size_policy"}
 #: What to do with an image whose size differs from its camera's calibration size
 SIZE_POLICIES = ("error", "scale", "pad")
@@ -233,6 +237,10 @@ def read_capture_options(path, cameras=()) -> dict:
         raise InputError(f"{path}: [silhouettes] field 'fusion' must be \"auto\", \"soft\" or \"hard\", "
                          f"got {out['silhouettes']['fusion']!r}")
     check_params(path, out["silhouettes"])
+    for k, hi in (("decode_threads", 64), ("decode_ahead", 64)):
+        if out["silhouettes"][k] > hi:
+            raise InputError(f"{path}: [silhouettes] field '{k}' must be an integer in 0..{hi}, "
+                             f"got {out['silhouettes'][k]!r}")
     if cameras:
         far = max(float(np.linalg.norm(cam.center)) for cam in cameras)
         if out["units"] == "m" and far > 100:

@@ -185,7 +185,8 @@ def load_capture(path) -> Capture:
         for cam in cameras:
             if cam.name not in names:
                 raise _missing_entry(vid, cam, table, "video")
-        src = VideoSource({c.name: videos[names[c.name]] for c in cameras})
+        src = VideoSource({c.name: videos[names[c.name]] for c in cameras},
+                          threads=opts["silhouettes"]["decode_threads"])
         frames = list(src.frames)
         if not frames:
             raise InputError(f"{vid}: no readable frame in the videos "
@@ -447,7 +448,8 @@ def prefetch(cap: Capture, frames, depth: int = 4):
     else:
         def work(f, images):
             return _silhouettes_now(cap, f, images)
-    pf = Prefetcher(names, work, src, depth)
+    pf = Prefetcher(names, work, src, depth,
+                    (cap.options.get("silhouettes") or {}).get("decode_ahead", 2))
     cap.cache["prefetch"] = pf
     try:
         yield cap

@@ -84,14 +84,23 @@ class ImageSource:
 class _Decoder:
     """One ``cv2.VideoCapture`` that knows which frame it decodes next."""
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, threads: int = 1):
         self.path = path
+        self.threads = int(threads)
         self.vc = None
         self.pos = 0
         self.failed_at = None                # frame at which decoding failed (then reopened)
 
     def _open(self):
-        self.vc = cv2.VideoCapture(str(self.path))
+        # ``threads`` FFmpeg threads (0: its own choice, one per core). One by default: the
+        # decoding thread already runs beside the silhouettes and the pipeline, and FFmpeg's
+        # own threads add CPU (benchmarks/real.py, "Where the time goes")
+        self.vc = None
+        if self.threads > 0:
+            self.vc = cv2.VideoCapture(str(self.path), cv2.CAP_FFMPEG,
+                                       [cv2.CAP_PROP_N_THREADS, self.threads])
+        if self.vc is None or not self.vc.isOpened():
+            self.vc = cv2.VideoCapture(str(self.path))
         self.pos = 0
         if not self.vc.isOpened():
             self.vc = None
@@ -148,8 +157,9 @@ class VideoSource:
 
     kind = "videos"
 
-    def __init__(self, videos: dict):
+    def __init__(self, videos: dict, threads: int = 1):
         self.videos = {c: Path(p) for c, p in videos.items()}
+        self.threads = int(threads)          # FFmpeg threads per decoder (0: its choice)
         self.counts, self.fps, self.sizes, self.errors = {}, {}, {}, {}
         for cam, p in self.videos.items():
             vc = cv2.VideoCapture(str(p))
@@ -199,7 +209,7 @@ class VideoSource:
             raise InputError(bad[1])
         dec = decoders.get(camera)
         if dec is None:
-            dec = decoders[camera] = _Decoder(self.videos[camera])
+            dec = decoders[camera] = _Decoder(self.videos[camera], self.threads)
         try:
             return dec.get(i)
         except InputError as exc:
@@ -252,29 +262,87 @@ class VideoSource:
         self._lock = threading.Lock()
 
 
+def read_ahead(items, depth: int = 2, stop: threading.Event | None = None):
+    """Yield the items of the iterable ``items`` in order, pulled by a thread of their own at
+    most ``depth`` ahead (decoding overlaps the work done on the previous items; OpenCV's
+    decoders release the GIL). An exception raised by ``items`` is raised here, at its place.
+    Closing this generator (or setting ``stop``) stops the thread, which closes ``items``."""
+    q = queue.Queue(maxsize=max(1, int(depth)))
+    stop = stop if stop is not None else threading.Event()
+    done = threading.Event()
+    end = object()
+
+    def put(x):
+        while not (stop.is_set() or done.is_set()):
+            try:
+                q.put(x, timeout=0.1)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def pull():
+        it = iter(items)
+        try:
+            for x in it:
+                if not put((x, None)):
+                    break
+            else:
+                put((end, None))
+        except Exception as exc:         # handed to the consumer at its place
+            put((end, exc))
+        finally:
+            if hasattr(it, "close"):
+                it.close()
+
+    t = threading.Thread(target=pull, name="topopose-decode", daemon=True)
+    t.start()
+    try:
+        while True:
+            try:
+                x, exc = q.get(timeout=0.1)
+            except queue.Empty:
+                if stop.is_set() or not t.is_alive() and q.empty():
+                    return
+                continue
+            if exc is not None:
+                raise exc
+            if x is end:
+                return
+            yield x
+    finally:
+        done.set()
+        t.join()
+
+
 class Prefetcher:
     """A reader thread that computes ``work(frame, images)`` for ``frames`` in order, ahead of
     the consumer, into a bounded queue of ``depth`` frames.
 
-    ``images`` comes from ``source.sequential(frames)`` (None when ``source`` is None). Results
+    ``images`` comes from ``source.sequential(frames)`` (None when ``source`` is None), decoded
+    by a thread of its own up to ``ahead`` frames ahead of ``work`` (:func:`read_ahead`; 0:
+    decoded in the reader thread). Results
     (or the exception raised) are handed out by :meth:`take` in the same order.
     """
 
     _END = object()
 
-    def __init__(self, frames, work, source=None, depth: int = 4):
+    def __init__(self, frames, work, source=None, depth: int = 4, ahead: int = 2):
         self.frames = list(frames)
         self._pos = 0
         self._q = queue.Queue(maxsize=max(1, int(depth)))
         self._stop = threading.Event()
         self._work = work
         self._source = source
+        self._ahead = int(ahead)
         self._thread = threading.Thread(target=self._loop, name="topopose-reader", daemon=True)
         self._thread.start()
 
     def _loop(self):
-        it = (self._source.sequential(self.frames) if self._source is not None
-              else ((f, None) for f in self.frames))
+        it = ((f, None) for f in self.frames) if self._source is None else \
+            self._source.sequential(self.frames)
+        if self._source is not None and self._ahead > 0:
+            it = read_ahead(it, self._ahead, self._stop)
         try:
             for f, images in it:
                 if self._stop.is_set():

@@ -236,6 +236,7 @@ class HullCarver:
         self.moff = (np.arange(C) * (H * W)).astype(np.int64)
         self.soff = (np.arange(C) * ((H + 1) * (W + 1))).astype(np.int64)
         self.stats = np.zeros(12, dtype=np.int64)
+        self.fac = np.ones((C, 2), dtype=np.int64)   # per camera: mask smaller by (fx, fy)
 
     @property
     def nbytes(self) -> int:
@@ -243,14 +244,23 @@ class HullCarver:
         return self.rects.nbytes + self._mflat.nbytes + self._sflat.nbytes
 
     def load_masks(self, masks) -> None:
-        """Copy the silhouettes of one frame and build their summed-area tables."""
+        """Copy the silhouettes of one frame and build their summed-area tables. A silhouette
+        that is an :class:`~topopose.capture.background.UpsampledMask` is read from its small
+        mask (the same hull, 1/(fx·fy) of the copying and summing)."""
         if len(masks) != len(self.cameras):
             raise InputError(f"visual hull: {len(masks)} silhouettes for {len(self.cameras)} cameras")
         for q, (cam, m) in enumerate(zip(self.cameras, masks)):
+            small = getattr(m, "small", None)
             m = np.asarray(m)
             if m.shape != (cam.size[1], cam.size[0]):
                 raise InputError(f"visual hull: silhouette of camera {cam.name!r} has shape "
                                  f"{m.shape}, calibration size (h, w) is {(cam.size[1], cam.size[0])}")
+            self.fac[q] = 1
+            if small is not None:
+                fx, fy = m.shape[1] // small.shape[1], m.shape[0] // small.shape[0]
+                if small.shape[1] * fx == m.shape[1] and small.shape[0] * fy == m.shape[0]:
+                    self.fac[q] = fx, fy
+                    m = small
             if m.dtype == bool:
                 m = m.view(np.uint8)
             else:
@@ -285,7 +295,7 @@ class HullCarver:
         self.stats[:] = 0
         K.carve(self.shape[0], self.shape[1], self.shape[2], self.geo, self.intr, self._mflat,
                 self.moff, self._sflat, self.soff, self.rects, self.loff, self.ldims, self.lmin,
-                self.lmax, tolerance, bool(levels), out, self.stats)
+                self.lmax, tolerance, bool(levels), out, self.stats, self.fac)
         return out if levels else out.view(bool)
 
     def project_voxels(self, ijk) -> np.ndarray:

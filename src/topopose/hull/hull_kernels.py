@@ -89,8 +89,12 @@ def project_voxels(geo, intr, ijk):
 
 
 @njit(cache=True)
-def _rect_state(rects, row, sflat, soff, w, h, W):
-    """0: all outside the silhouette, 1: all inside, 2: undecided (mixed or unknown)."""
+def _rect_state(rects, row, sflat, soff, w, h, W, fx=1, fy=1):
+    """0: all outside the silhouette, 1: all inside, 2: undecided (mixed or unknown).
+    ``fx``, ``fy`` > 1: the summed-area table is that of a mask ``fx`` × ``fy`` times smaller
+    whose nearest-neighbour upsampling (pixel (u, v) → (u // fx, v // fy)) is the silhouette:
+    the rectangle covers exactly the small pixels ``x0 // fx`` … ``x1 // fx`` (rows alike), so
+    the answer is the one the full-size table gives."""
     x0 = rects[row, 0]
     if x0 == INVALID:
         return 2
@@ -103,11 +107,15 @@ def _rect_state(rects, row, sflat, soff, w, h, W):
     cy1 = min(y1, h - 1)
     if cx0 > cx1 or cy0 > cy1:
         return 0
-    s = (sflat[soff + (cy1 + 1) * W + cx1 + 1] - sflat[soff + cy0 * W + cx1 + 1]
-         - sflat[soff + (cy1 + 1) * W + cx0] + sflat[soff + cy0 * W + cx0])
+    sx0 = cx0 // fx
+    sx1 = cx1 // fx
+    sy0 = cy0 // fy
+    sy1 = cy1 // fy
+    s = (sflat[soff + (sy1 + 1) * W + sx1 + 1] - sflat[soff + sy0 * W + sx1 + 1]
+         - sflat[soff + (sy1 + 1) * W + sx0] + sflat[soff + sy0 * W + sx0])
     if s == 0:
         return 0
-    if (s == (cx1 - cx0 + 1) * (cy1 - cy0 + 1) and cx0 == x0 and cy0 == y0
+    if (s == (sx1 - sx0 + 1) * (sy1 - sy0 + 1) and cx0 == x0 and cy0 == y0
             and cx1 == x1 and cy1 == y1):
         return 1
     return 2
@@ -115,7 +123,7 @@ def _rect_state(rects, row, sflat, soff, w, h, W):
 
 @njit(cache=True)
 def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, lmin, lmax,
-          tolerance, levels, out, stats):
+          tolerance, levels, out, stats, fac):
     """Hierarchical carving of the volumetric visual hull (thesis §2.3.2.2).
 
     A voxel is set in ``out`` (uint8, zeroed by the caller) when its centre projects inside the
@@ -127,6 +135,11 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
     (the camera rejects every voxel of the block), all-inside (it accepts every voxel), or
     undecided; undecided blocks are split in 8 down to level ``lmin``, whose voxels are tested
     one by one by exact projection (distortion included) with early exit.
+
+    ``fac`` (int64, (C, 2)): per camera, the integer factors (fx, fy) by which its mask and
+    table are smaller than its image ((1, 1): full size); the silhouette is the mask's
+    nearest-neighbour upsampling, pixel (u, v) reading mask pixel (u // fx, v // fy), so the
+    hull is the one the upsampled mask gives, without building it (:func:`_rect_state`).
 
     ``stats`` (int64, 12): block tests, voxel tests, projections, full blocks, empty blocks,
     set voxels, and the bounding box of set voxels is written to ``stats[6:12]`` (imin, jmin, kmin, imax,
@@ -188,7 +201,8 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
         nblock += 1
         for c in range(C):
             if (act >> c) & 1:
-                s = _rect_state(rects, base + c, sflat, soff[c], ws[c], hs[c], stride1)
+                s = _rect_state(rects, base + c, sflat, soff[c], ws[c], hs[c], stride1,
+                                fac[c, 0], fac[c, 1])
                 if s == 0:
                     miss += 1
                     act &= ~(1 << c)
@@ -250,6 +264,9 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
                         if (act >> c) & 1:
                             nproj += 1
                             p = _pixel(geo, intr, c, float(i), float(j), float(k))
+                            if p >= 0 and (fac[c, 0] > 1 or fac[c, 1] > 1):
+                                pv = p // (stride1 - 1)
+                                p = (pv // fac[c, 1]) * (stride1 - 1) + (p - pv * (stride1 - 1)) // fac[c, 0]
                             if p < 0 or mflat[moff[c] + p] == 0:
                                 m += 1
                                 if m > tolerance:

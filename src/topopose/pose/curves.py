@@ -73,7 +73,7 @@ def arc_curves(skeleton, origin, voxel_size, data, alignment, model, parts, n=N_
     w = np.linalg.norm(idx[pairs[:, 0]] - idx[pairs[:, 1]], axis=1)
     g = coo_matrix((w, (pairs[:, 0], pairs[:, 1])), shape=(len(idx), len(idx))).tocsr()
     wkd = cKDTree(world)
-    out = {}
+    ways = {}
     for u, v in model_arcs(model):
         if parts.get(u) is None or parts.get(v) is None:
             continue
@@ -83,11 +83,18 @@ def arc_curves(skeleton, origin, voxel_size, data, alignment, model, parts, n=N_
         way = [parts[u]] + [data.positions[x] for x in path[1:-1]
                             if data.positions.get(x) is not None] + [parts[v]]
         nodes = [int(wkd.query(np.asarray(p, float))[1]) for p in way]
-        nodes = [a for i, a in enumerate(nodes) if i == 0 or a != nodes[i - 1]]
+        ways[(u, v)] = [a for i, a in enumerate(nodes) if i == 0 or a != nodes[i - 1]]
+    # the shortest paths from every source node at once (one graph validation, not one per pair)
+    src = sorted({a for nodes in ways.values() for a in nodes[:-1]})
+    row = {a: i for i, a in enumerate(src)}
+    if src:
+        _, preds = dijkstra(g, directed=False, indices=src, return_predecessors=True)
+    out = {}
+    for (u, v), nodes in ways.items():
         chain = [nodes[0]]
         ok = True
         for a, b in zip(nodes, nodes[1:]):
-            _, pred = dijkstra(g, directed=False, indices=a, return_predecessors=True)
+            pred = preds[row[a]]
             if pred[b] < 0:
                 ok = False
                 break

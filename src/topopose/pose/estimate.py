@@ -940,12 +940,17 @@ def thickness_arc_cost(radii: dict, profile: dict, weight: float, cap: float = 1
         head, sep, tail = str(p).rpartition("_")
         return head if sep and tail.isdigit() else str(p)
 
+    known = {}             # id of a vertex list → (list, its radii with NaN where unknown)
+
     def term(part, verts):
         rho = profile.get(stem(part))
         if rho is None:
             return np.zeros(len(verts))
         lo, hi = rho
-        r = np.maximum(np.array([radii.get(v, max(lo, 1e-3)) for v in verts], float), 1e-3)
+        got = known.get(id(verts))
+        if got is None or got[0] is not verts:
+            got = known[id(verts)] = (verts, np.array([radii.get(v, np.nan) for v in verts], float))
+        r = np.maximum(np.where(np.isnan(got[1]), max(lo, 1e-3), got[1]), 1e-3)
         out = np.maximum(np.log(max(lo, 1e-3) / r), np.log(r / hi))
         return weight * np.clip(out, 0.0, cap)
 

@@ -460,6 +460,30 @@ def untrusted_part(confidences: dict, minimum: float):
     return ranked[0][0]
 
 
+# the features that judge the alignment's head alone (its height, bend, offset and reach
+# against the alignment's trunk, its thickness against the torso's): the head's doubt,
+# :func:`head_doubt`. Chosen on the calibration's held-out seeds (benchmarks/confidence.py
+# --rows, 8 cameras, precision / recall of the right frames 0.973 / 0.935 without the head
+# doubt): these five 0.971 / 0.938, 4 cameras unchanged (0.929 / 0.052); with the placed
+# head's features too (``head_placed_*``, ``head_radius``) 0.967 / 0.942 but separated limbs'
+# precision 1.0 → 0.967 and 4 cameras 0.90
+HEAD_FEATURES = ("head_low", "head_bend", "head_offset", "head_reach", "head_torso")
+
+
+def head_doubt(features: dict, share: float, min_share: float = 0.8, model: dict = None):
+    """:func:`fitted_confidence` of a frame whose head looked as a right frame's usually does:
+    ``features`` with :data:`HEAD_FEATURES` at ``model["typical_head"]`` (the medians of the
+    calibration's right frames, written by ``benchmarks/confidence.py --fit``; default
+    :data:`CONFIDENCE_MODEL`). None when the model has none. When this reaches the minimum
+    while the frame does not, the doubt lies in the head alone (per-part trust,
+    :func:`judge_frame` ``head_doubt``)."""
+    m = CONFIDENCE_MODEL if model is None else model
+    typical = m.get("typical_head")
+    if not typical:
+        return None
+    return fitted_confidence({**features, **typical}, share, min_share, m)
+
+
 def drop_part_features(vol, n_vox, data, model, up, distance, threshold, missing, al,
                        thickness_cost, radii, missing_cost, parts, part) -> dict:
     """:func:`frame_features` of the frame with ``part`` left unplaced: its data vertex and
@@ -525,7 +549,7 @@ def passes_gate(status, error, confidence, min_confidence) -> bool:
 def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
                 min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m", al=None,
                 thickness_cost=0.0, reach=0, radius_map=None, missing_cost=0.0,
-                parts=None, drop_parts=()) -> tuple:
+                parts=None, drop_parts=(), doubt_head=False) -> tuple:
     """Status, reason and diagnostics of one frame from what the stages know.
 
     A ``matched`` frame becomes ``rejected`` when the hull's largest component holds less than
@@ -545,6 +569,12 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     (§13.2.2) rather than a rejected one. The part is named in ``untrusted`` (the caller
     unplaces it and keeps its guess), its confidence is the reported one, the whole frame's in
     ``confidence_all_parts``.
+
+    **Head doubt** (``doubt_head``, with per-part trust; issue 11): when no part's removal
+    explains the doubt but the frame with a typical head (:func:`head_doubt`) reaches
+    :func:`min_drop_for`, the head is the untrusted part (a right frame with the head bent
+    away from the alignment's trunk line, the alignment's torso on a shoulder junction: the
+    head's removal alone leaves a frame without a head, which the fit saw rarely right).
 
     Returns
     -------
@@ -608,6 +638,10 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
                for part in drop_parts if parts.get(part) is not None}
         untrusted = untrusted_part({p: c["confidence"] for p, c in cps.items()},
                                    min_drop_for(min_confidence))
+        if untrusted is None and doubt_head and "head" in cps:
+            typical = head_doubt(feats, share, min_share)
+            if typical is not None and typical["confidence"] >= min_drop_for(min_confidence):
+                untrusted, cps["head"] = "head", typical
         if untrusted is not None:
             status, error = "matched", None
             conf = {**cps[untrusted], "all_parts": conf["confidence"]}

@@ -107,6 +107,18 @@ minima 0.72 with 8 cameras, 0.91 with 4): held out, 8 cameras, 0.975 / 0.912 (th
 on the new frames) → 0.973 / 0.935; body benchmark (offline) separated 0.958 / 0.009 → 0.967 /
 0.009, all poses 0.725 / 0.022 → 0.767 / 0.021 (``benchmarks/results/confidence.md``).
 
+**Head doubt** (issue 11, :func:`head_doubt`, :func:`judge_frame` ``doubt_head``;
+``FrameEstimator(head_doubt=False)`` off): when no part's removal explains the doubt, the frame
+with its alignment's head features (:data:`HEAD_FEATURES`) at a right frame's typical values
+(``"typical_head"`` in the model, medians of the calibration's right frames) is scored; reaching
+:func:`min_drop_for`, the frame is matched without its head. The right all-pose frames the gate
+rejected had the alignment's torso on a shoulder junction (head offset 0.18–0.32, bend
+0.76–1.2: the placed head and torso right); without their head they scored lower still (a
+headless frame is rarely right in calibration). Held out, 8 cameras, precision / recall of the
+right frames 0.973 / 0.935 → 0.971 / 0.938, 4 cameras unchanged; body benchmark (seeds 21, 22,
+``quality.py --only body``) separated 0.975 / 0.017 → 0.983 / 0.017, all poses 0.775 / 0.021
+→ 0.800 / 0.020.
+
 **Not reached** (``confidence_models.md``): with 4 cameras no model reaches precision 0.95 for
 more than a few right frames (held out: 7 of 209 right frames with 4 cameras, none of 131 with
 the 4 portrait cameras; the real recording's 4 phone cameras: none of its ~67 right frames, the

@@ -437,12 +437,14 @@ def test_head_doubt_is_the_confidence_with_a_typical_head():
 def test_head_doubt_unplaces_the_head_only_when_a_typical_head_is_trusted(clean, monkeypatch):
     """Under a confidence that depends on the head's bend alone (a logistic model, the clean
     frame's own bend far below its mean, the typical bend far above), no part's removal
-    explains the doubt (a removed head has bend 0), the typical head does: the frame is
-    matched without its head, whose guess is kept; with the typical bend equal to the frame's
-    own, or with head_doubt=False, it is rejected with every part."""
+    explains the doubt (a removed head has bend 0), the typical head does: with
+    ``head_doubt="any"`` the frame is matched without its head, whose guess is kept; by
+    default (the alignment matched this head), with the typical bend equal to the frame's own,
+    or with head_doubt=False, it is rejected with every part."""
     from topopose.pose.estimate import FrameEstimator
 
     cap, est, out = clean
+    assert out[0][1].alignment.mapping.get("head") is not None
     hb = out[0][0].diagnostics["confidence_features"]["head_bend"]
     model = {"models": ["human"], "replaces_threshold": True, "features": ["head_bend"],
              "mean": [hb + 0.5], "scale": [0.05], "coef": [1.0], "intercept": 0.0,
@@ -456,7 +458,8 @@ def test_head_doubt_unplaces_the_head_only_when_a_typical_head_is_trusted(clean,
 
     off = run(head_doubt=False)
     assert off.status == "rejected" and all(x is not None for x in off.parts.values())
-    on = run()
+    assert run().status == "rejected"              # default: a matched head is not doubted
+    on = run(head_doubt="any")
     assert on.status == "matched", on.error
     assert on.diagnostics["untrusted"] == "head" and on.parts["head"] is None
     assert on.diagnostics["confidence_factors"]["fitted"] == pytest.approx(
@@ -465,4 +468,34 @@ def test_head_doubt_unplaces_the_head_only_when_a_typical_head_is_trusted(clean,
     assert np.allclose(on.diagnostics["untrusted_guess"], off.parts["head"], atol=1e-5)
     assert all(np.allclose(on.parts[p], off.parts[p]) for p in off.parts if p != "head")
     monkeypatch.setattr(C, "CONFIDENCE_MODEL", {**model, "typical_head": {"head_bend": hb}})
-    assert run().status == "rejected"
+    assert run(head_doubt="any").status == "rejected"
+
+
+def test_head_doubt_by_default_for_a_head_the_alignment_left_unmatched(clean, monkeypatch):
+    """judge_frame on the clean frame with the alignment's head taken out (the head placed
+    from the hull alone, its features 0): under a confidence that wants the head's bend near a
+    typical 1.0 (a logistic model) no part's removal reaches the minimum, the typical head
+    does — the default head doubt matches the frame without its head; off, it is rejected."""
+    cap, est, out = clean
+    pose, det = out[0]
+    al = det.alignment
+    al2 = SimpleNamespace(mapping={**al.mapping, "head": None},
+                          pairs=[(pp, dp) for pp, dp in al.pairs if pp[-1] != "head"])
+    model = {"models": ["human"], "replaces_threshold": True, "features": ["head_bend"],
+             "mean": [0.5], "scale": [0.05], "coef": [1.0], "intercept": 0.0,
+             "min_confidence": 0.5, "min_confidence_by_cameras": {},
+             "typical_head": {"head_bend": 1.0}}
+    monkeypatch.setattr(C, "CONFIDENCE_MODEL", model)
+    dg = pose.diagnostics
+
+    def judge(doubt):
+        return C.judge_frame(det.volume, dg["hull_voxels"], det.data, est.model, est.up,
+                             pose.distance, est.threshold, 1, "matched", None,
+                             min_confidence=0.5, al=al2, parts=pose.parts,
+                             drop_parts=C.DROP_PARTS, doubt_head=doubt)
+
+    status, error, diag = judge(False)
+    assert status == "rejected" and diag["confidence_features"]["head_bend"] == 0.0
+    status, error, diag = judge(True)
+    assert status == "matched" and diag["untrusted"] == "head", error
+    assert diag["confidence_factors"]["fitted"] == pytest.approx(1 / (1 + math.exp(-10)), abs=1e-4)

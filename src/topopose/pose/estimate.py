@@ -223,10 +223,12 @@ class FrameEstimator:
         rejects is matched without the one extremity (head, hand, foot) whose removal makes
         the confidence reach the minimum; that part is unplaced, its guess kept in
         ``diagnostics["untrusted_guess"]``. None (default) or True: on; False: off.
-    head_doubt : bool or None
-        With per-part trust, the head is the untrusted part when the frame with a typical
-        head reaches the minimum (:func:`topopose.pose.confidence.head_doubt`, issue 11).
-        None (default) or True: on; False: off.
+    head_doubt : bool, str or None
+        With per-part trust, a head the alignment left unmatched (placed from the hull alone)
+        is the untrusted part when the frame with a typical head reaches the minimum
+        (:func:`topopose.pose.confidence.head_doubt`, issue 11). None (default) or True: on;
+        False: off; ``"any"``: a matched head too (opt-in: it also lets through frames with a
+        spurious limb at the chest, ``benchmarks/results/confidence.md``).
     """
 
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
@@ -250,8 +252,9 @@ class FrameEstimator:
         self.min_confidence = None if min_confidence is None else float(min_confidence)
         # per-part trust (pose/confidence.py judge_frame, DROP_PARTS): None/True on, False off
         self.part_trust = part_trust is not False
-        # head doubt (pose/confidence.py head_doubt): None/True on, False off
-        self.head_doubt = head_doubt is not False
+        # head doubt (pose/confidence.py head_doubt): None/True an unmatched head, "any" any
+        # head, False off
+        self.head_doubt = True if head_doubt is None else head_doubt
 
         self.cap = cap
         self.model: Model = load_model(model, constraints=constraints)

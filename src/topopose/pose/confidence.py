@@ -119,8 +119,10 @@ torso right; body benchmark, seeds 21, 22, ``quality.py --only body``: separated
 → 0.983 / 0.017, all poses 0.775 / 0.021 → 0.800 / 0.020), but it cannot tell them from a torso
 on the junction of a spurious limb: of the deliberate rods the gate rejects it lets through 11
 of 157 held out, 15 of 169 calibration (``confidence.md``) and
-``test_spurious_limb_fails_the_gate``'s rod frame (confidence 0.26 → 0.74, head unplaced). A
-head the alignment matched, no rod frame has none unmatched.
+``test_spurious_limb_fails_the_gate``'s rod frame (confidence 0.26 → 0.74, head unplaced). By
+default (an unmatched head only) none of the 414 deliberate rods gets through; held out, 8
+cameras, 0.973 / 0.935 → 0.973 / 0.938; body benchmark separated 0.975 → 0.983, all poses
+0.775 → 0.783 (FP/match 0.017, 0.021 unchanged).
 
 **Not reached** (``confidence_models.md``): with 4 cameras no model reaches precision 0.95 for
 more than a few right frames (held out: 7 of 209 right frames with 4 cameras, none of 131 with
@@ -479,9 +481,9 @@ def untrusted_part(confidences: dict, minimum: float):
 # against the alignment's trunk, its thickness against the torso's): the head's doubt,
 # :func:`head_doubt`. Chosen on the calibration's held-out seeds (benchmarks/confidence.py
 # --rows, 8 cameras, precision / recall of the right frames 0.973 / 0.935 without the head
-# doubt): these five 0.971 / 0.938, 4 cameras unchanged (0.929 / 0.052); with the placed
-# head's features too (``head_placed_*``, ``head_radius``) 0.967 / 0.942 but separated limbs'
-# precision 1.0 → 0.967 and 4 cameras 0.90
+# doubt): these five, for any head, 0.971 / 0.938, 4 cameras unchanged (0.929 / 0.052); with
+# the placed head's features too (``head_placed_*``, ``head_radius``) 0.967 / 0.942 but
+# separated limbs' precision 1.0 → 0.967 and 4 cameras 0.90
 HEAD_FEATURES = ("head_low", "head_bend", "head_offset", "head_reach", "head_torso")
 
 
@@ -491,7 +493,7 @@ def head_doubt(features: dict, share: float, min_share: float = 0.8, model: dict
     calibration's right frames, written by ``benchmarks/confidence.py --fit``; default
     :data:`CONFIDENCE_MODEL`). None when the model has none. When this reaches the minimum
     while the frame does not, the doubt lies in the head alone (per-part trust,
-    :func:`judge_frame` ``head_doubt``)."""
+    :func:`judge_frame` ``doubt_head``)."""
     m = CONFIDENCE_MODEL if model is None else model
     typical = m.get("typical_head")
     if not typical:
@@ -655,8 +657,9 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
                for part in drop_parts if parts.get(part) is not None}
         untrusted = untrusted_part({p: c["confidence"] for p, c in cps.items()},
                                    min_drop_for(min_confidence))
+        mapped = (getattr(al, "mapping", None) or {}).get("head") is not None
         if (untrusted is None and doubt_head and "head" in cps
-                and (doubt_head == "any" or (getattr(al, "mapping", None) or {}).get("head") is None)):
+                and (doubt_head == "any" or not mapped)):
             typical = head_doubt(feats, share, min_share)
             if typical is not None and typical["confidence"] >= min_drop_for(min_confidence):
                 untrusted, cps["head"] = "head", typical

@@ -310,12 +310,15 @@ def rod_rows(cap, est, out, ev, like, rods=RODS):
     return rows
 
 
-def gated_quality(r, model, cameras, part_trust=True):
+def gated_quality(r, model, cameras, part_trust=True, head_doubt=True):
     """The quality of the pose the gate of ``model`` (None: T_d only) outputs for the frame of
     row ``r`` at ``cameras`` cameras, None when not matched: as judge_frame decides, with
     per-part trust (``part_trust``) the frame without the part of its ``drops`` that scores
-    highest when the whole frame falls below the minimum."""
-    from topopose.pose.confidence import fitted_confidence, min_confidence_for, min_drop_for
+    highest when the whole frame falls below the minimum, else (``head_doubt``) without the
+    head when the frame with a typical head reaches it (confidence.head_doubt; True: a head
+    the alignment left unmatched — no head reach —, "any": any head)."""
+    from topopose.pose.confidence import (fitted_confidence, head_doubt as _head_doubt,
+                                          min_confidence_for, min_drop_for)
 
     if r["status"] == "failed":
         return None
@@ -335,6 +338,11 @@ def gated_quality(r, model, cameras, part_trust=True):
         p = untrusted_part(cs, min_drop_for(t, model))
         if p is not None:
             return r["drops"][p]["quality"]
+        unmatched = f["head_reach"] == 0 and f["head_radius"] == 0
+        c = (_head_doubt(f, 1.0 - f["lost"], model=model)
+             if head_doubt == "any" or (head_doubt and unmatched) else None)
+        if "head" in r["drops"] and c is not None and c["confidence"] >= min_drop_for(t, model):
+            return r["drops"]["head"]["quality"]
     return None
 
 
@@ -406,10 +414,11 @@ def fit(rows, features, half, l2, kind="logistic"):
     cal = [r for r in rows if r["seed"] < half_of(r, half) and candidate(r, flag)]
     if DROP_WEIGHT > 0:
         cal += drop_rows(cal)
-    model = _fit(cal, features, l2, kind)
+    model = {**_fit(cal, features, l2, kind), "typical_head": typical_head(cal)}
     oof, folds = [], []
     for k in range(FOLDS):
-        m = _fit([r for r in cal if r["seed"] % FOLDS != k], features, l2, kind)
+        part = [r for r in cal if r["seed"] % FOLDS != k]
+        m = {**_fit(part, features, l2, kind), "typical_head": typical_head(part)}
         folds.append(m)
         for r in cal:
             if r["seed"] % FOLDS == k and not r.get("augmented"):
@@ -421,6 +430,15 @@ def fit(rows, features, half, l2, kind="logistic"):
     model["drop_margin"] = drop_margin(
         [(r, folds[r["seed"] % FOLDS]) for r in cal if not r.get("augmented")], model)
     return model
+
+
+def typical_head(rows) -> dict:
+    """The head's features (confidence.HEAD_FEATURES) of a right frame: their medians over the
+    right, real (not augmented) frames of ``rows`` (confidence.head_doubt)."""
+    from topopose.pose.confidence import HEAD_FEATURES
+
+    right = [r["features"] for r in rows if r["good"] and not r.get("augmented")]
+    return {f: round(float(np.median([x[f] for x in right])), 5) for f in HEAD_FEATURES}
 
 
 DROP_MARGINS = (0.0, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3)
@@ -566,7 +584,7 @@ def curve(rows, half, kinds, model, minima=MINIMA):
 
 
 def swap_summary(aug, model, half):
-    from topopose.pose.confidence import fitted_confidence
+    from topopose.pose.confidence import fitted_confidence, head_doubt, min_drop_for
 
     out = {}
     for kind, part in itertools.product(("swaps", "rods"), ("calibration", "held out")):
@@ -575,8 +593,21 @@ def swap_summary(aug, model, half):
                  and candidate(r, {"replaces_threshold": True})]
         c = [fitted_confidence(r["features"], 1.0 - r["features"]["lost"], model=model)["confidence"]
              for r in wrong]
-        out[f"{kind}, {part}"] = {"wrong": len(wrong),
-                                  "rejected": sum(x < minimum(r, model) for x, r in zip(c, wrong))}
+        # the head doubt (opt-in) would match a rejected one when its typical head reaches
+        # the per-part minimum (every part of these frames is placed)
+        h = [(head_doubt(r["features"], 1.0 - r["features"]["lost"], model=model)
+              or {"confidence": 0.0})["confidence"] for r in wrong]       # for any head
+        unmatched = [r["features"]["head_reach"] == 0 and r["features"]["head_radius"] == 0
+                     for r in wrong]
+        out[f"{kind}, {part}"] = {
+            "wrong": len(wrong),
+            "rejected": sum(x < minimum(r, model) for x, r in zip(c, wrong)),
+            "rejected with the head doubt": sum(
+                x < minimum(r, model) and not (u and y >= min_drop_for(minimum(r, model), model))
+                for x, y, u, r in zip(c, h, unmatched, wrong)),
+            "rejected with the head doubt any": sum(
+                x < minimum(r, model) and y < min_drop_for(minimum(r, model), model)
+                for x, y, r in zip(c, h, wrong))}
     return out
 
 
@@ -623,10 +654,16 @@ def body_benchmark(models, frames=12, seeds=(21, 22), cached=None):
                                 for p, s, d in zip(poses, ev.frames, drops)]
         rows = [r for r in out["rows"] if r["kind"] == kind]
         rules = [(name, m, False) for name, m in models.items()]
-        rules += [(f"{name} + per-part trust", m, True) for name, m in models.items()
-                  if m is not None and name not in {f"fitted ≥ {t}" for t in MINIMA}]
+        trusted = [(name, m) for name, m in models.items()
+                   if m is not None and name not in {f"fitted ≥ {t}" for t in MINIMA}]
+        rules += [(f"{name} + per-part trust", m, True) for name, m in trusted]
+        # the head doubt (FrameEstimator(head_doubt=)): off, and for any head (opt-in)
+        rules += [(f"{name} + per-part trust, {v}", m, v) for name, m in trusted
+                  if m.get("typical_head") for v in ("no head doubt", "head doubt any")]
         for name, m, pt in rules:
-            qs = [gated_quality(r, m, r["cameras"], pt) for r in rows]
+            qs = [gated_quality(r, m, r["cameras"], bool(pt),
+                                {True: True, "no head doubt": False}.get(pt, "any"))
+                  for r in rows]
             tp = sum(q in TP_CLASSES for q in qs)
             fp = sum(q in ("misplaced", "bad") for q in qs)
             right = sum(r["quality"] in TP_CLASSES for r in rows)
@@ -873,7 +910,13 @@ def main(argv=None):
           f"a rod of {ROD_LENGTH[0]}–{ROD_LENGTH[1]} m added to the hull on the trunk, pointing "
           "away from the real limbs; wrong by construction), reaching the gate; the calibration "
           "half's are fitted on too: share the gate rejects — "
-          + "; ".join(f"{k}: {v['rejected']}/{v['wrong']}" for k, v in swaps.items()) + "."]
+          + "; ".join(f"{k}: {v['rejected']}/{v['wrong']}" for k, v in swaps.items()) + "."
+          + " With the head doubt (default): "
+          + "; ".join(f"{k}: {v['rejected with the head doubt']}/{v['wrong']}"
+                      for k, v in swaps.items()) + "."
+          + " With the head doubt for any head (opt-in, `head_doubt=\"any\"`): "
+          + "; ".join(f"{k}: {v['rejected with the head doubt any']}/{v['wrong']}"
+                      for k, v in swaps.items()) + "."]
     L += ["", "## Model (`src/topopose/pose/confidence_model.json`)", ""]
     if model.get("kind") == "trees":
         splits = Counter(model["features"][f] for t in model["trees"]

@@ -251,6 +251,11 @@ def body_rows(quick, out, suffix):
     # per-part trust (pose/confidence.py judge_frame, DROP_PARTS) off: its peer, gate on
     row("body separated noise1 no-part-trust", *body_study(sep, 100, part_trust=False))
     row("body all-poses noise1 no-part-trust", *body_study(allp, 100, part_trust=False))
+    # the head doubt (pose/confidence.py head_doubt) off, and for any head (opt-in), gate on
+    row("body separated noise1 no-head-doubt", *body_study(sep, 100, head_doubt=False))
+    row("body all-poses noise1 no-head-doubt", *body_study(allp, 100, head_doubt=False))
+    row("body separated noise1 head-doubt-any", *body_study(sep, 100, head_doubt="any"))
+    row("body all-poses noise1 head-doubt-any", *body_study(allp, 100, head_doubt="any"))
     row("body separated noise1 two-pass", *body_study(sep, 100, two_pass=True))
     row("body all-poses noise1 two-pass", *body_study(allp, 100, two_pass=True))
     if not quick:

@@ -415,3 +415,87 @@ def test_untrusted_part_needs_one_part_above_the_rest():
         got = C.untrusted_part(cs, 0.75)
         top = [p for p, c in cs.items() if c == max(cs.values())]
         assert got == (top[0] if len(top) == 1 and cs[top[0]] >= 0.75 else None)
+
+
+def test_head_doubt_is_the_confidence_with_a_typical_head():
+    """head_doubt: the fitted confidence with the head's features at the model's typical
+    values, hand-computed for a logistic model on head_bend and end_radius; None without
+    typical values."""
+    model = {"models": ["human"], "features": ["head_bend", "end_radius"], "mean": [0.5, 0.3],
+             "scale": [0.25, 0.1], "coef": [-2.0, 1.0], "intercept": 0.5, "min_confidence": 0.5,
+             "typical_head": {"head_bend": 0.1}}
+    f = {"head_bend": 1.2, "end_radius": 0.4, "fat": 0.05, "lost": 0.0}
+    sig = lambda z: 1.0 / (1.0 + math.exp(-z))                          # noqa: E731
+    whole = C.fitted_confidence(f, 1.0, model=model)["confidence"]
+    assert whole == pytest.approx(sig(0.5 - 2.0 * (1.2 - 0.5) / 0.25 + (0.4 - 0.3) / 0.1), abs=1e-4)
+    got = C.head_doubt(f, 1.0, model=model)["confidence"]
+    assert got == pytest.approx(sig(0.5 - 2.0 * (0.1 - 0.5) / 0.25 + (0.4 - 0.3) / 0.1), abs=1e-4)
+    assert C.head_doubt(f, 1.0, model={**model, "typical_head": {}}) is None
+    assert set(C.HEAD_FEATURES) <= set(C.FEATURES)
+
+
+def test_head_doubt_unplaces_the_head_only_when_a_typical_head_is_trusted(clean, monkeypatch):
+    """Under a confidence that depends on the head's bend alone (a logistic model, the clean
+    frame's own bend far below its mean, the typical bend far above), no part's removal
+    explains the doubt (a removed head has bend 0), the typical head does: with
+    ``head_doubt="any"`` the frame is matched without its head, whose guess is kept; by
+    default (the alignment matched this head), with the typical bend equal to the frame's own,
+    or with head_doubt=False, it is rejected with every part."""
+    from topopose.pose.estimate import FrameEstimator
+
+    cap, est, out = clean
+    assert out[0][1].alignment.mapping.get("head") is not None
+    hb = out[0][0].diagnostics["confidence_features"]["head_bend"]
+    model = {"models": ["human"], "replaces_threshold": True, "features": ["head_bend"],
+             "mean": [hb + 0.5], "scale": [0.05], "coef": [1.0], "intercept": 0.0,
+             "min_confidence": 0.5, "min_confidence_by_cameras": {},
+             "typical_head": {"head_bend": hb + 1.0}}
+    monkeypatch.setattr(C, "CONFIDENCE_MODEL", model)
+
+    def run(**kw):
+        return FrameEstimator(cap, "human", 100, gate=True, min_confidence=0.5,
+                              **kw).estimate(cap.frames[0])
+
+    off = run(head_doubt=False)
+    assert off.status == "rejected" and all(x is not None for x in off.parts.values())
+    assert run().status == "rejected"              # default: a matched head is not doubted
+    on = run(head_doubt="any")
+    assert on.status == "matched", on.error
+    assert on.diagnostics["untrusted"] == "head" and on.parts["head"] is None
+    assert on.diagnostics["confidence_factors"]["fitted"] == pytest.approx(
+        1.0 / (1.0 + math.exp(-10.0)), abs=1e-4)
+    assert on.diagnostics["confidence_all_parts"] < 0.5
+    assert np.allclose(on.diagnostics["untrusted_guess"], off.parts["head"], atol=1e-5)
+    assert all(np.allclose(on.parts[p], off.parts[p]) for p in off.parts if p != "head")
+    monkeypatch.setattr(C, "CONFIDENCE_MODEL", {**model, "typical_head": {"head_bend": hb}})
+    assert run(head_doubt="any").status == "rejected"
+
+
+def test_head_doubt_by_default_for_a_head_the_alignment_left_unmatched(clean, monkeypatch):
+    """judge_frame on the clean frame with the alignment's head taken out (the head placed
+    from the hull alone, its features 0): under a confidence that wants the head's bend near a
+    typical 1.0 (a logistic model) no part's removal reaches the minimum, the typical head
+    does — the default head doubt matches the frame without its head; off, it is rejected."""
+    cap, est, out = clean
+    pose, det = out[0]
+    al = det.alignment
+    al2 = SimpleNamespace(mapping={**al.mapping, "head": None},
+                          pairs=[(pp, dp) for pp, dp in al.pairs if pp[-1] != "head"])
+    model = {"models": ["human"], "replaces_threshold": True, "features": ["head_bend"],
+             "mean": [0.5], "scale": [0.05], "coef": [1.0], "intercept": 0.0,
+             "min_confidence": 0.5, "min_confidence_by_cameras": {},
+             "typical_head": {"head_bend": 1.0}}
+    monkeypatch.setattr(C, "CONFIDENCE_MODEL", model)
+    dg = pose.diagnostics
+
+    def judge(doubt):
+        return C.judge_frame(det.volume, dg["hull_voxels"], det.data, est.model, est.up,
+                             pose.distance, est.threshold, 1, "matched", None,
+                             min_confidence=0.5, al=al2, parts=pose.parts,
+                             drop_parts=C.DROP_PARTS, doubt_head=doubt)
+
+    status, error, diag = judge(False)
+    assert status == "rejected" and diag["confidence_features"]["head_bend"] == 0.0
+    status, error, diag = judge(True)
+    assert status == "matched" and diag["untrusted"] == "head", error
+    assert diag["confidence_factors"]["fitted"] == pytest.approx(1 / (1 + math.exp(-10)), abs=1e-4)

@@ -223,6 +223,12 @@ class FrameEstimator:
         rejects is matched without the one extremity (head, hand, foot) whose removal makes
         the confidence reach the minimum; that part is unplaced, its guess kept in
         ``diagnostics["untrusted_guess"]``. None (default) or True: on; False: off.
+    head_doubt : bool, str or None
+        With per-part trust, a head the alignment left unmatched (placed from the hull alone)
+        is the untrusted part when the frame with a typical head reaches the minimum
+        (:func:`topopose.pose.confidence.head_doubt`, issue 11). None (default) or True: on;
+        False: off; ``"any"``: a matched head too (opt-in: it also lets through frames with a
+        spurious limb at the chest, ``benchmarks/results/confidence.md``).
     """
 
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
@@ -233,7 +239,7 @@ class FrameEstimator:
                  tip_fraction=1.0, spine=None, tip_anchor=None,
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
                  short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
-                 hand_trunk=None, head_ball=None, keep_junctions=None):
+                 hand_trunk=None, head_ball=None, keep_junctions=None, head_doubt=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -246,6 +252,9 @@ class FrameEstimator:
         self.min_confidence = None if min_confidence is None else float(min_confidence)
         # per-part trust (pose/confidence.py judge_frame, DROP_PARTS): None/True on, False off
         self.part_trust = part_trust is not False
+        # head doubt (pose/confidence.py head_doubt): None/True an unmatched head, "any" any
+        # head, False off
+        self.head_doubt = True if head_doubt is None else head_doubt
 
         self.cap = cap
         self.model: Model = load_model(model, constraints=constraints)
@@ -585,7 +594,7 @@ class FrameEstimator:
             error, self.min_share, self.min_confidence if self.gate else None, self.cap.units,
             al=al, thickness_cost=thick, reach=self.thickness_reach,
             radius_map=radii, missing_cost=mcost, parts=parts,
-            drop_parts=DROP_PARTS if self.part_trust else ())
+            drop_parts=DROP_PARTS if self.part_trust else (), doubt_head=self.head_doubt)
         if extra.get("untrusted"):     # per-part trust: unplaced, its best guess kept
             extra["untrusted_guess"] = np.round(parts[extra["untrusted"]], 6).tolist()
             parts = {**parts, extra["untrusted"]: None}

@@ -332,7 +332,8 @@ def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None) -> np.nda
     for j, p in enumerate(tree.parents):
         if p >= 0:
             v = pooled[(tree.base[j], tree.base[p])]
-            L[j] = float(np.percentile(v, quantile)) if v else np.nan
+            q = SLIDE_QUANTILE if tree.slide and tree.slide[j] and SLIDE_QUANTILE else quantile
+            L[j] = float(np.percentile(v, q)) if v else np.nan
     return L
 
 
@@ -346,6 +347,19 @@ SLIDE = False  # the model's ``slide`` bones take each frame's length (False: ev
                # placement's neck 5.2; walks 3.9 / 4.85 → 3.5 / 4.83 cm; benchmark in
                # ``tracking.md``). Tried too: the neck's 30th/50th percentile, no gain; the
                # pelvis sliding: hips 6.0 → 5.7, pelvis 5.9 → 6.6 cm
+
+
+SLIDE_QUANTILE = 50  # percent: the constant length of a ``slide`` bone (the neck's, from the chest
+                     # junction) when SLIDE is off; None: :data:`BONE_QUANTILE` as the others.
+                     # The 70th percentile makes up for a limb's curve cutting corners; the
+                     # neck's curve cuts none — its length from the junction only varies as the
+                     # junction slides: at the 70th percentile the neck bone was 16.0 cm long
+                     # on random poses against 13.9 cm from the junction to the true neck
+                     # (median; initial placement 13.5; development seeds 21–32 random, 41–46
+                     # walks, gate on), so the fit pushed the neck 1.2 cm further off than its
+                     # initial placement. Median: random neck 6.4 → 6.0, MPJPE 6.22 → 6.20 cm;
+                     # walks neck 3.8 → 3.8, MPJPE 4.89 → 4.86 cm (40th: random neck 5.7, walks
+                     # 3.9; every trunk bone at the median: random pelvis 5.3 → 5.9 cm)
 
 
 def frame_lengths(target, L, tree: KinematicTree, slide=None) -> np.ndarray:
@@ -507,6 +521,22 @@ ACROSS = np.radians(30.0)  # by this angle about the trunk axis: a hand merged w
                           # the upper arm tilted forward and out: no gain, 6.11–6.29 cm)
 
 
+HELD_SHOULDER = np.radians(30.0)  # an unseen arm's shoulder: from the chest, opposite its mate
+                          # across the trunk axis, raised by this angle from the plane across the
+                          # trunk (None: the mate's position turned half about the trunk axis).
+                          # The half turn copied the mate's height, and a seen arm is often a
+                          # raised one that pulls its shoulder up: the unseen arms' shoulders
+                          # were 5.8 cm too high (12.7 cm off, median; the rig's 7.0 cm above
+                          # the chest junction against our 12.7; development seeds 21–32 random,
+                          # 185 unseen arms). Elevation 0° / 20° / 25° / 30° / 35° / 45°: MPJPE
+                          # random 6.28 / 6.09 / 6.10 / 6.07 / 6.12 / 6.27 cm (half turn 6.22),
+                          # unseen arms (mean shoulder / elbow / wrist error, median) 16.0 /
+                          # 13.2 / 13.0 / 12.9 / 13.0 / 14.8 (14.8) cm; walks 41–46 4.87–4.98
+                          # (4.89) cm. Tried on top: the hanging upper arm tilted outward by
+                          # 10° / 20° / 30° (random 6.09 / 6.13 / 6.13 cm) and a hinted arm's
+                          # elbow bent outward (no gain)
+
+
 def _outward(P, tree, j, ax):
     """Unit vector from the chest to the shoulder of joint j's arm (its arc's first joint),
     across the trunk axis ``ax`` (zero when not defined)."""
@@ -525,7 +555,8 @@ def _outward(P, tree, j, ax):
 def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
     """Unseen joints placed in a rest pose (an unseen limb is mostly one merged with the body):
     a joint whose mirror mate hangs from the same parent joint mirrored about the trunk axis
-    (a half turn: shoulders, hips), the other bones along the trunk axis — down for the
+    (a half turn: hips; an arm's shoulder, with a forward known: opposite its mate across
+    the trunk axis, raised :data:`HELD_SHOULDER` from the plane across it), the other bones along the trunk axis — down for the
     limbs (arcs ending at a ``[[mirror]]`` part), up for the others (the head) — except an
     arm's (a limb from the trunk's upper part) bones below its first one: folded forward by
     ``FOLD`` and turned ``ACROSS`` the body (a hand merged with the body lies against the
@@ -558,7 +589,12 @@ def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
                  and tree.parents[k] == p and not np.isnan(start[k]).any()]
         pp = tree.parents[p]
         arm = fwd is not None and tree.arc[j][1] in limbs and tree.arc[j][0] == tree.trunk[1]
-        if mates:
+        if mates and arm and HELD_SHOULDER is not None:
+            v = start[mates[0]] - out[p]
+            lat = v - np.dot(v, ax) * ax
+            lat /= max(np.linalg.norm(lat), 1e-12)
+            d = np.sin(HELD_SHOULDER) * ax - np.cos(HELD_SHOULDER) * lat
+        elif mates:
             v = start[mates[0]] - out[p]
             d = 2 * np.dot(v, ax) * ax - v
         elif arm and pp >= 0 and tree.arc[pp] == tree.arc[j]:     # an arm below its elbow

@@ -678,3 +678,28 @@ def test_an_unseen_shoulder_is_not_raised_with_its_raised_mate(monkeypatch):
     out0, _, _ = fit_sequence([ref, cut], HUMAN, max_gap=0)
     old = np.linalg.norm(out0[1].joints[k] - truth)
     assert new < 0.03 and old > new + 0.03, (new, old)
+
+
+def test_a_raised_arms_shoulder_moves_down_the_trunk(monkeypatch):
+    """``RAISED_SHOULDER``: the shoulder of an arm whose hand lies above the chest junction
+    (along the trunk crotch → torso) moves down the trunk by that many trunk lengths, exactly;
+    a hanging arm's shoulder, the hips and every other joint stay where they were."""
+    from topopose.pose import kinematic_fit as kf
+
+    tree = kinematic_tree(HUMAN)
+    parts, curves = _body(0.7, np.random.default_rng(2))
+    torso, crotch = parts["torso"], parts["crotch"]
+    ax = (torso - crotch) / np.linalg.norm(torso - crotch)
+    parts["left_hand"] = torso + 0.6 * ax + np.array([0.05, 0.1, 0.0])      # raised
+    curves["left_hand"] = resample([torso, torso + 0.15 * ax + [0.0, 0.12, 0.0],
+                                    parts["left_hand"]], 64)
+    pose, m = _numbered_frame("000000", parts, curves, False, False)
+    P, drop = kf.initial_placement(pose, tree), kf.RAISED_SHOULDER
+    assert drop > 0
+    monkeypatch.setattr(kf, "RAISED_SHOULDER", None)
+    P0 = kf.initial_placement(pose, tree)
+    S = np.linalg.norm(torso - crotch)
+    up = "shoulder_" + m["left_hand"][-1]
+    for j, n in enumerate(tree.names):
+        want = P0[j] - (drop * S * ax if n == up else 0.0)
+        assert np.allclose(P[j], want, atol=1e-12), n

@@ -15,10 +15,13 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    joints beside them move back by :data:`SPINE_BACK` × the frame's spine shift (the spine
    lies behind the medial axis, :func:`frame_curves`); a joint with a ``width`` (hips) sits
    beside its arc's junction by ``width`` × the hull radius (the sequence's median); a joint
-   with an ``at_raised`` (elbows, wrists) is there when its limb is raised.
+   with an ``at_raised`` (elbows, wrists) is there when its limb is raised, a raised arm's
+   shoulder lower by :data:`RAISED_SHOULDER`.
 2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
    the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
-   constant over the sequence (with :data:`SLIDE` on, off by default, a joint declared
+   constant over the sequence; a ``slide`` bone (the neck's) at its median
+   (:data:`SLIDE_QUANTILE`: its length varies with the junction, no curve cuts it short) (with
+   :data:`SLIDE` on, off by default, a joint declared
    ``slide`` — the neck: its parent, the chest, is the skeleton curves' junction, which slides
    along the spine — takes each frame's initial-placement length, :func:`frame_lengths`).
 3. **Fit** — per matched frame, the root at its initial placement (the model root part) and one
@@ -31,8 +34,9 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    placements and the chains fitted again (``ROOT_STEPS``). An arc with neither a curve nor a
    placed joint in the frame keeps the bone directions of the last fitted frame when that is
    at most ``HOLD_FRAMES`` before and the same motion (``_continues``), else takes a rest pose
-   (:func:`rest_fill`: a limb merged with the body hangs along the trunk, an arm's
-   forearm folded up and across the trunk's front); its joints are
+   (:func:`rest_fill`: a limb merged with the body hangs along the trunk, an arm's shoulder
+   opposite its mate raised :data:`HELD_SHOULDER`, its forearm folded up and across the
+   trunk's front); its joints are
    listed in ``diagnostics["held_joints"]``, so a frame that lost one part still has a
    skeleton. On unrelated random poses the last frame's arm was 11.6 cm off (median MPJPE of
    the frames holding joints, development seeds 21–33), the rest pose 8.7 cm. An unseen arm
@@ -232,6 +236,17 @@ def _beside(tree, j) -> bool:
     return any(tree.offset[j]) or bool(tree.width and any(tree.width[j]))
 
 
+RAISED_SHOULDER = 0.08  # trunk lengths: a raised arm's shoulder (its hand past the chest junction
+                        # along the trunk, as ``at_raised``) moved down the trunk by this; None
+                        # or 0: off. Its curve rises with the arm, and the offsets calibrated on
+                        # all arms left it high: after the fit the seen shoulders of raised arms
+                        # were 4.1 cm too high (rig shoulder frame, median; hanging arms 2.1;
+                        # development seeds 21–32 random, 269 raised arms). 0 / 0.04 / 0.08 /
+                        # 0.12 / 0.16: random shoulders 7.6 / 7.1 / 7.0 / 6.9 / 7.0 cm, MPJPE
+                        # 6.03 / 6.05 / 5.97 / 6.06 / 6.10 cm; walks (41–46: no raised arm)
+                        # 4.85 cm either way
+
+
 def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.ndarray:
     """(n_joints, 3) joints at their relative arc length on the frame's curves (NaN: no curve);
     the trunk's curves and the offset joints moved back by ``spine`` (default
@@ -244,7 +259,8 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.
     four builds, / trunk length 0.39–0.76); otherwise as its ``offset`` says. A joint with an
     ``at_raised`` (elbows, wrists) is there instead of ``at`` when its arc's end part lies past
     its first part along the trunk (a hand above the chest junction: the arm's curve runs
-    up through the shoulder's mass before the arm leaves it)."""
+    up through the shoulder's mass before the arm leaves it); such a raised arm's joint with
+    an offset (its shoulder) moves down the trunk by :data:`RAISED_SHOULDER` trunk lengths."""
     curves = frame_curves(pose, tree, spine)
     out = np.full((len(tree.names), 3), np.nan)
     ax = None
@@ -295,6 +311,12 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.
                                 + w_out * radius * lat / n)
                     continue
             moved[j] = out[j] + along * S * ax
+            if RAISED_SHOULDER and tree.arc[j][1] in tree.limbs and \
+                    tree.arc[j][0] == tree.trunk[1]:                  # a raised arm's shoulder
+                pu, pv = pose.parts.get(tree.arc[j][0]), pose.parts.get(tree.arc[j][1])
+                if pu is not None and pv is not None and \
+                        np.dot(np.asarray(pv, float) - np.asarray(pu, float), ax) > 0:
+                    moved[j] -= RAISED_SHOULDER * S * ax
             if outward and len(mates) == 1 and not np.isnan(out[mates[0]]).any():
                 lat = out[j] - out[mates[0]]
                 lat -= np.dot(lat, ax) * ax

@@ -80,10 +80,11 @@ RIG = {"neck": ("Neck_head",), "skull": ("Head_head",),
        "hip": ("LeftUpLeg_head", "RightUpLeg_head"), "knee": ("LeftLeg_head", "RightLeg_head"),
        "ankle": ("LeftFoot_head", "RightFoot_head"), "toe": ("toe_l", "toe_r")}
 # Development sequences (``--dev``: tune on these, report SEQUENCES): walks 41–46, random 21–32.
-DEV_SEQUENCES = ([("walk", s, b) for s, b in zip(range(41, 47), ["average", "heavy", "random",
-                                                                 "lean", "child", "average"])]
+DEV_BUILDS = ["average", "heavy", "random", "lean", "child", "average"]
+DEV_SEQUENCES = ([("walk", s, b) for s, b in zip(range(41, 47), DEV_BUILDS)]
                  + [("random", s, b) for s, b in zip(range(21, 33), ["average", "random", "lean",
-                                                                     "heavy", "child", "average"] * 2)])
+                                                                     "heavy", "child",
+                                                                     "average"] * 2)])
 PAIRS = (("hand_1", "hand_2"), ("foot_1", "foot_2"))
 # the joints the issue names (MPJPE); the others are reported per joint only
 MPJPE_JOINTS = ("neck", "shoulder", "elbow", "wrist", "hip", "knee", "ankle")
@@ -627,6 +628,10 @@ def report(rows, info, real=None):
             for j, v in r["mpjpe_before"][4].items():
                 pj0.setdefault(j, []).extend(v)
         pooled_before = [x for r in rs for x in r["mpjpe_before"][3]]
+        pjr = {}                          # before HELD_SHOULDER, SLIDE_QUANTILE, RAISED_SHOULDER
+        for r in rs:
+            for j, v in r["mpjpe_rest0"][4].items():
+                pjr.setdefault(j, []).extend(v)
         pjh = {}
         for r in rs:
             for j, v in r["mpjpe_nohint"][4].items():
@@ -705,8 +710,7 @@ def report(rows, info, real=None):
               f"{100 * np.median([a for r in rs for a, _ in r['held_rest']] or [np.nan]):.1f} ← "
               f"{100 * np.median([b for r in rs for _, b in r['held_rest']] or [np.nan]):.1f} cm "
               f"({sum(len(r['held_rest']) for r in rs)} arms); per joint: "
-              + ", ".join(f"{j} {100 * np.median(v):.1f} ← "
-                          f"{100 * np.median([x for r in rs for x in r['mpjpe_rest0'][4].get(j, [])] or [np.nan]):.1f}"
+              + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pjr.get(j, [np.nan])):.1f}"
                           for j, v in pj.items()),
               "- the same run with the previous joint definitions and fit (tips at the branch "
               "end, shoulders of the first calibration, inner weight 0.3): MPJPE "

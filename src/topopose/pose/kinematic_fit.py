@@ -578,11 +578,11 @@ def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
     """Unseen joints placed in a rest pose (an unseen limb is mostly one merged with the body):
     a joint whose mirror mate hangs from the same parent joint mirrored about the trunk axis
     (a half turn: hips; an arm's shoulder, with a forward known: opposite its mate across
-    the trunk axis, raised :data:`HELD_SHOULDER` from the plane across it), the other bones along the trunk axis — down for the
-    limbs (arcs ending at a ``[[mirror]]`` part), up for the others (the head) — except an
-    arm's (a limb from the trunk's upper part) bones below its first one: folded forward by
-    ``FOLD`` and turned ``ACROSS`` the body (a hand merged with the body lies against the
-    trunk's front), forward being the seen lower limbs' tip directions (the toes) across the
+    the trunk axis, raised :data:`HELD_SHOULDER` from the plane across it), the other bones
+    along the trunk axis — down for the limbs (arcs ending at a ``[[mirror]]`` part), up for
+    the others (the head) — except an arm's (a limb from the trunk's upper part) bones below
+    its first one: folded forward by ``FOLD`` and turned ``ACROSS`` the body (a hand merged
+    with the body lies against the trunk's front), forward being the seen lower limbs' tip directions (the toes) across the
     trunk axis, across the direction from the arm's shoulder to the chest; without a forward,
     down."""
     out = start.copy()

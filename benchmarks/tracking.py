@@ -79,6 +79,12 @@ RIG = {"neck": ("Neck_head",), "skull": ("Head_head",),
        "wrist": ("LeftHand_head", "RightHand_head"), "fingertip": ("fingertip_l", "fingertip_r"),
        "hip": ("LeftUpLeg_head", "RightUpLeg_head"), "knee": ("LeftLeg_head", "RightLeg_head"),
        "ankle": ("LeftFoot_head", "RightFoot_head"), "toe": ("toe_l", "toe_r")}
+# Development sequences (``--dev``: tune on these, report SEQUENCES): walks 41–46, random 21–32.
+DEV_BUILDS = ["average", "heavy", "random", "lean", "child", "average"]
+DEV_SEQUENCES = ([("walk", s, b) for s, b in zip(range(41, 47), DEV_BUILDS)]
+                 + [("random", s, b) for s, b in zip(range(21, 33), ["average", "random", "lean",
+                                                                     "heavy", "child",
+                                                                     "average"] * 2)])
 PAIRS = (("hand_1", "hand_2"), ("foot_1", "foot_2"))
 # the joints the issue names (MPJPE); the others are reported per joint only
 MPJPE_JOINTS = ("neck", "shoulder", "elbow", "wrist", "hip", "knee", "ankle")
@@ -233,6 +239,22 @@ def main_fit(tracked, model):
     return fit_sequence(tracked, m, spine=0.0, quantile=50)
 
 
+def fit_before_rest(tracked, model):
+    """The fit before the unseen arm's shoulder was raised :data:`~topopose.pose.kinematic_fit.
+    HELD_SHOULDER` from the plane across the trunk (the mate's half turn instead), the
+    neck's bone took its median length (:data:`~topopose.pose.kinematic_fit.SLIDE_QUANTILE`)
+    and a raised arm's shoulder moved down (:data:`~topopose.pose.kinematic_fit.
+    RAISED_SHOULDER`)."""
+    from topopose.pose import kinematic_fit as kf
+
+    keep = kf.HELD_SHOULDER, kf.SLIDE_QUANTILE, kf.RAISED_SHOULDER
+    kf.HELD_SHOULDER, kf.SLIDE_QUANTILE, kf.RAISED_SHOULDER = None, None, None
+    try:
+        return fit_sequence(tracked, model)
+    finally:
+        kf.HELD_SHOULDER, kf.SLIDE_QUANTILE, kf.RAISED_SHOULDER = keep
+
+
 def ungated(poses):
     """The poses as with the confidence gate off: frames only the gate rejected are matched
     (the gate judges a frame after its alignment; it changes nothing else)."""
@@ -280,6 +302,20 @@ def analyse(raw, cap, model):
     mainf, treem, _ = main_fit(tracked, model)
     fixed, _, _ = fit_sequence(tracked, model, slide=True)
     nohint, _, _ = fit_sequence(tracked, model, hints=False)   # the peer of the hand hints
+    rest0, _, _ = fit_before_rest(tracked, model)   # the peer of the held shoulder, neck length
+    err_rest0, held_rest = [], []    # held_rest: (fit, before) of each unseen arm
+    for p, q in zip(fitted, rest0):
+        if not (p.matched and p.joints and q.joints) or p.diagnostics.get("interpolated"):
+            continue
+        gj = gt["frames"][p.frame]["joints"]
+        Pq = np.array([q.joints[n] for n in tree.names])
+        err_rest0.append(joint_errors(tree.names, Pq, gj))
+        held = p.diagnostics.get("held_joints") or []
+        fa = arm_errors(tree.names, np.array([p.joints[n] for n in tree.names]), gj, held)
+        for (sides, kind, e), (_, _, e0) in zip(
+                fa, arm_errors(tree.names, Pq, gj, held, fa[0][0] if fa else None)):
+            if kind == "held":
+                held_rest.append((e, e0))
     err_nohint, hinted = [], []      # hinted: (fit, without the hints) of each hinted arm
     for p, q in zip(fitted, nohint):
         if not (p.matched and p.joints and q.joints) or p.diagnostics.get("interpolated"):
@@ -361,6 +397,7 @@ def analyse(raw, cap, model):
            "mpjpe_fit_seen": mpjpe(err_seen), "mpjpe_main": mpjpe(err_main),
            "mpjpe_fixed": mpjpe(err_fixed), "mpjpe_fixed_seen": mpjpe(err_fixed_seen),
            "mpjpe_nohint": mpjpe(err_nohint), "hinted_arms": hinted, "hint_end": hint_end,
+           "mpjpe_rest0": mpjpe(err_rest0), "held_rest": held_rest,
            "arms": arms, "frames_by": {k: mpjpe(v)[3] for k, v in frames_by.items()},
            "bone_lengths": {tree.names[j]: float(L[j]) for j in range(len(L)) if tree.parents[j] >= 0},
            "seconds": {"track": t_track, "fit": t_fit, "sides": t_sides}}
@@ -487,12 +524,14 @@ def main(argv=None):
                     help="poses.jsonl of `topopose run` on the real recording (Pose2Sim balancing)")
     ap.add_argument("--real-trc", default=None,
                     help="its reference/pose2sim_3d.trc (Pose2Sim's 3D result)")
+    ap.add_argument("--dev", action="store_true",
+                    help="the development seeds (DEV_SEQUENCES), written as tracking_dev*.md/json")
     a = ap.parse_args(argv)
     model = load_model("human")
     work = a.work or tempfile.mkdtemp(prefix="topopose_tracking_")
     rows = {True: [], False: []}
     pic = {True: None, False: None}
-    for motion, seed, build in SEQUENCES:
+    for motion, seed, build in (DEV_SEQUENCES if a.dev else SEQUENCES):
         n = a.walk_frames if motion == "walk" else a.random_frames
         both = one_sequence(work, motion, seed, build, n, model)
         for gate, (r, d, sided, tree) in both.items():
@@ -510,7 +549,7 @@ def main(argv=None):
         if real is None:
             print(f"real recording: {a.real_poses} or {a.real_trc} absent; skipped")
     for gate in (True, False):
-        suffix = "" if gate else "_nogate"
+        suffix = ("_dev" if a.dev else "") + ("" if gate else "_nogate")
         if pic[gate] is not None:
             p = pic[gate]
             picture(out / f"tracking{suffix}.png", p[1], p[2], p[3], load_capture(p[1]).gt, model)
@@ -589,6 +628,10 @@ def report(rows, info, real=None):
             for j, v in r["mpjpe_before"][4].items():
                 pj0.setdefault(j, []).extend(v)
         pooled_before = [x for r in rs for x in r["mpjpe_before"][3]]
+        pjr = {}                          # before HELD_SHOULDER, SLIDE_QUANTILE, RAISED_SHOULDER
+        for r in rs:
+            for j, v in r["mpjpe_rest0"][4].items():
+                pjr.setdefault(j, []).extend(v)
         pjh = {}
         for r in rs:
             for j, v in r["mpjpe_nohint"][4].items():
@@ -654,6 +697,20 @@ def report(rows, info, real=None):
               f"{100 * np.median([x for r in rs for x in r['mpjpe_nohint'][3]]):.1f} cm; per "
               "joint, now ← without the hints: "
               + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pjh.get(j, [np.nan])):.1f}"
+                          for j, v in pj.items()),
+              "- the unseen arm's shoulder, the neck's length, the raised arm's shoulder "
+              "(`kinematic_fit.HELD_SHOULDER`: an unseen "
+              "arm's shoulder opposite its mate, raised 30° from the plane across the trunk, "
+              "not the mate's half turn; `SLIDE_QUANTILE`: the neck's bone at its median "
+              "length, not the 70th percentile; `RAISED_SHOULDER`: a raised arm's shoulder "
+              "0.08 trunk lengths lower), now ← before: MPJPE "
+              f"{100 * np.median(pooled):.1f} ← "
+              f"{100 * np.median([x for r in rs for x in r['mpjpe_rest0'][3]]):.1f} cm; the "
+              "unseen arms' mean shoulder/elbow/wrist error (median) "
+              f"{100 * np.median([a for r in rs for a, _ in r['held_rest']] or [np.nan]):.1f} ← "
+              f"{100 * np.median([b for r in rs for _, b in r['held_rest']] or [np.nan]):.1f} cm "
+              f"({sum(len(r['held_rest']) for r in rs)} arms); per joint: "
+              + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pjr.get(j, [np.nan])):.1f}"
                           for j, v in pj.items()),
               "- the same run with the previous joint definitions and fit (tips at the branch "
               "end, shoulders of the first calibration, inner weight 0.3): MPJPE "

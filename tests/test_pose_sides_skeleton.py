@@ -269,13 +269,14 @@ def test_frame_without_head_keeps_a_skeleton_with_held_joints():
 
 def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_forward():
     """Not the frame before (a capture of unrelated poses): no earlier arm to hold; the unseen
-    arm's shoulder is its mate's turned half about the trunk axis (the body is symmetric: the
-    true shoulder), the upper arm hangs along the trunk, the forearm and hand fold up by
+    arm's shoulder is opposite its mate across the trunk, raised ``HELD_SHOULDER`` from the
+    plane across it (:func:`test_an_unseen_shoulder_is_not_raised_with_its_raised_mate`), the
+    upper arm hangs along the trunk, the forearm and hand fold up by
     ``FOLD`` from hanging, towards the front turned ``ACROSS`` the body (the toes' direction
     across the trunk; the toes of _body point 0.2 m forward, the ankle is 5 cm above them, so
     within 20°; across: towards the other shoulder); the frame right after a frame of the
     same body holds that frame's arm instead."""
-    from topopose.pose.kinematic_fit import ACROSS, FOLD
+    from topopose.pose.kinematic_fit import ACROSS, FOLD, HELD_SHOULDER
 
     rng = np.random.default_rng(8)
     parts, curves = _body(0.9, rng)
@@ -288,10 +289,16 @@ def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_fo
     b = out[1]
     assert sorted(b.diagnostics["held_joints"]) == ["elbow_2", "fingertip_2", "shoulder_2",
                                                     "wrist_2"]
-    truth = _true_joints(_numbered_frame("x", parts2, curves2, False, False)[0], tree)
-    assert np.linalg.norm(b.joints["shoulder_2"] - truth["shoulder_2"]) < 0.02
     down = parts2["crotch"] - parts2["torso"]
     down /= np.linalg.norm(down)
+    # the shoulder: opposite its mate across the trunk, raised HELD_SHOULDER from the plane
+    # across it, at its bone length from the chest
+    s1, s2 = (b.joints[k] - b.joints["chest"] for k in ("shoulder_1", "shoulder_2"))
+    k2 = tree.names.index("shoulder_2")
+    assert abs(np.linalg.norm(s2) - L[k2]) < 1e-9
+    assert abs(np.dot(s2, -down) / L[k2] - np.sin(HELD_SHOULDER)) < 1e-3
+    h1, h2 = (v - np.dot(v, down) * down for v in (s1, s2))
+    assert np.dot(h1, h2) / np.linalg.norm(h1) / np.linalg.norm(h2) < -0.9999
     forward = _rotz(0.9) @ [1.0, 0.0, 0.0]               # the body's facing (its toes)
     d = b.joints["elbow_2"] - b.joints["shoulder_2"]     # the upper arm hangs
     assert np.dot(d, down) / np.linalg.norm(d) > 0.999
@@ -410,7 +417,9 @@ def test_bone_lengths_quantile_recovers_a_chain_shortened_in_some_frames():
             continue
         mates = [k for k in range(len(tree.names)) if tree.base[k] == tree.base[j]
                  and tree.base[tree.parents[k]] == tree.base[p]]
-        if len(mates) == 1:
+        if len(mates) == 1 and tree.slide[j]:       # the neck: at its median (SLIDE_QUANTILE)
+            assert abs(L[j] - med[j]) < 1e-12 and med[j] < 0.95 * true_L[j]
+        elif len(mates) == 1:
             assert abs(L[j] - true_L[j]) < 1e-9
             assert med[j] < 0.95 * true_L[j]
 
@@ -493,7 +502,7 @@ def test_raised_arm_joints_at_their_raised_fraction():
         model_from_dict(d)
 
 
-def test_neck_slides_with_the_chest_junction():
+def test_neck_slides_with_the_chest_junction(monkeypatch):
     """The chest (the curves' junction, the tree's root) slides along the spine from frame to
     frame while the neck and head stay: with the neck's bone ``slide`` (its frame's length) the
     fitted neck is its placement on the curve; with every bone constant (``slide=False``) the
@@ -519,7 +528,12 @@ def test_neck_slides_with_the_chest_junction():
         poses.append(pose)
     k = tree.names.index("neck")
     out, _, L = fit_sequence(poses, HUMAN, max_gap=0, slide=True)
-    fixed, _, _ = fit_sequence(poses, HUMAN, max_gap=0)
+    median, _, _ = fit_sequence(poses, HUMAN, max_gap=0)     # constant, at its median length
+    from topopose.pose import kinematic_fit as kf
+    monkeypatch.setattr(kf, "SLIDE_QUANTILE", None)              # at the limbs' 70th percentile
+    fixed, _, L = fit_sequence(poses, HUMAN, max_gap=0)
+    err_median = [np.linalg.norm(q.joints["neck"] - initial_placement(q, tree)[k])
+                  for q in median]
     err_slide, err_fixed = [], []
     for p, q in zip(out, fixed):
         P0 = initial_placement(p, tree)
@@ -532,6 +546,7 @@ def test_neck_slides_with_the_chest_junction():
     # the slide fit's remaining error: the root refined by the other joints (ROOT_STEPS)
     assert max(err_slide) < 0.025, err_slide
     assert max(err_fixed) > 0.05 and np.mean(err_fixed) > 2 * np.mean(err_slide), err_fixed
+    assert np.mean(err_median) < np.mean(err_fixed) - 0.005, (err_median, err_fixed)
 
 
 def test_joint_slide_field_round_trips_and_is_checked():
@@ -587,3 +602,104 @@ def test_an_unseen_arm_with_a_hand_hint_reaches_the_hint_end_with_its_wrist(yaw)
             assert np.dot(e, n) / np.linalg.norm(e) / np.linalg.norm(n) > 0.99
         assert np.linalg.norm(off[1].joints["wrist_2"] - end) > 0.15
         assert np.linalg.norm(J["wrist_1"] - off[1].joints["wrist_1"]) < 1e-9   # seen arm
+
+
+def test_neck_bone_at_its_median_follows_a_junction_sliding_both_ways(monkeypatch):
+    """The chest junction slides up and down the spine around the true chest (raised arms pull
+    it up, the trunk's curves cut it down) while the neck stays: the chest → neck distance
+    scatters symmetrically about the true length, and no curve cuts it short. The neck's bone
+    at its median length (``SLIDE_QUANTILE``) is the true length and the fitted neck stays
+    nearer the true neck than with the limbs' 70th percentile, which is too long."""
+    from topopose.pose import kinematic_fit as kf
+
+    tree = kinematic_tree(HUMAN)
+    k = tree.names.index("neck")
+    rng = np.random.default_rng(11)
+    poses, truth = [], []
+    dzs = np.concatenate([[0.0], rng.uniform(-0.08, 0.08, 20)])
+    dzs = np.concatenate([dzs, -dzs[1:]])                 # symmetric: the median is 0
+    for i, dz in enumerate(dzs):
+        parts, curves = _body(0.3, np.random.default_rng(7))
+        neck_true = parts["torso"] + 0.58 * (parts["head"] - parts["torso"])
+        parts["torso"] = parts["torso"] + [0, 0, dz]
+        head = resample([parts["torso"], neck_true, parts["head"]])
+        curves = {c: (head if c == "head" else resample(np.vstack([parts["torso"], v[1:]])))
+                  for c, v in curves.items()}
+        pose, _ = _numbered_frame(f"{i:06d}", parts, curves, False, False)
+        poses.append(pose)
+        truth.append(neck_true)
+    true_len = np.linalg.norm(truth[0] - (_body(0.3, np.random.default_rng(7))[0]["torso"]))
+
+    def neck_error():
+        out, _, L = fit_sequence(poses, HUMAN, max_gap=0)
+        return L[k], np.mean([np.linalg.norm(p.joints["neck"] - t) for p, t in zip(out, truth)])
+
+    L50, e50 = neck_error()
+    monkeypatch.setattr(kf, "SLIDE_QUANTILE", None)
+    L70, e70 = neck_error()
+    assert abs(L50 - true_len) < 0.005, (L50, true_len)
+    assert L70 > true_len + 0.01
+    assert e50 < e70 - 0.003, (e50, e70)
+
+
+def test_an_unseen_shoulder_is_not_raised_with_its_raised_mate(monkeypatch):
+    """One arm raised above the head (its shoulder's placement on the curve pulled up), the
+    other not found: the unseen shoulder is placed opposite its mate, ``HELD_SHOULDER`` above
+    the plane across the trunk — near the body's hanging shoulder (the same body with both arms
+    hanging, fitted) — where the mate's half turn (``HELD_SHOULDER = None``) copies the raised
+    shoulder's height."""
+    from topopose.pose import kinematic_fit as kf
+
+    def frames(raise_left):
+        parts, curves = _body(1.2, np.random.default_rng(4))
+        torso = parts["torso"]
+        if raise_left:                  # the left arm straight up: its curve up from the chest
+            up = parts["head"] - torso
+            up /= np.linalg.norm(up)
+            side = parts["left_hand"] - parts["right_hand"]
+            side -= np.dot(side, up) * up
+            side /= np.linalg.norm(side)
+            hand = torso + 0.15 * side + 0.75 * up
+            parts["left_hand"] = hand
+            curves["left_hand"] = resample([torso, torso + 0.12 * side + 0.12 * up, hand], 64)
+        return parts, curves
+
+    parts, curves = frames(False)
+    ref, _ = _numbered_frame("000000", parts, curves, False, False)
+    parts2, curves2 = frames(True)
+    cut, m = _numbered_frame("000009", parts2, curves2, False, False)
+    cut.parts[m["right_hand"]] = None
+    del cut.diagnostics["curves"][m["right_hand"]]
+    k = "shoulder_" + m["right_hand"][-1]
+    out, tree, _ = fit_sequence([ref, cut], HUMAN, max_gap=0)
+    truth = out[0].joints[k]                 # the same body, both arms hanging, seen
+    new = np.linalg.norm(out[1].joints[k] - truth)
+    monkeypatch.setattr(kf, "HELD_SHOULDER", None)
+    out0, _, _ = fit_sequence([ref, cut], HUMAN, max_gap=0)
+    old = np.linalg.norm(out0[1].joints[k] - truth)
+    assert new < 0.03 and old > new + 0.03, (new, old)
+
+
+def test_a_raised_arms_shoulder_moves_down_the_trunk(monkeypatch):
+    """``RAISED_SHOULDER``: the shoulder of an arm whose hand lies above the chest junction
+    (along the trunk crotch → torso) moves down the trunk by that many trunk lengths, exactly;
+    a hanging arm's shoulder, the hips and every other joint stay where they were."""
+    from topopose.pose import kinematic_fit as kf
+
+    tree = kinematic_tree(HUMAN)
+    parts, curves = _body(0.7, np.random.default_rng(2))
+    torso, crotch = parts["torso"], parts["crotch"]
+    ax = (torso - crotch) / np.linalg.norm(torso - crotch)
+    parts["left_hand"] = torso + 0.6 * ax + np.array([0.05, 0.1, 0.0])      # raised
+    curves["left_hand"] = resample([torso, torso + 0.15 * ax + [0.0, 0.12, 0.0],
+                                    parts["left_hand"]], 64)
+    pose, m = _numbered_frame("000000", parts, curves, False, False)
+    P, drop = kf.initial_placement(pose, tree), kf.RAISED_SHOULDER
+    assert drop > 0
+    monkeypatch.setattr(kf, "RAISED_SHOULDER", None)
+    P0 = kf.initial_placement(pose, tree)
+    S = np.linalg.norm(torso - crotch)
+    up = "shoulder_" + m["left_hand"][-1]
+    for j, n in enumerate(tree.names):
+        want = P0[j] - (drop * S * ax if n == up else 0.0)
+        assert np.allclose(P[j], want, atol=1e-12), n

@@ -15,10 +15,13 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    joints beside them move back by :data:`SPINE_BACK` × the frame's spine shift (the spine
    lies behind the medial axis, :func:`frame_curves`); a joint with a ``width`` (hips) sits
    beside its arc's junction by ``width`` × the hull radius (the sequence's median); a joint
-   with an ``at_raised`` (elbows, wrists) is there when its limb is raised.
+   with an ``at_raised`` (elbows, wrists) is there when its limb is raised, a raised arm's
+   shoulder lower by :data:`RAISED_SHOULDER`.
 2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
    the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
-   constant over the sequence (with :data:`SLIDE` on, off by default, a joint declared
+   constant over the sequence; a ``slide`` bone (the neck's) at its median
+   (:data:`SLIDE_QUANTILE`: its length varies with the junction, no curve cuts it short) (with
+   :data:`SLIDE` on, off by default, a joint declared
    ``slide`` — the neck: its parent, the chest, is the skeleton curves' junction, which slides
    along the spine — takes each frame's initial-placement length, :func:`frame_lengths`).
 3. **Fit** — per matched frame, the root at its initial placement (the model root part) and one
@@ -31,8 +34,9 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    placements and the chains fitted again (``ROOT_STEPS``). An arc with neither a curve nor a
    placed joint in the frame keeps the bone directions of the last fitted frame when that is
    at most ``HOLD_FRAMES`` before and the same motion (``_continues``), else takes a rest pose
-   (:func:`rest_fill`: a limb merged with the body hangs along the trunk, an arm's
-   forearm folded up and across the trunk's front); its joints are
+   (:func:`rest_fill`: a limb merged with the body hangs along the trunk, an arm's shoulder
+   opposite its mate raised :data:`HELD_SHOULDER`, its forearm folded up and across the
+   trunk's front); its joints are
    listed in ``diagnostics["held_joints"]``, so a frame that lost one part still has a
    skeleton. On unrelated random poses the last frame's arm was 11.6 cm off (median MPJPE of
    the frames holding joints, development seeds 21–33), the rest pose 8.7 cm. An unseen arm
@@ -232,6 +236,17 @@ def _beside(tree, j) -> bool:
     return any(tree.offset[j]) or bool(tree.width and any(tree.width[j]))
 
 
+RAISED_SHOULDER = 0.08  # trunk lengths: a raised arm's shoulder (its hand past the chest junction
+                        # along the trunk, as ``at_raised``) moved down the trunk by this; None
+                        # or 0: off. Its curve rises with the arm, and the offsets calibrated on
+                        # all arms left it high: after the fit the seen shoulders of raised arms
+                        # were 4.1 cm too high (rig shoulder frame, median; hanging arms 2.1;
+                        # development seeds 21–32 random, 269 raised arms). 0 / 0.04 / 0.08 /
+                        # 0.12 / 0.16: random shoulders 7.6 / 7.1 / 7.0 / 6.9 / 7.0 cm, MPJPE
+                        # 6.03 / 6.05 / 5.97 / 6.06 / 6.10 cm; walks (41–46: no raised arm)
+                        # 4.85 cm either way
+
+
 def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.ndarray:
     """(n_joints, 3) joints at their relative arc length on the frame's curves (NaN: no curve);
     the trunk's curves and the offset joints moved back by ``spine`` (default
@@ -244,7 +259,8 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.
     four builds, / trunk length 0.39–0.76); otherwise as its ``offset`` says. A joint with an
     ``at_raised`` (elbows, wrists) is there instead of ``at`` when its arc's end part lies past
     its first part along the trunk (a hand above the chest junction: the arm's curve runs
-    up through the shoulder's mass before the arm leaves it)."""
+    up through the shoulder's mass before the arm leaves it); such a raised arm's joint with
+    an offset (its shoulder) moves down the trunk by :data:`RAISED_SHOULDER` trunk lengths."""
     curves = frame_curves(pose, tree, spine)
     out = np.full((len(tree.names), 3), np.nan)
     ax = None
@@ -295,6 +311,12 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.
                                 + w_out * radius * lat / n)
                     continue
             moved[j] = out[j] + along * S * ax
+            if RAISED_SHOULDER and tree.arc[j][1] in tree.limbs and \
+                    tree.arc[j][0] == tree.trunk[1]:                  # a raised arm's shoulder
+                pu, pv = pose.parts.get(tree.arc[j][0]), pose.parts.get(tree.arc[j][1])
+                if pu is not None and pv is not None and \
+                        np.dot(np.asarray(pv, float) - np.asarray(pu, float), ax) > 0:
+                    moved[j] -= RAISED_SHOULDER * S * ax
             if outward and len(mates) == 1 and not np.isnan(out[mates[0]]).any():
                 lat = out[j] - out[mates[0]]
                 lat -= np.dot(lat, ax) * ax
@@ -332,7 +354,8 @@ def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None) -> np.nda
     for j, p in enumerate(tree.parents):
         if p >= 0:
             v = pooled[(tree.base[j], tree.base[p])]
-            L[j] = float(np.percentile(v, quantile)) if v else np.nan
+            q = SLIDE_QUANTILE if tree.slide and tree.slide[j] and SLIDE_QUANTILE else quantile
+            L[j] = float(np.percentile(v, q)) if v else np.nan
     return L
 
 
@@ -346,6 +369,19 @@ SLIDE = False  # the model's ``slide`` bones take each frame's length (False: ev
                # placement's neck 5.2; walks 3.9 / 4.85 → 3.5 / 4.83 cm; benchmark in
                # ``tracking.md``). Tried too: the neck's 30th/50th percentile, no gain; the
                # pelvis sliding: hips 6.0 → 5.7, pelvis 5.9 → 6.6 cm
+
+
+SLIDE_QUANTILE = 50  # percent: the constant length of a ``slide`` bone (the neck's, from the chest
+                     # junction) when SLIDE is off; None: :data:`BONE_QUANTILE` as the others.
+                     # The 70th percentile makes up for a limb's curve cutting corners; the
+                     # neck's curve cuts none — its length from the junction only varies as the
+                     # junction slides: at the 70th percentile the neck bone was 16.0 cm long
+                     # on random poses against 13.9 cm from the junction to the true neck
+                     # (median; initial placement 13.5; development seeds 21–32 random, 41–46
+                     # walks, gate on), so the fit pushed the neck 1.2 cm further off than its
+                     # initial placement. Median: random neck 6.4 → 6.0, MPJPE 6.22 → 6.20 cm;
+                     # walks neck 3.8 → 3.8, MPJPE 4.89 → 4.86 cm (40th: random neck 5.7, walks
+                     # 3.9; every trunk bone at the median: random pelvis 5.3 → 5.9 cm)
 
 
 def frame_lengths(target, L, tree: KinematicTree, slide=None) -> np.ndarray:
@@ -507,6 +543,22 @@ ACROSS = np.radians(30.0)  # by this angle about the trunk axis: a hand merged w
                           # the upper arm tilted forward and out: no gain, 6.11–6.29 cm)
 
 
+HELD_SHOULDER = np.radians(30.0)  # an unseen arm's shoulder: from the chest, opposite its mate
+                          # across the trunk axis, raised by this angle from the plane across the
+                          # trunk (None: the mate's position turned half about the trunk axis).
+                          # The half turn copied the mate's height, and a seen arm is often a
+                          # raised one that pulls its shoulder up: the unseen arms' shoulders
+                          # were 5.8 cm too high (12.7 cm off, median; the rig's 7.0 cm above
+                          # the chest junction against our 12.7; development seeds 21–32 random,
+                          # 185 unseen arms). Elevation 0° / 20° / 25° / 30° / 35° / 45°: MPJPE
+                          # random 6.28 / 6.09 / 6.10 / 6.07 / 6.12 / 6.27 cm (half turn 6.22),
+                          # unseen arms (mean shoulder / elbow / wrist error, median) 16.0 /
+                          # 13.2 / 13.0 / 12.9 / 13.0 / 14.8 (14.8) cm; walks 41–46 4.87–4.98
+                          # (4.89) cm. Tried on top: the hanging upper arm tilted outward by
+                          # 10° / 20° / 30° (random 6.09 / 6.13 / 6.13 cm) and a hinted arm's
+                          # elbow bent outward (no gain)
+
+
 def _outward(P, tree, j, ax):
     """Unit vector from the chest to the shoulder of joint j's arm (its arc's first joint),
     across the trunk axis ``ax`` (zero when not defined)."""
@@ -525,11 +577,12 @@ def _outward(P, tree, j, ax):
 def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
     """Unseen joints placed in a rest pose (an unseen limb is mostly one merged with the body):
     a joint whose mirror mate hangs from the same parent joint mirrored about the trunk axis
-    (a half turn: shoulders, hips), the other bones along the trunk axis — down for the
-    limbs (arcs ending at a ``[[mirror]]`` part), up for the others (the head) — except an
-    arm's (a limb from the trunk's upper part) bones below its first one: folded forward by
-    ``FOLD`` and turned ``ACROSS`` the body (a hand merged with the body lies against the
-    trunk's front), forward being the seen lower limbs' tip directions (the toes) across the
+    (a half turn: hips; an arm's shoulder, with a forward known: opposite its mate across
+    the trunk axis, raised :data:`HELD_SHOULDER` from the plane across it), the other bones
+    along the trunk axis — down for the limbs (arcs ending at a ``[[mirror]]`` part), up for
+    the others (the head) — except an arm's (a limb from the trunk's upper part) bones below
+    its first one: folded forward by ``FOLD`` and turned ``ACROSS`` the body (a hand merged
+    with the body lies against the trunk's front), forward being the seen lower limbs' tip directions (the toes) across the
     trunk axis, across the direction from the arm's shoulder to the chest; without a forward,
     down."""
     out = start.copy()
@@ -558,7 +611,12 @@ def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
                  and tree.parents[k] == p and not np.isnan(start[k]).any()]
         pp = tree.parents[p]
         arm = fwd is not None and tree.arc[j][1] in limbs and tree.arc[j][0] == tree.trunk[1]
-        if mates:
+        if mates and arm and HELD_SHOULDER is not None:
+            v = start[mates[0]] - out[p]
+            lat = v - np.dot(v, ax) * ax
+            lat /= max(np.linalg.norm(lat), 1e-12)
+            d = np.sin(HELD_SHOULDER) * ax - np.cos(HELD_SHOULDER) * lat
+        elif mates:
             v = start[mates[0]] - out[p]
             d = 2 * np.dot(v, ax) * ax - v
         elif arm and pp >= 0 and tree.arc[pp] == tree.arc[j]:     # an arm below its elbow

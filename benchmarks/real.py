@@ -532,10 +532,11 @@ def report(doc) -> str:
                          f"{c['right']} of {r['right']}"])
     L += _table(["silhouettes", "precision at least", "confidence threshold", "frames passing",
                  "right frames passing"], rows)
-    L += ["", "## Speed (one process)", "",
-          f"Ratios and pose identity against `{doc.get('peer')}` in the same run (`+oldreader`: "
-          "the reader as it was before the read-ahead thread, FFmpeg's own threads per video; "
-          "same poses: status and part positions bit-identical).", ""]
+    L += ["", "## Speed (one process)", ""]
+    if doc.get("peer"):
+        L += [f"Ratios and pose identity against `{doc['peer']}` in the same run (`+oldreader`: "
+              "the reader as it was before the read-ahead thread, FFmpeg's own threads per video; "
+              "same poses: status and part positions bit-identical).", ""]
     rows = []
     for name, r in doc["methods"].items():
         s = r["speed"]

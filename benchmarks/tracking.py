@@ -41,6 +41,9 @@ is measured beside its peer in the same run:
 * **hand hints** (``diagnostics["hand_hints"]``, :func:`~topopose.pose.kinematic_fit.hint_fill`):
   each hint's end against the nearest true elbow and wrist, and the fit against the same fit
   without them (``hints=False``): MPJPE, per joint, and the hinted unseen arms' error.
+* **arm evidence** (``diagnostics["arm_evidence"]``, :func:`topopose.pose.unseen.evidence_fill`):
+  the fit against the same fit without it (``evidence=False``): MPJPE, frames holding joints,
+  per joint, and the unseen arms' error.
 
 The per-frame matching on the body is being improved elsewhere (issue 11): figures are as the
 per-frame result is, misses included. Writes ``tracking.md``, ``tracking.json`` and
@@ -330,6 +333,22 @@ def analyse(raw, cap, model):
                 fa, arm_errors(tree.names, Pq, gj, held, fa[0][0] if fa else None), ("1", "2")):
             if f"hand_{k}" in hints and f"wrist_{k}" in held:
                 hinted.append((e, e0))
+    noevid, _, _ = fit_sequence(tracked, model, evidence=False)   # the peer of the arm evidence
+    err_noevid, evid_arms, evid_holding = [], [], []   # (fit, without) per unseen arm / frame
+    for p, q in zip(fitted, noevid):
+        if not (p.matched and p.joints and q.joints) or p.diagnostics.get("interpolated"):
+            continue
+        gj = gt["frames"][p.frame]["joints"]
+        P, Pq = (np.array([x.joints[n] for n in tree.names]) for x in (p, q))
+        err_noevid.append(joint_errors(tree.names, Pq, gj))
+        held = p.diagnostics.get("held_joints") or []
+        if held:
+            evid_holding.append((joint_errors(tree.names, P, gj), err_noevid[-1]))
+        fa = arm_errors(tree.names, P, gj, held)
+        for (_, kind, e), (_, _, e0) in zip(fa, arm_errors(tree.names, Pq, gj, held,
+                                                          fa[0][0] if fa else None)):
+            if kind == "held":
+                evid_arms.append((e, e0))
     hint_end = []        # each hint's end: distance to the nearest true elbow and wrist
     for p in raw:
         gj = gt["frames"][p.frame]["joints"]
@@ -398,6 +417,9 @@ def analyse(raw, cap, model):
            "mpjpe_fixed": mpjpe(err_fixed), "mpjpe_fixed_seen": mpjpe(err_fixed_seen),
            "mpjpe_nohint": mpjpe(err_nohint), "hinted_arms": hinted, "hint_end": hint_end,
            "mpjpe_rest0": mpjpe(err_rest0), "held_rest": held_rest,
+           "mpjpe_noevid": mpjpe(err_noevid), "evid_arms": evid_arms,
+           "evid_holding": [mpjpe([a for a, _ in evid_holding])[3],
+                            mpjpe([b for _, b in evid_holding])[3]],
            "arms": arms, "frames_by": {k: mpjpe(v)[3] for k, v in frames_by.items()},
            "bone_lengths": {tree.names[j]: float(L[j]) for j in range(len(L)) if tree.parents[j] >= 0},
            "seconds": {"track": t_track, "fit": t_fit, "sides": t_sides}}
@@ -636,6 +658,10 @@ def report(rows, info, real=None):
         for r in rs:
             for j, v in r["mpjpe_nohint"][4].items():
                 pjh.setdefault(j, []).extend(v)
+        pje = {}                          # without the arm evidence
+        for r in rs:
+            for j, v in r["mpjpe_noevid"][4].items():
+                pje.setdefault(j, []).extend(v)
         he = np.array([x for r in rs for x in r["hint_end"]]).reshape(-1, 2)
         hi = [x for r in rs for x in r["hinted_arms"]] or [(np.nan, np.nan)]
         pooled_main = [x for r in rs for x in r["mpjpe_main"][3]]
@@ -697,6 +723,24 @@ def report(rows, info, real=None):
               f"{100 * np.median([x for r in rs for x in r['mpjpe_nohint'][3]]):.1f} cm; per "
               "joint, now ← without the hints: "
               + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pjh.get(j, [np.nan])):.1f}"
+                          for j, v in pj.items()),
+              "- arm evidence (`arm_evidence`: the hull's voxels the matched curves' inscribed "
+              "balls leave unexplained, recorded when a limb is unplaced; the unseen arm's elbow "
+              "bent towards it, shoulder and wrist kept, `topopose.pose.unseen.evidence_fill`), "
+              "now ← without (`evidence=False`): MPJPE "
+              f"{100 * np.median(pooled):.1f} ← "
+              f"{100 * np.median([x for r in rs for x in r['mpjpe_noevid'][3]]):.1f} cm; frames "
+              "holding joints "
+              f"{100 * np.median([x for r in rs for x in r['evid_holding'][0]] or [np.nan]):.1f} ← "
+              f"{100 * np.median([x for r in rs for x in r['evid_holding'][1]] or [np.nan]):.1f} cm "
+              f"({sum(len(r['evid_holding'][0]) for r in rs)} frames); the unseen arms' mean "
+              "shoulder/elbow/wrist error, median "
+              f"{100 * np.median([a for r in rs for a, _ in r['evid_arms']] or [np.nan]):.1f} ← "
+              f"{100 * np.median([b for r in rs for _, b in r['evid_arms']] or [np.nan]):.1f} cm, "
+              f"mean {100 * np.mean([a for r in rs for a, _ in r['evid_arms']] or [np.nan]):.1f} ← "
+              f"{100 * np.mean([b for r in rs for _, b in r['evid_arms']] or [np.nan]):.1f} cm "
+              f"({sum(len(r['evid_arms']) for r in rs)} arms); per joint: "
+              + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pje.get(j, [np.nan])):.1f}"
                           for j, v in pj.items()),
               "- the unseen arm's shoulder, the neck's length, the raised arm's shoulder "
               "(`kinematic_fit.HELD_SHOULDER`: an unseen "

@@ -365,6 +365,7 @@ class FrameEstimator:
 
     curves = True    # record the skeleton curve of each matched arc (pose.curves)
     leaves = True    # record the data tree's unmatched leaves (pose.track: snapping)
+    arm_evidence = True   # record the hull's remainder when a limb is unplaced (pose.unseen)
 
     # ------------------------------------------------------------------ stages
     def hull(self, frame):
@@ -642,6 +643,13 @@ class FrameEstimator:
                 diag["curves"] = curves
                 if hints:
                     diag["hand_hints"] = hints
+                # an unplaced limb: the hull the matched curves leave unexplained, where it
+                # can lie (pose/unseen.py; used by the kinematic fit, nothing else changes)
+                if self.arm_evidence and any(parts.get(x) is None for pair, _ in
+                                             self.model.mirrors for x in pair):
+                    from .unseen import hull_remainder
+                    diag["arm_evidence"] = np.round(hull_remainder(
+                        vol, curves, edt), 4).tolist()
             except Exception as exc:           # never costs the frame its pose
                 diag["curves_error"] = f"{type(exc).__name__}: {exc}"
         if self.leaves:      # candidates for a misplaced numbered part (pose.track)

@@ -306,49 +306,37 @@ def analyse(raw, cap, model):
     fixed, _, _ = fit_sequence(tracked, model, slide=True)
     nohint, _, _ = fit_sequence(tracked, model, hints=False)   # the peer of the hand hints
     rest0, _, _ = fit_before_rest(tracked, model)   # the peer of the held shoulder, neck length
+    def against(peer):
+        """Per fitted frame that ``peer`` fits too: (frame, truth's joints, fit's and peer's
+        joints, held joints, [(kind, fit's arm error, peer's arm error)] for arms 1 and 2)."""
+        for p, q in zip(fitted, peer):
+            if not (p.matched and p.joints and q.joints) or p.diagnostics.get("interpolated"):
+                continue
+            gj = gt["frames"][p.frame]["joints"]
+            P, Pq = (np.array([x.joints[n] for n in tree.names]) for x in (p, q))
+            held = p.diagnostics.get("held_joints") or []
+            fa = arm_errors(tree.names, P, gj, held)
+            arms = [(kind, e, e0) for (_, kind, e), (_, _, e0) in
+                    zip(fa, arm_errors(tree.names, Pq, gj, held, fa[0][0] if fa else None))]
+            yield p, gj, P, Pq, held, arms
+
     err_rest0, held_rest = [], []    # held_rest: (fit, before) of each unseen arm
-    for p, q in zip(fitted, rest0):
-        if not (p.matched and p.joints and q.joints) or p.diagnostics.get("interpolated"):
-            continue
-        gj = gt["frames"][p.frame]["joints"]
-        Pq = np.array([q.joints[n] for n in tree.names])
+    for p, gj, P, Pq, held, arms in against(rest0):
         err_rest0.append(joint_errors(tree.names, Pq, gj))
-        held = p.diagnostics.get("held_joints") or []
-        fa = arm_errors(tree.names, np.array([p.joints[n] for n in tree.names]), gj, held)
-        for (sides, kind, e), (_, _, e0) in zip(
-                fa, arm_errors(tree.names, Pq, gj, held, fa[0][0] if fa else None)):
-            if kind == "held":
-                held_rest.append((e, e0))
+        held_rest += [(e, e0) for kind, e, e0 in arms if kind == "held"]
     err_nohint, hinted = [], []      # hinted: (fit, without the hints) of each hinted arm
-    for p, q in zip(fitted, nohint):
-        if not (p.matched and p.joints and q.joints) or p.diagnostics.get("interpolated"):
-            continue
-        gj = gt["frames"][p.frame]["joints"]
-        Pq = np.array([q.joints[n] for n in tree.names])
+    for p, gj, P, Pq, held, arms in against(nohint):
         err_nohint.append(joint_errors(tree.names, Pq, gj))
         hints = p.diagnostics.get("hand_hints") or {}
-        held = p.diagnostics.get("held_joints") or []
-        fa = arm_errors(tree.names, np.array([p.joints[n] for n in tree.names]), gj, held)
-        for (sides, _, e), (_, _, e0), k in zip(
-                fa, arm_errors(tree.names, Pq, gj, held, fa[0][0] if fa else None), ("1", "2")):
-            if f"hand_{k}" in hints and f"wrist_{k}" in held:
-                hinted.append((e, e0))
+        hinted += [(e, e0) for (_, e, e0), k in zip(arms, ("1", "2"))
+                   if f"hand_{k}" in hints and f"wrist_{k}" in held]
     noevid, _, _ = fit_sequence(tracked, model, evidence=False)   # the peer of the arm evidence
     err_noevid, evid_arms, evid_holding = [], [], []   # (fit, without) per unseen arm / frame
-    for p, q in zip(fitted, noevid):
-        if not (p.matched and p.joints and q.joints) or p.diagnostics.get("interpolated"):
-            continue
-        gj = gt["frames"][p.frame]["joints"]
-        P, Pq = (np.array([x.joints[n] for n in tree.names]) for x in (p, q))
+    for p, gj, P, Pq, held, arms in against(noevid):
         err_noevid.append(joint_errors(tree.names, Pq, gj))
-        held = p.diagnostics.get("held_joints") or []
         if held:
             evid_holding.append((joint_errors(tree.names, P, gj), err_noevid[-1]))
-        fa = arm_errors(tree.names, P, gj, held)
-        for (_, kind, e), (_, _, e0) in zip(fa, arm_errors(tree.names, Pq, gj, held,
-                                                          fa[0][0] if fa else None)):
-            if kind == "held":
-                evid_arms.append((e, e0))
+        evid_arms += [(e, e0) for kind, e, e0 in arms if kind == "held"]
     hint_end = []        # each hint's end: distance to the nearest true elbow and wrist
     for p in raw:
         gj = gt["frames"][p.frame]["joints"]

@@ -538,17 +538,19 @@ def report(doc) -> str:
               "the reader as it was before the read-ahead thread, FFmpeg's own threads per video; "
               "same poses: status and part positions bit-identical).", ""]
     rows = []
+    peer = bool(doc.get("peer"))
     for name, r in doc["methods"].items():
         s = r["speed"]
+        vs = [s.get("fps_ratio_to_peer", ""), s.get("cpu_ratio_to_peer", ""),
+              "" if r.get("same_poses_as_peer") is None
+              else f"{r['same_poses_as_peer']}/{r['frames']}"] if peer else []
         rows.append([name, s["setup_s"], s["first_frame_s"], s["per_frame_ms"], s["end_to_end_fps"],
-                     s.get("cpu_ms_per_frame", ""), s.get("fps_ratio_to_peer", ""),
-                     s.get("cpu_ratio_to_peer", ""),
-                     "" if r.get("same_poses_as_peer") is None
-                     else f"{r['same_poses_as_peer']}/{r['frames']}",
+                     s.get("cpu_ms_per_frame", ""), *vs,
                      ", ".join(f"{k} {v}" for k, v in s["stages_median_ms"].items())])
     L += _table(["silhouettes", "set-up s (background)", "first frame s incl. set-up (target ≤ 2)",
                  "ms/frame after", "end-to-end frames/s (target ≥ 20)", "CPU ms/frame (all threads)",
-                 "frames/s ratio to peer", "CPU ratio to peer", "same poses as peer",
+                 *(["frames/s ratio to peer", "CPU ratio to peer", "same poses as peer"] if peer
+                   else []),
                  "stage medians ms (hull includes waiting for the reader)"], rows)
     L += ["", "## Where the first frame's time goes (s)", ""]
     L += _table(["silhouettes", "set-up steps", "first frame's stages"],

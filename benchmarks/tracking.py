@@ -623,33 +623,22 @@ def report(rows, info, real=None):
         pooled_good = [x for r in rs for x in r["mpjpe_fit_good"][3]]
         pooled_seen = [x for r in rs for x in r["mpjpe_fit_seen"][3]]
         held_frames = sum(r["held_frames"] for r in rs)
-        pj, pj0, pjm, pjs, pji, pjx = {}, {}, {}, {}, {}, {}
-        for r in rs:
-            for j, v in r["mpjpe_fixed_seen"][4].items():
-                pjx.setdefault(j, []).extend(v)
-            for j, v in r["mpjpe_fit_seen"][4].items():
-                pjs.setdefault(j, []).extend(v)
-            for j, v in r["mpjpe_init"][4].items():
-                pji.setdefault(j, []).extend(v)
-            for j, v in r["mpjpe_main"][4].items():
-                pjm.setdefault(j, []).extend(v)
-            for j, v in r["mpjpe_fit"][4].items():
-                pj.setdefault(j, []).extend(v)
-            for j, v in r["mpjpe_before"][4].items():
-                pj0.setdefault(j, []).extend(v)
+
+        def per_joint(key):
+            """The sequences' per-joint errors of ``key``, pooled."""
+            out = {}
+            for r in rs:
+                for j, v in r[key][4].items():
+                    out.setdefault(j, []).extend(v)
+            return out
+
+        pj, pj0, pjm = per_joint("mpjpe_fit"), per_joint("mpjpe_before"), per_joint("mpjpe_main")
+        pjs, pji = per_joint("mpjpe_fit_seen"), per_joint("mpjpe_init")
+        pjx = per_joint("mpjpe_fixed_seen")      # the neck's bone sliding
+        pjr = per_joint("mpjpe_rest0")   # before HELD_SHOULDER, SLIDE_QUANTILE, RAISED_SHOULDER
+        pjh = per_joint("mpjpe_nohint")          # without the hand hints
+        pje = per_joint("mpjpe_noevid")          # without the arm evidence
         pooled_before = [x for r in rs for x in r["mpjpe_before"][3]]
-        pjr = {}                          # before HELD_SHOULDER, SLIDE_QUANTILE, RAISED_SHOULDER
-        for r in rs:
-            for j, v in r["mpjpe_rest0"][4].items():
-                pjr.setdefault(j, []).extend(v)
-        pjh = {}
-        for r in rs:
-            for j, v in r["mpjpe_nohint"][4].items():
-                pjh.setdefault(j, []).extend(v)
-        pje = {}                          # without the arm evidence
-        for r in rs:
-            for j, v in r["mpjpe_noevid"][4].items():
-                pje.setdefault(j, []).extend(v)
         he = np.array([x for r in rs for x in r["hint_end"]]).reshape(-1, 2)
         hi = [x for r in rs for x in r["hinted_arms"]] or [(np.nan, np.nan)]
         pooled_main = [x for r in rs for x in r["mpjpe_main"][3]]

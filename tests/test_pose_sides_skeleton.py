@@ -60,6 +60,20 @@ def _numbered_frame(frame, parts, curves, swap_hands, swap_feet):
                 diagnostics={"curves": {m.get(k, k): v for k, v in curves.items()}}), m
 
 
+def _hand_2_unseen(yaw, seed):
+    """Two frames of one body (``_body(yaw)``): the first whole, the second (frame 000005) with
+    hand_2 not found (no part, no curve). Returns (whole, cut, the second frame's true parts,
+    the second frame's numbering map)."""
+    rng = np.random.default_rng(seed)
+    parts, curves = _body(yaw, rng)
+    full, _ = _numbered_frame("000000", parts, curves, False, False)
+    parts2, curves2 = _body(yaw, rng)
+    cut, m = _numbered_frame("000005", parts2, curves2, False, False)
+    cut.parts["hand_2"] = None
+    del cut.diagnostics["curves"]["hand_2"]
+    return full, cut, parts2, m
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_single_frame_left_right_any_facing(seed):
     rng = np.random.default_rng(seed)
@@ -278,13 +292,7 @@ def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_fo
     same body holds that frame's arm instead."""
     from topopose.pose.kinematic_fit import ACROSS, FOLD, HELD_SHOULDER
 
-    rng = np.random.default_rng(8)
-    parts, curves = _body(0.9, rng)
-    full, _ = _numbered_frame("000000", parts, curves, False, False)
-    parts2, curves2 = _body(0.9, rng)
-    cut, m = _numbered_frame("000005", parts2, curves2, False, False)
-    cut.parts["hand_2"] = None                            # the right hand: not found
-    del cut.diagnostics["curves"]["hand_2"]
+    full, cut, parts2, m = _hand_2_unseen(0.9, 8)          # the right hand: not found
     out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
     b = out[1]
     assert sorted(b.diagnostics["held_joints"]) == ["elbow_2", "fingertip_2", "shoulder_2",
@@ -568,13 +576,7 @@ def test_an_unseen_arm_with_a_hand_hint_reaches_the_hint_end_with_its_wrist(yaw)
     bone length from both, bent the way the rest pose bends (down, its upper arm hangs), bone
     lengths kept; an end beyond reach: the arm straight towards it. Without the hint
     (``hints=False``) the rest pose folds the arm far away."""
-    rng = np.random.default_rng(3)
-    parts, curves = _body(yaw, rng)
-    full, _ = _numbered_frame("000000", parts, curves, False, False)
-    parts2, curves2 = _body(yaw, rng)
-    cut, _ = _numbered_frame("000005", parts2, curves2, False, False)
-    cut.parts["hand_2"] = None
-    del cut.diagnostics["curves"]["hand_2"]
+    full, cut, parts2, _ = _hand_2_unseen(yaw, 3)
     off, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0, hints=False)
     S = off[1].joints["shoulder_2"]                   # the hint does not move the shoulder
     a, b = L[tree.names.index("elbow_2")], L[tree.names.index("wrist_2")]

@@ -6,7 +6,7 @@ from topopose import Volume
 from topopose.pose.curves import resample
 from topopose.pose.kinematic_fit import fit_sequence
 from topopose.pose.unseen import _seg_dist, hull_remainder
-from test_pose_sides_skeleton import HUMAN, _body, _numbered_frame
+from test_pose_sides_skeleton import HUMAN, _hand_2_unseen
 
 
 def _cylinder(shape, a, b, r):
@@ -44,13 +44,8 @@ def test_unseen_arm_elbow_follows_the_evidence(yaw):
     the fitted elbow lies within 3 cm of the true one (the rest pose's is > 10 cm off), shoulder
     and wrist stay, bone lengths are kept; without evidence (absent, or ``evidence=False``)
     the arm is the rest pose's."""
-    rng = np.random.default_rng(3)
-    parts, curves = _body(yaw, rng)
-    full, _ = _numbered_frame("000000", parts, curves, False, False)
-    parts2, curves2 = _body(yaw, rng)
-    cut, _ = _numbered_frame("000005", parts2, curves2, False, False)
-    cut.parts["hand_2"] = None
-    del cut.diagnostics["curves"]["hand_2"]
+    full, cut, parts2, _ = _hand_2_unseen(yaw, 3)
+    rng = np.random.default_rng(4)                       # the evidence's noise
     off, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0, evidence=False)
     J0 = off[1].joints
     S, E0, W = J0["shoulder_2"], J0["elbow_2"], J0["wrist_2"]

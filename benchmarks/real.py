@@ -198,16 +198,19 @@ def confidence_curve(rows, precisions=(1.0, 0.95, 0.9, 0.8, 0.75, 0.7, 0.0)) -> 
     return out
 
 
-def as_run(poses, model, up, min_confidence) -> list:
+def as_run(poses, model, up, min_confidence, consistency=False) -> list:
     """The poses as ``topopose run`` writes them (:func:`topopose.pose.run.run`): the confidence
     gate's decision at ``min_confidence`` unless None (the run's default gate,
-    :func:`~topopose.pose.estimate.default_gate`, at its minimum for the camera count),
-    then :func:`~topopose.pose.motion.process_sequence` (track, skeleton, sides), the mirror
-    names turned back into numbered parts for scoring. ``poses`` are left as they are."""
+    :func:`~topopose.pose.estimate.default_gate`, at its minimum for the camera count; a frame
+    rejected for its AHA distance that the gate judged too gets the gate's reason after it,
+    as ``confidence.judge_frame`` writes it), then
+    :func:`~topopose.pose.motion.process_sequence` (track, skeleton, sides; ``consistency``:
+    ``topopose run --consistency``), the mirror names turned back into numbered parts for
+    scoring. ``poses`` are left as they are."""
     import copy
 
     from topopose.pose.chirality import numbered
-    from topopose.pose.confidence import passes_gate
+    from topopose.pose.confidence import distance_only, passes_gate
     from topopose.pose.motion import process_sequence
 
     ps = copy.deepcopy(poses)
@@ -219,7 +222,10 @@ def as_run(poses, model, up, min_confidence) -> list:
             elif p.status == "matched":
                 p.status = "rejected"
                 p.error = f"confidence {c if c is None else round(c, 2)} below {min_confidence:g}"
-    motion = process_sequence(ps, model, up, track=True, sides=True, skeleton=True)
+            elif distance_only(p.error) and c is not None:
+                p.error += f"; confidence {round(c, 2)} below {min_confidence:g}"
+    motion = process_sequence(ps, model, up, track=True, sides=True, skeleton=True,
+                              consistency=consistency)
     return [numbered(p, model) for p in motion.poses]
 
 
@@ -277,6 +283,11 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     res["as_run"] = summarize(run_poses, ref, idx, mc)
     res["as_run"]["predicted"] = sum(bool(p.diagnostics.get("predicted")) for p in run_poses)
     res["as_run"]["snapped"] = sum(bool(p.diagnostics.get("snapped")) for p in run_poses)
+    # ``topopose run --consistency`` (topopose.pose.consistency): matched by the run's own
+    # consistency instead of the confidence's absolute minimum
+    cons = as_run(poses, est.model, cap.up_vector, mc if default_gate(cap) else None,
+                  consistency=True)
+    res["as_run_consistency"] = summarize(cons, ref, idx, mc)
     stages = {}
     for p in poses[1:]:
         for k, v in p.timings_ms.items():
@@ -519,6 +530,24 @@ def report(doc) -> str:
     L += _table(["silhouettes", "right per frame", "right as `run` writes it",
                  "matched (gate on)", "frames with a held / snapped part",
                  "head med / p90", "hands med / p90", "feet med / p90"], rows)
+    L += ["", "## `matched` by the run's own consistency (`topopose run --consistency`)", "",
+          "The same poses as `run` writes them, with `matched` decided by "
+          "`topopose.pose.consistency` (agreement with the neighbouring frames and the "
+          "confidence's rank in the run; thresholds chosen on synthetic walks, never on this "
+          "recording: `benchmarks/consistency.py`) instead of the confidence's absolute minimum.",
+          ""]
+    rows = []
+    for name, r in doc["methods"].items():
+        a, c = r.get("as_run"), r.get("as_run_consistency")
+        if a is None or c is None:
+            continue
+        pa = "—" if a["matched_precision"] is None else f"{100 * a['matched_precision']:.0f} %"
+        pc = "—" if c["matched_precision"] is None else f"{100 * c['matched_precision']:.0f} %"
+        rows.append([name, f"{100 * a['right_share']:.0f} %", f"{a['matched']}/{a['frames']}", pa,
+                     f"{c['matched']}/{c['frames']}", pc])
+    L += _table(["silhouettes", "right as `run` writes it", "matched (confidence gate)",
+                 "precision (gate)", "matched (consistency)",
+                 "precision (consistency; target ≥ 95 %)"], rows)
     L += ["", "## Precision of `matched` against recall", "",
           "How many right frames a confidence gate lets through (per frame, as the first table): "
           "the lowest threshold on the frame's confidence whose passing frames are right in at "

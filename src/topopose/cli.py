@@ -418,6 +418,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--smooth", type=int, default=None, metavar="FRAMES",
                    help="Savitzky-Golay window smoothing the skeleton")
     s.add_argument("--bvh", help="BVH export of the fitted skeleton (Blender)")
+    s.add_argument("--consistency", action=argparse.BooleanOptionalAction, default=False,
+                   help="sequences of one subject: 'matched' decided by agreement with the "
+                        "neighbouring frames and the confidence's rank in the run instead of "
+                        "its absolute minimum (default off: benchmarks/results/consistency.md)")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("view", help="render one frame as a PNG")

@@ -1,7 +1,8 @@
 """From pose initialization to motion capture: the sequence stages after the per-frame result.
 
 numbered parts → identities over time (:mod:`.track`) → full kinematic skeleton with constant
-bone lengths (:mod:`.kinematic_fit`) → left and right (:mod:`.chirality`). Every stage reads
+bone lengths (:mod:`.kinematic_fit`) → left and right (:mod:`.chirality`) → optionally
+``matched`` decided by the run's own consistency (:mod:`.consistency`). Every stage reads
 only the poses (their parts and the skeleton curves in ``diagnostics["curves"]``), so it runs
 after a parallel or resumed run as well.
 """
@@ -25,7 +26,7 @@ class Motion:
 
 
 def process_sequence(poses, model, up, track=True, sides=True, skeleton=True, max_gap=5,
-                     smooth=None) -> Motion:
+                     smooth=None, consistency=False) -> Motion:
     """Run the sequence stages on the poses of one capture (sorted by frame).
 
     Parameters
@@ -36,6 +37,10 @@ def process_sequence(poses, model, up, track=True, sides=True, skeleton=True, ma
     track, sides, skeleton : which stages to run (each needs what the model declares:
         interchangeable parts, ``[[mirror]]`` + ``[facing]``, ``[[joint]]``)
     max_gap, smooth : gap filling and smoothing of the skeleton (:func:`.fit_sequence`)
+    consistency : bool or dict
+        Last, on the poses as written: ``matched`` decided by the run's own consistency
+        (:func:`.consistency.judge_sequence`; a dict gives its keyword arguments) when the run
+        is a coherent sequence; off by default (``results/consistency.md``).
     """
     poses = sorted((numbered(p, model) for p in poses), key=lambda p: p.frame)
     out = Motion(poses)
@@ -49,4 +54,12 @@ def process_sequence(poses, model, up, track=True, sides=True, skeleton=True, ma
     if sides and model.mirrors and model.facing:
         out.poses = assign_sides(out.poses, model, up, use_time=track)
         out.stages.append("sides")
+    if consistency and len(out.poses) > 2:
+        from .consistency import judge_sequence, mirror_groups
+        from .track import frame_index
+
+        settings = consistency if isinstance(consistency, dict) else {}
+        if judge_sequence(out.poses, model, frame_index(out.poses), groups=mirror_groups(model),
+                          **settings):
+            out.stages.append("consistency")
     return out

@@ -155,7 +155,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
         tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None, track=True,
-        sides=True, skeleton=True, smooth=None, bvh=None) -> RunResult:
+        sides=True, skeleton=True, smooth=None, bvh=None, consistency=False) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -204,6 +204,12 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         Savitzky–Golay window (frames) smoothing the skeleton.
     bvh : path, optional
         BVH export of the fitted skeleton (Blender).
+    consistency : bool or dict
+        Sequences of one subject: ``matched`` decided by the run's own consistency instead of
+        the confidence's absolute minimum (:mod:`topopose.pose.consistency`; a dict gives
+        :func:`~topopose.pose.consistency.judge_sequence`'s settings); a run of unrelated
+        poses is left as it is. Off by default: measured below the issue's 95 % with 4
+        cameras (``benchmarks/results/consistency.md``).
 
     Returns
     -------
@@ -321,10 +327,11 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     seconds = time.perf_counter() - t0
     poses = [results[k] for k in sorted(results)]
     motion = None
-    if (track or sides or skeleton) and todo:     # a resume with nothing to do keeps the file
+    if (track or sides or skeleton or consistency) and todo:   # a resume with nothing to do
+        # keeps the file
         from .motion import process_sequence
         motion = process_sequence(poses, m, cap.up_vector, track=track, sides=sides,
-                                  skeleton=skeleton, smooth=smooth)
+                                  skeleton=skeleton, smooth=smooth, consistency=consistency)
         poses = motion.poses
         if out is not None:
             write_poses(out, poses, header)
@@ -511,7 +518,8 @@ def run_cli(a) -> int:
               on_pose=None, gate={"on": True, "off": False}.get(getattr(a, "confidence_gate", "auto")),
               thickness=getattr(a, "thickness", None), track=getattr(a, "track", True),
               sides=getattr(a, "sides", True), skeleton=getattr(a, "skeleton", True),
-              smooth=getattr(a, "smooth", None), bvh=getattr(a, "bvh", None))
+              smooth=getattr(a, "smooth", None), bvh=getattr(a, "bvh", None),
+              consistency=getattr(a, "consistency", False))
     if getattr(a, "rerun", None):
         from ..viz.rerun import record_run
         record_run(a.rerun, a.capture, res.poses, model=a.model, resolution=a.resolution,

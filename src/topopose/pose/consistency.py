@@ -12,8 +12,9 @@ is compared with the run itself and the set-up is normalized away:
 
 - **time** (:func:`temporal_deviation`): each part against the prediction of its neighbours
   ±d frames (the midpoint of frames i − d and i + d, d = 1…k: exact for a constant
-  velocity), numbered parts paired optimally, the median over d, in units of the hull's
-  height; the frame's deviation is its largest part's;
+  velocity), numbered parts paired optimally, the smallest over d (a wrong neighbour spoils
+  one prediction, not the frame's: with k ≥ 2 the frames next to a wrong one keep their
+  agreement), in units of the hull's height; the frame's deviation is its largest part's;
 - **rank** (:func:`confidence_rank`): the fitted confidence's rank within the run;
 - **lengths** (:func:`run_lengths`, :func:`length_ratios`): the subject's own arc lengths, the
   median over the run's frames of each matched model arc's skeleton curve
@@ -27,7 +28,8 @@ each frame that is matched or that only the confidence gate rejected is matched 
 deviation is at most :data:`MAX_DEVIATION` and its rank at least :data:`MIN_RANK` (and, if
 given, every arc within ``max_length_ratio`` of the subject's own), else rejected with the
 reason; its parts (the best guess) are kept either way, the values in
-``diagnostics["consistency"]``.
+``diagnostics["consistency"]``. A frame without a pair of neighbours (the run's first and
+last) is left as the gate decided.
 
 **Measured** (``benchmarks/consistency.py``, ``results/consistency.md``; thresholds chosen on
 synthetic walks of the ``body`` subject, seeds 41–46, never on the real recording; figures on
@@ -127,8 +129,8 @@ def _groups(parts, groups=None) -> dict:
 
 
 def temporal_deviation(poses, k: int = 1, index=None, groups=None) -> list:
-    """Per pose, part → distance to its neighbours' prediction over the hull's height (or
-    None when no neighbour pair predicts it). See the module docstring.
+    """Per pose, part → distance to its neighbours' nearest prediction over the hull's height
+    (parts no neighbour pair predicts are left out). See the module docstring.
 
     Parameters
     ----------
@@ -161,7 +163,7 @@ def temporal_deviation(poses, k: int = 1, index=None, groups=None) -> list:
                 for u, v in _pairing(x, pred):
                     per.setdefault(names[u], []).append(
                         float(np.linalg.norm(np.subtract(x[u], pred[v]))) / H)
-        out.append({n: float(np.median(v)) for n, v in per.items()})
+        out.append({n: float(np.min(v)) for n, v in per.items()})
     return out
 
 
@@ -252,9 +254,10 @@ def judge_sequence(poses, model, index=None, max_deviation=MAX_DEVIATION,
         info = {"deviation": None if worst is None else round(d[worst], 4), "part": worst,
                 "rank": None if r is None else round(r, 3)}
         reasons = []
-        if worst is None:
-            reasons.append("no neighbours to compare with")
-        elif d[worst] > max_deviation:
+        if worst is None:                  # no neighbours to compare with (the run's ends)
+            p.diagnostics["consistency"] = info
+            continue                       # left as the gate decided
+        if d[worst] > max_deviation:
             reasons.append(f"{worst} {d[worst]:.2f} × height from its neighbours' prediction "
                            f"(above {max_deviation:g})")
         if r is not None and r < min_rank:

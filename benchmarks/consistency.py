@@ -1,0 +1,287 @@
+"""``matched`` by the run's own consistency (issue 12 part 5): precision of ``matched`` and frames
+passing, ours (``topopose run --consistency``, :mod:`topopose.pose.consistency`) against the
+run's confidence gate, on synthetic sequences and the real recording.
+
+    python benchmarks/consistency.py [--setups 8,4,4p] [--dev-seeds 41,...] [--test-seeds 1,...]
+                                     [--frames 40] [--work DIR] [--out benchmarks/results/consistency]
+
+Sequences: the anatomically real ``body`` subject walking (``motion="walk"``, builds by seed as
+``benchmarks/confidence.py``), 40 frames at 25 frames/s, 100³, in the camera set-ups of
+``benchmarks/confidence.py``: ``8`` (8 cameras 640×480, silhouette noise 1), ``4`` (4 cameras
+640×480, noise 1), ``4p`` (4 portrait phone-like cameras 544×960, noise 2). Each sequence is
+run as ``topopose run`` does (:func:`topopose.pose.run.run`, the default gate: on with fewer
+than 6 cameras), then its sequence stages (:func:`topopose.pose.motion.process_sequence`: track,
+skeleton, sides) with ``matched`` decided either way.
+
+A frame is *right* when it is a TP of issue 11 as in ``benchmarks/confidence.py`` (quality
+"good" or "missing limb": every placed part within 0.08 × height of its ground-truth segment,
+at most one part unplaced), scored on the poses as the run writes them (numbered parts).
+
+**Choice of the settings** (never on the real recording): every combination of
+:data:`GRID` is scored on the development seeds; the one kept has precision ≥ 0.95 in every
+4-camera set-up and the most right frames passing in the worst of them. The held-out seeds
+and the real recording (``benchmarks/real.py``, read from ``--real-json`` when given: the
+column *matched (consistency)*) then measure it. A run of unrelated random poses (8 cameras,
+``motion="random"``) checks that such runs are left as they are (no coherent sequence).
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import itertools
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+#: camera set-ups: cameras, image size, silhouette noise (as benchmarks/confidence.py SETUPS)
+SETUPS = {"8": (8, (640, 480), 1), "4": (4, (640, 480), 1), "4p": (4, (544, 960), 2)}
+BUILDS = ("average", "heavy", "child", "lean", "random")
+DEV_SEEDS = (41, 42, 43, 44, 45, 46)
+TEST_SEEDS = (1, 2, 3, 4)
+TOLERANCE = 0.08          # × subject height (benchmarks/confidence.py)
+TP_CLASSES = ("good", "missing limb")
+#: settings tried on the development seeds (judge_sequence keyword arguments)
+GRID = {"max_deviation": (0.03, 0.04, 0.05, 0.06, 0.08),
+        "neighbours": (1, 2, 3),
+        "min_rank": (0.0, 0.25, 0.5),
+        "max_length_ratio": (None, 1.5)}
+
+
+def sequence(setup, seed, frames, work=None, motion="walk"):
+    """Per-frame poses of one synthetic sequence as ``topopose run`` computes them (default
+    gate, sequence stages off) and its ground truth; cached in ``work`` when given."""
+    from topopose.capture.synth import synthetic_capture
+    from topopose.pose import run
+    from topopose.pose.pose import read_poses, write_poses
+
+    if work is not None:
+        f = Path(work) / f"{motion}_{setup}_{seed}.jsonl"
+        g = f.with_suffix(".gt.json")
+        if f.exists() and g.exists():
+            return read_poses(f), json.loads(g.read_text())
+    cams, size, noise = SETUPS[setup]
+    cap = synthetic_capture("body", frames=frames, seed=seed, cameras=cams, size=size,
+                            noise=noise, motion=motion, build=BUILDS[seed % len(BUILDS)])
+    res = run(cap, model="human", resolution=100, progress=False, track=False, sides=False,
+              skeleton=False)
+    if work is not None:
+        Path(work).mkdir(parents=True, exist_ok=True)
+        write_poses(f, res.poses, {})
+        g.write_text(json.dumps(cap.gt))
+    return res.poses, cap.gt
+
+
+def right_frames(poses, gt, model) -> list:
+    """Per pose (numbered parts), whether it is a TP of issue 11 (module docstring)."""
+    from topopose.pose.chirality import numbered
+    from topopose.pose.quality import evaluate
+
+    ps = [numbered(p, model) for p in poses]
+    ev = evaluate(gt, ps, model=model, tolerance=TOLERANCE * float(gt["height"]),
+                  junction_factor=1.0)
+    q = {fs.frame: fs.quality for fs in ev.frames}
+    return [q.get(p.frame) in TP_CLASSES for p in ps]
+
+
+def as_run(poses, model, up):
+    """The sequence stages of ``topopose run`` (track, skeleton, sides), consistency off."""
+    from topopose.pose.motion import process_sequence
+
+    return process_sequence(copy.deepcopy(poses), model, up).poses
+
+
+def judged(poses, model, settings):
+    """``poses`` (as the run writes them) with ``matched`` decided by the run's consistency
+    (as ``process_sequence(consistency=settings)`` does last); (poses, coherent)."""
+    from topopose.pose.consistency import judge_sequence, mirror_groups
+    from topopose.pose.track import frame_index
+
+    ps = copy.deepcopy(poses)
+    ok = judge_sequence(ps, model, frame_index(ps), groups=mirror_groups(model), **settings)
+    return ps, ok
+
+
+def score(poses, right) -> dict:
+    m = [p.status == "matched" for p in poses]
+    n, rt = sum(m), sum(a and b for a, b in zip(m, right))
+    return {"matched": n, "right_matched": rt, "precision": round(rt / n, 3) if n else None}
+
+
+def collect(setups, seeds, frames, work, model, up):
+    """Per set-up, per seed: (as-run poses, right flags)."""
+    out = {}
+    for setup in setups:
+        for seed in seeds:
+            t0 = time.perf_counter()
+            poses, gt = sequence(setup, seed, frames, work)
+            ps = as_run(poses, model, up)
+            out[(setup, seed)] = (ps, right_frames(ps, gt, model))
+            print(f"{setup} seed {seed}: {sum(out[(setup, seed)][1])} right of {len(ps)} "
+                  f"({time.perf_counter() - t0:.1f} s)", file=sys.stderr, flush=True)
+    return out
+
+
+def evaluate_settings(data, setups, model, settings) -> dict:
+    """Per set-up, pooled over its seeds: frames, right, the gate's and ours."""
+    out = {}
+    for setup in setups:
+        tot = {"frames": 0, "right": 0, "gate": [0, 0], "ours": [0, 0]}
+        for (s, _), (ps, right) in data.items():
+            if s != setup:
+                continue
+            tot["frames"] += len(ps)
+            tot["right"] += sum(right)
+            for key, qs in (("gate", ps), ("ours", judged(ps, model, settings)[0])):
+                sc = score(qs, right)
+                tot[key][0] += sc["matched"]
+                tot[key][1] += sc["right_matched"]
+        for key in ("gate", "ours"):
+            n, rt = tot[key]
+            tot[key] = {"matched": n, "right_matched": rt,
+                        "precision": round(rt / n, 3) if n else None,
+                        "share_of_right": round(rt / tot["right"], 3) if tot["right"] else None}
+        out[setup] = tot
+    return out
+
+
+def choose(data, model) -> tuple:
+    """The settings of :data:`GRID` kept on the development seeds (module docstring) and the
+    table of every combination."""
+    four = [s for s in SETUPS if SETUPS[s][0] == 4 and any(k[0] == s for k in data)]
+    table, best, best_key = [], None, None
+    for values in itertools.product(*GRID.values()):
+        settings = dict(zip(GRID, values))
+        r = evaluate_settings(data, four, model, settings)
+        table.append({"settings": settings, "per_setup": r})
+        ok = all(r[s]["ours"]["precision"] is not None and r[s]["ours"]["precision"] >= 0.95
+                 for s in four)
+        key = min(r[s]["ours"]["share_of_right"] or 0 for s in four)
+        if ok and (best_key is None or key > best_key):
+            best, best_key = settings, key
+    return best, table
+
+
+def unrelated(model, up, frames, work) -> dict:
+    """A run of unrelated random poses (8 cameras): whether it is judged coherent and how many
+    statuses the switch changes (must be none)."""
+    poses, _ = sequence("8", 11, frames, work, motion="random")
+    ps = as_run(poses, model, up)
+    js, coherent = judged(ps, model, {})
+    return {"frames": len(ps), "coherent": coherent,
+            "changed": sum(a.status != b.status for a, b in zip(ps, js))}
+
+
+def main(argv=None):
+    from _machine import machine
+    from topopose.pose import consistency as C
+    from topopose.pose.model import load_model
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--setups", default=",".join(SETUPS))
+    ap.add_argument("--dev-seeds", default=",".join(map(str, DEV_SEEDS)))
+    ap.add_argument("--test-seeds", default=",".join(map(str, TEST_SEEDS)))
+    ap.add_argument("--frames", type=int, default=40)
+    ap.add_argument("--work", default=None, help="cache of the per-frame poses")
+    ap.add_argument("--real-json", default=None,
+                    help="results of benchmarks/real.py (its as_run_consistency figures)")
+    ap.add_argument("--out", default=str(HERE / "results" / "consistency"))
+    a = ap.parse_args(argv)
+    model = load_model("human")
+    up = np.array([0.0, 0.0, 1.0])
+    setups = a.setups.split(",")
+    dev = collect(setups, [int(x) for x in a.dev_seeds.split(",")], a.frames, a.work, model, up)
+    best, table = choose(dev, model)
+    default = {"max_deviation": C.MAX_DEVIATION, "neighbours": C.NEIGHBOURS,
+               "min_rank": C.MIN_RANK, "max_length_ratio": None}
+    test = collect(setups, [int(x) for x in a.test_seeds.split(",")], a.frames, a.work, model,
+                   up)
+    doc = {"machine": machine(), "setups": {k: list(map(str, v)) for k, v in SETUPS.items()},
+           "frames": a.frames, "dev_seeds": a.dev_seeds, "test_seeds": a.test_seeds,
+           "chosen": best, "default": default,
+           "dev": evaluate_settings(dev, setups, model, default),
+           "test": evaluate_settings(test, setups, model, default),
+           "test_chosen": evaluate_settings(test, setups, model, best) if best else None,
+           "unrelated": unrelated(model, up, a.frames, a.work),
+           "grid": table}
+    if a.real_json and Path(a.real_json).is_file():
+        rj = json.loads(Path(a.real_json).read_text())
+        doc["real"] = {m: {"frames": r["as_run"]["frames"], "right": r["as_run"]["right"],
+                           "gate": {k: r["as_run"][k] for k in ("matched", "matched_precision")},
+                           "ours": {k: r["as_run_consistency"][k]
+                                    for k in ("matched", "matched_precision")}}
+                       for m, r in rj["methods"].items() if "as_run_consistency" in r}
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.with_suffix(".json").write_text(json.dumps(doc, indent=1, default=str))
+    out.with_suffix(".md").write_text(report(doc))
+    print(f"wrote {out}.md / .json")
+    return 0
+
+
+def _pct(x):
+    return "—" if x is None else f"{100 * x:.0f} %"
+
+
+def report(doc) -> str:
+    m = doc["machine"]
+    L = ["# `matched` by the run's own consistency (issue 12 part 5)", "",
+         f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
+         "Written by `benchmarks/consistency.py` (see its docstring). Synthetic: body subject "
+         f"walking, {doc['frames']} frames per sequence, 100³; set-ups "
+         + "; ".join(f"{k}: {v[0]} cameras {v[1]} noise {v[2]}" for k, v in doc["setups"].items())
+         + ". Right: TP of issue 11 (0.08 × height). *Gate*: `topopose run` as it is (the "
+         "confidence gate on with fewer than 6 cameras, T_d alone with 8); *ours*: "
+         "`topopose run --consistency`.", "",
+         f"Settings kept on the development seeds ({doc['dev_seeds']}): {doc['chosen']}; "
+         f"the module's defaults: {doc['default']}.", ""]
+    for name, key in (("Held-out seeds " + doc["test_seeds"], "test"),
+                      ("Development seeds " + doc["dev_seeds"], "dev")):
+        rows = []
+        for setup, r in doc[key].items():
+            rows.append([setup, r["frames"], f"{r['right']} ({_pct(r['right'] / r['frames'])})",
+                         r["gate"]["matched"], _pct(r["gate"]["precision"]),
+                         r["ours"]["matched"], _pct(r["ours"]["precision"]),
+                         _pct(r["ours"]["share_of_right"])])
+        L += [f"## {name} (the module's defaults)", ""]
+        L += _table(["set-up", "frames", "right", "matched (gate)", "precision (gate)",
+                     "matched (ours)", "precision (ours; target ≥ 95 %)",
+                     "right frames passing (ours)"], rows)
+        L.append("")
+    if doc.get("real"):
+        L += ["## The real recording (`benchmarks/real.py`, Pose2Sim's balancing trial, "
+              "4 phone cameras; as `run` writes it)", ""]
+        L += _table(["silhouettes", "frames", "right", "matched (gate)", "precision (gate)",
+                     "matched (ours)", "precision (ours; target ≥ 95 %)"],
+                    [[k, r["frames"], r["right"], r["gate"]["matched"],
+                      _pct(r["gate"]["matched_precision"]), r["ours"]["matched"],
+                      _pct(r["ours"]["matched_precision"])] for k, r in doc["real"].items()])
+        L.append("")
+    u = doc["unrelated"]
+    L += [f"Unrelated random poses (8 cameras, {u['frames']} frames): coherent sequence "
+          f"{u['coherent']}, statuses changed by the switch: {u['changed']}.", "",
+          "## Every setting on the development seeds (4-camera set-ups pooled per set-up)", ""]
+    rows = []
+    for t in doc["grid"]:
+        s = t["settings"]
+        rows.append([s["max_deviation"], s["neighbours"], s["min_rank"], s["max_length_ratio"],
+                     *(f"{v['ours']['right_matched']}/{v['ours']['matched']}"
+                       for v in t["per_setup"].values())])
+    setups = list(doc["grid"][0]["per_setup"]) if doc["grid"] else []
+    L += _table(["max deviation (× height)", "neighbours", "min rank", "max length ratio",
+                 *(f"{s}: right/matched" for s in setups)], rows)
+    return "\n".join(L) + "\n"
+
+
+def _table(head, rows):
+    return ["| " + " | ".join(map(str, head)) + " |", "|" + " --- |" * len(head)] + \
+           ["| " + " | ".join(map(str, r)) + " |" for r in rows]
+
+
+if __name__ == "__main__":
+    sys.exit(main())

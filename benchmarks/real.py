@@ -22,7 +22,10 @@ confidence gate off so both decisions are scored) and *as ``run`` writes it* (:f
 the run's default gate decision, then the sequence stages ``topopose run`` applies,
 :func:`topopose.pose.motion.process_sequence`: identities over time with misplaced parts held
 at their prediction or snapped to the free skeleton leaf nearest it, the kinematic skeleton,
-left/right). *Precision of matched against recall*: :func:`confidence_curve`.
+left/right). *Precision of matched against recall*: :func:`confidence_curve`. *Matched by the
+run's own consistency*: the same as ``run`` writes it with ``--consistency``
+(:mod:`topopose.pose.consistency`, whose settings were chosen on synthetic walks by
+``benchmarks/consistency.py``, never on this recording).
 
 Speed: end to end from the videos, one process as ``topopose run`` (a reader thread decodes
 the 4 videos and computes the foreground probabilities ahead of the hull, skeleton and

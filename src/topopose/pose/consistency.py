@@ -182,10 +182,10 @@ def confidence_rank(poses) -> list:
 #: the largest part deviation from the neighbours' prediction (× hull height) of a consistent
 #: frame, with :data:`NEIGHBOURS`; chosen on synthetic 4-camera walks (module docstring)
 MAX_DEVIATION = 0.05
-#: neighbours on each side of a frame (1: frames i − 1 and i + 1)
-NEIGHBOURS = 1
+#: neighbours on each side of a frame (2: the pairs i ± 1 and i ± 2)
+NEIGHBOURS = 2
 #: the lowest rank of the fitted confidence within the run of a consistent frame
-MIN_RANK = 0.25
+MIN_RANK = 0.5
 #: a run is a coherent sequence when the median displacement of the parts between consecutive
 #: frames is at most this × the hull height (as :func:`.confidence.temporal_confidence`)
 COHERENT_STEP = 0.1

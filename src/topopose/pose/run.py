@@ -327,8 +327,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     seconds = time.perf_counter() - t0
     poses = [results[k] for k in sorted(results)]
     motion = None
-    if (track or sides or skeleton or consistency) and todo:   # a resume with nothing to do
-        # keeps the file
+    # a resume with nothing to do keeps the file
+    if (track or sides or skeleton or consistency) and todo:
         from .motion import process_sequence
         motion = process_sequence(poses, m, cap.up_vector, track=track, sides=sides,
                                   skeleton=skeleton, smooth=smooth, consistency=consistency)

@@ -3,7 +3,7 @@ passing, ours (``topopose run --consistency``, :mod:`topopose.pose.consistency`)
 run's confidence gate, on synthetic sequences and the real recording.
 
     python benchmarks/consistency.py [--setups 8,4,4p] [--dev-seeds 41,...] [--test-seeds 1,...]
-                                     [--frames 40] [--work DIR] [--out benchmarks/results/consistency]
+                                     [--frames 40] [--work DIR] [--real-json FILE] [--out PATH]
 
 Sequences: the anatomically real ``body`` subject walking (``motion="walk"``, builds by seed as
 ``benchmarks/confidence.py``), 40 frames at 25 frames/s, 100³, in the camera set-ups of

@@ -6,9 +6,10 @@ The fitted confidence (:mod:`.confidence`) judges a frame against the calibratio
 frames in absolute terms; a recording outside them gets low values for its right frames and
 its wrong ones alike (the real recording, ``benchmarks/real.py``: every frame 0.01–0.78, the
 4-camera minimum 0.91 passes none; it ranks that recording's right frames above its wrong
-ones no better than chance: AUC 0.50). A sequence of one subject carries its own reference (thesis §13.3.1: the per-frame
-initialization feeds tracking, which relies on the subject staying the same), so each frame
-is compared with the run itself and the set-up is normalized away:
+ones no better than chance: AUC 0.50). A sequence of one subject carries its own reference
+(thesis §13.3.1: the per-frame initialization feeds tracking, which relies on the subject
+staying the same), so each frame is compared with the run itself and the set-up is
+normalized away:
 
 - **time** (:func:`temporal_deviation`): each part against the prediction of its neighbours
   ±d frames (the midpoint of frames i − d and i + d, d = 1…k: exact for a constant
@@ -56,6 +57,17 @@ import itertools
 import numpy as np
 
 from .curves import model_arcs
+
+#: the largest part deviation from the neighbours' prediction (× hull height) of a consistent
+#: frame, with :data:`NEIGHBOURS`; chosen on synthetic 4-camera walks (module docstring)
+MAX_DEVIATION = 0.05
+#: neighbours on each side of a frame (2: the pairs i ± 1 and i ± 2)
+NEIGHBOURS = 2
+#: the lowest rank of the fitted confidence within the run of a consistent frame
+MIN_RANK = 0.5
+#: a run is a coherent sequence when the median displacement of the parts between consecutive
+#: frames is at most this × the hull height (as :func:`.confidence.temporal_confidence`)
+COHERENT_STEP = 0.1
 
 
 def part_group(part: str, groups=None) -> str:
@@ -134,7 +146,7 @@ def _groups(parts, groups=None) -> dict:
     return out
 
 
-def temporal_deviation(poses, k: int = 1, index=None, groups=None) -> list:
+def temporal_deviation(poses, k: int = NEIGHBOURS, index=None, groups=None) -> list:
     """Per pose, part → distance to its neighbours' nearest prediction over the hull's height
     (parts no neighbour pair predicts are left out). See the module docstring.
 
@@ -159,7 +171,7 @@ def temporal_deviation(poses, k: int = 1, index=None, groups=None) -> list:
             a, b = at.get(i - d), at.get(i + d)
             if a is None or b is None:
                 continue
-            for g, names in _groups(p.parts, groups).items():
+            for names in _groups(p.parts, groups).values():
                 xa = [a.parts.get(n) for n in names]
                 xb = [b.parts.get(n) for n in names]
                 pred = [None] * len(names)
@@ -183,18 +195,6 @@ def confidence_rank(poses) -> list:
     for x in c:
         out.append(None if not np.isfinite(x) else float(np.mean(c[ok] < x)))
     return out
-
-
-#: the largest part deviation from the neighbours' prediction (× hull height) of a consistent
-#: frame, with :data:`NEIGHBOURS`; chosen on synthetic 4-camera walks (module docstring)
-MAX_DEVIATION = 0.05
-#: neighbours on each side of a frame (2: the pairs i ± 1 and i ± 2)
-NEIGHBOURS = 2
-#: the lowest rank of the fitted confidence within the run of a consistent frame
-MIN_RANK = 0.5
-#: a run is a coherent sequence when the median displacement of the parts between consecutive
-#: frames is at most this × the hull height (as :func:`.confidence.temporal_confidence`)
-COHERENT_STEP = 0.1
 
 
 def coherent(poses, index=None) -> bool:

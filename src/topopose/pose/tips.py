@@ -309,3 +309,37 @@ def head_from_hull(vol, up, anchor=None, min_fraction: float = 0.4, max_radii: f
         if np.linalg.norm(v) > 0:
             d = v / np.linalg.norm(v)
     return exit_point(vol.data, vol.origin, float(vol.voxel_size), c, d, max_radii * r)
+
+
+#: The head from the hull along the body's own axis, where no "up" is known (a model without
+#: coordinate constraints: acrobatic, inverted subjects), per model: ``(head, anchor, lower
+#: end, min_fraction, max_shift)``: the direction lower end → anchor (crotch → torso, junctions
+#: of the alignment) replaces the up vector of :func:`head_from_hull` — the thick point of the
+#: hull farthest along it, prolonged from the anchor to the hull's border — unless that point
+#: lies more than ``max_shift`` × the hull's largest inscribed radius from the head placed so
+#: far (a torso on the wrong part turns the axis). See :func:`head_along_axis`; measured in
+#: ``benchmarks/applications.py`` (the acrobatic set's *no-head-axis* peer).
+HEAD_AXIS = {"human": ("head", "torso", "crotch", 0.4, 6.0)}
+
+
+def head_along_axis(vol, parts: dict, rule, edt=None, ball=None):
+    """The head of ``rule`` (:data:`HEAD_AXIS`) from the hull along the body's axis lower end →
+    anchor (:func:`head_from_hull` with that axis as up), or None: anchor or lower end
+    unplaced, no thick top, or farther than ``max_shift`` radii from ``parts``' head.
+    ``edt``: :func:`inscribed_distances` of the hull."""
+    head, anchor, lower, frac, max_shift = rule
+    a, b = parts.get(anchor), parts.get(lower)
+    if a is None or b is None:
+        return None
+    axis = np.asarray(a, float) - np.asarray(b, float)
+    n = float(np.linalg.norm(axis))
+    if n == 0:
+        return None
+    edt = inscribed_distances(vol.data) if edt is None else edt
+    x = head_from_hull(vol, axis / n, a, frac, edt=edt, ball=ball)
+    h = parts.get(head)
+    if x is not None and h is not None and edt is not None and (
+            np.linalg.norm(x - np.asarray(h, float))
+            > max_shift * float(edt[0].max()) * float(vol.voxel_size)):
+        return None
+    return x

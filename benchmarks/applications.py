@@ -29,8 +29,8 @@
    the largest-gap rule and by the silhouette rule.
 
    Peers on the same frames: the head from the hull along the body's axis off (acrobatic:
-   ``head_axis=False``) and the former crotch drop (upright capsule human and body:
-   :data:`FORMER_DROP`).
+   ``head_axis=False``) and a smaller crotch drop (upright capsule human and body:
+   :data:`LOW_DROP`).
 
 Writes benchmarks/results/applications.{md,json} and applications_*.png (``--detection-only``:
 only part 2, to applications_detection.{md,json}).
@@ -574,13 +574,13 @@ def bench_detection(n_frames, seeds, log):
     # "acrobatic no-tip-anchor": the peer of the head tip prolonged from the torso
     # (pose/tips.py TIP_ANCHOR), the head along its branch's own end direction, 1.5 radii;
     # "acrobatic no-head-axis": the peer of the head from the hull along the body's axis
-    # (pose/tips.py HEAD_AXIS), the head tip prolonged from the torso; "upright former crotch
-    # drop": the peer of the crotch dropped 0.1 × the hull's radius (pose/anatomy.py CROTCH_DROP)
+    # (pose/tips.py HEAD_AXIS), the head tip prolonged from the torso; "upright crotch drop
+    # 0.1": the crotch dropped 0.1 × the hull's radius, not 0.35 (pose/anatomy.py CROTCH_DROP)
     for kind, constraints, opts in (("upright", True, {}), ("acrobatic", False, {}),
                                     ("acrobatic no-head-axis", False, {"head_axis": False}),
                                     ("acrobatic no-tip-anchor", False, {"tip_anchor": False,
                                                                         "head_axis": False}),
-                                    ("upright former crotch drop", True, {"crotch_drop": FORMER_DROP})):
+                                    ("upright crotch drop 0.1", True, {"crotch_drop": LOW_DROP})):
         tags, frames, rows = {}, 0, []
         rng = np.random.default_rng(0)
         for seed in seeds:
@@ -595,8 +595,8 @@ def bench_detection(n_frames, seeds, log):
     return out
 
 
-#: the crotch drop before issue 14 (pose/anatomy.py CROTCH_DROP: 0.35 × the radius down), a peer
-FORMER_DROP = ("crotch", 0.35, 0.10, 0.5)
+#: a smaller crotch drop than pose/anatomy.py CROTCH_DROP's (0.1 × the radius down, not 0.35), a peer
+LOW_DROP = ("crotch", 0.1, 0.10, 0.5)
 
 
 def bench_body_detection(n_frames, seeds, log, **opts):
@@ -692,13 +692,13 @@ def main(argv=None):
         det = bench_detection(30 if a.quick else 100, [1] if a.quick else [1, 2], log)
         bdet = bench_body_detection(10 if a.quick else 40, [2] if a.quick else [5, 6, 7], log)
         bdet0 = bench_body_detection(10 if a.quick else 40, [2] if a.quick else [5, 6, 7], log,
-                                     crotch_drop=FORMER_DROP)
+                                     crotch_drop=LOW_DROP)
     elif a.quick:
         seg = bench_segmentation(8, [2], log) + bench_segmentation(
             6, [2], log, "body", out / f"applications_segmentation_errors{suffix}.png")
         det = bench_detection(30, [1], log)
         bdet = bench_body_detection(10, [2], log)
-        bdet0 = bench_body_detection(10, [2], log, crotch_drop=FORMER_DROP)
+        bdet0 = bench_body_detection(10, [2], log, crotch_drop=LOW_DROP)
         clu = bench_clustering(4, 30, [1], log, out / f"applications_clusters{suffix}.png")
     else:
         seg = bench_segmentation(25, [2, 3], log) + bench_segmentation(
@@ -708,7 +708,7 @@ def main(argv=None):
             seg.append({**r, "subject": "body-dev"})
         det = bench_detection(100, [1, 2], log)
         bdet = bench_body_detection(40, [5, 6, 7], log)
-        bdet0 = bench_body_detection(40, [5, 6, 7], log, crotch_drop=FORMER_DROP)
+        bdet0 = bench_body_detection(40, [5, 6, 7], log, crotch_drop=LOW_DROP)
         clu = bench_clustering(5, 60, [1, 2, 3], log, out / f"applications_clusters{suffix}.png")
     if not a.detection_only:
         segmentation_figure(out / f"applications_segmentation{suffix}.png")
@@ -737,7 +737,7 @@ def main(argv=None):
         speed["ratio_watershed_over_flood"] = float(np.median([r["watershed_ms"] / r["flood_ms"] for r in seg]))
         speed["agree_watershed"] = _mean([r["agree_watershed"] for r in seg])
     sets = [(f"human {k}", d["rows"]) for k, d in det.items()] + [
-        ("body", bdet["rows"]), ("body former crotch drop", bdet0["rows"])]
+        ("body", bdet["rows"]), ("body crotch drop 0.1", bdet0["rows"])]
     pose_names = list(sets[0][1][0]["detect"]) if sets and sets[0][1] else []
     margin_counts = {label: {n: {f"{m:g}": detection_counts(rows, n, m) for m in DETECT_MARGINS}
                              for n in pose_names} for label, rows in sets}
@@ -773,7 +773,7 @@ def main(argv=None):
                                            "speed_median": speed},
          "detection": {k: {kk: v for kk, v in d.items() if kk != "rows"} for k, d in det.items()},
          "detection_body": {k: v for k, v in bdet.items() if k != "rows"},
-         "detection_body_former_crotch_drop": {k: v for k, v in bdet0.items() if k != "rows"},
+         "detection_body_crotch_drop_0.1": {k: v for k, v in bdet0.items() if k != "rows"},
          "detection_summary": det_summary, "detection_margins": margin_counts,
          "part_offsets": offsets, "clustering": clu}, indent=1))
 
@@ -882,10 +882,11 @@ def main(argv=None):
     L.append("Peers (same frames): *human acrobatic no-head-axis* — the head not placed from the "
              "hull along the body's axis (`FrameEstimator(head_axis=False)`, "
              "`pose/tips.py` `HEAD_AXIS`, on by default without coordinate constraints); "
-             "*human upright former crotch drop* and *body former crotch drop* — the crotch "
-             "dropped 0.35 × the hull's radius as before issue 14 rather than 0.1 "
-             "(`FrameEstimator(crotch_drop=('crotch', 0.35, 0.1, 0.5))`, `pose/anatomy.py` "
-             "`CROTCH_DROP`).")
+             "*human upright crotch drop 0.1* and *body crotch drop 0.1* — the crotch "
+             "dropped 0.1 × the hull's radius rather than 0.35 "
+             "(`FrameEstimator(crotch_drop=('crotch', 0.1, 0.1, 0.5))`, `pose/anatomy.py` "
+             "`CROTCH_DROP`: not kept, it costs the body's separated frames in "
+             "quality_body.md, *crotch-drop-0.1* rows).")
     L += ["", "| subject | pose | truth true / matched | missing | precision / recall, all | "
           "good frames | P / R, good | good, stable frames | P / R, good and stable | "
           "wrong: not good / borderline / stable | stable-truth frames | P / R, stable truth "

@@ -181,19 +181,18 @@ def test_crotch_drop_floor_fires_on_flexed_hips_not_on_an_upright_stance():
 
     up, front = np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])
     c = np.array([20.0, 15.0, 25.0])
-    rule = ("crotch", 0.35, 0.10, 0.5)             # the former down share (now 0.1)
-    assert CROTCH_DROP["human"][3] == rule[3]      # the floor the default uses
-    part, down, back, floor = rule
+    part, down, back, floor = CROTCH_DROP["human"]
     r = 6.0                                        # drop 2.1, floor 3: room 4 upright, 14 flexed
-    flexed = crotch_drop({part: c}, up, front, r, rule, _hips(True))[part]
+    flexed = crotch_drop({part: c}, up, front, r, CROTCH_DROP["human"], _hips(True))[part]
     assert np.allclose(flexed, c - down * r * up - back * r * front)
-    upright = crotch_drop({part: c}, up, front, r, rule, _hips(False))[part]
+    upright = crotch_drop({part: c}, up, front, r, CROTCH_DROP["human"], _hips(False))[part]
     assert np.isclose(upright[2], c[2] - (4.0 - floor * r))        # 1 voxel down, not 2.1
     assert np.isclose(upright[1], c[1] - back * r)
     c2 = np.array([20.0, 15.0, 23.0])              # right above the gap: no drop at all
-    assert np.isclose(crotch_drop({part: c2}, up, front, r, rule, _hips(False))[part][2], 23.0)
+    assert np.isclose(crotch_drop({part: c2}, up, front, r, CROTCH_DROP["human"],
+                                  _hips(False))[part][2], 23.0)
     # without the hull, or a rule of three entries: the whole drop
-    for rule, vol in ((rule, None), ((part, down, back), _hips(False))):
+    for rule, vol in ((CROTCH_DROP["human"], None), ((part, down, back), _hips(False))):
         assert np.allclose(crotch_drop({part: c}, up, front, r, rule, vol)[part],
                            c - down * r * up - back * r * front)
 
@@ -201,8 +200,7 @@ def test_crotch_drop_floor_fires_on_flexed_hips_not_on_an_upright_stance():
 def test_body_crouch_the_crotch_reaches_the_pelvis():
     """Oracle: the gt pelvis segment of a `body` frame with flexed hips (heavy build, seed 43,
     frame 2: hips flexed 92–96°, trunk bent 34°) — the legs' junction, spine-shifted, lies
-    beyond 0.08 × height above it; lowered by the former crotch drop (0.35 × the radius) it
-    lies within; the default drop (0.1) lowers it too, less (this frame stays out)."""
+    beyond 0.08 × height above it; lowered by the crotch drop it lies within."""
     from topopose.capture import synthetic_capture
     from topopose.pose import FrameEstimator
     from topopose.pose.quality import point_segment_distance
@@ -213,16 +211,12 @@ def test_body_crouch_the_crotch_reaches_the_pelvis():
     seg = cap.gt["frames"][f]["segments"]["crotch"]
     tol = 0.08 * cap.gt["height"]
     old = FrameEstimator(cap, "human", 100, gate=False, crotch_drop=False).estimate(f)
-    # the former down share 0.35 mends it; the default 0.1 (issue 14) lowers it less
-    new = FrameEstimator(cap, "human", 100, gate=False,
-                         crotch_drop=("crotch", 0.35, 0.10, 0.5)).estimate(f)
-    default = FrameEstimator(cap, "human", 100, gate=False, crotch_drop=True).estimate(f)
+    new = FrameEstimator(cap, "human", 100, gate=False, crotch_drop=True).estimate(f)
     assert old.status == new.status == "matched"
     assert point_segment_distance(old.parts["crotch"], *seg) > tol
     assert np.asarray(old.parts["crotch"])[2] > max(np.asarray(seg)[:, 2])    # high
     assert point_segment_distance(new.parts["crotch"], *seg) <= tol
-    z = [np.asarray(p.parts["crotch"])[2] for p in (new, default, old)]
-    assert z[0] < z[1] < z[2]
+    assert np.asarray(new.parts["crotch"])[2] < np.asarray(old.parts["crotch"])[2]
 
 
 def test_trunk_blend_draws_the_torso_towards_the_trunk_line():

@@ -211,7 +211,8 @@ class FrameEstimator:
         axis crotch → torso (:func:`topopose.pose.tips.head_along_axis`,
         :data:`topopose.pose.tips.HEAD_AXIS`): the thick point farthest along it, prolonged
         from the torso to the hull's border, unless it lies more than 6 hull radii from the
-        head placed so far. None (default): on where ``head_from_hull`` is off; False: off.
+        head placed so far. None (default): on where the model's head has no "above"
+        coordinate constraint (where ``head_from_hull`` is off by default); False: off.
     keep_junctions : bool or None
         Never contract a constrained model arc between two junctions (the human trunk, torso
         above crotch) — unless only the contracted alignment passes T_d (a data tree with one
@@ -365,7 +366,8 @@ class FrameEstimator:
         # (tips.HEAD_AXIS): (head, anchor, lower end, min_fraction, max_shift)
         from .tips import HEAD_AXIS
         rule = HEAD_AXIS.get(self.model.name) if self.model.complete else None
-        on = (self.head_from_hull is None) if head_axis is None else bool(head_axis)
+        on = (not any(c.kind == "above" and rule[0] in c.parts for c in self.model.constraints)
+              if head_axis is None and rule else bool(head_axis))
         self.head_axis = tuple(rule) if rule and on else None
 
     def arc_cost(self, vol, data, radii=None):

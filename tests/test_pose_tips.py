@@ -184,3 +184,16 @@ def test_inverted_capsule_human_head_is_its_crown():
     err = np.linalg.norm(np.asarray(pose.parts["head"]) - crown)
     assert err < 0.03                                  # m
     assert err < np.linalg.norm(np.asarray(peer.parts["head"]) - crown)
+
+
+def test_thick_top_ball_with_a_top_of_two_clumps_does_not_fail():
+    """Two equal balls side by side at the same height (two fists, two feet): the top layer's
+    centroid lies between them, near no voxel of the hull; the ball check sets that layer
+    aside rather than failing on an empty neighbourhood, and gives up after ``tries``."""
+    z, y, x = np.indices((40, 40, 80))
+    vol = ((x - 12) ** 2 + (y - 20) ** 2 + (z - 20) ** 2 <= 36) | \
+          ((x - 68) ** 2 + (y - 20) ** 2 + (z - 20) ** 2 <= 36)
+    assert thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.4, ball=0.5, reach=1.5) is None
+    # without the ball check: the centroid of the top layer, between the balls
+    top, _ = thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.4)
+    assert abs(top[2] - 40) <= 1

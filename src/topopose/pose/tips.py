@@ -275,9 +275,9 @@ def thick_top(volume: np.ndarray, origin, voxel_size: float, up, min_fraction: f
         if ball <= 0:
             return c, float(rad[top].mean()) * voxel_size
         near = ((pts - c) ** 2).sum(axis=1) <= (reach * float(rmax) * voxel_size) ** 2
-        if rad[near].max() >= ball * rmax:
+        if near.any() and rad[near].max() >= ball * rmax:
             return c, float(rad[top].mean()) * voxel_size
-        keep &= ~near
+        keep &= ~near if near.any() else ~top    # a top of two clumps: centroid near neither
     return None
 
 

@@ -28,8 +28,13 @@
    by 2 cm; adjusted Rand index against the base-pose labels and the number of clusters found by
    the largest-gap rule and by the silhouette rule.
 
-Writes benchmarks/results/applications.{md,json} and applications_*.png.
-Usage: python benchmarks/applications.py [--quick]
+   Peers on the same frames: the head from the hull along the body's axis off (acrobatic:
+   ``head_axis=False``) and a smaller crotch drop (upright capsule human and body:
+   :data:`LOW_DROP`).
+
+Writes benchmarks/results/applications.{md,json} and applications_*.png (``--detection-only``:
+only part 2, to applications_detection.{md,json}).
+Usage: python benchmarks/applications.py [--quick] [--detection-only]
 """
 from __future__ import annotations
 
@@ -567,9 +572,15 @@ def bench_detection(n_frames, seeds, log):
 
     out = {}
     # "acrobatic no-tip-anchor": the peer of the head tip prolonged from the torso
-    # (pose/tips.py TIP_ANCHOR), the head along its branch's own end direction, 1.5 radii
+    # (pose/tips.py TIP_ANCHOR), the head along its branch's own end direction, 1.5 radii;
+    # "acrobatic no-head-axis": the peer of the head from the hull along the body's axis
+    # (pose/tips.py HEAD_AXIS), the head tip prolonged from the torso; "upright crotch drop
+    # 0.1": the crotch dropped 0.1 × the hull's radius, not 0.35 (pose/anatomy.py CROTCH_DROP)
     for kind, constraints, opts in (("upright", True, {}), ("acrobatic", False, {}),
-                                    ("acrobatic no-tip-anchor", False, {"tip_anchor": False})):
+                                    ("acrobatic no-head-axis", False, {"head_axis": False}),
+                                    ("acrobatic no-tip-anchor", False, {"tip_anchor": False,
+                                                                        "head_axis": False}),
+                                    ("upright crotch drop 0.1", True, {"crotch_drop": LOW_DROP})):
         tags, frames, rows = {}, 0, []
         rng = np.random.default_rng(0)
         for seed in seeds:
@@ -584,9 +595,13 @@ def bench_detection(n_frames, seeds, log):
     return out
 
 
-def bench_body_detection(n_frames, seeds, log):
+#: a smaller crotch drop than pose/anatomy.py CROTCH_DROP's (0.1 × the radius down, not 0.35), a peer
+LOW_DROP = ("crotch", 0.1, 0.10, 0.5)
+
+
+def bench_body_detection(n_frames, seeds, log, **opts):
     """The named poses on the ``body`` subject (random builds), sequences drawn to contain them
-    (:func:`body_detection_sampler`)."""
+    (:func:`body_detection_sampler`); ``opts``: FrameEstimator options."""
     from topopose.capture.synth import synthetic_capture
     from topopose.pose.estimate import FrameEstimator
 
@@ -596,7 +611,7 @@ def bench_body_detection(n_frames, seeds, log):
         with body_poses(body_detection_sampler()):
             cap = synthetic_capture("body", frames=n_frames, seed=seed, noise=1, separated=True,
                                     margin=MARGIN)
-        est = FrameEstimator(cap, "human", RES)
+        est = FrameEstimator(cap, "human", RES, **opts)
         r, n = _detection_rows(cap, est, rng, tags)
         rows += r
         frames += n
@@ -661,20 +676,29 @@ def segmentation_figure(path):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--detection-only", action="store_true",
+                    help="only the pose detection (2.), written to applications_detection.{md,json}")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    suffix = "_quick" if a.quick else ""
+    suffix = ("_quick" if a.quick else "") + ("_detection" if a.detection_only else "")
     log = lambda s: print(s, flush=True)  # noqa: E731
     t0 = time.time()
     # warm the kernels (compilation is not what is measured)
     bench_segmentation(2, [99], lambda s: None)
-    if a.quick:
+    if a.detection_only:
+        seg, clu = [], []
+        det = bench_detection(30 if a.quick else 100, [1] if a.quick else [1, 2], log)
+        bdet = bench_body_detection(10 if a.quick else 40, [2] if a.quick else [5, 6, 7], log)
+        bdet0 = bench_body_detection(10 if a.quick else 40, [2] if a.quick else [5, 6, 7], log,
+                                     crotch_drop=LOW_DROP)
+    elif a.quick:
         seg = bench_segmentation(8, [2], log) + bench_segmentation(
             6, [2], log, "body", out / f"applications_segmentation_errors{suffix}.png")
         det = bench_detection(30, [1], log)
         bdet = bench_body_detection(10, [2], log)
+        bdet0 = bench_body_detection(10, [2], log, crotch_drop=LOW_DROP)
         clu = bench_clustering(4, 30, [1], log, out / f"applications_clusters{suffix}.png")
     else:
         seg = bench_segmentation(25, [2, 3], log) + bench_segmentation(
@@ -684,8 +708,10 @@ def main(argv=None):
             seg.append({**r, "subject": "body-dev"})
         det = bench_detection(100, [1, 2], log)
         bdet = bench_body_detection(40, [5, 6, 7], log)
+        bdet0 = bench_body_detection(40, [5, 6, 7], log, crotch_drop=LOW_DROP)
         clu = bench_clustering(5, 60, [1, 2, 3], log, out / f"applications_clusters{suffix}.png")
-    segmentation_figure(out / f"applications_segmentation{suffix}.png")
+    if not a.detection_only:
+        segmentation_figure(out / f"applications_segmentation{suffix}.png")
     mach = machine(resolution=RES, wall_s=round(time.time() - t0, 1))
     f3 = lambda x: "–" if x is None else f"{x:.3f}"  # noqa: E731
     pr = lambda c: f"{f3(c['precision'])} / {f3(c['recall'])}"  # noqa: E731
@@ -710,7 +736,8 @@ def main(argv=None):
     if seg:
         speed["ratio_watershed_over_flood"] = float(np.median([r["watershed_ms"] / r["flood_ms"] for r in seg]))
         speed["agree_watershed"] = _mean([r["agree_watershed"] for r in seg])
-    sets = [(f"human {k}", d["rows"]) for k, d in det.items()] + [("body", bdet["rows"])]
+    sets = [(f"human {k}", d["rows"]) for k, d in det.items()] + [
+        ("body", bdet["rows"]), ("body crotch drop 0.1", bdet0["rows"])]
     pose_names = list(sets[0][1][0]["detect"]) if sets and sets[0][1] else []
     margin_counts = {label: {n: {f"{m:g}": detection_counts(rows, n, m) for m in DETECT_MARGINS}
                              for n in pose_names} for label, rows in sets}
@@ -746,6 +773,7 @@ def main(argv=None):
                                            "speed_median": speed},
          "detection": {k: {kk: v for kk, v in d.items() if kk != "rows"} for k, d in det.items()},
          "detection_body": {k: v for k, v in bdet.items() if k != "rows"},
+         "detection_body_crotch_drop_0.1": {k: v for k, v in bdet0.items() if k != "rows"},
          "detection_summary": det_summary, "detection_margins": margin_counts,
          "part_offsets": offsets, "clustering": clu}, indent=1))
 
@@ -851,6 +879,14 @@ def main(argv=None):
                  f"{d['matched']} matched of {d['frames']} frames; generator tags {d['tags']}.")
     L.append(f"*body*: {bdet['matched']} matched of {bdet['frames']} frames; generator tags "
              f"{bdet.get('tags')}.")
+    L.append("Peers (same frames): *human acrobatic no-head-axis* — the head not placed from the "
+             "hull along the body's axis (`FrameEstimator(head_axis=False)`, "
+             "`pose/tips.py` `HEAD_AXIS`, on by default without coordinate constraints); "
+             "*human upright crotch drop 0.1* and *body crotch drop 0.1* — the crotch "
+             "dropped 0.1 × the hull's radius rather than 0.35 "
+             "(`FrameEstimator(crotch_drop=('crotch', 0.1, 0.1, 0.5))`, `pose/anatomy.py` "
+             "`CROTCH_DROP`: not kept, it costs the body's separated frames in "
+             "quality_body.md, *crotch-drop-0.1* rows).")
     L += ["", "| subject | pose | truth true / matched | missing | precision / recall, all | "
           "good frames | P / R, good | good, stable frames | P / R, good and stable | "
           "wrong: not good / borderline / stable | stable-truth frames | P / R, stable truth "
@@ -908,11 +944,14 @@ def main(argv=None):
     L += ["", f"Where the pipeline puts a part vs the corresponding ground-truth point (matched frames; up: the capture's up "
           "axis — in inverted frames + is towards the feet; hands and feet paired optimally): "
           "the expressions compare these points. *human acrobatic* runs without coordinate "
-          "constraints, so without the head from the hull (`head_from_hull`): its head is the "
-          "head branch's extremity tip (`extremity_tips`), prolonged from the torso's data "
-          "vertex through the branch end to the hull's border, at most 3 inscribed radii "
-          "(`TIP_ANCHOR`); *human acrobatic no-tip-anchor* is its peer, the tip along the "
-          "branch's own end direction, at most 1.5 radii (`FrameEstimator(tip_anchor=False)`).", "",
+          "constraints, so without the head from the hull along up (`head_from_hull`): its head "
+          "comes from the hull along the body's own axis crotch → torso (`head_along_axis`, "
+          "`HEAD_AXIS`: the thick point farthest along it, prolonged from the torso to the "
+          "hull's border); *human acrobatic no-head-axis* is its peer, the head branch's "
+          "extremity tip (`extremity_tips`), prolonged from the torso's data vertex through "
+          "the branch end to the hull's border, at most 3 inscribed radii (`TIP_ANCHOR`); "
+          "*human acrobatic no-tip-anchor* the tip along the branch's own end direction, at "
+          "most 1.5 radii (`FrameEstimator(tip_anchor=False, head_axis=False)`).", "",
           "| subject | part | frames | vertical offset mean (m) | sd | distance median (m) | p90 |",
           "|---|---|---|---|---|---|---|"]
     for label, by in offsets.items():

@@ -223,6 +223,7 @@ def body_rows(quick, out, suffix):
     # the hands prolonged to the hull's border like the head (pose/tips.py): peers of the default
     for tag, opt in (("no-crotch-drop", {"crotch_drop": False}),
                      ("crotch-drop-no-floor", {"crotch_drop": ("crotch", 0.35, 0.10)}),
+                     ("crotch-drop-0.1", {"crotch_drop": ("crotch", 0.1, 0.10, 0.5)}),
                      ("hand-tips", {"tips": ("head", "hand")})):
         row(f"body separated noise1 {tag}", *body_study(sep, 100, **opt))
         row(f"body all-poses noise1 {tag}", *body_study(allp, 100, **opt))
@@ -291,7 +292,8 @@ def body_rows(quick, out, suffix):
          "crotch lowered and moved back into the flexed hips, no lower than 0.5 × the hull's "
          "radius above the gap between the legs (`topopose.pose.anatomy.crotch_drop`, on by "
          "default); *crotch-drop-no-floor*: the same drop without that floor "
-         "(`crotch_drop=('crotch', 0.35, 0.1)`); *hand-tips*: `FrameEstimator(tips=('head', 'hand'))`, the hands prolonged "
+         "(`crotch_drop=('crotch', 0.35, 0.1)`); *crotch-drop-0.1*: a smaller drop, 0.1 × "
+         "the radius down rather than 0.35 (`crotch_drop=('crotch', 0.1, 0.1, 0.5)`); *hand-tips*: `FrameEstimator(tips=('head', 'hand'))`, the hands prolonged "
          "to the hull's border like the head (`topopose.pose.tips`, head only by default); "
          "*no-trunk*: `FrameEstimator(trunk=False)`, the peer of the torso put "
          "back on the trunk line crotch → head when the alignment slid it down to the crotch "

@@ -4,8 +4,8 @@ Oracle: analytic shapes whose surface point on the branch's axis is known."""
 import numpy as np
 
 from topopose.match.tree import Tree
-from topopose.pose.tips import (end_direction, exit_point, extremity_tips, head_from_hull,
-                                 inscribed_radius, thick_top)
+from topopose.pose.tips import (end_direction, exit_point, extremity_tips, head_along_axis,
+                                 head_from_hull, inscribed_radius, thick_top)
 from topopose.topology import thin
 
 
@@ -133,3 +133,67 @@ def test_thick_top_ball_sets_a_raised_fist_aside():
     assert 42 <= top[0] <= 44 and abs(top[2] - 32) <= 1 and r >= 4.4   # with it: the head
     # one try only: the fist is set aside and nothing is left to try
     assert thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.4, ball=0.5, reach=1.5, tries=1) is None
+
+
+def test_head_along_axis_finds_the_crown_of_an_inverted_subject():
+    """An upside-down subject: the head ball at the bottom (crown at z = 15), the trunk above
+    it, a thin arm hanging lower than the crown. Along up the hull's thick top is the trunk's
+    end; along the body's axis crotch → torso it is the head, whose crown is the oracle."""
+    vol = _trunk_head_and_raised_arm()[::-1]          # axis 0 flipped: z → 63 − z
+    crown = np.array([63 - 48, 32, 32], float)
+    torso, crotch = np.array([33.0, 32, 32]), np.array([55.0, 32, 32])
+    rule = ("head", "torso", "crotch", 0.4, 6.0)
+    head = head_along_axis(_Vol(vol), {"torso": torso, "crotch": crotch, "head": None}, rule)
+    assert np.linalg.norm(head - crown) <= 1.0
+    # the upright rule (thick top along up) ends on the trunk: the oracle is not vacuous
+    up_head = head_from_hull(_Vol(vol), (1, 0, 0), torso, 0.4)
+    assert np.linalg.norm(up_head - crown) > 20
+    # a head already placed near the crown is moved onto it; one farther than max_shift ×
+    # the largest radius (≈ 11) from the hull's head is left alone (None: keep it)
+    near = {"torso": torso, "crotch": crotch, "head": crown + (5, 3, 0)}
+    assert np.linalg.norm(head_along_axis(_Vol(vol), near, rule) - crown) <= 1.0
+    far = {"torso": torso, "crotch": crotch, "head": np.array([60.0, 32, 32])}
+    assert head_along_axis(_Vol(vol), far, ("head", "torso", "crotch", 0.4, 2.0)) is None
+    assert head_along_axis(_Vol(vol), {"torso": torso, "crotch": None}, rule) is None
+
+
+def test_inverted_capsule_human_head_is_its_crown():
+    """End to end, without coordinate constraints: a capsule human standing on its head (pelvis
+    pitched 180°). Oracle: the crown, the end of gt.json's head segment — the lowest point of
+    the body here. The head from the hull along the body's axis (HEAD_AXIS, the default) lands
+    on it; the peer (head_axis=False: the head branch's tip) lands farther."""
+    from topopose.capture import synth_subjects as SS
+    from topopose.capture.synth import synthetic_capture
+    from topopose.pose.estimate import FrameEstimator
+
+    old = SS.RANDOM["human"]
+    SS.RANDOM["human"] = lambda rng: {**SS.HUMAN_DEFAULT, "pelvis_pitch": 180.0, "hip_abd_l": 20,
+                                      "hip_abd_r": 20, "sh_abd_l": 40, "sh_abd_r": 40}
+    try:
+        cap = synthetic_capture("human", frames=1, seed=0, noise=0, separated=True, margin=0.075)
+    finally:
+        SS.RANDOM["human"] = old
+    f = cap.frames[0]
+    gt = cap.gt["frames"][f]
+    crown = np.asarray(gt["segments"]["head"][1], float)
+    assert crown[2] < min(np.asarray(x, float)[2] for k, x in gt["parts"].items() if k != "head")
+    pose = FrameEstimator(cap, "human", 100, constraints=False).estimate(f)
+    peer = FrameEstimator(cap, "human", 100, constraints=False, head_axis=False).estimate(f)
+    assert pose.status == peer.status == "matched"
+    assert "head" in pose.diagnostics["from_hull"]
+    err = np.linalg.norm(np.asarray(pose.parts["head"]) - crown)
+    assert err < 0.03                                  # m
+    assert err < np.linalg.norm(np.asarray(peer.parts["head"]) - crown)
+
+
+def test_thick_top_ball_with_a_top_of_two_clumps_does_not_fail():
+    """Two equal balls side by side at the same height (two fists, two feet): the top layer's
+    centroid lies between them, near no voxel of the hull; the ball check sets that layer
+    aside rather than failing on an empty neighbourhood, and gives up after ``tries``."""
+    z, y, x = np.indices((40, 40, 80))
+    vol = ((x - 12) ** 2 + (y - 20) ** 2 + (z - 20) ** 2 <= 36) | \
+          ((x - 68) ** 2 + (y - 20) ** 2 + (z - 20) ** 2 <= 36)
+    assert thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.4, ball=0.5, reach=1.5) is None
+    # without the ball check: the centroid of the top layer, between the balls
+    top, _ = thick_top(vol, (0, 0, 0), 1.0, (1, 0, 0), 0.4)
+    assert abs(top[2] - 40) <= 1

@@ -109,6 +109,21 @@ TRUNK_BLEND = {"human": ("torso", "crotch", "head", 0.6, 0.5)}
 # per match, none → drop without → with the floor): separated 0.93 / 0.067 → 0.96 / 0.034 →
 # 0.96 / 0.034, all poses 0.79 / 0.050 → 0.78 / 0.060 → 0.79 / 0.050 (before SHORT_ARM and
 # TRUNK_BLEND: 0.73 / 0.111 → 0.72 / 0.121 → 0.73 / 0.111): on by default.
+# A smaller down share, 0.1 (issue 14), tried and not kept: before the drop the legs' junction
+# already lies at what the pose descriptions need of a crotch — the pelvis (capsule human: its
+# centre, −0.5 cm along up, sd 2.5, dev seed 3; ``body``: ``Hips_head``, +0.5 cm, sd 3.3, dev
+# seed 1) —, and 0.35 × radius puts it 4.1 cm (capsule) and 2.0 cm (body) below, out of the
+# hands' ball in wide-spread arms (benchmarks/applications.py). Detection dev (wide-spread arms
+# P / R, 0.35 → 0.1): capsule human seeds 3–4 0.989 / 0.877 → 0.990 / 0.914, body seeds 1–2
+# 0.950 / 0.905 → 0.953 / 0.976. Dev seeds 41, 42 (``benchmarks/quality.py``'s body study, gate
+# on; TP rate / FP per match, down 0.35 → 0.2 → 0.1 → none): separated 0.950 / 0.034 → 0.958 /
+# 0.025 → 0.958 / 0.025 → 0.933 / 0.043, all poses 0.817 / 0.049 → 0.817 / 0.039 → 0.817 /
+# 0.030 → 0.817 / 0.030. But held out (seeds 21, 22, ``quality.py --only body``, 0.35 → 0.1):
+# separated 0.98 / 0.017 → 0.96 / 0.034 (misplaced 2 → 4 of 120; 150³ 0 → 1), all poses 0.78 /
+# 0.021 either way — flexed hips (the frame of tests/test_pose_anatomy.py) need the whole drop,
+# and no per-frame cue told them from the capsule's (hip flexion in the sagittal plane: 5–95 %
+# alike). The peers *crotch-drop-0.1* (quality_body.md) and *crotch drop 0.1*
+# (applications.md) keep the trade measured.
 CROTCH_DROP = {"human": ("crotch", 0.35, 0.10, 0.5)}
 # A hand on the trunk left unplaced (:func:`hand_on_trunk`): model name → (hands, core, reach).
 # A forearm folded onto the chest or the belly fuses with the trunk in the hull; the arm's

@@ -205,6 +205,14 @@ class FrameEstimator:
         comes from the hull on coarser grids too (down to 1.2 voxels of thickness rather than
         1.5). None: the model's entry (human: 0.46 with 6 cameras or more, measured there);
         0: off.
+    head_axis : bool or None
+        Without an up for the head (``head_from_hull`` off: no coordinate constraints,
+        acrobatic and inverted subjects), place the head from the hull along the body's own
+        axis crotch → torso (:func:`topopose.pose.tips.head_along_axis`,
+        :data:`topopose.pose.tips.HEAD_AXIS`): the thick point farthest along it, prolonged
+        from the torso to the hull's border, unless it lies more than 6 hull radii from the
+        head placed so far. None (default): on where the model's head has no "above"
+        coordinate constraint (where ``head_from_hull`` is off by default); False: off.
     keep_junctions : bool or None
         Never contract a constrained model arc between two junctions (the human trunk, torso
         above crotch) — unless only the contracted alignment passes T_d (a data tree with one
@@ -239,7 +247,8 @@ class FrameEstimator:
                  tip_fraction=1.0, spine=None, tip_anchor=None,
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
                  short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
-                 hand_trunk=None, head_ball=None, keep_junctions=None, head_doubt=None):
+                 hand_trunk=None, head_ball=None, keep_junctions=None, head_doubt=None,
+                 head_axis=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -353,6 +362,13 @@ class FrameEstimator:
         ball = ((rule[0] if rule and len(cap.cameras) >= rule[3] else 0.0) if head_ball is None
                 else float(head_ball))
         self.head_ball = ((ball, *(rule[1:3] if rule else (1.5, 1.5))) if ball > 0 else None)
+        # without coordinate constraints: the head from the hull along the body's own axis
+        # (tips.HEAD_AXIS): (head, anchor, lower end, min_fraction, max_shift)
+        from .tips import HEAD_AXIS
+        rule = HEAD_AXIS.get(self.model.name) if self.model.complete else None
+        on = (not any(c.kind == "above" and rule[0] in c.parts for c in self.model.constraints)
+              if head_axis is None and rule else bool(head_axis))
+        self.head_axis = tuple(rule) if rule and on else None
 
     def arc_cost(self, vol, data, radii=None):
         """The thickness arc cost of this frame (:func:`thickness_arc_cost`), or None when off.
@@ -554,6 +570,12 @@ class FrameEstimator:
             if x is not None:
                 parts[head] = x
                 from_hull.append(head)
+        if self.head_axis is not None:       # no "up" for the head: the body's axis instead
+            from .tips import head_along_axis
+            x = head_along_axis(vol, parts, self.head_axis, edt, self.head_ball)
+            if x is not None:
+                parts[self.head_axis[0]] = x
+                from_hull.append(self.head_axis[0])
         on_core = []      # after the head from the hull: a head it placed counts as placed
         if self.hand_trunk is not None and all(x is not None for x in parts.values()):
             from .anatomy import hand_on_trunk

@@ -171,7 +171,7 @@ FEATURES = ("distance", "thickness", "missing", "lost", "fat", "spurious", "spur
             "arc_dev", "head_low", "foot_high", "head_radius", "end_radius", "head_bend",
             "head_offset", "head_reach", "trunk", "shape", "shape_max", "spurious_share",
             "limb_sym", "matched_distance", "crotch_radius", "torso_radius", "hip_flex",
-            "crotch_room", "head_torso", "head_placed_offset", "head_placed_bend")
+            "crotch_room", "head_torso", "head_placed_offset", "head_placed_bend", "trunk_spur")
 MODEL_PATH = Path(__file__).with_name("confidence_model.json")
 # the fitted confidence model: trees or logistic (benchmarks/confidence.py --fit rewrites the file)
 CONFIDENCE_MODEL = json.loads(MODEL_PATH.read_text())
@@ -306,6 +306,16 @@ def _branch_length(adj, leaf) -> float:
             return n
 
 
+def _branch_end(adj, leaf):
+    """The vertex of degree ≠ 2 where the branch from ``leaf`` ends."""
+    prev, x = None, leaf
+    while True:
+        y = next(y for y, _ in adj[x] if y != prev)
+        prev, x = x, y
+        if len(adj[x]) != 2:
+            return x
+
+
 def _head_bend_offset(x, t, c, height) -> tuple:
     """(1 − cos of the angle between torso → head and crotch → torso, the head's distance from
     the line crotch → torso / ``height``) for head ``x``, torso ``t``, crotch ``c``; (0, 0)
@@ -346,6 +356,26 @@ def junction_vertices(al, junctions=JUNCTIONS) -> dict:
         if ends and v not in ends:
             mapping[part] = max(dict.fromkeys(ends), key=ends.count)
     return mapping
+
+
+def trunk_spur(data, al, mapping, junctions=JUNCTIONS) -> float:
+    """The farthest reach (world units) of an unmatched data leaf whose branch ends at a trunk
+    junction: at the data vertex a matched arc of torso or crotch starts or ends from
+    (``mapping``: :func:`junction_vertices`). A branch the alignment contracted into the
+    junction — a rod on the chest, or a forearm lying on the belly — is there; 0 without."""
+    adj = data.adjacency()
+    ends = {d[i] for p, d in (al.pairs or []) for i in (0, -1) if p[i] in junctions}
+    ends |= {mapping.get(j) for j in junctions} - {None}
+    used = {v for v in mapping.values() if v is not None}
+    best = 0.0
+    for v, nb in adj.items():
+        if len(nb) != 1 or v in used or data.positions.get(v) is None:
+            continue
+        e = _branch_end(adj, v)
+        if e in ends and data.positions.get(e) is not None:
+            best = max(best, float(np.linalg.norm(np.asarray(data.positions[v], float)
+                                                  - np.asarray(data.positions[e], float))))
+    return best
 
 
 def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al=None,
@@ -394,6 +424,11 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
       back onto the spine), where the features above see the alignment's data vertices only (a
       head the alignment left unmatched has none: 0 there).
 
+    - ``trunk_spur``: the farthest reach of an unmatched data leaf whose branch ends at the
+      torso's or the crotch's data vertex (:func:`trunk_spur`) / H: a branch the alignment
+      contracted into a trunk junction (a spurious limb on the chest, a forearm on the belly;
+      issue 11).
+
     ``junction_vertex``: torso and crotch at the data vertex their matched arcs start from
     (:func:`junction_vertices`); None: :data:`JUNCTION_VERTEX` (on); False: the mapping's own.
     """
@@ -423,7 +458,8 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
          "head_bend": 0.0, "head_offset": 0.0, "head_reach": 0.0, "trunk": 0.0,
          "shape": 2.0, "shape_max": 3.0, "spurious_share": 1.0, "limb_sym": 0.0,
          "crotch_radius": 0.0, "torso_radius": 0.0, "hip_flex": 0.0, "crotch_room": 0.0,
-         "head_torso": 0.0, "head_placed_offset": 0.0, "head_placed_bend": 0.0}
+         "head_torso": 0.0, "head_placed_offset": 0.0, "head_placed_bend": 0.0,
+         "trunk_spur": 0.0}
     if al is None:
         return f
     if JUNCTION_VERTEX if junction_vertex is None else junction_vertex:
@@ -431,6 +467,8 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
     else:
         mapping = al.mapping or {}
     adj = data.adjacency()
+    if height > 0:
+        f["trunk_spur"] = trunk_spur(data, al, mapping) / height
     used = {v for v in mapping.values() if v is not None}
     spur = [_branch_length(adj, v) for v, n in adj.items() if len(n) == 1 and v not in used]
     f["spurious"] = float(len(spur))

@@ -78,11 +78,7 @@ BASE_FEATURES = ("distance", "missing", "shape", "shape_max", "spurious_share", 
 # / 0.947). Alone each gave less (docs/tried.md).
 JUNCTION_FEATURES = ("crotch_radius", "torso_radius", "hip_flex", "crotch_room", "head_torso",
                      "head_placed_offset", "head_placed_bend")
-# a branch the alignment contracted into a trunk junction (issue 11, session 10): with the
-# junctions' features taken where their matched arcs start (confidence.junction_vertices), the
-# mapping's tie-break no longer shows it (a rod on the chest; docs/body_accuracy.md)
-SPUR_FEATURES = ("trunk_spur",)
-FIT_FEATURES = BASE_FEATURES + JUNCTION_FEATURES + SPUR_FEATURES
+FIT_FEATURES = BASE_FEATURES + JUNCTION_FEATURES
 # camera set-ups: name → (cameras, image size (w, h), silhouette noise level). "4p": four
 # portrait phone-like cameras (1088×1920 at half scale) with the noisier
 # masks of a segmentation network (level 2: borders ±2 px, false blobs, holes)

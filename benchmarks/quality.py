@@ -240,12 +240,8 @@ def body_rows(quick, out, suffix):
                      ("no-hand-trunk", {"hand_trunk": 0}), ("no-head-ball", {"head_ball": 0}),
                      ("no-hand-trunk no-head-ball", {"hand_trunk": 0, "head_ball": 0}),
                      # a junction's centroid with its cluster's data leaves (estimate.py
-                     # JUNCTION_CORE) and the features' junctions at the mapping's tie-break
-                     # (confidence.py junction_vertices): their peers
-                     ("no-junction-core", {"junction_core": False}),
-                     ("no-junction-vertex", {"junction_vertex": False}),
-                     ("no-junction-core no-junction-vertex", {"junction_core": False,
-                                                              "junction_vertex": False})):
+                     # JUNCTION_CORE): its peer
+                     ("no-junction-core", {"junction_core": False})):
         for gate, gtag in ((None, ""), (False, " gate-off")):
             row(f"body separated noise1 {tag}{gtag}", *body_study(sep, 100, gate=gate, **opt))
             row(f"body all-poses noise1 {tag}{gtag}", *body_study(allp, 100, gate=gate, **opt))
@@ -320,11 +316,7 @@ def body_rows(quick, out, suffix):
          "*no-junction-core*: `FrameEstimator(junction_core=False)`, the peer of a junction "
          "(torso, crotch) placed at its co-optimal cluster's centroid without the cluster's data "
          "leaves (a branch the alignment contracted into the junction, e.g. a forearm on the "
-         "belly; `topopose.pose.estimate.JUNCTION_CORE`); *no-junction-vertex*: "
-         "`FrameEstimator(junction_vertex=False)`, the peer of the confidence's features taking "
-         "torso and crotch at the data vertex their matched arcs start from rather than the "
-         "mapping's tie-break (`topopose.pose.confidence.junction_vertices`; the shipped "
-         "confidence is fitted with it on); "
+         "belly; `topopose.pose.estimate.JUNCTION_CORE`); "
          "*whole-distance*: "
          "`FrameEstimator(matched_distance=False)`, T_d on the whole AHA distance, the peer of "
          "T_d on the matched parts' distance (a missing limb's deleted arm not counted; "

@@ -82,42 +82,6 @@ def test_features_of_a_hand_built_frame():
     assert g["matched_distance"] == pytest.approx(0.5)
 
 
-def test_junction_features_from_the_matched_arcs():
-    """The torso mapped to the far end of a branch contracted into its junction (a co-optimal
-    tie-break, no matched arc touches it) has the features of the torso at the junction its
-    arcs start from (junction_vertices); the tie-break itself only when asked."""
-    a = np.zeros((12, 12, 12), bool)
-    a[1:11, 1:11, 1:11] = True
-    vol = Volume(a, (0, 0, 0), 0.1)
-    P = {"t": (0.5, 0.5, 0.7), "c": (0.5, 0.5, 0.4), "h": (0.5, 0.5, 1.0),
-         "a1": (0.1, 0.5, 0.5), "a2": (0.9, 0.5, 0.5), "f1": (0.4, 0.5, 0.1),
-         "f2": (0.6, 0.5, 0.3), "s": (0.5, 0.9, 0.7)}
-    edges = [("t", "h", 0.3), ("t", "a1", 0.4), ("t", "a2", 0.4), ("t", "c", 0.3),
-             ("c", "f1", 0.3), ("c", "f2", 0.2), ("t", "s", 0.1)]
-    data = Tree(edges, positions={k: np.array(v) for k, v in P.items()})
-    model = load_model("human")
-    mapping = {"torso": "t", "crotch": "c", "head": "h", "hand_1": "a1", "hand_2": "a2",
-               "foot_1": "f1", "foot_2": "f2"}
-    pairs = [(["torso", "head"], ["t", "h"]), (["torso", "hand_1"], ["t", "a1"]),
-             (["torso", "hand_2"], ["t", "a2"]), (["torso", "crotch"], ["t", "c"]),
-             (["crotch", "foot_1"], ["c", "f1"]), (["crotch", "foot_2"], ["c", "f2"])]
-    radii = {"h": 0.6, "a1": 0.2, "a2": 0.3, "f1": 0.25, "f2": 0.1, "t": 0.8, "c": 0.9,
-             "s": 0.2}
-    right = SimpleNamespace(mapping=mapping, pairs=pairs)
-    leaf = SimpleNamespace(mapping={**mapping, "torso": "s"}, pairs=pairs)
-    assert C.junction_vertices(leaf) == mapping and C.junction_vertices(right) == mapping
-
-    def feats(al, jv=None):
-        return C.frame_features(vol, int(a.sum()), data, model, (0, 0, 1), 0.2, 0.4, 0, al,
-                                0.0, radii, junction_vertex=jv)
-
-    assert feats(leaf) == feats(right)
-    assert feats(right)["spurious"] == 1 and feats(right)["torso_radius"] == 0.8
-    old = feats(leaf, False)       # the tie-break: the torso 0.2 off the trunk, on a thin end
-    assert old["spurious"] == 0 and old["torso_radius"] == 0.2
-    assert old["head_offset"] > 0.1 > feats(right)["head_offset"]
-
-
 def test_logistic_fit_recovers_known_coefficients():
     rng = np.random.default_rng(0)
     X = rng.normal(size=(4000, 3))

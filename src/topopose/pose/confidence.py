@@ -171,7 +171,7 @@ FEATURES = ("distance", "thickness", "missing", "lost", "fat", "spurious", "spur
             "arc_dev", "head_low", "foot_high", "head_radius", "end_radius", "head_bend",
             "head_offset", "head_reach", "trunk", "shape", "shape_max", "spurious_share",
             "limb_sym", "matched_distance", "crotch_radius", "torso_radius", "hip_flex",
-            "crotch_room", "head_torso", "head_placed_offset", "head_placed_bend", "trunk_spur")
+            "crotch_room", "head_torso", "head_placed_offset", "head_placed_bend")
 MODEL_PATH = Path(__file__).with_name("confidence_model.json")
 # the fitted confidence model: trees or logistic (benchmarks/confidence.py --fit rewrites the file)
 CONFIDENCE_MODEL = json.loads(MODEL_PATH.read_text())
@@ -306,16 +306,6 @@ def _branch_length(adj, leaf) -> float:
             return n
 
 
-def _branch_end(adj, leaf):
-    """The vertex of degree ≠ 2 where the branch from ``leaf`` ends."""
-    prev, x = None, leaf
-    while True:
-        y = next(y for y, _ in adj[x] if y != prev)
-        prev, x = x, y
-        if len(adj[x]) != 2:
-            return x
-
-
 def _head_bend_offset(x, t, c, height) -> tuple:
     """(1 − cos of the angle between torso → head and crotch → torso, the head's distance from
     the line crotch → torso / ``height``) for head ``x``, torso ``t``, crotch ``c``; (0, 0)
@@ -328,59 +318,8 @@ def _head_bend_offset(x, t, c, height) -> tuple:
             float(np.linalg.norm(np.cross(x - c, axis / n))) / height)
 
 
-# the model parts where several arcs meet whose data vertex the features take from the matched
-# arcs (:func:`junction_vertices`); JUNCTION_VERTEX: on by default (frame_features)
-JUNCTIONS = ("torso", "crotch")
-JUNCTION_VERTEX = True
-
-
-def junction_vertices(al, junctions=JUNCTIONS) -> dict:
-    """The alignment's mapping with every junction part in ``junctions`` at a data vertex where
-    its matched arcs start or end (the one most of them share).
-
-    A model junction maps to a cluster of data vertices at the same cost (its co-optimal
-    ``alternatives``): the data edges between them are contracted (§12.2.2), and the mapping's
-    tie-break can be the far end of a data branch so contracted — a leaf of a forearm lying on
-    the belly, 0.2 m off the trunk — though no matched arc touches it. The arcs' own ends are
-    the junction. ``al``: an :class:`topopose.match.Alignment` (``mapping``, ``pairs``).
-    Measured on ``body`` (dev seeds 1, 11, 14, 100³, 8 cameras, noise 1): the human torso is
-    mapped to a data leaf in 18 of 180 all-pose and 13 of 180 separated frames.
-    """
-    mapping = dict(al.mapping or {})
-    for part in junctions:
-        v = mapping.get(part)
-        if v is None:
-            continue
-        ends = [d[0] for p, d in (al.pairs or []) if p[0] == part] \
-            + [d[-1] for p, d in (al.pairs or []) if p[-1] == part]
-        if ends and v not in ends:
-            mapping[part] = max(dict.fromkeys(ends), key=ends.count)
-    return mapping
-
-
-def trunk_spur(data, al, mapping, junctions=JUNCTIONS) -> float:
-    """The farthest reach (world units) of an unmatched data leaf whose branch ends at a trunk
-    junction: at the data vertex a matched arc of torso or crotch starts or ends from
-    (``mapping``: :func:`junction_vertices`). A branch the alignment contracted into the
-    junction — a rod on the chest, or a forearm lying on the belly — is there; 0 without."""
-    adj = data.adjacency()
-    ends = {d[i] for p, d in (al.pairs or []) for i in (0, -1) if p[i] in junctions}
-    ends |= {mapping.get(j) for j in junctions} - {None}
-    used = {v for v in mapping.values() if v is not None}
-    best = 0.0
-    for v, nb in adj.items():
-        if len(nb) != 1 or v in used or data.positions.get(v) is None:
-            continue
-        e = _branch_end(adj, v)
-        if e in ends and data.positions.get(e) is not None:
-            best = max(best, float(np.linalg.norm(np.asarray(data.positions[v], float)
-                                                  - np.asarray(data.positions[e], float))))
-    return best
-
-
 def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al=None,
-                   thickness_cost=0.0, radii=None, missing_cost=0.0, parts=None,
-                   junction_vertex=None) -> dict:
+                   thickness_cost=0.0, radii=None, missing_cost=0.0, parts=None) -> dict:
     """What one frame's stages know about how far to trust it, as numbers (the inputs of the
     logistic confidence, :data:`FEATURES`).
 
@@ -423,14 +362,6 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
       *placed* parts (``parts``: the pose's positions — the head from the hull, the trunk moved
       back onto the spine), where the features above see the alignment's data vertices only (a
       head the alignment left unmatched has none: 0 there).
-
-    - ``trunk_spur``: the farthest reach of an unmatched data leaf whose branch ends at the
-      torso's or the crotch's data vertex (:func:`trunk_spur`) / H: a branch the alignment
-      contracted into a trunk junction (a spurious limb on the chest, a forearm on the belly;
-      issue 11).
-
-    ``junction_vertex``: torso and crotch at the data vertex their matched arcs start from
-    (:func:`junction_vertices`); None: :data:`JUNCTION_VERTEX` (on); False: the mapping's own.
     """
     vd = vol.diagnostics or {}
     share = float(vd.get("largest_share", 1.0))
@@ -458,17 +389,11 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
          "head_bend": 0.0, "head_offset": 0.0, "head_reach": 0.0, "trunk": 0.0,
          "shape": 2.0, "shape_max": 3.0, "spurious_share": 1.0, "limb_sym": 0.0,
          "crotch_radius": 0.0, "torso_radius": 0.0, "hip_flex": 0.0, "crotch_room": 0.0,
-         "head_torso": 0.0, "head_placed_offset": 0.0, "head_placed_bend": 0.0,
-         "trunk_spur": 0.0}
+         "head_torso": 0.0, "head_placed_offset": 0.0, "head_placed_bend": 0.0}
     if al is None:
         return f
-    if JUNCTION_VERTEX if junction_vertex is None else junction_vertex:
-        mapping = junction_vertices(al)
-    else:
-        mapping = al.mapping or {}
+    mapping = al.mapping or {}
     adj = data.adjacency()
-    if height > 0:
-        f["trunk_spur"] = trunk_spur(data, al, mapping) / height
     used = {v for v in mapping.values() if v is not None}
     spur = [_branch_length(adj, v) for v, n in adj.items() if len(n) == 1 and v not in used]
     f["spurious"] = float(len(spur))
@@ -577,8 +502,7 @@ def head_doubt(features: dict, share: float, min_share: float = 0.8, model: dict
 
 
 def drop_part_features(vol, n_vox, data, model, up, distance, threshold, missing, al,
-                       thickness_cost, radii, missing_cost, parts, part,
-                       junction_vertex=None) -> dict:
+                       thickness_cost, radii, missing_cost, parts, part) -> dict:
     """:func:`frame_features` of the frame with ``part`` left unplaced: its data vertex and
     matched arc taken out of the alignment ``al`` (the branch it had counts as spurious), one
     more part missing, ``parts[part]`` None; the distance as it is (per-part trust,
@@ -589,7 +513,7 @@ def drop_part_features(vol, n_vox, data, model, up, distance, threshold, missing
     pairs = [(pp, dp) for pp, dp in (al.pairs or []) if pp[-1] != part]
     return frame_features(vol, n_vox, data, model, up, distance, threshold, missing + 1,
                           SimpleNamespace(mapping=m, pairs=pairs), thickness_cost, radii,
-                          missing_cost, {**(parts or {}), part: None}, junction_vertex)
+                          missing_cost, {**(parts or {}), part: None})
 
 
 def frame_confidence(distance, threshold, share, missing, min_share=0.8, fatness=None) -> dict:
@@ -642,7 +566,7 @@ def passes_gate(status, error, confidence, min_confidence) -> bool:
 def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
                 min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m", al=None,
                 thickness_cost=0.0, reach=0, radius_map=None, missing_cost=0.0,
-                parts=None, drop_parts=(), doubt_head=False, junction_vertex=None) -> tuple:
+                parts=None, drop_parts=(), doubt_head=False) -> tuple:
     """Status, reason and diagnostics of one frame from what the stages know.
 
     A ``matched`` frame becomes ``rejected`` when the hull's largest component holds less than
@@ -661,7 +585,7 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     whose removal scores highest) reaches :func:`min_drop_for` — a right *missing limb* frame
     (§13.2.2) rather than a rejected one. The part is named in ``untrusted`` (the caller
     unplaces it and keeps its guess), its confidence is the reported one, the whole frame's in
-    ``confidence_all_parts``. ``junction_vertex``: of :func:`frame_features`.
+    ``confidence_all_parts``.
 
     **Head doubt** (``doubt_head``, with per-part trust; issue 11): when no part's removal
     explains the doubt but the frame with a typical head (:func:`head_doubt`) reaches
@@ -691,12 +615,11 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
         from types import SimpleNamespace
 
         from .estimate import vertex_radii
-        mapped = {v for v in (al.mapping or {}).values() if v is not None}
-        mapped = sorted(mapped | {v for v in junction_vertices(al).values() if v is not None})
+        mapped = [v for v in (al.mapping or {}).values() if v is not None]
         radii = vertex_radii(vol, SimpleNamespace(vertices=mapped, positions=data.positions), reach,
                              radius_map)
     feats = frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al,
-                           thickness_cost, radii, missing_cost, parts, junction_vertex)
+                           thickness_cost, radii, missing_cost, parts)
     fitted = model.name in CONFIDENCE_MODEL.get("models", ())
     if fitted:
         conf = fitted_confidence(feats, share, min_share)
@@ -730,8 +653,7 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
         # per-part trust: the frame without the one part that explains the doubt
         cps = {part: fitted_confidence(drop_part_features(
                    vol, n_vox, data, model, up, distance, threshold, missing, al,
-                   thickness_cost, radii, missing_cost, parts, part, junction_vertex),
-                   share, min_share)
+                   thickness_cost, radii, missing_cost, parts, part), share, min_share)
                for part in drop_parts if parts.get(part) is not None}
         untrusted = untrusted_part({p: c["confidence"] for p, c in cps.items()},
                                    min_drop_for(min_confidence))

@@ -229,12 +229,6 @@ class FrameEstimator:
         (:func:`topopose.pose.confidence.head_doubt`, issue 11). None (default) or True: on;
         False: off; ``"any"``: a matched head too (opt-in: it also lets through frames with a
         spurious limb at the chest, ``benchmarks/results/confidence.md``).
-    junction_vertex : bool or None
-        The confidence's features see each junction part (torso, crotch) at the data vertex
-        where its matched arcs start, not at the tie-break of its
-        co-optimal images, which can be the far end of a data branch the alignment contracted
-        into the junction (:func:`topopose.pose.confidence.junction_vertices`, issue 11). None
-        (default) or True: on; False: the tie-break.
     junction_core : bool or None
         A junction part's centroid (``junction_centroid``) over the data vertices of its
         cluster that are not leaves of the data tree (:func:`junction_position`): a branch the
@@ -251,7 +245,7 @@ class FrameEstimator:
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
                  short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
                  hand_trunk=None, head_ball=None, keep_junctions=None, head_doubt=None,
-                 junction_vertex=None, junction_core=None):
+                 junction_core=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -267,8 +261,6 @@ class FrameEstimator:
         # head doubt (pose/confidence.py head_doubt): None/True an unmatched head, "any" any
         # head, False off
         self.head_doubt = True if head_doubt is None else head_doubt
-        # the features' junctions where their matched arcs start (junction_vertices)
-        self.junction_vertex = junction_vertex is not False
 
         self.cap = cap
         self.model: Model = load_model(model, constraints=constraints)
@@ -611,8 +603,7 @@ class FrameEstimator:
             error, self.min_share, self.min_confidence if self.gate else None, self.cap.units,
             al=al, thickness_cost=thick, reach=self.thickness_reach,
             radius_map=radii, missing_cost=mcost, parts=parts,
-            drop_parts=DROP_PARTS if self.part_trust else (), doubt_head=self.head_doubt,
-            junction_vertex=self.junction_vertex)
+            drop_parts=DROP_PARTS if self.part_trust else (), doubt_head=self.head_doubt)
         if extra.get("untrusted"):     # per-part trust: unplaced, its best guess kept
             extra["untrusted_guess"] = np.round(parts[extra["untrusted"]], 6).tolist()
             parts = {**parts, extra["untrusted"]: None}

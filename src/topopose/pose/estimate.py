@@ -1098,7 +1098,10 @@ def short_limb(data, mapping, limbs, base, leg_base, legs, min_ratio):
 # 1, gate off): 30 of 180 all-pose frames have a leaf in the torso's cluster (a forearm on the
 # belly, its branch contracted into the junction), their torso error falls in 20 (e.g. 0.60 →
 # 0.25, 1.00 → 0.67 × the tolerance), TP rate / FP per match 0.811 / 0.070 → 0.817 / 0.064;
-# separated unchanged (0.978 / 0.022). See FrameEstimator(junction_core=).
+# separated unchanged (0.978 / 0.022). Held out (benchmarks/quality.py, quality_body.md,
+# "no-junction-core" rows, the confidence refit with the rule): gate on, all poses 0.808 / 0.020
+# → 0.817 / 0.020, separated 0.975 / 0.008 either way; gate off unchanged (docs/body_accuracy.md).
+# See FrameEstimator(junction_core=).
 JUNCTION_CORE = {"human": True}
 
 

@@ -239,7 +239,10 @@ def body_rows(quick, out, suffix):
                      ("no-short-arm no-trunk-blend", {"short_arm": 0, "trunk_blend": 0}),
                      ("no-placed-missing", {"placed_missing": False}),
                      ("no-hand-trunk", {"hand_trunk": 0}), ("no-head-ball", {"head_ball": 0}),
-                     ("no-hand-trunk no-head-ball", {"hand_trunk": 0, "head_ball": 0})):
+                     ("no-hand-trunk no-head-ball", {"hand_trunk": 0, "head_ball": 0}),
+                     # a junction's centroid with its cluster's data leaves (estimate.py
+                     # JUNCTION_CORE): its peer
+                     ("no-junction-core", {"junction_core": False})):
         for gate, gtag in ((None, ""), (False, " gate-off")):
             row(f"body separated noise1 {tag}{gtag}", *body_study(sep, 100, gate=gate, **opt))
             row(f"body all-poses noise1 {tag}{gtag}", *body_study(allp, 100, gate=gate, **opt))
@@ -312,6 +315,10 @@ def body_rows(quick, out, suffix):
          "`topopose.pose.anatomy.HAND_ON_TRUNK`); *no-head-ball*: `FrameEstimator(head_ball=0)`, "
          "the peer of the head from the hull's top holding a ball of 0.46 × the hull's largest "
          "radius within 1.5 of them (a raised fist is set aside; `topopose.pose.tips.HEAD_BALL`); "
+         "*no-junction-core*: `FrameEstimator(junction_core=False)`, the peer of a junction "
+         "(torso, crotch) placed at its co-optimal cluster's centroid without the cluster's data "
+         "leaves (a branch the alignment contracted into the junction, e.g. a forearm on the "
+         "belly; `topopose.pose.estimate.JUNCTION_CORE`); "
          "*whole-distance*: "
          "`FrameEstimator(matched_distance=False)`, T_d on the whole AHA distance, the peer of "
          "T_d on the matched parts' distance (a missing limb's deleted arm not counted; "

@@ -145,6 +145,13 @@ def test_junction_position_is_the_connected_cooptimal_cluster():
     np.testing.assert_allclose(junction_position(al, t, "J", 1), np.mean([pos[1], pos[2], pos[4]], 0))
     al = SimpleNamespace(alternatives={"J": [1]})
     np.testing.assert_allclose(junction_position(al, t, "J", 1), pos[1])
+    # without the cluster's data leaves (JUNCTION_CORE): 4 is the end of a branch contracted
+    # into the junction, no part of it; a cluster of leaves alone keeps them
+    al = SimpleNamespace(alternatives={"J": [1, 2, 4, 5]})
+    np.testing.assert_allclose(junction_position(al, t, "J", 1, leaves=False),
+                               np.mean([pos[1], pos[2]], 0))
+    al = SimpleNamespace(alternatives={"J": [4]})
+    np.testing.assert_allclose(junction_position(al, t, "J", 4, leaves=False), pos[4])
 
 
 def test_spider_legs_found():

@@ -106,6 +106,10 @@ again on the merged pipeline (hand on the trunk, head ball, trunk kept; the ship
 minima 0.72 with 8 cameras, 0.91 with 4): held out, 8 cameras, 0.975 / 0.912 (the model before,
 on the new frames) → 0.973 / 0.935; body benchmark (offline) separated 0.958 / 0.009 → 0.967 /
 0.009, all poses 0.725 / 0.022 → 0.767 / 0.021 (``benchmarks/results/confidence.md``).
+Refitted after the junction without its cluster's leaves (``estimate.JUNCTION_CORE``, issue 11
+session 10; the shipped model, minima 0.52 with 8 cameras, 0.92 with 4): held out, 8 cameras,
+with per-part trust 0.973 / 0.938 → 0.958 / 0.970; body benchmark (offline, seeds 21, 22)
+separated 0.983 / 0.017 → 0.975 / 0.008, all poses 0.783 / 0.021 → 0.817 / 0.020.
 
 **Head doubt** (issue 11, :func:`head_doubt`, :func:`judge_frame` ``doubt_head``;
 ``FrameEstimator(head_doubt=False)`` off): when no part's removal explains the doubt and the

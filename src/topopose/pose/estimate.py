@@ -237,6 +237,11 @@ class FrameEstimator:
         (:func:`topopose.pose.confidence.head_doubt`, issue 11). None (default) or True: on;
         False: off; ``"any"``: a matched head too (opt-in: it also lets through frames with a
         spurious limb at the chest, ``benchmarks/results/confidence.md``).
+    junction_core : bool or None
+        A junction part's centroid (``junction_centroid``) over the data vertices of its
+        cluster that are not leaves of the data tree (:func:`junction_position`): a branch the
+        alignment contracted into the junction — a forearm lying on the belly — is no part of
+        it. None: the model's entry in :data:`JUNCTION_CORE` (human: on); False: every vertex.
     """
 
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
@@ -248,7 +253,7 @@ class FrameEstimator:
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
                  short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
                  hand_trunk=None, head_ball=None, keep_junctions=None, head_doubt=None,
-                 head_axis=None):
+                 head_axis=None, junction_core=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -291,6 +296,8 @@ class FrameEstimator:
         adj = self.model.tree.adjacency()
         self.junctions = ({p for p in self.model.parts if len(adj[p]) > 1}
                           if junction_centroid else set())
+        self.junction_core = (JUNCTION_CORE.get(self.model.name, False) if junction_core is None
+                              else bool(junction_core))
         self.up = np.asarray(cap.up_vector, dtype=float)
         from ..match.align import KEEP_CONSTRAINED_JUNCTIONS
         self.matcher = Matcher(self.pattern, method="aha", cut=False, up=self.up,
@@ -533,7 +540,7 @@ class FrameEstimator:
             v = al.mapping.get(p)
             pos = None if v is None else data.positions.get(v)
             if pos is not None and p in self.junctions:
-                pos = junction_position(al, data, p, v)
+                pos = junction_position(al, data, p, v, leaves=not self.junction_core)
             parts[p] = None if pos is None or p in unordered else np.asarray(pos, dtype=float)
         dropped = []
         if (self.leaf_axis is not None and all(x is not None for x in parts.values())
@@ -1107,7 +1114,19 @@ def short_limb(data, mapping, limbs, base, leg_base, legs, min_ratio):
     return p if x < min_ratio * leg else None
 
 
-def junction_position(al, data, part, v):
+# A junction's centroid (junction_position) without the data leaves of its co-optimal cluster:
+# model name → on. Measured on ``body`` (dev seeds 1, 11, 14, 5 builds × 12 frames, 100³, noise
+# 1, gate off): 30 of 180 all-pose frames have a leaf in the torso's cluster (a forearm on the
+# belly, its branch contracted into the junction), their torso error falls in 20 (e.g. 0.60 →
+# 0.25, 1.00 → 0.67 × the tolerance), TP rate / FP per match 0.811 / 0.070 → 0.817 / 0.064;
+# separated unchanged (0.978 / 0.022). Held out (benchmarks/quality.py, quality_body.md,
+# "no-junction-core" rows, the confidence refit with the rule): gate on, all poses 0.808 / 0.020
+# → 0.817 / 0.020, separated 0.975 / 0.008 either way; gate off unchanged (docs/body_accuracy.md).
+# See FrameEstimator(junction_core=).
+JUNCTION_CORE = {"human": True}
+
+
+def junction_position(al, data, part, v, leaves: bool = True):
     """Position of the junction part ``part`` mapped to data vertex ``v``.
 
     Thinning seldom leaves one intersection voxel where several limbs meet (§7.3): the data tree
@@ -1117,7 +1136,9 @@ def junction_position(al, data, part, v):
     connected to ``v`` through alternatives in the data tree — is the junction, and its centroid
     the estimate. Measured in ``benchmarks/quality.py`` (spider, 100³, noise 1, 40 frames): the
     cephalothorax median error 0.053 → 0.020 (tolerance 0.082), misplaced frames 7 → 2; human
-    torso 0.030 → 0.023.
+    torso 0.030 → 0.023. ``leaves`` False: the cluster's leaves of the data tree left out
+    (unless it has nothing else) — the far end of a branch contracted into the junction
+    (:data:`JUNCTION_CORE`).
     """
     alts = set((al.alternatives or {}).get(part) or ())
     if len(alts) <= 1 or v not in alts:
@@ -1130,6 +1151,8 @@ def junction_position(al, data, part, v):
             if y in alts and y not in seen:
                 seen.add(y)
                 stack.append(y)
+    if not leaves:
+        seen = [u for u in seen if len(adj.get(u, ())) > 1] or seen
     pts = [data.positions[u] for u in seen if data.positions.get(u) is not None]
     return np.mean(np.asarray(pts, dtype=float), axis=0) if pts else data.positions.get(v)
 

@@ -710,6 +710,26 @@ def part_displacement(a: dict, b: dict) -> float | None:
     return float(np.median(ds)) if ds else None
 
 
+#: a run is a coherent sequence of one subject when the median displacement of its parts
+#: between consecutive frames is at most this × the hull height (:func:`coherent_run`)
+COHERENT_STEP = 0.1
+
+
+def coherent_run(by_index) -> bool:
+    """Whether the poses ``by_index`` (frame index → pose) are a sequence of one subject: the
+    median over consecutive frames of the parts' median displacement
+    (:func:`part_displacement`, numbered parts paired) over the hull height is at most
+    :data:`COHERENT_STEP`; unrelated poses (a per-frame run of random poses) are not."""
+    steps = []
+    for i, p in by_index.items():
+        prev, H = by_index.get(i - 1), p.diagnostics.get("height")
+        if prev is not None and H:
+            d = part_displacement(p.parts, prev.parts)
+            if d is not None:
+                steps.append(d / H)
+    return bool(steps) and float(np.median(steps)) <= COHERENT_STEP
+
+
 def temporal_confidence(poses, frame_index, gate=True, min_confidence=MIN_CONFIDENCE) -> None:
     """Multiply the time factors into each pose's confidence, in place (module docstring), and
     re-decide ``matched`` when ``gate``. ``frame_index``: frame name → index in the capture."""
@@ -717,14 +737,7 @@ def temporal_confidence(poses, frame_index, gate=True, min_confidence=MIN_CONFID
     vols = [p.diagnostics.get("hull_voxels") for p in done if p.diagnostics.get("hull_voxels")]
     vmed = float(np.median(vols)) if vols else None
     by_idx = {frame_index[p.frame]: p for p in done if p.frame in frame_index}
-    steps = []
-    for i, p in by_idx.items():
-        prev, H = by_idx.get(i - 1), p.diagnostics.get("height")
-        if prev is not None and H:
-            d = part_displacement(p.parts, prev.parts)
-            if d is not None:
-                steps.append(d / H)
-    coherent = bool(steps) and float(np.median(steps)) <= 0.1
+    coherent = coherent_run(by_idx)
     for i, p in sorted(by_idx.items()):
         diag = p.diagnostics
         if "time" in diag.get("confidence_factors", {}):

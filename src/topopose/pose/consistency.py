@@ -65,9 +65,6 @@ MAX_DEVIATION = 0.05
 NEIGHBOURS = 2
 #: the lowest rank of the fitted confidence within the run of a consistent frame
 MIN_RANK = 0.5
-#: a run is a coherent sequence when the median displacement of the parts between consecutive
-#: frames is at most this × the hull height (as :func:`.confidence.temporal_confidence`)
-COHERENT_STEP = 0.1
 
 
 def part_group(part: str, groups=None) -> str:
@@ -198,22 +195,12 @@ def confidence_rank(poses) -> list:
 
 
 def coherent(poses, index=None) -> bool:
-    """Whether ``poses`` (sorted by frame) are a sequence of one subject: the median over
-    consecutive processed frames of the parts' median displacement (numbered parts paired,
-    :func:`.confidence.part_displacement`) over the hull height is at most
-    :data:`COHERENT_STEP`. Unrelated poses (a per-frame run of random poses) are not."""
-    from .confidence import part_displacement
+    """Whether ``poses`` (sorted by frame; ``index``: their frame indices, default 0…n−1) are a
+    sequence of one subject (:func:`.confidence.coherent_run`); failed frames are left out."""
+    from .confidence import coherent_run
 
     idx = list(range(len(poses))) if index is None else [int(i) for i in index]
-    at = {i: p for i, p in zip(idx, poses) if p.status != "failed"}
-    steps = []
-    for i, p in at.items():
-        prev, H = at.get(i - 1), p.diagnostics.get("height")
-        if prev is not None and H:
-            d = part_displacement(p.parts, prev.parts)
-            if d is not None:
-                steps.append(d / H)
-    return bool(steps) and float(np.median(steps)) <= COHERENT_STEP
+    return coherent_run({i: p for i, p in zip(idx, poses) if p.status != "failed"})
 
 
 def gated(pose) -> bool:

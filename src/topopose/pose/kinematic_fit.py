@@ -250,7 +250,11 @@ RAISED_SHOULDER = 0.08  # trunk lengths: a raised arm's shoulder (its hand past 
                         # 4.85 cm either way
 
 
-def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.ndarray:
+SEEN_HULL_SHOULDER = True
+HULL_GATE = 0.2
+
+
+def initial_placement(pose, tree: KinematicTree, spine=None, radius=None, hull=None) -> np.ndarray:
     """(n_joints, 3) joints at their relative arc length on the frame's curves (NaN: no curve);
     the trunk's curves and the offset joints moved back by ``spine`` (default
     :data:`SPINE_BACK`) × the frame's spine shift (:func:`frame_curves`). A joint with a
@@ -330,6 +334,19 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.
         if spine and pose.diagnostics.get("spine_shift") is not None and tree.limbs:
             moved[[_beside(tree, j) for j in range(len(tree.names))]] += spine * np.asarray(
                 pose.diagnostics["spine_shift"], float)
+        H = pose.diagnostics.get("hull_shoulders")
+        if (SEEN_HULL_SHOULDER if hull is None else hull) and H is not None:
+            H = np.asarray(H, float).reshape(-1, 3)
+            for j in range(len(tree.names)):          # a hanging arm's shoulder from the hull
+                u, v = tree.arc[j]
+                if not _beside(tree, j) or np.isnan(moved[j]).any() or v not in tree.limbs \
+                        or u != tree.trunk[1] or pose.parts.get(v) is None or \
+                        np.dot(np.asarray(pose.parts[v], float) - np.asarray(pose.parts[u], float),
+                               ax) > 0:
+                    continue
+                h = H[int(np.argmin(np.linalg.norm(H - moved[j], axis=1)))]
+                if np.linalg.norm(h - moved[j]) <= HULL_GATE:
+                    moved[j] = h
         out = moved
     return out
 
@@ -577,6 +594,7 @@ def _outward(P, tree, j, ax):
     return v / n if n > 0 else np.zeros(3)
 
 
+
 def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
     """Unseen joints placed in a rest pose (an unseen limb is mostly one merged with the body):
     a joint whose mirror mate hangs from the same parent joint mirrored about the trunk axis
@@ -655,6 +673,39 @@ ARM_EVIDENCE = True  # an unseen arm's elbow turned towards the hull's remainder
                      # (140 arms) / 7.9 → 7.2 cm (63 arms)
 
 
+HULL_SHOULDER = True  # an unseen arm's shoulder from the hull's cross-section below the neck
+                      # (``diagnostics["hull_shoulders"]``, :func:`topopose.pose.unseen.
+                      # hull_shoulders`; :func:`shoulder_fill`)
+
+
+
+SHOULDER_BLEND = 0.5
+
+
+def shoulder_fill(start, pose, tree: KinematicTree, unseen) -> np.ndarray:
+    """``start`` with each unseen arm (an arc from the trunk's upper part to a limb part, all
+    its joints ``unseen``) moved whole so that its shoulder is at the nearest of the frame's
+    two shoulders from the hull (``diagnostics["hull_shoulders"]``: the lateral extremes of
+    the trunk's cross-section below the neck, :func:`topopose.pose.unseen.hull_shoulders`).
+    The fit then keeps the chest → shoulder bone's length, taking its direction."""
+    H = pose.diagnostics.get("hull_shoulders")
+    out = start.copy()
+    if H is None or not tree.trunk:
+        return out
+    H = np.asarray(H, float).reshape(-1, 3)
+    for (u, v), js in tree.chains().items():
+        arm = js[1:]
+        if u != tree.trunk[1] or v not in tree.limbs or not arm or not unseen[arm].all() \
+                or np.isnan(out[arm]).any():
+            continue
+        h = H[int(np.argmin(np.linalg.norm(H - out[arm[0]], axis=1)))]
+        if np.linalg.norm(h - out[arm[0]]) > HULL_GATE:
+            continue
+        h = out[arm[0]] + SHOULDER_BLEND * (h - out[arm[0]])
+        out[arm] += h - out[arm[0]]
+    return out
+
+
 def hint_fill(start, pose, tree: KinematicTree, L, unseen) -> np.ndarray:
     """``start`` with each unseen arm that has a hand hint (``diagnostics["hand_hints"]``:
     the curve of the branch of a hand the per-frame stage left unplaced — an arm branch
@@ -698,7 +749,7 @@ def hint_fill(start, pose, tree: KinematicTree, L, unseen) -> np.ndarray:
 
 
 def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=None,
-                 quantile=None, slide=None, hints=None, evidence=None):
+                 quantile=None, slide=None, hints=None, evidence=None, shoulders=None):
     """Fit the full skeleton to every matched frame of a sequence (see the module docstring).
 
     Parameters
@@ -737,7 +788,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     radius = [np.linalg.norm(p.diagnostics["spine_shift"]) for p in poses
               if p.matched and p.diagnostics.get("spine_shift") is not None]
     radius = float(np.median(radius)) if radius and WIDTH_RADIUS == "sequence" else None
-    init = np.stack([initial_placement(p, tree, spine, radius) if p.matched
+    init = np.stack([initial_placement(p, tree, spine, radius, shoulders) if p.matched
                      else np.full((len(tree.names), 3), np.nan) for p in poses]) \
         if poses else np.zeros((0, len(tree.names), 3))
     L = bone_lengths(init, tree, quantile)
@@ -762,6 +813,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
                 start = evidence_fill(start, p, tree, L, miss, limbs)
             if miss.any() and (HAND_HINTS if hints is None else hints):
                 start = hint_fill(start, p, tree, L, miss)
+            if miss.any() and (HULL_SHOULDER if shoulders is None else shoulders):
+                start = shoulder_fill(start, p, tree, miss)
             Lf[i] = frame_lengths(init[i], L, tree, slide)
             Pi, r = fit_frame(init[i], frame_curves(p, tree, spine), Lf[i], tree,
                               start=None if np.isnan(start).any() else start,

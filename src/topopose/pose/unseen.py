@@ -14,6 +14,11 @@ largest inscribed balls do not reach):
   turns an unseen arm's elbow about its shoulder → wrist line (shoulder and wrist as the rest
   pose or the last frame put them, bone lengths constant) to where its two bones pass nearest
   the remainder on its side; with too little remainder in reach the arm is left as it was.
+* :func:`hull_shoulders` — the shoulders the trunk's own cross-section below the neck tells
+  (its lateral extremes, the column above them), whether an arm is seen or lies on the body;
+  the per-frame stage records them in ``diagnostics["hull_shoulders"]``
+  (:func:`frame_hull_shoulders`) and the kinematic fit places hanging and unseen arms'
+  shoulders there (``SEEN_HULL_SHOULDER``, ``HULL_SHOULDER``).
 
 Development seeds (random 21–28, walks 41–45, gate on; ``benchmarks/tracking.py``'s figures):
 with the true shoulder and bone lengths, elbow and wrist bent freely through the remainder

@@ -616,7 +616,6 @@ def _outward(P, tree, j, ax):
     return v / n if n > 0 else np.zeros(3)
 
 
-
 def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
     """Unseen joints placed in a rest pose (an unseen limb is mostly one merged with the body):
     a joint whose mirror mate hangs from the same parent joint mirrored about the trunk axis
@@ -714,11 +713,11 @@ SHOULDER_BLEND = 0.5  # the fraction of the way to the hull's shoulder an unseen
 
 def shoulder_fill(start, pose, tree: KinematicTree, unseen) -> np.ndarray:
     """``start`` with each unseen arm (an arc from the trunk's upper part to a limb part, all
-    its joints ``unseen``) moved whole so that its shoulder is at the nearest of the frame's
-    two shoulders from the hull (``diagnostics["hull_shoulders"]``: the lateral extremes of
-    the trunk's cross-section below the neck, :func:`topopose.pose.unseen.hull_shoulders`)
-    moved :data:`SHOULDER_BLEND` of the way, when within :data:`HULL_GATE`. The fit then
-    keeps the chest → shoulder bone's length, taking its direction."""
+    its joints ``unseen``) moved whole, its shoulder :data:`SHOULDER_BLEND` of the way to the
+    nearer of the frame's two shoulders from the hull (``diagnostics["hull_shoulders"]``: the
+    lateral extremes of the trunk's cross-section below the neck,
+    :func:`topopose.pose.unseen.hull_shoulders`) when that lies within :data:`HULL_GATE`. The
+    fit then keeps the chest → shoulder bone's length, taking its direction."""
     H = pose.diagnostics.get("hull_shoulders")
     out = start.copy()
     if H is None or not tree.trunk:

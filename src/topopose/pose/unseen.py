@@ -200,8 +200,9 @@ def hull_shoulders(vol, junction, axis, front, radius):
     f /= np.linalg.norm(f)
     lat = np.cross(ax, f)
     M = np.stack([ax, f, lat])
-    X = np.asarray(vol.origin, float) + np.argwhere(np.asarray(vol.data, bool)) * float(
-        vol.voxel_size)
+    data = np.asarray(vol.data, bool)
+    X = np.asarray(vol.origin, float) + np.stack(np.unravel_index(
+        np.flatnonzero(data), data.shape), axis=1) * float(vol.voxel_size)
     Y = (X - np.asarray(junction, float)) @ M.T
     r = float(radius)
     out = []

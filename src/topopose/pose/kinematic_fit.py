@@ -268,7 +268,14 @@ SEEN_HULL_SHOULDER = True  # a hanging seen arm's shoulder (its hand below the c
                            # 5.76 → 5.63, walks 4.84 → 4.46 cm; shoulders 6.6 → 6.3 / 6.0 →
                            # 4.4 cm. Weighting the hull's shoulders ×3 / ×10 in the fit brought
                            # the shoulders to 5.9 / 3.9 cm but bent the elbows off (random
-                           # 5.5 → 6.1 / 6.3 cm): MPJPE 5.70 / 5.77, not kept
+                           # 5.5 → 6.1 / 6.3 cm): MPJPE 5.70 / 5.77, not kept; only arms whose
+                           # upper arm hangs within 30° / 45° / 60° of the trunk axis: 5.73 /
+                           # 5.70 / 5.64, walks 4.85 / 4.67 / 4.47; bone lengths from the
+                           # placement without the hull: 5.67 / 4.51 cm. ``tracking.py --dev``
+                           # (random 21–32, walks 41–46, 60 / 40 frames), without → with:
+                           # MPJPE random 5.6 → 5.6 (shoulders 6.9 → 6.5, elbows 5.6 → 5.8),
+                           # walks 4.8 → 4.5 cm (shoulders 6.5 → 4.4); the real recording
+                           # (``real_motion.py``) 10.6 → 10.3 cm, shoulders 15.6 → 13.2 cm
 HULL_GATE = 0.2    # m: a shoulder from the hull farther than this from the joint's place: unused
 
 

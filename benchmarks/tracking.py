@@ -44,6 +44,9 @@ is measured beside its peer in the same run:
 * **arm evidence** (``diagnostics["arm_evidence"]``, :func:`topopose.pose.unseen.evidence_fill`):
   the fit against the same fit without it (``evidence=False``): MPJPE, frames holding joints,
   per joint, and the unseen arms' error.
+* **shoulders from the hull** (``diagnostics["hull_shoulders"]``,
+  :func:`topopose.pose.unseen.hull_shoulders`): the fit against the same fit without them
+  (``shoulders=False``): MPJPE, frames holding joints, per joint, and the unseen arms' error.
 
 The per-frame matching on the body is being improved elsewhere (issue 11): figures are as the
 per-frame result is, misses included. Writes ``tracking.md``, ``tracking.json`` and
@@ -330,13 +333,21 @@ def analyse(raw, cap, model):
         hints = p.diagnostics.get("hand_hints") or {}
         hinted += [(e, e0) for (_, e, e0), k in zip(arms, ("1", "2"))
                    if f"hand_{k}" in hints and f"wrist_{k}" in held]
-    noevid, _, _ = fit_sequence(tracked, model, evidence=False)   # the peer of the arm evidence
-    err_noevid, evid_arms, evid_holding = [], [], []   # (fit, without) per unseen arm / frame
-    for p, gj, P, Pq, held, arms in against(noevid):
-        err_noevid.append(joint_errors(tree.names, Pq, gj))
-        if held:
-            evid_holding.append((joint_errors(tree.names, P, gj), err_noevid[-1]))
-        evid_arms += [(e, e0) for kind, e, e0 in arms if kind == "held"]
+    def peer_errors(peer):
+        """Against ``peer``: its per-frame joint errors, (fit, peer) per frame holding joints
+        and per unseen arm."""
+        errs, holding, unseen = [], [], []
+        for p, gj, P, Pq, held, arms in against(peer):
+            errs.append(joint_errors(tree.names, Pq, gj))
+            if held:
+                holding.append((joint_errors(tree.names, P, gj), errs[-1]))
+            unseen += [(e, e0) for kind, e, e0 in arms if kind == "held"]
+        return errs, holding, unseen
+
+    # the peers of the arm evidence and of the shoulders from the hull
+    err_noevid, evid_holding, evid_arms = peer_errors(
+        fit_sequence(tracked, model, evidence=False)[0])
+    err_nosh, sh_holding, sh_arms = peer_errors(fit_sequence(tracked, model, shoulders=False)[0])
     hint_end = []        # each hint's end: distance to the nearest true elbow and wrist
     for p in raw:
         gj = gt["frames"][p.frame]["joints"]
@@ -408,6 +419,8 @@ def analyse(raw, cap, model):
            "mpjpe_noevid": mpjpe(err_noevid), "evid_arms": evid_arms,
            "evid_holding": [mpjpe([a for a, _ in evid_holding])[3],
                             mpjpe([b for _, b in evid_holding])[3]],
+           "mpjpe_nosh": mpjpe(err_nosh), "sh_arms": sh_arms,
+           "sh_holding": [mpjpe([a for a, _ in sh_holding])[3], mpjpe([b for _, b in sh_holding])[3]],
            "arms": arms, "frames_by": {k: mpjpe(v)[3] for k, v in frames_by.items()},
            "bone_lengths": {tree.names[j]: float(L[j]) for j in range(len(L)) if tree.parents[j] >= 0},
            "seconds": {"track": t_track, "fit": t_fit, "sides": t_sides}}
@@ -577,6 +590,28 @@ def _rate(c):
     return f"{c['right'] / n:.1%} ({c['right']}/{n}, wrong {c['wrong']}, unsure {c['unsure']})" if n else "–"
 
 
+def peer_bullet(rs, pj, pooled, title, peer, holding, arms):
+    """A report line: the fit against a peer (``mpjpe_<peer>``, the frames holding joints and
+    the unseen arms of each sequence ``rs``) — MPJPE, per joint, unseen arms' error."""
+    per = {}
+    for r in rs:
+        for j, v in r[f"mpjpe_{peer}"][4].items():
+            per.setdefault(j, []).extend(v)
+    a = [x for r in rs for x in r[arms]] or [(np.nan, np.nan)]
+    return (f"- {title}: MPJPE {100 * np.median(pooled):.1f} ← "
+            f"{100 * np.median([x for r in rs for x in r[f'mpjpe_{peer}'][3]]):.1f} cm; frames "
+            "holding joints "
+            f"{100 * np.median([x for r in rs for x in r[holding][0]] or [np.nan]):.1f} ← "
+            f"{100 * np.median([x for r in rs for x in r[holding][1]] or [np.nan]):.1f} cm "
+            f"({sum(len(r[holding][0]) for r in rs)} frames); the unseen arms' mean "
+            f"shoulder/elbow/wrist error, median {100 * np.median([x for x, _ in a]):.1f} ← "
+            f"{100 * np.median([y for _, y in a]):.1f} cm, mean "
+            f"{100 * np.mean([x for x, _ in a]):.1f} ← {100 * np.mean([y for _, y in a]):.1f} cm "
+            f"({sum(len(r[arms]) for r in rs)} arms); per joint: "
+            + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(per.get(j, [np.nan])):.1f}"
+                        for j, v in pj.items()))
+
+
 def report(rows, info, real=None):
     gate = "on (main's default)" if info.get("confidence_gate", True) else \
         "off (every frame the alignment accepts is matched)"
@@ -637,7 +672,6 @@ def report(rows, info, real=None):
         pjx = per_joint("mpjpe_fixed_seen")      # the neck's bone sliding
         pjr = per_joint("mpjpe_rest0")   # before HELD_SHOULDER, SLIDE_QUANTILE, RAISED_SHOULDER
         pjh = per_joint("mpjpe_nohint")          # without the hand hints
-        pje = per_joint("mpjpe_noevid")          # without the arm evidence
         pooled_before = [x for r in rs for x in r["mpjpe_before"][3]]
         he = np.array([x for r in rs for x in r["hint_end"]]).reshape(-1, 2)
         hi = [x for r in rs for x in r["hinted_arms"]] or [(np.nan, np.nan)]
@@ -701,24 +735,18 @@ def report(rows, info, real=None):
               "joint, now ← without the hints: "
               + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pjh.get(j, [np.nan])):.1f}"
                           for j, v in pj.items()),
-              "- arm evidence (`arm_evidence`: the hull's voxels the matched curves' inscribed "
-              "balls leave unexplained, recorded when a limb is unplaced; the unseen arm's elbow "
-              "bent towards it, shoulder and wrist kept, `topopose.pose.unseen.evidence_fill`), "
-              "now ← without (`evidence=False`): MPJPE "
-              f"{100 * np.median(pooled):.1f} ← "
-              f"{100 * np.median([x for r in rs for x in r['mpjpe_noevid'][3]]):.1f} cm; frames "
-              "holding joints "
-              f"{100 * np.median([x for r in rs for x in r['evid_holding'][0]] or [np.nan]):.1f} ← "
-              f"{100 * np.median([x for r in rs for x in r['evid_holding'][1]] or [np.nan]):.1f} cm "
-              f"({sum(len(r['evid_holding'][0]) for r in rs)} frames); the unseen arms' mean "
-              "shoulder/elbow/wrist error, median "
-              f"{100 * np.median([a for r in rs for a, _ in r['evid_arms']] or [np.nan]):.1f} ← "
-              f"{100 * np.median([b for r in rs for _, b in r['evid_arms']] or [np.nan]):.1f} cm, "
-              f"mean {100 * np.mean([a for r in rs for a, _ in r['evid_arms']] or [np.nan]):.1f} ← "
-              f"{100 * np.mean([b for r in rs for _, b in r['evid_arms']] or [np.nan]):.1f} cm "
-              f"({sum(len(r['evid_arms']) for r in rs)} arms); per joint: "
-              + ", ".join(f"{j} {100 * np.median(v):.1f} ← {100 * np.median(pje.get(j, [np.nan])):.1f}"
-                          for j, v in pj.items()),
+              peer_bullet(rs, pj, pooled, "arm evidence (`arm_evidence`: the hull's voxels the "
+                          "matched curves' inscribed balls leave unexplained, recorded when a "
+                          "limb is unplaced; the unseen arm's elbow bent towards it, shoulder "
+                          "and wrist kept, `topopose.pose.unseen.evidence_fill`), now ← "
+                          "without (`evidence=False`)", "noevid", "evid_holding", "evid_arms"),
+              peer_bullet(rs, pj, pooled, "shoulders from the hull (`hull_shoulders`: the "
+                          "trunk's cross-section below the chest junction, its lateral "
+                          "extremes and the column above them, `topopose.pose.unseen."
+                          "hull_shoulders`; a hanging seen arm's shoulder placed there, an "
+                          "unseen arm moved half-way to it, within 0.2 m, "
+                          "`kinematic_fit.SEEN_HULL_SHOULDER`, `HULL_SHOULDER`), now ← without "
+                          "(`shoulders=False`)", "nosh", "sh_holding", "sh_arms"),
               "- the unseen arm's shoulder, the neck's length, the raised arm's shoulder "
               "(`kinematic_fit.HELD_SHOULDER`: an unseen "
               "arm's shoulder opposite its mate, raised 30° from the plane across the trunk, "

@@ -70,3 +70,97 @@ def test_unseen_arm_elbow_follows_the_evidence(yaw):
     del cut.diagnostics["arm_evidence"]
     none, _, _ = fit_sequence([full, cut], HUMAN, max_gap=0)
     assert np.linalg.norm(none[1].joints["elbow_2"] - E0) < 1e-9
+
+
+def _upper_body(yaw, shift, across):
+    """A hull (1 cm voxels) of an upper body facing ``R @ x`` (body frame x forward, y left, z
+    up): an elliptic trunk (0.11 m front-back, 0.17 m to each side, z 1.0–1.45), a neck, a
+    deltoid ball (0.05 m) at each shoulder (0, ±0.19, 1.40), the left arm hanging against the
+    trunk's side, the right arm ``across`` the trunk's front (a hand on the body) or hanging.
+    Returns (Volume, the shoulders in the world, R, the world offset)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    vs, origin = 0.01, np.array([-0.45, -0.45, 0.85]) + shift
+    shape = (91, 91, 80)
+    X = origin + vs * np.argwhere(np.ones(shape, bool))
+    B = (X - shift) @ R                        # body frame
+    inside = ((B[:, 0] / 0.11) ** 2 + (B[:, 1] / 0.17) ** 2 <= 1) & (B[:, 2] >= 1.0) & \
+        (B[:, 2] <= 1.45)
+    inside |= (np.hypot(B[:, 0], B[:, 1]) <= 0.05) & (B[:, 2] > 1.4) & (B[:, 2] <= 1.62)
+    shoulders = np.array([[0.0, 0.19, 1.40], [0.0, -0.19, 1.40]])
+    ends = np.array([[0.0, 0.21, 1.0], [0.16, -0.02, 1.15] if across else [0.0, -0.21, 1.0]])
+    for sh, end in zip(shoulders, ends):
+        inside |= np.linalg.norm(B - sh, axis=1) <= 0.05
+        inside |= _seg_dist(B, sh[None], end[None])[0] <= 0.045
+    return Volume(inside.reshape(shape), origin, vs), shoulders @ R.T + shift, R, shift
+
+
+@pytest.mark.parametrize("yaw,across", [(0.3, True), (2.2, False), (-1.0, True)])
+def test_hull_shoulders_from_the_trunks_cross_section(yaw, across):
+    """The shoulders of a synthetic upper body (deltoids, one arm hanging against the trunk,
+    the other across its front) from its hull alone — the junction 5 cm below the shoulders,
+    the trunk axis, the front, the largest inscribed radius (0.11 m): each within 3 cm of the
+    true shoulder, on the side of axis × front first; the rest pose's guess for an unseen arm
+    (the mate's mirror, ``HELD_SHOULDER`` up) is not the point: this is the trunk's own
+    geometry."""
+    from topopose.pose.unseen import hull_shoulders
+
+    vol, S, R, shift = _upper_body(yaw, np.array([0.3, -0.2, 0.0]), across)
+    H = hull_shoulders(vol, R @ [0.0, 0.0, 1.35] + shift, R @ [0, 0, 1.0], R @ [1.0, 0, 0], 0.11)
+    assert H.shape == (2, 3)
+    err = np.linalg.norm(H - S, axis=1)
+    assert (err < 0.03).all(), err
+    # a wrong front (the body turned 90°) puts them elsewhere: the test can fail
+    H2 = hull_shoulders(vol, R @ [0.0, 0.0, 1.35] + shift, R @ [0, 0, 1.0], R @ [0, 1.0, 0], 0.11)
+    assert np.linalg.norm(H2 - S, axis=1).min() > 0.05
+
+
+def test_hull_shoulders_place_hanging_and_unseen_arms_only(monkeypatch):
+    """``diagnostics["hull_shoulders"]`` in the kinematic fit: a hanging seen arm's shoulder is
+    placed there (initial placement, within ``HULL_GATE``); a raised arm's keeps its
+    place on its curve; an unseen arm moves whole by ``SHOULDER_BLEND`` of the way to the nearer
+    one (within ``HULL_GATE``), bone lengths kept; ``shoulders=False``: as without."""
+    from topopose.pose import kinematic_fit as kf
+    from test_pose_sides_skeleton import _body, _numbered_frame
+
+    tree = kf.kinematic_tree(HUMAN)
+    parts, curves = _body(0.7, np.random.default_rng(2))
+    torso, crotch = parts["torso"], parts["crotch"]
+    ax = (torso - crotch) / np.linalg.norm(torso - crotch)
+    parts["left_hand"] = torso + 0.6 * ax + np.array([0.05, 0.1, 0.0])      # raised
+    curves["left_hand"] = resample([torso, torso + 0.15 * ax + [0.0, 0.12, 0.0],
+                                    parts["left_hand"]], 64)
+    pose, m = _numbered_frame("000000", parts, curves, False, False)
+    P0 = kf.initial_placement(pose, tree)
+    up, down = ("shoulder_" + m[x][-1] for x in ("left_hand", "right_hand"))
+    iu, idn = tree.names.index(up), tree.names.index(down)
+    H = np.array([P0[iu] + [0.0, 0.0, 0.05], P0[idn] + [0.03, -0.04, 0.02]])
+    pose.diagnostics["hull_shoulders"] = H.tolist()
+    P = kf.initial_placement(pose, tree)
+    assert np.allclose(P[idn], H[1]) and np.allclose(P[iu], P0[iu])
+    others = [j for j in range(len(tree.names)) if j != idn]
+    assert np.allclose(P[others], P0[others], equal_nan=True)
+    assert np.allclose(kf.initial_placement(pose, tree, hull=False), P0, equal_nan=True)
+    far = H.copy()
+    far[1] = P0[idn] + [0.0, 0.0, kf.HULL_GATE + 0.02]                  # beyond the gate
+    pose.diagnostics["hull_shoulders"] = far.tolist()
+    assert np.allclose(kf.initial_placement(pose, tree)[idn], P0[idn])
+    # an unseen arm (hand_2 not found): moved whole, half-way to the hull's shoulder
+    full, cut, _, _ = _hand_2_unseen(0.4, 3)
+    off, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0, shoulders=False)
+    J0 = off[1].joints
+    arm = [f"{j}_2" for j in ("shoulder", "elbow", "wrist", "fingertip")]
+    h = J0["shoulder_2"] + np.array([0.0, 0.0, 0.06])
+    far1 = J0["shoulder_1"] + (kf.HULL_GATE + 0.1) * (J0["chest"] - J0["pelvis"]) / \
+        np.linalg.norm(J0["chest"] - J0["pelvis"])          # the seen arm's: beyond the gate
+    cut.diagnostics["hull_shoulders"] = [h.tolist(), far1.tolist()]
+    on, _, _ = fit_sequence([full, cut], HUMAN, max_gap=0, evidence=False, hints=False)
+    J = on[1].joints
+    start = kf.shoulder_fill(np.array([J0[n] for n in tree.names]), cut, tree,
+                             np.array([n in arm for n in tree.names]))
+    moved = start[tree.names.index("shoulder_2")] - J0["shoulder_2"]
+    assert np.allclose(moved, kf.SHOULDER_BLEND * (h - J0["shoulder_2"]))
+    assert np.linalg.norm(J["shoulder_2"] - h) < np.linalg.norm(J0["shoulder_2"] - h) - 0.01
+    for a, b in zip(arm, arm[1:]):
+        assert np.isclose(np.linalg.norm(J[b] - J[a]), np.linalg.norm(J0[b] - J0[a]))
+    assert np.allclose(J["wrist_1"], J0["wrist_1"], atol=1e-6)

@@ -672,6 +672,13 @@ class FrameEstimator:
                 diag["curves"] = curves
                 if hints:
                     diag["hand_hints"] = hints
+                # the shoulders the trunk's cross-section below the neck tells (pose/unseen.py;
+                # used by the kinematic fit, nothing else changes)
+                if self.spine and diag.get("spine_shift") is not None:
+                    from .unseen import frame_hull_shoulders
+                    hs = frame_hull_shoulders(vol, curves, parts, self.model, diag["spine_shift"])
+                    if hs is not None:
+                        diag["hull_shoulders"] = np.round(hs, 4).tolist()
                 # an unplaced limb: the hull the matched curves leave unexplained, where it
                 # can lie (pose/unseen.py; used by the kinematic fit, nothing else changes)
                 if self.arm_evidence and any(parts.get(x) is None for pair, _ in

@@ -16,7 +16,9 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    lies behind the medial axis, :func:`frame_curves`); a joint with a ``width`` (hips) sits
    beside its arc's junction by ``width`` × the hull radius (the sequence's median); a joint
    with an ``at_raised`` (elbows, wrists) is there when its limb is raised, a raised arm's
-   shoulder lower by :data:`RAISED_SHOULDER`.
+   shoulder lower by :data:`RAISED_SHOULDER`; a hanging arm's shoulder is the hull's
+   (``diagnostics["hull_shoulders"]``: the trunk's cross-section below the neck,
+   :func:`topopose.pose.unseen.hull_shoulders`; :data:`SEEN_HULL_SHOULDER`).
 2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
    the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
    constant over the sequence; a ``slide`` bone (the neck's) at its median
@@ -47,6 +49,9 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    Before the hints, an unseen arm's elbow is turned about its shoulder → wrist line towards
    the hull the matched curves leave unexplained (``diagnostics["arm_evidence"]``,
    :mod:`topopose.pose.unseen`, :data:`ARM_EVIDENCE`; ``fit_sequence(evidence=False)``: off).
+   Last, an unseen arm moves half-way towards the nearer shoulder from the hull
+   (:func:`shoulder_fill`, :data:`HULL_SHOULDER`; ``fit_sequence(shoulders=False)``: off, for
+   the seen arms too).
 4. **Gaps** — stretches of at most ``max_gap`` unfitted frames between fitted ones are filled
    by interpolating the root position and the bone directions (normalized linear), flagged
    ``diagnostics["interpolated"] = true``; never silently. Optional Savitzky–Golay smoothing
@@ -250,7 +255,32 @@ RAISED_SHOULDER = 0.08  # trunk lengths: a raised arm's shoulder (its hand past 
                         # 4.85 cm either way
 
 
-def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.ndarray:
+SEEN_HULL_SHOULDER = True  # a hanging seen arm's shoulder (its hand below the chest junction
+                           # along the trunk) at the nearer of the frame's shoulders from the
+                           # hull (``diagnostics["hull_shoulders"]``: the trunk's cross-section
+                           # below the neck, :func:`topopose.pose.unseen.hull_shoulders`) when
+                           # within HULL_GATE of its place on the curve. Development seeds
+                           # 21–28 random, 41–45 walks (gate on; the seen shoulders' initial
+                           # placement, median): hanging arms 6.8 → 3.6 (random, 155 arms),
+                           # 6.0 → 2.4 cm (walks, 221); raised arms 6.4 → 8.5 cm (the slab's
+                           # lateral extreme is the arm: not used). MPJPE of the fit (unseen
+                           # arms' shoulders from the hull as well), without → with: random
+                           # 5.76 → 5.63, walks 4.84 → 4.46 cm; shoulders 6.6 → 6.3 / 6.0 →
+                           # 4.4 cm. Weighting the hull's shoulders ×3 / ×10 in the fit brought
+                           # the shoulders to 5.9 / 3.9 cm but bent the elbows off (random
+                           # 5.5 → 6.1 / 6.3 cm): MPJPE 5.70 / 5.77, not kept; only arms whose
+                           # upper arm hangs within 30° / 45° / 60° of the trunk axis: 5.73 /
+                           # 5.70 / 5.64, walks 4.85 / 4.67 / 4.47; bone lengths from the
+                           # placement without the hull: 5.67 / 4.51 cm. ``tracking.py --dev``
+                           # (random 21–32, walks 41–46, 60 / 40 frames), without → with:
+                           # MPJPE random 5.6 → 5.6 (shoulders 6.9 → 6.5, elbows 5.6 → 5.8),
+                           # walks 4.8 → 4.5 cm (shoulders 6.5 → 4.4); the real recording
+                           # (``real_motion.py``) 10.6 → 10.3 cm, shoulders 15.6 → 13.2 cm
+HULL_GATE = 0.2    # m: a shoulder from the hull farther than this from the joint's place: unused
+
+
+def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
+                      hull=None) -> np.ndarray:
     """(n_joints, 3) joints at their relative arc length on the frame's curves (NaN: no curve);
     the trunk's curves and the offset joints moved back by ``spine`` (default
     :data:`SPINE_BACK`) × the frame's spine shift (:func:`frame_curves`). A joint with a
@@ -263,7 +293,10 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.
     ``at_raised`` (elbows, wrists) is there instead of ``at`` when its arc's end part lies past
     its first part along the trunk (a hand above the chest junction: the arm's curve runs
     up through the shoulder's mass before the arm leaves it); such a raised arm's joint with
-    an offset (its shoulder) moves down the trunk by :data:`RAISED_SHOULDER` trunk lengths."""
+    an offset (its shoulder) moves down the trunk by :data:`RAISED_SHOULDER` trunk lengths.
+    A hanging arm's shoulder (hand below the chest junction) is the nearer of the frame's
+    ``diagnostics["hull_shoulders"]`` when within :data:`HULL_GATE` (``hull``, default
+    :data:`SEEN_HULL_SHOULDER`)."""
     curves = frame_curves(pose, tree, spine)
     out = np.full((len(tree.names), 3), np.nan)
     ax = None
@@ -330,6 +363,19 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None) -> np.
         if spine and pose.diagnostics.get("spine_shift") is not None and tree.limbs:
             moved[[_beside(tree, j) for j in range(len(tree.names))]] += spine * np.asarray(
                 pose.diagnostics["spine_shift"], float)
+        H = pose.diagnostics.get("hull_shoulders")
+        if (SEEN_HULL_SHOULDER if hull is None else hull) and H is not None:
+            H = np.asarray(H, float).reshape(-1, 3)
+            for j in range(len(tree.names)):          # a hanging arm's shoulder from the hull
+                u, v = tree.arc[j]
+                if not _beside(tree, j) or np.isnan(moved[j]).any() or v not in tree.limbs \
+                        or u != tree.trunk[1] or pose.parts.get(v) is None or \
+                        np.dot(np.asarray(pose.parts[v], float) - np.asarray(pose.parts[u], float),
+                               ax) > 0:
+                    continue
+                h = H[int(np.argmin(np.linalg.norm(H - moved[j], axis=1)))]
+                if np.linalg.norm(h - moved[j]) <= HULL_GATE:
+                    moved[j] = h
         out = moved
     return out
 
@@ -655,6 +701,48 @@ ARM_EVIDENCE = True  # an unseen arm's elbow turned towards the hull's remainder
                      # (140 arms) / 7.9 → 7.2 cm (63 arms)
 
 
+HULL_SHOULDER = True  # an unseen arm moved towards the shoulder from the hull's cross-section
+                      # below the neck (``diagnostics["hull_shoulders"]``, :func:`topopose.pose.
+                      # unseen.hull_shoulders`; :func:`shoulder_fill`), after the evidence and
+                      # the hints. Development seeds 21–28 random, 41–45 walks (gate on, 181
+                      # unseen arms): from the fit's chest the hull's shoulder is 3.6 cm from
+                      # the true one, the rest pose's 8.2 cm (median), but 30 % of the time it
+                      # is the worse one, and the arm moved with it then drags elbow and
+                      # wrist off. MPJPE random / walks: without 5.83 / 4.86 cm; the whole
+                      # arm moved before the evidence and hints 5.87 / 4.91, only the
+                      # shoulder 5.85 / 4.88, the arm after them 5.81 / 4.86; within 0.1 m
+                      # half-way (SHOULDER_BLEND) 5.76 / 4.84, within 0.2 m half-way 5.63 /
+                      # 4.46 (with the seen arms' hull shoulders: SEEN_HULL_SHOULDER), 0.7 of
+                      # the way 5.67 / 4.45. The rest pose's upper arm tilted out or forward
+                      # by 20° on top: 5.96–6.07 / 4.84–4.86 cm
+SHOULDER_BLEND = 0.5  # the fraction of the way to the hull's shoulder an unseen arm moves
+
+
+def shoulder_fill(start, pose, tree: KinematicTree, unseen) -> np.ndarray:
+    """``start`` with each unseen arm (an arc from the trunk's upper part to a limb part, all
+    its joints ``unseen``) moved whole, its shoulder :data:`SHOULDER_BLEND` of the way to the
+    nearer of the frame's two shoulders from the hull (``diagnostics["hull_shoulders"]``: the
+    lateral extremes of the trunk's cross-section below the neck,
+    :func:`topopose.pose.unseen.hull_shoulders`) when that lies within :data:`HULL_GATE`. The
+    fit then keeps the chest → shoulder bone's length, taking its direction."""
+    H = pose.diagnostics.get("hull_shoulders")
+    out = start.copy()
+    if H is None or not tree.trunk:
+        return out
+    H = np.asarray(H, float).reshape(-1, 3)
+    for (u, v), js in tree.chains().items():
+        arm = js[1:]
+        if u != tree.trunk[1] or v not in tree.limbs or not arm or not unseen[arm].all() \
+                or np.isnan(out[arm]).any():
+            continue
+        h = H[int(np.argmin(np.linalg.norm(H - out[arm[0]], axis=1)))]
+        if np.linalg.norm(h - out[arm[0]]) > HULL_GATE:
+            continue
+        h = out[arm[0]] + SHOULDER_BLEND * (h - out[arm[0]])
+        out[arm] += h - out[arm[0]]
+    return out
+
+
 def hint_fill(start, pose, tree: KinematicTree, L, unseen) -> np.ndarray:
     """``start`` with each unseen arm that has a hand hint (``diagnostics["hand_hints"]``:
     the curve of the branch of a hand the per-frame stage left unplaced — an arm branch
@@ -698,7 +786,7 @@ def hint_fill(start, pose, tree: KinematicTree, L, unseen) -> np.ndarray:
 
 
 def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=None,
-                 quantile=None, slide=None, hints=None, evidence=None):
+                 quantile=None, slide=None, hints=None, evidence=None, shoulders=None):
     """Fit the full skeleton to every matched frame of a sequence (see the module docstring).
 
     Parameters
@@ -722,6 +810,9 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         :data:`HAND_HINTS`, False: the rest pose or the last frame's arm only)
     evidence : an unseen arm bent through the hull the matched curves leave unexplained
         (:func:`topopose.pose.unseen.evidence_fill`; default :data:`ARM_EVIDENCE`)
+    shoulders : the shoulders from the hull's cross-section (a hanging arm's placed there, an
+        unseen arm moved towards it: :data:`SEEN_HULL_SHOULDER`, :func:`shoulder_fill`;
+        default :data:`HULL_SHOULDER`; False: neither)
 
     Returns
     -------
@@ -737,7 +828,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     radius = [np.linalg.norm(p.diagnostics["spine_shift"]) for p in poses
               if p.matched and p.diagnostics.get("spine_shift") is not None]
     radius = float(np.median(radius)) if radius and WIDTH_RADIUS == "sequence" else None
-    init = np.stack([initial_placement(p, tree, spine, radius) if p.matched
+    init = np.stack([initial_placement(p, tree, spine, radius, shoulders) if p.matched
                      else np.full((len(tree.names), 3), np.nan) for p in poses]) \
         if poses else np.zeros((0, len(tree.names), 3))
     L = bone_lengths(init, tree, quantile)
@@ -762,6 +853,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
                 start = evidence_fill(start, p, tree, L, miss, limbs)
             if miss.any() and (HAND_HINTS if hints is None else hints):
                 start = hint_fill(start, p, tree, L, miss)
+            if miss.any() and (HULL_SHOULDER if shoulders is None else shoulders):
+                start = shoulder_fill(start, p, tree, miss)
             Lf[i] = frame_lengths(init[i], L, tree, slide)
             Pi, r = fit_frame(init[i], frame_curves(p, tree, spine), Lf[i], tree,
                               start=None if np.isnan(start).any() else start,

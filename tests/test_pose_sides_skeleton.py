@@ -682,13 +682,9 @@ def test_an_unseen_shoulder_is_not_raised_with_its_raised_mate(monkeypatch):
     assert new < 0.03 and old > new + 0.03, (new, old)
 
 
-def test_a_raised_arms_shoulder_moves_down_the_trunk(monkeypatch):
-    """``RAISED_SHOULDER``: the shoulder of an arm whose hand lies above the chest junction
-    (along the trunk crotch → torso) moves down the trunk by that many trunk lengths, exactly;
-    a hanging arm's shoulder, the hips and every other joint stay where they were."""
-    from topopose.pose import kinematic_fit as kf
-
-    tree = kinematic_tree(HUMAN)
+def _raised_left_frame():
+    """A numbered frame of :func:`_body` (seed 2) with the left hand raised above the chest
+    junction; returns the pose, the side → numbered part map and (torso, crotch, trunk axis)."""
     parts, curves = _body(0.7, np.random.default_rng(2))
     torso, crotch = parts["torso"], parts["crotch"]
     ax = (torso - crotch) / np.linalg.norm(torso - crotch)
@@ -696,6 +692,17 @@ def test_a_raised_arms_shoulder_moves_down_the_trunk(monkeypatch):
     curves["left_hand"] = resample([torso, torso + 0.15 * ax + [0.0, 0.12, 0.0],
                                     parts["left_hand"]], 64)
     pose, m = _numbered_frame("000000", parts, curves, False, False)
+    return pose, m, (torso, crotch, ax)
+
+
+def test_a_raised_arms_shoulder_moves_down_the_trunk(monkeypatch):
+    """``RAISED_SHOULDER``: the shoulder of an arm whose hand lies above the chest junction
+    (along the trunk crotch → torso) moves down the trunk by that many trunk lengths, exactly;
+    a hanging arm's shoulder, the hips and every other joint stay where they were."""
+    from topopose.pose import kinematic_fit as kf
+
+    tree = kinematic_tree(HUMAN)
+    pose, m, (torso, crotch, ax) = _raised_left_frame()
     P, drop = kf.initial_placement(pose, tree), kf.RAISED_SHOULDER
     assert drop > 0
     monkeypatch.setattr(kf, "RAISED_SHOULDER", None)

@@ -6,7 +6,7 @@ from topopose import Volume
 from topopose.pose.curves import resample
 from topopose.pose.kinematic_fit import fit_sequence
 from topopose.pose.unseen import _seg_dist, hull_remainder
-from test_pose_sides_skeleton import HUMAN, _hand_2_unseen
+from test_pose_sides_skeleton import HUMAN, _hand_2_unseen, _raised_left_frame
 
 
 def _cylinder(shape, a, b, r):
@@ -121,16 +121,9 @@ def test_hull_shoulders_place_hanging_and_unseen_arms_only(monkeypatch):
     place on its curve; an unseen arm moves whole by ``SHOULDER_BLEND`` of the way to the nearer
     one (within ``HULL_GATE``), bone lengths kept; ``shoulders=False``: as without."""
     from topopose.pose import kinematic_fit as kf
-    from test_pose_sides_skeleton import _body, _numbered_frame
 
     tree = kf.kinematic_tree(HUMAN)
-    parts, curves = _body(0.7, np.random.default_rng(2))
-    torso, crotch = parts["torso"], parts["crotch"]
-    ax = (torso - crotch) / np.linalg.norm(torso - crotch)
-    parts["left_hand"] = torso + 0.6 * ax + np.array([0.05, 0.1, 0.0])      # raised
-    curves["left_hand"] = resample([torso, torso + 0.15 * ax + [0.0, 0.12, 0.0],
-                                    parts["left_hand"]], 64)
-    pose, m = _numbered_frame("000000", parts, curves, False, False)
+    pose, m, _ = _raised_left_frame()
     P0 = kf.initial_placement(pose, tree)
     up, down = ("shoulder_" + m[x][-1] for x in ("left_hand", "right_hand"))
     iu, idn = tree.names.index(up), tree.names.index(down)

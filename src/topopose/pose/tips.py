@@ -351,7 +351,7 @@ def head_along_axis(vol, parts: dict, rule, edt=None, ball=None):
     edt = inscribed_distances(vol.data) if edt is None else edt
     x = head_from_hull(vol, axis / n, a, frac, edt=edt, ball=ball)
     h = parts.get(head)
-    if x is not None and h is not None and edt is not None and (
+    if x is not None and h is not None and (
             np.linalg.norm(x - np.asarray(h, float))
             > max_shift * float(edt[0].max()) * float(vol.voxel_size)):
         return None

@@ -29,12 +29,14 @@
    the largest-gap rule and by the silhouette rule.
 
    Peers on the same frames: the head from the hull along the body's axis off (acrobatic:
-   ``head_axis=False``) and a smaller crotch drop (upright capsule human and body:
-   :data:`LOW_DROP`).
+   ``head_axis=False``), and every description evaluated on the pose's parts alone (the
+   crotch dropped below the legs' junction, ``pose/anatomy.py`` CROTCH_DROP: *before*) beside
+   the points the detection uses (``topopose.pose.detect.description_parts``: the junction).
 
 Writes benchmarks/results/applications.{md,json} and applications_*.png (``--detection-only``:
-only part 2, to applications_detection.{md,json}).
-Usage: python benchmarks/applications.py [--quick] [--detection-only]
+only part 2, to applications_detection.{md,json}; ``--dev``: part 2 on the development seeds,
+capsule human 3–4 and body 1–2, to applications_detection_dev.{md,json}).
+Usage: python benchmarks/applications.py [--quick] [--detection-only] [--dev]
 """
 from __future__ import annotations
 
@@ -444,16 +446,15 @@ def detection_row(pose, frame, up, rng=None):
     the former correspondence, ``truth_gt`` on gt.json's parts; whether the truth is stable
     (:func:`stable_truth`), and each part's offset estimate − corresponding point (numbered
     parts paired optimally)."""
-    from topopose.pose.detect import detect, evaluate, load_library, up_frame
+    from topopose.pose.detect import description_parts, detect, evaluate, load_library, up_frame
 
     gt, former = pipeline_points(frame), pipeline_points(frame, former=True)
-    # the crotch dropped by the pipeline (spine shift and crotch drop, pose/anatomy.py) sits at
-    # the hip centre, gt.json's crotch: the correspondence measured before the drop existed
-    dropped = (pose.diagnostics or {}).get("spine_shift") is not None
-    hip = {**gt, "crotch": frame["parts"].get("crotch")} if dropped else gt
+    # the points the descriptions compare (the crotch: the legs' junction before the drop of
+    # pose/anatomy.py, which the correspondence was measured on)
+    parts = description_parts(pose)
     rng = rng if rng is not None else np.random.default_rng(0)
     library, aliases = load_library()
-    est = {k: np.asarray(v, float) for k, v in pose.parts.items() if v is not None}
+    est = {k: np.asarray(v, float) for k, v in parts.items() if v is not None}
     for a, b in (("hand_1", "hand_2"), ("foot_1", "foot_2")):
         if a in est and b in est and (np.linalg.norm(est[a] - gt[b]) + np.linalg.norm(est[b] - gt[a])
                                       < np.linalg.norm(est[a] - gt[a]) + np.linalg.norm(est[b] - gt[b])):
@@ -464,7 +465,8 @@ def detection_row(pose, frame, up, rng=None):
         det[n] = {"truth": t, "stable": t is not None and stable_truth(p.expr, gt, up, aliases, t, rng),
                   "truth_gt": evaluate(p.expr, frame["parts"], up, aliases),
                   "truth_former": evaluate(p.expr, former, up, aliases),
-                  "truth_hip": evaluate(p.expr, hip, up, aliases),
+                  # before: the pose's parts alone (the crotch dropped below the junction)
+                  "parts": evaluate(p.expr, pose.parts, up, aliases),
                   **{f"m{m:g}": detect([pose], p.expr, up=up, aliases=aliases, margin=m)[0]["value"]
                      for m in DETECT_MARGINS}}
         v = det[n]["m0"]
@@ -476,21 +478,22 @@ def detection_row(pose, frame, up, rng=None):
     z = up_frame(up)[2]
     off = {k: [float((v - np.asarray(gt[k])) @ z), float(np.linalg.norm(v - np.asarray(gt[k])))]
            for k, v in est.items() if gt.get(k) is not None}
-    if dropped and "crotch" in est and frame["parts"].get("crotch") is not None:
-        d = est["crotch"] - np.asarray(frame["parts"]["crotch"], float)
-        off["crotch-at-hip-centre"] = [float(d @ z), float(np.linalg.norm(d))]
+    if pose.parts.get("crotch") is not None and gt.get("crotch") is not None:
+        d = np.asarray(pose.parts["crotch"], float) - np.asarray(gt["crotch"], float)
+        off["crotch-dropped"] = [float(d @ z), float(np.linalg.norm(d))]
     return {"detect": det, "part_offsets": off}
 
 
-def detection_counts(rows, name, margin=0.0, keep=None, truth="truth"):
+def detection_counts(rows, name, margin=0.0, keep=None, truth="truth", value=None):
     """TP/FP/FN/TN, undecided (margin) and missing (a part unmatched) over frames' detection rows
-    (``keep(row, detect_entry)``: the frames counted; ``truth``: the truth's key)."""
+    (``keep(row, detect_entry)``: the frames counted; ``truth``: the truth's key; ``value``:
+    the detected value's key, default the margin's)."""
     c = {"tp": 0, "fp": 0, "fn": 0, "tn": 0, "undecided": 0, "missing": 0, "truth_true": 0}
     for r in rows:
         d = r["detect"][name]
         if keep is not None and not keep(r, d):
             continue
-        t, v = d[truth], d[f"m{margin:g}"]
+        t, v = d[truth], d[value or f"m{margin:g}"]
         c["truth_true"] += bool(t)
         if d["m0"] is None:
             c["missing"] += 1
@@ -574,13 +577,11 @@ def bench_detection(n_frames, seeds, log):
     # "acrobatic no-tip-anchor": the peer of the head tip prolonged from the torso
     # (pose/tips.py TIP_ANCHOR), the head along its branch's own end direction, 1.5 radii;
     # "acrobatic no-head-axis": the peer of the head from the hull along the body's axis
-    # (pose/tips.py HEAD_AXIS), the head tip prolonged from the torso; "upright crotch drop
-    # 0.1": the crotch dropped 0.1 × the hull's radius, not 0.35 (pose/anatomy.py CROTCH_DROP)
+    # (pose/tips.py HEAD_AXIS), the head tip prolonged from the torso
     for kind, constraints, opts in (("upright", True, {}), ("acrobatic", False, {}),
                                     ("acrobatic no-head-axis", False, {"head_axis": False}),
                                     ("acrobatic no-tip-anchor", False, {"tip_anchor": False,
-                                                                        "head_axis": False}),
-                                    ("upright crotch drop 0.1", True, {"crotch_drop": LOW_DROP})):
+                                                                        "head_axis": False})):
         tags, frames, rows = {}, 0, []
         rng = np.random.default_rng(0)
         for seed in seeds:
@@ -593,10 +594,6 @@ def bench_detection(n_frames, seeds, log):
                      "tags": tags, "rows": rows}
         log(f"detection {kind}: {len(rows)}/{frames} matched")
     return out
-
-
-#: a smaller crotch drop than pose/anatomy.py CROTCH_DROP's (0.1 × the radius down, not 0.35), a peer
-LOW_DROP = ("crotch", 0.1, 0.10, 0.5)
 
 
 def bench_body_detection(n_frames, seeds, log, **opts):
@@ -678,27 +675,31 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--detection-only", action="store_true",
                     help="only the pose detection (2.), written to applications_detection.{md,json}")
+    ap.add_argument("--dev", action="store_true",
+                    help="only the pose detection on the development seeds (capsule human 3–4, "
+                         "body 1–2), to applications_detection_dev.{md,json}")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    suffix = ("_quick" if a.quick else "") + ("_detection" if a.detection_only else "")
+    a.detection_only = a.detection_only or a.dev
+    suffix = (("_quick" if a.quick else "") + ("_detection" if a.detection_only else "")
+              + ("_dev" if a.dev else ""))
     log = lambda s: print(s, flush=True)  # noqa: E731
     t0 = time.time()
     # warm the kernels (compilation is not what is measured)
     bench_segmentation(2, [99], lambda s: None)
     if a.detection_only:
         seg, clu = [], []
-        det = bench_detection(30 if a.quick else 100, [1] if a.quick else [1, 2], log)
-        bdet = bench_body_detection(10 if a.quick else 40, [2] if a.quick else [5, 6, 7], log)
-        bdet0 = bench_body_detection(10 if a.quick else 40, [2] if a.quick else [5, 6, 7], log,
-                                     crotch_drop=LOW_DROP)
+        # held out: capsule human seeds 1–2, body 5–7; development: 3–4 and 1–2
+        hs, bs = ([3, 4], [1, 2]) if a.dev else ([1, 2], [5, 6, 7])
+        det = bench_detection(30 if a.quick else 100, hs[:1] if a.quick else hs, log)
+        bdet = bench_body_detection(10 if a.quick else 40, bs[-1:] if a.quick else bs, log)
     elif a.quick:
         seg = bench_segmentation(8, [2], log) + bench_segmentation(
             6, [2], log, "body", out / f"applications_segmentation_errors{suffix}.png")
         det = bench_detection(30, [1], log)
         bdet = bench_body_detection(10, [2], log)
-        bdet0 = bench_body_detection(10, [2], log, crotch_drop=LOW_DROP)
         clu = bench_clustering(4, 30, [1], log, out / f"applications_clusters{suffix}.png")
     else:
         seg = bench_segmentation(25, [2, 3], log) + bench_segmentation(
@@ -708,7 +709,6 @@ def main(argv=None):
             seg.append({**r, "subject": "body-dev"})
         det = bench_detection(100, [1, 2], log)
         bdet = bench_body_detection(40, [5, 6, 7], log)
-        bdet0 = bench_body_detection(40, [5, 6, 7], log, crotch_drop=LOW_DROP)
         clu = bench_clustering(5, 60, [1, 2, 3], log, out / f"applications_clusters{suffix}.png")
     if not a.detection_only:
         segmentation_figure(out / f"applications_segmentation{suffix}.png")
@@ -737,7 +737,7 @@ def main(argv=None):
         speed["ratio_watershed_over_flood"] = float(np.median([r["watershed_ms"] / r["flood_ms"] for r in seg]))
         speed["agree_watershed"] = _mean([r["agree_watershed"] for r in seg])
     sets = [(f"human {k}", d["rows"]) for k, d in det.items()] + [
-        ("body", bdet["rows"]), ("body crotch drop 0.1", bdet0["rows"])]
+        ("body", bdet["rows"])]
     pose_names = list(sets[0][1][0]["detect"]) if sets and sets[0][1] else []
     margin_counts = {label: {n: {f"{m:g}": detection_counts(rows, n, m) for m in DETECT_MARGINS}
                              for n in pose_names} for label, rows in sets}
@@ -748,7 +748,7 @@ def main(argv=None):
                                "causes": error_causes(rows, n),
                                "truth_gt": detection_counts(rows, n, truth="truth_gt"),
                                "truth_former": detection_counts(rows, n, truth="truth_former"),
-                               "truth_hip": detection_counts(rows, n, truth="truth_hip"),
+                               "before": detection_counts(rows, n, value="parts"),
                                "blame": error_blame(rows, n)}
                            for n in pose_names} for label, rows in sets}
     offsets = {}
@@ -773,7 +773,6 @@ def main(argv=None):
                                            "speed_median": speed},
          "detection": {k: {kk: v for kk, v in d.items() if kk != "rows"} for k, d in det.items()},
          "detection_body": {k: v for k, v in bdet.items() if k != "rows"},
-         "detection_body_crotch_drop_0.1": {k: v for k, v in bdet0.items() if k != "rows"},
          "detection_summary": det_summary, "detection_margins": margin_counts,
          "part_offsets": offsets, "clustering": clu}, indent=1))
 
@@ -843,7 +842,12 @@ def main(argv=None):
               f"| ratio peer / ours (plain flooding) | {speed['ratio_watershed_over_flood']:.1f} |", "",
               f"Voxels on which the peer and our plain flooding agree: mean "
               f"{speed['agree_watershed']:.4f} (they differ only on ties).", ""]
-    L += ["## 2. Specific pose detection (§13.3.2.1)", "",
+    L += ["## 2. Specific pose detection (§13.3.2.1)", ""]
+    if a.dev:
+        L += ["**Development seeds** (`--dev`): capsule human seeds 3–4, body seeds 1–2 (what "
+              "the text below calls held out is the default run's; these are the seeds the "
+              "choices were made on).", ""]
+    L += [
           "Truth = the same description evaluated on the ground-truth points that correspond to "
           "what the pipeline outputs for each part (`pipeline_points`: the pipeline's head is the "
           "crown, placed from the hull by `pose/tips.py` `head_from_hull`; body: head → rig point "
@@ -882,15 +886,17 @@ def main(argv=None):
     L.append("Peers (same frames): *human acrobatic no-head-axis* — the head not placed from the "
              "hull along the body's axis (`FrameEstimator(head_axis=False)`, "
              "`pose/tips.py` `HEAD_AXIS`, on by default without coordinate constraints); "
-             "*human upright crotch drop 0.1* and *body crotch drop 0.1* — the crotch "
-             "dropped 0.1 × the hull's radius rather than 0.35 "
-             "(`FrameEstimator(crotch_drop=('crotch', 0.1, 0.1, 0.5))`, `pose/anatomy.py` "
-             "`CROTCH_DROP`: not kept, it costs the body's separated frames in "
-             "quality_body.md, *crotch-drop-0.1* rows).")
+             "*before* (column): the descriptions on the pose's parts alone, whose crotch "
+             "`pose/anatomy.py` `CROTCH_DROP` drops 0.35 × the hull's radius below the legs' "
+             "junction (for the matching quality of flexed hips) — 4 cm below the pelvis' "
+             "centre on the development seeds, out of the hands' R_b ball in wide-spread arms; "
+             "*now*: the points `topopose.pose.detect.description_parts` gives, the junction "
+             "before the drop (recorded in `diagnostics[\"detect_parts\"]`), the point the "
+             "pelvis correspondence was measured on.")
     L += ["", "| subject | pose | truth true / matched | missing | precision / recall, all | "
           "good frames | P / R, good | good, stable frames | P / R, good and stable | "
           "wrong: not good / borderline / stable | stable-truth frames | P / R, stable truth "
-          "(extra) | P / R, former truth | P / R, crotch at the hip centre when dropped (extra) |",
+          "(extra) | P / R, former truth | P / R, all: before ← now |",
           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for label, rows in sets:
         for n in pose_names:
@@ -902,16 +908,13 @@ def main(argv=None):
                      f"{c['all']['missing']} | {pr(c['all'])} | {ng} | {pr(c['good'])} | {ns} | "
                      f"{pr(c['good_stable'])} | {e['not_good']} / {e['borderline']} / {e['stable_good']} | "
                      f"{sum(c['stable'][k] for k in ('tp', 'fp', 'fn', 'tn'))} | {pr(c['stable'])} | "
-                     f"{pr(c['truth_former'])} | {pr(c['truth_hip'])} |")
+                     f"{pr(c['truth_former'])} | {pr(c['before'])} ← {pr(c['all'])} |")
     L += ["", "Which point makes each wrong decision (margin 0, all matched frames): the part "
           "whose pipeline point alone, replaced by its corresponding truth point, makes the "
           "decision right (*none*: no single part does; a decision two parts can each fix "
           "counts for both), with that part's mean offset pipeline − truth along the up axis "
-          "over those decisions. The last column of the table above and the offset row "
-          "*crotch-at-hip-centre* below: the pipeline's crotch, when it was dropped (spine "
-          "shift and crotch drop of `pose/anatomy.py`, which moved it onto the hip centre after "
-          "the correspondence was measured), against gt.json's crotch (the hip centre) instead "
-          "of the pelvis' centre or `Hips_head`: an extra view, not the headline.", "",
+          "over those decisions. Offset row *crotch-dropped* below: the pose's own crotch "
+          "(dropped, *before*) against the same truth point.", "",
           "| subject | pose | wrong decisions by part (n, mean vertical offset m) |", "|---|---|---|"]
     for label, rows in sets:
         for n in pose_names:

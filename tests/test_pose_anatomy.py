@@ -217,6 +217,10 @@ def test_body_crouch_the_crotch_reaches_the_pelvis():
     assert np.asarray(old.parts["crotch"])[2] > max(np.asarray(seg)[:, 2])    # high
     assert point_segment_distance(new.parts["crotch"], *seg) <= tol
     assert np.asarray(new.parts["crotch"])[2] < np.asarray(old.parts["crotch"])[2]
+    # the junction before the drop, what the pose descriptions compare (§13.3.2.1): the
+    # crotch of the estimate without the drop
+    assert "detect_parts" not in old.diagnostics
+    assert np.allclose(new.diagnostics["detect_parts"]["crotch"], old.parts["crotch"], atol=1e-5)
 
 
 def test_trunk_blend_draws_the_torso_towards_the_trunk_line():

@@ -507,6 +507,31 @@ def test_detect_sequence_intervals_and_cli(tmp_path, capsys):
     assert main(["detect", str(f), "--pose", "nope"]) == 2
 
 
+def test_wide_spread_arms_compares_the_crotch_before_its_drop(tmp_path):
+    """§13.3.2.1 with R_b, hand-computed: hands at (±0.8, 0, 1.4) hold the legs' junction
+    (0.95 up: the angle hand–junction–hand is obtuse, (−0.8, 0.45)·(0.8, 0.45) < 0) between
+    them, not a crotch dropped to 0.55 ((−0.8, 0.85)·(0.8, 0.85) > 0). The detection compares
+    the junction a pose records in diagnostics["detect_parts"], through poses.jsonl too; an
+    unplaced crotch stays unplaced."""
+    from topopose.cli import main
+
+    parts = {"head": [0, 0, 1.7], "torso": [0, 0, 1.3], "crotch": [0, 0, 0.55],
+             "hand_1": [-0.8, 0, 1.4], "hand_2": [0.8, 0, 1.4]}
+    expr = D.load_library()[0]["wide-spread-arms"].expr
+    junction = {"detect_parts": {"crotch": [0, 0, 0.95]}}
+    plain = {"frame": "000000", "status": "matched", "parts": parts}
+    recorded = {**plain, "frame": "000001", "diagnostics": junction}
+    lost = {**recorded, "frame": "000002", "parts": {**parts, "crotch": None}}
+    assert D.description_parts(recorded)["crotch"] == [0, 0, 0.95]
+    assert D.description_parts(plain) == parts
+    assert [r["value"] for r in D.detect([plain, recorded, lost], expr)] == [False, True, None]
+    f = tmp_path / "poses.jsonl"
+    f.write_text("".join(json.dumps({**d, "distance": 0.1}) + "\n" for d in (plain, recorded, lost)))
+    assert main(["detect", str(f), "--pose", "wide-spread-arms", "--output", str(tmp_path / "o.jsonl")]) == 0
+    res = [json.loads(x)["value"] for x in (tmp_path / "o.jsonl").read_text().splitlines()]
+    assert res == [False, True, None]
+
+
 def test_user_library(tmp_path):
     lib = tmp_path / "lib.toml"
     lib.write_text('[aliases.me]\nHD = "head"\n[[pose]]\nname = "hand-high"\nexpr = "above hand_1 HD"\n')

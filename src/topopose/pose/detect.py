@@ -486,10 +486,30 @@ def header_up(header: dict):
     return None
 
 
+def description_parts(pose) -> dict:
+    """The points a description compares for one pose (§13.3.2.1): its parts, with the ones
+    its ``diagnostics["detect_parts"]`` records in their place.
+
+    The per-frame estimate drops the crotch below the legs' junction
+    (:data:`topopose.pose.anatomy.CROTCH_DROP`, for the matching quality of flexed hips) and
+    records the junction there: the pelvis (capsule human: its centre, −0.5 cm along up; ``body``:
+    ``Hips_head``, +0.5 cm; development seeds), the point the thesis' "crotch between the two
+    arms" needs — dropped, it leaves the hands' ball of R_b in wide-spread arms. A part the
+    pose leaves unplaced stays unplaced.
+
+    ``pose``: a :class:`~topopose.pose.Pose` or a dict with ``parts`` (and ``diagnostics``).
+    """
+    parts = pose.parts if hasattr(pose, "parts") else pose["parts"]
+    diag = (pose.diagnostics if hasattr(pose, "diagnostics") else pose.get("diagnostics")) or {}
+    extra = diag.get("detect_parts") or {}
+    return {**parts, **{k: v for k, v in extra.items() if parts.get(k) is not None}}
+
+
 def detect(poses, expr, up="+z", aliases=None, matched_only=True, margin: float = 0.0) -> list:
     """Evaluate a description on every pose: a list of ``{"frame", "value"}`` dicts.
 
-    ``poses``: :class:`~topopose.pose.Pose` objects or dicts frame/parts(/status).
+    ``poses``: :class:`~topopose.pose.Pose` objects or dicts frame/parts(/status/diagnostics);
+    each pose's points are :func:`description_parts`.
     ``value`` is None for frames that are not matched (``matched_only``), lack a part, or are
     undecided within ``margin`` (:func:`evaluate`).
     """
@@ -500,7 +520,7 @@ def detect(poses, expr, up="+z", aliases=None, matched_only=True, margin: float 
     for p in poses:
         frame = p.frame if hasattr(p, "frame") else p["frame"]
         status = p.status if hasattr(p, "status") else p.get("status", "matched")
-        parts = p.parts if hasattr(p, "parts") else p["parts"]
+        parts = description_parts(p)
         val = None if (matched_only and status != "matched") else evaluate(node, parts, up, aliases, margin)
         out.append({"frame": frame, "value": val})
     return out

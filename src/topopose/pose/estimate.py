@@ -565,8 +565,10 @@ class FrameEstimator:
         if self.spine or self.head_from_hull is not None or self.hand_trunk is not None:
             from .tips import inscribed_distances      # inscribed radii, once a frame
             edt = inscribed_distances(vol.data, box, sq)
+        detect_parts = {}
         if self.spine:      # the spine lies behind the medial axis (pose/anatomy.py)
-            parts, diag_spine = self.spine_parts(vol, skel, data, al, parts, edt, sk_vox)
+            parts, diag_spine, detect_parts = self.spine_parts(vol, skel, data, al, parts, edt,
+                                                               sk_vox)
         missing = [p for p, x in parts.items() if x is None]   # by the alignment: the status
         from_hull = []
         if self.head_from_hull is not None:
@@ -650,6 +652,11 @@ class FrameEstimator:
             diag["on_trunk"] = self.trunk[0]
         if self.spine:
             diag["spine_shift"] = diag_spine
+        detect_parts = {p: x for p, x in detect_parts.items() if parts.get(p) is not None}
+        if detect_parts:
+            # the crotch before the drop (pose/anatomy.py CROTCH_DROP): the pelvis, what the
+            # pose descriptions compare (§13.3.2.1, topopose.pose.detect.description_parts)
+            diag["detect_parts"] = detect_parts
         if unordered:
             diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
         if self.curves:
@@ -698,18 +705,24 @@ class FrameEstimator:
 
     def spine_parts(self, vol, skel, data, al, parts, edt=None, voxels=None):
         """``parts`` with the body-axis parts moved back onto the spine
-        (:mod:`topopose.pose.anatomy`), and the shift applied (world units, or None)."""
+        (:mod:`topopose.pose.anatomy`), the shift applied (world units, or None) and the
+        dropped part before its drop (``{part: position}``, {} without a drop): the legs'
+        junction on the spine, the pelvis the pose descriptions compare (§13.3.2.1)."""
         from .anatomy import crotch_drop, front_direction, hull_radius, spine_shift
 
         feet = [p for p in self.model.parts if p.rstrip("_0123456789") == "foot"]
         front = front_direction(vol, skel, data, al.mapping, feet, self.up, voxels=voxels)
         if front is None:
-            return parts, None
+            return parts, None, {}
         r = hull_radius(vol, edt)
         parts = spine_shift(parts, front, r, self.spine)
+        before = {}
         if self.crotch_drop is not None:
+            part = self.crotch_drop[0]
+            if parts.get(part) is not None:
+                before = {part: np.round(np.asarray(parts[part], float), 6).tolist()}
             parts = crotch_drop(parts, self.up, front, r, self.crotch_drop, vol)
-        return parts, [round(float(x), 4) for x in -r * front]
+        return parts, [round(float(x), 4) for x in -r * front], before
 
     def _failed(self, name, reason, timings, t_all):
         timings["total"] = (time.perf_counter() - t_all) * 1e3

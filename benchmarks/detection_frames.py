@@ -83,8 +83,8 @@ def main(argv=None):
                          f"truth {evaluate(expr, gt, cap.up, aliases)}" if i == 0 else name,
                          fontsize=8)
             ax.tick_params(labelsize=6)
-    fig.suptitle("o truth point, x detection point, □ the pose's dropped crotch; colours: head red, "
-                 "torso orange, crotch purple, hands blue/cyan, feet green", fontsize=8)
+    fig.suptitle("o truth point, x detection point, □ the pose's dropped crotch\ncolours: head "
+                 "red, torso orange, crotch purple, hands blue/cyan, feet green", fontsize=8)
     fig.tight_layout()
     fig.savefig(a.out, dpi=110)
     print(a.out)

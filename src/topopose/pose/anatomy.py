@@ -122,8 +122,10 @@ TRUNK_BLEND = {"human": ("torso", "crotch", "head", 0.6, 0.5)}
 # separated 0.98 / 0.017 → 0.96 / 0.034 (misplaced 2 → 4 of 120; 150³ 0 → 1), all poses 0.78 /
 # 0.021 either way — flexed hips (the frame of tests/test_pose_anatomy.py) need the whole drop,
 # and no per-frame cue told them from the capsule's (hip flexion in the sagittal plane: 5–95 %
-# alike). The peers *crotch-drop-0.1* (quality_body.md) and *crotch drop 0.1*
-# (applications.md) keep the trade measured.
+# alike). The peer *crotch-drop-0.1* (quality_body.md) keeps the trade measured. The pose
+# descriptions (§13.3.2.1) compare the junction before the drop instead, which the estimate
+# records in ``diagnostics["detect_parts"]`` (:func:`topopose.pose.detect.description_parts`;
+# applications.md, *before ← now*): the parts, and so issue 11's figures, are unchanged.
 CROTCH_DROP = {"human": ("crotch", 0.35, 0.10, 0.5)}
 # A hand on the trunk left unplaced (:func:`hand_on_trunk`): model name → (hands, core, reach).
 # A forearm folded onto the chest or the belly fuses with the trunk in the hull; the arm's

@@ -51,6 +51,8 @@ DEFAULT = HERE / "data" / "pose2sim_balancing"
 RIGHT = 0.15            # metres
 #: ``METHOD+VARIANT[+VARIANT]``: extra ``[silhouettes]`` lines of a variant of a method
 VARIANTS = {"track": "person_track = true\n",              # MediaPipe's tracking mode
+            # each camera segmented every 2nd (3rd) frame, staggered; the others keep theirs
+            "every2": "person_every = 2\n", "every3": "person_every = 3\n",
             # the reader as it was before: FFmpeg's own threads, decoding in the reader thread
             "oldreader": "decode_threads = 0\ndecode_ahead = 0\n",
             # the hull carved from the full-size masks (not from the network's small ones)

@@ -352,23 +352,22 @@ def _person_maps(cap, frame, images, p) -> list:
     = n`` > 1: when the frame follows the one segmented last, only the cameras ``c`` with
     ``(index + c) % n == 0`` are segmented (a share 1/n of them, staggered so that every
     camera is segmented every n-th frame); the others keep their map of the frame before,
-    at most n - 1 frames old. Otherwise (the first frame, a jump) every camera is segmented."""
+    at most n - 1 frames old. Otherwise (the first frame, a jump) every camera is segmented
+    (and, with ``person_track``, starts a new tracking graph)."""
     from .segment import person_probabilities
     i = cap.frames.index(frame)
     n = int(p.get("person_every", 1))
     last = cap.cache.get("person_last")          # (index, maps) of the frame segmented last
-    cams = range(len(cap.cameras))
-    if n > 1 and last is not None and last[0] == i - 1:
-        cams = [c for c in cams if (i + c) % n == 0]
+    follows = last is not None and last[0] == i - 1
+    cams = [c for c in range(len(cap.cameras)) if not follows or (i + c) % n == 0]
     s = float(p["scale"])
     got = person_probabilities([downscale(images[c], cap.cameras[c], s) for c in cams],
                                [(id(cap), c) for c in cams],
-                               i if p.get("person_track") else None, n)
-    out = list(last[1]) if len(cams) < len(cap.cameras) else [None] * len(cap.cameras)
+                               i if p.get("person_track") else None, n if follows else 0)
+    out = list(last[1]) if follows else [None] * len(cap.cameras)
     for c, q in zip(cams, got):
         out[c] = q
-    if n > 1:
-        cap.cache["person_last"] = (i, out)
+    cap.cache["person_last"] = (i, out)
     return out
 
 

@@ -95,7 +95,8 @@ def person_probability(img: np.ndarray, stream="", index=None, step=1) -> np.nda
     network (module docstring); 128 everywhere when it finds no one. ``stream``: the camera.
     ``index``: the frame's index in its sequence, for tracking mode (None: static mode); a
     frame that does not follow the stream's previous one (by 1 to ``step`` frames: the
-    stream's frames may be every ``step``-th, ``person_every``) starts a new graph."""
+    stream's frames may be every ``step``-th, ``person_every``; ``step = 0``: never) starts
+    a new graph."""
     key, make, fresh = ("person", stream), _pose, False
     if index is not None:
         key, make = ("person-track", stream), lambda: _pose(track=True)   # noqa: E731

@@ -242,6 +242,31 @@ def same_poses(a, b) -> int:
     return sum(key(x) == key(y) for x, y in zip(a, b))
 
 
+def thread_cpu() -> dict:
+    """CPU seconds so far of this process's threads by kind (Linux ``/proc``; {} elsewhere):
+    ``pipeline`` (the main thread: hull, skeleton, alignment, placement), ``decode`` (the
+    read-ahead thread), ``reader`` (resizing, the silhouettes' Python side), ``person pool``
+    (the threads that feed the cameras' networks), ``native`` (threads that Python did not
+    start: MediaPipe's graphs and their inference, OpenCV's and FFmpeg's workers)."""
+    import os
+    import threading
+
+    names = {t.native_id: t.name for t in threading.enumerate()}
+    kinds = (("MainThread", "pipeline"), ("topopose-decode", "decode"),
+             ("topopose-reader", "reader"), ("topopose-person", "person pool"))
+    out = {}
+    try:
+        tick = os.sysconf("SC_CLK_TCK")
+        for d in Path("/proc/self/task").iterdir():
+            f = (d / "stat").read_text().rsplit(")", 1)[1].split()
+            name = names.get(int(d.name), "")
+            kind = next((k for n, k in kinds if name.startswith(n)), "native")
+            out[kind] = out.get(kind, 0.0) + (int(f[11]) + int(f[12])) / tick
+    except OSError:
+        return {}
+    return out
+
+
 def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, extra=""):
     """Run the recording end to end from its videos (decoding and silhouettes in the reader
     thread, as ``topopose run`` does), score it, time it."""
@@ -275,8 +300,10 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
             poses.append(est.estimate(frames[0]))
             t_first = time.perf_counter() - t0
             t1, c1, m1 = time.perf_counter(), time.process_time(), time.thread_time()
+            k1 = thread_cpu()
             for f in frames[1:]:
                 poses.append(est.estimate(f))
+            k2 = thread_cpu()
             t_rest = time.perf_counter() - t1
             c_rest = time.process_time() - c1     # every thread's CPU (reader included)
             m_rest = time.thread_time() - m1      # this thread's: the geometric pipeline
@@ -308,6 +335,10 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
         "cpu_ms_per_frame": round(1000 * c_rest / max(len(frames) - 1, 1), 2),
         "main_thread_cpu_ms_per_frame": round(1000 * m_rest / max(len(frames) - 1, 1), 2),
         "stages_median_ms": {k: round(float(np.median(v)), 2) for k, v in stages.items()},
+        # CPU per frame by thread kind (thread_cpu): where the 2 cores' time goes
+        "thread_cpu_ms_per_frame": {k: round(1000 * (v - k1.get(k, 0.0))
+                                             / max(len(frames) - 1, 1), 1)
+                                    for k, v in sorted(k2.items(), key=lambda x: -x[1])},
         # where the first frame's time went: the set-up's steps, then the first frame's stages
         "setup_breakdown_s": {k: round(v, 3) for k, v in
                               (cap.cache.get(("setup_seconds",)) or {}).items()},

@@ -134,7 +134,8 @@ def report(doc) -> str:
                        *(f"{r['errors'][k]['median']} / {r['errors'][k]['p90']}"
                          for k in ("head", "hand", "foot"))]
                       for v, r in doc["variants"].items() if "errors" in r])
-    L += ["", "## Where the CPU goes, per frame after the first (ms, by thread; medians)", "",
+    L += ["", "## Where the CPU goes, per frame (ms, by thread; medians; frames 2 to n - 8, "
+          "while every thread runs)", "",
           "*pipeline*: the main thread (hull, skeleton, alignment, placement); *decode*: the "
           "read-ahead thread; *reader*: resizing and the silhouettes' Python side; *person "
           "pool*: the threads feeding the cameras' networks; *native*: threads Python did not "

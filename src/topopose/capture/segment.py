@@ -25,6 +25,13 @@ starts a new graph, which runs the detector as static mode does, so a frame's ma
 only on the consecutive frames before it in that run. ``false`` (default): every image
 segmented alone (``static_image_mode``).
 
+``[silhouettes] person_every = n`` (default 1) segments each camera every n-th frame only, the
+cameras staggered (frame i: the cameras c with (i + c) % n = 0; the others keep their map of
+the frame before, at most n - 1 frames old; :func:`.background._person_maps`): 1/n of the
+network's CPU. Like tracking, a frame's masks then depend on the frames before it in its run.
+BlazePose's *lite* model (``model_complexity=0``) is not inside the 0.10.14 wheel: MediaPipe
+downloads it on first use (``solutions/pose.py``, ``download_oss_model``), so it is not offered.
+
 MediaPipe's legacy *selfie segmentation* model (``mediapipe.solutions.selfie_segmentation``,
 the general 256 × 256 model, ~250 kB, inside the ``mediapipe`` wheel up to 0.10.14: nothing is
 downloaded at run time) gives a per-pixel person probability. It is run on the bounding

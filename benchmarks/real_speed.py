@@ -10,6 +10,10 @@ times, the variants interleaved (A B C A B C …) so that the load of a shared m
 all of them alike; speed figures are the medians over the rounds, accuracy (right per frame,
 right as ``topopose run`` writes it) is scored on the first round's poses, and ``same poses``
 counts the frames whose status and part positions are bit-identical to the peer's.
+Also per variant: the errors per part (first round) and the CPU per frame by thread kind
+(:func:`real.thread_cpu`: the pipeline, decoding, the reader, MediaPipe's native threads).
+``+every2``/``+every3``: ``[silhouettes] person_every``, e.g. ``--variants
+person,person+track+every2 --peer person --out benchmarks/results/real_speed_every``.
 
 Writes ``benchmarks/results/real_speed.md`` / ``.json`` (machine noted).
 """

@@ -469,7 +469,8 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
-    ap.add_argument("--methods", default="sequence,selfie,sequence+selfie,person,person+track")
+    ap.add_argument("--methods", default="sequence,selfie,sequence+selfie,person,person+track,"
+                                         "person+track+every2")
     ap.add_argument("--resolution", type=int, default=100)
     ap.add_argument("--frames", type=int, default=0, help="first N frames only (0: all)")
     ap.add_argument("--out", default=str(HERE / "results" / "real"))

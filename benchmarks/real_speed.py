@@ -107,7 +107,7 @@ def report(doc) -> str:
          f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
          f"Resolution {doc['resolution']}³, end to end from the 4 videos (decoding included), one "
          f"process. Medians over {doc['rounds']} interleaved rounds; ratios against "
-         f"`{doc['peer']}` (the previous default) in the same run. Written by "
+         f"`{doc['peer']}` in the same run. Written by "
          "`benchmarks/real_speed.py`.", "",
          "Variants: `+oldreader` = the reader as it was (FFmpeg's own threads per video, decoding "
          "in the silhouettes' thread); without it, the new default (`[silhouettes] "

@@ -51,6 +51,8 @@ DEFAULT = HERE / "data" / "pose2sim_balancing"
 RIGHT = 0.15            # metres
 #: ``METHOD+VARIANT[+VARIANT]``: extra ``[silhouettes]`` lines of a variant of a method
 VARIANTS = {"track": "person_track = true\n",              # MediaPipe's tracking mode
+            # each camera segmented every 2nd (3rd) frame, staggered; the others keep theirs
+            "every2": "person_every = 2\n", "every3": "person_every = 3\n",
             # the reader as it was before: FFmpeg's own threads, decoding in the reader thread
             "oldreader": "decode_threads = 0\ndecode_ahead = 0\n",
             # the hull carved from the full-size masks (not from the network's small ones)
@@ -240,6 +242,31 @@ def same_poses(a, b) -> int:
     return sum(key(x) == key(y) for x, y in zip(a, b))
 
 
+def thread_cpu() -> dict:
+    """CPU seconds so far of this process's threads by kind (Linux ``/proc``; {} elsewhere):
+    ``pipeline`` (the main thread: hull, skeleton, alignment, placement), ``decode`` (the
+    read-ahead thread), ``reader`` (resizing, the silhouettes' Python side), ``person pool``
+    (the threads that feed the cameras' networks), ``native`` (threads that Python did not
+    start: MediaPipe's graphs and their inference, OpenCV's and FFmpeg's workers)."""
+    import os
+    import threading
+
+    names = {t.native_id: t.name for t in threading.enumerate()}
+    kinds = (("MainThread", "pipeline"), ("topopose-decode", "decode"),
+             ("topopose-reader", "reader"), ("topopose-person", "person pool"))
+    out = {}
+    try:
+        tick = os.sysconf("SC_CLK_TCK")
+        for d in Path("/proc/self/task").iterdir():
+            f = (d / "stat").read_text().rsplit(")", 1)[1].split()
+            name = names.get(int(d.name), "")
+            kind = next((k for n, k in kinds if name.startswith(n)), "native")
+            out[kind] = out.get(kind, 0.0) + (int(f[11]) + int(f[12])) / tick
+    except OSError:
+        return {}
+    return out
+
+
 def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, extra=""):
     """Run the recording end to end from its videos (decoding and silhouettes in the reader
     thread, as ``topopose run`` does), score it, time it."""
@@ -273,8 +300,13 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
             poses.append(est.estimate(frames[0]))
             t_first = time.perf_counter() - t0
             t1, c1, m1 = time.perf_counter(), time.process_time(), time.thread_time()
-            for f in frames[1:]:
+            # by thread: until the reader (≤ 4 frames ahead, decoding 2 more) may have ended
+            k1, k2, nk = thread_cpu(), {}, max(len(frames) - 9, 1)
+            for j, f in enumerate(frames[1:]):
+                if j == nk:
+                    k2 = thread_cpu()
                 poses.append(est.estimate(f))
+            k2 = k2 or thread_cpu()
             t_rest = time.perf_counter() - t1
             c_rest = time.process_time() - c1     # every thread's CPU (reader included)
             m_rest = time.thread_time() - m1      # this thread's: the geometric pipeline
@@ -306,6 +338,9 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
         "cpu_ms_per_frame": round(1000 * c_rest / max(len(frames) - 1, 1), 2),
         "main_thread_cpu_ms_per_frame": round(1000 * m_rest / max(len(frames) - 1, 1), 2),
         "stages_median_ms": {k: round(float(np.median(v)), 2) for k, v in stages.items()},
+        # CPU per frame by thread kind (thread_cpu): where the 2 cores' time goes
+        "thread_cpu_ms_per_frame": {k: round(1000 * (v - k1.get(k, 0.0)) / nk, 1)
+                                    for k, v in sorted(k2.items(), key=lambda x: -x[1])},
         # where the first frame's time went: the set-up's steps, then the first frame's stages
         "setup_breakdown_s": {k: round(v, 3) for k, v in
                               (cap.cache.get(("setup_seconds",)) or {}).items()},
@@ -434,7 +469,8 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
-    ap.add_argument("--methods", default="sequence,selfie,sequence+selfie,person,person+track")
+    ap.add_argument("--methods", default="sequence,selfie,sequence+selfie,person,person+track,"
+                                         "person+track+every2")
     ap.add_argument("--resolution", type=int, default=100)
     ap.add_argument("--frames", type=int, default=0, help="first N frames only (0: all)")
     ap.add_argument("--out", default=str(HERE / "results" / "real"))

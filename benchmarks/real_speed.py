@@ -10,6 +10,10 @@ times, the variants interleaved (A B C A B C …) so that the load of a shared m
 all of them alike; speed figures are the medians over the rounds, accuracy (right per frame,
 right as ``topopose run`` writes it) is scored on the first round's poses, and ``same poses``
 counts the frames whose status and part positions are bit-identical to the peer's.
+Also per variant: the errors per part (first round) and the CPU per frame by thread kind
+(:func:`real.thread_cpu`: the pipeline, decoding, the reader, MediaPipe's native threads).
+``+every2``/``+every3``: ``[silhouettes] person_every``, e.g. ``--variants
+person,person+track+every2 --peer person --out benchmarks/results/real_speed_every``.
 
 Writes ``benchmarks/results/real_speed.md`` / ``.json`` (machine noted).
 """
@@ -70,6 +74,10 @@ def main(argv=None):
               for k in speed[v][0]["stages_median_ms"]}
         rows[v] = {**med, "stages_median_ms": st, "rounds": [
             {k: s[k] for k in ("first_frame_s", "end_to_end_fps", "cpu_ms_per_frame")} for s in speed[v]],
+            "thread_cpu_ms_per_frame": {k: round(float(np.median(
+                [x.get("thread_cpu_ms_per_frame", {}).get(k, 0.0) for x in speed[v]])), 1)
+                for k in speed[v][0].get("thread_cpu_ms_per_frame", {})},
+            "errors": first[v]["errors"],
             "right_per_frame": first[v]["right_share"],
             "right_as_run": first[v]["as_run"]["right_share"],
             "same_poses_as_peer": (real.same_poses(poses[v], poses[a.peer])
@@ -99,14 +107,16 @@ def report(doc) -> str:
          f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
          f"Resolution {doc['resolution']}³, end to end from the 4 videos (decoding included), one "
          f"process. Medians over {doc['rounds']} interleaved rounds; ratios against "
-         f"`{doc['peer']}` (the previous default) in the same run. Written by "
+         f"`{doc['peer']}` in the same run. Written by "
          "`benchmarks/real_speed.py`.", "",
          "Variants: `+oldreader` = the reader as it was (FFmpeg's own threads per video, decoding "
          "in the silhouettes' thread); without it, the new default (`[silhouettes] "
          "decode_threads = 1`, `decode_ahead = 2`). `+fullmasks` = the hull carved from the "
          "full-size (1088 × 1920) masks as before, not from the network's 272 × 480 ones "
          "(`capture.background.UpsampledMask`). `+track` = `person_track = true` (MediaPipe's "
-         "tracking mode). Same poses: frames whose status and part positions are bit-identical "
+         "tracking mode). `+every2` (`+every3`) = `person_every = 2` (3): each camera segmented "
+         "every 2nd (3rd) frame, the cameras staggered, the others keeping their last map. "
+         "Same poses: frames whose status and part positions are bit-identical "
          "to the peer's. Right: head, both hands and both feet within 0.15 m of Pose2Sim's 3D "
          "result.", ""]
     rows = []
@@ -121,6 +131,26 @@ def report(doc) -> str:
                       "ratio", "CPU ms/frame", "ratio", "of which the geometric pipeline (main thread)",
                       "bound on 2 idle cores (2000 / CPU ms) frames/s", "right per frame", "right as run",
                       "same poses as peer", "stage medians ms (hull includes waiting)"], rows)
+    L += ["", "## Accuracy (first round): errors against Pose2Sim's 3D result (m)", ""]
+    L += real._table(["variant", "right per frame", "right as run", "head med / p90",
+                      "hands med / p90", "feet med / p90"],
+                     [[v, f"{100 * r['right_per_frame']:.0f} %", f"{100 * r['right_as_run']:.0f} %",
+                       *(f"{r['errors'][k]['median']} / {r['errors'][k]['p90']}"
+                         for k in ("head", "hand", "foot"))]
+                      for v, r in doc["variants"].items() if "errors" in r])
+    L += ["", "## Where the CPU goes, per frame (ms, by thread; medians; frames 2 to n - 8, "
+          "while every thread runs)", "",
+          "*pipeline*: the main thread (hull, skeleton, alignment, placement); *decode*: the "
+          "read-ahead thread; *reader*: resizing and the silhouettes' Python side; *person "
+          "pool*: the threads feeding the cameras' networks; *native*: threads Python did not "
+          "start (MediaPipe's graphs and their inference, OpenCV's and FFmpeg's workers). Each "
+          "stage runs in its own thread, ahead of the next (the reader up to 4 frames ahead of "
+          "the pipeline, decoding 2 ahead of the reader), so the 2 cores idle only when every "
+          "thread waits: the rate is bounded by 2000 / CPU ms, and by the busiest thread.", ""]
+    L += real._table(["variant", "CPU ms/frame", "by thread"],
+                     [[v, r["cpu_ms_per_frame"], ", ".join(
+                         f"{k} {x}" for k, x in r.get("thread_cpu_ms_per_frame", {}).items())]
+                      for v, r in doc["variants"].items()])
     L += ["", "Each round (frames/s, CPU ms/frame):", ""]
     L += real._table(["variant", "rounds"],
                      [[v, "; ".join(f"{x['end_to_end_fps']} / {x['cpu_ms_per_frame']}" for x in r["rounds"])]

@@ -265,3 +265,42 @@ def test_downscaled_person_masks_carve_the_hull_of_their_upsampling(tmp_path, fa
     a = carver.carve(masks, 0).copy()
     assert carver.fac.tolist() == [[4, 4]] * 4
     assert np.array_equal(a, carver.carve(plain, 0)) and carver.fac.max() == 1
+
+
+def test_person_every_segments_each_camera_every_nth_frame_staggered(tmp_path, fake_mediapipe):
+    """``person_every = n``: in a run of consecutive frames, frame i segments the cameras c with
+    (i + c) % n == 0 and every other camera keeps the map of the frame it was segmented at last;
+    the run's first frame and a frame that does not follow the previous one segment all
+    cameras. With ``person_track`` each camera keeps one tracking graph over its run (its
+    frames are n apart). Oracle: the stand-in network returns the image's value (10 i + c), so
+    each map names the frame it came from."""
+    from topopose import InputError
+
+    cams = ring(n=4, size=(40, 30), f=60)
+    frames = {f"{i:06d}": [np.full((30, 40, 3), 10 * i + c, np.uint8) for c in range(4)]
+              for i in range(8)}
+    root = write_capture(tmp_path / "cap", cams, {}, images=frames)
+    orig = _FakePose.process
+    _FakePose.process = lambda self, rgb: _Result(np.full(rgb.shape[:2], rgb[0, 0, 0] / 255,
+                                                          np.float32))
+    try:
+        for n, track in ((2, False), (3, False), (2, True), (1, True)):
+            (root / "capture.toml").write_text(
+                TOML + f"person_every = {n}\nperson_track = {str(track).lower()}\n")
+            cap = load_capture(root)
+            made = _FakePose.made
+            order = [0, 1, 2, 3, 4, 6, 7, 5]              # runs 0-4, 6-7, 5
+            start = {0: 0, 1: 0, 2: 0, 3: 0, 4: 0, 6: 6, 7: 6, 5: 5}
+            for i in order:
+                got = [int(q[0, 0]) for q in foreground_maps(cap, f"{i:06d}")]
+                want = [10 * max(j for j in range(start[i], i + 1)
+                                 if j == start[i] or (j + c) % n == 0) + c for c in range(4)]
+                assert got == want, (n, track, i)
+            if track:     # one graph per camera and run
+                assert _FakePose.made - made == 4 * 3
+    finally:
+        _FakePose.process = orig
+    for bad in ("0", "1.5", "true", "65"):
+        (root / "capture.toml").write_text(TOML + f"person_every = {bad}\n")
+        with pytest.raises(InputError, match=r"capture\.toml.*person_every"):
+            load_capture(root)

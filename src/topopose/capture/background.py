@@ -315,13 +315,11 @@ def foreground_maps(cap, frame, images=None) -> list:
     if images is None:
         from .io import read_images
         images = read_images(cap, frame)
-    small = [downscale(img, cam, s) for img, cam in zip(images, cap.cameras)]
     if method == "person":       # the network alone needs no background model
-        from .segment import person_probabilities
-        index = cap.frames.index(frame) if p.get("person_track") else None
-        out = person_probabilities(small, [(id(cap), c) for c in range(len(small))], index)
+        out = _person_maps(cap, frame, images, p)
         cap.cache["foreground_last"] = (ck, out)
         return out
+    small = [downscale(img, cam, s) for img, cam in zip(images, cap.cameras)]
     bgs = capture_backgrounds(cap)
     out = []
     for c, (img, bg) in enumerate(zip(small, bgs)):
@@ -346,6 +344,30 @@ def foreground_maps(cap, frame, images=None) -> list:
                 q = q2
         out.append(q)
     cap.cache["foreground_last"] = (ck, out)
+    return out
+
+
+def _person_maps(cap, frame, images, p) -> list:
+    """The ``person`` network's probabilities of one frame (:mod:`.segment`). ``person_every
+    = n`` > 1: when the frame follows the one segmented last, only the cameras ``c`` with
+    ``(index + c) % n == 0`` are segmented (a share 1/n of them, staggered so that every
+    camera is segmented every n-th frame); the others keep their map of the frame before,
+    at most n - 1 frames old. Otherwise (the first frame, a jump) every camera is segmented
+    (and, with ``person_track``, starts a new tracking graph)."""
+    from .segment import person_probabilities
+    i = cap.frames.index(frame)
+    n = int(p.get("person_every", 1))
+    last = cap.cache.get("person_last")          # (index, maps) of the frame segmented last
+    follows = last is not None and last[0] == i - 1
+    cams = [c for c in range(len(cap.cameras)) if not follows or (i + c) % n == 0]
+    s = float(p["scale"])
+    got = person_probabilities([downscale(images[c], cap.cameras[c], s) for c in cams],
+                               [(id(cap), c) for c in cams],
+                               i if p.get("person_track") else None, n if follows else 0)
+    out = list(last[1]) if follows else [None] * len(cap.cameras)
+    for c, q in zip(cams, got):
+        out[c] = q
+    cap.cache["person_last"] = (i, out)
     return out
 
 

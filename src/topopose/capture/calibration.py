@@ -49,6 +49,7 @@ SILHOUETTE_DEFAULTS = {
     "open3d": 1,           # soft fusion: 3D opening of the hull by a (2k + 1)³ cube (0: none)
     "selfie_floor": 0.0,   # selfie: the network's probability is raised to at least this (a weak "no")
     "person_track": False,  # person: MediaPipe's tracking mode (detector skipped between frames)
+    "person_every": 1,     # person: each camera segmented every N-th frame, cameras staggered
     "cut": 0.5,            # hard fusion: a pixel is subject when its probability exceeds this
     # reading videos (any method; capture/sources.py)
     "decode_threads": 1,   # FFmpeg threads per video (0: FFmpeg's own choice, one per core)
@@ -59,7 +60,7 @@ _SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (
               "samples": int, "reveal": (int, float), "shadow": (int, float), "uncertain": (int, float),
               "zone_margin": (int, float), "fusion": str, "p_detect": (int, float),
               "p_false": (int, float), "occupancy": (int, float), "open3d": int,
-              "selfie_floor": (int, float), "person_track": bool, "cut": (int, float),
+              "selfie_floor": (int, float), "person_track": bool, "person_every": int, "cut": (int, float),
               "decode_threads": int, "decode_ahead": int}
 _CAPTURE_KEYS = {"up", "units", "fps", "volume", "size_policy"}
 #: What to do with an image whose size differs from its camera's calibration size
@@ -237,6 +238,9 @@ def read_capture_options(path, cameras=()) -> dict:
         raise InputError(f"{path}: [silhouettes] field 'fusion' must be \"auto\", \"soft\" or \"hard\", "
                          f"got {out['silhouettes']['fusion']!r}")
     check_params(path, out["silhouettes"])
+    if not 1 <= out["silhouettes"]["person_every"] <= 64:
+        raise InputError(f"{path}: [silhouettes] field 'person_every' must be an integer in 1..64, "
+                         f"got {out['silhouettes']['person_every']!r}")
     for k, hi in (("decode_threads", 64), ("decode_ahead", 64)):
         if out["silhouettes"][k] > hi:
             raise InputError(f"{path}: [silhouettes] field '{k}' must be an integer in 0..{hi}, "

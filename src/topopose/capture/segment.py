@@ -25,6 +25,13 @@ starts a new graph, which runs the detector as static mode does, so a frame's ma
 only on the consecutive frames before it in that run. ``false`` (default): every image
 segmented alone (``static_image_mode``).
 
+``[silhouettes] person_every = n`` (default 1) segments each camera every n-th frame only, the
+cameras staggered (frame i: the cameras c with (i + c) % n = 0; the others keep their map of
+the frame before, at most n - 1 frames old; :func:`.background._person_maps`): 1/n of the
+network's CPU. Like tracking, a frame's masks then depend on the frames before it in its run.
+BlazePose's *lite* model (``model_complexity=0``) is not inside the 0.10.14 wheel: MediaPipe
+downloads it on first use (``solutions/pose.py``, ``download_oss_model``), so it is not offered.
+
 MediaPipe's legacy *selfie segmentation* model (``mediapipe.solutions.selfie_segmentation``,
 the general 256 × 256 model, ~250 kB, inside the ``mediapipe`` wheel up to 0.10.14: nothing is
 downloaded at run time) gives a per-pixel person probability. It is run on the bounding
@@ -90,16 +97,19 @@ def _pose(track=False):
 _LAST = {}                   # tracking: stream → index of the frame it segmented last
 
 
-def person_probability(img: np.ndarray, stream="", index=None) -> np.ndarray:
+def person_probability(img: np.ndarray, stream="", index=None, step=1) -> np.ndarray:
     """uint8 (h, w) full-body person probability (× 255) of a BGR image from MediaPipe's pose
     network (module docstring); 128 everywhere when it finds no one. ``stream``: the camera.
     ``index``: the frame's index in its sequence, for tracking mode (None: static mode); a
-    frame that does not follow the stream's previous one starts a new graph."""
+    frame that does not follow the stream's previous one (by 1 to ``step`` frames: the
+    stream's frames may be every ``step``-th, ``person_every``; ``step = 0``: never) starts
+    a new graph."""
     key, make, fresh = ("person", stream), _pose, False
     if index is not None:
         key, make = ("person-track", stream), lambda: _pose(track=True)   # noqa: E731
         with _LOCK:
-            fresh = _LAST.get(key) != index - 1
+            last = _LAST.get(key)
+            fresh = last is None or not 1 <= index - last <= step
             _LAST[key] = index
     res = _process(make, key, np.ascontiguousarray(img[:, :, ::-1]), fresh)
     if res.segmentation_mask is None:
@@ -107,18 +117,19 @@ def person_probability(img: np.ndarray, stream="", index=None) -> np.ndarray:
     return np.clip(res.segmentation_mask * 255 + 0.5, 0, 255).astype(np.uint8)
 
 
-def person_probabilities(images, streams, index=None) -> list:
+def person_probabilities(images, streams, index=None, step=1) -> list:
     """:func:`person_probability` of several cameras' images at once, one thread per camera
     (MediaPipe releases the GIL while its graph runs: on 2 idle cores the 4 cameras of the
     Pose2Sim recording took 111 ms instead of 174 ms one after the other; ``benchmarks/real.py``
-    times both). ``index``: tracking mode (:func:`person_probability`)."""
+    times both). ``index``, ``step``: tracking mode (:func:`person_probability`)."""
     if len(images) == 1:
-        return [person_probability(images[0], streams[0], index)]
+        return [person_probability(images[0], streams[0], index, step)]
     with _LOCK:
         if not _POOL:
             from concurrent.futures import ThreadPoolExecutor
             _POOL.append(ThreadPoolExecutor(4, thread_name_prefix="topopose-person"))
-    return list(_POOL[0].map(person_probability, images, streams, [index] * len(images)))
+    n = len(images)
+    return list(_POOL[0].map(person_probability, images, streams, [index] * n, [step] * n))
 
 
 def selfie_probability(img: np.ndarray, zone: np.ndarray | None = None, stream="") -> np.ndarray:

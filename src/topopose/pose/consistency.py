@@ -17,6 +17,10 @@ normalized away:
   one prediction, not the frame's: with k ≥ 2 the frames next to a wrong one keep their
   agreement), in units of the hull's height; the frame's deviation is its largest part's;
 - **rank** (:func:`confidence_rank`): the fitted confidence's rank within the run;
+- **support** (:mod:`.support`, ``diagnostics["unexplained"]``, recorded by the estimator
+  when the run's consistency is on): the largest share of a camera's silhouette the placed
+  model (its matched curves swept by the hull's inscribed balls) leaves unexplained — an arm
+  visible in some views whose hand was put elsewhere, which agreement over time cannot see;
 - **lengths** (:func:`run_lengths`, :func:`length_ratios`): the subject's own arc lengths, the
   median over the run's frames of each matched model arc's skeleton curve
   (``diagnostics["curves"]``; numbered limbs pooled: both arms, both legs).
@@ -26,8 +30,9 @@ normalized away:
 poses as the run writes them) decides ``matched`` by these in a *coherent* run
 (:func:`coherent`: a sequence of one subject; a run of unrelated poses is left as it is):
 each frame that is matched or that only the confidence gate rejected is matched when its
-deviation is at most :data:`MAX_DEVIATION` and its rank at least :data:`MIN_RANK` (and, if
-given, every arc within ``max_length_ratio`` of the subject's own), else rejected with the
+deviation is at most :data:`MAX_DEVIATION`, its rank at least :data:`MIN_RANK` and its
+unexplained share at most :data:`MAX_UNEXPLAINED` (and, if given, every arc within
+``max_length_ratio`` of the subject's own), else rejected with the
 reason; its parts (the best guess) are kept either way, the values in
 ``diagnostics["consistency"]``. A frame without a pair of neighbours (the run's first and
 last) is left as the gate decided.
@@ -60,11 +65,14 @@ from .curves import model_arcs
 
 #: the largest part deviation from the neighbours' prediction (× hull height) of a consistent
 #: frame, with :data:`NEIGHBOURS`; chosen on synthetic 4-camera walks (module docstring)
-MAX_DEVIATION = 0.05
+MAX_DEVIATION = 0.06
 #: neighbours on each side of a frame (2: the pairs i ± 1 and i ± 2)
 NEIGHBOURS = 2
 #: the lowest rank of the fitted confidence within the run of a consistent frame
-MIN_RANK = 0.5
+MIN_RANK = 0.0
+#: the largest share of a camera's silhouette the placed model may leave unexplained
+#: (``diagnostics["unexplained"]``, :mod:`.support`; frames without it are not judged by it)
+MAX_UNEXPLAINED = 0.08
 
 
 def part_group(part: str, groups=None) -> str:
@@ -215,7 +223,7 @@ def gated(pose) -> bool:
 
 def judge_sequence(poses, model, index=None, max_deviation=MAX_DEVIATION,
                    neighbours=NEIGHBOURS, min_rank=MIN_RANK, max_length_ratio=None,
-                   groups=None) -> bool:
+                   groups=None, max_unexplained=MAX_UNEXPLAINED) -> bool:
     """Decide ``matched`` by the run's own consistency, in place (module docstring).
 
     Parameters
@@ -229,6 +237,9 @@ def judge_sequence(poses, model, index=None, max_deviation=MAX_DEVIATION,
         Also require every matched arc within this factor of the subject's own length
         (numbered part names).
     groups : see :func:`part_group` (poses with side names: :func:`mirror_groups`)
+    max_unexplained : float, optional
+        Also require ``diagnostics["unexplained"]`` (:mod:`.support`) at most this, in the
+        frames that have it.
 
     Returns
     -------
@@ -255,6 +266,12 @@ def judge_sequence(poses, model, index=None, max_deviation=MAX_DEVIATION,
                            f"(above {max_deviation:g})")
         if r is not None and r < min_rank:
             reasons.append(f"confidence ranks {r:.2f} in the run (below {min_rank:g})")
+        u = p.diagnostics.get("unexplained")
+        if u is not None:
+            info["unexplained"] = u
+        if max_unexplained is not None and u is not None and u > max_unexplained:
+            reasons.append(f"{u:.2f} of a silhouette unexplained by the placed model "
+                           f"(above {max_unexplained:g})")
         if lengths is not None:
             ratios = length_ratios(p, model, lengths)
             info["length_ratios"] = {k: round(v, 3) for k, v in ratios.items()}

@@ -237,6 +237,9 @@ def main(argv=None):
     ap.add_argument("--dev-seeds", default=",".join(map(str, range(41, 59))))
     ap.add_argument("--test-seeds", default="1,2,3,4")
     ap.add_argument("--frames", type=int, default=40)
+    ap.add_argument("--real-json", default=None,
+                    help="results of benchmarks/real.py (its as_run_consistency rows: the "
+                         "estimator's own unexplained, end to end)")
     ap.add_argument("--out", default=str(HERE / "results" / "trust_features"))
     a = ap.parse_args(argv)
     work = a.work or tempfile.mkdtemp(prefix="trust_features_")
@@ -263,6 +266,15 @@ def main(argv=None):
                                "after": real_matched(a.recording, rr[0], feats, now)}
         doc["settings"] = {"before": BEFORE, "after": now}
     doc["auc"] = auc_table(groups)
+    if a.real_json and Path(a.real_json).is_file():
+        rj = json.loads(Path(a.real_json).read_text())
+        doc["real_py"] = {"machine": rj.get("machine"), "methods": {
+            k: {"matched": r["as_run_consistency"]["matched"],
+                "precision": r["as_run_consistency"]["matched_precision"],
+                "right": r["as_run"]["right"],
+                "support_ms": r["speed"]["stages_median_ms"].get("support"),
+                "total_ms": r["speed"]["stages_median_ms"].get("total")}
+            for k, r in rj["methods"].items() if "as_run_consistency" in r}}
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".json").write_text(json.dumps(doc, indent=1, default=str))
@@ -308,6 +320,15 @@ def report(doc) -> str:
                     [[k, r["frames"], r["right"], r["matched"], r["right_matched"],
                       _f(r["precision"]), _f(r["share_of_right"])]
                      for k, r in doc["real_matched"].items()])
+    if doc.get("real_py"):
+        rp = doc["real_py"]
+        L += ["", "End to end (`benchmarks/real.py`, the estimator recording `unexplained` itself, "
+              f"after; load {(rp['machine'] or {}).get('load_average')}):", ""]
+        L += _table(["silhouettes", "right as run writes it", "matched (after)",
+                     "precision (after)", "support ms/frame (median)",
+                     "frame total ms (median)"],
+                    [[k, r["right"], r["matched"], _f(r["precision"]), r["support_ms"],
+                      r["total_ms"]] for k, r in rp["methods"].items()])
     return "\n".join(L) + "\n"
 
 

@@ -38,22 +38,21 @@ reason; its parts (the best guess) are kept either way, the values in
 last) is left as the gate decided.
 
 **Measured** (``benchmarks/consistency.py``, ``results/consistency.md``; settings chosen on
-synthetic walks of the ``body`` subject, development seeds 41–46: the grid's setting with
-precision ≥ 0.95 in both 4-camera set-ups and the most right frames passing — 7 of 7 and 6
-of 6 frames, too few to promise 95 %; never tuned on the real recording). Held out, precision
-of ``matched`` (frames passing), as ``run`` writes it: the real recording (Pose2Sim's
-balancing trial, 4 phone cameras, ``person`` silhouettes; ``results/real_consistency.md``)
-83 % (15 of 18; the confidence gate passes none; all frames 72 % right); synthetic 4-camera
-walks, seeds 1–4, 80 % (8 of 10; 640×480) and 80 % (4 of 5; phone-like 544×960), where the
-gate passes none; 8-camera walks 100 % (72 of 160 frames) where the default (T_d, no gate)
-gives 98 % at 145. The issue's 95 % is not reached with 4 cameras and few frames pass, so
-the switch is **off by default**. One neighbour pair and rank ≥ 0.25 (also 100 % on the
-development seeds) gave the real recording 14 of 15 (93 %) but 5 of 9 and 4 of 5 held out.
-Run-relative arc lengths (``max_length_ratio`` 1.5) only removed frames on the development
-seeds (4 of 4 and 4 of 4 at the chosen setting): not used. Most of the real recording's wrong
-frames are a hand 0.15–0.3 m off on a branch that moves smoothly with the body (frames
-77–99, ``results/real_diagnose.md``: no skeleton leaf near the true hand), which agreement
-over time cannot see.
+synthetic walks of the ``body`` subject, development seeds 41–58: the grid's setting with
+precision ≥ 0.95 in both 4-camera set-ups and the most right frames passing — 27 of 28 and
+8 of 8; never tuned on the real recording). Precision of ``matched`` (frames passing) as
+``run`` writes it, before the silhouette support (deviation 0.05, confidence rank ≥ 0.5) →
+now: the real recording (Pose2Sim's balancing trial, 4 phone cameras, ``person``
+silhouettes; ``results/trust_features.md``, ``benchmarks/real.py``) 17 of 19 → 26 of 29
+(90 %; ``person+track`` 21 of 26 → 29 of 31, 94 %; the confidence gate passes none; all
+frames 72 % right); synthetic 4-camera walks, held-out seeds 1–4, 7 of 10 → 4 of 4
+(640×480) and 3 of 4 → 1 of 1 (phone-like 544×960), where the gate passes none; 8-camera
+walks 75 of 75 → 56 of 56 (of 155 right). The issue's 95 % is not reached on the real
+recording and few 4-camera frames pass, so the switch is **off by default**. The real
+recording's wrong frames it passes hold a hand 0.15–0.24 m from Pose2Sim's wrist that projects
+onto the end of the arm's silhouette in all 4 views (frames 83, 84, 88): no silhouette test
+can see them. Run-relative arc lengths (``max_length_ratio`` 1.5) only removed frames on the
+first development seeds: not used.
 """
 from __future__ import annotations
 

@@ -417,8 +417,15 @@ class FrameEstimator:
             from ..hull.hull import _soft_fusion
             self._silhouettes = None
             if not _soft_fusion(self.cap):
+                from ..capture.background import scaled_camera
                 masks = self.cap.silhouettes(frame)
-                self._silhouettes = (list(self.cap.cameras), masks)
+                cams, sils = [], []
+                for cam, m in zip(self.cap.cameras, masks):
+                    small = getattr(m, "small", None)     # an upsampled map: compared small
+                    cams.append(cam if small is None else
+                                scaled_camera(cam, small.shape[1] / cam.size[0]))
+                    sils.append(m if small is None else small.astype(bool))
+                self._silhouettes = (cams, sils)
         vol = visual_hull(self.cap, frame, resolution=self.resolution, tolerance=self.tolerance,
                           consensus=consensus, refocus=self.refocus, masks=masks)
         if self.support and self._silhouettes is None:      # probabilities: cached per frame

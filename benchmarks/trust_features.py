@@ -46,13 +46,10 @@ SETUPS = ("4", "4p", "8")
 def frame_record(p, det, cams, masks):
     """What the features need of one frame, small enough to cache (bit-packed arrays)."""
     rec = {"pose": p, "cams": cams, "masks": [(m.shape, np.packbits(m)) for m in masks]}
-    if det is not None and det.volume is not None and det.skeleton is not None \
-            and det.alignment is not None:
+    if det is not None and det.volume is not None:
         v = det.volume
         rec.update(vol=(v.data.shape, np.packbits(v.data.astype(bool))), origin=v.origin,
-                   voxel_size=v.voxel_size, skel=(det.skeleton.shape,
-                                                  np.packbits(det.skeleton.astype(bool))),
-                   data=det.data, mapping=dict(det.alignment.mapping))
+                   voxel_size=v.voxel_size)
     return rec
 
 

@@ -293,7 +293,8 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
         warnings.simplefilter("ignore")          # the "pad" policy warns for cam01/cam02
         cap = tp.load_capture(cdir)
         frames = cap.frames[:nframes] if nframes else cap.frames
-        est = FrameEstimator(cap, "human", resolution, gate=False)   # both decisions scored
+        est = FrameEstimator(cap, "human", resolution, gate=False,   # both decisions scored
+                             support=True)     # read by as_run_consistency (pose.support)
         poses = []
         with prefetch(cap, frames):
             t_setup = time.perf_counter() - t0    # background learned (prefetch learns it first)

@@ -19,7 +19,8 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    shoulder lower by :data:`RAISED_SHOULDER`; a hanging arm's shoulder is the hull's
    (``diagnostics["hull_shoulders"]``: the trunk's cross-section below the neck,
    :func:`topopose.pose.unseen.hull_shoulders`; :data:`SEEN_HULL_SHOULDER`). A bent limb's
-   middle joint (elbow, knee) is at its curve's bend (:func:`bend_joints`, :data:`BEND`).
+   middle joint (elbow, wrist, knee, ankle) is at its curve's bend (:func:`bend_joints`,
+   :data:`BEND`).
 2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
    the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
    constant over the sequence; a ``slide`` bone (the neck's) at its median
@@ -322,7 +323,7 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
             x = pose.parts.get(u if t == 0.0 else v)  # when the arc's far part is missing)
             if x is not None:
                 out[j] = np.asarray(x, dtype=float)
-    out = bend_joints(out, used, curves, tree)     # a bent limb's elbow, knee at the bend
+    out = bend_joints(out, used, curves, tree)     # a bent limb's middle joints at the bend
     if tree.trunk and any(_beside(tree, j) for j in range(len(tree.names))):
         a, b = (pose.parts.get(x) for x in tree.trunk)
         if a is None or b is None:
@@ -385,18 +386,19 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
     return out
 
 
-BEND = 0.2   # a limb's middle joint (elbow, knee) at its curve's bend when the bend's depth (the
-             # curve's farthest point from the chord between the joints either side) exceeds this
-             # × the chord: 0.2 ≈ a joint angle of 136° (two equal bones). None / 0: off (the
-             # joint at its ``at``). A bent limb's curve cuts the corner and the fixed relative
-             # arc length put the bent elbow 9.0 cm off (initial placement; 4.4 cm inside and
-             # 3.1 cm forward of the true one, median; development seeds 21–32 random, 223 bent
-             # arms). Development seeds (``tracking.py --dev``: random 21–32, walks 41–46, gate
-             # on; MPJPE median over frames, fit) off → 0.1 / 0.15 / 0.2 / 0.25: random 5.68 →
-             # 6.75 / 6.03 / 5.49 / 5.49, walks 4.41 → — / 4.72 / 4.37 / 4.43 cm (below 0.2 a
-             # barely bent curve's farthest point wanders along it and drags the bone lengths and
-             # knees off); with the bone lengths from the placement without it 5.50 / 4.36 (not
-             # kept: the same); the joint pushed out of the corner by 1.5 / 3 cm: 5.52 / 5.61
+BEND = 0.2   # a limb's middle joint (elbow, wrist, knee, ankle) at its curve's bend when the
+             # bend's depth (the curve's farthest point from the chord between the joints either
+             # side) exceeds this × the chord: 0.2 ≈ a joint angle of 136° (two equal bones).
+             # None / 0: off (the joint at its ``at``). A bent limb's curve cuts the corner and
+             # the fixed relative arc length put the bent elbow 9.0 cm off (initial placement;
+             # 4.4 cm inside and 3.1 cm forward of the true one, median; development seeds 21–32
+             # random, 223 bent arms). Development seeds (``tracking.py --dev``'s sequences:
+             # random 21–32, walks 41–46; the fit on their gate-on per-frame poses, MPJPE median
+             # over frames) off → 0.1 / 0.15 / 0.2 / 0.25: random 5.68 → 6.75 / 6.03 / 5.49 /
+             # 5.49, walks 4.41 → 5.89 / 4.72 / 4.37 / 4.43 cm (below 0.2 a barely bent curve's
+             # farthest point wanders along it and drags the bone lengths and knees off); with
+             # the bone lengths from the placement without it 5.50 / 4.36 (not kept: the same);
+             # the joint pushed out of the corner by 1.5 / 3 cm: 5.52 / 5.61
 
 
 def bend_joints(out, used, curves, tree: KinematicTree, bend=None) -> np.ndarray:
@@ -404,8 +406,8 @@ def bend_joints(out, used, curves, tree: KinematicTree, bend=None) -> np.ndarray
     kinematic model initialized from the skeleton curves).
 
     A middle joint is one on an arc ending at a limb part (``tree.limbs``) with its parent and
-    its one child on the same arc (elbow between shoulder and wrist, knee between hip and
-    ankle). Between the curve points of its parent and child (their relative arc lengths in
+    its one child on the same arc (elbow between shoulder and wrist, wrist between elbow and
+    fingertip, knee between hip and ankle, ankle between knee and toe). Between the curve points of its parent and child (their relative arc lengths in
     ``used``), the curve's point farthest from the chord joining those two points is the bend;
     when it lies farther than ``bend`` (default :data:`BEND`) × the chord's length from the
     chord, the joint is placed there — a bent limb's curve turns at the joint, and the fixed
@@ -515,7 +517,7 @@ SHOULDER_QUANTILE = 50  # percent: the constant length of a bone from the root (
                         # percentile the fit lifted the seen hanging arms' shoulders off their
                         # placement (bent arms 5.8 → 7.2 cm, 3.0 cm too high; straight 3.4 →
                         # 5.2 cm; development seeds 21–32 random, gate on). Development seeds
-                        # (``tracking.py --dev``, with :data:`BEND`), 70 → 40 / 50: MPJPE random
+                        # (as :data:`BEND`'s, with it), 70 → 40 / 50: MPJPE random
                         # 5.49 → 5.56 / 5.51 (mean over frames 6.27 → 6.20 / 6.21), walks 4.37
                         # → 4.33 / 4.31 cm; shoulders random 6.5 → 6.1, walks 4.1 → 3.6 cm
 

@@ -64,7 +64,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine  # noqa: E402
 
-from topopose.capture import load_capture, synthesize  # noqa: E402
+from topopose.capture import load_capture  # noqa: E402
+from topopose.capture.synth import synthetic_capture  # noqa: E402
 from topopose.pose import run  # noqa: E402
 from topopose.pose.chirality import assign_sides  # noqa: E402
 from topopose.pose.kinematic_fit import fit_sequence, initial_placement  # noqa: E402
@@ -91,6 +92,9 @@ DEV_SEQUENCES = ([("walk", s, b) for s, b in zip(range(41, 47), DEV_BUILDS)]
                  + [("random", s, b) for s, b in zip(range(21, 33), ["average", "random", "lean",
                                                                      "heavy", "child",
                                                                      "average"] * 2)])
+# camera set-ups (``--setup``): cameras, image size, silhouette noise, layout; ``4p``: four
+# portrait phones in two facing pairs, as the real recording (benchmarks/consistency.py's 4p)
+SETUPS = {"8": (8, (640, 480), 1, "ring"), "4p": (4, (544, 960), 2, "pairs")}
 PAIRS = (("hand_1", "hand_2"), ("foot_1", "foot_2"))
 # the joints the issue names (MPJPE); the others are reported per joint only
 MPJPE_JOINTS = ("neck", "shoulder", "elbow", "wrist", "hip", "knee", "ankle")
@@ -261,6 +265,152 @@ def fit_before_rest(tracked, model):
         kf.HELD_SHOULDER, kf.SLIDE_QUANTILE, kf.RAISED_SHOULDER = keep
 
 
+BIAS_JOINTS = ("neck", "shoulder", "elbow", "wrist", "hip", "knee", "ankle")
+# (name, rig joints at its ends): widths across the body and bone lengths (left side's rig
+# joints; ours: the fitted joints, mirror pairs as :func:`joint_errors` pairs them)
+BIAS_LENGTHS = (("shoulder width", "shoulder", "LeftArm_head", "shoulder", "RightArm_head"),
+                ("hip width", "hip", "LeftUpLeg_head", "hip", "RightUpLeg_head"),
+                ("upper arm", "shoulder", "LeftArm_head", "elbow", "LeftForeArm_head"),
+                ("forearm", "elbow", "LeftForeArm_head", "wrist", "LeftHand_head"),
+                ("thigh", "hip", "LeftUpLeg_head", "knee", "LeftLeg_head"),
+                ("shank", "knee", "LeftLeg_head", "ankle", "LeftFoot_head"),
+                ("neck-pelvis", "neck", "Neck_head", "pelvis", None))
+
+
+def joint_bias(names, P, gj, up):
+    """Signed errors of one frame's joints in the body's frame (truth's hips: lateral =
+    outward for a mirror joint, towards the left for the others; forward; up) and its widths
+    and bone lengths against the truth's: ({base: [(out, fwd, up)]}, {length: (ours, truth)})."""
+    J = {k: np.asarray(v, float) for k, v in gj.items()}
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    lat = J["LeftUpLeg_head"] - J["RightUpLeg_head"]
+    lat = lat - np.dot(lat, up) * up
+    lat /= np.linalg.norm(lat)
+    fwd = np.cross(lat, up)
+    by = {}
+    for j, nm in enumerate(names):
+        base, _, k = nm.rpartition("_")
+        base = base if k.isdigit() else nm
+        if base in RIG and not np.isnan(P[j]).any():
+            by.setdefault(base, []).append(P[j])
+    ours, err = {}, {}
+    for base, xs in by.items():
+        rig = RIG[base]
+        if base == "pelvis" or len(rig) == 1:
+            t = J[rig[0]] if len(rig) == 1 else 0.5 * (J[rig[0]] + J[rig[1]])
+            ours[(base, None)] = xs[0]
+            e = xs[0] - t
+            err[base] = [(float(e @ lat), float(e @ fwd), float(e @ up))]
+            continue
+        if len(xs) != 2:
+            continue
+        d0 = np.linalg.norm(xs[0] - J[rig[0]]) + np.linalg.norm(xs[1] - J[rig[1]])
+        d1 = np.linalg.norm(xs[0] - J[rig[1]]) + np.linalg.norm(xs[1] - J[rig[0]])
+        pair = zip(xs, rig) if d0 <= d1 else zip(xs, rig[::-1])
+        err[base] = []
+        for x, r in pair:
+            ours[(base, r)] = x
+            e, sg = x - J[r], (1.0 if r.startswith("Left") else -1.0)
+            err[base].append((float(e @ lat) * sg, float(e @ fwd), float(e @ up)))
+    lengths = {}
+    for name, a, ra, b, rb in BIAS_LENGTHS:
+        x, y = ours.get((a, ra if a in ("shoulder", "hip", "elbow", "wrist", "knee", "ankle")
+                         else None)), ours.get((b, rb))
+        if x is None or y is None:
+            continue
+        tb = J[rb] if rb else 0.5 * (J["LeftUpLeg_head"] + J["RightUpLeg_head"])
+        lengths[name] = (float(np.linalg.norm(x - y)), float(np.linalg.norm(J[ra] - tb)))
+    return err, lengths
+
+
+def bias_sequence(work, motion, seed, build, frames, model, setup):
+    """The kinematic skeleton's signed per-joint bias, widths and bone lengths of one
+    sequence, fit and initial placement, and its MPJPE, on the frames whose per-frame pose is
+    right (``evaluate``: good). The per-frame run as ``real_motion.py``'s (AHA threshold and
+    confidence gate off: with 4 cameras the AHA distance rejects most frames), the motion stage
+    as ``topopose run``'s (:func:`fit_sequence` defaults)."""
+    d = make_sequence(work, motion, seed, build, frames, setup)
+    cap = load_capture(d)
+    res = run(cap, model=model, resolution=100, progress=False, track=False, sides=False,
+              skeleton=False, threshold=1e9, gate=False)
+    fitted, tree, L = fit_sequence(track(res.poses, model), model)
+    good = {fs.frame for fs in evaluate(cap.gt, res.poses, model=model).frames
+            if fs.quality == "good"}
+    out = {"motion": motion, "seed": seed, "build": build, "setup": setup,
+           "good": len(good), "frames": len(res.poses)}
+    for key in ("fit", "init"):
+        errs, bias, lengths = [], {}, {}
+        for p in fitted:
+            if not (p.matched and p.joints) or p.diagnostics.get("interpolated") \
+                    or p.frame not in good:
+                continue
+            gj = cap.gt["frames"][p.frame]["joints"]
+            P = (np.array([p.joints[n] for n in tree.names]) if key == "fit"
+                 else initial_placement(p, tree))
+            errs.append(joint_errors(tree.names, P, gj))
+            e, ln = joint_bias(tree.names, P, gj, cap.up_vector)
+            for k, v in e.items():
+                bias.setdefault(k, []).extend(v)
+            for k, v in ln.items():
+                lengths.setdefault(k, []).append(v)
+        m = mpjpe(errs)
+        out[key] = {"mpjpe": m[:3], "mpjpe_frames": m[3], "bias": bias, "lengths": lengths}
+    return out
+
+
+def bias_report(rows, setups, info) -> str:
+    """Markdown: per set-up and motion, median signed bias per joint (cm: outward, forward,
+    up), MPJPE per joint, widths and bone lengths ours / truth (median ratio)."""
+    lines = ["# The kinematic skeleton's bias: 8 cameras against 4 phone-like cameras", "",
+             f"Machine: {info}. Written by `benchmarks/tracking.py --bias --setups "
+             f"{','.join(setups)}`; body subject, 100³, AHA threshold and gate off (as "
+             f"`real_motion.py`), frames whose per-frame pose is right (good), seeds "
+             f"({sorted({r['seed'] for r in rows})}). Set-ups: "
+             + "; ".join(f"`{k}` {SETUPS[k][0]} cameras {SETUPS[k][1][0]}×{SETUPS[k][1][1]}, "
+                         f"noise {SETUPS[k][2]}, {SETUPS[k][3]}" for k in setups) + ".", "",
+             "Signed bias (median over joints × frames, cm) in the truth's body frame: *out* "
+             "= outward from the midline for mirror joints (towards the left for neck/pelvis), "
+             "*fwd* = forward, *up*; error = median distance (cm). Lengths: ours / truth, "
+             "median over frames of the ratio.", ""]
+    for key in ("fit", "init"):
+        lines += [f"## {'fitted skeleton' if key == 'fit' else 'initial placement (no fit)'}", ""]
+        lines += ["| set-up | motion | frames | MPJPE | " + " | ".join(BIAS_JOINTS) + " |",
+                  "|---|---|---|---|" + "---|" * len(BIAS_JOINTS)]
+        for st in setups:
+            for motion in ("walk", "random"):
+                rs = [r for r in rows if r["setup"] == st and r["motion"] == motion]
+                if not rs:
+                    continue
+                cells = []
+                for jn in BIAS_JOINTS:
+                    v = np.array([x for r in rs for x in r[key]["bias"].get(jn, [])])
+                    if not len(v):
+                        cells.append("–")
+                        continue
+                    m = 100 * np.median(v, axis=0)
+                    e = 100 * np.median(np.linalg.norm(v, axis=1))
+                    cells.append(f"{e:.1f} ({m[0]:+.1f}, {m[1]:+.1f}, {m[2]:+.1f})")
+                pf = [x for r in rs for x in r[key]["mpjpe_frames"]]
+                lines.append(f"| {st} | {motion} | {len(pf)} | "
+                             f"{100 * np.median(pf):.1f} | " + " | ".join(cells) + " |")
+        lines += ["", "| set-up | motion | " + " | ".join(n for n, *_ in BIAS_LENGTHS) + " |",
+                  "|---|---|" + "---|" * len(BIAS_LENGTHS)]
+        for st in setups:
+            for motion in ("walk", "random"):
+                rs = [r for r in rows if r["setup"] == st and r["motion"] == motion]
+                if not rs:
+                    continue
+                cells = []
+                for n, *_ in BIAS_LENGTHS:
+                    v = np.array([x for r in rs for x in r[key]["lengths"].get(n, [])])
+                    cells.append("–" if not len(v) else
+                                 f"{np.median(v[:, 0] / v[:, 1]):.2f} ({np.median(v[:, 0]):.3f}/"
+                                 f"{np.median(v[:, 1]):.3f})")
+                lines.append(f"| {st} | {motion} | " + " | ".join(cells) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
 def ungated(poses):
     """The poses as with the confidence gate off: frames only the gate rejected are matched
     (the gate judges a frame after its alignment; it changes nothing else)."""
@@ -269,13 +419,22 @@ def ungated(poses):
     return [replace(p, status="matched", error=None) if gated_only(p) else p for p in poses]
 
 
-def one_sequence(work, motion, seed, build, frames, model):
-    """Per-frame result once (gate on), then every figure with the gate on and off."""
-    d = Path(work) / f"{motion}_{seed}_{build}"
-    t0 = time.perf_counter()
+def make_sequence(work, motion, seed, build, frames, setup=None):
+    """The capture folder of one sequence (written once): ``setup`` (:data:`SETUPS` key, default
+    ``"8"``) says its cameras."""
+    setup = setup or "8"
+    d = Path(work) / (f"{motion}_{seed}_{build}" + ("" if setup == "8" else f"_{setup}"))
     if not (d / "gt.json").exists():
-        synthesize(d, subject="body", frames=frames, seed=seed, cameras=8, noise=1, motion=motion,
-                   build=build)
+        cams, size, noise, layout = SETUPS[setup]
+        synthetic_capture("body", frames=frames, seed=seed, cameras=cams, size=size, noise=noise,
+                          motion=motion, build=build, layout=layout, out=d)
+    return d
+
+
+def one_sequence(work, motion, seed, build, frames, model, setup=None):
+    """Per-frame result once (gate on), then every figure with the gate on and off."""
+    t0 = time.perf_counter()
+    d = make_sequence(work, motion, seed, build, frames, setup)
     t_synth = time.perf_counter() - t0
     cap = load_capture(d)
     res = run(cap, model=model, resolution=100, output=d / "poses.jsonl", progress=False,
@@ -549,14 +708,43 @@ def main(argv=None):
                     help="its reference/pose2sim_3d.trc (Pose2Sim's 3D result)")
     ap.add_argument("--dev", action="store_true",
                     help="the development seeds (DEV_SEQUENCES), written as tracking_dev*.md/json")
+    ap.add_argument("--setup", default="8", choices=sorted(SETUPS),
+                    help="cameras (SETUPS): 4p = 4 portrait phones in facing pairs, written as "
+                         "tracking_4p*.md/json")
+    ap.add_argument("--bias", action="store_true",
+                    help="only the skeleton's signed bias, widths and bone lengths per set-up "
+                         "(--setups), written as tracking_bias*.md/json")
+    ap.add_argument("--setups", default="8,4p", help="with --bias: the set-ups compared")
+    ap.add_argument("--seeds", default=None, help="only these seeds (comma-separated)")
     a = ap.parse_args(argv)
     model = load_model("human")
     work = a.work or tempfile.mkdtemp(prefix="topopose_tracking_")
+    seqs = DEV_SEQUENCES if a.dev else SEQUENCES
+    if a.seeds:
+        keep = {int(x) for x in a.seeds.split(",")}
+        seqs = [s for s in seqs if s[1] in keep]
+    if a.bias:
+        setups = a.setups.split(",")
+        rows = []
+        for st in setups:
+            for motion, seed, build in seqs:
+                n = a.walk_frames if motion == "walk" else a.random_frames
+                rows.append(bias_sequence(work, motion, seed, build, n, model, st))
+                print(json.dumps({k: rows[-1][k] for k in ("setup", "motion", "seed", "good")}
+                                 | {"mpjpe": rows[-1]["fit"]["mpjpe"][0]}), flush=True)
+        out = Path(a.out)
+        out.mkdir(parents=True, exist_ok=True)
+        info = machine(resolution=100, subject="body", confidence_gate=True)
+        name = "tracking_bias" + ("_dev" if a.dev else "")
+        (out / f"{name}.json").write_text(json.dumps({"machine": info, "sequences": rows}))
+        (out / f"{name}.md").write_text(bias_report(rows, setups, info))
+        print(bias_report(rows, setups, info))
+        return
     rows = {True: [], False: []}
     pic = {True: None, False: None}
-    for motion, seed, build in (DEV_SEQUENCES if a.dev else SEQUENCES):
+    for motion, seed, build in seqs:
         n = a.walk_frames if motion == "walk" else a.random_frames
-        both = one_sequence(work, motion, seed, build, n, model)
+        both = one_sequence(work, motion, seed, build, n, model, a.setup)
         for gate, (r, d, sided, tree) in both.items():
             rows[gate].append(r)
             print(json.dumps({"gate": gate, **{k: (v[0] if k.startswith("mpjpe") else v)
@@ -572,11 +760,13 @@ def main(argv=None):
         if real is None:
             print(f"real recording: {a.real_poses} or {a.real_trc} absent; skipped")
     for gate in (True, False):
-        suffix = ("_dev" if a.dev else "") + ("" if gate else "_nogate")
+        suffix = (("" if a.setup == "8" else f"_{a.setup}") + ("_dev" if a.dev else "")
+                  + ("" if gate else "_nogate"))
         if pic[gate] is not None:
             p = pic[gate]
             picture(out / f"tracking{suffix}.png", p[1], p[2], p[3], load_capture(p[1]).gt, model)
-        info = machine(resolution=100, cameras=8, noise=1, subject="body", confidence_gate=gate)
+        info = machine(resolution=100, cameras=SETUPS[a.setup][0], noise=SETUPS[a.setup][2],
+                       subject="body", confidence_gate=gate, layout=SETUPS[a.setup][3])
         compact = [{k: (v[:3] if k.startswith("mpjpe") else v) for k, v in r.items()}
                    for r in rows[gate]]
         (out / f"tracking{suffix}.json").write_text(json.dumps(

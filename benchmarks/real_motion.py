@@ -342,8 +342,8 @@ def widths(markers, ref):
 
 def signed_bias(markers, ref, rows, up) -> dict:
     """Per joint, median over ``rows`` (frames) of our marker − Pose2Sim's in Pose2Sim's body
-    frame (cm): lateral (outward for a mirror joint, pairs paired optimally; towards the left
-    for Head and Neck), forward, up; the same frame as ``tracking.py --bias`` measures on the
+    frame (cm): lateral (outward for a mirror joint, pairs paired optimally, both sides pooled
+    and, as ``L…``/``R…``, each side alone; towards the left for Head and Neck), forward, up; the same frame as ``tracking.py --bias`` measures on the
     synthetic body (truth's hips), to compare the biases of 4 and 8 cameras with the real ones."""
     up = np.asarray(up, float) / np.linalg.norm(up)
     acc = {}
@@ -372,6 +372,8 @@ def signed_bias(markers, ref, rows, up) -> dict:
             if np.linalg.norm(a - L) + np.linalg.norm(b - R) > np.linalg.norm(a - R) + np.linalg.norm(b - L):
                 a, b = b, a
             acc.setdefault(stem, []).extend([comp(a - L), comp(b - R, -1.0)])
+            acc.setdefault(f"L{stem}", []).append(comp(a - L))
+            acc.setdefault(f"R{stem}", []).append(comp(b - R, -1.0))
     return {k: [round(float(x), 1) for x in np.median(np.array(v), axis=0)] for k, v in acc.items()}
 
 

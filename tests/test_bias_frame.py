@@ -89,4 +89,5 @@ def test_real_signed_bias_recovers_known_offsets():
     assert np.allclose(out["Neck"], 100 * np.array(MOVE["neck"]), atol=0.051)
     assert np.allclose(out["Head"], 0.0, atol=0.051)
     for base in STEM:
-        assert np.allclose(out[base], 100 * np.array(MOVE[base]), atol=0.051), base
+        for k in (base, "L" + base, "R" + base):
+            assert np.allclose(out[k], 100 * np.array(MOVE[base]), atol=0.051), k

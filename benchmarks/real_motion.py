@@ -426,6 +426,8 @@ def report(doc) -> str:
           "", "Widths (ours vs Pose2Sim, m; median over frames): "
           + ", ".join(f"{k} {' vs '.join(map(str, v))}"
                       for k, v in doc.get("widths_vs_pose2sim_m", {}).items()),
+          "", f"Hull fatness (hull litres / height³, median over frames): {doc.get('hull_fatness')}"
+          " (synthetic body: `tracking_bias_dev.md`).",
           "", "Signed bias on the right frames (ours − Pose2Sim, cm, median; Pose2Sim's body "
           "frame: outward (left for Head/Neck), forward, up; compare `tracking_bias_dev.md`): "
           + ", ".join(f"{k} ({', '.join(f'{x:+.1f}' for x in v)})"
@@ -478,6 +480,9 @@ def main(argv=None):
                       round(float(np.median(np.linalg.norm(ref[f"{sd}{a}"] - ref[f"{sd}{b}"], axis=1))), 3)]
                for name, j, a, b in BONES_COMPARED for sd in "L"},
            "widths_vs_pose2sim_m": widths(markers, ref),
+           "hull_fatness": round(float(np.median([p.diagnostics["hull_litres"]
+                                                   / p.diagnostics["height"] ** 3 for p in raw
+                                                   if p.diagnostics.get("height")])), 2),
            "signed_bias_right_cm": signed_bias(markers, ref, [i for i in range(len(right))
                                                               if right[i]], cap.up_vector),
            "scores": s}

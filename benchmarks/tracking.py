@@ -276,8 +276,8 @@ def fit_before_rest(tracked, model):
 
 
 BIAS_JOINTS = ("neck", "shoulder", "elbow", "wrist", "hip", "knee", "ankle")
-# (name, rig joints at its ends): widths across the body and bone lengths (left side's rig
-# joints; ours: the fitted joints, mirror pairs as :func:`joint_errors` pairs them)
+# (name, joint, its rig joint, joint, its rig joint; None: the pelvis, mid-hips): widths across
+# the body and bone lengths, left side (ours: the joints paired with these rig joints)
 BIAS_LENGTHS = (("shoulder width", "shoulder", "LeftArm_head", "shoulder", "RightArm_head"),
                 ("hip width", "hip", "LeftUpLeg_head", "hip", "RightUpLeg_head"),
                 ("upper arm", "shoulder", "LeftArm_head", "elbow", "LeftForeArm_head"),
@@ -308,7 +308,7 @@ def joint_bias(names, P, gj, up):
         rig = RIG[base]
         if base == "pelvis" or len(rig) == 1:
             t = J[rig[0]] if len(rig) == 1 else 0.5 * (J[rig[0]] + J[rig[1]])
-            ours[(base, None)] = xs[0]
+            ours[(base, rig[0] if len(rig) == 1 else None)] = xs[0]
             e = xs[0] - t
             err[base] = [(float(e @ lat), float(e @ fwd), float(e @ up))]
             continue
@@ -324,8 +324,7 @@ def joint_bias(names, P, gj, up):
             err[base].append((float(e @ lat) * sg, float(e @ fwd), float(e @ up)))
     lengths = {}
     for name, a, ra, b, rb in BIAS_LENGTHS:
-        x, y = ours.get((a, ra if a in ("shoulder", "hip", "elbow", "wrist", "knee", "ankle")
-                         else None)), ours.get((b, rb))
+        x, y = ours.get((a, ra)), ours.get((b, rb))
         if x is None or y is None:
             continue
         tb = J[rb] if rb else 0.5 * (J["LeftUpLeg_head"] + J["RightUpLeg_head"])
@@ -347,7 +346,9 @@ def bias_sequence(work, motion, seed, build, frames, model, setup):
     good = {fs.frame for fs in evaluate(cap.gt, res.poses, model=model).frames
             if fs.quality == "good"}
     out = {"motion": motion, "seed": seed, "build": build, "setup": setup,
-           "good": len(good), "frames": len(res.poses)}
+           "good": len(good), "frames": len(res.poses),
+           "hull_fatness": [p.diagnostics["hull_litres"] / p.diagnostics["height"] ** 3
+                            for p in res.poses if p.diagnostics.get("height")]}
     for key in ("fit", "init"):
         errs, bias, lengths = [], {}, {}
         for p in fitted:
@@ -382,7 +383,13 @@ def bias_report(rows, setups, info, real=None) -> str:
              "Signed bias (median over joints × frames, cm) in the truth's body frame: *out* "
              "= outward from the midline for mirror joints (towards the left for neck/pelvis), "
              "*fwd* = forward, *up*; error = median distance (cm). Lengths: ours / truth, "
-             "median over frames of the ratio.", ""]
+             "median over frames of the ratio.", "",
+             "Hull fatness (hull litres / height³, median over frames; a body's own volume "
+             "≈ 15): " + ", ".join(
+                 f"`{st}` {np.median([x for r in rows if r['setup'] == st for x in r.get('hull_fatness', [])]):.1f}"
+                 for st in setups)
+             + ("" if not real or "hull_fatness" not in real else
+                f", real recording {real['hull_fatness']:.1f}") + ".", ""]
     for key in ("fit", "init"):
         lines += [f"## {'fitted skeleton' if key == 'fit' else 'initial placement (no fit)'}", ""]
         lines += ["| set-up | motion | frames | MPJPE | " + " | ".join(BIAS_JOINTS) + " |",

@@ -67,6 +67,11 @@ def test_joint_bias_recovers_known_offsets_in_any_heading():
         assert np.isclose(ours - truth, 2 * MOVE["shoulder"][0])
         ours, truth = lengths["hip width"]
         assert np.isclose(ours - truth, 2 * MOVE["hip"][0])
+        thigh = np.linalg.norm(_moved("Left", "hip") - _moved("Left", "knee"))
+        true_thigh = np.linalg.norm(np.subtract(RIG["LeftUpLeg_head"], RIG["LeftLeg_head"]))
+        assert np.allclose(lengths["thigh"], (thigh, true_thigh))
+        # no pelvis joint given: no neck–pelvis length
+        assert "neck-pelvis" not in lengths
 
 
 def test_real_signed_bias_recovers_known_offsets():

@@ -822,7 +822,9 @@ def main(argv=None):
             p = pic[gate]
             picture(out / f"tracking{suffix}.png", p[1], p[2], p[3], load_capture(p[1]).gt, model)
         info = machine(resolution=100, cameras=SETUPS[a.setup][0], noise=SETUPS[a.setup][2],
-                       subject="body", confidence_gate=gate, layout=SETUPS[a.setup][3])
+                       subject="body", confidence_gate=gate and a.setup == "8",
+                       layout=SETUPS[a.setup][3],
+                       **({} if a.setup == "8" else {"aha_threshold": "off"}))
         compact = [{k: (v[:3] if k.startswith("mpjpe") else v) for k, v in r.items()}
                    for r in rows[gate]]
         (out / f"tracking{suffix}.json").write_text(json.dumps(
@@ -861,8 +863,12 @@ def peer_bullet(rs, pj, pooled, title, peer, holding, arms):
 def report(rows, info, real=None):
     gate = "on (main's default)" if info.get("confidence_gate", True) else \
         "off (every frame the alignment accepts is matched)"
-    L = ["# From poses to motion (body subject, 100³, 8 cameras, noise 1)", "",
-         f"Per-frame confidence gate: {gate}.", "",
+    L = [f"# From poses to motion (body subject, 100³, {info.get('cameras', 8)} cameras, noise "
+         f"{info.get('noise', 1)}" + (f", {info['layout']}" if info.get("layout", "ring") != "ring"
+                                      else "") + ")", "",
+         f"Per-frame confidence gate: {gate}."
+         + (" AHA threshold off (as `real_motion.py`)." if info.get("aha_threshold") == "off"
+            else ""), "",
          f"Machine: {info['cpu']}, {info['cores']} cores, load {info['load_average']}, {info['date']}.",
          "Produced by `benchmarks/tracking.py`; every figure beside its peer in the same run. The "
          "per-frame matching on the body is being improved elsewhere (issue 11): matched frames "

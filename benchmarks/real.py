@@ -288,28 +288,38 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     make_capture(rec, cdir, base, extra)
     import topopose.capture.background as bg
     bg.UPSAMPLED_MASKS = "fullmasks" not in opts
-    t0 = time.perf_counter()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")          # the "pad" policy warns for cam01/cam02
-        cap = tp.load_capture(cdir)
-        frames = cap.frames[:nframes] if nframes else cap.frames
-        est = FrameEstimator(cap, "human", resolution, gate=False)   # both decisions scored
-        poses = []
-        with prefetch(cap, frames):
-            t_setup = time.perf_counter() - t0    # background learned (prefetch learns it first)
-            poses.append(est.estimate(frames[0]))
-            t_first = time.perf_counter() - t0
-            t1, c1, m1 = time.perf_counter(), time.process_time(), time.thread_time()
-            # by thread: until the reader (≤ 4 frames ahead, decoding 2 more) may have ended
-            k1, k2, nk = thread_cpu(), {}, max(len(frames) - 9, 1)
-            for j, f in enumerate(frames[1:]):
-                if j == nk:
-                    k2 = thread_cpu()
-                poses.append(est.estimate(f))
-            k2 = k2 or thread_cpu()
-            t_rest = time.perf_counter() - t1
-            c_rest = time.process_time() - c1     # every thread's CPU (reader included)
-            m_rest = time.thread_time() - m1      # this thread's: the geometric pipeline
+    def one_pass(support):
+        """The run end to end, timed; ``support``: record the silhouette the model leaves
+        unexplained (:mod:`topopose.pose.support`, paid only with ``run --consistency``)."""
+        t0 = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")          # the "pad" policy warns for cam01/cam02
+            cap = tp.load_capture(cdir)
+            frames = cap.frames[:nframes] if nframes else cap.frames
+            est = FrameEstimator(cap, "human", resolution, gate=False,   # both decisions scored
+                                 support=support)
+            poses = []
+            with prefetch(cap, frames):
+                t_setup = time.perf_counter() - t0    # background learned (prefetch learns it first)
+                poses.append(est.estimate(frames[0]))
+                t_first = time.perf_counter() - t0
+                t1, c1, m1 = time.perf_counter(), time.process_time(), time.thread_time()
+                # by thread: until the reader (≤ 4 frames ahead, decoding 2 more) may have ended
+                k1, k2, nk = thread_cpu(), {}, max(len(frames) - 9, 1)
+                for j, f in enumerate(frames[1:]):
+                    if j == nk:
+                        k2 = thread_cpu()
+                    poses.append(est.estimate(f))
+                k2 = k2 or thread_cpu()
+                t_rest = time.perf_counter() - t1
+                c_rest = time.process_time() - c1     # every thread's CPU (reader included)
+                m_rest = time.thread_time() - m1      # this thread's: the geometric pipeline
+        return (cap, frames, est, poses, t_setup, t_first, t_rest, c_rest, m_rest, k1, k2, nk)
+
+    # the run as `topopose run` does it by default (timed, scored), then with the support
+    # feature for `--consistency` (scored in its own section, its cost reported apart)
+    cap, frames, est, poses, t_setup, t_first, t_rest, c_rest, m_rest, k1, k2, nk = one_pass(False)
+    _, _, _, sup_poses, *_ = one_pass(True)
     temporal_confidence(poses, {f: i for i, f in enumerate(cap.frames)}, gate=False)
     idx = {f: i for i, f in enumerate(cap.frames)}
     mc = est.min_confidence                   # the run's minimum for this camera count
@@ -320,7 +330,8 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     res["as_run"]["snapped"] = sum(bool(p.diagnostics.get("snapped")) for p in run_poses)
     # ``topopose run --consistency`` (topopose.pose.consistency): matched by the run's own
     # consistency instead of the confidence's absolute minimum
-    cons = as_run(poses, est.model, cap.up_vector, mc if default_gate(cap) else None,
+    temporal_confidence(sup_poses, idx, gate=False)
+    cons = as_run(sup_poses, est.model, cap.up_vector, mc if default_gate(cap) else None,
                   consistency=True)
     res["as_run_consistency"] = summarize(cons, ref, idx, mc)
     stages = {}
@@ -338,6 +349,9 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
         "cpu_ms_per_frame": round(1000 * c_rest / max(len(frames) - 1, 1), 2),
         "main_thread_cpu_ms_per_frame": round(1000 * m_rest / max(len(frames) - 1, 1), 2),
         "stages_median_ms": {k: round(float(np.median(v)), 2) for k, v in stages.items()},
+        # the support feature's own cost (the `--consistency` pass; not in the figures above)
+        "support_median_ms": round(float(np.median([p.timings_ms.get("support", 0.0)
+                                                    for p in sup_poses[1:]] or [0.0])), 2),
         # CPU per frame by thread kind (thread_cpu): where the 2 cores' time goes
         "thread_cpu_ms_per_frame": {k: round(1000 * (v - k1.get(k, 0.0)) / nk, 1)
                                     for k, v in sorted(k2.items(), key=lambda x: -x[1])},
@@ -614,12 +628,14 @@ def report(doc) -> str:
               else f"{r['same_poses_as_peer']}/{r['frames']}"] if peer else []
         rows.append([name, s["setup_s"], s["first_frame_s"], s["per_frame_ms"], s["end_to_end_fps"],
                      s.get("cpu_ms_per_frame", ""), *vs,
-                     ", ".join(f"{k} {v}" for k, v in s["stages_median_ms"].items())])
+                     ", ".join(f"{k} {v}" for k, v in s["stages_median_ms"].items()),
+                     s.get("support_median_ms", "")])
     L += _table(["silhouettes", "set-up s (background)", "first frame s incl. set-up (target ≤ 2)",
                  "ms/frame after", "end-to-end frames/s (target ≥ 20)", "CPU ms/frame (all threads)",
                  *(["frames/s ratio to peer", "CPU ratio to peer", "same poses as peer"] if peer
                    else []),
-                 "stage medians ms (hull includes waiting for the reader)"], rows)
+                 "stage medians ms (hull includes waiting for the reader)",
+                 "`--consistency` only: support ms (not included)"], rows)
     L += ["", "## Where the first frame's time goes (s)", ""]
     L += _table(["silhouettes", "set-up steps", "first frame's stages"],
                 [[name, ", ".join(f"{k} {v}" for k, v in r["speed"].get("setup_breakdown_s", {}).items()),

@@ -2,7 +2,7 @@
 right, and the full skeleton against the rig joints of the ground truth.
 
     python benchmarks/tracking.py [--walk-frames 40] [--random-frames 60] [--out benchmarks/results]
-                                  [--work DIR]
+                                  [--work DIR] [--dev] [--only walk|random]
 
 One per-frame run per sequence (confidence gate on); every figure is then measured twice, with
 the gate on (``tracking.*``) and off (``tracking_nogate.*``: the frames only the gate rejected
@@ -44,6 +44,9 @@ is measured beside its peer in the same run:
 * **arm evidence** (``diagnostics["arm_evidence"]``, :func:`topopose.pose.unseen.evidence_fill`):
   the fit against the same fit without it (``evidence=False``): MPJPE, frames holding joints,
   per joint, and the unseen arms' error.
+* **bent limbs** (:func:`~topopose.pose.kinematic_fit.bend_joints`, ``BEND``; and
+  ``SHOULDER_QUANTILE``): the fit against the same fit with the middle joints at their ``at``
+  and the shoulder's bone at the 70th percentile (:func:`fit_before_bend`).
 * **shoulders from the hull** (``diagnostics["hull_shoulders"]``,
   :func:`topopose.pose.unseen.hull_shoulders`): the fit against the same fit without them
   (``shoulders=False``): MPJPE, frames holding joints, per joint, and the unseen arms' error.
@@ -452,6 +455,21 @@ def bias_report(rows, setups, info, real=None) -> str:
     return "\n".join(lines)
 
 
+def fit_before_bend(tracked, model):
+    """The fit before the bent limbs' middle joints were placed at their curve's bend
+    (:data:`~topopose.pose.kinematic_fit.BEND`) and the shoulder's bone from the junction took
+    its median length (:data:`~topopose.pose.kinematic_fit.SHOULDER_QUANTILE`): every middle
+    joint at its ``at``, the shoulder's bone at the limbs' 70th percentile."""
+    from topopose.pose import kinematic_fit as kf
+
+    keep = kf.BEND, kf.SHOULDER_QUANTILE
+    kf.BEND, kf.SHOULDER_QUANTILE = None, None
+    try:
+        return fit_sequence(tracked, model)
+    finally:
+        kf.BEND, kf.SHOULDER_QUANTILE = keep
+
+
 def ungated(poses):
     """The poses as with the confidence gate off: frames only the gate rejected are matched
     (the gate judges a frame after its alignment; it changes nothing else)."""
@@ -559,6 +577,7 @@ def analyse(raw, cap, model):
     err_noevid, evid_holding, evid_arms = peer_errors(
         fit_sequence(tracked, model, evidence=False)[0])
     err_nosh, sh_holding, sh_arms = peer_errors(fit_sequence(tracked, model, shoulders=False)[0])
+    err_bend0, bend_holding, bend_arms = peer_errors(fit_before_bend(tracked, model)[0])
     hint_end = []        # each hint's end: distance to the nearest true elbow and wrist
     for p in raw:
         gj = gt["frames"][p.frame]["joints"]
@@ -632,6 +651,9 @@ def analyse(raw, cap, model):
                             mpjpe([b for _, b in evid_holding])[3]],
            "mpjpe_nosh": mpjpe(err_nosh), "sh_arms": sh_arms,
            "sh_holding": [mpjpe([a for a, _ in sh_holding])[3], mpjpe([b for _, b in sh_holding])[3]],
+           "mpjpe_bend0": mpjpe(err_bend0), "bend_arms": bend_arms,
+           "bend_holding": [mpjpe([a for a, _ in bend_holding])[3],
+                            mpjpe([b for _, b in bend_holding])[3]],
            "arms": arms, "frames_by": {k: mpjpe(v)[3] for k, v in frames_by.items()},
            "bone_lengths": {tree.names[j]: float(L[j]) for j in range(len(L)) if tree.parents[j] >= 0},
            "seconds": {"track": t_track, "fit": t_fit, "sides": t_sides}}
@@ -758,6 +780,9 @@ def main(argv=None):
                     help="poses.jsonl of `topopose run` on the real recording (Pose2Sim balancing)")
     ap.add_argument("--real-trc", default=None,
                     help="its reference/pose2sim_3d.trc (Pose2Sim's 3D result)")
+    ap.add_argument("--only", choices=("walk", "random"), default=None,
+                    help="only the walks or only the random-motion sequences (while developing; the "
+                         "report then holds those only)")
     ap.add_argument("--dev", action="store_true",
                     help="the development seeds (DEV_SEQUENCES), written as tracking_dev*.md/json")
     ap.add_argument("--setup", default="8", choices=sorted(SETUPS),
@@ -799,6 +824,8 @@ def main(argv=None):
     rows = {True: [], False: []}
     pic = {True: None, False: None}
     for motion, seed, build in seqs:
+        if a.only and motion != a.only:
+            continue
         n = a.walk_frames if motion == "walk" else a.random_frames
         both = one_sequence(work, motion, seed, build, n, model, a.setup)
         for gate, (r, d, sided, tree) in both.items():
@@ -999,6 +1026,14 @@ def report(rows, info, real=None):
                           "unseen arm moved half-way to it, within 0.2 m, "
                           "`kinematic_fit.SEEN_HULL_SHOULDER`, `HULL_SHOULDER`), now ← without "
                           "(`shoulders=False`)", "nosh", "sh_holding", "sh_arms"),
+              peer_bullet(rs, pj, pooled, "a bent limb's middle joint (elbow, wrist, knee, "
+                          "ankle) at its curve's bend — the curve's farthest point from the "
+                          "chord between the joints either side, when deeper than 0.2 × the "
+                          "chord (`kinematic_fit.BEND`, `bend_joints`) — and the shoulder's "
+                          "bone from the chest junction at its median length "
+                          "(`SHOULDER_QUANTILE`), now ← before (the joints at their `at`, "
+                          "the shoulder's bone at the 70th percentile)", "bend0", "bend_holding",
+                          "bend_arms"),
               "- the unseen arm's shoulder, the neck's length, the raised arm's shoulder "
               "(`kinematic_fit.HELD_SHOULDER`: an unseen "
               "arm's shoulder opposite its mate, raised 30° from the plane across the trunk, "

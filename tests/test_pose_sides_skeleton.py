@@ -364,12 +364,14 @@ def test_a_long_tracked_segment_overrules_one_frame_with_crossed_legs():
     assert np.allclose(out[k].parts["left_foot"], truth[k]["right_foot"])
 
 
-def test_chain_fit_finds_the_elbow_at_the_corner_of_a_bent_arm_curve():
+def test_chain_fit_finds_the_elbow_at_the_corner_of_a_bent_arm_curve(monkeypatch):
     """Oracle: an arm curve bent 90° at a known elbow, true bone lengths, no placement target
     for the elbow and wrist: the chain's elbow lands on the curve's corner (the relative arc
-    length alone, the initial placement, misses it by several cm)."""
+    length alone, the initial placement without ``BEND``, misses it by several cm)."""
+    from topopose.pose import kinematic_fit as kf
     from topopose.pose.kinematic_fit import bone_lengths, fit_frame, initial_placement
 
+    monkeypatch.setattr(kf, "BEND", None)
     tree = kinematic_tree(HUMAN)
     parts, curves = _body(0.0, np.random.default_rng(3))
     torso = parts["torso"]
@@ -712,3 +714,85 @@ def test_a_raised_arms_shoulder_moves_down_the_trunk(monkeypatch):
     for j, n in enumerate(tree.names):
         want = P0[j] - (drop * S * ax if n == up else 0.0)
         assert np.allclose(P[j], want, atol=1e-12), n
+
+
+def _bent_arm_pose(seed=3):
+    """``_body`` with its left arm's curve bent 90° at a known elbow E (upper arm down, forearm
+    forward); returns (pose, E, W: the wrist)."""
+    parts, curves = _body(0.0, np.random.default_rng(seed))
+    torso = parts["torso"]
+    S = torso + [0.0, 0.2, 0.05]
+    E = S + [0.0, 0.03, -0.27]
+    W = E + [0.26, 0.0, 0.0]
+    H = W + [0.08, 0.0, 0.0]
+    parts["left_hand"], curves["left_hand"] = H, resample([torso, S, E, W, H], 64)
+    pose, _ = _numbered_frame("000000", parts, curves, False, False)
+    return pose, E, W
+
+
+def parts_of(pose, name):
+    return np.asarray(pose.parts[name], float)
+
+
+def test_a_bent_limbs_middle_joint_is_placed_at_its_curves_bend(monkeypatch):
+    """Oracle: an arm curve bent 90° at a known elbow. With ``BEND`` the initial placement puts
+    the elbow on the corner (within a curve sample) and the ankles on the heel's corner (the
+    foot turns forward); at their relative arc lengths alone they are off. The knees, bent by
+    0.08 m over a 0.8 m chord (depth 0.1 < ``BEND``), the wrists and the straight right arm
+    keep their ``at``; a deeper knee bend takes the knee nearer its corner."""
+    from topopose.pose import kinematic_fit as kf
+
+    tree = kinematic_tree(HUMAN)
+    pose, E, _ = _bent_arm_pose()
+    el = tree.names.index("elbow_1")
+    P = kf.initial_placement(pose, tree)
+    monkeypatch.setattr(kf, "BEND", None)
+    P0 = kf.initial_placement(pose, tree)
+    assert np.linalg.norm(P[el] - E) < 0.015, np.linalg.norm(P[el] - E)
+    assert np.linalg.norm(P0[el] - E) > 0.04
+    changed = {tree.names[j] for j in range(len(tree.names)) if not np.allclose(P[j], P0[j])}
+    assert changed == {"elbow_1", "ankle_1", "ankle_2"}, changed
+    # the ankle, between knee and toe, at the heel's corner (the foot turns forward there)
+    for k, sg in (("1", 1.0), ("2", -1.0)):            # hand_1/foot_1 are the left ones
+        ankle = parts_of(pose, "crotch") + np.array([0.0, sg * 0.1, -0.85])
+        a = tree.names.index(f"ankle_{k}")
+        c = np.asarray(pose.diagnostics["curves"][f"foot_{k}"])
+        step = np.linalg.norm(np.diff(c, axis=0), axis=1).max()      # one curve sample
+        assert np.linalg.norm(P[a] - ankle) < step < np.linalg.norm(P0[a] - ankle), step
+    # a deeper knee bend (0.3 m over the 0.8 m chord) moves the knee nearer its corner
+    parts, curves = _body(0.0, np.random.default_rng(3), knee=0.3)
+    pose2, _ = _numbered_frame("000000", parts, curves, False, False)
+    knee = parts["crotch"] + np.array([0.3, 0.1, -0.45])     # W([knee, 0.1, 0.5]), yaw 0
+    monkeypatch.setattr(kf, "BEND", 0.2)
+    k = tree.names.index("knee_1")
+    e = np.linalg.norm(kf.initial_placement(pose2, tree)[k] - knee)
+    monkeypatch.setattr(kf, "BEND", None)
+    e0 = np.linalg.norm(kf.initial_placement(pose2, tree)[k] - knee)
+    assert e < e0 - 0.01, (e, e0)
+
+
+def test_shoulder_bone_at_its_median_as_the_junction_slides(monkeypatch):
+    """The chest junction slides along the trunk around the true chest while the shoulders
+    stay (a raised arm pulls it up, the curves cut it down): the junction → shoulder distance
+    scatters about the true length and no corner cuts it short. At ``SHOULDER_QUANTILE`` (the
+    median) the shoulder's bone is nearer the true length than at the limbs' 70th
+    percentile, the other bones keep theirs."""
+    from topopose.pose import kinematic_fit as kf
+
+    tree = kinematic_tree(HUMAN)
+    rng = np.random.default_rng(5)
+    parts, curves = _body(0.0, np.random.default_rng(7))
+    pose, _ = _numbered_frame("000000", parts, curves, False, False)
+    base = kf.initial_placement(pose, tree)
+    sh = [j for j in range(len(tree.names)) if tree.base[j] == "shoulder"]
+    true_len = np.linalg.norm(base[sh[0]] - base[tree.root])
+    dz = rng.uniform(-0.08, 0.08, 30)
+    init = np.repeat(base[None], 2 * len(dz), axis=0)
+    init[:, tree.root, 2] += np.concatenate([dz, -dz])
+    L = kf.bone_lengths(init, tree)
+    monkeypatch.setattr(kf, "SHOULDER_QUANTILE", None)
+    L70 = kf.bone_lengths(init, tree)
+    assert abs(L[sh[0]] - true_len) < abs(L70[sh[0]] - true_len) - 0.003, (L[sh[0]], L70[sh[0]])
+    assert abs(L[sh[0]] - L[sh[1]]) < 1e-12
+    others = [j for j in range(len(tree.names)) if tree.parents[j] >= 0 and j not in sh]
+    assert np.allclose(L[others], L70[others])

@@ -242,6 +242,10 @@ class FrameEstimator:
         cluster that are not leaves of the data tree (:func:`junction_position`): a branch the
         alignment contracted into the junction — a forearm lying on the belly — is no part of
         it. None: the model's entry in :data:`JUNCTION_CORE` (human: on); False: every vertex.
+    support : bool or None
+        Record ``diagnostics["unexplained"]``: the largest share of a camera's silhouette the
+        placed model leaves unexplained (:mod:`.support`). None (default): off (``run
+        --consistency`` turns it on).
     """
 
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
@@ -253,11 +257,13 @@ class FrameEstimator:
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
                  short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
                  hand_trunk=None, head_ball=None, keep_junctions=None, head_doubt=None,
-                 head_axis=None, junction_core=None):
+                 head_axis=None, junction_core=None, support=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
         self.min_share = float(min_share)
+        if support is not None:
+            self.support = bool(support)
         # the fitted confidence knows upright subjects only (its head features look up): without
         # the coordinate constraints (acrobatic poses) the default gate is off — on, it rejected
         # 105 of the 198 frames of benchmarks/applications.py's acrobatic sequence, every
@@ -389,6 +395,9 @@ class FrameEstimator:
     curves = True    # record the skeleton curve of each matched arc (pose.curves)
     leaves = True    # record the data tree's unmatched leaves (pose.track: snapping)
     arm_evidence = True   # record the hull's remainder when a limb is unplaced (pose.unseen)
+    # record the silhouette the placed model leaves unexplained (pose.support; used by
+    # ``run --consistency``, which turns it on)
+    support = False
 
     # ------------------------------------------------------------------ stages
     def hull(self, frame):
@@ -403,8 +412,29 @@ class FrameEstimator:
         from ..hull import visual_hull
 
         consensus = self.repair if self.tolerance > 0 and self.repair >= 0 else None
-        return visual_hull(self.cap, frame, resolution=self.resolution, tolerance=self.tolerance,
-                           consensus=consensus, refocus=self.refocus)
+        masks = None
+        if self.support:           # the silhouettes the hull is carved from, kept for them
+            from ..hull.hull import _soft_fusion
+            self._silhouettes = None
+            if not _soft_fusion(self.cap):
+                from ..capture.background import scaled_camera
+                masks = self.cap.silhouettes(frame)
+                cams, sils = [], []
+                for cam, m in zip(self.cap.cameras, masks):
+                    small = getattr(m, "small", None)     # an upsampled map: compared small
+                    cams.append(cam if small is None else
+                                scaled_camera(cam, small.shape[1] / cam.size[0]))
+                    sils.append(m if small is None else small.astype(bool))
+                self._silhouettes = (cams, sils)
+        vol = visual_hull(self.cap, frame, resolution=self.resolution, tolerance=self.tolerance,
+                          consensus=consensus, refocus=self.refocus, masks=masks)
+        if self.support and self._silhouettes is None:      # probabilities: cached per frame
+            from ..capture.background import foreground_maps, scaled_camera
+            p = self.cap.options["silhouettes"]
+            cut = int(255 * float(p.get("cut", 0.5)))
+            self._silhouettes = ([scaled_camera(c, float(p["scale"])) for c in self.cap.cameras],
+                                 [q > cut for q in foreground_maps(self.cap, frame)])
+        return vol
 
     def estimate(self, frame, detail: bool = False):
         """Pose of one frame; never raises for a frame-level problem (status "failed").
@@ -695,6 +725,14 @@ class FrameEstimator:
                         vol, curves, edt), 4).tolist()
             except Exception as exc:           # never costs the frame its pose
                 diag["curves_error"] = f"{type(exc).__name__}: {exc}"
+            if self.support and diag.get("curves") and getattr(self, "_silhouettes", None):
+                # analysis by synthesis: the silhouette the placed model leaves unexplained
+                from .support import support_features
+                t1 = time.perf_counter()
+                sup = support_features(diag["curves"], parts, *self._silhouettes, vol.data,
+                                       vol.origin, vol.voxel_size, edt, extras=False)
+                diag["unexplained"] = round(sup["unexplained"], 4)
+                timings["support"] = (time.perf_counter() - t1) * 1e3
         if self.leaves:      # candidates for a misplaced numbered part (pose.track)
             from .track import free_leaves
             diag["free_leaves"] = free_leaves(data, al.mapping)

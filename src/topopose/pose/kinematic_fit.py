@@ -18,11 +18,14 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    with an ``at_raised`` (elbows, wrists) is there when its limb is raised, a raised arm's
    shoulder lower by :data:`RAISED_SHOULDER`; a hanging arm's shoulder is the hull's
    (``diagnostics["hull_shoulders"]``: the trunk's cross-section below the neck,
-   :func:`topopose.pose.unseen.hull_shoulders`; :data:`SEEN_HULL_SHOULDER`).
+   :func:`topopose.pose.unseen.hull_shoulders`; :data:`SEEN_HULL_SHOULDER`). A bent limb's
+   middle joint (elbow, wrist, knee, ankle) is at its curve's bend (:func:`bend_joints`,
+   :data:`BEND`).
 2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
    the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
    constant over the sequence; a ``slide`` bone (the neck's) at its median
-   (:data:`SLIDE_QUANTILE`: its length varies with the junction, no curve cuts it short) (with
+   (:data:`SLIDE_QUANTILE`: its length varies with the junction, no curve cuts it short), a
+   shoulder's bone from the junction at :data:`SHOULDER_QUANTILE` (with
    :data:`SLIDE` on, off by default, a joint declared
    ``slide`` — the neck: its parent, the chest, is the skeleton curves' junction, which slides
    along the spine — takes each frame's initial-placement length, :func:`frame_lengths`).
@@ -299,6 +302,7 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
     :data:`SEEN_HULL_SHOULDER`)."""
     curves = frame_curves(pose, tree, spine)
     out = np.full((len(tree.names), 3), np.nan)
+    used = np.full(len(tree.names), np.nan)      # the relative arc length each joint took
     ax = None
     if tree.trunk and tree.at_raised and any(r is not None for r in tree.at_raised):
         a, b = (pose.parts.get(x) for x in tree.trunk)
@@ -312,12 +316,14 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
                     np.dot(np.asarray(pv, float) - np.asarray(pu, float), ax) > 0:
                 t = tree.at_raised[j]          # a raised limb (see the model's at_raised)
         beyond = tree.beyond[j] if tree.beyond else 0.0
+        used[j] = t
         if c is not None:
             out[j] = _along(c, t, beyond)
         elif t == 0.0 or (t == 1.0 and not beyond):   # a joint at a part: the part (no curve
             x = pose.parts.get(u if t == 0.0 else v)  # when the arc's far part is missing)
             if x is not None:
                 out[j] = np.asarray(x, dtype=float)
+    out = bend_joints(out, used, curves, tree)     # a bent limb's middle joints at the bend
     if tree.trunk and any(_beside(tree, j) for j in range(len(tree.names))):
         a, b = (pose.parts.get(x) for x in tree.trunk)
         if a is None or b is None:
@@ -380,6 +386,72 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
     return out
 
 
+BEND = 0.2   # a limb's middle joint (elbow, wrist, knee, ankle) at its curve's bend when the
+             # bend's depth (the curve's farthest point from the chord between the joints either
+             # side) exceeds this × the chord: 0.2 ≈ a joint angle of 136° (two equal bones).
+             # None / 0: off (the joint at its ``at``). A bent limb's curve cuts the corner and
+             # the fixed relative arc length put the bent elbow 9.0 cm off (initial placement;
+             # 4.4 cm inside and 3.1 cm forward of the true one, median; development seeds 21–32
+             # random, 223 bent arms). Development seeds (``tracking.py --dev``'s sequences:
+             # random 21–32, walks 41–46; the fit on their gate-on per-frame poses, MPJPE median
+             # over frames) off → 0.1 / 0.15 / 0.2 / 0.25: random 5.68 → 6.75 / 6.03 / 5.49 /
+             # 5.49, walks 4.41 → 5.89 / 4.72 / 4.37 / 4.43 cm (below 0.2 a barely bent curve's
+             # farthest point wanders along it and drags the bone lengths and knees off); with
+             # the bone lengths from the placement without it 5.50 / 4.36 (not kept: the same);
+             # the joint pushed out of the corner by 1.5 / 3 cm: 5.52 / 5.61
+
+
+def bend_joints(out, used, curves, tree: KinematicTree, bend=None) -> np.ndarray:
+    """``out`` with each middle joint of a bent limb at its curve's bend (thesis §13.3.1: the
+    kinematic model initialized from the skeleton curves).
+
+    A middle joint is one on an arc ending at a limb part (``tree.limbs``) with its parent and
+    its one child on the same arc (elbow between shoulder and wrist, wrist between elbow and
+    fingertip, knee between hip and ankle, ankle between knee and toe). Between the curve points of its parent and child (their relative arc lengths in
+    ``used``), the curve's point farthest from the chord joining those two points is the bend;
+    when it lies farther than ``bend`` (default :data:`BEND`) × the chord's length from the
+    chord, the joint is placed there — a bent limb's curve turns at the joint, and the fixed
+    relative arc length ``at`` falls short of or past the turn.
+
+    Parameters
+    ----------
+    out : (n, 3) the joints at their relative arc lengths (NaN: none)
+    used : (n,) the relative arc length each joint took (NaN: none)
+    curves : part → (k, 3) curve of the arc ending at the part
+    tree : KinematicTree
+    bend : the least depth of the bend over the chord (None: :data:`BEND`)
+
+    Returns
+    -------
+    (n, 3) array, a copy of ``out``.
+    """
+    bend = BEND if bend is None else bend
+    out = out.copy()
+    if not bend:
+        return out
+    for j, p in enumerate(tree.parents):
+        u, v = tree.arc[j]
+        kids = [k for k, q in enumerate(tree.parents) if q == j and tree.arc[k] == (u, v)]
+        c = curves.get(v)
+        if v not in tree.limbs or p < 0 or tree.arc[p] != (u, v) or len(kids) != 1 \
+                or c is None or np.isnan(used[[j, p, kids[0]]]).any():
+            continue
+        c = np.asarray(c, float)
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+        inside = (s > used[p] * s[-1]) & (s < used[kids[0]] * s[-1])
+        A, B = _along(c, used[p]), _along(c, used[kids[0]])
+        n = float(np.linalg.norm(B - A))
+        if not inside.any() or n <= 0:
+            continue
+        X = c[inside] - A
+        t = (B - A) / n
+        dist = np.linalg.norm(X - np.outer(X @ t, t), axis=1)
+        i = int(np.argmax(dist))
+        if dist[i] > bend * n:
+            out[j] = c[inside][i]
+    return out
+
+
 WIDTH_RADIUS = "sequence"   # the hull radius of the joints' ``width``: the sequence's median
                             # (a subject's girth is constant) or "frame" (each frame's own)
 BONE_QUANTILE = 70   # percent; see bone_lengths (development seeds as SPINE_BACK, with it:
@@ -391,7 +463,9 @@ def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None) -> np.nda
     :data:`BONE_QUANTILE`) % of its lengths over the frames, mirror bones pooled. The joints
     at fixed relative arc lengths shorten a bone when its curve is cut short (the junction of
     a raised arm, a bent limb's curve cutting the corner): the median upper arm was 10 % short
-    on walks, 20–25 % on random poses (development seeds)."""
+    on walks, 20–25 % on random poses (development seeds). A ``slide`` bone (the neck's) takes
+    :data:`SLIDE_QUANTILE`, a bone from the root to a joint beside the curve (a shoulder's)
+    :data:`SHOULDER_QUANTILE`: neither has a corner to make up for."""
     quantile = BONE_QUANTILE if quantile is None else quantile
     L = np.full(len(tree.names), np.nan)
     pooled = {}
@@ -404,6 +478,8 @@ def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None) -> np.nda
         if p >= 0:
             v = pooled[(tree.base[j], tree.base[p])]
             q = SLIDE_QUANTILE if tree.slide and tree.slide[j] and SLIDE_QUANTILE else quantile
+            if SHOULDER_QUANTILE and p == tree.root and _beside(tree, j):
+                q = SHOULDER_QUANTILE             # from the junction to a joint beside it
             L[j] = float(np.percentile(v, q)) if v else np.nan
     return L
 
@@ -431,6 +507,19 @@ SLIDE_QUANTILE = 50  # percent: the constant length of a ``slide`` bone (the nec
                      # initial placement. Median: random neck 6.4 → 6.0, MPJPE 6.22 → 6.20 cm;
                      # walks neck 3.8 → 3.8, MPJPE 4.89 → 4.86 cm (40th: random neck 5.7, walks
                      # 3.9; every trunk bone at the median: random pelvis 5.3 → 5.9 cm)
+
+
+SHOULDER_QUANTILE = 50  # percent: the constant length of a bone from the root (the curves' chest
+                        # junction) to a joint beside the curve (a shoulder; ``offset``); None:
+                        # :data:`BONE_QUANTILE`. As the neck's (:data:`SLIDE_QUANTILE`) its length
+                        # only varies as the junction slides, and a hanging arm's shoulder is the
+                        # hull's, not the curve's: no corner to make up for. At the 70th
+                        # percentile the fit lifted the seen hanging arms' shoulders off their
+                        # placement (bent arms 5.8 → 7.2 cm, 3.0 cm too high; straight 3.4 →
+                        # 5.2 cm; development seeds 21–32 random, gate on). Development seeds
+                        # (as :data:`BEND`'s, with it), 70 → 40 / 50: MPJPE random
+                        # 5.49 → 5.56 / 5.51 (mean over frames 6.27 → 6.20 / 6.21), walks 4.37
+                        # → 4.33 / 4.31 cm; shoulders random 6.5 → 6.1, walks 4.1 → 3.6 cm
 
 
 def frame_lengths(target, L, tree: KinematicTree, slide=None) -> np.ndarray:

@@ -155,7 +155,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
         tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None, track=True,
-        sides=True, skeleton=True, smooth=None, bvh=None, consistency=False) -> RunResult:
+        sides=True, skeleton=True, smooth=None, bvh=None, consistency=False,
+        support=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -210,6 +211,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         :func:`~topopose.pose.consistency.judge_sequence`'s settings); a run of unrelated
         poses is left as it is. Off by default: measured below the issue's 95 % with 4
         cameras (``benchmarks/results/consistency.md``).
+    support : bool, optional
+        Record each frame's ``diagnostics["unexplained"]`` (:mod:`topopose.pose.support`),
+        which the consistency reads; None (default): with ``consistency``.
 
     Returns
     -------
@@ -236,6 +240,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         options["refocus"] = True
     if thickness is not None:
         options["thickness"] = float(thickness)
+    if support or (support is None and consistency):   # read by the consistency
+        options["support"] = True
     todo = select_frames(cap, frames)
     if c3d is not None:
         from .export import require_c3d

@@ -340,6 +340,43 @@ def widths(markers, ref):
     return out
 
 
+def signed_bias(markers, ref, rows, up) -> dict:
+    """Per joint, median over ``rows`` (frames) of our marker − Pose2Sim's in Pose2Sim's body
+    frame (cm): lateral (outward for a mirror joint, pairs paired optimally, both sides pooled
+    and, as ``L…``/``R…``, each side alone; towards the left for Head and Neck), forward, up; the same frame as ``tracking.py --bias`` measures on the
+    synthetic body (truth's hips), to compare the biases of 4 and 8 cameras with the real ones."""
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    acc = {}
+    for i in rows:
+        lat = ref["LHip"][i] - ref["RHip"][i]
+        lat = lat - np.dot(lat, up) * up
+        if not np.linalg.norm(lat) or np.isnan(lat).any():
+            continue
+        lat /= np.linalg.norm(lat)
+        fwd = np.cross(lat, up)
+        m = markers[i]
+
+        def comp(e, sg=1.0):
+            return [100 * sg * float(e @ lat), 100 * float(e @ fwd), 100 * float(e @ up)]
+        for name in SINGLE:
+            x = m.get(name)
+            if x is not None and not np.isnan(x).any():
+                acc.setdefault(name, []).append(comp(x - ref[name][i]))
+        for stem in PAIRED:
+            L, R = ref[f"L{OURS[stem]}"][i], ref[f"R{OURS[stem]}"][i]
+            a, b = m.get(f"L{OURS[stem]}"), m.get(f"R{OURS[stem]}")
+            if a is None or b is None or np.isnan(a).any() or np.isnan(b).any():
+                a, b = m.get(f"{stem}_1"), m.get(f"{stem}_2")
+            if a is None or b is None or np.isnan(a).any() or np.isnan(b).any():
+                continue
+            if np.linalg.norm(a - L) + np.linalg.norm(b - R) > np.linalg.norm(a - R) + np.linalg.norm(b - L):
+                a, b = b, a
+            acc.setdefault(stem, []).extend([comp(a - L), comp(b - R, -1.0)])
+            acc.setdefault(f"L{stem}", []).append(comp(a - L))
+            acc.setdefault(f"R{stem}", []).append(comp(b - R, -1.0))
+    return {k: [round(float(x), 1) for x in np.median(np.array(v), axis=0)] for k, v in acc.items()}
+
+
 def _fmt(v):
     return "–" if v is None else f"{100 * v:.1f}"
 
@@ -389,6 +426,12 @@ def report(doc) -> str:
           "", "Widths (ours vs Pose2Sim, m; median over frames): "
           + ", ".join(f"{k} {' vs '.join(map(str, v))}"
                       for k, v in doc.get("widths_vs_pose2sim_m", {}).items()),
+          "", f"Hull fatness (hull litres / height³, median over frames): {doc.get('hull_fatness')}"
+          " (synthetic body: `tracking_bias_dev.md`).",
+          "", "Signed bias on the right frames (ours − Pose2Sim, cm, median; Pose2Sim's body "
+          "frame: outward (left for Head/Neck), forward, up; compare `tracking_bias_dev.md`): "
+          + ", ".join(f"{k} ({', '.join(f'{x:+.1f}' for x in v)})"
+                      for k, v in doc.get("signed_bias_right_cm", {}).items()),
           "", f"Picture: `{doc['picture']}`.", ""]
     return "\n".join(L)
 
@@ -437,6 +480,11 @@ def main(argv=None):
                       round(float(np.median(np.linalg.norm(ref[f"{sd}{a}"] - ref[f"{sd}{b}"], axis=1))), 3)]
                for name, j, a, b in BONES_COMPARED for sd in "L"},
            "widths_vs_pose2sim_m": widths(markers, ref),
+           "hull_fatness": round(float(np.median([p.diagnostics["hull_litres"]
+                                                   / p.diagnostics["height"] ** 3 for p in raw
+                                                   if p.diagnostics.get("height")])), 2),
+           "signed_bias_right_cm": signed_bias(markers, ref, [i for i in range(len(right))
+                                                              if right[i]], cap.up_vector),
            "scores": s}
     (out / "real_motion.json").write_text(json.dumps(doc, indent=1))
     (out / "real_motion.md").write_text(report(doc))

@@ -51,6 +51,17 @@ is measured beside its peer in the same run:
   :func:`topopose.pose.unseen.hull_shoulders`): the fit against the same fit without them
   (``shoulders=False``): MPJPE, frames holding joints, per joint, and the unseen arms' error.
 
+**Four phones** (``--setup 4p``: 4 portrait cameras 544×960 in two facing pairs, noise 2, as
+``consistency.py``'s ``4p`` and the real recording; the per-frame run with the AHA threshold
+and the gate off, as ``real_motion.py``: the AHA distance rejects almost every 4-camera frame;
+written as ``tracking_4p*``; ``4pd``: the same with silhouettes dilated by :data:`DILATE`, a
+hull as fat as the real recording's). **Bias** (``--bias --setups 8,4p,4pd [--real-json
+results/real_motion.json]``): the fitted skeleton's signed per-joint bias in the truth's body
+frame (outward / forward / up), widths and bone lengths against the rig, per set-up, on the
+frames whose per-frame pose is right, beside the real recording's against Pose2Sim
+(``real_motion.py``); written as ``tracking_bias*`` (issue 15: whether the 4-camera hull's
+phantom volume explains the real recording's error; thesis §13.3.1).
+
 The per-frame matching on the body is being improved elsewhere (issue 11): figures are as the
 per-frame result is, misses included. Writes ``tracking.md``, ``tracking.json`` and
 ``tracking.png`` (a walking sequence: joints over time), and the same with the gate off.
@@ -67,7 +78,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine  # noqa: E402
 
-from topopose.capture import load_capture, synthesize  # noqa: E402
+from topopose.capture import load_capture  # noqa: E402
+from topopose.capture.synth import synthetic_capture, write_capture  # noqa: E402
 from topopose.pose import run  # noqa: E402
 from topopose.pose.chirality import assign_sides  # noqa: E402
 from topopose.pose.kinematic_fit import fit_sequence, initial_placement  # noqa: E402
@@ -94,6 +106,15 @@ DEV_SEQUENCES = ([("walk", s, b) for s, b in zip(range(41, 47), DEV_BUILDS)]
                  + [("random", s, b) for s, b in zip(range(21, 33), ["average", "random", "lean",
                                                                      "heavy", "child",
                                                                      "average"] * 2)])
+# camera set-ups (``--setup``): cameras, image size, silhouette noise, layout; ``4p``: four
+# portrait phones in two facing pairs, as the real recording (benchmarks/consistency.py's 4p)
+# ``4pd``: 4p with every silhouette dilated by DILATE px, a hull as fat as the real recording's
+# (hull litres / height³: 4p 20, real 29; 1 / 2 / 3 / 4 px: 18 / 22 / ≈30 / 40 on seeds 41,
+# 44; 35 over the dev seeds — the one value set from the real recording, a property of the
+# set-up, not of the method)
+SETUPS = {"8": (8, (640, 480), 1, "ring"), "4p": (4, (544, 960), 2, "pairs"),
+          "4pd": (4, (544, 960), 2, "pairs")}
+DILATE = {"4pd": 3}
 PAIRS = (("hand_1", "hand_2"), ("foot_1", "foot_2"))
 # the joints the issue names (MPJPE); the others are reported per joint only
 MPJPE_JOINTS = ("neck", "shoulder", "elbow", "wrist", "hip", "knee", "ankle")
@@ -264,6 +285,176 @@ def fit_before_rest(tracked, model):
         kf.HELD_SHOULDER, kf.SLIDE_QUANTILE, kf.RAISED_SHOULDER = keep
 
 
+BIAS_JOINTS = ("neck", "shoulder", "elbow", "wrist", "hip", "knee", "ankle")
+# (name, joint, its rig joint, joint, its rig joint; None: the pelvis, mid-hips): widths across
+# the body and bone lengths, left side (ours: the joints paired with these rig joints)
+BIAS_LENGTHS = (("shoulder width", "shoulder", "LeftArm_head", "shoulder", "RightArm_head"),
+                ("hip width", "hip", "LeftUpLeg_head", "hip", "RightUpLeg_head"),
+                ("upper arm", "shoulder", "LeftArm_head", "elbow", "LeftForeArm_head"),
+                ("forearm", "elbow", "LeftForeArm_head", "wrist", "LeftHand_head"),
+                ("thigh", "hip", "LeftUpLeg_head", "knee", "LeftLeg_head"),
+                ("shank", "knee", "LeftLeg_head", "ankle", "LeftFoot_head"),
+                ("neck-pelvis", "neck", "Neck_head", "pelvis", None))
+
+
+def joint_bias(names, P, gj, up):
+    """Signed errors of one frame's joints in the body's frame (truth's hips: lateral =
+    outward for a mirror joint, towards the left for the others; forward; up) and its widths
+    and bone lengths against the truth's: ({base: [(out, fwd, up)]}, {length: (ours, truth)})."""
+    J = {k: np.asarray(v, float) for k, v in gj.items()}
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    lat = J["LeftUpLeg_head"] - J["RightUpLeg_head"]
+    lat = lat - np.dot(lat, up) * up
+    lat /= np.linalg.norm(lat)
+    fwd = np.cross(lat, up)
+    by = {}
+    for j, nm in enumerate(names):
+        base, _, k = nm.rpartition("_")
+        base = base if k.isdigit() else nm
+        if base in RIG and not np.isnan(P[j]).any():
+            by.setdefault(base, []).append(P[j])
+    ours, err = {}, {}
+    for base, xs in by.items():
+        rig = RIG[base]
+        if base == "pelvis" or len(rig) == 1:
+            t = J[rig[0]] if len(rig) == 1 else 0.5 * (J[rig[0]] + J[rig[1]])
+            ours[(base, rig[0] if len(rig) == 1 else None)] = xs[0]
+            e = xs[0] - t
+            err[base] = [(float(e @ lat), float(e @ fwd), float(e @ up))]
+            continue
+        if len(xs) != 2:
+            continue
+        d0 = np.linalg.norm(xs[0] - J[rig[0]]) + np.linalg.norm(xs[1] - J[rig[1]])
+        d1 = np.linalg.norm(xs[0] - J[rig[1]]) + np.linalg.norm(xs[1] - J[rig[0]])
+        pair = zip(xs, rig) if d0 <= d1 else zip(xs, rig[::-1])
+        err[base] = []
+        for x, r in pair:
+            ours[(base, r)] = x
+            e, sg = x - J[r], (1.0 if r.startswith("Left") else -1.0)
+            err[base].append((float(e @ lat) * sg, float(e @ fwd), float(e @ up)))
+    lengths = {}
+    for name, a, ra, b, rb in BIAS_LENGTHS:
+        x, y = ours.get((a, ra)), ours.get((b, rb))
+        if x is None or y is None:
+            continue
+        tb = J[rb] if rb else 0.5 * (J["LeftUpLeg_head"] + J["RightUpLeg_head"])
+        lengths[name] = (float(np.linalg.norm(x - y)), float(np.linalg.norm(J[ra] - tb)))
+    return err, lengths
+
+
+def bias_sequence(work, motion, seed, build, frames, model, setup):
+    """The kinematic skeleton's signed per-joint bias, widths and bone lengths of one
+    sequence, fit and initial placement, and its MPJPE, on the frames whose per-frame pose is
+    right (``evaluate``: good). The per-frame run as ``real_motion.py``'s (AHA threshold and
+    confidence gate off: with 4 cameras the AHA distance rejects most frames), the motion stage
+    as ``topopose run``'s (:func:`fit_sequence` defaults)."""
+    d = make_sequence(work, motion, seed, build, frames, setup)
+    cap = load_capture(d)
+    res = run(cap, model=model, resolution=100, progress=False, track=False, sides=False,
+              skeleton=False, threshold=1e9, gate=False)
+    fitted, tree, L = fit_sequence(track(res.poses, model), model)
+    good = {fs.frame for fs in evaluate(cap.gt, res.poses, model=model).frames
+            if fs.quality == "good"}
+    out = {"motion": motion, "seed": seed, "build": build, "setup": setup,
+           "good": len(good), "frames": len(res.poses),
+           "hull_fatness": [p.diagnostics["hull_litres"] / p.diagnostics["height"] ** 3
+                            for p in res.poses if p.diagnostics.get("height")]}
+    for key in ("fit", "init"):
+        errs, bias, lengths = [], {}, {}
+        for p in fitted:
+            if not (p.matched and p.joints) or p.diagnostics.get("interpolated") \
+                    or p.frame not in good:
+                continue
+            gj = cap.gt["frames"][p.frame]["joints"]
+            P = (np.array([p.joints[n] for n in tree.names]) if key == "fit"
+                 else initial_placement(p, tree))
+            errs.append(joint_errors(tree.names, P, gj))
+            e, ln = joint_bias(tree.names, P, gj, cap.up_vector)
+            for k, v in e.items():
+                bias.setdefault(k, []).extend(v)
+            for k, v in ln.items():
+                lengths.setdefault(k, []).append(v)
+        m = mpjpe(errs)
+        out[key] = {"mpjpe": m[:3], "mpjpe_frames": m[3], "bias": bias, "lengths": lengths}
+    return out
+
+
+def bias_report(rows, setups, info, real=None) -> str:
+    """Markdown: per set-up and motion, median signed bias per joint (cm: outward, forward,
+    up), MPJPE per joint, widths and bone lengths ours / truth (median ratio); with ``real``
+    (``real_motion.json``), the real recording's (against Pose2Sim) beside them."""
+    lines = ["# The kinematic skeleton's bias: 8 cameras against 4 phone-like cameras", "",
+             f"Machine: {info}. Written by `benchmarks/tracking.py --bias --setups "
+             f"{','.join(setups)}`; body subject, 100³, AHA threshold and gate off (as "
+             f"`real_motion.py`), frames whose per-frame pose is right (good), seeds "
+             f"({sorted({r['seed'] for r in rows})}). Set-ups: "
+             + "; ".join(f"`{k}` {SETUPS[k][0]} cameras {SETUPS[k][1][0]}×{SETUPS[k][1][1]}, "
+                         f"noise {SETUPS[k][2]}, {SETUPS[k][3]}"
+                         + (f", silhouettes dilated {DILATE[k]} px" if k in DILATE else "")
+                         for k in setups) + ".", "",
+             "Signed bias (median over joints × frames, cm) in the truth's body frame: *out* "
+             "= outward from the midline for mirror joints (towards the left for neck/pelvis), "
+             "*fwd* = forward, *up*; error = median distance (cm). Lengths: ours / truth, "
+             "median over frames of the ratio.", "",
+             "Hull fatness (hull litres / height³, median over frames; a body's own volume "
+             "≈ 15): " + ", ".join(
+                 f"`{st}` {np.median([x for r in rows if r['setup'] == st for x in r.get('hull_fatness', [])]):.1f}"
+                 for st in setups)
+             + ("" if not real or "hull_fatness" not in real else
+                f", real recording {real['hull_fatness']:.1f}") + ".", ""]
+    for key in ("fit", "init"):
+        lines += [f"## {'fitted skeleton' if key == 'fit' else 'initial placement (no fit)'}", ""]
+        lines += ["| set-up | motion | frames | MPJPE | " + " | ".join(BIAS_JOINTS) + " |",
+                  "|---|---|---|---|" + "---|" * len(BIAS_JOINTS)]
+        for st in setups:
+            for motion in ("walk", "random"):
+                rs = [r for r in rows if r["setup"] == st and r["motion"] == motion]
+                if not rs:
+                    continue
+                cells = []
+                for jn in BIAS_JOINTS:
+                    v = np.array([x for r in rs for x in r[key]["bias"].get(jn, [])])
+                    if not len(v):
+                        cells.append("–")
+                        continue
+                    m = 100 * np.median(v, axis=0)
+                    e = 100 * np.median(np.linalg.norm(v, axis=1))
+                    cells.append(f"{e:.1f} ({m[0]:+.1f}, {m[1]:+.1f}, {m[2]:+.1f})")
+                pf = [x for r in rs for x in r[key]["mpjpe_frames"]]
+                lines.append(f"| {st} | {motion} | {len(pf)} | "
+                             f"{100 * np.median(pf):.1f} | " + " | ".join(cells) + " |")
+        if real and key == "fit":
+            b, r = real.get("signed_bias_right_cm", {}), real["scores"]["right"]["mpjpe_paired"]
+            real_name = {j: j.capitalize() if j == "neck" else j for j in BIAS_JOINTS}
+            cells = [f"{100 * r['per_joint'][real_name[j]]:.1f} ("
+                     + ", ".join(f"{x:+.1f}" for x in b[real_name[j]]) + ")"
+                     if real_name[j] in b else "–" for j in BIAS_JOINTS]
+            lines.append(f"| real (vs Pose2Sim) | balancing | {r['frames']} | "
+                         f"{100 * r['mpjpe']:.1f} | " + " | ".join(cells) + " |")
+        lines += ["", "| set-up | motion | " + " | ".join(n for n, *_ in BIAS_LENGTHS) + " |",
+                  "|---|---|" + "---|" * len(BIAS_LENGTHS)]
+        for st in setups:
+            for motion in ("walk", "random"):
+                rs = [r for r in rows if r["setup"] == st and r["motion"] == motion]
+                if not rs:
+                    continue
+                cells = []
+                for n, *_ in BIAS_LENGTHS:
+                    v = np.array([x for r in rs for x in r[key]["lengths"].get(n, [])])
+                    cells.append("–" if not len(v) else
+                                 f"{np.median(v[:, 0] / v[:, 1]):.2f} ({np.median(v[:, 0]):.3f}/"
+                                 f"{np.median(v[:, 1]):.3f})")
+                lines.append(f"| {st} | {motion} | " + " | ".join(cells) + " |")
+        if real and key == "fit":
+            w = {**{f"{k} width": v for k, v in real.get("widths_vs_pose2sim_m", {}).items()},
+                 **real.get("bone_lengths_vs_pose2sim_m", {})}
+            cells = [f"{w[n][0] / w[n][1]:.2f} ({w[n][0]:.3f}/{w[n][1]:.3f})"
+                     if n in w and None not in w[n][:2] else "–" for n, *_ in BIAS_LENGTHS]
+            lines.append("| real (vs Pose2Sim) | balancing | " + " | ".join(cells) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
 def fit_before_bend(tracked, model):
     """The fit before the bent limbs' middle joints were placed at their curve's bend
     (:data:`~topopose.pose.kinematic_fit.BEND`) and the shoulder's bone from the junction took
@@ -287,17 +478,37 @@ def ungated(poses):
     return [replace(p, status="matched", error=None) if gated_only(p) else p for p in poses]
 
 
-def one_sequence(work, motion, seed, build, frames, model):
-    """Per-frame result once (gate on), then every figure with the gate on and off."""
-    d = Path(work) / f"{motion}_{seed}_{build}"
-    t0 = time.perf_counter()
+def make_sequence(work, motion, seed, build, frames, setup=None):
+    """The capture folder of one sequence (written once): ``setup`` (:data:`SETUPS` key, default
+    ``"8"``) says its cameras."""
+    setup = setup or "8"
+    d = Path(work) / (f"{motion}_{seed}_{build}" + ("" if setup == "8" else f"_{setup}"))
     if not (d / "gt.json").exists():
-        synthesize(d, subject="body", frames=frames, seed=seed, cameras=8, noise=1, motion=motion,
-                   build=build)
+        cams, size, noise, layout = SETUPS[setup]
+        cap = synthetic_capture("body", frames=frames, seed=seed, cameras=cams, size=size,
+                                noise=noise, motion=motion, build=build, layout=layout)
+        if DILATE.get(setup):
+            import cv2
+
+            k = DILATE[setup]
+            ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1))
+            cap.masks = {f: [cv2.dilate(m.astype(np.uint8), ker) > 0 for m in ms]
+                         for f, ms in cap.masks.items()}
+        write_capture(cap, d)
+    return d
+
+
+def one_sequence(work, motion, seed, build, frames, model, setup=None):
+    """Per-frame result once (gate on), then every figure with the gate on and off."""
+    t0 = time.perf_counter()
+    d = make_sequence(work, motion, seed, build, frames, setup)
     t_synth = time.perf_counter() - t0
     cap = load_capture(d)
+    # four phones: the AHA distance rejects (almost) every frame, so the per-frame run is
+    # real_motion.py's (threshold and confidence gate off: "gate" rows = "nogate" rows)
+    loose = {} if (setup or "8") == "8" else {"threshold": 1e9, "gate": False}
     res = run(cap, model=model, resolution=100, output=d / "poses.jsonl", progress=False,
-              track=False, sides=False, skeleton=False, gate=True)
+              track=False, sides=False, skeleton=False, **({"gate": True} | loose))
     out = {}
     for gate in (True, False):
         raw = res.poses if gate else ungated(res.poses)
@@ -574,16 +785,49 @@ def main(argv=None):
                          "report then holds those only)")
     ap.add_argument("--dev", action="store_true",
                     help="the development seeds (DEV_SEQUENCES), written as tracking_dev*.md/json")
+    ap.add_argument("--setup", default="8", choices=sorted(SETUPS),
+                    help="cameras (SETUPS): 4p = 4 portrait phones in facing pairs, written as "
+                         "tracking_4p*.md/json")
+    ap.add_argument("--bias", action="store_true",
+                    help="only the skeleton's signed bias, widths and bone lengths per set-up "
+                         "(--setups), written as tracking_bias*.md/json")
+    ap.add_argument("--setups", default="8,4p", help="with --bias: the set-ups compared")
+    ap.add_argument("--seeds", default=None, help="only these seeds (comma-separated)")
+    ap.add_argument("--real-json", default=None,
+                    help="with --bias: real_motion.json, the real recording's bias beside")
     a = ap.parse_args(argv)
     model = load_model("human")
     work = a.work or tempfile.mkdtemp(prefix="topopose_tracking_")
+    seqs = DEV_SEQUENCES if a.dev else SEQUENCES
+    if a.seeds:
+        keep = {int(x) for x in a.seeds.split(",")}
+        seqs = [s for s in seqs if s[1] in keep]
+    if a.bias:
+        setups = a.setups.split(",")
+        rows = []
+        for st in setups:
+            for motion, seed, build in seqs:
+                n = a.walk_frames if motion == "walk" else a.random_frames
+                rows.append(bias_sequence(work, motion, seed, build, n, model, st))
+                print(json.dumps({k: rows[-1][k] for k in ("setup", "motion", "seed", "good")}
+                                 | {"mpjpe": rows[-1]["fit"]["mpjpe"][0]}), flush=True)
+        out = Path(a.out)
+        out.mkdir(parents=True, exist_ok=True)
+        info = machine(resolution=100, subject="body", confidence_gate=False, aha_threshold="off")
+        name = "tracking_bias" + ("_dev" if a.dev else "")
+        (out / f"{name}.json").write_text(json.dumps({"machine": info, "sequences": rows}))
+        real = (json.loads(Path(a.real_json).read_text())
+                if a.real_json and Path(a.real_json).exists() else None)
+        (out / f"{name}.md").write_text(bias_report(rows, setups, info, real))
+        print(bias_report(rows, setups, info, real))
+        return
     rows = {True: [], False: []}
     pic = {True: None, False: None}
-    for motion, seed, build in (DEV_SEQUENCES if a.dev else SEQUENCES):
+    for motion, seed, build in seqs:
         if a.only and motion != a.only:
             continue
         n = a.walk_frames if motion == "walk" else a.random_frames
-        both = one_sequence(work, motion, seed, build, n, model)
+        both = one_sequence(work, motion, seed, build, n, model, a.setup)
         for gate, (r, d, sided, tree) in both.items():
             rows[gate].append(r)
             print(json.dumps({"gate": gate, **{k: (v[0] if k.startswith("mpjpe") else v)
@@ -599,11 +843,15 @@ def main(argv=None):
         if real is None:
             print(f"real recording: {a.real_poses} or {a.real_trc} absent; skipped")
     for gate in (True, False):
-        suffix = ("_dev" if a.dev else "") + ("" if gate else "_nogate")
+        suffix = (("" if a.setup == "8" else f"_{a.setup}") + ("_dev" if a.dev else "")
+                  + ("" if gate else "_nogate"))
         if pic[gate] is not None:
             p = pic[gate]
             picture(out / f"tracking{suffix}.png", p[1], p[2], p[3], load_capture(p[1]).gt, model)
-        info = machine(resolution=100, cameras=8, noise=1, subject="body", confidence_gate=gate)
+        info = machine(resolution=100, cameras=SETUPS[a.setup][0], noise=SETUPS[a.setup][2],
+                       subject="body", confidence_gate=gate and a.setup == "8",
+                       layout=SETUPS[a.setup][3],
+                       **({} if a.setup == "8" else {"aha_threshold": "off"}))
         compact = [{k: (v[:3] if k.startswith("mpjpe") else v) for k, v in r.items()}
                    for r in rows[gate]]
         (out / f"tracking{suffix}.json").write_text(json.dumps(
@@ -642,8 +890,12 @@ def peer_bullet(rs, pj, pooled, title, peer, holding, arms):
 def report(rows, info, real=None):
     gate = "on (main's default)" if info.get("confidence_gate", True) else \
         "off (every frame the alignment accepts is matched)"
-    L = ["# From poses to motion (body subject, 100³, 8 cameras, noise 1)", "",
-         f"Per-frame confidence gate: {gate}.", "",
+    L = [f"# From poses to motion (body subject, 100³, {info.get('cameras', 8)} cameras, noise "
+         f"{info.get('noise', 1)}" + (f", {info['layout']}" if info.get("layout", "ring") != "ring"
+                                      else "") + ")", "",
+         f"Per-frame confidence gate: {gate}."
+         + (" AHA threshold off (as `real_motion.py`)." if info.get("aha_threshold") == "off"
+            else ""), "",
          f"Machine: {info['cpu']}, {info['cores']} cores, load {info['load_average']}, {info['date']}.",
          "Produced by `benchmarks/tracking.py`; every figure beside its peer in the same run. The "
          "per-frame matching on the body is being improved elsewhere (issue 11): matched frames "

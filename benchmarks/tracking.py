@@ -44,9 +44,8 @@ is measured beside its peer in the same run:
 * **arm evidence** (``diagnostics["arm_evidence"]``, :func:`topopose.pose.unseen.evidence_fill`):
   the fit against the same fit without it (``evidence=False``): MPJPE, frames holding joints,
   per joint, and the unseen arms' error.
-* **bent limbs** (:func:`~topopose.pose.kinematic_fit.bend_joints`, ``BEND``; and
-  ``SHOULDER_QUANTILE``): the fit against the same fit with the middle joints at their ``at``
-  and the shoulder's bone at the 70th percentile (:func:`fit_before_bend`).
+* **bent limbs** (:func:`~topopose.pose.kinematic_fit.bend_joints`, ``BEND``, off by default):
+  the fit against the same fit with the middle joints at their curve's bend (:func:`fit_with_bend`).
 * **shoulders from the hull** (``diagnostics["hull_shoulders"]``,
   :func:`topopose.pose.unseen.hull_shoulders`): the fit against the same fit without them
   (``shoulders=False``): MPJPE, frames holding joints, per joint, and the unseen arms' error.
@@ -455,19 +454,18 @@ def bias_report(rows, setups, info, real=None) -> str:
     return "\n".join(lines)
 
 
-def fit_before_bend(tracked, model):
-    """The fit before the bent limbs' middle joints were placed at their curve's bend
-    (:data:`~topopose.pose.kinematic_fit.BEND`) and the shoulder's bone from the junction took
-    its median length (:data:`~topopose.pose.kinematic_fit.SHOULDER_QUANTILE`): every middle
-    joint at its ``at``, the shoulder's bone at the limbs' 70th percentile."""
+def fit_with_bend(tracked, model):
+    """The fit with the bent limbs' middle joints at their curve's bend
+    (:data:`~topopose.pose.kinematic_fit.BEND` = ``BEND_DEPTH``; off by default since it hurts
+    the real 4-camera recording)."""
     from topopose.pose import kinematic_fit as kf
 
-    keep = kf.BEND, kf.SHOULDER_QUANTILE
-    kf.BEND, kf.SHOULDER_QUANTILE = None, None
+    keep = kf.BEND
+    kf.BEND = kf.BEND_DEPTH
     try:
         return fit_sequence(tracked, model)
     finally:
-        kf.BEND, kf.SHOULDER_QUANTILE = keep
+        kf.BEND = keep
 
 
 def ungated(poses):
@@ -577,7 +575,7 @@ def analyse(raw, cap, model):
     err_noevid, evid_holding, evid_arms = peer_errors(
         fit_sequence(tracked, model, evidence=False)[0])
     err_nosh, sh_holding, sh_arms = peer_errors(fit_sequence(tracked, model, shoulders=False)[0])
-    err_bend0, bend_holding, bend_arms = peer_errors(fit_before_bend(tracked, model)[0])
+    err_bend0, bend_holding, bend_arms = peer_errors(fit_with_bend(tracked, model)[0])
     hint_end = []        # each hint's end: distance to the nearest true elbow and wrist
     for p in raw:
         gj = gt["frames"][p.frame]["joints"]
@@ -1029,11 +1027,9 @@ def report(rows, info, real=None):
               peer_bullet(rs, pj, pooled, "a bent limb's middle joint (elbow, wrist, knee, "
                           "ankle) at its curve's bend — the curve's farthest point from the "
                           "chord between the joints either side, when deeper than 0.2 × the "
-                          "chord (`kinematic_fit.BEND`, `bend_joints`) — and the shoulder's "
-                          "bone from the chest junction at its median length "
-                          "(`SHOULDER_QUANTILE`), now ← before (the joints at their `at`, "
-                          "the shoulder's bone at the 70th percentile)", "bend0", "bend_holding",
-                          "bend_arms"),
+                          "chord (`kinematic_fit.bend_joints`, `BEND = BEND_DEPTH`; off by "
+                          "default: it hurts the real 4-camera recording), now (off) ← on",
+                          "bend0", "bend_holding", "bend_arms"),
               "- the unseen arm's shoulder, the neck's length, the raised arm's shoulder "
               "(`kinematic_fit.HELD_SHOULDER`: an unseen "
               "arm's shoulder opposite its mate, raised 30° from the plane across the trunk, "

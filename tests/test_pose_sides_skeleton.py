@@ -735,7 +735,8 @@ def parts_of(pose, name):
 
 
 def test_a_bent_limbs_middle_joint_is_placed_at_its_curves_bend(monkeypatch):
-    """Oracle: an arm curve bent 90° at a known elbow. With ``BEND`` the initial placement puts
+    """Oracle: an arm curve bent 90° at a known elbow. With ``BEND`` on (``BEND_DEPTH``; off by
+    default) the initial placement puts
     the elbow on the corner (within a curve sample) and the ankles on the heel's corner (the
     foot turns forward); at their relative arc lengths alone they are off. The knees, bent by
     0.08 m over a 0.8 m chord (depth 0.1 < ``BEND``), the wrists and the straight right arm
@@ -745,6 +746,8 @@ def test_a_bent_limbs_middle_joint_is_placed_at_its_curves_bend(monkeypatch):
     tree = kinematic_tree(HUMAN)
     pose, E, _ = _bent_arm_pose()
     el = tree.names.index("elbow_1")
+    assert kf.BEND is None                       # off by default
+    monkeypatch.setattr(kf, "BEND", kf.BEND_DEPTH)
     P = kf.initial_placement(pose, tree)
     monkeypatch.setattr(kf, "BEND", None)
     P0 = kf.initial_placement(pose, tree)
@@ -763,7 +766,7 @@ def test_a_bent_limbs_middle_joint_is_placed_at_its_curves_bend(monkeypatch):
     parts, curves = _body(0.0, np.random.default_rng(3), knee=0.3)
     pose2, _ = _numbered_frame("000000", parts, curves, False, False)
     knee = parts["crotch"] + np.array([0.3, 0.1, -0.45])     # W([knee, 0.1, 0.5]), yaw 0
-    monkeypatch.setattr(kf, "BEND", 0.2)
+    monkeypatch.setattr(kf, "BEND", kf.BEND_DEPTH)
     k = tree.names.index("knee_1")
     e = np.linalg.norm(kf.initial_placement(pose2, tree)[k] - knee)
     monkeypatch.setattr(kf, "BEND", None)

@@ -386,7 +386,7 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
     return out
 
 
-BEND = 0.2   # a limb's middle joint (elbow, wrist, knee, ankle) at its curve's bend when the
+BEND_DEPTH = 0.2   # a limb's middle joint (elbow, wrist, knee, ankle) at its curve's bend when the
              # bend's depth (the curve's farthest point from the chord between the joints either
              # side) exceeds this × the chord: 0.2 ≈ a joint angle of 136° (two equal bones).
              # None / 0: off (the joint at its ``at``). A bent limb's curve cuts the corner and
@@ -399,6 +399,11 @@ BEND = 0.2   # a limb's middle joint (elbow, wrist, knee, ankle) at its curve's 
              # farthest point wanders along it and drags the bone lengths and knees off); with
              # the bone lengths from the placement without it 5.50 / 4.36 (not kept: the same);
              # the joint pushed out of the corner by 1.5 / 3 cm: 5.52 / 5.61
+BEND = None  # off by default (set BEND = BEND_DEPTH to switch it on). Held out with 8 cameras it
+             # adds nothing to the median (random poses 5.3 cm either way; elbows 5.5 → 5.2, ankles
+             # 3.4 → 3.1 cm), and on the real 4-camera recording (benchmarks/real_motion.py) it
+             # hurts: all frames 8.4 → 8.9 cm, the right frames 7.7 either way — a noisy 4-camera
+             # hull's wrong curves bend where no limb does
 
 
 def bend_joints(out, used, curves, tree: KinematicTree, bend=None) -> np.ndarray:
@@ -419,7 +424,8 @@ def bend_joints(out, used, curves, tree: KinematicTree, bend=None) -> np.ndarray
     used : (n,) the relative arc length each joint took (NaN: none)
     curves : part → (k, 3) curve of the arc ending at the part
     tree : KinematicTree
-    bend : the least depth of the bend over the chord (None: :data:`BEND`)
+    bend : the least depth of the bend over the chord (None: :data:`BEND`, off by default;
+        :data:`BEND_DEPTH` when on)
 
     Returns
     -------

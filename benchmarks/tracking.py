@@ -378,6 +378,15 @@ def bias_sequence(work, motion, seed, build, frames, model, setup):
     return out
 
 
+def _by_setup(rows, setups):
+    """(set-up, motion, its rows) for each set-up and motion that has rows."""
+    for st in setups:
+        for motion in ("walk", "random"):
+            rs = [r for r in rows if r["setup"] == st and r["motion"] == motion]
+            if rs:
+                yield st, motion, rs
+
+
 def bias_report(rows, setups, info, real=None) -> str:
     """Markdown: per set-up and motion, median signed bias per joint (cm: outward, forward,
     up), MPJPE per joint, widths and bone lengths ours / truth (median ratio); with ``real``
@@ -405,23 +414,19 @@ def bias_report(rows, setups, info, real=None) -> str:
         lines += [f"## {'fitted skeleton' if key == 'fit' else 'initial placement (no fit)'}", ""]
         lines += ["| set-up | motion | frames | MPJPE | " + " | ".join(BIAS_JOINTS) + " |",
                   "|---|---|---|---|" + "---|" * len(BIAS_JOINTS)]
-        for st in setups:
-            for motion in ("walk", "random"):
-                rs = [r for r in rows if r["setup"] == st and r["motion"] == motion]
-                if not rs:
+        for st, motion, rs in _by_setup(rows, setups):
+            cells = []
+            for jn in BIAS_JOINTS:
+                v = np.array([x for r in rs for x in r[key]["bias"].get(jn, [])])
+                if not len(v):
+                    cells.append("–")
                     continue
-                cells = []
-                for jn in BIAS_JOINTS:
-                    v = np.array([x for r in rs for x in r[key]["bias"].get(jn, [])])
-                    if not len(v):
-                        cells.append("–")
-                        continue
-                    m = 100 * np.median(v, axis=0)
-                    e = 100 * np.median(np.linalg.norm(v, axis=1))
-                    cells.append(f"{e:.1f} ({m[0]:+.1f}, {m[1]:+.1f}, {m[2]:+.1f})")
-                pf = [x for r in rs for x in r[key]["mpjpe_frames"]]
-                lines.append(f"| {st} | {motion} | {len(pf)} | "
-                             f"{100 * np.median(pf):.1f} | " + " | ".join(cells) + " |")
+                m = 100 * np.median(v, axis=0)
+                e = 100 * np.median(np.linalg.norm(v, axis=1))
+                cells.append(f"{e:.1f} ({m[0]:+.1f}, {m[1]:+.1f}, {m[2]:+.1f})")
+            pf = [x for r in rs for x in r[key]["mpjpe_frames"]]
+            lines.append(f"| {st} | {motion} | {len(pf)} | "
+                         f"{100 * np.median(pf):.1f} | " + " | ".join(cells) + " |")
         if real and key == "fit":
             b, r = real.get("signed_bias_right_cm", {}), real["scores"]["right"]["mpjpe_paired"]
             real_name = {j: j.capitalize() if j == "neck" else j for j in BIAS_JOINTS}
@@ -432,18 +437,14 @@ def bias_report(rows, setups, info, real=None) -> str:
                          f"{100 * r['mpjpe']:.1f} | " + " | ".join(cells) + " |")
         lines += ["", "| set-up | motion | " + " | ".join(n for n, *_ in BIAS_LENGTHS) + " |",
                   "|---|---|" + "---|" * len(BIAS_LENGTHS)]
-        for st in setups:
-            for motion in ("walk", "random"):
-                rs = [r for r in rows if r["setup"] == st and r["motion"] == motion]
-                if not rs:
-                    continue
-                cells = []
-                for n, *_ in BIAS_LENGTHS:
-                    v = np.array([x for r in rs for x in r[key]["lengths"].get(n, [])])
-                    cells.append("–" if not len(v) else
-                                 f"{np.median(v[:, 0] / v[:, 1]):.2f} ({np.median(v[:, 0]):.3f}/"
-                                 f"{np.median(v[:, 1]):.3f})")
-                lines.append(f"| {st} | {motion} | " + " | ".join(cells) + " |")
+        for st, motion, rs in _by_setup(rows, setups):
+            cells = []
+            for n, *_ in BIAS_LENGTHS:
+                v = np.array([x for r in rs for x in r[key]["lengths"].get(n, [])])
+                cells.append("–" if not len(v) else
+                             f"{np.median(v[:, 0] / v[:, 1]):.2f} ({np.median(v[:, 0]):.3f}/"
+                             f"{np.median(v[:, 1]):.3f})")
+            lines.append(f"| {st} | {motion} | " + " | ".join(cells) + " |")
         if real and key == "fit":
             w = {**{f"{k} width": v for k, v in real.get("widths_vs_pose2sim_m", {}).items()},
                  **real.get("bone_lengths_vs_pose2sim_m", {})}

@@ -585,9 +585,11 @@ def report(doc) -> str:
                  "head med / p90", "hands med / p90", "feet med / p90"], rows)
     L += ["", "## `matched` by the run's own consistency (`topopose run --consistency`)", "",
           "The same poses as `run` writes them, with `matched` decided by "
-          "`topopose.pose.consistency` (agreement with the neighbouring frames and the "
-          "confidence's rank in the run; thresholds chosen on synthetic walks, never on this "
-          "recording: `benchmarks/consistency.py`) instead of the confidence's absolute minimum.",
+          "`topopose.pose.consistency` (agreement with the neighbouring frames and the share "
+          "of the silhouettes the placed model leaves unexplained, `topopose.pose.support`, "
+          "recorded in a second pass of the run with `support=True`; thresholds chosen on "
+          "synthetic walks, never on this recording: `benchmarks/consistency.py`) instead of "
+          "the confidence's absolute minimum.",
           ""]
     rows = []
     for name, r in doc["methods"].items():

@@ -524,7 +524,10 @@ def error_causes(rows, name):
 def error_blame(rows, name):
     """The wrong decisions (margin 0) by the part whose pipeline point alone, replaced by its
     corresponding truth point, makes the decision right (``"none"``: no single part; several
-    parts counted each), and that part's offset pipeline − truth along the capture's up axis."""
+    parts counted each), and that part's offset pipeline − truth along the capture's up axis:
+    mean and median (one gross mismatch — a hand on a foot's branch, a model flipped end for
+    end, offsets of 0.6–1.5 m — moves the mean of a few decisions by tens of cm; issue 14,
+    ``benchmarks/detection_inverted_dev.py``)."""
     out = {}
     for r in rows:
         d = r["detect"][name]
@@ -535,7 +538,9 @@ def error_blame(rows, name):
             b["n"] += 1
             if k in r["part_offsets"]:
                 b["dz"].append(r["part_offsets"][k][0])
-    return {k: {"n": v["n"], "dz_mean": _mean(v["dz"]) if v["dz"] else None} for k, v in out.items()}
+    return {k: {"n": v["n"], "dz_mean": _mean(v["dz"]) if v["dz"] else None,
+                "dz_median": float(np.median(v["dz"])) if v["dz"] else None}
+            for k, v in out.items()}
 
 
 def stable_truth(expr, parts, up, aliases, value, rng):
@@ -753,6 +758,9 @@ def main(argv=None):
                                "before": detection_counts(rows, n, value="parts"),
                                "blame": error_blame(rows, n)}
                            for n in pose_names} for label, rows in sets}
+    # the acrobatic set's wrong decisions by the generator's tag (issue 14: inverted vs upright)
+    blame_split = [(f"{label}, {t} frames", [r for r in rows if (r["tag"] == "inverted") == (t == "inverted")])
+                   for label, rows in sets if label == "human acrobatic" for t in ("upright", "inverted")]
     offsets = {}
     body_rows = bdet["rows"] + [r for r in seg if r["subject"] == "body"]
     human_sets = [(f"human {k}", d["rows"]) for k, d in det.items() if k != "acrobatic"]
@@ -775,7 +783,9 @@ def main(argv=None):
                                            "speed_median": speed},
          "detection": {k: {kk: v for kk, v in d.items() if kk != "rows"} for k, d in det.items()},
          "detection_body": {k: v for k, v in bdet.items() if k != "rows"},
-         "detection_summary": det_summary, "detection_margins": margin_counts,
+         "detection_summary": det_summary,
+         "detection_blame_by_tag": {label: {n: error_blame(rows, n) for n in pose_names}
+                                    for label, rows in blame_split}, "detection_margins": margin_counts,
          "part_offsets": offsets, "clustering": clu}, indent=1))
 
     L = [f"# Applications (thesis §13.3){' — quick run' if a.quick else ''}", "",
@@ -915,15 +925,20 @@ def main(argv=None):
           "whose pipeline point alone, replaced by its corresponding truth point, makes the "
           "decision right (*none*: no single part does; a decision two parts can each fix "
           "counts for both), with that part's mean offset pipeline − truth along the up axis "
-          "over those decisions. Offset row *crotch-dropped* below: the pose's own crotch "
-          "(dropped, *before*) against the same truth point.", "",
-          "| subject | pose | wrong decisions by part (n, mean vertical offset m) |", "|---|---|---|"]
-    for label, rows in sets:
+          "over those decisions, mean / median (one gross mismatch, a hand on a foot's branch "
+          "or a model flipped end for end, moves the mean by tens of cm). *human acrobatic* is "
+          "also split by the generator's tag (*inverted* / the *upright* random frames). Offset "
+          "row *crotch-dropped* below: the pose's own crotch (dropped, *before*) against the "
+          "same truth point.", "",
+          "| subject | pose | wrong decisions by part (n, vertical offset m: mean / median) |",
+          "|---|---|---|"]
+    for label, rows in sets + blame_split:
         for n in pose_names:
-            b = det_summary[label][n]["blame"]
+            b = det_summary[label][n]["blame"] if label in det_summary else error_blame(rows, n)
             if b:
                 L.append(f"| {label} | {n} | " + ", ".join(
-                    f"{k} {v['n']}" + ("" if v["dz_mean"] is None else f" ({v['dz_mean']:+.3f})")
+                    f"{k} {v['n']}" + ("" if v["dz_mean"] is None else
+                                       f" ({v['dz_mean']:+.3f} / {v['dz_median']:+.3f})")
                     for k, v in sorted(b.items(), key=lambda kv: -kv[1]["n"])) + " |")
     L += ["", "*Definitions.* gt.json's head is the crown minus the head's radius (the head's "
           "centre), its hands the fingertips minus the hand's radius, its torso the neck base, "

@@ -878,3 +878,31 @@ def test_detection_truth_points_of_the_body_rig():
     # a rig point missing: not a body frame, gt.json's parts
     del joints["LeftFoot_tail"]
     assert A.pipeline_points({"parts": parts, "joints": joints})["hand_1"] == parts["hand_1"]
+
+
+
+def test_error_blame_mean_and_median_of_the_blamed_offsets():
+    """The detection benchmark's blame table (issue 14, thesis §13.3.2.1): each wrong decision
+    counts for every part it is blamed on (``none`` when no single part fixes it), right
+    decisions for nothing; per part the mean and the median of the blamed parts' offsets along
+    up — the median stays with the typical offset where one gross mismatch (a hand on a foot's
+    branch, −1.2 m) drags the mean. Oracle: numpy on the hand-listed offsets."""
+    A = _benchmark("applications")
+
+    def row(value, truth, blame=None, **dz):
+        d = {"m0": value, "truth": truth}
+        if blame is not None:
+            d["blame"] = blame
+        return {"detect": {"q": d}, "part_offsets": {k: [v, abs(v)] for k, v in dz.items()}}
+
+    rows = [row(True, False, ["hand_1"], hand_1=-0.02, head=0.01),
+            row(False, True, ["hand_2", "head"], hand_2=-0.03, head=0.04),
+            row(True, False, ["hand_1"], hand_1=-1.2),
+            row(False, True, [], hand_1=0.5),               # no single part: "none"
+            row(True, True, None, hand_1=-2.0)]             # right: not counted
+    b = A.error_blame(rows, "q")
+    assert set(b) == {"hand", "head", "none"}
+    assert b["hand"]["n"] == 3 and b["head"]["n"] == 1 and b["none"]["n"] == 1
+    assert np.isclose(b["hand"]["dz_mean"], np.mean([-0.02, -0.03, -1.2]))
+    assert np.isclose(b["hand"]["dz_median"], -0.03)
+    assert np.isclose(b["head"]["dz_median"], 0.04) and b["none"]["dz_median"] is None

@@ -165,15 +165,21 @@ def chirality(poses, gt, both_found=False):
     return c
 
 
-def joint_errors(names, P, gtj):
-    """Per joint base name → error (m), mirror pairs paired optimally."""
-    J = {k: np.asarray(v) for k, v in gtj.items()}
+def _by_base(names, P):
+    """Base joint name (``elbow`` for ``elbow_1``) → the frame's placed joints of that name."""
     by = {}
     for j, nm in enumerate(names):
         base, _, k = nm.rpartition("_")
         base = base if k.isdigit() else nm
         if base in RIG and not np.isnan(P[j]).any():
             by.setdefault(base, []).append(P[j])
+    return by
+
+
+def joint_errors(names, P, gtj):
+    """Per joint base name → error (m), mirror pairs paired optimally."""
+    J = {k: np.asarray(v) for k, v in gtj.items()}
+    by = _by_base(names, P)
     out = {}
     for base, xs in by.items():
         rig = RIG[base]
@@ -306,12 +312,7 @@ def joint_bias(names, P, gj, up):
     lat = lat - np.dot(lat, up) * up
     lat /= np.linalg.norm(lat)
     fwd = np.cross(lat, up)
-    by = {}
-    for j, nm in enumerate(names):
-        base, _, k = nm.rpartition("_")
-        base = base if k.isdigit() else nm
-        if base in RIG and not np.isnan(P[j]).any():
-            by.setdefault(base, []).append(P[j])
+    by = _by_base(names, P)
     ours, err = {}, {}
     for base, xs in by.items():
         rig = RIG[base]

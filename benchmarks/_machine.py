@@ -44,3 +44,12 @@ def read_rows(path) -> dict:
     """A benchmark's saved JSON, gzip-compressed when its name ends in ``.gz``."""
     p = Path(path)
     return json.loads(gzip.decompress(p.read_bytes()) if p.suffix == ".gz" else p.read_text())
+
+
+def write_results(out, doc: dict, report) -> None:
+    """Write ``doc`` to ``out``.json and ``report(doc)`` to ``out``.md (the folder made)."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.with_suffix(".json").write_text(json.dumps(doc, indent=1, default=str))
+    out.with_suffix(".md").write_text(report(doc))
+    print(f"wrote {out}.md / .json")

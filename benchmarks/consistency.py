@@ -186,7 +186,7 @@ def unrelated(model, up, frames, work) -> dict:
 
 
 def main(argv=None):
-    from _machine import machine
+    from _machine import machine, write_results
     from topopose.pose import consistency as C
     from topopose.pose.model import load_model
 
@@ -226,11 +226,7 @@ def main(argv=None):
                            "ours": {k: r["as_run_consistency"][k]
                                     for k in ("matched", "matched_precision")}}
                        for m, r in rj["methods"].items() if "as_run_consistency" in r}
-    out = Path(a.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.with_suffix(".json").write_text(json.dumps(doc, indent=1, default=str))
-    out.with_suffix(".md").write_text(report(doc))
-    print(f"wrote {out}.md / .json")
+    write_results(a.out, doc, report)
     return 0
 
 

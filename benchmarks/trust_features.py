@@ -222,7 +222,7 @@ def real_matched(recording, recs, feats, settings) -> dict:
 
 
 def main(argv=None):
-    from _machine import machine
+    from _machine import machine, write_results
     import real
     from consistency import BEFORE
     from topopose.pose import consistency as C
@@ -272,11 +272,7 @@ def main(argv=None):
                 "support_ms": r["speed"]["stages_median_ms"].get("support"),
                 "total_ms": r["speed"]["stages_median_ms"].get("total")}
             for k, r in rj["methods"].items() if "as_run_consistency" in r}}
-    out = Path(a.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.with_suffix(".json").write_text(json.dumps(doc, indent=1, default=str))
-    out.with_suffix(".md").write_text(report(doc))
-    print(f"wrote {out}.md / .json")
+    write_results(a.out, doc, report)
     return 0
 
 

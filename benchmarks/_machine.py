@@ -40,6 +40,11 @@ def machine(**extra) -> dict:
     return info
 
 
+def machine_line(m: dict) -> str:
+    """``Machine: CPU, n cores, load x, date`` for a report, from :func:`machine`'s dict."""
+    return f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}"
+
+
 def read_rows(path) -> dict:
     """A benchmark's saved JSON, gzip-compressed when its name ends in ``.gz``."""
     p = Path(path)

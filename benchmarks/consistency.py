@@ -235,9 +235,11 @@ def _pct(x):
 
 
 def report(doc) -> str:
+    from _machine import machine_line
+
     m = doc["machine"]
     L = ["# `matched` by the run's own consistency (issue 12 part 5)", "",
-         f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
+         f"{machine_line(m)}. "
          "Written by `benchmarks/consistency.py` (see its docstring). Synthetic: body subject "
          f"walking, {doc['frames']} frames per sequence, 100³; set-ups "
          + "; ".join(f"{k}: {v[0]} cameras {v[1]} noise {v[2]}" for k, v in doc["setups"].items())

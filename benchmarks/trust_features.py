@@ -281,9 +281,11 @@ def _f(x):
 
 
 def report(doc) -> str:
+    from _machine import machine_line
+
     m = doc["machine"]
     L = ["# Which per-frame feature tells right from wrong frames (issue 12 part 5)", "",
-         f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
+         f"{machine_line(m)}. "
          "Written by `benchmarks/trust_features.py` (see its docstring). Synthetic: body subject "
          f"walking, {doc['frames']} frames per sequence, development seeds {doc['dev_seeds']}, "
          f"held-out seeds {doc['test_seeds']}; real: Pose2Sim's balancing trial, `person` "

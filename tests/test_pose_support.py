@@ -111,3 +111,54 @@ def test_consistency_rejects_an_unexplained_frame():
     assert poses[5].diagnostics["consistency"]["unexplained"] == 0.3
     for i in (4, 6, 7):
         assert poses[i].status == "matched", poses[i].diagnostics["consistency"]
+
+
+def test_per_frame_support_test_judges_each_frame_alone():
+    """``judge_support``: matched frames above the limit rejected (parts kept), those within
+    kept, frames without the value and failed ones untouched; ``gate=False`` also matches a
+    frame the confidence gate alone rejected when it is within the limit, not one rejected for
+    another reason."""
+    from test_consistency import GATED, walk_parts
+    from topopose.pose.pose import Pose
+
+    def pose(i, status, u, error=None):
+        p = Pose(f"{i}", status, 0.2, walk_parts(i), error, {}, {"height": 1.7})
+        if u is not None:
+            p.diagnostics["unexplained"] = u
+        return p
+
+    poses = [pose(0, "matched", 0.05), pose(1, "matched", 0.081), pose(2, "matched", None),
+             pose(3, "rejected", 0.02, GATED), pose(4, "rejected", 0.02, "hull: 2 pieces"),
+             pose(5, "failed", 0.9, "boom"), pose(6, "matched", 0.08)]
+    before = [dict(p.parts) for p in poses]
+    assert C.judge_support(poses) == 1                  # default limit MAX_UNEXPLAINED = 0.08
+    assert [p.status for p in poses] == ["matched", "rejected", "matched", "rejected",
+                                         "rejected", "failed", "matched"]
+    assert "0.08 of a silhouette unexplained" in poses[1].error
+    assert all(p.parts.keys() == b.keys() and all(np.array_equal(p.parts[k], b[k]) for k in b)
+               for p, b in zip(poses, before))
+    assert C.judge_support(poses, gate=False) == 1      # only frame 3 changes now
+    assert poses[3].status == "matched" and poses[3].diagnostics["support_gate"] == GATED
+    assert poses[4].status == "rejected"
+    assert C.judge_support(poses, max_unexplained=0.04) == 2      # frames 0 (0.05), 6 (0.08)
+    assert [p.status for p in poses] == ["rejected", "rejected", "matched", "matched",
+                                         "rejected", "failed", "rejected"]
+
+
+def test_run_support_switch(synthetic_frame, tmp_path):
+    """``run(support_test=True)``: every matched frame within the limit, the others rejected
+    for it or left as without the switch; the same parts either way."""
+    from topopose.pose import run
+
+    cap = synthetic_frame[0]
+    off = run(cap, resolution=64, progress=False, gate=False, track=False, sides=False,
+              skeleton=False, support=True)
+    on = run(cap, resolution=64, progress=False, gate=False, track=False, sides=False,
+             skeleton=False, support_test=True, output=tmp_path / "p.jsonl")
+    assert any(a.status != b.status for a, b in zip(off.poses, on.poses))   # it did judge
+    for a, b in zip(off.poses, on.poses):
+        u = a.diagnostics.get("unexplained")
+        want = ("rejected" if a.status == "matched" and u is not None
+                and u > C.MAX_UNEXPLAINED else a.status)
+        assert b.status == want, (a.frame, a.status, u, b.status)
+        assert all((a.parts[k] is None) == (b.parts[k] is None) for k in a.parts)

@@ -291,3 +291,45 @@ def judge_sequence(poses, model, index=None, max_deviation=MAX_DEVIATION,
             info["gate"] = p.error        # what the absolute gate said
             p.status, p.error = "matched", None
     return True
+
+
+def judge_support(poses, max_unexplained=MAX_UNEXPLAINED, gate=True) -> int:
+    """Per-frame silhouette support test, in place (``topopose run --support``,
+    :func:`topopose.pose.run.run` ``support_test=True``): for runs of unrelated poses too,
+    where the temporal part of :func:`judge_sequence` does not apply.
+
+    A matched frame whose ``diagnostics["unexplained"]`` (:mod:`.support`) is above
+    ``max_unexplained`` (default :data:`MAX_UNEXPLAINED`, chosen on the synthetic development
+    seeds, module docstring) is rejected with the reason; its parts are kept. A frame without
+    the value (no matched curve) is left as it is.
+
+    Parameters
+    ----------
+    poses : iterable of Pose
+    max_unexplained : float
+    gate : bool
+        True: the test comes on top of the confidence gate (only matched frames are judged).
+        False: it replaces the gate — a frame the confidence gate alone rejected
+        (:func:`gated`) is matched when its unexplained share is within the limit.
+
+    Returns
+    -------
+    int
+        The number of frames whose status changed.
+    """
+    changed = 0
+    for p in poses:
+        u = p.diagnostics.get("unexplained")
+        if u is None or not gated(p):
+            continue
+        if u > max_unexplained:
+            if p.status == "matched":
+                p.status = "rejected"
+                p.error = (f"silhouette support: {u:.2f} of a silhouette unexplained by the "
+                           f"placed model (above {max_unexplained:g})")
+                changed += 1
+        elif not gate and p.status == "rejected":
+            p.diagnostics["support_gate"] = p.error      # what the absolute gate said
+            p.status, p.error = "matched", None
+            changed += 1
+    return changed

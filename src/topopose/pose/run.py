@@ -156,7 +156,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
         tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None, track=True,
         sides=True, skeleton=True, smooth=None, bvh=None, consistency=False,
-        support=None) -> RunResult:
+        support=None, support_test=False) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -213,7 +213,14 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         cameras (``benchmarks/results/consistency.md``).
     support : bool, optional
         Record each frame's ``diagnostics["unexplained"]`` (:mod:`topopose.pose.support`),
-        which the consistency reads; None (default): with ``consistency``.
+        which the consistency reads; None (default): with ``consistency`` or ``support_test``.
+    support_test : bool or "replace"
+        Per frame (also runs of unrelated poses): a matched frame whose silhouette is left
+        unexplained by the placed model above
+        :data:`topopose.pose.consistency.MAX_UNEXPLAINED` is rejected
+        (:func:`topopose.pose.consistency.judge_support`, ``run --support``); ``"replace"``:
+        the test replaces the confidence gate (frames the gate alone rejected are matched when
+        they pass). Off by default (``benchmarks/results/applications_detection.md``).
 
     Returns
     -------
@@ -240,7 +247,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         options["refocus"] = True
     if thickness is not None:
         options["thickness"] = float(thickness)
-    if support or (support is None and consistency):   # read by the consistency
+    if support or (support is None and (consistency or support_test)):   # read by them
         options["support"] = True
     todo = select_frames(cap, frames)
     if c3d is not None:
@@ -325,6 +332,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         from .confidence import temporal_confidence      # time factors need the whole run
         temporal_confidence(list(results.values()), {f: i for i, f in enumerate(cap.frames)},
                             gate=gate and m.name == "human")
+        if support_test:                  # per frame, on the statuses the gate gave
+            from .consistency import judge_support
+            judge_support(results.values(), gate=support_test != "replace")
         if fh is not None:
             fh.close()
             if len(results) > len(done) or not out.exists() or resume:
@@ -525,7 +535,8 @@ def run_cli(a) -> int:
               thickness=getattr(a, "thickness", None), track=getattr(a, "track", True),
               sides=getattr(a, "sides", True), skeleton=getattr(a, "skeleton", True),
               smooth=getattr(a, "smooth", None), bvh=getattr(a, "bvh", None),
-              consistency=getattr(a, "consistency", False))
+              consistency=getattr(a, "consistency", False),
+              support_test=getattr(a, "support", None) or False)
     if getattr(a, "rerun", None):
         from ..viz.rerun import record_run
         record_run(a.rerun, a.capture, res.poses, model=a.model, resolution=a.resolution,

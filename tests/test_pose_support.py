@@ -162,3 +162,12 @@ def test_run_support_switch(synthetic_frame, tmp_path):
                 and u > C.MAX_UNEXPLAINED else a.status)
         assert b.status == want, (a.frame, a.status, u, b.status)
         assert all((a.parts[k] is None) == (b.parts[k] is None) for k in a.parts)
+
+
+def test_cli_support_flags():
+    from topopose.cli import build_parser
+
+    p = build_parser()
+    assert p.parse_args(["run", "CAP"]).support is None
+    assert p.parse_args(["run", "--support", "CAP"]).support is True
+    assert p.parse_args(["run", "CAP", "--support-replace"]).support == "replace"

@@ -422,11 +422,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="sequences of one subject: 'matched' decided by agreement with the "
                         "neighbouring frames and the confidence's rank in the run instead of "
                         "its absolute minimum (default off: benchmarks/results/consistency.md)")
-    s.add_argument("--support", nargs="?", const=True, default=None, choices=["replace"],
+    s.add_argument("--support", action="store_const", const=True, default=None,
                    help="per frame: reject a matched frame whose silhouettes the placed model "
-                        "leaves unexplained (share above pose.consistency.MAX_UNEXPLAINED); "
-                        "'--support replace': instead of the confidence gate (default off: "
-                        "benchmarks/results/applications_detection.md)")
+                        "leaves unexplained (share above pose.consistency.MAX_UNEXPLAINED; "
+                        "default off: benchmarks/results/applications_detection.md)")
+    s.add_argument("--support-replace", dest="support", action="store_const", const="replace",
+                   help="as --support, instead of the confidence gate: a frame the gate alone "
+                        "rejected is matched when its silhouettes are explained")
     s.set_defaults(func=cmd_run)
 
     s = sub.add_parser("view", help="render one frame as a PNG")

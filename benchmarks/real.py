@@ -96,7 +96,8 @@ def frame_errors(parts: dict, ref: dict, i: int) -> dict:
         s1 = [seg_dist(a, *segs["L"]), seg_dist(b, *segs["R"])]
         s2 = [seg_dist(a, *segs["R"]), seg_dist(b, *segs["L"])]
         best = s1 if sum(min(x, 1e9) for x in s1) <= sum(min(x, 1e9) for x in s2) else s2
-        out[f"{kind}_L"], out[f"{kind}_R"] = best
+        # by side: s2 pairs hand_1 with R, so its distances are (R, L)
+        out[f"{kind}_L"], out[f"{kind}_R"] = best if best is s1 else best[::-1]
     return out
 
 

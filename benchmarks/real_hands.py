@@ -51,8 +51,9 @@ def read_openpose(rec: Path, n_cams: int, frame: int) -> np.ndarray:
     for c in range(n_cams):
         f = rec / "pose_2d" / f"cam{c + 1:02d}_json" / f"cam{c + 1:02d}.{frame:04d}.json"
         people = json.loads(f.read_text()).get("people") if f.is_file() else None
-        if people:
-            out[c] = np.asarray(people[0]["pose_keypoints_2d"], float).reshape(-1, 3)[:25]
+        kp = (people or [{}])[0].get("pose_keypoints_2d")      # an empty entry: no person
+        if kp:
+            out[c] = np.asarray(kp, float).reshape(-1, 3)[:25]
     return out
 
 
@@ -65,6 +66,24 @@ def triangulate(cams, uv, w) -> np.ndarray:
         A += [wi * (u * P[2] - P[0]), wi * (v * P[2] - P[1])]
     X = np.linalg.svd(np.asarray(A))[2][-1]
     return X[:3] / X[3]
+
+
+#: Pose2Sim's default reprojection error limit (px) of a triangulated point: the worst view
+#: is left out while above it (at least 2 views kept)
+MAX_REPROJ = 15.0
+
+
+def triangulate_robust(cams, uv, w):
+    """:func:`triangulate`, the view with the largest reprojection error left out while it is
+    above :data:`MAX_REPROJ` and more than 2 views remain (as Pose2Sim triangulates):
+    (point, indices of the views kept, their largest reprojection error px)."""
+    keep = list(range(len(cams)))
+    while True:
+        X = triangulate([cams[k] for k in keep], uv[keep], w[keep])
+        err = [float(np.linalg.norm(cams[k].project(X[None])[0] - uv[k])) for k in keep]
+        if max(err) <= MAX_REPROJ or len(keep) <= 2:
+            return X, keep, max(err)
+        del keep[int(np.argmax(err))]
 
 
 def hand_points(ref, i):
@@ -162,6 +181,8 @@ def analyse(rec: Path, rows, ref, cams):
             ok = [c for c in range(len(cams)) if np.isfinite(kp[c, k, 2]) and kp[c, k, 2] >= MIN_SCORE]
             tri = (triangulate([cams[c] for c in ok], kp[ok, k, :2], kp[ok, k, 2])
                    if len(ok) >= 2 else None)
+            rob = (triangulate_robust([cams[c] for c in ok], kp[ok, k, :2], kp[ok, k, 2])
+                   if len(ok) >= 2 else None)
             w, tip = segs[s]
             o = ours[s]
             views = []
@@ -197,6 +218,12 @@ def analyse(rec: Path, rows, ref, cams):
                 round(float(np.linalg.norm(tri - w)), 3),
                 "ours_to_triangulated_hand_m": None if tri is None or o is None else round(
                     real.seg_dist(o, tri, tri + (tip - w)), 3),
+                "robust_cameras": None if rob is None else [ok[j] + 1 for j in rob[1]],
+                "robust_reprojection_px": None if rob is None else round(rob[2], 1),
+                "robust_to_p2s_wrist_m": None if rob is None else
+                round(float(np.linalg.norm(rob[0] - w)), 3),
+                "ours_to_robust_hand_m": None if rob is None or o is None else round(
+                    real.seg_dist(o, rob[0], rob[0] + (tip - w)), 3),
                 "views": views}
         detail.append({"frame": r["i"], "errors_m": {k: round(v, 3) for k, v in r["errors"].items()},
                        "unexplained": r["pose"].diagnostics.get("unexplained"),
@@ -208,9 +235,11 @@ def analyse(rec: Path, rows, ref, cams):
                     "p2s_wrist_reprojection_px_p90": round(float(np.percentile(base_wrist, 90)), 1)}
 
 
-def picture(rec: Path, rows, ref, cams, detail, path):
+def picture(rec: Path, rows, ref, cams, detail, path, zoom=None):
     """Per wrong frame (rows) and camera (columns): the image around the subject, the
-    silhouette's contour, Pose2Sim's wrist → hand segment, OpenPose's wrist, our hand."""
+    silhouette's contour, Pose2Sim's wrist → hand segment, OpenPose's wrist, our hand.
+    ``zoom`` (px): per wrong frame and hand more than 0.15 m off instead, a square of that
+    size around its two projections (ours, Pose2Sim's wrist)."""
     import cv2
     import matplotlib
     matplotlib.use("Agg")
@@ -220,9 +249,13 @@ def picture(rec: Path, rows, ref, cams, detail, path):
 
     by = {r["i"]: r for r in rows}
     caps = [cv2.VideoCapture(str(rec / "videos" / f"cam{c + 1:02d}.mp4")) for c in range(len(cams))]
-    fig, axes = plt.subplots(len(detail), len(cams), figsize=(3.2 * len(cams), 4.2 * len(detail)),
-                             squeeze=False)
-    for row, d in zip(axes, detail):
+    import real
+    panels = [(d, None) for d in detail] if not zoom else [
+        (d, s) for d in detail for s, v in d["sides"].items()
+        if v["ours_to_p2s_hand_m"] is not None and v["ours_to_p2s_hand_m"] > real.RIGHT]
+    fig, axes = plt.subplots(len(panels), len(cams), squeeze=False,
+                             figsize=(3.2 * len(cams), (3.4 if zoom else 4.2) * len(panels)))
+    for row, (d, side) in zip(axes, panels):
         r = by[d["frame"]]
         masks = [T.unpack(m) for m in r["record"]["masks"]]
         for c, ax in enumerate(row):
@@ -233,9 +266,16 @@ def picture(rec: Path, rows, ref, cams, detail, path):
             H, W = img.shape[:2]
             m = cv2.resize(masks[c].astype(np.uint8), (int(cams[c].size[0]), int(cams[c].size[1])),
                            interpolation=cv2.INTER_NEAREST)[:H, :W]
-            ys, xs = np.nonzero(m)
-            x0, x1 = max(xs.min() - 80, 0), min(xs.max() + 80, W)
-            y0, y1 = max(ys.min() - 80, 0), min(ys.max() + 80, H)
+            if side is None:
+                ys, xs = np.nonzero(m)
+                x0, x1 = max(xs.min() - 80, 0), min(xs.max() + 80, W)
+                y0, y1 = max(ys.min() - 80, 0), min(ys.max() + 80, H)
+            else:
+                v = d["sides"][side]["views"][c]
+                cx, cy = (np.asarray(v["p2s_wrist_px"]) + np.asarray(v["ours_px"])) / 2
+                x0 = int(np.clip(cx - zoom / 2, 0, max(W - zoom, 0)))
+                y0 = int(np.clip(cy - zoom / 2, 0, max(H - zoom, 0)))
+                x1, y1 = min(x0 + zoom, W), min(y0 + zoom, H)
             ax.imshow(img[y0:y1, x0:x1, ::-1], extent=(x0, x1, y1, y0))
             ax.contour(np.arange(x0, x1), np.arange(y0, y1), m[y0:y1, x0:x1], [0.5],
                        colors="yellow", linewidths=0.8)
@@ -248,7 +288,7 @@ def picture(rec: Path, rows, ref, cams, detail, path):
                 if v["openpose"] is not None:
                     ax.plot(v["openpose"][0], v["openpose"][1], "+", color=col, ms=12, mew=2)
                     ax.text(v["openpose"][0] + 12, v["openpose"][1], f"{v['openpose'][2]:.2f}",
-                            color=col, fontsize=7)
+                            color=col, fontsize=7, clip_on=True)
                 if "ours_px" in v:
                     ax.plot(*v["ours_px"], "x", color="red", ms=10, mew=2.5)
                     ax.plot(*v["ours_px"], "x", color=col, ms=6, mew=1)
@@ -256,14 +296,43 @@ def picture(rec: Path, rows, ref, cams, detail, path):
             ax.set_ylim(y1, y0)
             ax.set_xticks([])
             ax.set_yticks([])
-            ax.set_title(f"frame {d['frame']}, cam{c + 1:02d}", fontsize=8)
+            ax.set_title(f"frame {d['frame']}, cam{c + 1:02d}"
+                         + (f", hand {side} (zoom)" if side else ""), fontsize=8)
     for cp in caps:
         cp.release()
     fig.suptitle("○ Pose2Sim wrist, line → 0.1 m beyond (its hand); + OpenPose wrist (score); "
                  "× ours (red); cyan L, magenta R; yellow: person silhouette", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=80)
+    fig.savefig(path, dpi=90 if zoom else 80)
     plt.close(fig)
+
+
+#: a confident OpenPose keypoint (score), an agreement and a disagreement in pixels (full size)
+CONFIDENT, AGREE_PX, FAR_PX = 0.5, 35.0, 100.0
+
+
+def summary(detail) -> list:
+    """Per wrong hand (more than 0.15 m from Pose2Sim's): which cameras see a confident
+    OpenPose wrist, in which of them Pose2Sim's wrist agrees with it and ours is far from it,
+    and whether Pose2Sim's wrist is the robust triangulation of the OpenPose wrists."""
+    import real
+
+    out = []
+    for d in detail:
+        for s, v in d["sides"].items():
+            if v["ours_to_p2s_hand_m"] is None or v["ours_to_p2s_hand_m"] <= real.RIGHT:
+                continue
+            conf = [c for c, x in enumerate(v["views"])
+                    if x["openpose"] is not None and x["openpose"][2] >= CONFIDENT]
+            agree = [c + 1 for c in conf if v["views"][c]["p2s_wrist_vs_openpose_px"] <= AGREE_PX]
+            far = [c + 1 for c in conf if (v["views"][c].get("ours_vs_openpose_px") or 0) >= FAR_PX]
+            out.append(f"frame {d['frame']} hand {s} ({v['ours_to_p2s_hand_m']} m off): OpenPose "
+                       f"confident (score ≥ {CONFIDENT:g}) in cameras {[c + 1 for c in conf]}; "
+                       f"Pose2Sim's wrist within {AGREE_PX:g} px of it in {agree}; ours ≥ "
+                       f"{FAR_PX:g} px from it in {far}; Pose2Sim's wrist is the robust "
+                       f"triangulation of cameras {v['robust_cameras']} to "
+                       f"{v['robust_to_p2s_wrist_m']} m")
+    return out
 
 
 def report(doc) -> str:
@@ -273,16 +342,19 @@ def report(doc) -> str:
          "`benchmarks/real.py`'s rule (head, both hands, both feet within 0.15 m of Pose2Sim). "
          "Pixel figures at full image size (1088×1920). *outside*: distance (px) from the "
          "projected point to the `person` silhouette, 0 inside. OpenPose: BODY_25B wrist, "
-         f"score; Pose2Sim triangulates keypoints with score ≥ {MIN_SCORE}. Picture: "
-         "`real_hands.png`.", "",
+         f"score; Pose2Sim triangulates keypoints with score ≥ {MIN_SCORE}. *Triangulated here*: "
+         "the OpenPose wrists with score ≥ 0.3, DLT weighted by the scores; *robust*: the view "
+         f"with the largest reprojection error left out while above {MAX_REPROJ:g} px (as "
+         "Pose2Sim does), the cameras kept listed. Pictures: `real_hands.png` (whole "
+         "subject), `real_hands_zoom.png` (around each hand more than 0.15 m off).", "",
          "Pose2Sim's reprojection error against the OpenPose keypoints over all 100 frames "
          f"(per camera and frame, the median over its keypoints): median "
          f"{doc['baseline']['p2s_reprojection_px_median_all_frames']} px, p90 "
          f"{doc['baseline']['p2s_reprojection_px_p90_all_frames']} px; wrists alone: median "
          f"{doc['baseline']['p2s_wrist_reprojection_px_median']} px, p90 "
          f"{doc['baseline']['p2s_wrist_reprojection_px_p90']} px.", "",
-         "| frame | side | ours → Pose2Sim hand (m) | OpenPose wrist score cam1–4 | Pose2Sim wrist − OpenPose (px) cam1–4 | ours − OpenPose wrist (px) cam1–4 | ours outside silhouette (px) | Pose2Sim wrist / hand end outside (px) | wrist triangulated here − Pose2Sim wrist (m, cameras) | ours → triangulated hand (m) |",
-         "|---|---|---|---|---|---|---|---|---|---|"]
+         "| frame | side | ours → Pose2Sim hand (m) | OpenPose wrist score cam1–4 | Pose2Sim wrist − OpenPose (px) cam1–4 | ours − OpenPose wrist (px) cam1–4 | ours outside silhouette (px) | Pose2Sim wrist / hand end outside (px) | wrist triangulated here − Pose2Sim wrist (m, cameras) | ours → triangulated hand (m) | robust: cameras kept, − Pose2Sim wrist (m) | ours → robust hand (m) |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def j(xs):
         return " / ".join("–" if x is None else f"{x:g}" for x in xs)
@@ -297,7 +369,9 @@ def report(doc) -> str:
                      f"{j([x['p2s_wrist_outside_px'] for x in vs])} ; "
                      f"{j([x['p2s_tip_outside_px'] for x in vs])} | "
                      f"{v['triangulated_to_p2s_wrist_m']} ({v['triangulated_cameras']}) | "
-                     f"{v['ours_to_triangulated_hand_m']} |")
+                     f"{v['ours_to_triangulated_hand_m']} | "
+                     f"{v['robust_cameras']}, {v['robust_to_p2s_wrist_m']} | "
+                     f"{v['ours_to_robust_hand_m']} |")
     L += ["", "Per frame: errors (m) by part against Pose2Sim; the unexplained share; Pose2Sim's "
           "reprojection median per camera (px).", "",
           "| frame | errors (m) | unexplained | Pose2Sim reprojection median cam1–4 (px) |",
@@ -305,8 +379,10 @@ def report(doc) -> str:
     for d in doc["frames"]:
         L.append(f"| {d['frame']} | " + ", ".join(f"{k} {v:g}" for k, v in d["errors_m"].items())
                  + f" | {d['unexplained']} | {j(d['p2s_reprojection_median_px'])} |")
+    if doc.get("summary"):
+        L += ["", "Per wrong hand:", ""] + [f"- {x}" for x in doc["summary"]]
     if doc.get("finding"):
-        L += ["", "**Finding.** " + doc["finding"]]
+        L += ["", "**Finding** (by eye on the pictures, and the figures above). " + doc["finding"]]
     return "\n".join(L) + "\n"
 
 
@@ -341,10 +417,12 @@ def main(argv=None):
     out.parent.mkdir(parents=True, exist_ok=True)
     if detail:
         picture(rec, rows, ref, cams, detail, out.with_suffix(".png"))
+        picture(rec, rows, ref, cams, detail, out.with_name(out.name + "_zoom.png"), zoom=420)
     mach = machine()
     doc = {"machine": mach, "machine_line": machine_line(mach), "baseline": base,
            "matched": sum(r["pose"].status == "matched" for r in rows),
            "wrong_matched": [d["frame"] for d in detail], "frames": detail,
+           "summary": summary(detail),
            "finding": a.finding}
     out.with_suffix(".json").write_text(json.dumps(doc, indent=1, default=float))
     out.with_suffix(".md").write_text(report(doc))

@@ -307,6 +307,50 @@ def picture(rec: Path, rows, ref, cams, detail, path, zoom=None):
     plt.close(fig)
 
 
+def geometric_tests(rows) -> dict:
+    """Could a per-frame geometric test tell the wrong matched frames from the right ones?
+    Per matched frame, its most suspicious hand by: *depth* — the hand's projection's distance
+    to the silhouette's contour over the silhouette's largest inscribed radius, the second
+    deepest of the 4 views (a hand in a phantom volume in front of the trunk lies deep in two
+    views); *arm* — the hand arc's skeleton-curve length over the run's own
+    (:func:`topopose.pose.consistency.length_ratios`), the farthest from 1. Ranges over the
+    right and the wrong frames."""
+    from scipy.ndimage import distance_transform_edt
+
+    import trust_features as T
+    from topopose.pose import consistency as C
+    from topopose.pose.model import load_model
+
+    model = load_model("human")
+    lengths = C.run_lengths([r["pose"] for r in rows], model)
+    out = {"right": {"depth": [], "arm": []}, "wrong": {"depth": [], "arm": []}, "frames": {}}
+    for r in rows:
+        p = r["pose"]
+        if p.status != "matched":
+            continue
+        dts = []
+        for m in r["record"]["masks"]:
+            d = distance_transform_edt(T.unpack(m))
+            dts.append((d, max(float(d.max()), 1.0)))
+        depth = 0.0
+        for h in ("hand_1", "hand_2"):
+            if p.parts.get(h) is None:
+                continue
+            ds = []
+            for cam, (d, dm) in zip(r["record"]["cams"], dts):
+                u, v = np.round(cam.project(np.asarray(p.parts[h], float)[None])[0]).astype(int)
+                ds.append(d[v, u] / dm if 0 <= v < d.shape[0] and 0 <= u < d.shape[1] else 0.0)
+            depth = max(depth, sorted(ds)[-2])
+        ratios = [v for k, v in C.length_ratios(p, model, lengths).items() if k.startswith("hand")]
+        arm = max(ratios, key=lambda x: abs(np.log(x))) if ratios else 1.0
+        key = "right" if r["right"] else "wrong"
+        out[key]["depth"].append(round(float(depth), 3))
+        out[key]["arm"].append(round(float(arm), 3))
+        out["frames"][r["i"]] = {"right": r["right"], "depth": round(float(depth), 3),
+                                 "arm": round(float(arm), 3)}
+    return out
+
+
 #: a confident OpenPose keypoint (score), an agreement and a disagreement in pixels (full size)
 CONFIDENT, AGREE_PX, FAR_PX = 0.5, 35.0, 100.0
 
@@ -379,6 +423,16 @@ def report(doc) -> str:
     for d in doc["frames"]:
         L.append(f"| {d['frame']} | " + ", ".join(f"{k} {v:g}" for k, v in d["errors_m"].items())
                  + f" | {d['unexplained']} | {j(d['p2s_reprojection_median_px'])} |")
+    g = doc.get("geometric")
+    if g and g["wrong"]["depth"]:
+        def rng(x):
+            return f"{min(x):.2f}–{max(x):.2f}" if x else "–"
+        L += ["", "Could a per-frame geometric test see them? (`geometric_tests`; matched frames, "
+              "the most suspicious hand; not used to choose anything)", "",
+              "| frames | n | hand depth in its 2nd deepest view (× largest inscribed radius) | "
+              "hand arc length / the run's own |", "|---|---|---|---|"]
+        for k in ("right", "wrong"):
+            L.append(f"| {k} | {len(g[k]['depth'])} | {rng(g[k]['depth'])} | {rng(g[k]['arm'])} |")
     if doc.get("summary"):
         L += ["", "Per wrong hand:", ""] + [f"- {x}" for x in doc["summary"]]
     if doc.get("finding"):
@@ -422,7 +476,7 @@ def main(argv=None):
     doc = {"machine": mach, "machine_line": machine_line(mach), "baseline": base,
            "matched": sum(r["pose"].status == "matched" for r in rows),
            "wrong_matched": [d["frame"] for d in detail], "frames": detail,
-           "summary": summary(detail),
+           "summary": summary(detail), "geometric": geometric_tests(rows),
            "finding": a.finding}
     out.with_suffix(".json").write_text(json.dumps(doc, indent=1, default=float))
     out.with_suffix(".md").write_text(report(doc))

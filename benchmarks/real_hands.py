@@ -312,8 +312,30 @@ def picture(rec: Path, rows, ref, cams, detail, path, zoom=None):
     fig.suptitle("○ Pose2Sim wrist, line → 0.1 m beyond (its hand); + OpenPose wrist (score); "
                  "× ours (red); cyan L, magenta R; yellow: person silhouette", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=90 if zoom else 80)
+    fig.savefig(path, dpi=70 if zoom else 60)
     plt.close(fig)
+
+
+def hand_depth(parts, cams, masks) -> float:
+    """The deepest hand's depth inside the silhouettes: per hand (parts whose name holds
+    ``hand``), its projection's distance to each silhouette's contour over that silhouette's
+    largest inscribed radius, the second deepest of the views; the largest over the hands."""
+    from scipy.ndimage import distance_transform_edt
+
+    dts = []
+    for m in masks:
+        d = distance_transform_edt(np.asarray(m, bool))
+        dts.append((d, max(float(d.max()), 1.0)))
+    depth = 0.0
+    for name, x in parts.items():
+        if "hand" not in name or x is None:
+            continue
+        ds = []
+        for cam, (d, dm) in zip(cams, dts):
+            u, v = np.round(cam.project(np.asarray(x, float)[None])[0]).astype(int)
+            ds.append(d[v, u] / dm if 0 <= v < d.shape[0] and 0 <= u < d.shape[1] else 0.0)
+        depth = max(depth, sorted(ds)[-2] if len(ds) > 1 else 0.0)
+    return float(depth)
 
 
 def geometric_tests(rows) -> dict:
@@ -324,8 +346,6 @@ def geometric_tests(rows) -> dict:
     views); *arm* — the hand arc's skeleton-curve length over the run's own
     (:func:`topopose.pose.consistency.length_ratios`), the farthest from 1. Ranges over the
     right and the wrong frames."""
-    from scipy.ndimage import distance_transform_edt
-
     import trust_features as T
     from topopose.pose import consistency as C
     from topopose.pose.model import load_model
@@ -337,19 +357,7 @@ def geometric_tests(rows) -> dict:
         p = r["pose"]
         if p.status != "matched":
             continue
-        dts = []
-        for m in r["record"]["masks"]:
-            d = distance_transform_edt(T.unpack(m))
-            dts.append((d, max(float(d.max()), 1.0)))
-        depth = 0.0
-        for h in ("hand_1", "hand_2"):
-            if p.parts.get(h) is None:
-                continue
-            ds = []
-            for cam, (d, dm) in zip(r["record"]["cams"], dts):
-                u, v = np.round(cam.project(np.asarray(p.parts[h], float)[None])[0]).astype(int)
-                ds.append(d[v, u] / dm if 0 <= v < d.shape[0] and 0 <= u < d.shape[1] else 0.0)
-            depth = max(depth, sorted(ds)[-2])
+        depth = hand_depth(p.parts, r["record"]["cams"], [T.unpack(m) for m in r["record"]["masks"]])
         ratios = [v for k, v in C.length_ratios(p, model, lengths).items() if k.startswith("hand")]
         arm = max(ratios, key=lambda x: abs(np.log(x))) if ratios else 1.0
         key = "right" if r["right"] else "wrong"
@@ -390,7 +398,7 @@ def summary(detail) -> list:
 
 def report(doc) -> str:
     L = ["# Pose2Sim's hand on the real frames `run --consistency` passes wrongly", "",
-         f"Machine: {doc['machine_line']}. Written by `benchmarks/real_hands.py`.", "",
+         f"{doc['machine_line']}. Written by `benchmarks/real_hands.py`.", "",
          "Frames: matched by `topopose run --consistency` (`person` silhouettes) but wrong by "
          "`benchmarks/real.py`'s rule (head, both hands, both feet within 0.15 m of Pose2Sim). "
          "Pixel figures at full image size (1088×1920). *outside*: distance (px) from the "

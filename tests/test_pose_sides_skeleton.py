@@ -799,3 +799,41 @@ def test_shoulder_bone_at_its_median_as_the_junction_slides(monkeypatch):
     assert abs(L[sh[0]] - L[sh[1]]) < 1e-12
     others = [j for j in range(len(tree.names)) if tree.parents[j] >= 0 and j not in sh]
     assert np.allclose(L[others], L70[others])
+
+
+def test_leg_bones_at_the_limb_quantile_arm_bones_at_the_bone_quantile(monkeypatch):
+    """Every bone cut short (×0.6–0.9) in 75 % of the frames: the leg's bones along its arc
+    (knee, ankle, toe: ``LIMB_QUANTILE["foot"]`` = 80) recover their true length, the arm's
+    (at ``BONE_QUANTILE`` = 70) come out short; an explicit quantile applies to every bone."""
+    from topopose.pose import kinematic_fit as kf
+
+    monkeypatch.setattr(kf, "BONE_QUANTILE", 70)
+    monkeypatch.setattr(kf, "LIMB_QUANTILE", {"foot": 80})
+    rng = np.random.default_rng(8)
+    tree = kinematic_tree(HUMAN)
+    order = tree.order()
+    keys = {(tree.base[j], tree.base[p]) for j, p in enumerate(tree.parents) if p >= 0}
+    true_L = {k: rng.uniform(0.1, 0.4) for k in sorted(keys)}   # mirror bones share theirs
+    n = 40
+    short = np.zeros(n, dtype=bool)
+    short[rng.permutation(n)[:30]] = True
+    init = np.zeros((n, len(tree.names), 3))
+    for f in range(n):
+        init[f, tree.root] = rng.normal(size=3)
+        for j in order[1:]:
+            p = tree.parents[j]
+            d = rng.normal(size=3)
+            k = rng.uniform(0.6, 0.9) if short[f] else 1.0
+            init[f, j] = init[f, p] + k * true_L[(tree.base[j], tree.base[p])] * d / np.linalg.norm(d)
+    L = kf.bone_lengths(init, tree)
+    L70 = kf.bone_lengths(init, tree, quantile=70)
+    for base in ("knee", "ankle", "toe", "elbow", "wrist", "fingertip"):
+        js = [j for j in range(len(tree.names)) if tree.base[j] == base]
+        assert len(js) == 2
+        for j in js:
+            want = true_L[(base, tree.base[tree.parents[j]])]
+            if base in ("knee", "ankle", "toe"):
+                assert abs(L[j] - want) < 1e-9, (base, L[j], want)
+                assert L70[j] < 0.97 * want                 # every bone at 70: short
+            else:
+                assert L[j] < 0.97 * want and abs(L[j] - L70[j]) < 1e-12

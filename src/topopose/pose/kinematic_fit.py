@@ -496,14 +496,21 @@ def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None) -> np.nda
 
 LIMB_QUANTILE = {"foot": 80}  # percent, by the limb's end part (its stem): the constant length
                              # of the bones along a limb's arc (thigh, shank, foot; not the bone
-                             # from the junction) instead of :data:`BONE_QUANTILE`. A leg's curve
-                             # is cut short and cuts the bent knee's corner as an arm's does, more
-                             # often: at the 70th percentile the knees, ankles and hips sat short.
-                             # Development seeds (``tracking.py --dev``: random 21–32, walks
-                             # 41–46, gate on; hips' width (-0.3, 0.85)), MPJPE median, legs at
-                             # 70 → 80 / 90: random 5.54 → 5.48 / 5.51 cm (hips 5.2 → 4.9 /
-                             # 5.0, knees 3.8 → 3.7 / 3.6), walks 4.35 → 4.29 / 4.33 cm; every
-                             # bone at 80 (arms too): random 5.59 (shoulders 6.0 → 6.3 cm)
+                             # from the junction) instead of :data:`BONE_QUANTILE` (only when no
+                             # quantile is given). A leg's curve is cut short and cuts the bent
+                             # knee's corner as an arm's does: at the 70th percentile the legs sat
+                             # short. Development seeds (random 21–32, 60 frames, walks 41–46, 40
+                             # frames, gate on; MPJPE median over frames), legs at 70 → 80: random
+                             # 5.66 → 5.58 cm (hips 5.6 → 5.5, knees 3.8 → 3.7, ankles 3.5 →
+                             # 3.4), walks 4.40 → 4.29 cm; the real recording (real_motion.py) 8.4
+                             # → 8.4 cm (its right frames 7.7 → 7.5, hips 8.4 → 8.0). Not kept:
+                             # legs at 90 (random 5.51 vs 5.48 at 80, both with hips 0.85 below),
+                             # arms at 60 / 80 (random 5.58 / 5.66: shoulders 6.3 at 80), every
+                             # bone at 80 (5.59); the hips' outward ``width`` 0.7 → 0.85 hull
+                             # radii (the hips sat 3.0 / 2.2 cm inside on random / walks): random
+                             # 5.58 → 5.48, walks 4.29 → 4.29 cm, but the real recording 8.4 →
+                             # 8.5 cm (hips 10.1 → 10.5: its fat 4-camera hull's radius widens
+                             # them; already 0.225 m against Pose2Sim's 0.209)
 
 
 SLIDE = False  # the model's ``slide`` bones take each frame's length (False: every bone constant).

@@ -502,13 +502,13 @@ LIMB_QUANTILE = {"foot": 80}  # percent, by the limb's end part (its stem): the 
                              # short. Development seeds (random 21–32, 60 frames, walks 41–46, 40
                              # frames, gate on; MPJPE median over frames), legs at 70 → 80: random
                              # 5.66 → 5.58 cm (hips 5.6 → 5.5, knees 3.8 → 3.7, ankles 3.5 →
-                             # 3.4), walks 4.40 → 4.29 cm; the real recording (real_motion.py) 8.4
+                             # 3.4), walks 4.40 → 4.33 cm; the real recording (real_motion.py) 8.4
                              # → 8.4 cm (its right frames 7.7 → 7.5, hips 8.4 → 8.0). Not kept:
                              # legs at 90 (random 5.51 vs 5.48 at 80, both with hips 0.85 below),
                              # arms at 60 / 80 (random 5.58 / 5.66: shoulders 6.3 at 80), every
                              # bone at 80 (5.59); the hips' outward ``width`` 0.7 → 0.85 hull
                              # radii (the hips sat 3.0 / 2.2 cm inside on random / walks): random
-                             # 5.58 → 5.48, walks 4.29 → 4.29 cm, but the real recording 8.4 →
+                             # 5.58 → 5.48, walks 4.33 → 4.29 cm, but the real recording 8.4 →
                              # 8.5 cm (hips 10.1 → 10.5: its fat 4-camera hull's radius widens
                              # them; already 0.225 m against Pose2Sim's 0.209)
 
@@ -700,9 +700,10 @@ HELD_GAP = False  # an unseen (held) joint between two frames of the same motion
                  # interpolated (:func:`held_gaps`, ``fit_sequence(gaps=True)``); off: the rest
                  # pose / last frame's arm of the frame loop. Off by default: no gain measured.
                  # Random-motion captures are unrelated poses (the pelvis moves ~1 m between
-                 # frames): never filled. Development walks 41–46 (gate on): MPJPE median 4.29 →
-                 # 4.29 cm (per walk 3.68 / 5.34 / 4.19 / 4.22 / 4.52 / 4.04 → 3.68 / 5.34 /
-                 # 4.19 / 4.29 / 4.25 / 3.90); the 144 filled joints (37 frames), error to the
+                 # frames): never filled. Development walks 41–46 (gate on): MPJPE median 4.33 →
+                 # 4.33 cm, frames holding joints 5.53 → 5.46 (per walk 3.67 / 5.43 / 4.17 /
+                 # 4.10 / 4.50 / 3.97 → 3.67 / 5.43 / 4.17 / 4.29 / 4.21 / 3.84); the 144
+                 # filled joints (37 frames; hips' width 0.85 then), error to the
                  # nearest rig joint of their kind, median / mean: last frame's 7.4 / 9.6 →
                  # interpolated 7.5 / 9.1 cm (the frames either side see the arm only partly)
 

@@ -81,7 +81,8 @@ from topopose.capture import load_capture  # noqa: E402
 from topopose.capture.synth import synthetic_capture, write_capture  # noqa: E402
 from topopose.pose import run  # noqa: E402
 from topopose.pose.chirality import assign_sides  # noqa: E402
-from topopose.pose.kinematic_fit import fit_sequence, initial_placement  # noqa: E402
+from topopose.pose.kinematic_fit import (BONE_QUANTILE, fit_sequence,  # noqa: E402
+                                         initial_placement)
 from topopose.pose.model import load_model  # noqa: E402
 from topopose.pose.quality import evaluate, point_segment_distance  # noqa: E402
 from topopose.pose.track import gated_only, track  # noqa: E402
@@ -578,6 +579,10 @@ def analyse(raw, cap, model):
         fit_sequence(tracked, model, evidence=False)[0])
     err_nosh, sh_holding, sh_arms = peer_errors(fit_sequence(tracked, model, shoulders=False)[0])
     err_bend0, bend_holding, bend_arms = peer_errors(fit_with_bend(tracked, model)[0])
+    # the peer of the legs' bones at LIMB_QUANTILE: every bone at BONE_QUANTILE (a quantile
+    # given leaves LIMB_QUANTILE out; the neck's and shoulders' own percentiles stay)
+    err_leg70, leg_holding, leg_arms = peer_errors(
+        fit_sequence(tracked, model, quantile=BONE_QUANTILE)[0])
     hint_end = []        # each hint's end: distance to the nearest true elbow and wrist
     for p in raw:
         gj = gt["frames"][p.frame]["joints"]
@@ -651,6 +656,9 @@ def analyse(raw, cap, model):
                             mpjpe([b for _, b in evid_holding])[3]],
            "mpjpe_nosh": mpjpe(err_nosh), "sh_arms": sh_arms,
            "sh_holding": [mpjpe([a for a, _ in sh_holding])[3], mpjpe([b for _, b in sh_holding])[3]],
+           "mpjpe_leg70": mpjpe(err_leg70), "leg_arms": leg_arms,
+           "leg_holding": [mpjpe([a for a, _ in leg_holding])[3],
+                           mpjpe([b for _, b in leg_holding])[3]],
            "mpjpe_bend0": mpjpe(err_bend0), "bend_arms": bend_arms,
            "bend_holding": [mpjpe([a for a, _ in bend_holding])[3],
                             mpjpe([b for _, b in bend_holding])[3]],
@@ -1032,6 +1040,10 @@ def report(rows, info, real=None):
                           "chord (`kinematic_fit.bend_joints`, `BEND = BEND_DEPTH`; off by "
                           "default: it hurts the real 4-camera recording), now (off) ← on",
                           "bend0", "bend_holding", "bend_arms"),
+              peer_bullet(rs, pj, pooled, "the legs' bones along their arcs (thigh, shank, "
+                          "foot) at the 80th percentile of their lengths over the sequence "
+                          "(`kinematic_fit.LIMB_QUANTILE`), now ← at the 70th as the others "
+                          "(`quantile=BONE_QUANTILE`)", "leg70", "leg_holding", "leg_arms"),
               "- the unseen arm's shoulder, the neck's length, the raised arm's shoulder "
               "(`kinematic_fit.HELD_SHOULDER`: an unseen "
               "arm's shoulder opposite its mate, raised 30° from the plane across the trunk, "

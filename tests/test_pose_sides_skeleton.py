@@ -799,3 +799,122 @@ def test_shoulder_bone_at_its_median_as_the_junction_slides(monkeypatch):
     assert abs(L[sh[0]] - L[sh[1]]) < 1e-12
     others = [j for j in range(len(tree.names)) if tree.parents[j] >= 0 and j not in sh]
     assert np.allclose(L[others], L70[others])
+
+
+def test_leg_bones_at_the_limb_quantile_arm_bones_at_the_bone_quantile(monkeypatch):
+    """Every bone cut short (×0.6–0.9) in 75 % of the frames: the leg's bones along its arc
+    (knee, ankle, toe: ``LIMB_QUANTILE["foot"]`` = 80) recover their true length, the arm's
+    (at ``BONE_QUANTILE`` = 70) come out short; an explicit quantile applies to every bone."""
+    from topopose.pose import kinematic_fit as kf
+
+    monkeypatch.setattr(kf, "BONE_QUANTILE", 70)
+    monkeypatch.setattr(kf, "LIMB_QUANTILE", {"foot": 80})
+    rng = np.random.default_rng(8)
+    tree = kinematic_tree(HUMAN)
+    order = tree.order()
+    keys = {(tree.base[j], tree.base[p]) for j, p in enumerate(tree.parents) if p >= 0}
+    true_L = {k: rng.uniform(0.1, 0.4) for k in sorted(keys)}   # mirror bones share theirs
+    n = 40
+    short = np.zeros(n, dtype=bool)
+    short[rng.permutation(n)[:30]] = True
+    init = np.zeros((n, len(tree.names), 3))
+    for f in range(n):
+        init[f, tree.root] = rng.normal(size=3)
+        for j in order[1:]:
+            p = tree.parents[j]
+            d = rng.normal(size=3)
+            k = rng.uniform(0.6, 0.9) if short[f] else 1.0
+            init[f, j] = init[f, p] + k * true_L[(tree.base[j], tree.base[p])] * d / np.linalg.norm(d)
+    L = kf.bone_lengths(init, tree)
+    L70 = kf.bone_lengths(init, tree, quantile=70)
+    for base in ("knee", "ankle", "toe", "elbow", "wrist", "fingertip"):
+        js = [j for j in range(len(tree.names)) if tree.base[j] == base]
+        assert len(js) == 2
+        for j in js:
+            want = true_L[(base, tree.base[tree.parents[j]])]
+            if base in ("knee", "ankle", "toe"):
+                assert abs(L[j] - want) < 1e-9, (base, L[j], want)
+                assert L70[j] < 0.97 * want                 # every bone at 70: short
+            else:
+                assert L[j] < 0.97 * want and abs(L[j] - L70[j]) < 1e-12
+
+
+def _walking_arm(n=7, step=0.02, turn=0.15):
+    """A skeleton moving forward by ``step`` per frame, its arm hand_1's bones turning (the
+    truth: each frame's directions the normalized blend of the first and last frame's, so
+    interpolation between them is exact); returns (tree, lengths, P (n, joints, 3), arm)."""
+    from topopose.pose import kinematic_fit as kf
+
+    tree = kinematic_tree(HUMAN)
+    parts, curves = _body(0.3, np.random.default_rng(2))
+    pose, _ = _numbered_frame("000000", parts, curves, False, False)
+    P0 = kf.initial_placement(pose, tree)
+    L = np.linalg.norm(P0 - P0[np.maximum(tree.parents, 0)], axis=1)
+    L[tree.root] = np.nan
+    D0 = kf._directions(P0, tree)
+    arm = [j for j in range(len(tree.names)) if tree.arc[j][1] == "hand_1"]
+    D1 = D0.copy()
+    D1[arm] = D0[arm] @ _rotz(turn * (n - 1)).T + [0.0, 0.0, 0.3]
+    D1[arm] /= np.linalg.norm(D1[arm], axis=1)[:, None]
+    P = np.zeros((n, len(tree.names), 3))
+    for f in range(n):
+        s = f / (n - 1)
+        D = (1 - s) * D0 + s * D1
+        P[f] = kf.forward(P0[tree.root] + [step * f, 0.0, 0.0], D, L, tree)
+    return tree, np.tile(L, (n, 1)), P, arm
+
+
+def test_an_arm_unseen_for_three_frames_is_interpolated_and_flagged():
+    """Frames 2–4 of 7 do not see arm hand_1 (held at a wrong place, the rest pose): the held
+    joints come back at the true interpolated positions, flagged; the other joints and frames
+    are untouched. Unrelated poses (a 1 m jump) or a gap longer than ``max_gap`` are not
+    filled."""
+    from topopose.pose import kinematic_fit as kf
+
+    tree, L, truth, arm = _walking_arm()
+    P = truth.copy()
+    held = np.zeros(P.shape[:2], dtype=bool)
+    held[2:5, arm] = True
+    P[2:5, arm] += [0.0, 0.1, -0.2]                       # the held guess: off
+    t = np.arange(len(P), dtype=float)
+    Q, filled = kf.held_gaps(P, held, t, tree, L, max_gap=5)
+    assert np.array_equal(filled, held)
+    assert np.allclose(Q, truth, atol=1e-9)
+    assert np.abs(P[2:5, arm] - truth[2:5, arm]).max() > 0.05   # the oracle is not trivial
+    # too long a gap: left as held
+    Q2, f2 = kf.held_gaps(P, held, t, tree, L, max_gap=2)
+    assert not f2.any() and np.array_equal(Q2, P)
+    # unrelated poses: the last frame's seen joints jump 1 m from the first's
+    J = P.copy()
+    J[5:] -= J[5:, tree.root][:, None]
+    J[5:, [j for j in range(len(tree.names)) if j not in arm]] *= 3.0
+    Q3, f3 = kf.held_gaps(J, held, t, tree, L, max_gap=5)
+    assert not f3.any()
+    # a frame missing between them (frame numbers not consecutive): not filled
+    Q4, f4 = kf.held_gaps(P, held, np.array([0, 1, 2, 3, 4, 6, 7.0]), tree, L, max_gap=5)
+    assert not f4.any()
+
+
+def test_fit_sequence_flags_the_interpolated_joints(monkeypatch):
+    """Through ``fit_sequence``: a body whose hand_2 is unseen in the middle frame of three of
+    one still pose gets that arm back from its neighbours (``interpolated_joints``, a subset
+    of ``held_joints``); with ``gaps=False`` it is not flagged."""
+    from topopose.pose import kinematic_fit as kf
+
+    rng = np.random.default_rng(11)
+    parts, curves = _body(0.2, rng)
+    frames = [_numbered_frame(f"{i:06d}", parts, curves, False, False)[0] for i in range(3)]
+    frames[1].parts["hand_2"] = None
+    del frames[1].diagnostics["curves"]["hand_2"]
+    out, tree, _ = kf.fit_sequence(frames, HUMAN, gaps=True)
+    d = out[1].diagnostics
+    arm = {tree.names[j] for j in range(len(tree.names)) if tree.arc[j][1] == "hand_2"}
+    assert set(d["interpolated_joints"]) == arm and arm <= set(d["held_joints"])
+    P = [np.array([o.joints[nm] for nm in tree.names]) for o in out]
+    D = [kf._directions(x, tree) for x in P]
+    for j in (tree.names.index(nm) for nm in arm):   # a still pose: the neighbours' bones
+        assert np.allclose(D[0][j], D[2][j], atol=1e-6)
+        assert np.allclose(D[1][j], D[0][j], atol=1e-6)
+    for off in (kf.fit_sequence(frames, HUMAN, gaps=False)[0], kf.fit_sequence(frames, HUMAN)[0]):
+        assert "interpolated_joints" not in off[1].diagnostics     # off by default (HELD_GAP)
+    assert "interpolated_joints" not in out[0].diagnostics

@@ -471,7 +471,9 @@ def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None) -> np.nda
     a raised arm, a bent limb's curve cutting the corner): the median upper arm was 10 % short
     on walks, 20–25 % on random poses (development seeds). A ``slide`` bone (the neck's) takes
     :data:`SLIDE_QUANTILE`, a bone from the root to a joint beside the curve (a shoulder's)
-    :data:`SHOULDER_QUANTILE`: neither has a corner to make up for."""
+    :data:`SHOULDER_QUANTILE`: neither has a corner to make up for; the bones along a limb
+    named in :data:`LIMB_QUANTILE` (the legs') take its percentile."""
+    limb = LIMB_QUANTILE if quantile is None else {}     # a quantile given: every bone's
     quantile = BONE_QUANTILE if quantile is None else quantile
     L = np.full(len(tree.names), np.nan)
     pooled = {}
@@ -486,8 +488,29 @@ def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None) -> np.nda
             q = SLIDE_QUANTILE if tree.slide and tree.slide[j] and SLIDE_QUANTILE else quantile
             if SHOULDER_QUANTILE and p == tree.root and _beside(tree, j):
                 q = SHOULDER_QUANTILE             # from the junction to a joint beside it
+            if tree.arc[p] == tree.arc[j] and _stem(tree.arc[j][1]) in limb:
+                q = limb[_stem(tree.arc[j][1])]   # along a limb ending at that part
             L[j] = float(np.percentile(v, q)) if v else np.nan
     return L
+
+
+LIMB_QUANTILE = {"foot": 80}  # percent, by the limb's end part (its stem): the constant length
+                             # of the bones along a limb's arc (thigh, shank, foot; not the bone
+                             # from the junction) instead of :data:`BONE_QUANTILE` (only when no
+                             # quantile is given). A leg's curve is cut short and cuts the bent
+                             # knee's corner as an arm's does: at the 70th percentile the legs sat
+                             # short. Development seeds (random 21–32, 60 frames, walks 41–46, 40
+                             # frames, gate on; MPJPE median over frames), legs at 70 → 80: random
+                             # 5.66 → 5.58 cm (hips 5.6 → 5.5, knees 3.8 → 3.7, ankles 3.5 →
+                             # 3.4), walks 4.40 → 4.33 cm; the real recording (real_motion.py) 8.4
+                             # → 8.4 cm (its right frames 7.7 → 7.5, hips 8.4 → 8.0). Not kept:
+                             # legs at 90 (random 5.51 vs 5.48 at 80, both with hips 0.85 below),
+                             # arms at 60 / 80 (random 5.58 / 5.66: shoulders 6.3 at 80), every
+                             # bone at 80 (5.59); the hips' outward ``width`` 0.7 → 0.85 hull
+                             # radii (the hips sat 3.0 / 2.2 cm inside on random / walks): random
+                             # 5.58 → 5.48, walks 4.33 → 4.29 cm, but the real recording 8.4 →
+                             # 8.5 cm (hips 10.1 → 10.5: its fat 4-camera hull's radius widens
+                             # them; already 0.225 m against Pose2Sim's 0.209)
 
 
 SLIDE = False  # the model's ``slide`` bones take each frame's length (False: every bone constant).
@@ -671,6 +694,94 @@ def _continues(prev, start, dt):
         return False
     d = (start[ok] - start[ok[0]]) - (prev[ok] - prev[ok[0]])
     return float(np.linalg.norm(d, axis=1).mean()) < HOLD_MAX
+
+
+HELD_GAP = False  # an unseen (held) joint between two frames of the same motion that saw it:
+                 # interpolated (:func:`held_gaps`, ``fit_sequence(gaps=True)``); off: the rest
+                 # pose / last frame's arm of the frame loop. Off by default: no gain measured.
+                 # Random-motion captures are unrelated poses (the pelvis moves ~1 m between
+                 # frames): never filled. Development walks 41–46 (gate on): MPJPE median 4.33 →
+                 # 4.33 cm, frames holding joints 5.53 → 5.46 (per walk 3.67 / 5.43 / 4.17 /
+                 # 4.10 / 4.50 / 3.97 → 3.67 / 5.43 / 4.17 / 4.29 / 4.21 / 3.84); the 144
+                 # filled joints (37 frames; hips' width 0.85 then), error to the
+                 # nearest rig joint of their kind, median / mean: last frame's 7.4 / 9.6 →
+                 # interpolated 7.5 / 9.1 cm (the frames either side see the arm only partly)
+
+
+def held_gaps(P, held, t, tree: KinematicTree, L, max_gap=5):
+    """Fill the joints a frame did not see (``held``) from the frames either side that saw
+    them (issue 15: gap filling of short stretches, flagged, never silent).
+
+    A run of at most ``max_gap`` consecutive frames holding joint ``j``, between two fitted
+    frames ``a`` and ``b`` seeing it, the same motion (consecutive frame numbers, and the
+    joints both see moved less than :data:`HOLD_MAX` per frame relative to the root, as
+    :func:`_continues`): the bone directions of ``j``'s chain held there are interpolated
+    linearly between ``a``'s and ``b``'s, the joints below re-placed with the frame's bone
+    lengths ``L`` (n_frames, n_joints). Unrelated poses (random-motion captures) fail the
+    motion check and keep their fill.
+
+    Parameters
+    ----------
+    P : (n_frames, n_joints, 3) fitted joints (NaN rows: unfitted frames)
+    held : (n_frames, n_joints) bool, the joints each frame did not see
+    t : (n_frames,) frame numbers
+
+    Returns
+    -------
+    P : a copy, filled; filled : (n_frames, n_joints) bool, the joints interpolated.
+    """
+    P = P.copy()
+    n_f = len(P)
+    filled = np.zeros(held.shape, dtype=bool)
+    fitted = ~np.isnan(P).any(axis=(1, 2))
+    seen = fitted[:, None] & ~held
+    order = tree.order()
+    for j in order[1:]:
+        i = 0
+        while i < n_f:
+            if not (fitted[i] and held[i, j]):
+                i += 1
+                continue
+            k = i
+            while k + 1 < n_f and fitted[k + 1] and held[k + 1, j]:
+                k += 1
+            a, b = i - 1, k + 1
+            i = k + 1
+            if a < 0 or b >= n_f or not (seen[a, j] and seen[b, j]) or b - a - 1 > max_gap \
+                    or t[b] - t[a] != b - a or filled[a + 1:b, j].any():
+                continue
+            both = np.flatnonzero(seen[a] & seen[b])
+            both = both[both != tree.root]
+            if len(both) == 0:
+                continue
+            move = np.linalg.norm((P[b, both] - P[b, tree.root]) - (P[a, both] - P[a, tree.root]),
+                                  axis=1).mean()
+            if move >= HOLD_MAX * (b - a):
+                continue
+            # the held joints of j's chain from j down (those the frames a and b both saw)
+            sub = [j] + [c for c in order if c != j and _below(tree, c, j)]
+            sub = [c for c in sub if held[a + 1:b, c].all() and seen[a, c] and seen[b, c]]
+            Da, Db = _directions(P[a], tree), _directions(P[b], tree)
+            for f in range(a + 1, b):
+                s = (t[f] - t[a]) / (t[b] - t[a])
+                D = _directions(P[f], tree)
+                D[sub] = (1 - s) * Da[sub] + s * Db[sub]
+                below = [c for c in order if c in sub or any(_below(tree, c, x) for x in sub)]
+                for c in below:
+                    d = D[c] / max(np.linalg.norm(D[c]), 1e-12)
+                    P[f, c] = P[f, tree.parents[c]] + L[f, c] * d
+                filled[f, sub] = True
+    return P, filled
+
+
+def _below(tree, c, j):
+    """Whether joint ``c`` lies below joint ``j`` in the tree."""
+    p = tree.parents[c]
+    while p >= 0:
+        if p == j:
+            return True
+        p = tree.parents[p]
+    return False
 
 
 FOLD = np.radians(130.0)  # an unseen arm's forearm and hand: folded forward and up by this angle
@@ -881,7 +992,8 @@ def hint_fill(start, pose, tree: KinematicTree, L, unseen) -> np.ndarray:
 
 
 def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=None,
-                 quantile=None, slide=None, hints=None, evidence=None, shoulders=None):
+                 quantile=None, slide=None, hints=None, evidence=None, shoulders=None,
+                 gaps=None):
     """Fit the full skeleton to every matched frame of a sequence (see the module docstring).
 
     Parameters
@@ -908,12 +1020,16 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     shoulders : the shoulders from the hull's cross-section (a hanging arm's placed there, an
         unseen arm moved towards it: :data:`SEEN_HULL_SHOULDER`, :func:`shoulder_fill`;
         default :data:`HULL_SHOULDER`; False: neither)
+    gaps : the joints a frame did not see, between two frames of the same motion that saw
+        them at most ``max_gap`` frames apart, interpolated (:func:`held_gaps`; default
+        :data:`HELD_GAP`)
 
     Returns
     -------
     poses : list of Pose with ``joints`` (numbered joint names, e.g. ``elbow_1``) and
         ``diagnostics["skeleton_rms"]`` (curve distance after the fit),
-        ``["interpolated"]``, ``["smoothed"]``
+        ``["interpolated"]``, ``["smoothed"]``, ``["held_joints"]`` (not seen by the frame),
+        ``["interpolated_joints"]`` (those of them interpolated, :func:`held_gaps`)
     tree : KinematicTree
     lengths : ndarray, the bone length of each joint's bone (NaN for the root); a ``slide``
         bone's is its sequence length, used where the frame has none
@@ -956,6 +1072,10 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
                               inner_weight=inner_weight)
             if Pi is not None:
                 P[i], rms[i], prev, t_prev = Pi, r, Pi, t[i]
+    held = np.isnan(init).any(axis=2)
+    filled = np.zeros_like(held)
+    if max_gap and (HELD_GAP if gaps is None else gaps):
+        P, filled = held_gaps(P, held, t, tree, Lf, max_gap)
     fitted = ~np.isnan(P).any(axis=(1, 2))
     interp = np.zeros(n_f, dtype=bool)
     idx = np.flatnonzero(fitted)
@@ -1000,9 +1120,11 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         diag = dict(p.diagnostics)
         if rms[i] is not None:
             diag["skeleton_rms"] = round(rms[i], 5)
-        held = [nm for j, nm in enumerate(tree.names) if np.isnan(init[i, j]).any()]
-        if held and not interp[i]:
-            diag["held_joints"] = held
+        hj = [nm for j, nm in enumerate(tree.names) if held[i, j]]
+        if hj and not interp[i]:
+            diag["held_joints"] = hj
+        if filled[i].any() and not interp[i]:
+            diag["interpolated_joints"] = [nm for j, nm in enumerate(tree.names) if filled[i, j]]
         if interp[i]:
             diag["interpolated"] = True
         if smoothed[i]:

@@ -1045,18 +1045,40 @@ def thickness_arc_cost(radii: dict, profile: dict, weight: float, cap: float = 1
         return head if sep and tail.isdigit() else str(p)
 
     known = {}             # id of a vertex list → (list, its radii with NaN where unknown)
+    # vertices numbered 0 … n - 1 (data trees): the radii as an array, read by index, and
+    # each part's term computed once over all vertices (elementwise: the same values)
+    ids = [v for v in radii if isinstance(v, (int, np.integer)) and not isinstance(v, bool)]
+    table = None
+    if ids and len(ids) == len(radii) and min(ids) >= 0 and max(ids) < 4 * len(ids) + 64:
+        table = np.full(max(ids) + 1, np.nan)
+        table[np.asarray(ids, np.int64)] = [radii[v] for v in ids]
+    by_stem = {}           # stem → its term over ``table``
+
+    def values(lo, hi, radius):
+        r = np.maximum(np.where(np.isnan(radius), max(lo, 1e-3), radius), 1e-3)
+        out = np.maximum(np.log(max(lo, 1e-3) / r), np.log(r / hi))
+        return weight * np.clip(out, 0.0, cap)
 
     def term(part, verts):
         rho = profile.get(stem(part))
         if rho is None:
             return np.zeros(len(verts))
-        lo, hi = rho
         got = known.get(id(verts))
         if got is None or got[0] is not verts:
-            got = known[id(verts)] = (verts, np.array([radii.get(v, np.nan) for v in verts], float))
-        r = np.maximum(np.where(np.isnan(got[1]), max(lo, 1e-3), got[1]), 1e-3)
-        out = np.maximum(np.log(max(lo, 1e-3) / r), np.log(r / hi))
-        return weight * np.clip(out, 0.0, cap)
+            idx = None
+            if table is not None and len(verts):
+                idx = np.asarray(verts)
+                if (idx.dtype.kind not in "iu" or idx.ndim != 1 or idx.min() < 0
+                        or idx.max() >= len(table)):
+                    idx = None
+            got = known[id(verts)] = (verts, idx if idx is not None else np.array(
+                [radii.get(v, np.nan) for v in verts], float))
+        if got[1].dtype.kind in "iu":
+            t = by_stem.get(stem(part))
+            if t is None:
+                t = by_stem[stem(part)] = values(*rho, table)
+            return t[got[1]]
+        return values(*rho, got[1])
 
     def cost(p_up, p_low, d_up, d_low):
         C = np.zeros((len(p_up), len(d_up)))

@@ -142,3 +142,48 @@ def test_run_thickness_switch():
     off = run(cap, "human", 48, progress=False, thickness=0).poses
     assert all("thickness_cost" in p.diagnostics for p in on if p.status != "failed")
     assert not any("thickness_cost" in p.diagnostics for p in off)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_arc_cost_by_index_equals_the_formula(seed):
+    """:func:`thickness_arc_cost` reads the radii of integer vertex ids from an array and
+    computes each part's term once (a speed-up): every entry must equal the documented
+    formula computed element by element (unknown radius → no cost), for integer ids (some
+    without a radius, some out of the table), for other ids (the dict path) and for the root
+    arc's extra term."""
+    from topopose.pose.estimate import thickness_arc_cost
+
+    rng = np.random.default_rng(seed)
+    profile = {"head": (0.55, 1.2), "hand": (0.0, 0.35), "torso": (0.8, 1.0)}
+    weight, cap = 0.7, 1.5
+
+    def formula(part, r):
+        stem = part.rpartition("_")[0] if part.rpartition("_")[2].isdigit() else part
+        rho = profile.get(stem)
+        if rho is None:
+            return 0.0
+        lo, hi = rho
+        r = max(lo, 1e-3) if r is None else r
+        r = max(r, 1e-3)
+        return weight * min(max(0.0, math.log(max(lo, 1e-3) / r), math.log(r / hi)), cap)
+
+    for ids in (list(range(40)), [f"v{i}" for i in range(40)]):
+        radii = {v: float(x) for v, x in zip(ids, rng.uniform(0, 1.3, 40)) if rng.random() < 0.8}
+        cost = thickness_arc_cost(radii, profile, weight, cap, root="torso", root_arc="head")
+        parts_up = ["torso", "torso", "arm_1", "torso"]
+        parts_low = ["head", "hand_1", "hand_2", "foot_1"]
+        for _ in range(3):
+            d_low = list(rng.choice(np.array(ids, dtype=object), 25))
+            d_up = list(rng.choice(np.array(ids, dtype=object), 25))
+            if isinstance(ids[0], int):
+                d_low[0] = 1000                     # an id beyond the table: no radius
+                d_low = [int(v) for v in d_low]
+                d_up = [int(v) for v in d_up]
+            C = cost(parts_up, parts_low, d_up, d_low)
+            want = np.array([[formula(pl, radii.get(dl)) + (formula(pu, radii.get(du))
+                                                             if (pu, pl) == ("torso", "head")
+                                                             else 0.0)
+                              for du, dl in zip(d_up, d_low)]
+                             for pu, pl in zip(parts_up, parts_low)])
+            assert np.allclose(C, want, rtol=0, atol=1e-12)
+            assert (C > 0).any() and (C == 0).any()

@@ -365,3 +365,24 @@ def test_person_every_from_videos_skips_the_conversion_not_the_maps(tmp_path, fa
     maps = foreground_maps(fresh, "000003", image_list(fresh, "000003", skipped))
     ref = load_capture(root)
     assert all(np.array_equal(a, b) for a, b in zip(maps, foreground_maps(ref, "000003")))
+
+
+def test_masks_of_a_kept_map_are_reused_and_equal(tmp_path, fake_mediapipe):
+    """``masks_from_maps`` gives a camera whose map is the very array of the call before (a map
+    ``person_every`` kept) the mask made then (a speed-up): equal to the mask made afresh,
+    while a new array (even with the same values) is thresholded again."""
+    from topopose.capture.background import masks_from_maps
+
+    cap, _, _ = _scene(tmp_path)
+    rng = np.random.default_rng(2)
+    w, h = cap.cameras[0].size
+    maps = [rng.integers(0, 256, (h // 4, w // 4)).astype(np.uint8) for _ in cap.cameras]
+    first = masks_from_maps(cap, maps)
+    second = [rng.integers(0, 256, (h // 4, w // 4)).astype(np.uint8) for _ in cap.cameras]
+    second[1], second[3] = maps[1], maps[3].copy()           # kept (1) and equal but new (3)
+    got = masks_from_maps(cap, second)
+    assert got[1] is first[1] and got[3] is not first[3] and got[0] is not first[0]
+    cap.cache.pop("masks_last")
+    fresh = masks_from_maps(cap, second)
+    for a, b in zip(got, fresh):
+        assert np.array_equal(a, b) and np.array_equal(a.small, b.small)

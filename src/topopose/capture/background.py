@@ -397,10 +397,15 @@ class UpsampledMask(np.ndarray):
 def masks_from_maps(cap, maps) -> list:
     """Boolean silhouettes at the calibration size from probability maps (p > ``[silhouettes]
     cut``, default 0.5). A map an integer factor smaller than its image gives an
-    :class:`UpsampledMask`."""
+    :class:`UpsampledMask`. A camera whose map is the very array of the call before (``person_every``
+    keeps a camera's map between its segmentations) gets the mask made then again."""
     cut = int(255 * float(cap.options["silhouettes"].get("cut", 0.5)))
+    last = cap.cache.get("masks_last") or []
     out = []
-    for q, cam in zip(maps, cap.cameras):
+    for c, (q, cam) in enumerate(zip(maps, cap.cameras)):
+        if c < len(last) and last[c][0] is q and last[c][1] == (cut, UPSAMPLED_MASKS):
+            out.append(last[c][2])
+            continue
         m = q > cut
         small = None
         if m.shape != (cam.size[1], cam.size[0]):
@@ -411,6 +416,7 @@ def masks_from_maps(cap, maps) -> list:
             m = m.view(UpsampledMask)
             m.small = small
         out.append(m)
+    cap.cache["masks_last"] = [(q, (cut, UPSAMPLED_MASKS), m) for q, m in zip(maps, out)]
     return out
 
 

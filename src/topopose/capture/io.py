@@ -299,8 +299,10 @@ def fit_size(cap: Capture, path, img: np.ndarray, cam: Camera) -> np.ndarray:
         raise InputError(_size_message(path, (w, h), cam))
     _warn_size(cap, cam, (w, h), path, pol)
     W, H = cam.size
-    out = np.zeros((H, W) + img.shape[2:], dtype=img.dtype)
+    out = np.empty((H, W) + img.shape[2:], dtype=img.dtype)
     out[:min(h, H), :min(w, W)] = img[:min(h, H), :min(w, W)]
+    out[h:] = 0                           # the padding only (each byte written once)
+    out[:h, w:] = 0
     return out
 
 

@@ -987,9 +987,10 @@ THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the large
 
 def taxicab_radii(vol):
     """The taxicab distance transform of the hull on its bounding box grown by one voxel
-    (:func:`scipy.ndimage.distance_transform_cdt`): ``(dt, lo)``, voxel ``ijk`` at
+    (:func:`scipy.ndimage.distance_transform_cdt`'s, computed by
+    :func:`topopose.hull.hull_kernels.taxicab_distances`): ``(dt, lo)``, voxel ``ijk`` at
     ``dt[ijk - lo]``. One per frame serves every :func:`vertex_radii` of the frame."""
-    from scipy import ndimage
+    from ..hull.hull_kernels import taxicab_distances
 
     a = vol.data
     bbox = (vol.diagnostics or {}).get("bbox")
@@ -998,7 +999,7 @@ def taxicab_radii(vol):
         bbox = ([int(o[0]) for o in occ], [int(o[-1]) for o in occ])
     lo = [max(int(x) - 1, 0) for x in bbox[0]]
     hi = [min(int(x) + 2, n) for x, n in zip(bbox[1], a.shape)]
-    return ndimage.distance_transform_cdt(a[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]], "taxicab"), lo
+    return taxicab_distances(a[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]), lo
 
 
 def vertex_radii(vol, data, reach: int = 0, radii=None) -> dict:

@@ -211,3 +211,50 @@ def test_taxicab_kernel_equals_scipy():
         got = taxicab_distances(a)
         assert got.dtype == want.dtype and np.array_equal(got, want), a.shape
     assert taxicab_distances(big).max() >= 2
+
+
+def _vertex_radii_plain(vol, data, reach, radii):
+    """The per-vertex loop :func:`vertex_radii` was before its kernel (the oracle)."""
+    dt, lo = radii
+    ref = float(dt.max()) or 1.0
+    org, vs = np.asarray(vol.origin, float), float(vol.voxel_size)
+    out = {}
+    for v in data.vertices:
+        p = data.positions.get(v)
+        if p is None:
+            continue
+        x = np.round((np.asarray(p) - org) / vs).astype(int) - lo
+        x = np.clip(x, 0, np.array(dt.shape) - 1)
+        r = dt[tuple(x)]
+        if reach > 0:
+            r = dt[tuple(slice(max(c - reach, 0), c + reach + 1) for c in x)].max()
+        if r == 0:
+            r = dt[tuple(slice(max(c - 1, 0), c + 2) for c in x)].max()
+        out[v] = float(r) / ref
+    return out
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_vertex_radii_equal_the_plain_loop(seed):
+    """:func:`vertex_radii` (all vertices by one kernel) equals the plain per-vertex loop, bit
+    for bit: vertices inside, on the background (the 3 × 3 × 3 fallback), outside the box
+    (clipped), without a position; reach 0, 1, 2."""
+    from types import SimpleNamespace
+
+    from topopose.hull import Volume
+    from topopose.pose.estimate import taxicab_radii, vertex_radii
+
+    rng = np.random.default_rng(seed)
+    occ = np.zeros((30, 28, 40), bool)
+    occ[4:26, 5:22, 3:37] = rng.random((22, 17, 34)) < 0.9
+    vol = Volume(occ, np.array([0.1, -0.2, 0.3]), 0.05, {})
+    radii = taxicab_radii(vol)
+    pts = vol.origin + rng.uniform(-3, 43, (60, 3)) * 0.05
+    positions = {v: p for v, p in enumerate(pts)}
+    positions[60] = None
+    data = SimpleNamespace(vertices=list(range(61)), positions=positions)
+    assert any(radii[0][tuple(np.clip(np.round((p - vol.origin) / 0.05).astype(int) - radii[1],
+                                      0, np.array(radii[0].shape) - 1))] == 0 for p in pts)
+    for reach in (0, 1, 2):
+        got = vertex_radii(vol, data, reach, radii)
+        assert got == _vertex_radii_plain(vol, data, reach, radii) and len(got) == 60

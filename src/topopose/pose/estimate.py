@@ -1009,24 +1009,20 @@ def vertex_radii(vol, data, reach: int = 0, radii=None) -> dict:
     of the vertex (0: at the vertex; a vertex whose voxel is background — an I-component
     centroid off the hull — takes the largest of its 3×3×3 neighbourhood). ``radii``:
     :func:`taxicab_radii` of ``vol`` if already computed."""
+    from .estimate_kernels import window_max
+
     dt, lo = taxicab_radii(vol) if radii is None else radii
     ref = float(dt.max()) or 1.0
     org, vs = np.asarray(vol.origin, float), float(vol.voxel_size)
-    out = {}
-    for v in data.vertices:
-        p = data.positions.get(v)
-        if p is None:
-            continue
-        x = np.round((np.asarray(p) - org) / vs).astype(int) - lo
-        x = np.clip(x, 0, np.array(dt.shape) - 1)
-        r = dt[tuple(x)]
-        if reach > 0:
-            r = dt[tuple(slice(max(c - reach, 0), c + reach + 1) for c in x)].max()
-        if r == 0:
-            sl = tuple(slice(max(c - 1, 0), c + 2) for c in x)
-            r = dt[sl].max()
-        out[v] = float(r) / ref
-    return out
+    verts = [v for v in data.vertices if data.positions.get(v) is not None]
+    if not verts:
+        return {}
+    # every vertex at once (the same arithmetic, element by element)
+    pos = np.array([np.asarray(data.positions[v]) for v in verts])
+    x = np.round((pos - org) / vs).astype(int) - np.asarray(lo)
+    x = np.clip(x, 0, np.array(dt.shape) - 1)
+    r = window_max(dt, x.astype(np.int64), int(max(reach, 0)))
+    return {v: float(a) / ref for v, a in zip(verts, r.tolist())}
 
 
 def thickness_arc_cost(radii: dict, profile: dict, weight: float, cap: float = 1.5,

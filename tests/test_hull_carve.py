@@ -338,3 +338,43 @@ def test_fit_box_from_small_masks_equals_their_upsampling(dist):
         a, b = fit_box(cams, ups, tol, within), fit_box(cams, plain, tol, within)
         assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
         assert np.all(b[1] - b[0] < within[1] - within[0])   # the coarse passes did shrink it
+
+
+def test_keep_largest_component_kernel_equals_bincount_path():
+    """``keep_largest_component`` keeps the largest label by a kernel (a speed-up): the same
+    occupancy and dropped sizes as the plain ``bincount`` / ``argmax`` path (the oracle, also
+    scipy's labelling), on random volumes, bounding-box views and equal-size ties."""
+    import cc3d
+    from scipy import ndimage
+
+    from topopose.hull import keep_largest_component
+
+    def plain(occ, bbox=None):
+        sub = occ[bbox] if bbox is not None else occ
+        lab, n = ndimage.label(sub, structure=np.ones((3, 3, 3), bool))
+        if n <= 1:
+            return []
+        sizes = np.bincount(lab.ravel())
+        sizes[0] = 0
+        best = int(np.argmax(sizes))
+        sub &= lab == best
+        return sorted((int(s) for s in np.delete(sizes, [0, best]) if s > 0), reverse=True)
+
+    rng = np.random.default_rng(3)
+    cases = []
+    for _ in range(40):
+        shape = tuple(int(x) for x in rng.integers(3, 14, 3))
+        cases.append((rng.random(shape) < rng.uniform(0.05, 0.4), None))
+    tie = np.zeros((9, 9, 9), bool)
+    tie[1:3, 1:3, 1:3] = tie[5:7, 5:7, 5:7] = True                 # two of 8 voxels
+    cases.append((tie, None))
+    big = rng.random((20, 18, 16)) < 0.25
+    cases.append((big, (slice(2, 17), slice(1, 18), slice(3, 15))))
+    many = 0
+    for occ, bbox in cases:
+        a, b = occ.copy(), occ.copy()
+        got, want = keep_largest_component(a, bbox), plain(b, bbox)
+        assert got == want and np.array_equal(a, b)
+        many += len(want) > 0
+    assert many > 20 and cc3d is not None
+    assert tie.sum() == 16 and keep_largest_component(tie.copy()) == [8]

@@ -730,8 +730,15 @@ def keep_largest_component(occ: np.ndarray, bbox=None) -> list:
     try:
         import cc3d
 
-        lab = cc3d.connected_components(sub.view(np.uint8), connectivity=26)
-        n = int(lab.max())
+        lab, n = cc3d.connected_components(sub.view(np.uint8), connectivity=26, return_N=True)
+        n = int(n)
+        if n <= 1:
+            return []
+        if sub.dtype == bool:            # sizes and the largest kept in two passes (a kernel)
+            sizes, best = K.keep_label(sub, lab, n)
+            if best >= 0:
+                others = np.delete(sizes, [0, best])
+                return sorted((int(s) for s in others if s > 0), reverse=True)
     except ImportError:
         lab, n = ndimage.label(sub, structure=np.ones((3, 3, 3), bool))
     if n <= 1:

@@ -735,3 +735,31 @@ def taxicab_distances(a):
                 if d[i, j, k] >= big:
                     d[i, j, k] = -1
     return d
+
+
+@njit(cache=True)
+def keep_label(sub, lab, n):
+    """Keep in ``sub`` (bool, in place) only the voxels of the largest label of ``lab`` (labels
+    1 … ``n``, 0 background; the smallest label among equally large ones, as ``np.argmax``);
+    returns the voxel count of every label (index 0 unused, set to 0) and the label kept, or
+    (empty, -1) when a label exceeds ``n`` (nothing changed)."""
+    sizes = np.zeros(n + 1, np.int64)
+    s0, s1, s2 = lab.shape
+    for i in range(s0):
+        for j in range(s1):
+            for k in range(s2):
+                x = lab[i, j, k]
+                if x > n:
+                    return np.zeros(0, np.int64), -1
+                sizes[x] += 1
+    sizes[0] = 0
+    best = 0
+    for x in range(1, n + 1):
+        if sizes[x] > sizes[best]:
+            best = x
+    for i in range(s0):
+        for j in range(s1):
+            for k in range(s2):
+                if lab[i, j, k] != best:
+                    sub[i, j, k] = False
+    return sizes, best

@@ -304,3 +304,85 @@ def test_person_every_segments_each_camera_every_nth_frame_staggered(tmp_path, f
         (root / "capture.toml").write_text(TOML + f"person_every = {bad}\n")
         with pytest.raises(InputError, match=r"capture\.toml.*person_every"):
             load_capture(root)
+
+
+def test_person_every_from_videos_skips_the_conversion_not_the_maps(tmp_path, fake_mediapipe):
+    """``person_every = n`` from videos: the reader decodes every camera but converts only the
+    images the frame segments (``io._person_needed``, a speed-up); the maps must equal those of
+    the same frames read one by one without the reader (every image converted), including
+    after a jump in the frames; conversions were skipped; and an image skipped that the
+    segmentation wants after all (here: every camera of a run's first frame) is read again."""
+    from topopose.capture import prefetch
+    from topopose.capture import sources
+    from topopose.capture.io import image_list
+
+    cams = ring(n=4, size=(160, 120), f=200)
+    rng = np.random.default_rng(5)
+    bgs = [rng.integers(0, 120, (c.size[1], c.size[0], 3)).astype(np.uint8) for c in cams]
+    frames = []
+    for i in range(9):
+        ms = capsule_masks(cams, (0.1 * np.sin(i), 0.0, 0.6), (0.06 * i, 0.1, 1.3), 0.16)
+        frames.append([np.where(m[:, :, None], np.uint8([200, 220, 240]), b)
+                       for m, b in zip(ms, bgs)])
+    root = write_capture(tmp_path / "cap", cams, {})
+    (root / "videos").mkdir()
+    for k, c in enumerate(cams):               # lossless: the images are the frames
+        vw = cv2.VideoWriter(str(root / "videos" / f"{c.name}.avi"),
+                             cv2.VideoWriter_fourcc(*"FFV1"), 25.0, c.size)
+        assert vw.isOpened()
+        for im in frames:
+            vw.write(im[k])
+        vw.release()
+    order = ["000000", "000001", "000002", "000003", "000005", "000006", "000007", "000008"]
+    calls = {True: 0, False: 0}
+    get = sources._Decoder.get
+
+    def counted(self, i, retrieve=True):
+        calls[retrieve] += 1
+        return get(self, i, retrieve)
+
+    for n in (2, 3):
+        (root / "capture.toml").write_text(TOML + f"person_every = {n}\nperson_track = true\n")
+        direct = load_capture(root)
+        want = {f: [q.copy() for q in foreground_maps(direct, f)] for f in order}
+        assert any(not np.array_equal(want["000001"][c], want["000008"][c]) for c in range(4))
+        cap = load_capture(root)
+        calls[True] = calls[False] = 0
+        sources._Decoder.get = counted
+        try:
+            with prefetch(cap, order):
+                got = {f: foreground_maps(cap, f) for f in order}
+        finally:
+            sources._Decoder.get = get
+        for f in order:
+            assert all(np.array_equal(a, b) for a, b in zip(got[f], want[f])), (n, f)
+        # frames 0 and 5 (after the jump) convert all 4 cameras, the 6 others 4 / n of them
+        assert calls[True] == 8 + sum(sum((int(f) + c) % n == 0 for c in range(4))
+                                      for f in order if f not in ("000000", "000005"))
+        assert calls[False] == 4 * len(order) - calls[True] > 0
+    fresh = load_capture(root)                  # a run's first frame: every camera wanted
+    skipped = {c.name: sources.SKIPPED for c in fresh.cameras}
+    maps = foreground_maps(fresh, "000003", image_list(fresh, "000003", skipped))
+    ref = load_capture(root)
+    assert all(np.array_equal(a, b) for a, b in zip(maps, foreground_maps(ref, "000003")))
+
+
+def test_masks_of_a_kept_map_are_reused_and_equal(tmp_path, fake_mediapipe):
+    """``masks_from_maps`` gives a camera whose map is the very array of the call before (a map
+    ``person_every`` kept) the mask made then (a speed-up): equal to the mask made afresh,
+    while a new array (even with the same values) is thresholded again."""
+    from topopose.capture.background import masks_from_maps
+
+    cap, _, _ = _scene(tmp_path)
+    rng = np.random.default_rng(2)
+    w, h = cap.cameras[0].size
+    maps = [rng.integers(0, 256, (h // 4, w // 4)).astype(np.uint8) for _ in cap.cameras]
+    first = masks_from_maps(cap, maps)
+    second = [rng.integers(0, 256, (h // 4, w // 4)).astype(np.uint8) for _ in cap.cameras]
+    second[1], second[3] = maps[1], maps[3].copy()           # kept (1) and equal but new (3)
+    got = masks_from_maps(cap, second)
+    assert got[1] is first[1] and got[3] is not first[3] and got[0] is not first[0]
+    cap.cache.pop("masks_last")
+    fresh = masks_from_maps(cap, second)
+    for a, b in zip(got, fresh):
+        assert np.array_equal(a, b) and np.array_equal(a.small, b.small)

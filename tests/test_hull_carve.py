@@ -306,3 +306,75 @@ def test_carving_from_small_masks_equals_their_upsampling(dist, fisheye):
         assert np.array_equal(a.stats, b.stats)
         assert not np.any((got != (seen >= len(cams) - tolerance)) & ~edge)
     assert np.array_equal(a.carve(plain), b.carve(plain)) and a.fac.max() == 1
+
+
+@pytest.mark.parametrize("dist", [(0, 0, 0, 0), (-0.25, 0.08, 0.001, -0.002, -0.01)])
+def test_fit_box_from_small_masks_equals_their_upsampling(dist):
+    """:func:`fit_box` reads an UpsampledMask's small mask (its pixel box and summed-area
+    tables, a speed-up): the same box, bit for bit, as from the plain upsampled masks — with
+    and without the linear programs (``within``), with tolerance, and with lens distortion
+    (whose contour is still traced on the full mask)."""
+    import cv2
+
+    from topopose.capture.background import UpsampledMask
+
+    cams = ring(n=4, f=500, dist=dist, size=(320, 240))
+    rng = np.random.default_rng(7)
+    full = capsule_masks(cams, (-0.3, 0.1, 0.5), (0.35, -0.1, 1.4), 0.18)
+    ups, plain = [], []
+    for k, (cam, m) in enumerate(zip(cams, full)):
+        fx, fy = [(4, 4), (2, 2), (4, 2), (8, 8)][k]
+        small = cv2.resize(m.astype(np.uint8), (320 // fx, 240 // fy), interpolation=cv2.INTER_AREA)
+        small[rng.random(small.shape) < 0.01] ^= 1          # specks: the box's edges move
+        big = cv2.resize(small, (320, 240), interpolation=cv2.INTER_NEAREST).astype(bool)
+        u = big.view(UpsampledMask)
+        u.small = small
+        ups.append(u)
+        plain.append(big.copy())
+    for tol in (0, 1):
+        a, b = fit_box(cams, ups, tol), fit_box(cams, plain, tol)
+        assert a is not None and np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+        within = (np.array([-1.5, -1.5, -0.2]), np.array([1.5, 1.5, 2.2]))
+        a, b = fit_box(cams, ups, tol, within), fit_box(cams, plain, tol, within)
+        assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+        assert np.all(b[1] - b[0] < within[1] - within[0])   # the coarse passes did shrink it
+
+
+def test_keep_largest_component_kernel_equals_bincount_path():
+    """``keep_largest_component`` keeps the largest label by a kernel (a speed-up): the same
+    occupancy and dropped sizes as the plain ``bincount`` / ``argmax`` path (the oracle, also
+    scipy's labelling), on random volumes, bounding-box views and equal-size ties."""
+    import cc3d
+    from scipy import ndimage
+
+    from topopose.hull import keep_largest_component
+
+    def plain(occ, bbox=None):
+        sub = occ[bbox] if bbox is not None else occ
+        lab, n = ndimage.label(sub, structure=np.ones((3, 3, 3), bool))
+        if n <= 1:
+            return []
+        sizes = np.bincount(lab.ravel())
+        sizes[0] = 0
+        best = int(np.argmax(sizes))
+        sub &= lab == best
+        return sorted((int(s) for s in np.delete(sizes, [0, best]) if s > 0), reverse=True)
+
+    rng = np.random.default_rng(3)
+    cases = []
+    for _ in range(40):
+        shape = tuple(int(x) for x in rng.integers(3, 14, 3))
+        cases.append((rng.random(shape) < rng.uniform(0.05, 0.4), None))
+    tie = np.zeros((9, 9, 9), bool)
+    tie[1:3, 1:3, 1:3] = tie[5:7, 5:7, 5:7] = True                 # two of 8 voxels
+    cases.append((tie, None))
+    big = rng.random((20, 18, 16)) < 0.25
+    cases.append((big, (slice(2, 17), slice(1, 18), slice(3, 15))))
+    many = 0
+    for occ, bbox in cases:
+        a, b = occ.copy(), occ.copy()
+        got, want = keep_largest_component(a, bbox), plain(b, bbox)
+        assert got == want and np.array_equal(a, b)
+        many += len(want) > 0
+    assert many > 20 and cc3d is not None
+    assert tie.sum() == 16 and keep_largest_component(tie.copy()) == [8]

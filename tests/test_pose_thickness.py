@@ -142,3 +142,119 @@ def test_run_thickness_switch():
     off = run(cap, "human", 48, progress=False, thickness=0).poses
     assert all("thickness_cost" in p.diagnostics for p in on if p.status != "failed")
     assert not any("thickness_cost" in p.diagnostics for p in off)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_arc_cost_by_index_equals_the_formula(seed):
+    """:func:`thickness_arc_cost` reads the radii of integer vertex ids from an array and
+    computes each part's term once (a speed-up): every entry must equal the documented
+    formula computed element by element (unknown radius → no cost), for integer ids (some
+    without a radius, some out of the table), for other ids (the dict path) and for the root
+    arc's extra term."""
+    from topopose.pose.estimate import thickness_arc_cost
+
+    rng = np.random.default_rng(seed)
+    profile = {"head": (0.55, 1.2), "hand": (0.0, 0.35), "torso": (0.8, 1.0)}
+    weight, cap = 0.7, 1.5
+
+    def formula(part, r):
+        stem = part.rpartition("_")[0] if part.rpartition("_")[2].isdigit() else part
+        rho = profile.get(stem)
+        if rho is None:
+            return 0.0
+        lo, hi = rho
+        r = max(lo, 1e-3) if r is None else r
+        r = max(r, 1e-3)
+        return weight * min(max(0.0, math.log(max(lo, 1e-3) / r), math.log(r / hi)), cap)
+
+    for ids in (list(range(40)), [f"v{i}" for i in range(40)]):
+        radii = {v: float(x) for v, x in zip(ids, rng.uniform(0, 1.3, 40)) if rng.random() < 0.8}
+        cost = thickness_arc_cost(radii, profile, weight, cap, root="torso", root_arc="head")
+        parts_up = ["torso", "torso", "arm_1", "torso"]
+        parts_low = ["head", "hand_1", "hand_2", "foot_1"]
+        for _ in range(3):
+            d_low = list(rng.choice(np.array(ids, dtype=object), 25))
+            d_up = list(rng.choice(np.array(ids, dtype=object), 25))
+            if isinstance(ids[0], int):
+                d_low[0] = 1000                     # an id beyond the table: no radius
+                d_low = [int(v) for v in d_low]
+                d_up = [int(v) for v in d_up]
+            C = cost(parts_up, parts_low, d_up, d_low)
+            want = np.array([[formula(pl, radii.get(dl)) + (formula(pu, radii.get(du))
+                                                             if (pu, pl) == ("torso", "head")
+                                                             else 0.0)
+                              for du, dl in zip(d_up, d_low)]
+                             for pu, pl in zip(parts_up, parts_low)])
+            assert np.allclose(C, want, rtol=0, atol=1e-12)
+            assert (C > 0).any() and (C == 0).any()
+
+
+def test_taxicab_kernel_equals_scipy():
+    """:func:`topopose.hull.hull_kernels.taxicab_distances` (the separable L1 distance behind
+    :func:`taxicab_radii`) equals scipy's chamfer ``distance_transform_cdt(…, "taxicab")``
+    exactly, on random volumes of every small shape, strided views, and volumes without any
+    background voxel (-1) or without any object voxel."""
+    from scipy import ndimage
+
+    from topopose.hull.hull_kernels import taxicab_distances
+
+    rng = np.random.default_rng(0)
+    cases = [np.ones((3, 4, 5), bool), np.zeros((2, 3, 2), bool), np.ones((1, 1, 1), bool),
+             np.ones((1, 6, 1), np.uint8)]
+    for _ in range(150):
+        shape = tuple(int(x) for x in rng.integers(1, 9, 3))
+        cases.append(rng.random(shape) < rng.uniform(0.5, 1.0))
+    big = rng.random((30, 26, 40)) < 0.95
+    cases += [big, big[3:25, 2:, 5:33], big.view(np.uint8)]
+    for a in cases:
+        want = ndimage.distance_transform_cdt(a, "taxicab")
+        got = taxicab_distances(a)
+        assert got.dtype == want.dtype and np.array_equal(got, want), a.shape
+    assert taxicab_distances(big).max() >= 2
+
+
+def _vertex_radii_plain(vol, data, reach, radii):
+    """The per-vertex loop :func:`vertex_radii` was before its kernel (the oracle)."""
+    dt, lo = radii
+    ref = float(dt.max()) or 1.0
+    org, vs = np.asarray(vol.origin, float), float(vol.voxel_size)
+    out = {}
+    for v in data.vertices:
+        p = data.positions.get(v)
+        if p is None:
+            continue
+        x = np.round((np.asarray(p) - org) / vs).astype(int) - lo
+        x = np.clip(x, 0, np.array(dt.shape) - 1)
+        r = dt[tuple(x)]
+        if reach > 0:
+            r = dt[tuple(slice(max(c - reach, 0), c + reach + 1) for c in x)].max()
+        if r == 0:
+            r = dt[tuple(slice(max(c - 1, 0), c + 2) for c in x)].max()
+        out[v] = float(r) / ref
+    return out
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_vertex_radii_equal_the_plain_loop(seed):
+    """:func:`vertex_radii` (all vertices by one kernel) equals the plain per-vertex loop, bit
+    for bit: vertices inside, on the background (the 3 × 3 × 3 fallback), outside the box
+    (clipped), without a position; reach 0, 1, 2."""
+    from types import SimpleNamespace
+
+    from topopose.hull import Volume
+    from topopose.pose.estimate import taxicab_radii, vertex_radii
+
+    rng = np.random.default_rng(seed)
+    occ = np.zeros((30, 28, 40), bool)
+    occ[4:26, 5:22, 3:37] = rng.random((22, 17, 34)) < 0.9
+    vol = Volume(occ, np.array([0.1, -0.2, 0.3]), 0.05, {})
+    radii = taxicab_radii(vol)
+    pts = vol.origin + rng.uniform(-3, 43, (60, 3)) * 0.05
+    positions = {v: p for v, p in enumerate(pts)}
+    positions[60] = None
+    data = SimpleNamespace(vertices=list(range(61)), positions=positions)
+    assert any(radii[0][tuple(np.clip(np.round((p - vol.origin) / 0.05).astype(int) - radii[1],
+                                      0, np.array(radii[0].shape) - 1))] == 0 for p in pts)
+    for reach in (0, 1, 2):
+        got = vertex_radii(vol, data, reach, radii)
+        assert got == _vertex_radii_plain(vol, data, reach, radii) and len(got) == 60

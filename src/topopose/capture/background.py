@@ -52,6 +52,7 @@ import numpy as np
 
 from ..errors import InputError
 from .camera import Camera
+from .sources import SKIPPED
 
 SEQUENCE_METHODS = ("sequence", "selfie", "sequence+selfie", "person")
 
@@ -361,6 +362,14 @@ def _person_maps(cap, frame, images, p) -> list:
     follows = last is not None and last[0] == i - 1
     cams = [c for c in range(len(cap.cameras)) if not follows or (i + c) % n == 0]
     s = float(p["scale"])
+    images = list(images)
+    for c in cams:
+        if images[c] is SKIPPED:      # not converted by the reader (io._person_needed)
+            from .io import _frame_source, fit_size
+            cam = cap.cameras[c]
+            src = _frame_source(cap)
+            images[c] = fit_size(cap, src.path(cam.name, frame) or cam.name,
+                                 src.read(cam.name, frame), cam)
     got = person_probabilities([downscale(images[c], cap.cameras[c], s) for c in cams],
                                [(id(cap), c) for c in cams],
                                i if p.get("person_track") else None, n if follows else 0)
@@ -388,21 +397,26 @@ class UpsampledMask(np.ndarray):
 def masks_from_maps(cap, maps) -> list:
     """Boolean silhouettes at the calibration size from probability maps (p > ``[silhouettes]
     cut``, default 0.5). A map an integer factor smaller than its image gives an
-    :class:`UpsampledMask`."""
+    :class:`UpsampledMask`. A camera whose map is the very array of the call before (``person_every``
+    keeps a camera's map between its segmentations) gets the mask made then again."""
     cut = int(255 * float(cap.options["silhouettes"].get("cut", 0.5)))
+    last = cap.cache.get("masks_last") or []
     out = []
-    for q, cam in zip(maps, cap.cameras):
-        m = (q > cut).astype(np.uint8)
+    for c, (q, cam) in enumerate(zip(maps, cap.cameras)):
+        if c < len(last) and last[c][0] is q and last[c][1] == (cut, UPSAMPLED_MASKS):
+            out.append(last[c][2])
+            continue
+        m = q > cut
         small = None
         if m.shape != (cam.size[1], cam.size[0]):
-            small = m
-            m = cv2.resize(m, tuple(cam.size), interpolation=cv2.INTER_NEAREST)
-        m = m.astype(bool)
+            small = m.view(np.uint8)              # 0/1 (views: no copies)
+            m = cv2.resize(small, tuple(cam.size), interpolation=cv2.INTER_NEAREST).view(bool)
         h, w = small.shape if small is not None else (0, 0)
         if UPSAMPLED_MASKS and small is not None and cam.size[0] % w == 0 and cam.size[1] % h == 0:
             m = m.view(UpsampledMask)
             m.small = small
         out.append(m)
+    cap.cache["masks_last"] = [(q, (cut, UPSAMPLED_MASKS), m) for q, m in zip(maps, out)]
     return out
 
 

@@ -29,7 +29,7 @@ from .camera import Camera
 from .capture import Capture
 from .background import SEQUENCE_METHODS
 from .silhouettes import extract_silhouette
-from .sources import VIDEO_EXTENSIONS, ImageSource, Prefetcher, VideoSource, imread
+from .sources import SKIPPED, VIDEO_EXTENSIONS, ImageSource, Prefetcher, VideoSource, imread
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
 
@@ -299,8 +299,10 @@ def fit_size(cap: Capture, path, img: np.ndarray, cam: Camera) -> np.ndarray:
         raise InputError(_size_message(path, (w, h), cam))
     _warn_size(cap, cam, (w, h), path, pol)
     W, H = cam.size
-    out = np.zeros((H, W) + img.shape[2:], dtype=img.dtype)
+    out = np.empty((H, W) + img.shape[2:], dtype=img.dtype)
     out[:min(h, H), :min(w, W)] = img[:min(h, H), :min(w, W)]
+    out[h:] = 0                           # the padding only (each byte written once)
+    out[:h, w:] = 0
     return out
 
 
@@ -353,7 +355,8 @@ def image_list(cap: Capture, frame: str, images) -> list:
             im = images[cam.name]
             if isinstance(im, Exception):
                 raise im
-            imgs.append(fit_size(cap, src.path(cam.name, frame) or cam.name, im, cam))
+            imgs.append(im if im is SKIPPED else      # decoded, not converted: read if wanted
+                        fit_size(cap, src.path(cam.name, frame) or cam.name, im, cam))
         images = imgs
     return images
 
@@ -424,6 +427,28 @@ def _silhouettes_now(cap: Capture, frame: str, images=None) -> list:
     return silhouettes_from_images(cap, frame, images)
 
 
+def _person_needed(cap: Capture, names: list):
+    """For :class:`~.sources.Prefetcher`: ``needed(position, frame)``, the cameras whose images
+    the ``person`` method segments in that frame when ``person_every = n`` > 1 (a frame that
+    follows the one before it in ``names``: the cameras c with (index + c) % n = 0, as
+    :func:`.background._person_maps` picks them; None: all), so that the others are not
+    converted from the video; None when every camera is always segmented. A camera that
+    :func:`.background._person_maps` wants after all (the frame before failed) is read again."""
+    p = cap.options.get("silhouettes") or {}
+    n = int(p.get("person_every", 1))
+    if p.get("method") != "person" or n <= 1:
+        return None
+    index = {f: i for i, f in enumerate(cap.frames)}
+    pos = [index.get(f) for f in names]
+
+    def needed(k, frame):
+        i = pos[k]
+        if k == 0 or i is None or pos[k - 1] != i - 1:
+            return None
+        return {cam.name for c, cam in enumerate(cap.cameras) if (i + c) % n == 0}
+    return needed
+
+
 @contextmanager
 def prefetch(cap: Capture, frames, depth: int = 4):
     """Within the block, ``cap.silhouettes(f)`` for ``frames`` (in that order) comes from a reader
@@ -449,7 +474,8 @@ def prefetch(cap: Capture, frames, depth: int = 4):
         def work(f, images):
             return _silhouettes_now(cap, f, images)
     pf = Prefetcher(names, work, src, depth,
-                    (cap.options.get("silhouettes") or {}).get("decode_ahead", 2))
+                    (cap.options.get("silhouettes") or {}).get("decode_ahead", 2),
+                    needed=_person_needed(cap, names))
     cap.cache["prefetch"] = pf
     try:
         yield cap

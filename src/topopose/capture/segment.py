@@ -97,6 +97,14 @@ def _pose(track=False):
 _LAST = {}                   # tracking: stream → index of the frame it segmented last
 
 
+def _rgb(img: np.ndarray) -> np.ndarray:
+    """The RGB copy of a BGR image (``cv2.cvtColor`` for 8-bit 3-channel ones: the same bytes
+    as ``img[:, :, ::-1]`` made contiguous, several times faster)."""
+    if img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3:
+        return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    return np.ascontiguousarray(img[:, :, ::-1])
+
+
 def person_probability(img: np.ndarray, stream="", index=None, step=1) -> np.ndarray:
     """uint8 (h, w) full-body person probability (× 255) of a BGR image from MediaPipe's pose
     network (module docstring); 128 everywhere when it finds no one. ``stream``: the camera.
@@ -111,7 +119,7 @@ def person_probability(img: np.ndarray, stream="", index=None, step=1) -> np.nda
             last = _LAST.get(key)
             fresh = last is None or not 1 <= index - last <= step
             _LAST[key] = index
-    res = _process(make, key, np.ascontiguousarray(img[:, :, ::-1]), fresh)
+    res = _process(make, key, _rgb(img), fresh)
     if res.segmentation_mask is None:
         return np.full(img.shape[:2], 128, dtype=np.uint8)
     return np.clip(res.segmentation_mask * 255 + 0.5, 0, 255).astype(np.uint8)

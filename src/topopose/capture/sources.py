@@ -32,6 +32,19 @@ VIDEO_EXTENSIONS = (".mp4", ".avi", ".mov", ".mkv")
 SEEK_GAP = 48
 
 
+class Skipped:
+    """Stands for a camera's image that :meth:`VideoSource.sequential` decoded but did not
+    convert to BGR (its ``needed`` left the camera out): ``read`` it when it is wanted after
+    all (:func:`topopose.capture.background.foreground_maps` does)."""
+
+    def __repr__(self):
+        return "SKIPPED"
+
+
+#: the one :class:`Skipped` instance
+SKIPPED = Skipped()
+
+
 def video_frame_name(i: int) -> str:
     return f"{int(i):06d}"
 
@@ -68,9 +81,10 @@ class ImageSource:
     def path(self, camera: str, frame: str):
         return self.files[camera].get(frame)
 
-    def sequential(self, frames, cameras=None):
+    def sequential(self, frames, cameras=None, needed=None):
         """Yield ``(frame, {camera: image or InputError})`` for ``frames`` in order (of
-        ``cameras`` only when given)."""
+        ``cameras`` only when given). ``needed``: ignored (every image is read: a missing
+        file is reported as before)."""
         for f in frames:
             out = {}
             for cam in (self.files if cameras is None else cameras):
@@ -111,7 +125,10 @@ class _Decoder:
             self.vc.release()
         self.vc = None
 
-    def get(self, i: int) -> np.ndarray:
+    def get(self, i: int, retrieve: bool = True) -> np.ndarray | None:
+        """Frame ``i`` (BGR); ``retrieve=False``: decoded (errors raised the same) but not
+        converted to BGR, None returned (the colour conversion is about a third of the CPU of
+        a 1088 × 1920 H.264 frame)."""
         if self.vc is None:
             self._open()
         if not self.pos <= i < self.pos + SEEK_GAP:
@@ -132,6 +149,13 @@ class _Decoder:
                 raise InputError(f"{self.path}: frame {i} cannot be decoded (the video ends or is "
                                  f"corrupt at frame {self.pos})")
             self.pos += 1
+        if not retrieve:
+            if not self.vc.grab():
+                self.failed_at = i
+                self.close()
+                raise InputError(f"{self.path}: frame {i} cannot be decoded (corrupt or truncated video)")
+            self.pos += 1
+            return None
         ok, img = self.vc.read()
         if not ok or img is None:
             self.failed_at = i
@@ -200,7 +224,7 @@ class VideoSource:
                     f"{self.counts[camera]} frames, the longest {self.count}")
         return None
 
-    def _get(self, decoders: dict, camera: str, i: int) -> np.ndarray:
+    def _get(self, decoders: dict, camera: str, i: int, retrieve: bool = True) -> np.ndarray:
         why = self.missing(camera, i)
         if why is not None:
             raise InputError(why)
@@ -211,7 +235,7 @@ class VideoSource:
         if dec is None:
             dec = decoders[camera] = _Decoder(self.videos[camera], self.threads)
         try:
-            return dec.get(i)
+            return dec.get(i, retrieve)
         except InputError as exc:
             at = dec.failed_at
             if at is not None and (bad is None or at < bad[0]):
@@ -228,17 +252,22 @@ class VideoSource:
     def path(self, camera: str, frame: str):
         return self.videos[camera]
 
-    def sequential(self, frames, cameras=None):
+    def sequential(self, frames, cameras=None, needed=None):
         """Yield ``(frame, {camera: image or InputError})`` for ``frames`` in order (of
-        ``cameras`` only when given), with decoders of its own (decoding forward)."""
+        ``cameras`` only when given), with decoders of its own (decoding forward).
+        ``needed(position, frame)``: the cameras whose images are wanted (None: all); the
+        others are decoded (a decoding error is reported the same) but not converted, and
+        given as :data:`SKIPPED`."""
         decoders = {}
         try:
-            for f in frames:
+            for k, f in enumerate(frames):
                 i = self.frame_index(f)
+                want = None if needed is None else needed(k, f)
                 out = {}
                 for cam in (self.videos if cameras is None else cameras):
                     try:
-                        out[cam] = self._get(decoders, cam, i)
+                        got = self._get(decoders, cam, i, want is None or cam in want)
+                        out[cam] = SKIPPED if got is None else got
                     except InputError as exc:
                         out[cam] = exc
                 yield f, out
@@ -327,7 +356,7 @@ class Prefetcher:
 
     _END = object()
 
-    def __init__(self, frames, work, source=None, depth: int = 4, ahead: int = 2):
+    def __init__(self, frames, work, source=None, depth: int = 4, ahead: int = 2, needed=None):
         self.frames = list(frames)
         self._pos = 0
         self._q = queue.Queue(maxsize=max(1, int(depth)))
@@ -335,12 +364,13 @@ class Prefetcher:
         self._work = work
         self._source = source
         self._ahead = int(ahead)
+        self._needed = needed
         self._thread = threading.Thread(target=self._loop, name="topopose-reader", daemon=True)
         self._thread.start()
 
     def _loop(self):
         it = ((f, None) for f in self.frames) if self._source is None else \
-            self._source.sequential(self.frames)
+            self._source.sequential(self.frames, needed=self._needed)
         if self._source is not None and self._ahead > 0:
             it = read_ahead(it, self._ahead, self._stop)
         try:

@@ -47,15 +47,40 @@ _MAX_CARVERS = 4
 
 
 # --------------------------------------------------------------------------- fitting
-def _silhouette_planes(cam, mask) -> np.ndarray | None:
-    """Half-spaces ``A @ X + b >= 0`` (4, 4) bounding camera ``cam``'s silhouette cone."""
-    ys, xs = np.nonzero(mask)
+def _upsampled(mask):
+    """``(small, fx, fy)`` when ``mask`` is an :class:`~topopose.capture.background.UpsampledMask`
+    (its pixel (y, x) is ``small[y // fy, x // fx]``), else None."""
+    small = getattr(mask, "small", None)
+    if small is None:
+        return None
+    h, w = mask.shape
+    fx, fy = w // small.shape[1], h // small.shape[0]
+    return (small, fx, fy) if small.shape[1] * fx == w and small.shape[0] * fy == h else None
+
+
+def _pixel_box(mask):
+    """(x min, x max, y min, y max) of the set pixels of ``mask``, or None when there is none
+    (read on the small mask of an upsampled one: the same box)."""
+    up = _upsampled(mask)
+    ys, xs = np.nonzero(mask if up is None else up[0])
     if xs.size == 0:
         return None
-    x0, x1, y0, y1 = xs.min() - 0.5, xs.max() + 0.5, ys.min() - 0.5, ys.max() + 0.5
+    if up is None:
+        return xs.min(), xs.max(), ys.min(), ys.max()
+    _, fx, fy = up
+    return xs.min() * fx, xs.max() * fx + fx - 1, ys.min() * fy, ys.max() * fy + fy - 1
+
+
+def _silhouette_planes(cam, mask) -> np.ndarray | None:
+    """Half-spaces ``A @ X + b >= 0`` (4, 4) bounding camera ``cam``'s silhouette cone."""
+    box = _pixel_box(mask)
+    if box is None:
+        return None
+    x0, x1, y0, y1 = box[0] - 0.5, box[1] + 0.5, box[2] - 0.5, box[3] + 0.5
     if np.any(cam.distortions != 0):
         # undistort the silhouette's outline (pixel corners of its boundary pixels)
-        m8 = np.ascontiguousarray(mask, dtype=np.uint8)
+        m8 = (np.asarray(mask).view(np.uint8) if mask.dtype == bool and mask.flags.c_contiguous
+              else np.ascontiguousarray(mask, dtype=np.uint8))
         contours, _ = cv2.findContours(m8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
         pts = np.concatenate([c.reshape(-1, 2) for c in contours]).astype(float)
         pts = np.concatenate([pts + d for d in ([-.5, -.5], [.5, -.5], [-.5, .5], [.5, .5])])
@@ -117,7 +142,8 @@ def _fallback_box(cameras) -> tuple:
 def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None, sats=None):
     """Shrink a box to the cells of a coarse grid that may hold hull points (conservative):
     a cell is dropped when its projected bounding rectangle (one-pixel margin) misses the
-    silhouette in more than ``tolerance`` cameras. ``sats``: the masks' integral images."""
+    silhouette in more than ``tolerance`` cameras. ``sats``: the masks' integral images
+    (:func:`_integral`)."""
     ext = hi - lo
     vs = float(ext.max()) / res
     if not vs > 0:
@@ -131,7 +157,7 @@ def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None, s
     r = np.empty(tuple(shape) + (4,), dtype=np.int64)
     for q, m in enumerate(masks):
         K.block_rects(geo, intr, q, 1.0, shape[0], shape[1], shape[2], 1, float(1 << 24), r)
-        sat = cv2.integral(np.ascontiguousarray(m, dtype=np.uint8)) if sats is None else sats[q]
+        sat, fx, fy = _integral(m) if sats is None else sats[q]
         inv = r[..., 0] == K.INVALID
         h, w = m.shape
         x0 = np.clip(r[..., 0], 0, w - 1)
@@ -139,6 +165,10 @@ def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None, s
         y0 = np.clip(r[..., 1], 0, h - 1)
         y1 = np.clip(r[..., 3], 0, h - 1)
         empty_rect = (r[..., 0] > w - 1) | (r[..., 2] < 0) | (r[..., 1] > h - 1) | (r[..., 3] < 0)
+        if fx > 1 or fy > 1:
+            # an upsampled mask: the pixels of a rectangle are those of the small mask's
+            # rectangle of the blocks it meets (a block is set or not as a whole)
+            x0, x1, y0, y1 = x0 // fx, x1 // fx, y0 // fy, y1 // fy
         s = sat[y1 + 1, x1 + 1] - sat[y0, x1 + 1] - sat[y1 + 1, x0] + sat[y0, x0]
         misses += ((s == 0) | empty_rect) & ~inv
     keep = misses <= tolerance
@@ -151,6 +181,15 @@ def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None, s
     nlo = origin + (kmin - 0.5) * vs
     nhi = origin + (kmax + 0.5) * vs
     return np.maximum(nlo, lo), np.minimum(nhi, hi)
+
+
+def _integral(mask) -> tuple:
+    """``(summed-area table, fx, fy)`` of a silhouette: of its small mask when it is upsampled
+    by (fx, fy) (:func:`_upsampled`; 1/(fx·fy) of the work), else of itself (1, 1)."""
+    up = _upsampled(mask)
+    if up is not None:
+        return cv2.integral(np.ascontiguousarray(up[0], dtype=np.uint8)), up[1], up[2]
+    return cv2.integral(np.ascontiguousarray(mask, dtype=np.uint8)), 1, 1
 
 
 def fit_box(cameras, masks, tolerance: int = 0, within=None) -> tuple | None:
@@ -172,7 +211,7 @@ def fit_box(cameras, masks, tolerance: int = 0, within=None) -> tuple | None:
         lo, hi = b
         passes = 2
     intr = np.stack([camera_intrinsics(c) for c in cameras])
-    sats = [cv2.integral(np.ascontiguousarray(m, dtype=np.uint8)) for m in masks]
+    sats = [_integral(m) for m in masks]
     for _ in range(passes):
         r = _coarse_shrink(cameras, masks, lo, hi, tolerance, intr=intr, sats=sats)
         if r is None:
@@ -691,8 +730,15 @@ def keep_largest_component(occ: np.ndarray, bbox=None) -> list:
     try:
         import cc3d
 
-        lab = cc3d.connected_components(sub.view(np.uint8), connectivity=26)
-        n = int(lab.max())
+        lab, n = cc3d.connected_components(sub.view(np.uint8), connectivity=26, return_N=True)
+        n = int(n)
+        if n <= 1:
+            return []
+        if sub.dtype == bool:            # sizes and the largest kept in two passes (a kernel)
+            sizes, best = K.keep_label(sub, lab, n)
+            if best >= 0:
+                others = np.delete(sizes, [0, best])
+                return sorted((int(s) for s in others if s > 0), reverse=True)
     except ImportError:
         lab, n = ndimage.label(sub, structure=np.ones((3, 3, 3), bool))
     if n <= 1:

@@ -987,9 +987,10 @@ THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the large
 
 def taxicab_radii(vol):
     """The taxicab distance transform of the hull on its bounding box grown by one voxel
-    (:func:`scipy.ndimage.distance_transform_cdt`): ``(dt, lo)``, voxel ``ijk`` at
+    (:func:`scipy.ndimage.distance_transform_cdt`'s, computed by
+    :func:`topopose.hull.hull_kernels.taxicab_distances`): ``(dt, lo)``, voxel ``ijk`` at
     ``dt[ijk - lo]``. One per frame serves every :func:`vertex_radii` of the frame."""
-    from scipy import ndimage
+    from ..hull.hull_kernels import taxicab_distances
 
     a = vol.data
     bbox = (vol.diagnostics or {}).get("bbox")
@@ -998,7 +999,7 @@ def taxicab_radii(vol):
         bbox = ([int(o[0]) for o in occ], [int(o[-1]) for o in occ])
     lo = [max(int(x) - 1, 0) for x in bbox[0]]
     hi = [min(int(x) + 2, n) for x, n in zip(bbox[1], a.shape)]
-    return ndimage.distance_transform_cdt(a[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]], "taxicab"), lo
+    return taxicab_distances(a[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]), lo
 
 
 def vertex_radii(vol, data, reach: int = 0, radii=None) -> dict:
@@ -1008,24 +1009,20 @@ def vertex_radii(vol, data, reach: int = 0, radii=None) -> dict:
     of the vertex (0: at the vertex; a vertex whose voxel is background — an I-component
     centroid off the hull — takes the largest of its 3×3×3 neighbourhood). ``radii``:
     :func:`taxicab_radii` of ``vol`` if already computed."""
+    from .estimate_kernels import window_max
+
     dt, lo = taxicab_radii(vol) if radii is None else radii
     ref = float(dt.max()) or 1.0
     org, vs = np.asarray(vol.origin, float), float(vol.voxel_size)
-    out = {}
-    for v in data.vertices:
-        p = data.positions.get(v)
-        if p is None:
-            continue
-        x = np.round((np.asarray(p) - org) / vs).astype(int) - lo
-        x = np.clip(x, 0, np.array(dt.shape) - 1)
-        r = dt[tuple(x)]
-        if reach > 0:
-            r = dt[tuple(slice(max(c - reach, 0), c + reach + 1) for c in x)].max()
-        if r == 0:
-            sl = tuple(slice(max(c - 1, 0), c + 2) for c in x)
-            r = dt[sl].max()
-        out[v] = float(r) / ref
-    return out
+    verts = [v for v in data.vertices if data.positions.get(v) is not None]
+    if not verts:
+        return {}
+    # every vertex at once (the same arithmetic, element by element)
+    pos = np.array([np.asarray(data.positions[v]) for v in verts])
+    x = np.round((pos - org) / vs).astype(int) - np.asarray(lo)
+    x = np.clip(x, 0, np.array(dt.shape) - 1)
+    r = window_max(dt, x.astype(np.int64), int(max(reach, 0)))
+    return {v: float(a) / ref for v, a in zip(verts, r.tolist())}
 
 
 def thickness_arc_cost(radii: dict, profile: dict, weight: float, cap: float = 1.5,
@@ -1045,18 +1042,40 @@ def thickness_arc_cost(radii: dict, profile: dict, weight: float, cap: float = 1
         return head if sep and tail.isdigit() else str(p)
 
     known = {}             # id of a vertex list → (list, its radii with NaN where unknown)
+    # vertices numbered 0 … n - 1 (data trees): the radii as an array, read by index, and
+    # each part's term computed once over all vertices (elementwise: the same values)
+    ids = [v for v in radii if isinstance(v, (int, np.integer)) and not isinstance(v, bool)]
+    table = None
+    if ids and len(ids) == len(radii) and min(ids) >= 0 and max(ids) < 4 * len(ids) + 64:
+        table = np.full(max(ids) + 1, np.nan)
+        table[np.asarray(ids, np.int64)] = [radii[v] for v in ids]
+    by_stem = {}           # stem → its term over ``table``
+
+    def values(lo, hi, radius):
+        r = np.maximum(np.where(np.isnan(radius), max(lo, 1e-3), radius), 1e-3)
+        out = np.maximum(np.log(max(lo, 1e-3) / r), np.log(r / hi))
+        return weight * np.clip(out, 0.0, cap)
 
     def term(part, verts):
         rho = profile.get(stem(part))
         if rho is None:
             return np.zeros(len(verts))
-        lo, hi = rho
         got = known.get(id(verts))
         if got is None or got[0] is not verts:
-            got = known[id(verts)] = (verts, np.array([radii.get(v, np.nan) for v in verts], float))
-        r = np.maximum(np.where(np.isnan(got[1]), max(lo, 1e-3), got[1]), 1e-3)
-        out = np.maximum(np.log(max(lo, 1e-3) / r), np.log(r / hi))
-        return weight * np.clip(out, 0.0, cap)
+            idx = None
+            if table is not None and len(verts):
+                idx = np.asarray(verts)
+                if (idx.dtype.kind not in "iu" or idx.ndim != 1 or idx.min() < 0
+                        or idx.max() >= len(table)):
+                    idx = None
+            got = known[id(verts)] = (verts, idx if idx is not None else np.array(
+                [radii.get(v, np.nan) for v in verts], float))
+        if got[1].dtype.kind in "iu":
+            t = by_stem.get(stem(part))
+            if t is None:
+                t = by_stem[stem(part)] = values(*rho, table)
+            return t[got[1]]
+        return values(*rho, got[1])
 
     def cost(p_up, p_low, d_up, d_low):
         C = np.zeros((len(p_up), len(d_up)))

@@ -137,8 +137,12 @@ def prune_bumps(skeleton: np.ndarray, hull: np.ndarray, ratio: float, origin=(0.
             else:
                 # scale axis: the branch's balls must fit in the junction's ball scaled by ratio
                 c = (np.asarray(tree.positions[u], float) - np.asarray(origin, float)) / vs
-                reach = max(float(np.linalg.norm(x - c)) + radius_at(x)
-                            for x in coords[sel])
+                xs = coords[sel]
+                if squared is None:
+                    reach = max(float(np.linalg.norm(x - c)) + radius_at(x) for x in xs)
+                else:          # the same, for all the branch's voxels at once
+                    rad = np.sqrt(sq[tuple((xs - off).T)].astype(float))
+                    reach = float((np.sqrt(((xs - c) ** 2).sum(axis=1)) + rad).max())
                 bump = reach < ratio * r
             if bump and (u not in best or length < best[u][0]):
                 best[u] = (length, v, eindex[frozenset((u, v))], radius[u])

@@ -119,25 +119,11 @@ def pair_hands(parts, segs):
 def run_poses(recording, work):
     """The per-frame records (trust_features.real_records) and the poses as ``run
     --consistency`` writes them, with the right flag per frame."""
-    import copy
-
     import real
     import trust_features as T
-    from topopose.pose.confidence import min_confidence_for
-    from topopose.pose.model import load_model
 
     recs, _ = T.real_records(recording, work)
-    _, ref = real.open_recording(recording)
-    poses = []
-    for r in recs:
-        p = copy.deepcopy(r["pose"])
-        f = T.features_of(r)
-        if np.isfinite(f.get("unexplained", np.nan)):
-            p.diagnostics["unexplained"] = round(f["unexplained"], 4)
-        poses.append(p)
-    idx = {p.frame: i for i, p in enumerate(poses)}
-    ps = real.as_run(poses, load_model("human"), np.array([0.0, 0.0, 1.0]),
-                     min_confidence_for(4), consistency=True)
+    ps, idx, ref = T.as_run_consistency(recording, recs, [T.features_of(r) for r in recs], True)
     rows = []
     for p in ps:
         i = idx[p.frame]

@@ -190,10 +190,11 @@ def auc_table(groups) -> dict:
     return out
 
 
-def real_matched(recording, recs, feats, settings) -> dict:
-    """The real recording as ``run`` writes it, ``matched`` by the consistency with
-    ``settings`` (:func:`judge_sequence` keywords; the frames' ``unexplained`` as the
-    estimator records it): frames passing, right among them, right frames."""
+def as_run_consistency(recording, recs, feats, settings):
+    """The real recording's per-frame records as ``run`` writes them, ``matched`` by the
+    consistency with ``settings`` (True, or :func:`judge_sequence` keywords; the frames'
+    ``unexplained`` as the estimator records it): the poses, each frame's record index and
+    Pose2Sim's markers."""
     import real
     from topopose.pose.confidence import min_confidence_for
     from topopose.pose.model import load_model
@@ -208,6 +209,16 @@ def real_matched(recording, recs, feats, settings) -> dict:
     idx = {p.frame: i for i, p in enumerate(poses)}
     ps = real.as_run(poses, load_model("human"), np.array([0.0, 0.0, 1.0]),
                      min_confidence_for(4), consistency=settings)
+    return ps, idx, ref
+
+
+def real_matched(recording, recs, feats, settings) -> dict:
+    """The real recording as ``run`` writes it, ``matched`` by the consistency with
+    ``settings`` (:func:`as_run_consistency`): frames passing, right among them, right
+    frames."""
+    import real
+
+    ps, idx, ref = as_run_consistency(recording, recs, feats, settings)
     m = rt = nr = 0
     for p in ps:
         e = real.frame_errors(p.parts, ref, idx[p.frame]) if p.status != "failed" else None

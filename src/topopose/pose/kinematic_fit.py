@@ -299,7 +299,11 @@ HANGING_WIDTH = (-0.15, 0.7)  # hull radii (along the trunk, outward): the ``wid
                    # Pose2Sim's 0.209: its fat 4-camera hull's radius). Kept: hanging [-0.15,
                    # 0.7], the model's [-0.3, 0.7] 4.38 → 4.30 / 5.50 → 5.50 cm (hips 6.4 → 6.0
                    # / 5.5); real 8.4 → 8.4 cm (hips 9.4 → 8.7; its right frames 7.5 → 7.5,
-                   # hips 8.0 → 7.7 cm; they sat 2.8 cm low). Not kept either: the outward width from the
+                   # hips 8.0 → 7.7 cm; they sat 2.8 cm low). Not kept either: a third tier,
+                   # the outward width 0.85 for a leg more than arccos(0.8 / 0.7 / 0.5 / 0)
+                   # from down: random 5.45 / 5.49 / 5.50 / 5.50 cm, the real recording (at
+                   # 0.8) 8.4 → 8.5 cm (hips 8.7 → 9.8, width 0.265 m: its legs' curves lean
+                   # more than 37° from down most of the time); the outward width from the
                    # sequence's shank length (its bone from the knee, 80th percentile: within
                    # 0–3 cm of the rig's) instead of the hull radius, × 0.289 (the MakeHuman
                    # rig's half hip-joint distance / shank, its default build) 4.44 / 5.48 cm,
@@ -959,6 +963,12 @@ HULL_SHOULDER = True  # an unseen arm moved towards the shoulder from the hull's
                       # the way 5.67 / 4.45. The rest pose's upper arm tilted out or forward
                       # by 20° on top: 5.96–6.07 / 4.84–4.86 cm
 SHOULDER_BLEND = 0.5  # the fraction of the way to the hull's shoulder an unseen arm moves
+# (Issue 15, hips branch: the unseen random arms after these fills sit inside the truth's body
+# frame by 3.3 / 4.0 / 3.4 cm (shoulder / elbow / wrist; forward +2.8 / +1.4 / −0.3, up +1.8 /
+# +0.1 / +0.9; median over 256 arms, development seeds 21–32, 60 frames; their errors 8.7 /
+# 10.5 / 11.8 cm: scatter, not bias). Not kept: the unseen elbow and wrist moved out by 3 / 6
+# cm after shoulder_fill: arms 12.0 → 11.6 / 11.8 cm, MPJPE 5.50 → 5.51 / 5.55 cm;
+# HELD_SHOULDER 20° 5.53, ACROSS 15° 5.58 cm.)
 
 
 def shoulder_fill(start, pose, tree: KinematicTree, unseen) -> np.ndarray:

@@ -299,7 +299,10 @@ HANGING_WIDTH = (-0.15, 0.7)  # hull radii (along the trunk, outward): the ``wid
                    # Pose2Sim's 0.209: its fat 4-camera hull's radius). Kept: hanging [-0.15,
                    # 0.7], the model's [-0.3, 0.7] 4.38 → 4.30 / 5.50 → 5.50 cm (hips 6.4 → 6.0
                    # / 5.5); real 8.4 → 8.4 cm (hips 9.4 → 8.7; its right frames 7.5 → 7.5,
-                   # hips 8.0 → 7.7 cm; they sat 2.8 cm low). Not kept either: a third tier,
+                   # hips 8.0 → 7.7 cm; they sat 2.8 cm low). Held-out (tracking.md, once):
+                   # walks 4.2 → 4.2 cm (hips 5.6 → 5.9: the heavy walks' 4.8 → 6.2, 5.7 → 7.0;
+                   # the lean's 7.1 → 6.3, 8.0 → 7.0), random 5.2 → 5.2 (hips 4.9 → 4.7).
+                   # Not kept either: a third tier,
                    # the outward width 0.85 for a leg more than arccos(0.8 / 0.7 / 0.5 / 0)
                    # from down: random 5.45 / 5.49 / 5.50 / 5.50 cm, the real recording (at
                    # 0.8) 8.4 → 8.5 cm (hips 8.7 → 9.8, width 0.265 m: its legs' curves lean

@@ -437,8 +437,10 @@ def test_bone_lengths_quantile_recovers_a_chain_shortened_in_some_frames():
 def test_hips_from_the_junction_by_hull_radius_and_spine_shift():
     """Hips with a ``width``: at the legs' junction moved along the trunk and outward by width ×
     the hull radius (the spine shift's length), then back with the trunk; the trunk's curves
-    move back by SPINE_BACK × the spine shift, the limbs' curves do not."""
-    from topopose.pose.kinematic_fit import SPINE_BACK, frame_curves, initial_placement
+    move back by SPINE_BACK × the spine shift, the limbs' curves do not. A hanging leg (this
+    standing body's) takes HANGING_WIDTH, a raised one the model's ``width``."""
+    from topopose.pose.kinematic_fit import (HANGING_WIDTH, SPINE_BACK, frame_curves,
+                                             initial_placement)
 
     rng = np.random.default_rng(4)
     tree = kinematic_tree(HUMAN)
@@ -452,8 +454,8 @@ def test_hips_from_the_junction_by_hull_radius_and_spine_shift():
     assert np.allclose(c["head"], np.asarray(curves["head"]) + SPINE_BACK * r * back)
     assert np.allclose(c["hand_1"], curves["left_hand"])
     P = initial_placement(pose, tree)
-    w_al, w_out = next(j.width for j in HUMAN.joints if j.name == "hip")
-    assert w_out > 0
+    w_al, w_out = HANGING_WIDTH
+    assert w_out > 0 and HANGING_WIDTH != next(j.width for j in HUMAN.joints if j.name == "hip")
     ax = parts["torso"] - parts["crotch"]
     ax /= np.linalg.norm(ax)
     for k, sg in (("1", 1.0), ("2", -1.0)):               # foot_1 is the left one here
@@ -470,6 +472,46 @@ def test_hips_from_the_junction_by_hull_radius_and_spine_shift():
     P0 = initial_placement(pose, tree)
     assert np.allclose(frame_curves(pose, tree)["head"], curves["head"])
     assert not np.allclose(P0[h], P[h] - SPINE_BACK * r * back)
+
+
+def test_a_raised_leg_hip_takes_the_model_width_a_hanging_one_the_hanging_width():
+    """One leg raised forward to the horizontal (its curve 90° from straight down), the other
+    hanging: the raised leg's hip sits by the model's ``width``, the hanging one's by
+    HANGING_WIDTH; with HANGING_WIDTH off (None) both take the model's."""
+    from topopose.pose import kinematic_fit as kf
+
+    rng = np.random.default_rng(5)
+    tree = kinematic_tree(HUMAN)
+    parts, curves = _body(0.0, rng)
+    cr = parts["crotch"]
+    for side, sg in (("left", 1.0),):                    # the left leg raised forward
+        pts = [cr, cr + [0.05, sg * 0.1, -0.05], cr + [0.45, sg * 0.1, -0.05],
+               cr + [0.85, sg * 0.1, -0.05]]
+        curves[f"{side}_foot"] = resample(pts, 64)
+        parts[f"{side}_foot"] = pts[-1]
+    pose, _ = _numbered_frame("000000", parts, curves, False, False)
+    r = 0.14
+    pose.diagnostics["spine_shift"] = [-r, 0.0, 0.0]    # the body faces +x: back is -x
+    ax = np.array([0.0, 0.0, 1.0])
+    model_w = next(j.width for j in HUMAN.joints if j.name == "hip")
+    P = kf.initial_placement(pose, tree, spine=0.0)
+    on = {k: kf._along(np.asarray(curves[s + "_foot"], float), 0.11)    # the hips' at on
+          for k, s in (("1", "left"), ("2", "right"))}                  # their curves
+    for k, m in (("1", "2"), ("2", "1")):
+        x = P[tree.names.index("hip_" + k)]
+        w_al, w_out = model_w if k == "1" else kf.HANGING_WIDTH
+        lat = (on[k] - on[m]) * [1.0, 1.0, 0.0]                        # outward: across the trunk
+        want = cr + w_al * r * ax + w_out * r * lat / np.linalg.norm(lat)
+        assert np.allclose(x, want, atol=1e-9), (k, x - want)
+    old = kf.HANGING_WIDTH
+    try:
+        kf.HANGING_WIDTH = None
+        P1 = kf.initial_placement(pose, tree, spine=0.0)
+    finally:
+        kf.HANGING_WIDTH = old
+    lat = (on["2"] - on["1"]) * [1.0, 1.0, 0.0]
+    assert np.allclose(P1[tree.names.index("hip_2")],
+                       cr + model_w[0] * r * ax + model_w[1] * r * lat / np.linalg.norm(lat))
 
 
 def test_joint_width_field_round_trips_and_is_checked():

@@ -279,7 +279,49 @@ SEEN_HULL_SHOULDER = True  # a hanging seen arm's shoulder (its hand below the c
                            # MPJPE random 5.6 → 5.6 (shoulders 6.9 → 6.5, elbows 5.6 → 5.8),
                            # walks 4.8 → 4.5 cm (shoulders 6.5 → 4.4); the real recording
                            # (``real_motion.py``) 10.6 → 10.3 cm, shoulders 15.6 → 13.2 cm
+HANG_COS = 0.9     # a limb hangs when its curve (junction → end) lies within arccos(0.9) = 26°
+                   # of straight down the trunk (see HANGING_WIDTH)
+HANGING_WIDTH = (-0.15, 0.7)  # hull radii (along the trunk, outward): the ``width`` of a joint
+                   # whose limb hangs (:func:`_hangs`; a standing leg) instead of the model's
+                   # (``human``: [-0.3, 0.7], a raised or spread leg); None: the model's always.
+                   # The hips sat 2.6 cm low and 2.4 cm inside on walks, 0.7 cm high and 3.0 cm
+                   # inside on random poses (width [-0.3, 0.7], median bias in the truth's body
+                   # frame): the crotch junction lies lower against the hips when the legs hang.
+                   # Development seeds (random 21–32, 60 frames, walks 41–46, 40 frames, gate
+                   # on, the per-frame poses of one run; MPJPE median over frames, walks /
+                   # random): one width for all [-0.3, 0.7] 4.38 / 5.50 cm (hips 6.4 / 5.4),
+                   # [-0.3, 0.85] 4.41 / 5.42, [-0.3, 1.0] 4.52 / 5.45, [-0.15, 0.7] 4.28 /
+                   # 5.67, [-0.15, 0.85] 4.30 / 5.57, [-0.2, 0.85] 4.32 / 5.51; hanging
+                   # [-0.15, 0.85] (cos 0.9 / 0.8 / 0.95) 4.32 / 5.42, 4.31 / 5.47, 4.36 / 5.41;
+                   # hanging [-0.1, 0.85] 4.33 / 5.42; hanging [-0.15, 0.7] 4.30 / 5.40 (hips
+                   # 6.1 / 5.1 cm), but the real recording (real_motion.py; balancing: a
+                   # raised leg) 8.4 → 8.5 cm (hips 9.4 → 9.7, width 0.223 → 0.266 m against
+                   # Pose2Sim's 0.209: its fat 4-camera hull's radius). Kept: hanging [-0.15,
+                   # 0.7], the model's [-0.3, 0.7] 4.38 → 4.30 / 5.50 → 5.50 cm (hips 6.4 → 6.0
+                   # / 5.5); real 8.4 → 8.4 cm (hips 9.4 → 8.7; its right frames 7.5 → 7.5,
+                   # hips 8.0 → 7.7 cm; they sat 2.8 cm low). Held-out (tracking.md, once):
+                   # walks 4.2 → 4.2 cm (hips 5.6 → 5.9: the heavy walks' 4.8 → 6.2, 5.7 → 7.0;
+                   # the lean's 7.1 → 6.3, 8.0 → 7.0), random 5.2 → 5.2 (hips 4.9 → 4.7).
+                   # Not kept either: a third tier,
+                   # the outward width 0.85 for a leg more than arccos(0.8 / 0.7 / 0.5 / 0)
+                   # from down: random 5.45 / 5.49 / 5.50 / 5.50 cm, the real recording (at
+                   # 0.8) 8.4 → 8.5 cm (hips 8.7 → 9.8, width 0.265 m: its legs' curves lean
+                   # more than 37° from down most of the time); the outward width from the
+                   # sequence's shank length (its bone from the knee, 80th percentile: within
+                   # 0–3 cm of the rig's) instead of the hull radius, × 0.289 (the MakeHuman
+                   # rig's half hip-joint distance / shank, its default build) 4.44 / 5.48 cm,
+                   # × 0.33 4.48 / 5.47 cm: the half hip distance spreads 0.26–0.45 shanks over
+                   # the body's builds, 0.77–0.97 hull radii (the heavy build's hips are wide).
 HULL_GATE = 0.2    # m: a shoulder from the hull farther than this from the joint's place: unused
+
+
+def _hangs(c, ax) -> bool:
+    """Whether the curve ``c`` (junction → limb end) runs within :data:`HANG_COS` of straight
+    down the unit trunk axis ``ax`` (which points up)."""
+    c = np.asarray(c, float)
+    v = c[-1] - c[0]
+    n = float(np.linalg.norm(v))
+    return n > 0 and float(np.dot(v, -ax)) > HANG_COS * n
 
 
 def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
@@ -290,7 +332,7 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
     ``width`` (hips), when the hull radius is known (``radius``, else the length of the frame's
     spine shift) and its mirror mate placed: at its arc's start (the junction) moved along the
     trunk and outward (the direction from its mate's curve point to its own, across the trunk)
-    by ``width`` × the radius — the hull's largest inscribed radius scales with girth, the
+    by ``width`` (:data:`HANGING_WIDTH` when its limb hangs) × the radius — the hull's largest inscribed radius scales with girth, the
     trunk's length does not (development seeds: half shoulder width / radius 1.16–1.46 over
     four builds, / trunk length 0.39–0.76); otherwise as its ``offset`` says. A joint with an
     ``at_raised`` (elbows, wrists) is there instead of ``at`` when its arc's end part lies past
@@ -349,6 +391,8 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
                 n = np.linalg.norm(lat)
                 if n > 0:
                     w_al, w_out = tree.width[j]
+                    if HANGING_WIDTH is not None and _hangs(c, ax):
+                        w_al, w_out = HANGING_WIDTH
                     moved[j] = (np.asarray(c, float)[0] + w_al * radius * ax
                                 + w_out * radius * lat / n)
                     continue
@@ -922,6 +966,12 @@ HULL_SHOULDER = True  # an unseen arm moved towards the shoulder from the hull's
                       # the way 5.67 / 4.45. The rest pose's upper arm tilted out or forward
                       # by 20° on top: 5.96–6.07 / 4.84–4.86 cm
 SHOULDER_BLEND = 0.5  # the fraction of the way to the hull's shoulder an unseen arm moves
+# (Issue 15, hips branch: the unseen random arms after these fills sit inside the truth's body
+# frame by 3.3 / 4.0 / 3.4 cm (shoulder / elbow / wrist; forward +2.8 / +1.4 / −0.3, up +1.8 /
+# +0.1 / +0.9; median over 256 arms, development seeds 21–32, 60 frames; their errors 8.7 /
+# 10.5 / 11.8 cm: scatter, not bias). Not kept: the unseen elbow and wrist moved out by 3 / 6
+# cm after shoulder_fill: arms 12.0 → 11.6 / 11.8 cm, MPJPE 5.50 → 5.51 / 5.55 cm;
+# HELD_SHOULDER 20° 5.53, ACROSS 15° 5.58 cm.)
 
 
 def shoulder_fill(start, pose, tree: KinematicTree, unseen) -> np.ndarray:

@@ -2,7 +2,7 @@
 from .volume import Volume
 from .carver import HullCarver
 from .hull import (visual_hull, fit_box, capture_box, grid_for_box, keep_largest_component,
-                   fill_cavities)
+                   fill_cavities, uses_soft_fusion)
 
 __all__ = ["Volume", "HullCarver", "visual_hull", "fit_box", "capture_box", "grid_for_box",
-           "keep_largest_component", "fill_cavities"]
+           "keep_largest_component", "fill_cavities", "uses_soft_fusion"]

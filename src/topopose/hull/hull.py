@@ -263,8 +263,9 @@ def _sampled_boxes(cap, tolerance) -> list:
     return cap.cache[key]
 
 
-def _soft_fusion(cap) -> bool:
-    """The capture's silhouettes are probabilities fused by the soft hull (:mod:`.soft`)."""
+def uses_soft_fusion(cap) -> bool:
+    """Whether the capture's silhouettes are probabilities fused by the soft hull (:mod:`.soft`,
+    Franco & Boyer's occupancy grid) rather than hard masks carved by :func:`visual_hull`."""
     from ..capture.background import SEQUENCE_METHODS
 
     p = cap.options.get("silhouettes") or {}
@@ -491,7 +492,7 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
     t = {}
     t0 = time.perf_counter()
     name = cap.frame_name(frame)
-    soft = masks is None and _soft_fusion(cap)
+    soft = masks is None and uses_soft_fusion(cap)
     maps = None
     if soft:
         from ..capture.background import foreground_maps

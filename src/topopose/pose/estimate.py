@@ -414,9 +414,9 @@ class FrameEstimator:
         consensus = self.repair if self.tolerance > 0 and self.repair >= 0 else None
         masks = None
         if self.support:           # the silhouettes the hull is carved from, kept for them
-            from ..hull.hull import _soft_fusion
+            from ..hull import uses_soft_fusion
             self._silhouettes = None
-            if not _soft_fusion(self.cap):
+            if not uses_soft_fusion(self.cap):
                 from ..capture.background import scaled_camera
                 masks = self.cap.silhouettes(frame)
                 cams, sils = [], []

@@ -190,13 +190,13 @@ def test_arc_cost_by_index_equals_the_formula(seed):
 
 
 def test_taxicab_kernel_equals_scipy():
-    """:func:`topopose.hull.hull_kernels.taxicab_distances` (the separable L1 distance behind
+    """:func:`topopose.pose.estimate_kernels.taxicab_distances` (the separable L1 distance behind
     :func:`taxicab_radii`) equals scipy's chamfer ``distance_transform_cdt(…, "taxicab")``
     exactly, on random volumes of every small shape, strided views, and volumes without any
     background voxel (-1) or without any object voxel."""
     from scipy import ndimage
 
-    from topopose.hull.hull_kernels import taxicab_distances
+    from topopose.pose.estimate_kernels import taxicab_distances
 
     rng = np.random.default_rng(0)
     cases = [np.ones((3, 4, 5), bool), np.zeros((2, 3, 2), bool), np.ones((1, 1, 1), bool),

@@ -988,9 +988,9 @@ THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the large
 def taxicab_radii(vol):
     """The taxicab distance transform of the hull on its bounding box grown by one voxel
     (:func:`scipy.ndimage.distance_transform_cdt`'s, computed by
-    :func:`topopose.hull.hull_kernels.taxicab_distances`): ``(dt, lo)``, voxel ``ijk`` at
+    :func:`topopose.pose.estimate_kernels.taxicab_distances`): ``(dt, lo)``, voxel ``ijk`` at
     ``dt[ijk - lo]``. One per frame serves every :func:`vertex_radii` of the frame."""
-    from ..hull.hull_kernels import taxicab_distances
+    from .estimate_kernels import taxicab_distances
 
     a = vol.data
     bbox = (vol.diagnostics or {}).get("bbox")

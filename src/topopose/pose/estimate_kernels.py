@@ -26,3 +26,47 @@ def window_max(dt, xs, reach):
             k = 1               # (reach 1 again: the same window, the same 0)
         out[m] = r
     return out
+
+
+@njit(cache=True)
+def taxicab_distances(a):
+    """Taxicab (L1) distance of every voxel of ``a`` (3D, nonzero = object) to the nearest
+    zero voxel of ``a`` (int32; 0 on the background, -1 everywhere when ``a`` has no zero
+    voxel): :func:`scipy.ndimage.distance_transform_cdt` with ``metric="taxicab"``, by the
+    separable form of the L1 distance (a forward and a backward pass along each axis, 6 passes
+    over the array instead of two chamfer passes over 26-neighbourhoods)."""
+    nx, ny, nz = a.shape
+    big = nx + ny + nz + 1               # beyond any distance inside the array
+    d = np.empty((nx, ny, nz), np.int32)
+    for i in range(nx):
+        for j in range(ny):
+            prev = big
+            for k in range(nz):
+                prev = 0 if a[i, j, k] == 0 else min(prev + 1, big)
+                d[i, j, k] = prev
+            prev = big
+            for k in range(nz - 1, -1, -1):
+                prev = min(prev + 1, d[i, j, k])
+                d[i, j, k] = prev
+    for i in range(nx):
+        for j in range(1, ny):
+            for k in range(nz):
+                d[i, j, k] = min(d[i, j, k], d[i, j - 1, k] + 1)
+        for j in range(ny - 2, -1, -1):
+            for k in range(nz):
+                d[i, j, k] = min(d[i, j, k], d[i, j + 1, k] + 1)
+    for i in range(1, nx):
+        for j in range(ny):
+            for k in range(nz):
+                d[i, j, k] = min(d[i, j, k], d[i - 1, j, k] + 1)
+    for i in range(nx - 2, -1, -1):
+        for j in range(ny):
+            for k in range(nz):
+                d[i, j, k] = min(d[i, j, k], d[i + 1, j, k] + 1)
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if d[i, j, k] >= big:
+                    d[i, j, k] = -1
+    return d
+

@@ -189,7 +189,12 @@ def test_kinematic_tree_of_the_models():
         model_from_dict(bad)
 
 
-def test_fit_constant_bone_lengths_recovers_joints_and_fills_gaps():
+def test_fit_constant_bone_lengths_recovers_joints_and_fills_gaps(monkeypatch):
+    from topopose.pose import kinematic_fit as kf
+
+    # these curves run exactly through the tips' truth: no thinned branch end to correct
+    monkeypatch.setattr(kf, "TIP_TURN", {})
+    monkeypatch.setattr(kf, "TIP_STRETCH", {})
     rng = np.random.default_rng(1)
     tree = kinematic_tree(HUMAN)
     poses, truth = [], []
@@ -960,3 +965,73 @@ def test_fit_sequence_flags_the_interpolated_joints(monkeypatch):
     for off in (kf.fit_sequence(frames, HUMAN, gaps=False)[0], kf.fit_sequence(frames, HUMAN)[0]):
         assert "interpolated_joints" not in off[1].diagnostics     # off by default (HELD_GAP)
     assert "interpolated_joints" not in out[0].diagnostics
+
+
+def _angle(u, v):
+    return np.degrees(np.arccos(np.clip(np.dot(u, v) / np.linalg.norm(u) / np.linalg.norm(v),
+                                        -1.0, 1.0)))
+
+
+@pytest.mark.parametrize("yaw", [0.0, 1.1, -2.5])
+def test_tip_targets_turn_the_toe_from_the_shank_and_stretch_the_fingertip(yaw):
+    """A leg with its shank straight down and its foot 60° from it (the ankle's bend), an
+    arm with a 12 cm hand: the toe turns 15° further from the shank in the shank–foot plane,
+    its distance from the ankle kept; the fingertip moves out along wrist → fingertip by the
+    factor, its direction kept; a toe along the shank (no plane) and a frame without the knee
+    stay; the joints that are not tips never move."""
+    from topopose.pose.kinematic_fit import tip_targets
+
+    tree = kinematic_tree(HUMAN)
+    ix = {n: i for i, n in enumerate(tree.names)}
+    R = _rotz(yaw)
+    init = np.full((3, len(tree.names), 3), np.nan)
+    rng = np.random.default_rng(4)
+    for f in range(3):
+        init[f] = rng.normal(size=(len(tree.names), 3))            # every joint placed
+        o = rng.normal(size=3)
+        init[f, ix["knee_1"]] = o + R @ [0.0, 0.1, 0.5]
+        init[f, ix["ankle_1"]] = o + R @ [0.0, 0.1, 0.1]
+        a60 = np.radians(60.0)
+        init[f, ix["toe_1"]] = o + R @ ([0.0, 0.1, 0.1] + 0.2 * np.array(
+            [np.sin(a60), 0.0, -np.cos(a60)]))                    # 60° from straight down
+        init[f, ix["wrist_1"]] = o + R @ [0.3, -0.2, 1.0]
+        init[f, ix["fingertip_1"]] = o + R @ [0.3, -0.2, 1.0] + R @ [0.12, 0.0, 0.0]
+    init[1, ix["toe_1"]] = init[1, ix["ankle_1"]] + R @ [0.0, 0.0, -0.2]   # along the shank
+    init[2, ix["knee_1"]] = np.nan                                         # no shank
+    out = tip_targets(init, tree, turn={"toe": 15.0}, stretch={"fingertip": 1.5})
+    k, a, t = (out[0, ix[n]] for n in ("knee_1", "ankle_1", "toe_1"))
+    assert abs(_angle(a - k, t - a) - 75.0) < 1e-6                 # 60° + 15° from the shank
+    assert abs(np.linalg.norm(t - a) - 0.2) < 1e-9
+    assert abs(np.dot(np.cross(a - k, init[0, ix["toe_1"]] - a), t - a)) < 1e-9   # same plane
+    assert np.dot(t - init[0, ix["toe_1"]], R @ [0.0, 0.0, 1.0]) > 0.03   # the toe rises
+    assert np.allclose(out[1, ix["toe_1"]], init[1, ix["toe_1"]])
+    assert np.allclose(out[2, ix["toe_1"]], init[2, ix["toe_1"]])
+    for f in range(3):
+        w, x = out[f, ix["wrist_1"]], out[f, ix["fingertip_1"]]
+        assert np.allclose(x - w, 1.5 * (R @ [0.12, 0.0, 0.0]))
+        for j in range(len(tree.names)):
+            if tree.base[j] not in ("toe", "fingertip"):
+                assert np.array_equal(out[f, j], init[f, j], equal_nan=True)
+    # unplaced tips stay unplaced; nothing asked, nothing moves
+    init[0, ix["toe_2"]] = np.nan
+    assert np.isnan(tip_targets(init, tree, turn={"toe": 15.0})[0, ix["toe_2"]]).all()
+    assert np.array_equal(tip_targets(init, tree, turn={}, stretch={}), init, equal_nan=True)
+
+
+def test_fit_sequence_places_the_toe_on_its_turned_target(monkeypatch):
+    """The fit follows the corrected tip targets: with ``TIP_TURN`` the fitted toe lies at the
+    turned target (the bend at the ankle grows by the turn, as measured on the fitted joints)."""
+    from topopose.pose import kinematic_fit as kf
+
+    monkeypatch.setattr(kf, "TIP_STRETCH", {})
+    rng = np.random.default_rng(1)
+    poses = [_numbered_frame(f"{i:06d}", *_body(0.3 * i, rng, toe=0.1), False, False)[0]
+             for i in range(4)]
+    bends = {}
+    for turn in (0.0, 20.0):
+        monkeypatch.setattr(kf, "TIP_TURN", {"toe": turn})
+        out, tree, _ = fit_sequence(poses, HUMAN)
+        bends[turn] = [_angle(p.joints["ankle_1"] - p.joints["knee_1"],
+                              p.joints["toe_1"] - p.joints["ankle_1"]) for p in out]
+    for b0, b1 in zip(bends[0.0], bends[20.0]):
+        assert abs((b1 - b0) - 20.0) < 3.0, (b0, b1)

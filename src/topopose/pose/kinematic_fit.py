@@ -20,7 +20,9 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    (``diagnostics["hull_shoulders"]``: the trunk's cross-section below the neck,
    :func:`topopose.pose.unseen.hull_shoulders`; :data:`SEEN_HULL_SHOULDER`). A bent limb's
    middle joint (elbow, wrist, knee, ankle) is at its curve's bend (:func:`bend_joints`,
-   :data:`BEND`).
+   :data:`BEND`). The tips' targets are corrected for the thinned branch end (sequence stage,
+   :func:`tip_targets`): the toe turned away from the shank (:data:`TIP_TURN`), the fingertip
+   moved out along the hand (:data:`TIP_STRETCH`).
 2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
    the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
    constant over the sequence; a ``slide`` bone (the neck's) at its median
@@ -1041,6 +1043,82 @@ def hint_fill(start, pose, tree: KinematicTree, L, unseen) -> np.ndarray:
     return out
 
 
+TIP_TURN = {"toe": 15.0}  # degrees, by tip joint: its target turned away from the bone above its
+                    # parent (the toe from the shank, knee → ankle), in their plane (:func:`tip_targets`).
+                    # The foot's skeleton curve cuts the heel's corner and its last 10 % still
+                    # points along the shank: the ankle's bend (shank → foot) was 19–20° too
+                    # small after the fit (28–30° in the initial placement; development seeds
+                    # random 21–32, walks 41–46, 40 frames, gate on; median, the same at every
+                    # true ankle angle), the toes 4.9 / 5.4 cm below the true foot's line
+                    # (random / walks). Toes, median: 0 / 10 / 15 / 18 / 20 / 25 / 35°: random
+                    # 6.2 / 4.6 / 4.3 / 4.4 / 4.7 / 5.3 / 7.2, walks 6.9 / 5.0 / 4.8 / 5.0 /
+                    # 5.1 / 5.6 / 7.4 cm; MPJPE (no toe in it) random 5.67 → 5.67, walks 4.27 →
+                    # 4.27 cm, ankles 3.5 / 3.1 → 3.5 / 3.1
+TIP_STRETCH = {"fingertip": 1.08}  # by tip joint: its target moved away from its parent by this
+                    # factor (:func:`tip_targets`). The fingertips sat short along the true
+                    # hand (wrist → fingertip 0.88 / 0.92 of the rig's after the fit, 3.1 / 2.4
+                    # cm short; random / walks, development seeds as TIP_TURN; their direction
+                    # unbiased, 2° / 5°). Fingertips, median, 1 / 1.05 / 1.08 / 1.1 / 1.15:
+                    # random 7.0 / 6.8 / 6.7 / 6.7 / 6.7, walks 5.2 / 5.1 / 5.2 / 5.3 / 5.5 cm;
+                    # MPJPE random 5.67 → 5.66, walks 4.27 → 4.26 cm. The hand's bone at a
+                    # higher percentile instead, the target left: 80 / 90 / 97 %: fingertips
+                    # random 6.8 / 6.7 / 6.9 cm, but the fit then pulls the wrist back (random
+                    # wrists 4.5 → 4.5 / 4.7 / 5.1 cm)
+
+
+def tip_targets(init, tree: KinematicTree, turn=None, stretch=None) -> np.ndarray:
+    """The tip joints' targets (a joint past its arc's end part, ``beyond``: fingertips, toes)
+    corrected for the skeleton curve's end (thesis §13.3.1: the kinematic model initialized
+    from the skeleton curves). Thinning stops a branch short of the limb's tip and rounds the
+    corner at its last joint, so the tip's target, extrapolated along the curve's last
+    direction, lies short and turned towards the bone above.
+
+    Per frame and tip joint ``j`` with parent ``p`` (wrist, ankle) and grandparent ``g``
+    (elbow, knee), all placed: the vector ``x_j - x_p`` is turned by ``turn[base]`` degrees
+    away from ``x_p - x_g`` in the plane of the two (the angle between them grows; left as it
+    is when they are parallel), then scaled by ``stretch[base]``.
+
+    Parameters
+    ----------
+    init : (n_frames, n_joints, 3) initial placements (NaN: not placed)
+    tree : KinematicTree
+    turn : {base name: degrees} (default :data:`TIP_TURN`)
+    stretch : {base name: factor} (default :data:`TIP_STRETCH`)
+
+    Returns
+    -------
+    (n_frames, n_joints, 3) array, a copy of ``init``.
+    """
+    turn = TIP_TURN if turn is None else turn
+    stretch = TIP_STRETCH if stretch is None else stretch
+    out = np.array(init, dtype=float, copy=True)
+    for j, p in enumerate(tree.parents):
+        if p < 0 or not (tree.beyond and tree.beyond[j] > 0):
+            continue
+        th, k = turn.get(tree.base[j]), stretch.get(tree.base[j])
+        if not th and not k:
+            continue
+        g = tree.parents[p]
+        for f in range(len(out)):
+            x, a = out[f, j], out[f, p]
+            if np.isnan(x).any() or np.isnan(a).any():
+                continue
+            v = x - a
+            r = float(np.linalg.norm(v))
+            if r <= 0:
+                continue
+            v = v / r
+            if th and g >= 0 and not np.isnan(out[f, g]).any():
+                u = a - out[f, g]
+                n = u - np.dot(u, v) * v           # ⊥ v in the plane of u and v, towards u
+                nn = float(np.linalg.norm(n))
+                if nn > 1e-9:
+                    t = np.radians(th)
+                    v = np.cos(t) * v - np.sin(t) * n / nn     # away from u
+            out[f, j] = a + (k or 1.0) * r * v
+    return out
+
+
 def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=None,
                  quantile=None, slide=None, hints=None, evidence=None, shoulders=None,
                  gaps=None):
@@ -1092,6 +1170,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     init = np.stack([initial_placement(p, tree, spine, radius, shoulders) if p.matched
                      else np.full((len(tree.names), 3), np.nan) for p in poses]) \
         if poses else np.zeros((0, len(tree.names), 3))
+    init = tip_targets(init, tree)
     L = bone_lengths(init, tree, quantile)
     n_f = len(poses)
     Lf = np.tile(L, (n_f, 1))              # per frame: a sliding bone's length varies

@@ -46,6 +46,9 @@ is measured beside its peer in the same run:
   per joint, and the unseen arms' error.
 * **bent limbs** (:func:`~topopose.pose.kinematic_fit.bend_joints`, ``BEND``, off by default):
   the fit against the same fit with the middle joints at their curve's bend (:func:`fit_with_bend`).
+* **tips** (:func:`~topopose.pose.kinematic_fit.tip_targets`: the toe turned from the shank,
+  the fingertip moved out along the hand): the fit against the same fit with the tips' targets
+  as the curves give them (:func:`fit_without_tips`).
 * **shoulders from the hull** (``diagnostics["hull_shoulders"]``,
   :func:`topopose.pose.unseen.hull_shoulders`): the fit against the same fit without them
   (``shoulders=False``): MPJPE, frames holding joints, per joint, and the unseen arms' error.
@@ -471,6 +474,20 @@ def fit_with_bend(tracked, model):
         kf.BEND = keep
 
 
+def fit_without_tips(tracked, model):
+    """The fit with the tips' targets as the curves give them (no
+    :func:`~topopose.pose.kinematic_fit.tip_targets` correction: ``TIP_TURN``, ``TIP_STRETCH``
+    empty), the peer of the toe turned from the shank and the fingertip moved out."""
+    from topopose.pose import kinematic_fit as kf
+
+    keep = kf.TIP_TURN, kf.TIP_STRETCH
+    kf.TIP_TURN, kf.TIP_STRETCH = {}, {}
+    try:
+        return fit_sequence(tracked, model)
+    finally:
+        kf.TIP_TURN, kf.TIP_STRETCH = keep
+
+
 def ungated(poses):
     """The poses as with the confidence gate off: frames only the gate rejected are matched
     (the gate judges a frame after its alignment; it changes nothing else)."""
@@ -583,6 +600,7 @@ def analyse(raw, cap, model):
     # given leaves LIMB_QUANTILE out; the neck's and shoulders' own percentiles stay)
     err_leg70, leg_holding, leg_arms = peer_errors(
         fit_sequence(tracked, model, quantile=BONE_QUANTILE)[0])
+    err_notips, tips_holding, tips_arms = peer_errors(fit_without_tips(tracked, model)[0])
     hint_end = []        # each hint's end: distance to the nearest true elbow and wrist
     for p in raw:
         gj = gt["frames"][p.frame]["joints"]
@@ -657,6 +675,9 @@ def analyse(raw, cap, model):
            "mpjpe_nosh": mpjpe(err_nosh), "sh_arms": sh_arms,
            "sh_holding": [mpjpe([a for a, _ in sh_holding])[3], mpjpe([b for _, b in sh_holding])[3]],
            "mpjpe_leg70": mpjpe(err_leg70), "leg_arms": leg_arms,
+           "mpjpe_notips": mpjpe(err_notips), "tips_arms": tips_arms,
+           "tips_holding": [mpjpe([a for a, _ in tips_holding])[3],
+                            mpjpe([b for _, b in tips_holding])[3]],
            "leg_holding": [mpjpe([a for a, _ in leg_holding])[3],
                            mpjpe([b for _, b in leg_holding])[3]],
            "mpjpe_bend0": mpjpe(err_bend0), "bend_arms": bend_arms,
@@ -1044,6 +1065,11 @@ def report(rows, info, real=None):
                           "foot) at the 80th percentile of their lengths over the sequence "
                           "(`kinematic_fit.LIMB_QUANTILE`), now ← at the 70th as the others "
                           "(`quantile=BONE_QUANTILE`)", "leg70", "leg_holding", "leg_arms"),
+              peer_bullet(rs, pj, pooled, "the tips' targets corrected for the thinned branch "
+                          "end (`kinematic_fit.tip_targets`: the toe turned 15° further from the "
+                          "shank, `TIP_TURN`; the fingertip 1.08 × further from the wrist, "
+                          "`TIP_STRETCH`), now ← the tips as the curves give them", "notips",
+                          "tips_holding", "tips_arms"),
               "- the unseen arm's shoulder, the neck's length, the raised arm's shoulder "
               "(`kinematic_fit.HELD_SHOULDER`: an unseen "
               "arm's shoulder opposite its mate, raised 30° from the plane across the trunk, "

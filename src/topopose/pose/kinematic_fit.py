@@ -1044,7 +1044,8 @@ def hint_fill(start, pose, tree: KinematicTree, L, unseen) -> np.ndarray:
 
 
 TIP_TURN = {"toe": 15.0}  # degrees, by tip joint: its target turned away from the bone above its
-                    # parent (the toe from the shank, knee → ankle), in their plane (:func:`tip_targets`).
+                    # parent (the toe from the shank, knee → ankle), in the plane of the two
+                    # (:func:`tip_targets`).
                     # The foot's skeleton curve cuts the heel's corner and its last 10 % still
                     # points along the shank: the ankle's bend (shank → foot) was 19–20° too
                     # small after the fit (28–30° in the initial placement; development seeds

@@ -24,6 +24,10 @@ sides, the defaults), the TRC is exported as ``run --trc`` writes it and read ba
   frames. Twice: with our side names (a wrong side costs; a frame whose sides are unsure keeps
   numbered joints, paired optimally) and with every mirror pair paired optimally (the error
   of the skeleton alone).
+* **toes** (not in the MPJPE): our ``left_toe`` / ``right_toe`` against Pose2Sim's
+  ``LBigToe`` / ``RBigToe``, paired optimally, median over frames × feet (the big toe's tip is
+  not quite our toe, the foot's tip; the figure follows the toe's placement, e.g.
+  :func:`~topopose.pose.kinematic_fit.tip_targets`).
 * **chirality**: per frame and mirror pair (hands, feet), right when ``left_X`` + ``right_X``
   are nearer Pose2Sim's L/R segments (hand: wrist → 0.1 m beyond it, foot: ankle → big toe)
   than the swapped pair; wrong; or unsure (numbered names kept).
@@ -200,7 +204,24 @@ def score(raw, final, trc_path, ref, model):
             "switches_raw": identity_switches(raw_parts, ref, rows),
             "switches_tracked": identity_switches(trk_parts, ref, rows),
             "held": sum(len(final[i].diagnostics.get("predicted") or []) for i in rows)}
+    for label, rows in (("all", list(range(n))), ("right", [i for i in range(n) if right[i]])):
+        out[label]["toe_vs_bigtoe"] = toe_errors(markers, ref, rows)
     return out, markers, right
+
+
+def toe_errors(markers, ref, rows) -> dict:
+    """Our toes against Pose2Sim's big toes (paired optimally) on frames ``rows``: median (m)
+    over frames × feet and the count."""
+    errs = []
+    for i in rows:
+        a, b = markers[i].get("left_toe"), markers[i].get("right_toe")
+        if a is None or b is None or np.isnan(a).any() or np.isnan(b).any():
+            continue
+        L, R = ref["LBigToe"][i], ref["RBigToe"][i]
+        d0 = [np.linalg.norm(a - L), np.linalg.norm(b - R)]
+        d1 = [np.linalg.norm(a - R), np.linalg.norm(b - L)]
+        errs += [float(x) for x in (d0 if sum(d0) <= sum(d1) else d1)]
+    return {"median": float(np.median(errs)) if errs else None, "n": len(errs)}
 
 
 def run_recording(rec: Path, work: Path, raw_path=None):
@@ -416,7 +437,12 @@ def report(doc) -> str:
               f"- identity switches of the numbered parts: per-frame numbering {r['switches_raw']}"
               f", tracked {r['switches_tracked']} ({r['switches_raw'] * k:.0f} → "
               f"{r['switches_tracked'] * k:.0f} per 500 frames); {r['held']} part-frames held "
-              "by the tracker", ""]
+              "by the tracker"]
+        t = r.get("toe_vs_bigtoe")
+        if t and t["median"] is not None:
+            L.append(f"- toes (not in the MPJPE) against Pose2Sim's big toes, paired optimally: "
+                     f"{_fmt(t['median'])} cm median ({t['n']} feet)")
+        L.append("")
     from topopose.pose.kinematic_fit import BONE_QUANTILE
 
     L += ["Bone lengths (ours: constant over the sequence, the "

@@ -1058,7 +1058,8 @@ TIP_TURN = {"toe": 15.0}  # degrees, by tip joint: its target turned away from t
                     # TIP_STRETCH; same run without both): toes random 5.8 → 4.0, walks 6.7 →
                     # 4.4 cm; MPJPE random 5.21 → 5.20, walks 4.20 → 4.16 cm (gate on); the real
                     # recording (real_motion.py, same per-frame poses) 8.37 → 8.37 cm, its right
-                    # frames 7.50 → 7.54 cm
+                    # frames 7.50 → 7.54 cm; its toes against Pose2Sim's big toes 9.9 → 7.5 cm
+                    # (right frames 9.1 → 7.0)
 TIP_STRETCH = {"fingertip": 1.08}  # by tip joint: its target moved away from its parent by this
                     # factor (:func:`tip_targets`). The fingertips sat short along the true
                     # hand (wrist → fingertip 0.88 / 0.92 of the rig's after the fit, 3.1 / 2.4

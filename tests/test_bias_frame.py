@@ -96,3 +96,20 @@ def test_real_signed_bias_recovers_known_offsets():
     for base in STEM:
         for k in (base, "L" + base, "R" + base):
             assert np.allclose(out[k], 100 * np.array(MOVE[base]), atol=0.051), k
+
+
+def test_real_toe_errors_pair_the_toes_with_the_big_toes_optimally():
+    """Our toes 3 and 4 cm off Pose2Sim's big toes, named the wrong way round in one frame and
+    missing in another: the median of the optimally paired distances, the missing frame left
+    out."""
+    rm = _benchmark("real_motion")
+    L, R = np.array([[0.1, 0.2, 0.0]] * 3), np.array([[-0.1, 0.2, 0.0]] * 3)
+    ref = {"LBigToe": L, "RBigToe": R}
+    up, side = np.array([0.0, 0.0, 0.03]), np.array([0.0, 0.04, 0.0])
+    markers = [{"left_toe": L[0] + up, "right_toe": R[0] + side},
+               {"left_toe": R[1] + side, "right_toe": L[1] + up},           # swapped names
+               {"left_toe": L[2] + up, "right_toe": np.full(3, np.nan)}]   # a foot missing
+    out = rm.toe_errors(markers, ref, [0, 1, 2])
+    assert out["n"] == 4
+    assert abs(out["median"] - 0.035) < 1e-9                 # median of 0.03, 0.04, 0.04, 0.03
+    assert rm.toe_errors(markers, ref, [2]) == {"median": None, "n": 0}

@@ -1,16 +1,21 @@
 """From poses to motion on the anatomically real ``body`` subject: identities over time, left and
 right, and the full skeleton against the rig joints of the ground truth.
 
-    python benchmarks/tracking.py [--walk-frames 40] [--random-frames 60] [--out benchmarks/results]
-                                  [--work DIR] [--dev] [--only walk|random]
+    python benchmarks/tracking.py [--walk-frames 40] [--random-frames 60] [--smooth-frames 60]
+                                  [--out benchmarks/results] [--work DIR] [--dev]
+                                  [--only walk|random-smooth|random]
 
 One per-frame run per sequence (confidence gate on); every figure is then measured twice, with
 the gate on (``tracking.*``) and off (``tracking_nogate.*``: the frames only the gate rejected
 count as matched — the gate judges a frame after its alignment and changes nothing else).
 
 Sequences (100³, 8 cameras, noise 1, 640×480): ten walks of 40 frames with builds average /
-lean / heavy / random / child (seeds 1–10) and three sequences of unrelated random poses
-(seeds 11–13, builds average / random / lean). Every figure
+lean / heavy / random / child (seeds 1–10); three sequences of random motion, 60 frames
+(``motion="random-smooth"``: a continuous motion through random poses, keyframes every
+0.8–1.5 s eased into each other, the subject turning and drifting through the volume; seeds
+14–16, builds average / random / lean; held out, no development seeds: nothing is tuned on
+them); and three sequences of unrelated random poses (``motion="random"``: each frame a new
+pose, placement and heading; seeds 11–13, builds average / random / lean). Every figure
 is measured beside its peer in the same run:
 
 * **identity switches** of the numbered parts (hand_1/hand_2, foot_1/foot_2) per 500 frames:
@@ -18,8 +23,9 @@ is measured beside its peer in the same run:
   ``track`` (:mod:`topopose.pose.track`) against the raw per-frame numbering. Counted on all
   matched frames (a misplaced part counts too) and on the frames where both parts are placed
   right (``evaluate``: within the tolerance); and the parts the tracker *held* (misplaced by the
-  per-frame result: placed at their prediction, flagged ``predicted``). Unrelated random poses
-  have no identity over time: there the per-frame identity is the side name (chirality).
+  per-frame result: placed at their prediction, flagged ``predicted``). Walks and random motion
+  are continuous; unrelated random poses have no identity over time: there the per-frame
+  identity is the side name (chirality).
 * **chirality**: per matched frame and mirror pair, right (left_X nearer gt's left limb than
   right_X, both summed; a pair with one part found: that part), wrong, or unsure (numbered
   names kept, or no part found); with time (tracking segments) against a single frame; and
@@ -65,8 +71,9 @@ frames whose per-frame pose is right, beside the real recording's against Pose2S
 phantom volume explains the real recording's error; thesis §13.3.1).
 
 The per-frame matching on the body is being improved elsewhere (issue 11): figures are as the
-per-frame result is, misses included. Writes ``tracking.md``, ``tracking.json`` and
-``tracking.png`` (a walking sequence: joints over time), and the same with the gate off.
+per-frame result is, misses included. Writes ``tracking.md``, ``tracking.json``,
+``tracking.png`` (a walking sequence: joints over time) and ``tracking_smooth.png`` (the first
+random-motion sequence), and the same with the gate off.
 """
 import argparse
 import json
@@ -81,7 +88,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine  # noqa: E402
 
 from topopose.capture import load_capture  # noqa: E402
-from topopose.capture.synth import synthetic_capture, write_capture  # noqa: E402
+from topopose.capture.synth import SMOOTH, synthetic_capture, write_capture  # noqa: E402
 from topopose.pose import run  # noqa: E402
 from topopose.pose.chirality import assign_sides  # noqa: E402
 from topopose.pose.kinematic_fit import (BONE_QUANTILE, fit_sequence,  # noqa: E402
@@ -96,7 +103,13 @@ from topopose.pose.track import gated_only, track  # noqa: E402
 # of a few metres. Ten walks of 40 frames = 400 frames; identity switches are scaled to 500.
 SEQUENCES = ([("walk", s, b) for s, b in zip(range(1, 11), ["average", "lean", "heavy", "random",
                                                             "child"] * 2)]
+             + [(SMOOTH, 14, "average"), (SMOOTH, 15, "random"), (SMOOTH, 16, "lean")]
              + [("random", 11, "average"), ("random", 12, "random"), ("random", 13, "lean")])
+# report order and titles of the motions
+MOTION_TITLES = {"walk": "walk",
+                 SMOOTH: "random motion (continuous, through random poses: `random-smooth`)",
+                 "random": "unrelated random poses (each frame a new pose)"}
+ROW_LABELS = {"walk": "walk", SMOOTH: "random motion", "random": "unrelated random poses"}
 RIG = {"neck": ("Neck_head",), "skull": ("Head_head",),
        "pelvis": ("LeftUpLeg_head", "RightUpLeg_head"),
        "shoulder": ("LeftArm_head", "RightArm_head"), "elbow": ("LeftForeArm_head", "RightForeArm_head"),
@@ -386,7 +399,7 @@ def bias_sequence(work, motion, seed, build, frames, model, setup):
 def _by_setup(rows, setups):
     """(set-up, motion, its rows) for each set-up and motion that has rows."""
     for st in setups:
-        for motion in ("walk", "random"):
+        for motion in MOTION_TITLES:
             rs = [r for r in rows if r["setup"] == st and r["motion"] == motion]
             if rs:
                 yield st, motion, rs
@@ -690,7 +703,7 @@ def analyse(raw, cap, model):
 
 
 def picture(path, seq_dir, poses, tree, gt, model):
-    """Joints over time of a walking sequence: stick figures (side view) and ankle heights."""
+    """Joints over time of a sequence (a walk, a random motion): stick figures (side view) and ankle heights."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -799,17 +812,23 @@ def real_mpjpe(poses_path, trc_path):
     return {"frames": r["frames"], "mpjpe": r["mpjpe"], "per_joint": r["per_joint"]}
 
 
+def frames_of(a, motion):
+    """The frames of a sequence of ``motion`` (the command line's ``--*-frames``)."""
+    return {"walk": a.walk_frames, SMOOTH: a.smooth_frames}.get(motion, a.random_frames)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--walk-frames", type=int, default=40)
     ap.add_argument("--random-frames", type=int, default=60)
+    ap.add_argument("--smooth-frames", type=int, default=60)
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     ap.add_argument("--work", default=None, help="keep the captures here (default: a temp dir)")
     ap.add_argument("--real-poses", default=None,
                     help="poses.jsonl of `topopose run` on the real recording (Pose2Sim balancing)")
     ap.add_argument("--real-trc", default=None,
                     help="its reference/pose2sim_3d.trc (Pose2Sim's 3D result)")
-    ap.add_argument("--only", choices=("walk", "random"), default=None,
+    ap.add_argument("--only", choices=tuple(MOTION_TITLES), default=None,
                     help="only the walks or only the random-motion sequences (while developing; the "
                          "report then holds those only)")
     ap.add_argument("--dev", action="store_true",
@@ -836,7 +855,7 @@ def main(argv=None):
         rows = []
         for st in setups:
             for motion, seed, build in seqs:
-                n = a.walk_frames if motion == "walk" else a.random_frames
+                n = frames_of(a, motion)
                 rows.append(bias_sequence(work, motion, seed, build, n, model, st))
                 print(json.dumps({k: rows[-1][k] for k in ("setup", "motion", "seed", "good")}
                                  | {"mpjpe": rows[-1]["fit"]["mpjpe"][0]}), flush=True)
@@ -852,10 +871,11 @@ def main(argv=None):
         return
     rows = {True: [], False: []}
     pic = {True: None, False: None}
+    pic_smooth = {True: None, False: None}      # a random-motion sequence: tracking*_smooth.png
     for motion, seed, build in seqs:
         if a.only and motion != a.only:
             continue
-        n = a.walk_frames if motion == "walk" else a.random_frames
+        n = frames_of(a, motion)
         both = one_sequence(work, motion, seed, build, n, model, a.setup)
         for gate, (r, d, sided, tree) in both.items():
             rows[gate].append(r)
@@ -864,6 +884,8 @@ def main(argv=None):
                   flush=True)
             if motion == "walk" and (pic[gate] is None or r["good"] > pic[gate][0]):
                 pic[gate] = (r["good"], d, sided, tree)
+            if motion == SMOOTH and pic_smooth[gate] is None:
+                pic_smooth[gate] = (r["good"], d, sided, tree)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     real = None
@@ -877,6 +899,10 @@ def main(argv=None):
         if pic[gate] is not None:
             p = pic[gate]
             picture(out / f"tracking{suffix}.png", p[1], p[2], p[3], load_capture(p[1]).gt, model)
+        if pic_smooth[gate] is not None:
+            p = pic_smooth[gate]
+            picture(out / f"tracking{suffix}_smooth.png", p[1], p[2], p[3], load_capture(p[1]).gt,
+                    model)
         info = machine(resolution=100, cameras=SETUPS[a.setup][0], noise=SETUPS[a.setup][2],
                        subject="body", confidence_gate=gate and a.setup == "8",
                        layout=SETUPS[a.setup][3],
@@ -937,7 +963,8 @@ def report(rows, info, real=None):
     for r in rows:
         k = 500.0 / r["frames"]
         fit, init, bef, mf = r["mpjpe_fit"], r["mpjpe_init"], r["mpjpe_before"], r["mpjpe_main"]
-        L.append(f"| {r['motion']} s{r['seed']} {r['build']} | {r['frames']} | {r['matched']} | "
+        L.append(f"| {ROW_LABELS[r['motion']]} s{r['seed']} {r['build']} | {r['frames']} | "
+                 f"{r['matched']} | "
                  f"{r['good']} | {r['switches_raw'] * k:.1f} → {r['switches_tracked'] * k:.1f} | "
                  f"{r['switches_raw_good'] * k:.1f} → {r['switches_tracked_good'] * k:.1f} | "
                  f"{r['held']} | {_rate(r['chirality_time'])} | {_rate(r['chirality_single'])} | "
@@ -945,7 +972,7 @@ def report(rows, info, real=None):
                  f"{'–' if bef[0] is None else f'{100 * bef[0]:.1f} cm'} | "
                  f"{'–' if init[0] is None else f'{100 * init[0]:.1f} cm'} | "
                  f"{'–' if mf[0] is None else f'{100 * mf[0]:.1f} cm'} |")
-    for motion in ("walk", "random"):
+    for motion in MOTION_TITLES:
         rs = [r for r in rows if r["motion"] == motion]
         if not rs:
             continue
@@ -986,7 +1013,7 @@ def report(rows, info, real=None):
         pooled_main = [x for r in rs for x in r["mpjpe_main"][3]]
         held = sum(r["held"] for r in rs)
         wrong = sum(r["chirality_time"]["wrong"] for r in rs)
-        if motion == "walk":
+        if motion != "random":
             ident = (f"- identity switches per 500 frames (all matched frames): raw {sw_r:.1f}, "
                      f"tracked {sw_t:.1f} (target ≤ 1); on good frames, tracked {sw_tg:.1f}; "
                      f"{held} part-frames held (misplaced by the per-frame result, placed at "
@@ -999,7 +1026,7 @@ def report(rows, info, real=None):
                      "side names per 500 frames (the chirality below). For the record, switches "
                      f"of the numbered parts per 500 frames: raw {sw_r:.1f}, tracked {sw_t:.1f}; "
                      f"{held} part-frames held")
-        L += ["", f"## {motion}: {frames} frames, {sum(r['matched'] for r in rs)} matched, "
+        L += ["", f"## {MOTION_TITLES[motion]}: {frames} frames, {sum(r['matched'] for r in rs)} matched, "
               f"{sum(r['good'] for r in rs)} good", "", ident,
               f"- chirality on matched frames × pairs: with time {_rate(ct)}; single frame {_rate(cs)}"
               f" (target ≥ {95 if motion == 'walk' else 90} %); counting a pair right only with "

@@ -253,8 +253,10 @@ HELP = {
     ("synth", "--subject"): "synthetic subject (default %(default)s)",
     ("synth", "--frames"): "number of frames (default %(default)s)",
     ("synth", "--cameras"): "number of cameras on a ring around the volume (default %(default)s)",
-    ("synth", "--motion"): "random poses, or a smooth gait (walk: human, dog, spider; trot: dog; "
-                           "grasp: hand)",
+    ("synth", "--motion"): "random: an unrelated random pose each frame; random-smooth (human, "
+                           "body): a continuous motion through random poses, eased between "
+                           "keyframes every 0.8-1.5 s; or a smooth gait (walk: human, dog, "
+                           "spider; trot: dog; grasp: hand)",
     ("hull", "--out"): "volume file to write (.npz)",
     ("skeleton", "volume"): "volume file (.npz) written by `topopose hull`",
     ("skeleton", "--method"): "thinning: d6i1d (curve skeleton, the pipeline's), pkd6, d6u "
@@ -332,7 +334,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--cameras", type=int, default=8)
     s.add_argument("--size", type=_size, default=(640, 480), help="image size WxH")
     s.add_argument("--noise", type=int, default=0, help="silhouette noise level 0-3")
-    s.add_argument("--motion", choices=["random", "walk", "trot", "grasp"], default="random")
+    s.add_argument("--motion", choices=["random", "random-smooth", "walk", "trot", "grasp"],
+                   default="random")
     s.add_argument("--thickness", type=float, default=1.0, help="limb thickness factor (dress, coat)")
     s.add_argument("--separated", action="store_true",
                    help="random poses only: no two non-adjacent limbs touch")

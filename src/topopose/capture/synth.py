@@ -2,8 +2,9 @@
 
 The test data of every stage and of ``topopose demo``: no download anywhere. A subject
 (:mod:`.synth_subjects`: human, hand, dog, spider; :mod:`.synth_body`: body, the MakeHuman mesh
-posed by skinning, rasterized exactly) is posed — random plausible poses per frame, or
-a smooth gait (``walk``, ``trot``, ``grasp``) — placed in the capture volume, and seen by a ring
+posed by skinning, rasterized exactly) is posed — random plausible poses per frame, a
+continuous motion through random poses (``random-smooth``), or a smooth gait (``walk``, ``trot``,
+``grasp``) — placed in the capture volume, and seen by a ring
 of calibrated cameras. Silhouettes are exact images of the union of round cones and ellipsoids,
 lens distortion included (:mod:`.synth_geometry`). Optional silhouette noise (levels 1–3: border
 erosion/dilation, false blobs, holes) and a thickness factor (thick coat; a dress above 1.3)
@@ -47,7 +48,8 @@ from .camera import Camera
 from .capture import Capture
 from .synth_geometry import ray_table, render
 from .synth_body import MeshBody, body_balance, body_random, make_build, pose_body
-from .synth_subjects import BUILD, GAIT, MOTIONS, PARTS, RANDOM, SUBJECTS, human_walk, rz, ry
+from .synth_subjects import (BUILD, GAIT, HUMAN_DEFAULT, MOTIONS, PARTS, RANDOM, SUBJECTS,
+                             human_walk, rz, ry)
 
 # the body subject (:mod:`.synth_body`) poses the MakeHuman mesh with the capsule human's angles;
 # its build (proportions) is chosen per capture, see synthetic_capture
@@ -317,6 +319,96 @@ def _motion_frames(subject, motion, n, fps, rng, thickness, vlo, vhi, margin, bu
     return [b.transformed(np.eye(3), off) for b in bodies], vlo, vhi
 
 
+# ``random-smooth`` (:func:`_smooth_frames`): a keyframe every KEY_INTERVAL seconds (drawn per
+# interval), the root moved by at most KEY_DRIFT m per horizontal axis and the heading turned by
+# at most KEY_TURN degrees from one keyframe to the next; the keyframe poses are the successive
+# draws of the subject's random poses from np.random.default_rng([seed, POSE_STREAM])
+SMOOTH = "random-smooth"
+KEY_INTERVAL = (0.8, 1.5)
+KEY_DRIFT = 0.4
+KEY_TURN = 90.0
+POSE_STREAM = 11
+
+
+def min_jerk(u):
+    """Minimum-jerk easing ``10u³ − 15u⁴ + 6u⁵`` of ``u`` in [0, 1]: from 0 to 1 with zero
+    velocity and acceleration at both ends, so a motion eased from keyframe to keyframe has
+    continuous velocities (zero at the keyframes); its largest slope is 1.875, at u = ½."""
+    u = np.asarray(u, float)
+    return u ** 3 * (10.0 - 15.0 * u + 6.0 * u ** 2)
+
+
+def smooth_keyframes(n, fps, rng) -> list[int]:
+    """Keyframe frame indices of a ``random-smooth`` sequence of ``n`` frames: 0, then steps of
+    ``round(uniform(KEY_INTERVAL) × fps)`` frames (at least 2) until the last frame is reached
+    (the last keyframe may lie beyond it)."""
+    keys = [0]
+    while keys[-1] < n - 1:
+        keys.append(keys[-1] + max(2, int(round(rng.uniform(*KEY_INTERVAL) * fps))))
+    return keys
+
+
+def ease_keyframes(values, keys, n) -> np.ndarray:
+    """Values (K, ...) given at the keyframes ``keys`` → per frame 0 … n-1, eased from keyframe
+    to keyframe by :func:`min_jerk` (a keyframe's frame gets its value exactly)."""
+    values = np.asarray(values, float)
+    out = np.empty((n,) + values.shape[1:])
+    for k in range(len(keys) - 1):
+        a, b = keys[k], keys[k + 1]
+        f = np.arange(a, min(b, n))
+        s = min_jerk((f - a) / (b - a)).reshape((-1,) + (1,) * (values.ndim - 1))
+        out[f] = values[k] + (values[k + 1] - values[k]) * s
+    if keys[-1] <= n - 1:
+        out[keys[-1]] = values[-1]
+    return out
+
+
+def _smooth_frames(subject, n, fps, rng, seed, thickness, vlo, vhi, margin, build=None):
+    """A continuous motion through random poses (``motion="random-smooth"``, human and body):
+    keyframe poses drawn as ``random`` draws them, joint angles, heading and root position
+    eased between keyframes (:func:`min_jerk`), the body grounded in every frame. Each
+    keyframe's root position is drawn (a drift of at most KEY_DRIFT from the previous one)
+    inside every adjacent frame's feasible box (the positions keeping that frame's posed body
+    inside the volume): between two keyframes the root moves on a segment, so every frame
+    fits. A pose too wide or too tall for the volume grows it (written to capture.toml), as
+    the walk does."""
+    build, sample = build or BUILD[subject], RANDOM[subject]
+    keys = smooth_keyframes(n, fps, rng)
+    prng = np.random.default_rng([int(seed), POSE_STREAM])
+    kposes = [{**HUMAN_DEFAULT, **sample(prng)} for _ in keys]
+    names = sorted(kposes[0])
+    angles = ease_keyframes([[p[a] for a in names] for p in kposes], keys, n)
+    yaw = [rng.uniform(0, 360)]
+    for _ in keys[1:]:
+        yaw.append(yaw[-1] + rng.uniform(-KEY_TURN, KEY_TURN))
+    yaws = ease_keyframes(yaw, keys, n)
+    bodies, boxes = [], []
+    for f in range(n):
+        pose = {a: float(x) for a, x in zip(names, angles[f])}
+        body = _grounded(build(pose, thickness).transformed(rz(yaws[f]), np.zeros(3)), subject)
+        lo, hi = body.extent()
+        bodies.append(body)
+        boxes.append((vlo[:2] + margin - lo[:2], vhi[:2] - margin - hi[:2]))
+    pos = []
+    for k, key in enumerate(keys):
+        near = range(keys[max(k - 1, 0)], min(keys[min(k + 1, len(keys) - 1)], n - 1) + 1)
+        blo = np.max([boxes[f][0] for f in near], axis=0)
+        bhi = np.min([boxes[f][1] for f in near], axis=0)
+        bhi = np.where(blo > bhi, (blo + bhi) / 2, bhi)      # too wide: the middle (grown below)
+        blo = np.minimum(blo, bhi)
+        if not pos:
+            pos.append(rng.uniform(blo, bhi))
+        else:
+            pos.append(np.clip(pos[-1] + rng.uniform(-KEY_DRIFT, KEY_DRIFT, 2), blo, bhi))
+    xy = ease_keyframes(pos, keys, n)
+    bodies = [b.transformed(np.eye(3), [x, y, 0.0]) for b, (x, y) in zip(bodies, xy)]
+    ext = np.array([b.extent() for b in bodies])
+    lo, hi = ext[:, 0].min(0), ext[:, 1].max(0)
+    vlo, vhi = vlo.copy(), np.maximum(vhi, hi + margin)      # grounded: the floor stays
+    vlo[:2] = np.minimum(vlo[:2], lo[:2] - margin)
+    return bodies, vlo, vhi, keys
+
+
 def subject_height(subject, thickness=1.0) -> float:
     """The normalizing height of gt.json: human standing height, others their largest extent
     (body: the height of its ``average`` build; a body capture records its own build's height)."""
@@ -356,8 +448,16 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
     size : (w, h)
     noise : 0..3
         Silhouette noise level (:func:`add_noise`).
-    motion : "random" | "walk" | "trot" | "grasp"
-        ``random``: independent random plausible poses per frame, random placement and yaw.
+    motion : "random" | "random-smooth" | "walk" | "trot" | "grasp"
+        ``random``: independent random plausible poses per frame, random placement and yaw
+        (unrelated frames: no identity over time).
+        ``random-smooth`` (human, body): a continuous motion through random poses, as a subject
+        moves in a real capture: keyframes every 0.8–1.5 s (:func:`smooth_keyframes`; frame
+        indices in ``gt["synth"]["keyframes"]``) whose poses are the successive draws of the
+        random poses from ``np.random.default_rng([seed, 11])``; joint angles, heading (turning
+        by at most 90° from keyframe to keyframe) and root position (drifting by at most
+        0.4 m per axis) eased between keyframes by :func:`min_jerk` (continuous velocities),
+        every frame inside the volume (:func:`_smooth_frames`).
         ``walk`` (human, dog, spider), ``trot`` (dog), ``grasp`` (hand): smooth gait at ``fps``,
         moving through the volume (except the hand).
     thickness : float
@@ -403,9 +503,13 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
     if subject == "body":
         props = make_build(build, rng, thickness)
         make = lambda pose, _thickness: pose_body(pose, props)  # noqa: E731
+    keys = None
     if motion == "random":
         bodies = _random_frames(subject, int(frames), rng, thickness, separated, vlo, vhi, place,
                                 limb_margin, build=make, lean=float(lean))
+    elif motion == SMOOTH:
+        bodies, vlo, vhi, keys = _smooth_frames(subject, int(frames), float(fps), rng, seed,
+                                                thickness, vlo, vhi, place, build=make)
     else:
         bodies, vlo, vhi = _motion_frames(subject, motion, int(frames), float(fps), rng, thickness,
                                           vlo, vhi, place, build=make)
@@ -448,6 +552,8 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
                     else float(bodies[0].limb_margin)}}
     if subject == "body":
         gt["synth"]["build"] = bodies[0].build
+    if keys is not None:
+        gt["synth"]["keyframes"] = [int(k) for k in keys]
     if lean:
         gt["synth"]["lean"] = float(lean)
     if layout != "ring":

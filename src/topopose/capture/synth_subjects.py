@@ -31,9 +31,10 @@ PARTS = {
     "body": ["head", "torso", "crotch", "hand_1", "hand_2", "foot_1", "foot_2"],
 }
 
-# the motions each subject can perform (besides "random")
-MOTIONS = {"human": ("walk",), "dog": ("trot", "walk"), "spider": ("walk",), "hand": ("grasp",),
-           "body": ("walk",)}
+# the motions each subject can perform (besides "random"); "random-smooth": a continuous motion
+# through random poses (:func:`topopose.capture.synth.synthetic_capture`)
+MOTIONS = {"human": ("walk", "random-smooth"), "dog": ("trot", "walk"), "spider": ("walk",),
+           "hand": ("grasp",), "body": ("walk", "random-smooth")}
 
 
 def rx(deg):

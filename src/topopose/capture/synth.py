@@ -33,7 +33,8 @@ The folder written by :func:`synthesize` is a capture folder exactly as DESIGN.m
   the working grid), ``separated`` tests distinct limbs against it and ``limb_gap`` is their
   smallest clearance; ``synth.limb_margin`` records it.
 
-``gt["synth"]`` records the generator's arguments.
+``gt["synth"]`` records the generator's arguments (``random-smooth``: also ``keyframes``, the
+keyframes' frame indices).
 """
 from __future__ import annotations
 

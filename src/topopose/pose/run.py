@@ -347,7 +347,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     if (track or sides or skeleton or consistency) and todo:
         from .motion import process_sequence
         motion = process_sequence(poses, m, cap.up_vector, track=track, sides=sides,
-                                  skeleton=skeleton, smooth=smooth, consistency=consistency)
+                                  skeleton=skeleton, smooth=smooth, consistency=consistency,
+                                  capture=cap)
         poses = motion.poses
         if out is not None:
             write_poses(out, poses, header)

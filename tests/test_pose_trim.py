@@ -159,3 +159,19 @@ def test_views_take_the_small_maps_of_upsampled_masks():
     assert np.allclose(cams[0].project(H[None]), (CAMS[0].project(H[None]) - 0.5) / 2, atol=1e-9)
     out = trim_sequence([_pose(E)], cap)       # half the pixels: a pixel is 1.6 cm there
     assert np.linalg.norm(out[0].parts["hand_1"] - H) < 0.08 < np.linalg.norm(E - H) / 2
+
+
+def test_process_sequence_trims_only_with_a_capture():
+    from topopose.pose.model import load_model
+    from topopose.pose.motion import process_sequence
+
+    m = load_model("human")
+    up = np.array([0.0, 0.0, 1.0])
+    cap = _Capture(_render())
+    kw = dict(track=False, sides=False, skeleton=False)
+    a = process_sequence([_pose(E)], m, up, capture=cap, **kw)
+    assert "trim" in a.stages and a.poses[0].diagnostics["trimmed"] == ["hand_1"]
+    b = process_sequence([_pose(E)], m, up, **kw)
+    c = process_sequence([_pose(E)], m, up, capture=cap, trim=False, **kw)
+    for r in (b, c):
+        assert "trim" not in r.stages and np.allclose(r.poses[0].parts["hand_1"], E)

@@ -373,7 +373,7 @@ def main(argv=None):
                                                             if r["consistency"]])}
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.with_suffix(".json").write_text(json.dumps(doc, separators=(",", ":"))   # one row per wrong part: compact)
+    out.with_suffix(".json").write_text(json.dumps(doc, separators=(",", ":")))   # compact rows
     L = ["# Why the 4-camera synthetic walks are wrong: the phantom extension", "",
          f"{machine_line(doc['machine'])}. Written by `benchmarks/phantom.py`; development "
          f"seeds {', '.join(map(str, seeds))}, {a.frames} frames each, poses as the run writes "

@@ -393,7 +393,8 @@ def main(argv=None):
             kd = s["kinds"]
             L.append(f"| {k} | {s['n']} | {kd.get('phantom extension', 0)} | "
                      f"{kd.get('beyond (other)', 0)} | {kd.get('swap', 0)} | "
-                     f"{kd.get('short', 0)} | {kd.get('other', 0)} | {s['beyond']} | {s['phantom']} | {s['aligned']} | "
+                     f"{kd.get('short', 0)} | {kd.get('other', 0)} | {s['beyond']} | "
+                     f"{s['phantom']} | {s['aligned']} | "
                      f"{s['error_median'] if s['error_median'] is not None else '–'} |")
         fk = frame_kinds(d["rows"])
         L += ["", f"Wrong frames ({sum(fk['all'].values())}) by status "

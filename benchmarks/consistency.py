@@ -95,11 +95,12 @@ def right_frames(poses, gt, model) -> list:
     return [q.get(p.frame) in TP_CLASSES for p in ps]
 
 
-def as_run(poses, model, up):
-    """The sequence stages of ``topopose run`` (track, skeleton, sides), consistency off."""
+def as_run(poses, model, up, capture=None):
+    """The sequence stages of ``topopose run`` (track, skeleton, sides; the hands' trim with
+    ``capture``, as the run gives it), consistency off."""
     from topopose.pose.motion import process_sequence
 
-    return process_sequence(copy.deepcopy(poses), model, up).poses
+    return process_sequence(copy.deepcopy(poses), model, up, capture=capture).poses
 
 
 def judged(poses, model, settings):

@@ -204,15 +204,16 @@ def confidence_curve(rows, precisions=(1.0, 0.95, 0.9, 0.8, 0.75, 0.7, 0.0)) -> 
     return out
 
 
-def as_run(poses, model, up, min_confidence, consistency=False) -> list:
+def as_run(poses, model, up, min_confidence, consistency=False, capture=None) -> list:
     """The poses as ``topopose run`` writes them (:func:`topopose.pose.run.run`): the confidence
     gate's decision at ``min_confidence`` unless None (the run's default gate,
     :func:`~topopose.pose.estimate.default_gate`, at its minimum for the camera count; a frame
     rejected for its AHA distance that the gate judged too gets the gate's reason after it,
     as ``confidence.judge_frame`` writes it), then
     :func:`~topopose.pose.motion.process_sequence` (track, skeleton, sides; ``consistency``:
-    ``topopose run --consistency``), the mirror names turned back into numbered parts for
-    scoring. ``poses`` are left as they are."""
+    ``topopose run --consistency``; ``capture``: the hands' trim, as the run does it), the
+    mirror names turned back into numbered parts for scoring. ``poses`` are left as they
+    are."""
     import copy
 
     from topopose.pose.chirality import numbered
@@ -231,7 +232,7 @@ def as_run(poses, model, up, min_confidence, consistency=False) -> list:
             elif distance_only(p.error) and c is not None:
                 p.error += f"; confidence {round(c, 2)} below {min_confidence:g}"
     motion = process_sequence(ps, model, up, track=True, sides=True, skeleton=True,
-                              consistency=consistency)
+                              consistency=consistency, capture=capture)
     return [numbered(p, model) for p in motion.poses]
 
 
@@ -325,15 +326,17 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     idx = {f: i for i, f in enumerate(cap.frames)}
     mc = est.min_confidence                   # the run's minimum for this camera count
     res = summarize(poses, ref, idx, mc)
-    run_poses = as_run(poses, est.model, cap.up_vector, mc if default_gate(cap) else None)
+    run_poses = as_run(poses, est.model, cap.up_vector, mc if default_gate(cap) else None,
+                       capture=cap)
     res["as_run"] = summarize(run_poses, ref, idx, mc)
+    res["as_run"]["trimmed"] = sum(bool(p.diagnostics.get("trimmed")) for p in run_poses)
     res["as_run"]["predicted"] = sum(bool(p.diagnostics.get("predicted")) for p in run_poses)
     res["as_run"]["snapped"] = sum(bool(p.diagnostics.get("snapped")) for p in run_poses)
     # ``topopose run --consistency`` (topopose.pose.consistency): matched by the run's own
     # consistency instead of the confidence's absolute minimum
     temporal_confidence(sup_poses, idx, gate=False)
     cons = as_run(sup_poses, est.model, cap.up_vector, mc if default_gate(cap) else None,
-                  consistency=True)
+                  consistency=True, capture=cap)
     res["as_run_consistency"] = summarize(cons, ref, idx, mc)
     stages = {}
     for p in poses[1:]:

@@ -156,7 +156,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
         tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None, track=True,
         sides=True, skeleton=True, smooth=None, bvh=None, consistency=False,
-        support=None, support_test=False) -> RunResult:
+        support=None, support_test=False, trim=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -203,6 +203,10 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         Fit the full kinematic skeleton (:mod:`topopose.pose.kinematic_fit`): ``Pose.joints``.
     smooth : int, optional
         Savitzky–Golay window (frames) smoothing the skeleton.
+    trim : bool, optional
+        Hands trimmed back out of the hull's phantom volume with the capture's silhouettes
+        (:mod:`topopose.pose.trim`; default :data:`topopose.pose.motion.TRIM`, on). It reads
+        each frame's silhouettes again after the per-frame run (videos: segmented again).
     bvh : path, optional
         BVH export of the fitted skeleton (Blender).
     consistency : bool or dict
@@ -347,7 +351,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     if (track or sides or skeleton or consistency) and todo:
         from .motion import process_sequence
         motion = process_sequence(poses, m, cap.up_vector, track=track, sides=sides,
-                                  skeleton=skeleton, smooth=smooth, consistency=consistency)
+                                  skeleton=skeleton, smooth=smooth, consistency=consistency,
+                                  capture=cap, trim=trim)
         poses = motion.poses
         if out is not None:
             write_poses(out, poses, header)

@@ -71,7 +71,7 @@ def relabel(pose, mapping: dict):
         d = diag.get(key)
         if isinstance(d, dict):
             diag[key] = {mapping.get(k, k): v for k, v in d.items()}
-    for key in ("missing", "predicted", "snapped"):
+    for key in ("missing", "predicted", "snapped", "trimmed"):
         if isinstance(diag.get(key), list):
             diag[key] = [mapping.get(k, k) for k in diag[key]]
     return replace(pose, parts=parts, diagnostics=diag)

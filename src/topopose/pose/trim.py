@@ -1,0 +1,196 @@
+"""Limb ends in phantom volumes of the visual hull, trimmed back to where the silhouettes'
+evidence ends (a sequence stage; issues 12 and 15).
+
+A visual hull is the largest volume consistent with the silhouettes (thesis §4.1): with few
+cameras it keeps *phantom* volume, and a limb's skeleton branch can run past the real hand
+into it — on the real 4-camera recording the right arm's branch passes the hand and continues
+through a tube in front of the chest that the two cameras seeing the hand against the
+background look along, and that the other two see inside the trunk (``results/real_hands.md``);
+on the synthetic 4-camera walks a hand's branch often continues down a thigh or along a ray
+(``results/phantom.md``). Such an extension is inside every silhouette but *explains nothing*:
+the skeleton without it covers the same silhouette pixels. Per frame and per limb end of
+:data:`STEMS`, in every camera the skeleton curves (``diagnostics["curves"]``) are projected
+with, at each curve point, the disk of its silhouette depth (the distance to the silhouette's
+border at its image: the medial-axis disks of the silhouette that curve point reaches). Walking
+back from the limb end, a curve point is *explained* when, in every camera, its disk lies inside
+(up to :data:`SLACK` projected voxels) the disk of a point of another curve or of the same curve
+at least :data:`GAP` voxels before it along the curve. The end moves back to the last point that
+is not explained (at most to :data:`MIN_FRACTION` of the curve) plus its disk's radius (the
+limb's end lies one radius past its last maximal disk; its smallest over the views, in space),
+when that is more than a voxel back; the curve is cut there, and the part is listed in
+``diagnostics["trimmed"]``. A point along the rays of the cameras that see it
+against the background and inside the trunk in the others is explained (its disk is the same as
+the one before it, or inside the trunk's); a real hand is not, in a camera that sees it beside
+the body (its disk reaches pixels no earlier point reaches).
+
+It needs the frames' silhouettes, so it runs only when the capture is given
+(:func:`topopose.pose.motion.process_sequence` ``capture``; ``topopose run`` gives it);
+the per-frame results are unchanged. Development seeds 41–50, ``benchmarks/phantom.py``.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import replace
+
+import numpy as np
+
+from .curves import N_SAMPLES, resample
+
+STEMS = ("hand",)      # limb ends whose branch is trimmed; the feet too: no better (below)
+SLACK = 1.5            # projected voxels: a disk inside another up to this is inside it
+GAP = 2.0              # voxels along the curve: a point is not explained by its own neighbours
+# SLACK / GAP: a stretch of curve within asin(SLACK / GAP) = 49° of a camera's rays adds no
+# disk in that view. Development seeds 41–50 (benchmarks/phantom.py --effect; right frames of
+# 400, set-ups 4 / 4p / 4r / 8): off 164 / 107 / 83 / 379; (SLACK, GAP) (0.75, 2) 165 / 108 / 84
+# / 379; (1.5, 2) 171 / 112 / 88 / 379; (1.75, 2) 173 / 112 / 91 / 379; (2.5, 2): every tube
+# trimmed, 128 / 72 / 62 / 359; (1.5, 3) 166 / 108 / 86; (2, 3) 170 / 110 / 89; (2.5, 4)
+# 168 / 110 / 88; hands and feet at (1.5, 2) 171 / 112 / 88. The precision of matched and of
+# --consistency never fell (4: matched 4/5 → 5/5); 8 cameras: nothing trimmed. (1.5, 2) kept
+# rather than (1.75, 2): as good within 3 frames, further from the cliff at SLACK = GAP.
+MIN_FRACTION = 0.5     # the end moves back at most to this fraction of its curve
+UPSAMPLE = 4           # curve points per stored sample while walking back
+
+
+def _stem(part: str) -> str:
+    return re.sub(r"_\d+$", "", part)
+
+
+def voxel_size(pose) -> float | None:
+    """The hull's voxel edge from the frame's diagnostics (``hull_litres`` over ``hull_voxels``,
+    litres of a capture in metres; None when they are missing)."""
+    d = pose.diagnostics
+    lit, n = d.get("hull_litres"), d.get("hull_voxels")
+    if not lit or not n:
+        return None
+    return float((float(lit) / 1000.0 / float(n)) ** (1.0 / 3.0))
+
+
+def disks(points, camera, depth):
+    """Image positions (n, 2) of ``points`` in ``camera`` and their disks' radii (n,): the
+    silhouette depth map ``depth`` (distance to the background, px) at the nearest pixel; 0
+    outside the image, NaN positions behind the camera."""
+    uv = camera.project(np.asarray(points, float))
+    rad = np.zeros(len(uv))
+    ok = np.isfinite(uv).all(axis=1)
+    x = np.full(len(uv), -1)
+    y = np.full(len(uv), -1)
+    x[ok] = np.rint(uv[ok, 0]).astype(int)
+    y[ok] = np.rint(uv[ok, 1]).astype(int)
+    inside = ok & (x >= 0) & (y >= 0) & (x < depth.shape[1]) & (y < depth.shape[0])
+    rad[inside] = depth[y[inside], x[inside]]
+    return uv, rad
+
+
+def evidence_end(curve, others, cameras, depths, voxel, slack=None, gap=None,
+                 min_fraction=None) -> tuple:
+    """Index into ``curve`` of its last point not explained (module docstring), and that
+    point's radius (capture units: its smallest disk over the views, in voxels × ``voxel``).
+
+    Parameters
+    ----------
+    curve : (n, 3) the limb's curve, from its junction to the limb end
+    others : list of (m, 3) the frame's other curves
+    cameras : list of Camera
+    depths : list of (h, w) silhouette depth maps (px to the background), one per camera
+    voxel : the hull's voxel edge (capture units)
+
+    Returns
+    -------
+    (int, float) : the index is ``n - 1`` when the end is explained by nothing else.
+    """
+    slack = SLACK if slack is None else slack
+    gap = GAP if gap is None else gap
+    min_fraction = MIN_FRACTION if min_fraction is None else min_fraction
+    c = np.asarray(curve, float)
+    n = len(c)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+    views = []
+    for cam, dep in zip(cameras, depths):
+        uv, rad = disks(c, cam, dep)
+        z = cam.to_camera(c)[:, 2]
+        px = float(cam.matrix[0, 0]) * voxel / np.maximum(z, 1e-9)   # a voxel, in px
+        other = [disks(o, cam, dep) for o in others if len(o)]
+        ouv = np.concatenate([o[0] for o in other]) if other else np.zeros((0, 2))
+        orad = np.concatenate([o[1] for o in other]) if other else np.zeros(0)
+        keep = np.isfinite(ouv).all(axis=1)
+        views.append((uv, rad, px, ouv[keep], orad[keep]))
+    def radius(j):
+        r = [rad[j] / px[j] for uv, rad, px, _, _ in views if rad[j] > 0]
+        return float(min(r) * voxel) if r else 0.0
+
+    j = n - 1
+    stop = int(min_fraction * (n - 1))
+    while j > stop:
+        before = int(np.searchsorted(s, s[j] - gap * voxel, side="right"))
+        for uv, rad, px, ouv, orad in views:
+            if not np.isfinite(uv[j]).all() or rad[j] <= 0:
+                return j, radius(j)               # outside a view: evidence we cannot judge
+            lim = rad[j] - slack * px[j]
+            d = np.linalg.norm(uv[:before] - uv[j], axis=1) + lim
+            if not (before and np.any(d <= rad[:before])):
+                d = np.linalg.norm(ouv - uv[j], axis=1) + lim
+                if not np.any(d <= orad):
+                    return j, radius(j)
+        j -= 1
+    return j, radius(j)
+
+
+def trim_pose(pose, cameras, silhouettes, stems=None, **kw):
+    """``pose`` with every limb end of ``stems`` (default :data:`STEMS`) whose curve ends in
+    unexplained volume moved back (module docstring); the pose itself when nothing moves."""
+    from scipy.ndimage import distance_transform_edt
+
+    stems = STEMS if stems is None else stems
+    curves = pose.diagnostics.get("curves") or {}
+    voxel = voxel_size(pose)
+    todo = [q for q in curves if _stem(q) in stems and pose.parts.get(q) is not None
+            and np.linalg.norm(np.asarray(curves[q][-1], float)
+                               - np.asarray(pose.parts[q], float)) < 1e-4]
+    if not todo or voxel is None:
+        return pose
+    depths = [distance_transform_edt(np.asarray(m, bool)) for m in silhouettes]
+    up = {q: resample(c, UPSAMPLE * len(c)) for q, c in curves.items()}
+    parts, new_curves, moved = dict(pose.parts), dict(curves), []
+    for q in todo:
+        others = [c for r, c in up.items() if r != q and _stem(r) != _stem(q)]
+        c = up[q]
+        j, r = evidence_end(c, others, cameras, depths, voxel, **kw)
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+        end = s[j] + r                  # the limb's end: its last disk's reach along the curve
+        if end < s[-1] - voxel:
+            cut = np.vstack([c[s < end], [np.interp(end, s, c[:, i]) for i in range(3)]])
+            new_curves[q] = np.round(resample(cut, N_SAMPLES), 5)
+            parts[q] = new_curves[q][-1].copy()
+            moved.append(q)
+    if not moved:
+        return pose
+    diag = {**pose.diagnostics, "curves": new_curves, "trimmed": moved}
+    return replace(pose, parts=parts, diagnostics=diag)
+
+
+def views(capture, frame) -> tuple:
+    """``(cameras, silhouettes)`` of one frame: ``capture.silhouettes(frame)`` and the capture's
+    cameras; a silhouette upsampled from a small probability map (``person``, ``sequence``:
+    its ``small`` attribute) is taken small, with its camera scaled to it (as the hull's
+    support, :meth:`topopose.pose.estimate.FrameEstimator.hull`)."""
+    from ..capture.background import scaled_camera
+
+    cams, sils = [], []
+    for cam, m in zip(capture.cameras, capture.silhouettes(frame)):
+        small = getattr(m, "small", None)
+        cams.append(cam if small is None else scaled_camera(cam, small.shape[1] / cam.size[0]))
+        sils.append(np.asarray(m if small is None else small, bool))
+    return cams, sils
+
+
+def trim_sequence(poses, capture, stems=None, **kw) -> list:
+    """:func:`trim_pose` on every frame with curves of ``stems``, its cameras and silhouettes
+    from ``capture`` (:func:`views`)."""
+    stems = STEMS if stems is None else stems
+    out = []
+    for p in poses:
+        curves = p.diagnostics.get("curves") or {}
+        if any(_stem(q) in stems for q in curves):
+            p = trim_pose(p, *views(capture, p.frame), stems, **kw)
+        out.append(p)
+    return out

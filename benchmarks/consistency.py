@@ -58,10 +58,11 @@ BEFORE = {"max_deviation": 0.05, "neighbours": 2, "min_rank": 0.5, "max_length_r
           "max_unexplained": None}
 
 
-def sequence(setup, seed, frames, work=None, motion="walk"):
+def sequence(setup, seed, frames, work=None, motion="walk", make=None):
     """Per-frame poses of one synthetic sequence as ``topopose run`` computes them (default
     gate, sequence stages off, the silhouette support recorded: ``run(support=True)``) and its
-    ground truth; cached in ``work`` when given."""
+    ground truth; cached in ``work`` when given. ``make``: a function returning the capture
+    (another set-up than :data:`SETUPS`)."""
     from topopose.capture.synth import synthetic_capture
     from topopose.pose import run
     from topopose.pose.pose import read_poses, write_poses
@@ -71,9 +72,12 @@ def sequence(setup, seed, frames, work=None, motion="walk"):
         g = f.with_suffix(".gt.json")
         if f.exists() and g.exists():
             return read_poses(f), json.loads(g.read_text())
-    cams, size, noise = SETUPS[setup]
-    cap = synthetic_capture("body", frames=frames, seed=seed, cameras=cams, size=size,
-                            noise=noise, motion=motion, build=BUILDS[seed % len(BUILDS)])
+    if make is not None:
+        cap = make()
+    else:
+        cams, size, noise = SETUPS[setup]
+        cap = synthetic_capture("body", frames=frames, seed=seed, cameras=cams, size=size,
+                                noise=noise, motion=motion, build=BUILDS[seed % len(BUILDS)])
     res = run(cap, model="human", resolution=100, progress=False, track=False, sides=False,
               skeleton=False, support=True)
     if work is not None:
@@ -95,12 +99,12 @@ def right_frames(poses, gt, model) -> list:
     return [q.get(p.frame) in TP_CLASSES for p in ps]
 
 
-def as_run(poses, model, up, capture=None):
-    """The sequence stages of ``topopose run`` (track, skeleton, sides; the hands' trim with
-    ``capture``, as the run gives it), consistency off."""
+def as_run(poses, model, up, trim=None):
+    """The sequence stages of ``topopose run`` (track, the hands' trim, skeleton, sides),
+    consistency off; ``trim=False``: without the trim."""
     from topopose.pose.motion import process_sequence
 
-    return process_sequence(copy.deepcopy(poses), model, up, capture=capture).poses
+    return process_sequence(copy.deepcopy(poses), model, up, trim=trim).poses
 
 
 def judged(poses, model, settings):

@@ -85,26 +85,11 @@ def capture(setup, seed, frames):
 
 def sequence(setup, seed, frames, work=None):
     """Per-frame poses and ground truth (consistency.py's :func:`consistency.sequence`, its
-    cache; the :data:`PAIRS` set-ups run the same way here)."""
+    cache; the :data:`PAIRS` set-ups through :func:`capture`)."""
     import consistency as CB
-    from topopose.pose import run
-    from topopose.pose.pose import read_poses, write_poses
 
-    if setup not in PAIRS:
-        return CB.sequence(setup, seed, frames, work)
-    if work is not None:
-        f = Path(work) / f"walk_{setup}_{seed}_support.jsonl"
-        g = f.with_suffix(".gt.json")
-        if f.exists() and g.exists():
-            return read_poses(f), json.loads(g.read_text())
-    cap = capture(setup, seed, frames)
-    res = run(cap, model="human", resolution=100, progress=False, track=False, sides=False,
-              skeleton=False, support=True)
-    if work is not None:
-        Path(work).mkdir(parents=True, exist_ok=True)
-        write_poses(f, res.poses, {})
-        g.write_text(json.dumps(cap.gt))
-    return res.poses, cap.gt
+    make = (lambda: capture(setup, seed, frames)) if setup in PAIRS else None
+    return CB.sequence(setup, seed, frames, work, make=make)
 
 
 def seg_dist(p, a, b) -> float:
@@ -293,9 +278,8 @@ def effect(setups, seeds, frames, work) -> dict:
         tot = {}
         for seed in seeds:
             poses, gt = sequence(setup, seed, frames, work)
-            cap = capture(setup, seed, frames)
-            for key, c in (("without", None), ("with", cap)):
-                ps = CB.as_run(poses, model, up, capture=c)
+            for key, trim in (("without", False), ("with", True)):
+                ps = CB.as_run(poses, model, up, trim=trim)
                 r = CB.right_frames(ps, gt, model)
                 js, _ = CB.judged(ps, model, {})
                 row = {"frames": len(ps), "right": sum(r),

@@ -204,16 +204,15 @@ def confidence_curve(rows, precisions=(1.0, 0.95, 0.9, 0.8, 0.75, 0.7, 0.0)) -> 
     return out
 
 
-def as_run(poses, model, up, min_confidence, consistency=False, capture=None) -> list:
+def as_run(poses, model, up, min_confidence, consistency=False, trim=None) -> list:
     """The poses as ``topopose run`` writes them (:func:`topopose.pose.run.run`): the confidence
     gate's decision at ``min_confidence`` unless None (the run's default gate,
     :func:`~topopose.pose.estimate.default_gate`, at its minimum for the camera count; a frame
     rejected for its AHA distance that the gate judged too gets the gate's reason after it,
     as ``confidence.judge_frame`` writes it), then
     :func:`~topopose.pose.motion.process_sequence` (track, skeleton, sides; ``consistency``:
-    ``topopose run --consistency``; ``capture``: the hands' trim, as the run does it), the
-    mirror names turned back into numbered parts for scoring. ``poses`` are left as they
-    are."""
+    ``topopose run --consistency``; ``trim=False``: without the hands' trim), the mirror names
+    turned back into numbered parts for scoring. ``poses`` are left as they are."""
     import copy
 
     from topopose.pose.chirality import numbered
@@ -232,7 +231,7 @@ def as_run(poses, model, up, min_confidence, consistency=False, capture=None) ->
             elif distance_only(p.error) and c is not None:
                 p.error += f"; confidence {round(c, 2)} below {min_confidence:g}"
     motion = process_sequence(ps, model, up, track=True, sides=True, skeleton=True,
-                              consistency=consistency, capture=capture)
+                              consistency=consistency, trim=trim)
     return [numbered(p, model) for p in motion.poses]
 
 
@@ -326,8 +325,7 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     idx = {f: i for i, f in enumerate(cap.frames)}
     mc = est.min_confidence                   # the run's minimum for this camera count
     res = summarize(poses, ref, idx, mc)
-    run_poses = as_run(poses, est.model, cap.up_vector, mc if default_gate(cap) else None,
-                       capture=cap)
+    run_poses = as_run(poses, est.model, cap.up_vector, mc if default_gate(cap) else None)
     res["as_run"] = summarize(run_poses, ref, idx, mc)
     res["as_run"]["trimmed"] = sum(bool(p.diagnostics.get("trimmed")) for p in run_poses)
     res["as_run"]["predicted"] = sum(bool(p.diagnostics.get("predicted")) for p in run_poses)
@@ -336,8 +334,13 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     # consistency instead of the confidence's absolute minimum
     temporal_confidence(sup_poses, idx, gate=False)
     cons = as_run(sup_poses, est.model, cap.up_vector, mc if default_gate(cap) else None,
-                  consistency=True, capture=cap)
+                  consistency=True)
     res["as_run_consistency"] = summarize(cons, ref, idx, mc)
+    # the same without the hands' trim (topopose.pose.trim), its peer in this run
+    for key, cons_on in (("as_run_no_trim", False), ("as_run_consistency_no_trim", True)):
+        ps = as_run(sup_poses if cons_on else poses, est.model, cap.up_vector,
+                    mc if default_gate(cap) else None, consistency=cons_on, trim=False)
+        res[key] = summarize(ps, ref, idx, mc)
     stages = {}
     for p in poses[1:]:
         for k, v in p.timings_ms.items():
@@ -607,6 +610,23 @@ def report(doc) -> str:
     L += _table(["silhouettes", "right as `run` writes it", "matched (confidence gate)",
                  "precision (gate)", "matched (consistency)",
                  "precision (consistency; target ≥ 95 %)"], rows)
+    L += ["", "## The hands' trim (`topopose.pose.trim`, on by default) against its peer", "",
+          "The same run's poses as `run` writes them, without the trim (`run --no-trim`) → with it "
+          "(hands moved back out of the hull's phantom volume: frames trimmed).", ""]
+    rows = []
+    for name, r in doc["methods"].items():
+        a, c = r.get("as_run"), r.get("as_run_consistency")
+        a0, c0 = r.get("as_run_no_trim"), r.get("as_run_consistency_no_trim")
+        if None in (a, c, a0, c0):
+            continue
+        pc = ["—" if x["matched_precision"] is None else f"{100 * x['matched_precision']:.0f} %"
+              for x in (c0, c)]
+        rows.append([name, a.get("trimmed", 0),
+                     f"{100 * a0['right_share']:.0f} % → {100 * a['right_share']:.0f} %",
+                     f"{a0['errors']['hand']['p90']} → {a['errors']['hand']['p90']}",
+                     f"{c0['matched']} at {pc[0]} → {c['matched']} at {pc[1]}"])
+    L += _table(["silhouettes", "frames trimmed", "right as `run` writes it", "hands p90 (m)",
+                 "`--consistency`: matched, precision"], rows)
     L += ["", "## Precision of `matched` against recall", "",
           "How many right frames a confidence gate lets through (per frame, as the first table): "
           "the lowest threshold on the frame's confidence whose passing frames are right in at "

@@ -254,7 +254,7 @@ def run_recording(rec: Path, work: Path, raw_path=None):
     t_frames = None if reused else round(time.perf_counter() - t0, 2)
     raw = sorted(raw, key=lambda p: p.frame)
     t0 = time.perf_counter()
-    motion = process_sequence(raw, model, cap.up_vector, capture=cap)   # as topopose run
+    motion = process_sequence(raw, model, cap.up_vector)      # as topopose run
     t_motion = time.perf_counter() - t0
     trc_path = work / "motion.trc"
     write_trc(trc_path, motion.poses, marker_names(motion.poses, model.parts),

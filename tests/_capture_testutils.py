@@ -23,6 +23,15 @@ def look_at(center, target, up=(0, 0, 1)):
     return np.stack([x, y, z])
 
 
+def camera_at(centre, name, size=(640, 480), f=500.0):
+    """A pinhole camera at ``centre`` looking at the world origin (z up), its principal point
+    at the image centre."""
+    c = np.asarray(centre, float)
+    R = look_at(c, (0.0, 0.0, 0.0))
+    K = [[f, 0, size[0] / 2], [0, f, size[1] / 2], [0, 0, 1]]
+    return Camera(name, size, K, [0, 0, 0, 0], cv2.Rodrigues(R)[0].ravel(), -R @ c)
+
+
 def ring(n=8, radius=3.0, height=1.2, target=(0, 0, 0.9), size=(640, 480), f=800.0,
          dist=(0, 0, 0, 0), fisheye=False, tilt_every=2):
     """``n`` cameras on a circle around ``target``; every other one a bit higher."""

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 
-from topopose.capture.camera import Camera
+from _capture_testutils import camera_at
 
 
 def _phantom():
@@ -22,23 +22,12 @@ def _phantom():
     return mod
 
 
-def _look_at(centre, name):
-    """A 640×480 camera at ``centre`` looking at the origin (world z up)."""
-    C = np.asarray(centre, float)
-    f = -C / np.linalg.norm(C)
-    right = np.cross(f, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    R = np.stack([right, np.cross(f, right), f])
-    K = [[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]
-    return Camera(name, (640, 480), K, [0, 0, 0, 0], cv2.Rodrigues(R)[0].ravel(), -R @ C)
-
-
 def _scene():
     """Cameras on ±x (a facing pair) and ±y; the true hand at T. The ±x cameras see only a
     small blob around T's image (the hand against the background: T 2 px from the border); the
     ±y cameras see a wide trunk rectangle around both T and the phantom end (deep inside)."""
-    cams = [_look_at([4, 0, 0], "x+"), _look_at([0, 4, 0], "y+"),
-            _look_at([-4, 0, 0], "x-"), _look_at([0, -4, 0], "y-")]
+    cams = [camera_at([4, 0, 0], "x+"), camera_at([0, 4, 0], "y+"),
+            camera_at([-4, 0, 0], "x-"), camera_at([0, -4, 0], "y-")]
     T = np.array([0.0, 0.2, 0.1])
     dts = []
     for cam in cams:

@@ -5,28 +5,16 @@ every silhouette: phantom volume), or a real forearm that is rendered."""
 import cv2
 import numpy as np
 
-from topopose.capture.camera import Camera
+from _capture_testutils import camera_at
 from topopose.pose.pose import Pose
-from topopose.pose.trim import evidence_end, trim_pose, trim_sequence
+from topopose.pose.trim import apply_trim, evidence_end, trim_pose, trimmed_curves
 
 J = np.array([0.0, 0.0, 0.2])          # the curves' junction (chest)
 A = np.array([0.1, 0.25, 0.6])         # the arm's top, above the trunk, in front of it
 H = np.array([0.1, 0.25, 0.1])         # the real hand, in front of the chest
 E = np.array([-0.1, 0.25, 0.1])        # the phantom end: along the ±x rays, before the trunk
-
-
-def _look_at(centre, name):
-    C = np.asarray(centre, float)
-    f = -C / np.linalg.norm(C)
-    right = np.cross(f, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    R = np.stack([right, np.cross(f, right), f])
-    K = [[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]
-    return Camera(name, (640, 480), K, [0, 0, 0, 0], cv2.Rodrigues(R)[0].ravel(), -R @ C)
-
-
-CAMS = [_look_at([4, 0, 0.1], "x+"), _look_at([0, 4, 0.1], "y+"), _look_at([-4, 0, 0.1], "x-"),
-        _look_at([0, -4, 0.1], "y-")]
+CAMS = [camera_at([4, 0, 0.1], "x+"), camera_at([0, 4, 0.1], "y+"),
+        camera_at([-4, 0, 0.1], "x-"), camera_at([0, -4, 0.1], "y-")]
 
 
 def _cylinder(a, b, r, step=0.005):
@@ -118,33 +106,29 @@ def test_evidence_end_on_dense_curves():
     assert np.linalg.norm(_polyline(J, A, H, n=64)[j] - H) < 0.06 and j > 55
 
 
-class _Capture:
-    cameras = CAMS
-
-    def __init__(self, sils):
-        self.sils = sils
-        self.asked = []
-
-    def silhouettes(self, frame):
-        self.asked.append(frame)
-        return self.sils
-
-
-def test_trim_sequence_reads_only_frames_with_hand_curves():
-    sils = _render()
-    a = _pose(E)
-    b = Pose("000001", "matched", 1.0, {"torso": J}, diagnostics={})
-    cap = _Capture(sils)
-    out = trim_sequence([a, b], cap)
-    assert cap.asked == ["000000"]
-    assert out[1] is b and out[0].diagnostics["trimmed"] == ["hand_1"]
+def test_apply_trim_moves_only_a_part_still_at_its_curve_end():
+    """The sequence stage applies what the frame recorded, once the identities are settled: a
+    part the tracking moved elsewhere (held, snapped) keeps its place and curve."""
+    p = _pose(E)
+    cut = trimmed_curves(p.diagnostics["curves"], p.parts, CAMS, _render(), 0.02)
+    assert list(cut) == ["hand_1"]
+    rec = Pose(p.frame, p.status, p.distance, p.parts,
+               diagnostics={**p.diagnostics, "trim": {q: c.tolist() for q, c in cut.items()}})
+    q = apply_trim(rec)
+    assert q.diagnostics["trimmed"] == ["hand_1"]
+    assert np.allclose(q.parts["hand_1"], cut["hand_1"][-1]) and np.allclose(
+        q.diagnostics["curves"]["hand_1"], cut["hand_1"])
+    held = Pose(p.frame, p.status, p.distance, {**p.parts, "hand_1": H + [0, 0, 0.2]},
+                diagnostics=rec.diagnostics)
+    assert apply_trim(held) is held
+    assert apply_trim(p) is p                   # nothing recorded
 
 
-def test_views_take_the_small_maps_of_upsampled_masks():
+def test_compared_views_take_the_small_maps_of_upsampled_masks():
     """A silhouette upsampled from a small map (``person``): trimmed on the small map with the
     camera scaled to it, the same way as at full size."""
     from topopose.capture.background import UpsampledMask
-    from topopose.pose.trim import views
+    from topopose.pose.support import compared_views
 
     masks = []
     for s in _render():
@@ -153,25 +137,56 @@ def test_views_take_the_small_maps_of_upsampled_masks():
         m = m.view(UpsampledMask)
         m.small = small
         masks.append(m)
-    cap = _Capture(masks)
-    cams, sils = views(cap, "000000")
+    cams, sils = compared_views(CAMS, masks)
     assert [c.size for c in cams] == [(320, 240)] * 4 and sils[0].shape == (240, 320)
     assert np.allclose(cams[0].project(H[None]), (CAMS[0].project(H[None]) - 0.5) / 2, atol=1e-9)
-    out = trim_sequence([_pose(E)], cap)       # half the pixels: a pixel is 1.6 cm there
-    assert np.linalg.norm(out[0].parts["hand_1"] - H) < 0.08 < np.linalg.norm(E - H) / 2
+    out = trim_pose(_pose(E), cams, sils)       # half the pixels: a pixel is 1.6 cm there
+    assert np.linalg.norm(out.parts["hand_1"] - H) < 0.08 < np.linalg.norm(E - H) / 2
 
 
-def test_process_sequence_trims_only_with_a_capture():
+def test_process_sequence_applies_the_recorded_trim_unless_off():
     from topopose.pose.model import load_model
     from topopose.pose.motion import process_sequence
 
     m = load_model("human")
     up = np.array([0.0, 0.0, 1.0])
-    cap = _Capture(_render())
+    p = _pose(E)
+    cut = trimmed_curves(p.diagnostics["curves"], p.parts, CAMS, _render(), 0.02)
+    rec = Pose(p.frame, p.status, p.distance, p.parts,
+               diagnostics={**p.diagnostics, "trim": {q: c.tolist() for q, c in cut.items()}})
     kw = dict(track=False, sides=False, skeleton=False)
-    a = process_sequence([_pose(E)], m, up, capture=cap, **kw)
+    a = process_sequence([rec], m, up, **kw)
     assert "trim" in a.stages and a.poses[0].diagnostics["trimmed"] == ["hand_1"]
-    b = process_sequence([_pose(E)], m, up, **kw)
-    c = process_sequence([_pose(E)], m, up, capture=cap, trim=False, **kw)
+    assert np.linalg.norm(a.poses[0].parts["hand_1"] - H) < 0.05
+    b = process_sequence([p], m, up, **kw)
+    c = process_sequence([rec], m, up, trim=False, **kw)
     for r in (b, c):
         assert "trim" not in r.stages and np.allclose(r.poses[0].parts["hand_1"], E)
+
+
+def test_the_estimator_records_the_trim_and_keeps_the_frame():
+    """``FrameEstimator`` records ``diagnostics["trim"]`` from the silhouettes it carved the hull
+    from; the frame's parts and confidence are those of ``trim=False``."""
+    from topopose.capture.synth import synthetic_capture
+    from topopose.pose.estimate import FrameEstimator
+
+    cap = synthetic_capture("body", frames=4, seed=41, cameras=4, size=(320, 240), noise=1,
+                            motion="walk")         # its last frame's hand_2 runs on: trimmed
+    on, off = FrameEstimator(cap, "human", 60), FrameEstimator(cap, "human", 60, trim=False)
+    seen = 0
+    for f in cap.frames:
+        a, b = on.estimate(f), off.estimate(f)
+        assert "trim" not in b.diagnostics
+        assert a.status == b.status and a.distance == b.distance
+        assert {k: None if v is None else list(v) for k, v in a.parts.items()} == \
+               {k: None if v is None else list(v) for k, v in b.parts.items()}
+        assert a.diagnostics.get("confidence") == b.diagnostics.get("confidence")
+        for q, c in (a.diagnostics.get("trim") or {}).items():
+            seen += 1
+            full = np.asarray(a.diagnostics["curves"][q])
+            assert np.allclose(c[0], full[0], atol=1e-4)            # from the same junction
+            s_full = np.linalg.norm(np.diff(full, axis=0), axis=1).sum()
+            s_cut = np.linalg.norm(np.diff(np.asarray(c), axis=0), axis=1).sum()
+            assert s_cut < s_full
+    assert seen == 1
+    assert "trim" in on.estimate(cap.frames[-1]).timings_ms

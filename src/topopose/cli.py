@@ -421,6 +421,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--smooth", type=int, default=None, metavar="FRAMES",
                    help="Savitzky-Golay window smoothing the skeleton")
     s.add_argument("--bvh", help="BVH export of the fitted skeleton (Blender)")
+    s.add_argument("--trim", action=argparse.BooleanOptionalAction, default=None,
+                   help="hands moved back out of the hull's phantom volume, where the "
+                        "silhouettes' evidence ends (default on: pose/trim.py)")
     s.add_argument("--consistency", action=argparse.BooleanOptionalAction, default=False,
                    help="sequences of one subject: 'matched' decided by agreement with the "
                         "neighbouring frames and the confidence's rank in the run instead of "

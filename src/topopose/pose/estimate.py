@@ -246,6 +246,10 @@ class FrameEstimator:
         Record ``diagnostics["unexplained"]``: the largest share of a camera's silhouette the
         placed model leaves unexplained (:mod:`.support`). None (default): off (``run
         --consistency`` turns it on).
+    trim : bool or None
+        Record ``diagnostics["trim"]``: the hands' skeleton curves cut back where the
+        silhouettes' evidence ends (:mod:`.trim`; the sequence stage applies them). None
+        (default): on.
     """
 
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
@@ -257,13 +261,15 @@ class FrameEstimator:
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
                  short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
                  hand_trunk=None, head_ball=None, keep_junctions=None, head_doubt=None,
-                 head_axis=None, junction_core=None, support=None):
+                 head_axis=None, junction_core=None, support=None, trim=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
         self.min_share = float(min_share)
         if support is not None:
             self.support = bool(support)
+        if trim is not None:
+            self.trim = bool(trim)
         # the fitted confidence knows upright subjects only (its head features look up): without
         # the coordinate constraints (acrobatic poses) the default gate is off — on, it rejected
         # 105 of the 198 frames of benchmarks/applications.py's acrobatic sequence, every
@@ -398,6 +404,9 @@ class FrameEstimator:
     # record the silhouette the placed model leaves unexplained (pose.support; used by
     # ``run --consistency``, which turns it on)
     support = False
+    # record the hands' curves trimmed out of the hull's phantom volume (pose.trim; applied by
+    # the sequence stage, nothing else changes)
+    trim = True
 
     # ------------------------------------------------------------------ stages
     def hull(self, frame):
@@ -413,22 +422,16 @@ class FrameEstimator:
 
         consensus = self.repair if self.tolerance > 0 and self.repair >= 0 else None
         masks = None
-        if self.support:           # the silhouettes the hull is carved from, kept for them
+        if self.support or self.trim:     # the silhouettes the hull is carved from, kept
             from ..hull import uses_soft_fusion
+            from .support import compared_views
             self._silhouettes = None
             if not uses_soft_fusion(self.cap):
-                from ..capture.background import scaled_camera
                 masks = self.cap.silhouettes(frame)
-                cams, sils = [], []
-                for cam, m in zip(self.cap.cameras, masks):
-                    small = getattr(m, "small", None)     # an upsampled map: compared small
-                    cams.append(cam if small is None else
-                                scaled_camera(cam, small.shape[1] / cam.size[0]))
-                    sils.append(m if small is None else small.astype(bool))
-                self._silhouettes = (cams, sils)
+                self._silhouettes = compared_views(self.cap.cameras, masks)
         vol = visual_hull(self.cap, frame, resolution=self.resolution, tolerance=self.tolerance,
                           consensus=consensus, refocus=self.refocus, masks=masks)
-        if self.support and self._silhouettes is None:      # probabilities: cached per frame
+        if (self.support or self.trim) and self._silhouettes is None:   # probabilities, cached
             from ..capture.background import foreground_maps, scaled_camera
             p = self.cap.options["silhouettes"]
             cut = int(255 * float(p.get("cut", 0.5)))
@@ -725,6 +728,13 @@ class FrameEstimator:
                         vol, curves, edt), 4).tolist()
             except Exception as exc:           # never costs the frame its pose
                 diag["curves_error"] = f"{type(exc).__name__}: {exc}"
+            if self.trim and diag.get("curves") and getattr(self, "_silhouettes", None):
+                from .trim import trimmed_curves
+                t1 = time.perf_counter()
+                cut = trimmed_curves(diag["curves"], parts, *self._silhouettes, vol.voxel_size)
+                if cut:
+                    diag["trim"] = {q: c.tolist() for q, c in cut.items()}
+                timings["trim"] = (time.perf_counter() - t1) * 1e3
             if self.support and diag.get("curves") and getattr(self, "_silhouettes", None):
                 # analysis by synthesis: the silhouette the placed model leaves unexplained
                 from .support import support_features

@@ -1,7 +1,7 @@
 """From pose initialization to motion capture: the sequence stages after the per-frame result.
 
 numbered parts → identities over time (:mod:`.track`) → hands trimmed out of the hull's phantom
-volume (:mod:`.trim`, only when the capture's silhouettes are given) → full kinematic skeleton with constant
+volume (:mod:`.trim`, as each frame recorded it) → full kinematic skeleton with constant
 bone lengths (:mod:`.kinematic_fit`) → left and right (:mod:`.chirality`) → optionally
 ``matched`` decided by the run's own consistency (:mod:`.consistency`). Every stage reads
 only the poses (their parts and the skeleton curves in ``diagnostics["curves"]``), so it runs
@@ -30,7 +30,7 @@ class Motion:
 
 
 def process_sequence(poses, model, up, track=True, sides=True, skeleton=True, max_gap=5,
-                     smooth=None, consistency=False, capture=None, trim=None) -> Motion:
+                     smooth=None, consistency=False, trim=None) -> Motion:
     """Run the sequence stages on the poses of one capture (sorted by frame).
 
     Parameters
@@ -45,21 +45,19 @@ def process_sequence(poses, model, up, track=True, sides=True, skeleton=True, ma
         Last, on the poses as written: ``matched`` decided by the run's own consistency
         (:func:`.consistency.judge_sequence`; a dict gives its keyword arguments) when the run
         is a coherent sequence; off by default (``results/consistency.md``).
-    capture : Capture, optional
-        The run's capture: its cameras and silhouettes let the hands be trimmed back out of the
-        hull's phantom volume (:func:`.trim.trim_sequence`) before the skeleton.
     trim : bool, optional
-        Whether to trim with a capture (default :data:`TRIM`).
+        Whether to apply the hands' trim each frame recorded (``diagnostics["trim"]``,
+        :func:`.trim.apply_trim`) after the identities (default :data:`TRIM`).
     """
     poses = sorted((numbered(p, model) for p in poses), key=lambda p: p.frame)
     out = Motion(poses)
     if track and len(poses) > 1 and model.interchangeable():
         out.poses = track_identities(out.poses, model, max_gap=max_gap)
         out.stages.append("track")
-    if capture is not None and (TRIM if trim is None else trim):
-        from .trim import trim_sequence
+    if (TRIM if trim is None else trim) and any(p.diagnostics.get("trim") for p in out.poses):
+        from .trim import apply_trim
 
-        out.poses = trim_sequence(out.poses, capture)
+        out.poses = [apply_trim(p) for p in out.poses]
         out.stages.append("trim")
     if skeleton and model.joints:
         out.poses, out.tree, out.lengths = fit_sequence(out.poses, model, max_gap=max_gap,

@@ -204,9 +204,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     smooth : int, optional
         Savitzky–Golay window (frames) smoothing the skeleton.
     trim : bool, optional
-        Hands trimmed back out of the hull's phantom volume with the capture's silhouettes
-        (:mod:`topopose.pose.trim`; default :data:`topopose.pose.motion.TRIM`, on). It reads
-        each frame's silhouettes again after the per-frame run (videos: segmented again).
+        Hands trimmed back out of the hull's phantom volume where the silhouettes' evidence
+        ends (:mod:`topopose.pose.trim`, recorded per frame, applied after the identities;
+        default :data:`topopose.pose.motion.TRIM`, on).
     bvh : path, optional
         BVH export of the fitted skeleton (Blender).
     consistency : bool or dict
@@ -352,7 +352,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         from .motion import process_sequence
         motion = process_sequence(poses, m, cap.up_vector, track=track, sides=sides,
                                   skeleton=skeleton, smooth=smooth, consistency=consistency,
-                                  capture=cap, trim=trim)
+                                  trim=trim)
         poses = motion.poses
         if out is not None:
             write_poses(out, poses, header)
@@ -541,7 +541,7 @@ def run_cli(a) -> int:
               sides=getattr(a, "sides", True), skeleton=getattr(a, "skeleton", True),
               smooth=getattr(a, "smooth", None), bvh=getattr(a, "bvh", None),
               consistency=getattr(a, "consistency", False),
-              support_test=getattr(a, "support", None) or False)
+              support_test=getattr(a, "support", None) or False, trim=getattr(a, "trim", None))
     if getattr(a, "rerun", None):
         from ..viz.rerun import record_run
         record_run(a.rerun, a.capture, res.poses, model=a.model, resolution=a.resolution,

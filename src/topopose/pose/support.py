@@ -37,6 +37,20 @@ WORK_HEIGHT = 96
 EXTREMITIES = ("head", "hand_1", "hand_2", "foot_1", "foot_2")
 
 
+def compared_views(cameras, masks) -> tuple:
+    """``(cameras, silhouettes)`` as the frame's result is compared with them: a silhouette
+    upsampled from a small probability map (``person``, ``sequence``: its ``small`` attribute)
+    is taken small, with its camera scaled to it; the others as they are, boolean."""
+    from ..capture.background import scaled_camera
+
+    cams, sils = [], []
+    for cam, m in zip(cameras, masks):
+        small = getattr(m, "small", None)
+        cams.append(cam if small is None else scaled_camera(cam, small.shape[1] / cam.size[0]))
+        sils.append(np.asarray(m if small is None else small, bool))
+    return cams, sils
+
+
 def curve_radii(points, occ, origin, voxel_size, edt=None) -> np.ndarray:
     """The hull's inscribed radius (world units) at ``points`` (N, 3): its distance transform
     at the nearest voxel. ``edt``: :func:`topopose.pose.tips.inscribed_distances` of ``occ``

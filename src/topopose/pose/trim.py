@@ -23,9 +23,11 @@ against the background and inside the trunk in the others is explained (its disk
 the one before it, or inside the trunk's); a real hand is not, in a camera that sees it beside
 the body (its disk reaches pixels no earlier point reaches).
 
-It needs the frames' silhouettes, so it runs only when the capture is given
-(:func:`topopose.pose.motion.process_sequence` ``capture``; ``topopose run`` gives it);
-the per-frame results are unchanged. Development seeds 41–50, ``benchmarks/phantom.py``.
+The silhouettes are at hand only while a frame is estimated: :class:`~.estimate.FrameEstimator`
+records the trimmed curves (``diagnostics["trim"]``, :func:`trimmed_curves`; the frame's parts
+and confidence are unchanged), and the sequence stage applies them after the identities
+(:func:`apply_trim`, :func:`topopose.pose.motion.process_sequence`), so a resumed or parallel
+run trims as well. Development seeds 41–50, ``benchmarks/phantom.py``.
 """
 from __future__ import annotations
 
@@ -135,22 +137,36 @@ def evidence_end(curve, others, cameras, depths, voxel, slack=None, gap=None,
     return j, radius(j)
 
 
-def trim_pose(pose, cameras, silhouettes, stems=None, **kw):
-    """``pose`` with every limb end of ``stems`` (default :data:`STEMS`) whose curve ends in
-    unexplained volume moved back (module docstring); the pose itself when nothing moves."""
-    from scipy.ndimage import distance_transform_edt
+def trimmed_curves(curves, parts, cameras, silhouettes, voxel, stems=None, **kw) -> dict:
+    """Per limb end of ``stems`` (default :data:`STEMS`) whose curve ends in unexplained volume
+    (module docstring): its curve cut back, ``N_SAMPLES`` points from the junction to the new
+    end. Only parts placed at their curve's end are judged.
+
+    Parameters
+    ----------
+    curves : {part: (n, 3)} the frame's skeleton curves (``diagnostics["curves"]``)
+    parts : {part: (3,) or None} the placed parts
+    cameras, silhouettes : the frame's cameras and boolean silhouettes, as compared
+        (:func:`topopose.pose.support.compared_views`)
+    voxel : the hull's voxel edge (capture units)
+
+    Examples
+    --------
+    >>> trimmed_curves({}, {}, [], [], 0.02)
+    {}
+    """
+    import cv2
 
     stems = STEMS if stems is None else stems
-    curves = pose.diagnostics.get("curves") or {}
-    voxel = voxel_size(pose)
-    todo = [q for q in curves if _stem(q) in stems and pose.parts.get(q) is not None
+    todo = [q for q in curves if _stem(q) in stems and parts.get(q) is not None
             and np.linalg.norm(np.asarray(curves[q][-1], float)
-                               - np.asarray(pose.parts[q], float)) < 1e-4]
-    if not todo or voxel is None:
-        return pose
-    depths = [distance_transform_edt(np.asarray(m, bool)) for m in silhouettes]
-    up = {q: resample(c, UPSAMPLE * len(c)) for q, c in curves.items()}
-    parts, new_curves, moved = dict(pose.parts), dict(curves), []
+                               - np.asarray(parts[q], float)) < 1e-4]
+    if not todo or not voxel:
+        return {}
+    depths = [cv2.distanceTransform(np.asarray(m, np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+              for m in silhouettes]
+    up = {q: resample(np.asarray(c, float), UPSAMPLE * len(c)) for q, c in curves.items()}
+    out = {}
     for q in todo:
         others = [c for r, c in up.items() if r != q and _stem(r) != _stem(q)]
         c = up[q]
@@ -159,7 +175,22 @@ def trim_pose(pose, cameras, silhouettes, stems=None, **kw):
         end = s[j] + r                  # the limb's end: its last disk's reach along the curve
         if end < s[-1] - voxel:
             cut = np.vstack([c[s < end], [np.interp(end, s, c[:, i]) for i in range(3)]])
-            new_curves[q] = np.round(resample(cut, N_SAMPLES), 5)
+            out[q] = np.round(resample(cut, N_SAMPLES), 5)
+    return out
+
+
+def apply_trim(pose):
+    """``pose`` with each part of ``diagnostics["trim"]`` still at its curve's end moved to the
+    trimmed curve's end, the curve replaced, and the part listed in ``diagnostics["trimmed"]``
+    (the sequence stage); the pose itself when nothing moves."""
+    trim = pose.diagnostics.get("trim") or {}
+    curves = pose.diagnostics.get("curves") or {}
+    parts, new_curves, moved = dict(pose.parts), dict(curves), []
+    for q, cut in trim.items():
+        if (q in curves and parts.get(q) is not None
+                and np.linalg.norm(np.asarray(curves[q][-1], float)
+                                   - np.asarray(parts[q], float)) < 1e-4):
+            new_curves[q] = np.asarray(cut, float)
             parts[q] = new_curves[q][-1].copy()
             moved.append(q)
     if not moved:
@@ -168,29 +199,10 @@ def trim_pose(pose, cameras, silhouettes, stems=None, **kw):
     return replace(pose, parts=parts, diagnostics=diag)
 
 
-def views(capture, frame) -> tuple:
-    """``(cameras, silhouettes)`` of one frame: ``capture.silhouettes(frame)`` and the capture's
-    cameras; a silhouette upsampled from a small probability map (``person``, ``sequence``:
-    its ``small`` attribute) is taken small, with its camera scaled to it (as the hull's
-    support, :meth:`topopose.pose.estimate.FrameEstimator.hull`)."""
-    from ..capture.background import scaled_camera
-
-    cams, sils = [], []
-    for cam, m in zip(capture.cameras, capture.silhouettes(frame)):
-        small = getattr(m, "small", None)
-        cams.append(cam if small is None else scaled_camera(cam, small.shape[1] / cam.size[0]))
-        sils.append(np.asarray(m if small is None else small, bool))
-    return cams, sils
-
-
-def trim_sequence(poses, capture, stems=None, **kw) -> list:
-    """:func:`trim_pose` on every frame with curves of ``stems``, its cameras and silhouettes
-    from ``capture`` (:func:`views`)."""
-    stems = STEMS if stems is None else stems
-    out = []
-    for p in poses:
-        curves = p.diagnostics.get("curves") or {}
-        if any(_stem(q) in stems for q in curves):
-            p = trim_pose(p, *views(capture, p.frame), stems, **kw)
-        out.append(p)
-    return out
+def trim_pose(pose, cameras, silhouettes, stems=None, **kw):
+    """:func:`trimmed_curves` and :func:`apply_trim` at once, on a pose and its frame's views;
+    the voxel edge from the pose's diagnostics (:func:`voxel_size`)."""
+    d = pose.diagnostics
+    cut = trimmed_curves(d.get("curves") or {}, pose.parts, cameras, silhouettes,
+                         voxel_size(pose), stems, **kw)
+    return apply_trim(replace(pose, diagnostics={**d, "trim": cut})) if cut else pose

@@ -190,3 +190,30 @@ def test_the_estimator_records_the_trim_and_keeps_the_frame():
             assert s_cut < s_full
     assert seen == 1
     assert "trim" in on.estimate(cap.frames[-1]).timings_ms
+
+
+def test_silhouette_depth_equals_the_whole_images_transform():
+    """The depth over the silhouette's box (+ one pixel) is the whole image's exact Euclidean
+    distance transform (SciPy) there, for blobs inside the image and touching its edges."""
+    from scipy.ndimage import distance_transform_edt
+
+    from topopose.pose.trim import disks, silhouette_depth
+
+    rng = np.random.default_rng(3)
+    for k in range(12):
+        m = np.zeros((90, 70), np.uint8)
+        for _ in range(3):
+            c = (int(rng.integers(-10, 80)), int(rng.integers(-10, 100)))
+            cv2.ellipse(m, c, (int(rng.integers(3, 30)), int(rng.integers(3, 30))),
+                        float(rng.uniform(0, 180)), 0, 360, 1, -1)
+        full = distance_transform_edt(m)
+        dep, (x0, y0) = silhouette_depth(m > 0)
+        h, w = dep.shape
+        assert np.allclose(dep, full[y0:y0 + h, x0:x0 + w], atol=1e-4)
+        assert not full[:y0].any() and not full[y0 + h:].any()     # nothing deep outside it
+        assert not full[:, :x0].any() and not full[:, x0 + w:].any()
+    cam = CAMS[0]
+    pts = np.array([H, E, A, J])
+    sil = _render()[0]
+    assert np.allclose(disks(pts, cam, silhouette_depth(sil))[1],
+                       disks(pts, cam, distance_transform_edt(sil))[1], atol=1e-4)

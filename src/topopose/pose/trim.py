@@ -67,17 +67,37 @@ def voxel_size(pose) -> float | None:
     return float((float(lit) / 1000.0 / float(n)) ** (1.0 / 3.0))
 
 
+def silhouette_depth(mask):
+    """The silhouette's depth map (distance to the background, px; exact Euclidean) over its
+    bounding box and one pixel of background around it, and the box's corner ``(x0, y0)``:
+    ``(depth, (x0, y0))``. Equal to the whole image's map inside the box (a pixel's nearest
+    background outside the box is no nearer than the ring around it) at a fraction of its cost.
+    """
+    import cv2
+
+    m = np.asarray(mask, np.uint8)
+    x, y, w, h = cv2.boundingRect(m)
+    if w == 0:
+        return np.zeros((0, 0), np.float32), (0, 0)
+    x0, y0 = max(x - 1, 0), max(y - 1, 0)
+    x1, y1 = min(x + w + 1, m.shape[1]), min(y + h + 1, m.shape[0])
+    crop = np.ascontiguousarray(m[y0:y1, x0:x1])
+    return cv2.distanceTransform(crop, cv2.DIST_L2, cv2.DIST_MASK_PRECISE), (x0, y0)
+
+
 def disks(points, camera, depth):
     """Image positions (n, 2) of ``points`` in ``camera`` and their disks' radii (n,): the
-    silhouette depth map ``depth`` (distance to the background, px) at the nearest pixel; 0
-    outside the image, NaN positions behind the camera."""
+    silhouette depth map ``depth`` (distance to the background, px; an array, or
+    :func:`silhouette_depth`'s ``(map, corner)``) at the nearest pixel; 0 outside it, NaN
+    positions behind the camera."""
+    depth, (x0, y0) = depth if isinstance(depth, tuple) else (depth, (0, 0))
     uv = camera.project(np.asarray(points, float))
     rad = np.zeros(len(uv))
     ok = np.isfinite(uv).all(axis=1)
     x = np.full(len(uv), -1)
     y = np.full(len(uv), -1)
-    x[ok] = np.rint(uv[ok, 0]).astype(int)
-    y[ok] = np.rint(uv[ok, 1]).astype(int)
+    x[ok] = np.rint(uv[ok, 0]).astype(int) - x0
+    y[ok] = np.rint(uv[ok, 1]).astype(int) - y0
     inside = ok & (x >= 0) & (y >= 0) & (x < depth.shape[1]) & (y < depth.shape[0])
     rad[inside] = depth[y[inside], x[inside]]
     return uv, rad
@@ -93,7 +113,8 @@ def evidence_end(curve, others, cameras, depths, voxel, slack=None, gap=None,
     curve : (n, 3) the limb's curve, from its junction to the limb end
     others : list of (m, 3) the frame's other curves
     cameras : list of Camera
-    depths : list of (h, w) silhouette depth maps (px to the background), one per camera
+    depths : list of silhouette depth maps (px to the background), one per camera: arrays of
+        the image's size or :func:`silhouette_depth`'s ``(map, corner)``
     voxel : the hull's voxel edge (capture units)
 
     Returns
@@ -155,16 +176,13 @@ def trimmed_curves(curves, parts, cameras, silhouettes, voxel, stems=None, **kw)
     >>> trimmed_curves({}, {}, [], [], 0.02)
     {}
     """
-    import cv2
-
     stems = STEMS if stems is None else stems
     todo = [q for q in curves if _stem(q) in stems and parts.get(q) is not None
             and np.linalg.norm(np.asarray(curves[q][-1], float)
                                - np.asarray(parts[q], float)) < 1e-4]
     if not todo or not voxel:
         return {}
-    depths = [cv2.distanceTransform(np.asarray(m, np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-              for m in silhouettes]
+    depths = [silhouette_depth(m) for m in silhouettes]
     up = {q: resample(np.asarray(c, float), UPSAMPLE * len(c)) for q, c in curves.items()}
     out = {}
     for q in todo:

@@ -127,16 +127,17 @@ def evidence_end(curve, others, cameras, depths, voxel, slack=None, gap=None,
     c = np.asarray(curve, float)
     n = len(c)
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+    rest = [np.asarray(o, float) for o in others if len(o)]
+    rest = np.concatenate(rest) if rest else np.zeros((0, 3))
     views = []
     for cam, dep in zip(cameras, depths):
         uv, rad = disks(c, cam, dep)
         z = cam.to_camera(c)[:, 2]
         px = float(cam.matrix[0, 0]) * voxel / np.maximum(z, 1e-9)   # a voxel, in px
-        other = [disks(o, cam, dep) for o in others if len(o)]
-        ouv = np.concatenate([o[0] for o in other]) if other else np.zeros((0, 2))
-        orad = np.concatenate([o[1] for o in other]) if other else np.zeros(0)
+        ouv, orad = disks(rest, cam, dep) if len(rest) else (np.zeros((0, 2)), np.zeros(0))
         keep = np.isfinite(ouv).all(axis=1)
         views.append((uv, rad, px, ouv[keep], orad[keep]))
+
     def radius(j):
         r = [rad[j] / px[j] for uv, rad, px, _, _ in views if rad[j] > 0]
         return float(min(r) * voxel) if r else 0.0

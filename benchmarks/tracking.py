@@ -116,9 +116,11 @@ RIG = {"neck": ("Neck_head",), "skull": ("Head_head",),
        "wrist": ("LeftHand_head", "RightHand_head"), "fingertip": ("fingertip_l", "fingertip_r"),
        "hip": ("LeftUpLeg_head", "RightUpLeg_head"), "knee": ("LeftLeg_head", "RightLeg_head"),
        "ankle": ("LeftFoot_head", "RightFoot_head"), "toe": ("toe_l", "toe_r")}
-# Development sequences (``--dev``: tune on these, report SEQUENCES): walks 41–46, random 21–32.
+# Development sequences (``--dev``: tune on these, report SEQUENCES): walks 41–46, random motion
+# (``random-smooth``) 51–56, unrelated random poses 21–32.
 DEV_BUILDS = ["average", "heavy", "random", "lean", "child", "average"]
 DEV_SEQUENCES = ([("walk", s, b) for s, b in zip(range(41, 47), DEV_BUILDS)]
+                 + [(SMOOTH, s, b) for s, b in zip(range(51, 57), DEV_BUILDS)]
                  + [("random", s, b) for s, b in zip(range(21, 33), ["average", "random", "lean",
                                                                      "heavy", "child",
                                                                      "average"] * 2)])

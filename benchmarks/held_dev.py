@@ -159,8 +159,9 @@ def main(argv=None):
               f"{info['date']}. Produced by `benchmarks/held_dev.py` (development seeds of "
               "`tracking.py --dev`: walks 41–46, random motion 51–56, unrelated random poses "
               "21–32; gate on; per-frame results cached, the sequence stage re-run per variant).",
-              "", "Variants (kinematic_fit's defaults otherwise): `base` the defaults; `holdN` "
-              "`HOLD_FRAMES` N; `gapN` `HELD_GAP` on, runs up to N frames; `nohint` "
+              "", "Variants (kinematic_fit's defaults otherwise): `base` the defaults "
+              "(`HOLD_FRAMES` 5, kept from these runs); `holdN` `HOLD_FRAMES` N (`hold3`: the "
+              "default before); `gapN` `HELD_GAP` on, runs up to N frames; `nohint` "
               "`HAND_HINTS` off.", "",
               "| variant | motion | MPJPE median (cm) | frames holding joints (cm, frames) | "
               "per sequence (cm) |", "|---|---|---|---|---|"] + lines

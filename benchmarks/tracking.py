@@ -13,9 +13,10 @@ Sequences (100³, 8 cameras, noise 1, 640×480): ten walks of 40 frames with bui
 lean / heavy / random / child (seeds 1–10); three sequences of random motion, 60 frames
 (``motion="random-smooth"``: a continuous motion through random poses, keyframes every
 0.8–1.5 s eased into each other, the subject turning and drifting through the volume; seeds
-14–16, builds average / random / lean; held out, no development seeds: nothing is tuned on
-them); and three sequences of unrelated random poses (``motion="random"``: each frame a new
-pose, placement and heading; seeds 11–13, builds average / random / lean). Every figure
+14–16, builds average / random / lean; held out: nothing is tuned on them; development
+seeds 51–56 in ``--dev``); and three sequences of unrelated random poses
+(``motion="random"``: each frame a new pose, placement and heading; seeds 11–13, builds
+average / random / lean). Every figure
 is measured beside its peer in the same run:
 
 * **identity switches** of the numbered parts (hand_1/hand_2, foot_1/foot_2) per 500 frames:

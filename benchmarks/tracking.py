@@ -13,9 +13,10 @@ Sequences (100³, 8 cameras, noise 1, 640×480): ten walks of 40 frames with bui
 lean / heavy / random / child (seeds 1–10); three sequences of random motion, 60 frames
 (``motion="random-smooth"``: a continuous motion through random poses, keyframes every
 0.8–1.5 s eased into each other, the subject turning and drifting through the volume; seeds
-14–16, builds average / random / lean; held out, no development seeds: nothing is tuned on
-them); and three sequences of unrelated random poses (``motion="random"``: each frame a new
-pose, placement and heading; seeds 11–13, builds average / random / lean). Every figure
+14–16, builds average / random / lean; held out: nothing is tuned on them; development
+seeds 51–56 in ``--dev``); and three sequences of unrelated random poses
+(``motion="random"``: each frame a new pose, placement and heading; seeds 11–13, builds
+average / random / lean). Every figure
 is measured beside its peer in the same run:
 
 * **identity switches** of the numbered parts (hand_1/hand_2, foot_1/foot_2) per 500 frames:
@@ -116,9 +117,11 @@ RIG = {"neck": ("Neck_head",), "skull": ("Head_head",),
        "wrist": ("LeftHand_head", "RightHand_head"), "fingertip": ("fingertip_l", "fingertip_r"),
        "hip": ("LeftUpLeg_head", "RightUpLeg_head"), "knee": ("LeftLeg_head", "RightLeg_head"),
        "ankle": ("LeftFoot_head", "RightFoot_head"), "toe": ("toe_l", "toe_r")}
-# Development sequences (``--dev``: tune on these, report SEQUENCES): walks 41–46, random 21–32.
+# Development sequences (``--dev``: tune on these, report SEQUENCES): walks 41–46, random motion
+# (``random-smooth``) 51–56, unrelated random poses 21–32.
 DEV_BUILDS = ["average", "heavy", "random", "lean", "child", "average"]
 DEV_SEQUENCES = ([("walk", s, b) for s, b in zip(range(41, 47), DEV_BUILDS)]
+                 + [(SMOOTH, s, b) for s, b in zip(range(51, 57), DEV_BUILDS)]
                  + [("random", s, b) for s, b in zip(range(21, 33), ["average", "random", "lean",
                                                                      "heavy", "child",
                                                                      "average"] * 2)])

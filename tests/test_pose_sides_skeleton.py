@@ -61,14 +61,17 @@ def _numbered_frame(frame, parts, curves, swap_hands, swap_feet):
 
 
 def _hand_2_unseen(yaw, seed):
-    """Two frames of one body (``_body(yaw)``): the first whole, the second (frame 000005) with
-    hand_2 not found (no part, no curve). Returns (whole, cut, the second frame's true parts,
-    the second frame's numbering map)."""
+    """Two frames of one body (``_body(yaw)``): the first whole, the second (frame
+    ``HOLD_FRAMES + 1``: too far to hold the first's arm) with hand_2 not found (no part, no
+    curve). Returns (whole, cut, the second frame's true parts, the second frame's numbering
+    map)."""
+    from topopose.pose.kinematic_fit import HOLD_FRAMES
+
     rng = np.random.default_rng(seed)
     parts, curves = _body(yaw, rng)
     full, _ = _numbered_frame("000000", parts, curves, False, False)
     parts2, curves2 = _body(yaw, rng)
-    cut, m = _numbered_frame("000005", parts2, curves2, False, False)
+    cut, m = _numbered_frame(f"{HOLD_FRAMES + 1:06d}", parts2, curves2, False, False)
     cut.parts["hand_2"] = None
     del cut.diagnostics["curves"]["hand_2"]
     return full, cut, parts2, m
@@ -284,6 +287,41 @@ def test_frame_without_head_keeps_a_skeleton_with_held_joints():
     # the lone frame has no earlier fit to hold from: no skeleton, not a wrong one
     alone, _, _ = fit_sequence([cut], HUMAN)
     assert alone[0].joints == {}
+
+
+@pytest.mark.parametrize("dt", [1, 3, 5, 6, 9])
+def test_an_unseen_arm_is_held_from_the_last_fitted_frame_up_to_hold_frames_back(dt):
+    """The same body (translated) ``dt`` frames after a whole frame, the frames between not
+    matched, hand_2 not found: up to ``HOLD_FRAMES`` back (5: issue 15, random motion) the
+    unseen arm is the whole frame's arm, moved with the root (the truth: the same body, so
+    every joint where the whole frame's fit put it, plus the translation); further back it
+    takes the rest pose, its upper arm hanging along the trunk."""
+    from topopose.pose.kinematic_fit import HOLD_FRAMES
+
+    assert HOLD_FRAMES == 5
+    rng = np.random.default_rng(3)
+    parts, curves = _body(0.7, rng)
+    shift = np.array([0.3, -0.2, 0.0])
+    full, _ = _numbered_frame("000000", parts, curves, False, False)
+    cut, _ = _numbered_frame(f"{dt:06d}", {k: v + shift for k, v in parts.items()},
+                             {k: v + shift for k, v in curves.items()}, False, False)
+    cut.parts["hand_2"] = None
+    del cut.diagnostics["curves"]["hand_2"]
+    out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
+    a, b = out
+    assert "wrist_2" in b.diagnostics["held_joints"]
+    arm = ("shoulder_2", "elbow_2", "wrist_2", "fingertip_2")
+    off = [np.linalg.norm(b.joints[k] - (a.joints[k] + shift)) for k in arm]
+    down = parts["crotch"] - parts["torso"]
+    down /= np.linalg.norm(down)
+    u = b.joints["elbow_2"] - b.joints["shoulder_2"]
+    hangs = np.dot(u, down) / np.linalg.norm(u) > 0.999
+    if dt <= 5:
+        assert max(off) < 0.005, off          # (the root refined a little on fewer joints)
+        assert not hangs
+    else:
+        assert max(off) > 0.05, off
+        assert hangs
 
 
 def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_forward():

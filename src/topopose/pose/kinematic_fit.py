@@ -40,7 +40,7 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    term ``|d| - 1``; then the root is moved by the mean offset of the other joints from their
    placements and the chains fitted again (``ROOT_STEPS``). An arc with neither a curve nor a
    placed joint in the frame keeps the bone directions of the last fitted frame when that is
-   at most ``HOLD_FRAMES`` before and the same motion (``_continues``), else takes a rest pose
+   at most ``HOLD_FRAMES`` (5) before and the same motion (``_continues``), else takes a rest pose
    (:func:`rest_fill`: a limb merged with the body hangs along the trunk, an arm's shoulder
    opposite its mate raised :data:`HELD_SHOULDER`, its forearm folded up and across the
    trunk's front); its joints are
@@ -725,7 +725,11 @@ def _directions(P, tree):
 
 
 HOLD_MAX = 0.15     # m: mean move of the seen joints from the last fitted frame
-HOLD_FRAMES = 3     # the last fitted frame at most this many frames before
+HOLD_FRAMES = 5     # the last fitted frame at most this many frames before (3 → 5: random
+                    # motion, development seeds 51–56, MPJPE median 6.21 → 6.12 cm, frames
+                    # holding joints 7.28 → 7.22; 10 / 15 the same as 5: a part lost across 4–5
+                    # unmatched frames took the rest pose; walks 41–46 4.29 → 4.29, unrelated
+                    # random poses 21–32 unchanged: they fail the motion check)
 
 
 def _continues(prev, start, dt):
@@ -751,7 +755,12 @@ HELD_GAP = False  # an unseen (held) joint between two frames of the same motion
                  # 4.10 / 4.50 / 3.97 → 3.67 / 5.43 / 4.17 / 4.29 / 4.21 / 3.84); the 144
                  # filled joints (37 frames; hips' width 0.85 then), error to the
                  # nearest rig joint of their kind, median / mean: last frame's 7.4 / 9.6 →
-                 # interpolated 7.5 / 9.1 cm (the frames either side see the arm only partly)
+                 # interpolated 7.5 / 9.1 cm (the frames either side see the arm only partly).
+                 # Random motion (random-smooth, development seeds 51–56; HOLD_FRAMES 5), runs up
+                 # to 5 / 10 / 15 / 30 / 60 frames: 6.12 → 6.12 / 6.12 / 6.12 / 6.16 / 6.16 cm
+                 # (a lost arm stays lost 20–40 frames, across rejected ones); walks 4.29 →
+                 # 4.30–4.31; unrelated random poses 21–32 5.60 → 5.81 (HOLD_MAX · (b − a) lets
+                 # one held frame between two similar poses through; benchmarks/held_dev.py)
 
 
 def held_gaps(P, held, t, tree: KinematicTree, L, max_gap=5):

@@ -170,6 +170,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .model import part_stem
+
 FAT_OK, FAT_MAX = 0.04, 0.06          # the product confidence (models without a fitted one)
 FEATURES = ("distance", "thickness", "missing", "lost", "fat", "spurious", "spurious_length",
             "arc_dev", "head_low", "foot_high", "head_radius", "end_radius", "head_bend",
@@ -294,11 +296,6 @@ def fit_logistic(X, y, l2=1.0, iters=50, weights=None) -> tuple:
     return w[:-1], float(w[-1])
 
 
-def _stem(part) -> str:
-    head, sep, tail = str(part).rpartition("_")
-    return head if sep and tail.isdigit() else str(part)
-
-
 def _branch_length(adj, leaf) -> float:
     """Length of the branch from ``leaf`` to the first vertex of degree ≠ 2."""
     prev, x, n = None, leaf, 0.0
@@ -411,7 +408,7 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
         pl = sum(w for a, b in zip(ppath[:-1], ppath[1:]) for y, w in padj.get(a, ()) if y == b)
         dl = sum(w for a, b in zip(dpath[:-1], dpath[1:]) for y, w in adj.get(a, ()) if y == b)
         if pl > 0 and dl > 0 and math.isfinite(pl) and math.isfinite(dl):
-            arcs.append((_stem(ppath[-1]), pl, dl))
+            arcs.append((part_stem(ppath[-1]), pl, dl))
     f["arc_dev"] = max((abs(math.log((dl / dtot) / (pl / ptot))) for _, pl, dl in arcs),
                        default=0.0)
     # the same relative to the matched total only: unmatched (spurious, e.g. phantom-volume)
@@ -428,8 +425,8 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
     pos = {p: data.positions.get(v) for p, v in mapping.items() if v is not None}
     def h(p):
         return sign * (float(np.asarray(pos[p])[ax]) - z0) / height if height > 0 else 0.0
-    heads = [p for p in pos if _stem(p) == "head" and pos[p] is not None]
-    feet = [p for p in pos if _stem(p) == "foot" and pos[p] is not None]
+    heads = [p for p in pos if part_stem(p) == "head" and pos[p] is not None]
+    feet = [p for p in pos if part_stem(p) == "foot" and pos[p] is not None]
     if heads:
         f["head_low"] = 1.0 - max(h(p) for p in heads)
     if feet:
@@ -443,8 +440,8 @@ def frame_features(vol, n_vox, data, model, up, distance, threshold, missing, al
         f["head_bend"], f["head_offset"] = _head_bend_offset(x, t, c, height)
     if radii:
         r = {p: radii.get(v, 0.0) for p, v in mapping.items() if v is not None}
-        f["head_radius"] = max((r[p] for p in r if _stem(p) == "head"), default=0.0)
-        f["end_radius"] = max((r[p] for p in r if _stem(p) in ("hand", "foot")), default=0.0)
+        f["head_radius"] = max((r[p] for p in r if part_stem(p) == "head"), default=0.0)
+        f["end_radius"] = max((r[p] for p in r if part_stem(p) in ("hand", "foot")), default=0.0)
         f["crotch_radius"], f["torso_radius"] = r.get("crotch", 0.0), r.get("torso", 0.0)
         if f["torso_radius"] > 0:
             f["head_torso"] = f["head_radius"] / f["torso_radius"]

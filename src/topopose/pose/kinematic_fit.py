@@ -72,6 +72,7 @@ from scipy.optimize import least_squares
 
 from ..errors import InputError
 from .curves import model_arcs
+from .model import part_stem
 from .track import frame_index
 
 
@@ -121,11 +122,6 @@ class KinematicTree:
         return out
 
 
-def _stem(p):
-    h, s, t = str(p).rpartition("_")
-    return h if s and t.isdigit() and h else str(p)
-
-
 def kinematic_tree(model) -> KinematicTree:
     """Expand the model's ``[[joint]]`` declarations over its arcs into one kinematic tree."""
     if not model.joints:
@@ -137,16 +133,16 @@ def kinematic_tree(model) -> KinematicTree:
         for js in model.joints:
             a, b = js.arc
             r = None if js.at_raised is None else float(js.at_raised)
-            if a in (u, _stem(u)) and b in (v, _stem(v)):
+            if a in (u, part_stem(u)) and b in (v, part_stem(v)):
                 t = float(js.at)
-            elif b in (u, _stem(u)) and a in (v, _stem(v)):
+            elif b in (u, part_stem(u)) and a in (v, part_stem(v)):
                 t = 1.0 - float(js.at)
                 r = None if r is None else 1.0 - r
             else:
                 continue
             suffix = ""
             for decl, part in ((a, u), (b, v), (a, v), (b, u)):
-                if decl not in (u, v) and decl == _stem(part) and part != decl:
+                if decl not in (u, v) and decl == part_stem(part) and part != decl:
                     suffix = "_" + str(part).rpartition("_")[2]
                     break
             names.append(js.name + suffix)
@@ -534,8 +530,8 @@ def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None) -> np.nda
             q = SLIDE_QUANTILE if tree.slide and tree.slide[j] and SLIDE_QUANTILE else quantile
             if SHOULDER_QUANTILE and p == tree.root and _beside(tree, j):
                 q = SHOULDER_QUANTILE             # from the junction to a joint beside it
-            if tree.arc[p] == tree.arc[j] and _stem(tree.arc[j][1]) in limb:
-                q = limb[_stem(tree.arc[j][1])]   # along a limb ending at that part
+            if tree.arc[p] == tree.arc[j] and part_stem(tree.arc[j][1]) in limb:
+                q = limb[part_stem(tree.arc[j][1])]   # along a limb ending at that part
             L[j] = float(np.percentile(v, q)) if v else np.nan
     return L
 

@@ -172,7 +172,7 @@ class Model:
         groups = {}
         adj = self.tree.adjacency()
         for p in self.parts:
-            stem = _stem(p)
+            stem = part_stem(p)
             if stem == p:
                 continue
             key = (stem, tuple(sorted(str(n) for n, _ in adj[p])))
@@ -235,7 +235,8 @@ class Model:
         Path(path).write_text(tomli_w.dumps(self.to_dict()))
 
 
-def _stem(part: str) -> str:
+def part_stem(part: str) -> str:
+    """A numbered part's stem (``hand_1`` → ``hand``); other names as they are."""
     s = str(part)
     head, sep, tail = s.rpartition("_")
     return head if sep and tail.isdigit() and head else s
@@ -302,7 +303,7 @@ def validate_model(m: Model) -> None:
             raise InputError(f"{where}: facing.{k} must be two parts [from, to], got {v!r}")
     stems = {}
     for p in adj:
-        stems.setdefault(_stem(p), []).append(p)
+        stems.setdefault(part_stem(p), []).append(p)
     for i, j in enumerate(m.joints):
         jw = f"{where}: joint[{i}]"
         if not isinstance(j.name, str) or not j.name:

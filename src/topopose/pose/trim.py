@@ -31,12 +31,12 @@ run trims as well. Development seeds 41–50, ``benchmarks/phantom.py``.
 """
 from __future__ import annotations
 
-import re
 from dataclasses import replace
 
 import numpy as np
 
 from .curves import N_SAMPLES, resample
+from .model import part_stem
 
 STEMS = ("hand",)      # limb ends whose branch is trimmed; the feet too: no better (below)
 SLACK = 1.5            # projected voxels: a disk inside another up to this is inside it
@@ -53,8 +53,11 @@ MIN_FRACTION = 0.5     # the end moves back at most to this fraction of its curv
 UPSAMPLE = 4           # curve points per stored sample while walking back
 
 
-def _stem(part: str) -> str:
-    return re.sub(r"_\d+$", "", part)
+def _at_end(part, curves, parts) -> bool:
+    """Whether ``part`` is placed at its curve's end (not held or snapped elsewhere)."""
+    return (part in curves and parts.get(part) is not None
+            and np.linalg.norm(np.asarray(curves[part][-1], float)
+                               - np.asarray(parts[part], float)) < 1e-4)
 
 
 def voxel_size(pose) -> float | None:
@@ -178,16 +181,14 @@ def trimmed_curves(curves, parts, cameras, silhouettes, voxel, stems=None, **kw)
     {}
     """
     stems = STEMS if stems is None else stems
-    todo = [q for q in curves if _stem(q) in stems and parts.get(q) is not None
-            and np.linalg.norm(np.asarray(curves[q][-1], float)
-                               - np.asarray(parts[q], float)) < 1e-4]
+    todo = [q for q in curves if part_stem(q) in stems and _at_end(q, curves, parts)]
     if not todo or not voxel:
         return {}
     depths = [silhouette_depth(m) for m in silhouettes]
     up = {q: resample(np.asarray(c, float), UPSAMPLE * len(c)) for q, c in curves.items()}
     out = {}
     for q in todo:
-        others = [c for r, c in up.items() if r != q and _stem(r) != _stem(q)]
+        others = [c for r, c in up.items() if r != q and part_stem(r) != part_stem(q)]
         c = up[q]
         j, r = evidence_end(c, others, cameras, depths, voxel, **kw)
         s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
@@ -206,9 +207,7 @@ def apply_trim(pose):
     curves = pose.diagnostics.get("curves") or {}
     parts, new_curves, moved = dict(pose.parts), dict(curves), []
     for q, cut in trim.items():
-        if (q in curves and parts.get(q) is not None
-                and np.linalg.norm(np.asarray(curves[q][-1], float)
-                                   - np.asarray(parts[q], float)) < 1e-4):
+        if _at_end(q, curves, parts):
             new_curves[q] = np.asarray(cut, float)
             parts[q] = new_curves[q][-1].copy()
             moved.append(q)

@@ -149,7 +149,8 @@ def _bone_table(model, names, start):
     """The kinematic tree of ``model`` and its bones ``(child, parent, f, trunk label, label)``
     for :func:`bone_segments`: the trunk takes the fraction f of the bone from its parent
     joint; cached per model, names and start."""
-    from .kinematic_fit import _stem, kinematic_tree
+    from .kinematic_fit import kinematic_tree
+    from .model import part_stem
 
     key = (id(model), names, start)
     hit = _BONE_TABLES.get(key)
@@ -178,7 +179,7 @@ def _bone_table(model, names, start):
                 and degree.get(a, 0) > 1 and degree.get(b, 0) > 1 and (a, b) in index] \
             if degree.get(u, 0) > 1 else []
         # the trunk takes the part of the arc's chain before the limb's start
-        f = float(start.get(_stem(v), 1.0)) - (rank[c] - 1) if len(core) == 1 else 0.0
+        f = float(start.get(part_stem(v), 1.0)) - (rank[c] - 1) if len(core) == 1 else 0.0
         table.append((c, p, min(max(f, 0.0), 1.0), core[0] if core else 0, lab))
     if len(_BONE_TABLES) > 16:
         _BONE_TABLES.clear()

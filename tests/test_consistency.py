@@ -153,7 +153,8 @@ def test_unrelated_poses_are_left_as_they_are(model):
 
 def test_process_sequence_switch(model):
     up = np.array([0.0, 0.0, 1.0])
-    off = process_sequence(walk(), model, up, track=False, sides=False, skeleton=False)
+    off = process_sequence(walk(), model, up, track=False, sides=False, skeleton=False,
+                           consistency=False)
     assert all(p.status == "rejected" for p in off.poses) and "consistency" not in off.stages
     on = process_sequence(walk(), model, up, track=False, sides=False, skeleton=False,
                           consistency={"neighbours": 2, "min_rank": 0.0})
@@ -176,7 +177,7 @@ def test_run_switch_keeps_the_best_guesses(tmp_path):
 
     cap = synthetic_capture("human", frames=8, seed=1, cameras=4, size=(240, 180),
                             motion="walk")
-    off = run(cap, resolution=48, progress=False)
+    off = run(cap, resolution=48, progress=False, consistency=False)
     on = run(cap, resolution=48, progress=False, consistency=True, output=tmp_path / "p.jsonl")
     assert [p.frame for p in on.poses] == [p.frame for p in off.poses]
     for a, b in zip(off.poses, on.poses):
@@ -188,3 +189,138 @@ def test_run_switch_keeps_the_best_guesses(tmp_path):
         if a.status != b.status:
             assert C.gated(a) and b.status in ("matched", "rejected")
     assert any("consistency" in p.diagnostics for p in read_poses(tmp_path / "p.jsonl"))
+
+
+def test_a_part_held_at_its_prediction_is_not_matched(model):
+    """A part the tracker held at its prediction (``diagnostics["predicted"]``) sits exactly
+    where the neighbours predict it — a deviation of 0 that proves nothing: its frame is not
+    matched by the consistency, and a matched one is rejected with the reason, in both modes,
+    also at the run's ends (no pair of neighbours needed)."""
+    for union in (False, True):
+        poses = walk(status="matched")
+        for i in (0, 5):
+            assert "hand_1" in poses[i].parts
+            poses[i].diagnostics["predicted"] = ["hand_1"]
+        C.judge_sequence(poses, model, neighbours=2, min_rank=0.0, union=union)
+        assert poses[5].diagnostics["consistency"]["deviation"] == pytest.approx(0.0, abs=1e-12)
+        for i in (0, 5):
+            assert poses[i].status == "rejected", (union, i)
+            assert "hand_1 held at the tracked prediction" in poses[i].error
+            assert poses[i].error.startswith("inconsistent with the run: ")
+        assert all(p.status == "matched" for i, p in enumerate(poses) if i not in (0, 5))
+        # a frame only the gate rejected is not matched either, its reason kept
+        poses = walk()
+        poses[5].diagnostics["predicted"] = ["hand_2"]
+        C.judge_sequence(poses, model, neighbours=2, min_rank=0.0, union=union)
+        assert poses[5].status == "rejected" and poses[5].error == GATED
+        assert "hand_2 held" in poses[5].diagnostics["consistency"]["reasons"][0]
+        assert poses[4].status == poses[6].status == "matched"
+
+
+def test_union_keeps_the_gate_and_adds_consistent_frames(model):
+    """``union=True`` (the run's default): every frame the gate matched stays matched, an
+    inconsistent one too (its reasons recorded); a frame the gate alone rejected is matched
+    when consistent and stays rejected when not; a frame rejected for another reason and a
+    failed one are untouched. ``union=False`` (``--consistency``) rejects the inconsistent
+    matched frame instead."""
+    def run_of():
+        poses = walk(14)
+        for i in (2, 3, 8, 9):                   # the gate matched these
+            poses[i].status, poses[i].error = "matched", None
+        poses[3].parts["hand_1"] = poses[3].parts["torso"].copy()    # matched, inconsistent
+        poses[7].parts["foot_2"] = poses[7].parts["head"].copy()     # gated, inconsistent
+        poses[6].error = "hull: 2 pieces"        # rejected for another reason
+        poses[12] = Pose(poses[12].frame, "failed", None, {k: None for k in poses[12].parts},
+                         "boom")
+        return poses
+
+    expect = {i: "matched" for i in range(14)}
+    expect.update({0: "rejected", 13: "rejected",       # the ends: as the gate decided
+                   7: "rejected", 6: "rejected", 12: "failed"})
+    poses = run_of()
+    assert C.judge_sequence(poses, model, neighbours=2, min_rank=0.0, union=True)
+    assert {i: p.status for i, p in enumerate(poses)} == expect
+    assert poses[3].error is None and poses[3].diagnostics["consistency"]["reasons"]
+    assert poses[6].error == "hull: 2 pieces" and poses[12].error == "boom"
+    assert poses[7].error == GATED
+    assert poses[5].diagnostics["consistency"]["gate"] == GATED     # what the gate said
+    # the consistency instead of the gate: the inconsistent matched frame is rejected
+    poses = run_of()
+    C.judge_sequence(poses, model, neighbours=2, min_rank=0.0, union=False)
+    assert {i: p.status for i, p in enumerate(poses)} == {**expect, 3: "rejected"}
+    assert poses[3].error.startswith("inconsistent with the run: hand_1")
+
+
+def test_union_is_the_default_and_leaves_unrelated_poses_alone(model):
+    """``process_sequence`` (and so ``run``) decides ``matched`` by the union by default; a run
+    of unrelated poses keeps the gate's statuses in every mode."""
+    from topopose.pose.motion import consistency_settings
+
+    up = np.array([0.0, 0.0, 1.0])
+    assert consistency_settings(None) == consistency_settings("union") == {"union": True}
+    assert consistency_settings(True) == {} and consistency_settings(False) is None
+    assert consistency_settings({"neighbours": 1}) == {"neighbours": 1}
+    with pytest.raises(ValueError):
+        consistency_settings("sometimes")
+
+    def run_of():
+        poses = walk(10)
+        poses[4].status, poses[4].error = "matched", None
+        poses[4].parts["hand_2"] = poses[4].parts["crotch"].copy()     # inconsistent
+        return poses
+
+    got = process_sequence(run_of(), model, up, track=False, sides=False, skeleton=False)
+    assert "consistency" in got.stages
+    assert [p.status for p in got.poses] == ["rejected"] + ["matched"] * 8 + ["rejected"]
+    got = process_sequence(run_of(), model, up, track=False, sides=False, skeleton=False,
+                           consistency=True)
+    assert got.poses[4].status == "rejected"
+    rng = np.random.default_rng(5)
+    for mode in (None, True, False):
+        poses = run_of()
+        for p in poses:                         # every frame a pose somewhere else
+            off = rng.uniform(-2, 2, 3) * [1, 1, 0]
+            p.parts = {k: v + off + rng.normal(0, 0.3, 3) for k, v in p.parts.items()}
+        before = [(p.frame, p.status, p.error) for p in poses]
+        got = process_sequence(poses, model, up, track=False, sides=False, skeleton=False,
+                               consistency=mode)
+        assert [(p.frame, p.status, p.error) for p in got.poses] == before
+        assert "consistency" not in got.stages
+
+
+def test_run_default_is_the_union(tmp_path):
+    """``run()`` by default: the same parts as ``consistency=False`` (the gate alone), every
+    frame the gate matched still matched unless a part was held, the others changed only
+    when the gate alone rejected them; the silhouette support recorded; a wrong option
+    refused."""
+    from topopose.capture.synth import synthetic_capture
+    from topopose.errors import InputError
+    from topopose.pose import run
+
+    cap = synthetic_capture("human", frames=8, seed=1, cameras=4, size=(240, 180),
+                            motion="walk")
+    gate = run(cap, resolution=48, progress=False, consistency=False)
+    union = run(cap, resolution=48, progress=False)
+    assert all("unexplained" not in p.diagnostics for p in gate.poses)
+    assert any("unexplained" in p.diagnostics for p in union.poses)
+    for a, b in zip(gate.poses, union.poses):
+        assert a.frame == b.frame and a.parts.keys() == b.parts.keys()
+        for k in a.parts:
+            assert (a.parts[k] is None) == (b.parts[k] is None)
+            if a.parts[k] is not None:
+                assert np.allclose(a.parts[k], b.parts[k])
+        if a.status == "matched" and not C.held_parts(a):
+            assert b.status == "matched"
+        if a.status != b.status:
+            assert C.gated(a)
+    with pytest.raises(InputError):
+        run(cap, resolution=48, progress=False, consistency="sometimes", frames="0:1")
+
+
+def test_cli_consistency_switch():
+    from topopose.cli import build_parser
+
+    p = build_parser()
+    assert p.parse_args(["run", "CAP"]).consistency is None           # the union (default)
+    assert p.parse_args(["run", "CAP", "--consistency"]).consistency is True
+    assert p.parse_args(["run", "CAP", "--no-consistency"]).consistency is False

@@ -424,10 +424,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--trim", action=argparse.BooleanOptionalAction, default=None,
                    help="hands moved back out of the hull's phantom volume, where the "
                         "silhouettes' evidence ends (default on: pose/trim.py)")
-    s.add_argument("--consistency", action=argparse.BooleanOptionalAction, default=False,
+    s.add_argument("--consistency", action=argparse.BooleanOptionalAction, default=None,
                    help="sequences of one subject: 'matched' decided by agreement with the "
-                        "neighbouring frames and the confidence's rank in the run instead of "
-                        "its absolute minimum (default off: benchmarks/results/consistency.md)")
+                        "neighbouring frames and the silhouettes the placed model explains "
+                        "instead of the confidence gate; --no-consistency: the gate alone "
+                        "(default: both, a frame is matched when the gate matches it or, "
+                        "rejected by the gate alone, it is consistent with the run: "
+                        "benchmarks/results/consistency.md)")
     s.add_argument("--support", action="store_const", const=True, default=None,
                    help="per frame: reject a matched frame whose silhouettes the placed model "
                         "leaves unexplained (share above pose.consistency.MAX_UNEXPLAINED; "

@@ -223,9 +223,16 @@ def gated(pose) -> bool:
         "confidence ")
 
 
+def held_parts(pose) -> list:
+    """The parts the tracker held at their identity's prediction in this frame
+    (``diagnostics["predicted"]``, :func:`.track.track_identities`): placed without the frame's
+    evidence, so their agreement with the neighbours' prediction proves nothing."""
+    return [q for q in (pose.diagnostics.get("predicted") or []) if q in pose.parts]
+
+
 def judge_sequence(poses, model, index=None, max_deviation=MAX_DEVIATION,
                    neighbours=NEIGHBOURS, min_rank=MIN_RANK, max_length_ratio=None,
-                   groups=None, max_unexplained=MAX_UNEXPLAINED) -> bool:
+                   groups=None, max_unexplained=MAX_UNEXPLAINED, union=False) -> bool:
     """Decide ``matched`` by the run's own consistency, in place (module docstring).
 
     Parameters
@@ -242,6 +249,12 @@ def judge_sequence(poses, model, index=None, max_deviation=MAX_DEVIATION,
     max_unexplained : float, optional
         Also require ``diagnostics["unexplained"]`` (:mod:`.support`) at most this, in the
         frames that have it.
+    union : bool
+        False (``run --consistency``): the consistency replaces the confidence gate — a
+        matched frame found inconsistent is rejected. True (the run's default): the union of
+        the gate and the consistency — a matched frame stays matched (its reasons recorded)
+        unless a part of it was held at its prediction (:func:`held_parts`); a frame the gate
+        alone rejected is matched when consistent.
 
     Returns
     -------
@@ -260,9 +273,17 @@ def judge_sequence(poses, model, index=None, max_deviation=MAX_DEVIATION,
         info = {"deviation": None if worst is None else round(d[worst], 4), "part": worst,
                 "rank": None if r is None else round(r, 3)}
         reasons = []
+        held = held_parts(p)
+        if held:                           # no evidence: not matched, whatever else says
+            reasons.append(f"{', '.join(held)} held at the tracked prediction (no evidence "
+                           f"in this frame)")
         if worst is None:                  # no neighbours to compare with (the run's ends)
+            if held:
+                info["reasons"] = reasons
             p.diagnostics["consistency"] = info
-            continue                       # left as the gate decided
+            if held and p.status == "matched":
+                p.status, p.error = "rejected", "inconsistent with the run: " + reasons[0]
+            continue                       # else left as the gate decided
         if d[worst] > max_deviation:
             reasons.append(f"{worst} {d[worst]:.2f} × height from its neighbours' prediction "
                            f"(above {max_deviation:g})")
@@ -287,7 +308,7 @@ def judge_sequence(poses, model, index=None, max_deviation=MAX_DEVIATION,
         if not gated(p):
             continue
         if reasons:
-            if p.status == "matched":
+            if p.status == "matched" and (not union or held):
                 p.status = "rejected"
                 p.error = "inconsistent with the run: " + "; ".join(reasons)
         elif p.status == "rejected":

@@ -2,8 +2,9 @@
 
 numbered parts → identities over time (:mod:`.track`) → hands trimmed out of the hull's phantom
 volume (:mod:`.trim`, as each frame recorded it) → full kinematic skeleton with constant
-bone lengths (:mod:`.kinematic_fit`) → left and right (:mod:`.chirality`) → optionally
-``matched`` decided by the run's own consistency (:mod:`.consistency`). Every stage reads
+bone lengths (:mod:`.kinematic_fit`) → left and right (:mod:`.chirality`) → ``matched``
+decided with the run's own consistency (:mod:`.consistency`; by default the union of the
+confidence gate and the consistency, :data:`CONSISTENCY`). Every stage reads
 only the poses (their parts and the skeleton curves in ``diagnostics["curves"]``), so it runs
 after a parallel or resumed run as well.
 """
@@ -17,6 +18,28 @@ from .track import track as track_identities
 
 
 TRIM = True  # hands trimmed back where the silhouettes' evidence ends (:mod:`.trim`)
+#: ``matched`` of a coherent sequence: the confidence gate's, plus the frames the gate alone
+#: rejected that the run's own consistency finds consistent (:func:`.consistency.judge_sequence`
+#: ``union=True``; development seeds: ``benchmarks/results/consistency.md``)
+CONSISTENCY = "union"
+
+
+def consistency_settings(consistency) -> dict | None:
+    """:func:`.consistency.judge_sequence`'s keyword arguments for the ``consistency`` option of
+    :func:`process_sequence` / ``run``: None → the default (:data:`CONSISTENCY`); False → off
+    (None); True → the consistency replaces the gate (``run --consistency``, ``{}``);
+    ``"union"`` → ``{"union": True}``; a dict is given as it is."""
+    if consistency is None:
+        consistency = CONSISTENCY
+    if consistency is False:
+        return None
+    if consistency is True:
+        return {}
+    if consistency == "union":
+        return {"union": True}
+    if isinstance(consistency, dict):
+        return dict(consistency)
+    raise ValueError(f"consistency: False, True, 'union' or a dict, got {consistency!r}")
 
 
 @dataclass
@@ -30,7 +53,7 @@ class Motion:
 
 
 def process_sequence(poses, model, up, track=True, sides=True, skeleton=True, max_gap=5,
-                     smooth=None, consistency=False, trim=None) -> Motion:
+                     smooth=None, consistency=None, trim=None) -> Motion:
     """Run the sequence stages on the poses of one capture (sorted by frame).
 
     Parameters
@@ -41,10 +64,12 @@ def process_sequence(poses, model, up, track=True, sides=True, skeleton=True, ma
     track, sides, skeleton : which stages to run (each needs what the model declares:
         interchangeable parts, ``[[mirror]]`` + ``[facing]``, ``[[joint]]``)
     max_gap, smooth : gap filling and smoothing of the skeleton (:func:`.fit_sequence`)
-    consistency : bool or dict
-        Last, on the poses as written: ``matched`` decided by the run's own consistency
-        (:func:`.consistency.judge_sequence`; a dict gives its keyword arguments) when the run
-        is a coherent sequence; off by default (``results/consistency.md``).
+    consistency : bool, "union", dict or None
+        Last, on the poses as written, when the run is a coherent sequence: ``matched``
+        decided with the run's own consistency (:func:`.consistency.judge_sequence`, see
+        :func:`consistency_settings`): None (default): :data:`CONSISTENCY`, the union of the
+        confidence gate and the consistency; True: the consistency instead of the gate;
+        False: the gate alone.
     trim : bool, optional
         Whether to apply the hands' trim each frame recorded (``diagnostics["trim"]``,
         :func:`.trim.apply_trim`) after the identities (default :data:`TRIM`).
@@ -66,11 +91,11 @@ def process_sequence(poses, model, up, track=True, sides=True, skeleton=True, ma
     if sides and model.mirrors and model.facing:
         out.poses = assign_sides(out.poses, model, up, use_time=track)
         out.stages.append("sides")
-    if consistency and len(out.poses) > 2:
+    settings = consistency_settings(consistency)
+    if settings is not None and len(out.poses) > 2:
         from .consistency import judge_sequence, mirror_groups
         from .track import frame_index
 
-        settings = consistency if isinstance(consistency, dict) else {}
         if judge_sequence(out.poses, model, frame_index(out.poses), groups=mirror_groups(model),
                           **settings):
             out.stages.append("consistency")

@@ -155,7 +155,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
         tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None, track=True,
-        sides=True, skeleton=True, smooth=None, bvh=None, consistency=False,
+        sides=True, skeleton=True, smooth=None, bvh=None, consistency=None,
         support=None, support_test=False, trim=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
@@ -209,15 +209,20 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         default :data:`topopose.pose.motion.TRIM`, on).
     bvh : path, optional
         BVH export of the fitted skeleton (Blender).
-    consistency : bool or dict
-        Sequences of one subject: ``matched`` decided by the run's own consistency instead of
-        the confidence's absolute minimum (:mod:`topopose.pose.consistency`; a dict gives
-        :func:`~topopose.pose.consistency.judge_sequence`'s settings); a run of unrelated
-        poses is left as it is. Off by default: measured below the issue's 95 % with 4
-        cameras (``benchmarks/results/consistency.md``).
+    consistency : bool, "union", dict or None
+        Sequences of one subject (a run of unrelated poses is left as it is): ``matched``
+        decided with the run's own consistency (:mod:`topopose.pose.consistency`). None
+        (default): :data:`topopose.pose.motion.CONSISTENCY`, ``"union"`` — a frame the
+        confidence gate matched stays matched (unless a part of it was held at its tracked
+        prediction) and a frame the gate alone rejected is matched when consistent with the
+        run; True (``run --consistency``): the consistency instead of the gate; False
+        (``--no-consistency``): the gate alone; a dict gives
+        :func:`~topopose.pose.consistency.judge_sequence`'s settings
+        (``benchmarks/results/consistency.md``).
     support : bool, optional
         Record each frame's ``diagnostics["unexplained"]`` (:mod:`topopose.pose.support`),
-        which the consistency reads; None (default): with ``consistency`` or ``support_test``.
+        which the consistency reads; None (default): with ``consistency`` (on by default) or
+        ``support_test``.
     support_test : bool or "replace"
         Per frame (also runs of unrelated poses): a matched frame whose silhouette is left
         unexplained by the placed model above
@@ -251,7 +256,12 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         options["refocus"] = True
     if thickness is not None:
         options["thickness"] = float(thickness)
-    if support or (support is None and (consistency or support_test)):   # read by them
+    from .motion import consistency_settings
+    try:
+        judged = consistency_settings(consistency) is not None
+    except ValueError as e:
+        raise InputError(str(e)) from None
+    if support or (support is None and (judged or support_test)):   # read by them
         options["support"] = True
     todo = select_frames(cap, frames)
     if c3d is not None:
@@ -348,7 +358,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     poses = [results[k] for k in sorted(results)]
     motion = None
     # a resume with nothing to do keeps the file
-    if (track or sides or skeleton or consistency) and todo:
+    if (track or sides or skeleton or judged) and todo:
         from .motion import process_sequence
         motion = process_sequence(poses, m, cap.up_vector, track=track, sides=sides,
                                   skeleton=skeleton, smooth=smooth, consistency=consistency,
@@ -540,7 +550,7 @@ def run_cli(a) -> int:
               thickness=getattr(a, "thickness", None), track=getattr(a, "track", True),
               sides=getattr(a, "sides", True), skeleton=getattr(a, "skeleton", True),
               smooth=getattr(a, "smooth", None), bvh=getattr(a, "bvh", None),
-              consistency=getattr(a, "consistency", False),
+              consistency=getattr(a, "consistency", None),
               support_test=getattr(a, "support", None) or False, trim=getattr(a, "trim", None))
     if getattr(a, "rerun", None):
         from ..viz.rerun import record_run

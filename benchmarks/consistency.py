@@ -32,6 +32,7 @@ import itertools
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -101,10 +102,12 @@ def right_frames(poses, gt, model) -> list:
 
 def as_run(poses, model, up, trim=None):
     """The sequence stages of ``topopose run`` (track, the hands' trim, skeleton, sides),
-    consistency off; ``trim=False``: without the trim."""
+    consistency off (the confidence gate's ``matched``: ``run --no-consistency``);
+    ``trim=False``: without the trim."""
     from topopose.pose.motion import process_sequence
 
-    return process_sequence(copy.deepcopy(poses), model, up, trim=trim).poses
+    return process_sequence(copy.deepcopy(poses), model, up, trim=trim,
+                            consistency=False).poses
 
 
 def judged(poses, model, settings):
@@ -113,7 +116,8 @@ def judged(poses, model, settings):
     from topopose.pose.consistency import judge_sequence, mirror_groups
     from topopose.pose.track import frame_index
 
-    ps = copy.deepcopy(poses)
+    # judge_sequence sets status, error and diagnostics["consistency"]: those are copied
+    ps = [replace(p, diagnostics=dict(p.diagnostics)) for p in poses]
     ok = judge_sequence(ps, model, frame_index(ps), groups=mirror_groups(model), **settings)
     return ps, ok
 
@@ -138,23 +142,29 @@ def collect(setups, seeds, frames, work, model, up):
     return out
 
 
-def evaluate_settings(data, setups, model, settings, peer=False) -> dict:
-    """Per set-up, pooled over its seeds: frames, right, the gate's and ours (and with
-    ``peer`` the rule before the silhouette support, :data:`BEFORE`)."""
+def evaluate_settings(data, setups, model, settings, peer=False, union=None) -> dict:
+    """Per set-up, pooled over its seeds: frames, right, the gate's, ours (the consistency
+    instead of the gate, ``run --consistency``) and the union (the run's default: the gate's
+    frames and the consistent ones it alone rejected; with ``peer`` also the rule before the
+    silhouette support, :data:`BEFORE`; ``union``: the union whether or not ``peer``)."""
+    union = peer if union is None else union
     out = {}
+    keys = ("gate", "ours", "union", "before")
     for setup in setups:
-        tot = {"frames": 0, "right": 0, "gate": [0, 0], "ours": [0, 0], "before": [0, 0]}
+        tot = {"frames": 0, "right": 0, **{k: [0, 0] for k in keys}}
         for (s, _), (ps, right) in data.items():
             if s != setup:
                 continue
             tot["frames"] += len(ps)
             tot["right"] += sum(right)
             for key, qs in (("gate", ps), ("ours", judged(ps, model, settings)[0]),
+                            ("union", judged(ps, model, {**settings, "union": True})[0]
+                             if union else []),
                             ("before", judged(ps, model, BEFORE)[0] if peer else [])):
                 sc = score(qs, right)
                 tot[key][0] += sc["matched"]
                 tot[key][1] += sc["right_matched"]
-        for key in ("gate", "ours", "before"):
+        for key in keys:
             n, rt = tot[key]
             tot[key] = {"matched": n, "right_matched": rt,
                         "precision": round(rt / n, 3) if n else None,
@@ -164,30 +174,35 @@ def evaluate_settings(data, setups, model, settings, peer=False) -> dict:
 
 
 def choose(data, model) -> tuple:
-    """The settings of :data:`GRID` kept on the development seeds (module docstring) and the
+    """The settings of :data:`GRID` kept on the development seeds (module docstring), for
+    the consistency instead of the gate (``ours``) and in union with it (``union``), and the
     table of every combination."""
     four = [s for s in SETUPS if SETUPS[s][0] == 4 and any(k[0] == s for k in data)]
-    table, best, best_key = [], None, None
+    table, best, best_key = [], {}, {}
     for values in itertools.product(*GRID.values()):
         settings = dict(zip(GRID, values))
-        r = evaluate_settings(data, four, model, settings)
+        r = evaluate_settings(data, four, model, settings, union=True)
         table.append({"settings": settings, "per_setup": r})
-        ok = all(r[s]["ours"]["precision"] is not None and r[s]["ours"]["precision"] >= 0.95
-                 for s in four)
-        key = min(r[s]["ours"]["share_of_right"] or 0 for s in four)
-        if ok and (best_key is None or key > best_key):
-            best, best_key = settings, key
+        for mode in ("ours", "union"):
+            ok = all(r[s][mode]["precision"] is not None and r[s][mode]["precision"] >= 0.95
+                     for s in four)
+            key = min(r[s][mode]["share_of_right"] or 0 for s in four)
+            if ok and (best_key.get(mode) is None or key > best_key[mode]):
+                best[mode], best_key[mode] = settings, key
     return best, table
 
 
 def unrelated(model, up, frames, work) -> dict:
     """A run of unrelated random poses (8 cameras): whether it is judged coherent and how many
-    statuses the switch changes (must be none)."""
+    statuses the consistency changes, instead of the gate or in union with it (must be
+    none)."""
     poses, _ = sequence("8", 11, frames, work, motion="random")
     ps = as_run(poses, model, up)
     js, coherent = judged(ps, model, {})
+    ju, _ = judged(ps, model, {"union": True})
     return {"frames": len(ps), "coherent": coherent,
-            "changed": sum(a.status != b.status for a, b in zip(ps, js))}
+            "changed": sum(a.status != b.status for a, b in zip(ps, js)),
+            "changed_union": sum(a.status != b.status for a, b in zip(ps, ju))}
 
 
 def main(argv=None):
@@ -213,23 +228,27 @@ def main(argv=None):
     default = {"max_deviation": C.MAX_DEVIATION, "neighbours": C.NEIGHBOURS,
                "min_rank": C.MIN_RANK, "max_length_ratio": None,
                "max_unexplained": C.MAX_UNEXPLAINED}
-    test = collect(setups, [int(x) for x in a.test_seeds.split(",")], a.frames, a.work, model,
-                   up)
+    test = collect(setups, [int(x) for x in a.test_seeds.split(",") if x], a.frames, a.work,
+                   model, up)          # --test-seeds "": the development seeds alone
     doc = {"machine": machine(), "setups": {k: list(map(str, v)) for k, v in SETUPS.items()},
            "frames": a.frames, "dev_seeds": a.dev_seeds, "test_seeds": a.test_seeds,
            "chosen": best, "default": default,
            "before": BEFORE,
            "dev": evaluate_settings(dev, setups, model, default, peer=True),
-           "test": evaluate_settings(test, setups, model, default, peer=True),
-           "test_chosen": evaluate_settings(test, setups, model, best) if best else None,
+           "test": evaluate_settings(test, setups, model, default, peer=True) if test else {},
+           "test_chosen": {m: evaluate_settings(test, setups, model, b, union=m == "union")
+                           for m, b in best.items()} if test else None,
            "unrelated": unrelated(model, up, a.frames, a.work),
            "grid": table}
     if a.real_json and Path(a.real_json).is_file():
         rj = json.loads(Path(a.real_json).read_text())
+        def pick(r, key):
+            return {k: r[key][k] for k in ("matched", "matched_precision")}
+
         doc["real"] = {m: {"frames": r["as_run"]["frames"], "right": r["as_run"]["right"],
-                           "gate": {k: r["as_run"][k] for k in ("matched", "matched_precision")},
-                           "ours": {k: r["as_run_consistency"][k]
-                                    for k in ("matched", "matched_precision")}}
+                           "gate": pick(r, "as_run_gate" if "as_run_gate" in r else "as_run"),
+                           "ours": pick(r, "as_run_consistency"),
+                           **({"union": pick(r, "as_run")} if "as_run_gate" in r else {})}
                        for m, r in rj["methods"].items() if "as_run_consistency" in r}
     write_results(a.out, doc, report)
     return 0
@@ -248,51 +267,62 @@ def report(doc) -> str:
          "Written by `benchmarks/consistency.py` (see its docstring). Synthetic: body subject "
          f"walking, {doc['frames']} frames per sequence, 100³; set-ups "
          + "; ".join(f"{k}: {v[0]} cameras {v[1]} noise {v[2]}" for k, v in doc["setups"].items())
-         + ". Right: TP of issue 11 (0.08 × height). *Gate*: `topopose run` as it is (the "
+         + ". Right: TP of issue 11 (0.08 × height), on the poses as `run` writes them (the "
+         "hands' trim on). *Gate*: `topopose run --no-consistency` (the "
          "confidence gate on with fewer than 6 cameras, T_d alone with 8); *ours*: "
-         "`topopose run --consistency`; *before*: the same rule before the silhouette "
+         "`topopose run --consistency` (the consistency instead of the gate); *union*: "
+         "`topopose run` by default (the gate's frames, unless a part was held at its tracked "
+         "prediction, and the frames the gate alone rejected that are consistent); *before*: "
+         "`--consistency` before the silhouette "
          f"support (`pose/support.py`), {doc['before']}. The real recording's figures: "
-         "`results/trust_features.md`.", "",
-         f"Settings kept on the development seeds ({doc['dev_seeds']}): {doc['chosen']}; "
-         f"the module's defaults: {doc['default']}.", ""]
+         "`results/real.md`.", "",
+         "Settings the grid keeps on the development seeds "
+         f"({doc['dev_seeds']}; precision ≥ 95 % in every 4-camera set-up, the most right "
+         "frames passing in the worst): "
+         + "; ".join(f"{m}: {b}" for m, b in doc["chosen"].items())
+         + f". The module's defaults (both modes): {doc['default']}.", ""]
     for name, key in (("Held-out seeds " + doc["test_seeds"], "test"),
                       ("Development seeds " + doc["dev_seeds"], "dev")):
+        if not doc[key]:
+            continue
         rows = []
         for setup, r in doc[key].items():
             rows.append([setup, r["frames"], f"{r['right']} ({_pct(r['right'] / r['frames'])})",
-                         r["gate"]["matched"], _pct(r["gate"]["precision"]),
-                         r["before"]["matched"], _pct(r["before"]["precision"]),
-                         _pct(r["before"]["share_of_right"]),
-                         r["ours"]["matched"], _pct(r["ours"]["precision"]),
-                         _pct(r["ours"]["share_of_right"])])
+                         *(x for k in ("gate", "before", "ours", "union")
+                           for x in (r[k]["matched"], _pct(r[k]["precision"]),
+                                     _pct(r[k]["share_of_right"])))])
         L += [f"## {name} (the module's defaults)", ""]
-        L += _table(["set-up", "frames", "right", "matched (gate)", "precision (gate)",
-                     "matched (before)", "precision (before)", "right frames passing (before)",
-                     "matched (ours)", "precision (ours; target ≥ 95 %)",
-                     "right frames passing (ours)"], rows)
+        L += _table(["set-up", "frames", "right",
+                     *(x for k in ("gate", "before", "ours", "union (default)")
+                       for x in (f"matched ({k})", f"precision ({k})",
+                                 f"right frames passing ({k})"))], rows)
         L.append("")
     if doc.get("real"):
         L += ["## The real recording (`benchmarks/real.py`, Pose2Sim's balancing trial, "
               "4 phone cameras; as `run` writes it)", ""]
-        L += _table(["silhouettes", "frames", "right", "matched (gate)", "precision (gate)",
-                     "matched (ours)", "precision (ours; target ≥ 95 %)"],
-                    [[k, r["frames"], r["right"], r["gate"]["matched"],
-                      _pct(r["gate"]["matched_precision"]), r["ours"]["matched"],
-                      _pct(r["ours"]["matched_precision"])] for k, r in doc["real"].items()])
+        keys = [k for k in ("gate", "ours", "union") if all(k in r for r in doc["real"].values())]
+        L += _table(["silhouettes", "frames", "right",
+                     *(x for k in keys for x in (f"matched ({k})", f"precision ({k})"))],
+                    [[k, r["frames"], r["right"],
+                      *(x for c in keys for x in (r[c]["matched"],
+                                                  _pct(r[c]["matched_precision"])))]
+                     for k, r in doc["real"].items()])
         L.append("")
     u = doc["unrelated"]
     L += [f"Unrelated random poses (8 cameras, {u['frames']} frames): coherent sequence "
-          f"{u['coherent']}, statuses changed by the switch: {u['changed']}.", "",
+          f"{u['coherent']}, statuses changed by `--consistency`: {u['changed']}, by the union "
+          f"(the default): {u.get('changed_union', '—')}.", "",
           "## Every setting on the development seeds (4-camera set-ups pooled per set-up)", ""]
     rows = []
     for t in doc["grid"]:
         s = t["settings"]
         rows.append([s["max_deviation"], s["neighbours"], s["min_rank"], s["max_unexplained"],
-                     *(f"{v['ours']['right_matched']}/{v['ours']['matched']}"
-                       for v in t["per_setup"].values())])
+                     *(f"{v[m]['right_matched']}/{v[m]['matched']}"
+                       for m in ("ours", "union") for v in t["per_setup"].values())])
     setups = list(doc["grid"][0]["per_setup"]) if doc["grid"] else []
     L += _table(["max deviation (× height)", "neighbours", "min rank", "max unexplained",
-                 *(f"{s}: right/matched" for s in setups)], rows)
+                 *(f"{s}: right/matched ({m})" for m in ("ours", "union") for s in setups)],
+                rows)
     return "\n".join(L) + "\n"
 
 

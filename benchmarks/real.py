@@ -22,10 +22,12 @@ confidence gate off so both decisions are scored) and *as ``run`` writes it* (:f
 the run's default gate decision, then the sequence stages ``topopose run`` applies,
 :func:`topopose.pose.motion.process_sequence`: identities over time with misplaced parts held
 at their prediction or snapped to the free skeleton leaf nearest it, the kinematic skeleton,
-left/right). *Precision of matched against recall*: :func:`confidence_curve`. *Matched by the
-run's own consistency*: the same as ``run`` writes it with ``--consistency``
-(:mod:`topopose.pose.consistency`, whose settings were chosen on synthetic walks by
-``benchmarks/consistency.py``, never on this recording).
+left/right, and ``matched`` decided with the run's own consistency: by default the union of
+the confidence gate and the consistency). *Precision of matched against recall*:
+:func:`confidence_curve`. *Matched by the run's own consistency*: the same poses with the gate
+alone (``run --no-consistency``), the consistency instead of the gate (``--consistency``)
+and their union (the default) side by side (:mod:`topopose.pose.consistency`, whose settings
+were chosen on synthetic walks by ``benchmarks/consistency.py``, never on this recording).
 
 Speed: end to end from the videos, one process as ``topopose run`` (a reader thread decodes
 the 4 videos and computes the foreground probabilities ahead of the hull, skeleton and
@@ -204,14 +206,16 @@ def confidence_curve(rows, precisions=(1.0, 0.95, 0.9, 0.8, 0.75, 0.7, 0.0)) -> 
     return out
 
 
-def as_run(poses, model, up, min_confidence, consistency=False, trim=None) -> list:
+def as_run(poses, model, up, min_confidence, consistency=None, trim=None) -> list:
     """The poses as ``topopose run`` writes them (:func:`topopose.pose.run.run`): the confidence
     gate's decision at ``min_confidence`` unless None (the run's default gate,
     :func:`~topopose.pose.estimate.default_gate`, at its minimum for the camera count; a frame
     rejected for its AHA distance that the gate judged too gets the gate's reason after it,
     as ``confidence.judge_frame`` writes it), then
     :func:`~topopose.pose.motion.process_sequence` (track, skeleton, sides; ``consistency``:
-    ``topopose run --consistency``; ``trim=False``: without the hands' trim), the mirror names
+    None, the run's default, the union of the gate and the consistency; False:
+    ``topopose run --no-consistency``; True: ``--consistency``; ``trim=False``: without the
+    hands' trim), the mirror names
     turned back into numbered parts for scoring. ``poses`` are left as they are."""
     import copy
 
@@ -291,7 +295,8 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     bg.UPSAMPLED_MASKS = "fullmasks" not in opts
     def one_pass(support):
         """The run end to end, timed; ``support``: record the silhouette the model leaves
-        unexplained (:mod:`topopose.pose.support`, paid only with ``run --consistency``)."""
+        unexplained (:mod:`topopose.pose.support`, which the run's consistency reads: on by
+        default)."""
         t0 = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")          # the "pad" policy warns for cam01/cam02
@@ -317,10 +322,10 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
                 m_rest = time.thread_time() - m1      # this thread's: the geometric pipeline
         return (cap, frames, est, poses, t_setup, t_first, t_rest, c_rest, m_rest, k1, k2, nk)
 
-    # the run as `topopose run` does it by default (timed, scored), then with the support
-    # feature for `--consistency` (scored in its own section, its cost reported apart)
-    cap, frames, est, poses, t_setup, t_first, t_rest, c_rest, m_rest, k1, k2, nk = one_pass(False)
-    _, _, _, sup_poses, *_ = one_pass(True)
+    # the run as `topopose run` does it by default (timed, scored; the silhouette support
+    # recorded: the consistency reads it, on by default)
+    cap, frames, est, poses, t_setup, t_first, t_rest, c_rest, m_rest, k1, k2, nk = one_pass(True)
+    sup_poses = poses
     temporal_confidence(poses, {f: i for i, f in enumerate(cap.frames)}, gate=False)
     idx = {f: i for i, f in enumerate(cap.frames)}
     mc = est.min_confidence                   # the run's minimum for this camera count
@@ -330,16 +335,17 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     res["as_run"]["trimmed"] = sum(bool(p.diagnostics.get("trimmed")) for p in run_poses)
     res["as_run"]["predicted"] = sum(bool(p.diagnostics.get("predicted")) for p in run_poses)
     res["as_run"]["snapped"] = sum(bool(p.diagnostics.get("snapped")) for p in run_poses)
-    # ``topopose run --consistency`` (topopose.pose.consistency): matched by the run's own
-    # consistency instead of the confidence's absolute minimum
-    temporal_confidence(sup_poses, idx, gate=False)
-    cons = as_run(sup_poses, est.model, cap.up_vector, mc if default_gate(cap) else None,
-                  consistency=True)
-    res["as_run_consistency"] = summarize(cons, ref, idx, mc)
+    # `topopose run --no-consistency` (the gate alone) and `--consistency`
+    # (topopose.pose.consistency: the run's own consistency instead of the confidence's absolute
+    # minimum); the run's default (as_run) is their union
+    for key, mode in (("as_run_gate", False), ("as_run_consistency", True)):
+        ps = as_run(poses, est.model, cap.up_vector, mc if default_gate(cap) else None,
+                    consistency=mode)
+        res[key] = summarize(ps, ref, idx, mc)
     # the same without the hands' trim (topopose.pose.trim), its peer in this run
-    for key, cons_on in (("as_run_no_trim", False), ("as_run_consistency_no_trim", True)):
-        ps = as_run(sup_poses if cons_on else poses, est.model, cap.up_vector,
-                    mc if default_gate(cap) else None, consistency=cons_on, trim=False)
+    for key, mode in (("as_run_no_trim", None), ("as_run_consistency_no_trim", True)):
+        ps = as_run(poses, est.model, cap.up_vector, mc if default_gate(cap) else None,
+                    consistency=mode, trim=False)
         res[key] = summarize(ps, ref, idx, mc)
     stages = {}
     for p in poses[1:]:
@@ -356,7 +362,7 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
         "cpu_ms_per_frame": round(1000 * c_rest / max(len(frames) - 1, 1), 2),
         "main_thread_cpu_ms_per_frame": round(1000 * m_rest / max(len(frames) - 1, 1), 2),
         "stages_median_ms": {k: round(float(np.median(v)), 2) for k, v in stages.items()},
-        # the support feature's own cost (the `--consistency` pass; not in the figures above)
+        # the support feature's own cost (recorded by default; in the figures above)
         "support_median_ms": round(float(np.median([p.timings_ms.get("support", 0.0)
                                                     for p in sup_poses[1:]] or [0.0])), 2),
         # CPU per frame by thread kind (thread_cpu): where the 2 cores' time goes
@@ -544,6 +550,10 @@ def main(argv=None):
     return 0
 
 
+def _pc(x):
+    return "—" if x is None else f"{100 * x:.0f} %"
+
+
 def _table(head: list, rows: list) -> list:
     """Markdown table lines."""
     return (["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
@@ -576,43 +586,51 @@ def report(doc) -> str:
           "The same run's poses after the run's default confidence gate and its sequence stages "
           "(tracking: misplaced numbered parts held at their prediction, flagged `predicted`, or "
           "moved to the free skeleton leaf nearest it, flagged `snapped`; "
-          "kinematic skeleton; left/right), scored the same way.", ""]
+          "kinematic skeleton; left/right; `matched` by default the union of the confidence "
+          "gate and the run's own consistency, `--no-consistency`: the gate alone), scored the "
+          "same way.", ""]
     rows = []
     for name, r in doc["methods"].items():
         a = r.get("as_run")
         if a is None:
             continue
         e = a["errors"]
+        g = r.get("as_run_gate", a)
         rows.append([name, f"{100 * r['right_share']:.0f} %", f"{100 * a['right_share']:.0f} %",
-                     f"{a['matched']}/{a['frames']}",
+                     f"{a['matched']}/{a['frames']}", _pc(a["matched_precision"]),
+                     f"{g['matched']}/{g['frames']}",
                      f"{a.get('predicted', 0)} / {a.get('snapped', 0)}",
                      *(f"{e[k]['median']} / {e[k]['p90']}" for k in ("head", "hand", "foot"))])
     L += _table(["silhouettes", "right per frame", "right as `run` writes it",
-                 "matched (gate on)", "frames with a held / snapped part",
+                 "matched (the run's default: gate ∪ consistency)", "precision of matched",
+                 "matched (`--no-consistency`: gate alone)", "frames with a held / snapped part",
                  "head med / p90", "hands med / p90", "feet med / p90"], rows)
-    L += ["", "## `matched` by the run's own consistency (`topopose run --consistency`)", "",
-          "The same poses as `run` writes them, with `matched` decided by "
-          "`topopose.pose.consistency` (agreement with the neighbouring frames and the share "
-          "of the silhouettes the placed model leaves unexplained, `topopose.pose.support`, "
-          "recorded in a second pass of the run with `support=True`; thresholds chosen on "
-          "synthetic walks, never on this recording: `benchmarks/consistency.py`) instead of "
-          "the confidence's absolute minimum.",
+    L += ["", "## `matched` by the run's own consistency: gate, consistency, union", "",
+          "The same poses as `run` writes them, with `matched` decided by the confidence gate "
+          "alone (`run --no-consistency`), by `topopose.pose.consistency` instead of it "
+          "(`--consistency`: agreement with the neighbouring frames, no part held at its "
+          "tracked prediction, and the share of the silhouettes the placed model leaves "
+          "unexplained, `topopose.pose.support`, recorded by the run; thresholds chosen on "
+          "synthetic walks, never on this recording: `benchmarks/consistency.py`), and by "
+          "their union (the run's default: the gate's frames, and those the gate alone "
+          "rejected that are consistent).",
           ""]
     rows = []
     for name, r in doc["methods"].items():
         a, c = r.get("as_run"), r.get("as_run_consistency")
-        if a is None or c is None:
+        g = r.get("as_run_gate")
+        if a is None or c is None or g is None:
             continue
-        pa = "—" if a["matched_precision"] is None else f"{100 * a['matched_precision']:.0f} %"
-        pc = "—" if c["matched_precision"] is None else f"{100 * c['matched_precision']:.0f} %"
-        rows.append([name, f"{100 * a['right_share']:.0f} %", f"{a['matched']}/{a['frames']}", pa,
-                     f"{c['matched']}/{c['frames']}", pc])
-    L += _table(["silhouettes", "right as `run` writes it", "matched (confidence gate)",
-                 "precision (gate)", "matched (consistency)",
-                 "precision (consistency; target ≥ 95 %)"], rows)
+        rows.append([name, f"{100 * a['right_share']:.0f} %",
+                     *(x for y in (g, c, a) for x in (f"{y['matched']}/{y['frames']}",
+                                                      _pc(y["matched_precision"])))])
+    L += _table(["silhouettes", "right as `run` writes it", "matched (gate)",
+                 "precision (gate)", "matched (consistency)", "precision (consistency)",
+                 "matched (union, the default)", "precision (union; target ≥ 95 %)"], rows)
     L += ["", "## The hands' trim (`topopose.pose.trim`, on by default) against its peer", "",
           "The same run's poses as `run` writes them, without the trim (`run --no-trim`) → with it "
           "(hands moved back out of the hull's phantom volume: frames trimmed).", ""]
+    # (as_run: the run's default, the union; as_run_consistency: --consistency)
     rows = []
     for name, r in doc["methods"].items():
         a, c = r.get("as_run"), r.get("as_run_consistency")
@@ -624,9 +642,12 @@ def report(doc) -> str:
         rows.append([name, a.get("trimmed", 0),
                      f"{100 * a0['right_share']:.0f} % → {100 * a['right_share']:.0f} %",
                      f"{a0['errors']['hand']['p90']} → {a['errors']['hand']['p90']}",
+                     f"{a0['matched']} at {_pc(a0['matched_precision'])} → {a['matched']} at "
+                     f"{_pc(a['matched_precision'])}",
                      f"{c0['matched']} at {pc[0]} → {c['matched']} at {pc[1]}"])
     L += _table(["silhouettes", "frames trimmed", "right as `run` writes it", "hands p90 (m)",
-                 "`--consistency`: matched, precision"], rows)
+                 "the run's default: matched, precision", "`--consistency`: matched, precision"],
+                rows)
     L += ["", "## Precision of `matched` against recall", "",
           "How many right frames a confidence gate lets through (per frame, as the first table): "
           "the lowest threshold on the frame's confidence whose passing frames are right in at "
@@ -661,7 +682,7 @@ def report(doc) -> str:
                  *(["frames/s ratio to peer", "CPU ratio to peer", "same poses as peer"] if peer
                    else []),
                  "stage medians ms (hull includes waiting for the reader)",
-                 "`--consistency` only: support ms (not included)"], rows)
+                 "of which the silhouette support ms (on by default)"], rows)
     L += ["", "## Where the first frame's time goes (s)", ""]
     L += _table(["silhouettes", "set-up steps", "first frame's stages"],
                 [[name, ", ".join(f"{k} {v}" for k, v in r["speed"].get("setup_breakdown_s", {}).items()),

@@ -129,12 +129,20 @@ def score(poses, right) -> dict:
 
 
 def collect(setups, seeds, frames, work, model, up):
-    """Per set-up, per seed: (as-run poses, right flags)."""
+    """Per set-up, per seed: (as-run poses, right flags); ``collect.timings``: per set-up,
+    the per-frame timings (ms) of the silhouette support and of the whole frame (each
+    sequence's first frame left out: compilation)."""
     out = {}
+    collect.timings = {}
     for setup in setups:
         for seed in seeds:
             t0 = time.perf_counter()
             poses, gt = sequence(setup, seed, frames, work)
+            t = collect.timings.setdefault(setup, {"support": [], "total": []})
+            for p in poses[1:]:
+                if "support" in p.timings_ms:
+                    t["support"].append(p.timings_ms["support"])
+                    t["total"].append(p.timings_ms.get("total", np.nan))
             ps = as_run(poses, model, up)
             out[(setup, seed)] = (ps, right_frames(ps, gt, model))
             print(f"{setup} seed {seed}: {sum(out[(setup, seed)][1])} right of {len(ps)} "
@@ -224,6 +232,11 @@ def main(argv=None):
     up = np.array([0.0, 0.0, 1.0])
     setups = a.setups.split(",")
     dev = collect(setups, [int(x) for x in a.dev_seeds.split(",")], a.frames, a.work, model, up)
+    support_ms = {k: {"frames": len(v["support"]),
+                      "support_median": round(float(np.median(v["support"])), 2),
+                      "support_p90": round(float(np.percentile(v["support"], 90)), 2),
+                      "frame_median": round(float(np.nanmedian(v["total"])), 1)}
+                  for k, v in collect.timings.items() if v["support"]}
     best, table = choose(dev, model)
     default = {"max_deviation": C.MAX_DEVIATION, "neighbours": C.NEIGHBOURS,
                "min_rank": C.MIN_RANK, "max_length_ratio": None,
@@ -239,6 +252,7 @@ def main(argv=None):
            "test_chosen": {m: evaluate_settings(test, setups, model, b, union=m == "union")
                            for m, b in best.items()} if test else None,
            "unrelated": unrelated(model, up, a.frames, a.work),
+           "support_ms": support_ms,
            "grid": table}
     if a.real_json and Path(a.real_json).is_file():
         rj = json.loads(Path(a.real_json).read_text())
@@ -308,6 +322,13 @@ def report(doc) -> str:
                                                   _pct(r[c]["matched_precision"])))]
                      for k, r in doc["real"].items()])
         L.append("")
+    if doc.get("support_ms"):
+        L += ["The silhouette support's cost (`pose/support.py`, recorded by default since the "
+              "run's default reads it; timed in the development runs, each sequence's first "
+              "frame left out, on a shared machine): "
+              + "; ".join(f"{k}: {v['support_median']} ms a frame (p90 {v['support_p90']}) of "
+                          f"{v['frame_median']} ms" for k, v in doc["support_ms"].items())
+              + ".", ""]
     u = doc["unrelated"]
     L += [f"Unrelated random poses (8 cameras, {u['frames']} frames): coherent sequence "
           f"{u['coherent']}, statuses changed by `--consistency`: {u['changed']}, by the union "

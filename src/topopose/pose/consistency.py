@@ -25,37 +25,51 @@ normalized away:
   median over the run's frames of each matched model arc's skeleton curve
   (``diagnostics["curves"]``; numbered limbs pooled: both arms, both legs).
 
-:func:`judge_sequence` (``topopose run --consistency``, :func:`topopose.pose.run.run`
-``consistency=True``; applied last by :func:`topopose.pose.motion.process_sequence`, on the
-poses as the run writes them) decides ``matched`` by these in a *coherent* run
-(:func:`coherent`: a sequence of one subject; a run of unrelated poses is left as it is):
-each frame that is matched or that only the confidence gate rejected is matched when its
-deviation is at most :data:`MAX_DEVIATION`, its rank at least :data:`MIN_RANK` and its
-unexplained share at most :data:`MAX_UNEXPLAINED` (and, if given, every arc within
-``max_length_ratio`` of the subject's own), else rejected with the
-reason; its parts (the best guess) are kept either way, the values in
-``diagnostics["consistency"]``. A frame without a pair of neighbours (the run's first and
-last) is left as the gate decided.
+:func:`judge_sequence` (applied last by :func:`topopose.pose.motion.process_sequence`, on
+the poses as the run writes them) decides ``matched`` with these in a *coherent* run
+(:func:`coherent`: a sequence of one subject; a run of unrelated poses is left as it is). A
+frame is *consistent* when its deviation is at most :data:`MAX_DEVIATION`, its rank at least
+:data:`MIN_RANK`, its unexplained share at most :data:`MAX_UNEXPLAINED` (and, if given, every
+arc within ``max_length_ratio`` of the subject's own) and no part of it was held by the
+tracker at its prediction (:func:`held_parts`: placed without the frame's evidence, exactly
+where the neighbours predict it, so its agreement proves nothing). Two modes, for the frames
+that are matched or that only the confidence gate rejected (:func:`gated`):
+
+- **union** (the run's default, ``topopose run``, :data:`topopose.pose.motion.CONSISTENCY`):
+  a frame the gate matched stays matched (its reasons recorded) unless a part was held; a
+  frame the gate alone rejected is matched when consistent;
+- **instead of the gate** (``topopose run --consistency``, ``run(consistency=True)``): a
+  frame is matched when consistent, else rejected with the reason.
+
+Parts (the best guess) are kept either way, the values in ``diagnostics["consistency"]``. A
+frame without a pair of neighbours (the run's first and last) is left as the gate decided
+(unless a part was held). ``topopose run --no-consistency``: the gate alone.
 
 **Measured** (``benchmarks/consistency.py``, ``results/consistency.md``; settings chosen on
 synthetic walks of the ``body`` subject, development seeds 41–58: the grid's setting with
-precision ≥ 0.95 in both 4-camera set-ups and the most right frames passing — 27 of 28 and
-8 of 8; never tuned on the real recording). Precision of ``matched`` (frames passing) as
-``run`` writes it, before the silhouette support (deviation 0.05, confidence rank ≥ 0.5) →
-now: the real recording (Pose2Sim's balancing trial, 4 phone cameras, ``person``
-silhouettes; ``results/trust_features.md``, ``benchmarks/real.py``) 17 of 19 → 26 of 29
-(90 %; ``person+track`` 21 of 26 → 29 of 31, 94 %; the confidence gate passes none; all
-frames 72 % right); synthetic 4-camera walks, held-out seeds 1–4, 7 of 10 → 4 of 4
-(640×480) and 3 of 4 → 1 of 1 (phone-like 544×960), where the gate passes none; 8-camera
-walks 75 of 75 → 56 of 56 (of 155 right). The issue's 95 % is not reached on the real
-recording and few 4-camera frames pass, so the switch is **off by default**. The real
-recording's wrong frames it passes (83, 84, 88) hold the right hand 0.15–0.24 m from
-Pose2Sim's wrist, which is right there (``benchmarks/real_hands.py``, ``results/real_hands.md``:
-OpenPose sees the hand in 3 views, scores 0.56–0.69, within 4–34 px of Pose2Sim's wrist): ours
-lies in a phantom volume of the hull in front of the chest (the forearm crosses the trunk in
-cam01 and is hidden behind it in cam03), inside all 4 silhouettes — no silhouette test can see
-it. Run-relative arc lengths (``max_length_ratio`` 1.5) only removed frames on the
-first development seeds: not used.
+precision ≥ 0.95 in both 4-camera set-ups and the most right frames passing, the same with
+the hands' trim on; never tuned on the real recording). Precision of ``matched`` (frames
+passing) as ``run`` writes it (the hands' trim on), the gate alone / ``--consistency`` / the
+union (the default): development seeds, 8 cameras 96 % (667) / 98 % (192) / 96 % (668; 95 %
+of the right frames), 4 cameras 100 % (12) / 96 % (28) / 97 % (37), phone-like 4 cameras
+100 % (1) / 100 % (8) / 100 % (8); held-out seeds 1–4, 8 cameras 97 % (155) / 100 % (56) /
+97 % (155), 4 cameras 67 % (3) / 100 % (2) / 100 % (2: the wrong frame the gate matched has
+a foot held at its prediction, 0.03 × height from it), phone-like 100 % (1) / 100 % (1) /
+100 % (1); the real recording (Pose2Sim's balancing trial, 4 phone cameras,
+``benchmarks/real.py``, ``results/real.md``; 75–80 % of the frames right as written), where
+the gate passes none and the union is the consistency: ``person`` silhouettes 28 frames at
+96 %, ``person+track`` 31 at 94 %, ``person_every = 2`` 19 at 100 %. Parts held at their
+prediction, a snapped part, the deviation before the trim: no other frame on the
+development seeds (``docs/tried.md``). The issue's 95 % is reached everywhere but on
+``person+track`` (2 wrong of 31: frame 59, a left hand 0.157 m off; frame 80, the right hand
+0.20 m). The wrong frames are hands in a phantom volume of the hull in front of the chest,
+where Pose2Sim's wrist is right there (``benchmarks/real_hands.py``,
+``results/real_hands.md``: OpenPose sees the hand in 3 views, scores 0.56–0.69, within 4–34
+px of Pose2Sim's wrist; the forearm crosses the trunk in cam01 and is hidden behind it in
+cam03), inside all 4 silhouettes — no silhouette test can see it. Run-relative arc lengths
+(``max_length_ratio`` 1.5) only removed frames on the first development seeds: not used.
+The silhouette support costs 2.1 ms a frame (median; of 16 ms) on the synthetic 4-camera
+frames, 2.3 ms (of 19) phone-like, 4.0 ms (of 19) with 8 cameras.
 """
 from __future__ import annotations
 

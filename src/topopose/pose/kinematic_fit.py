@@ -40,7 +40,8 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    term ``|d| - 1``; then the root is moved by the mean offset of the other joints from their
    placements and the chains fitted again (``ROOT_STEPS``). An arc with neither a curve nor a
    placed joint in the frame keeps the bone directions of the last fitted frame when that is
-   at most ``HOLD_FRAMES`` (5) before and the same motion (``_continues``), else takes a rest pose
+   at most ``HOLD_FRAMES`` (5) before and the same motion (``_continues``) and a frame placed
+   the joint at most ``HOLD_AGE`` (8) frames before, else takes a rest pose
    (:func:`rest_fill`: a limb merged with the body hangs along the trunk, an arm's shoulder
    opposite its mate raised :data:`HELD_SHOULDER`, its forearm folded up and across the
    trunk's front); its joints are
@@ -59,9 +60,12 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    the seen arms too).
 4. **Gaps** — stretches of at most ``max_gap`` unfitted frames between fitted ones are filled
    by interpolating the root position and the bone directions (normalized linear), flagged
-   ``diagnostics["interpolated"] = true``; never silently. Optional Savitzky–Golay smoothing
-   (:func:`scipy.signal.savgol_filter`) of the root and bone directions over runs of fitted
-   frames, flagged ``diagnostics["smoothed"]``.
+   ``diagnostics["interpolated"] = true``; never silently. Savitzky–Golay smoothing
+   (:func:`scipy.signal.savgol_filter`, window :data:`SMOOTH`, 9 frames by default; 0: off) of
+   the root and bone directions over runs of fitted frames of one continuing motion
+   (:func:`motion_runs`: consecutive frame numbers, the joints moving less than
+   :data:`SMOOTH_MOVE` from one frame to the next — a capture of unrelated poses makes no run),
+   flagged ``diagnostics["smoothed"]``; the bones keep their constant lengths.
 """
 from __future__ import annotations
 
@@ -1207,7 +1211,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     poses : list of Pose (curves in their diagnostics)
     model : Model with ``[[joint]]`` declarations
     max_gap : longest run of unfitted frames filled by interpolation (0: none)
-    smooth : None or an odd Savitzky–Golay window (frames, polynomial order 2)
+    smooth : an odd Savitzky–Golay window (frames, polynomial order 2) over the runs of
+        continuing motion (:func:`motion_runs`); None: :data:`SMOOTH` (9); 0: off
     inner_weight : weight of the initial placement of the joints inside an arc (elbows,
         knees, ...) against the curve term. Calibration set of the model's joints (seeds
         101–116, 8 walks and 6 random-pose sequences, gate off, MPJPE median): 0.3 → 1.0 →

@@ -39,6 +39,13 @@ def test_motion_runs_split_at_jumps_unfitted_frames_and_missing_frame_numbers():
     assert kf.motion_runs(Q, t2, tree, 9, 0.15) == [(0, 12)]
     assert kf.motion_runs(Q, t2, tree, 5, None) == [(0, 20), (21, 26)]
     assert kf.motion_runs(Q, t, tree, 5, 0.15) == [(0, 12), (12, 20), (21, 30)]
+    # frames 8–15 interpolated (not seen by the fit): the jump is checked between the seen
+    # frames 7 and 16, the run ends at frame 7, the interpolated frames belong to none
+    seen = np.ones(30, dtype=bool)
+    seen[8:16] = False
+    assert kf.motion_runs(Q, t, tree, 4, 0.15, seen=seen) == [(0, 8), (16, 20), (21, 30)]
+    assert kf.motion_runs(Q, t, tree, 5, 0.15, seen=seen) == [(0, 8), (21, 30)]
+    assert kf.motion_runs(P, t, tree, 5, 0.15, seen=seen) == [(0, 30)]
 
 
 def test_default_smoothing_brings_a_noisy_continuing_motion_closer_to_the_truth(monkeypatch):
@@ -82,6 +89,21 @@ def test_default_smoothing_leaves_unrelated_poses_alone():
     for p, q in zip(a, b):
         assert "smoothed" not in p.diagnostics
         for n in tree.names:
+            assert np.array_equal(p.joints[n], q.joints[n])
+    # unrelated poses (turned 1.2 rad) with two rejected frames between: the frames
+    # interpolated between them step a third of the jump each, yet no run links them
+    rej = []
+    for i in range(30):
+        p, _ = _still_body(i, 1.2 * ((i // 3) % 2), np.zeros(3))
+        p.status = "matched" if i % 3 == 0 else "rejected"
+        rej.append(p)
+    a, _, _ = fit_sequence(rej, HUMAN)
+    b2, _, _ = fit_sequence(rej, HUMAN, smooth=0)
+    assert sum(bool(p.diagnostics.get("interpolated")) for p in a) == 18
+    assert sum(bool(p.joints) for p in a) == 28            # the last two: nothing after
+    for p, q in zip(a, b2):
+        assert "smoothed" not in p.diagnostics
+        for n in p.joints:
             assert np.array_equal(p.joints[n], q.joints[n])
     keep = kf.SMOOTH_MOVE
     try:

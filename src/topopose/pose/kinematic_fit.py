@@ -64,7 +64,8 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    (:func:`scipy.signal.savgol_filter`, window :data:`SMOOTH`, 9 frames by default; 0: off) of
    the root and bone directions over runs of fitted frames of one continuing motion
    (:func:`motion_runs`: consecutive frame numbers, the joints moving less than
-   :data:`SMOOTH_MOVE` from one frame to the next — a capture of unrelated poses makes no run),
+   :data:`SMOOTH_MOVE` from one frame the fit saw to the next, the interpolated frames between
+   them not counted as steps — a capture of unrelated poses makes no run),
    flagged ``diagnostics["smoothed"]``; the bones keep their constant lengths.
 """
 from __future__ import annotations
@@ -1166,18 +1167,22 @@ SMOOTH_MOVE = 0.15  # m: a run of continuing motion breaks where the joints (fro
                     # / 3.59 / 3.60 cm, unrelated random poses 5.60 at each)
 
 
-def motion_runs(P, t, tree: KinematicTree, win, max_move=None) -> list:
+def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None) -> list:
     """Runs ``(a, b)`` (frames ``a`` … ``b - 1``) of at least ``win`` fitted frames with
-    consecutive frame numbers ``t`` along which the motion continues: each frame's joints,
-    taken from the root, moved less than ``max_move`` (m, mean over the joints; None: no
-    check) from the frame before — unrelated poses (a random-pose capture) make no run.
+    consecutive frame numbers ``t`` along which the motion continues: each frame the fit saw
+    (``seen``, default every fitted frame; not one interpolated between two others) has its
+    joints, taken from the root, less than ``max_move`` (m, mean over the joints; None: no
+    check) from those of the last frame the fit saw before it in the run — unrelated poses (a
+    random-pose capture) make no run, not even across the frames interpolated between them
+    (their steps are a fraction of the jump). A run ends at the last seen frame before a jump.
 
     Parameters
     ----------
     P : (n_frames, n_joints, 3) joints (NaN: frame not fitted)
     t : (n_frames,) frame numbers
     win : the least run length (frames)
-    max_move : the largest mean move of the joints from one frame to the next (m)
+    max_move : the largest mean move of the joints from one seen frame to the next (m)
+    seen : (n_frames,) bool, the frames the fit saw (None: every fitted frame)
 
     Returns
     -------
@@ -1185,19 +1190,32 @@ def motion_runs(P, t, tree: KinematicTree, win, max_move=None) -> list:
     """
     n_f = len(P)
     ok = ~np.isnan(P).reshape(n_f, -1).any(axis=1)
-    runs, start = [], None
-    for i in range(n_f + 1):
-        same = i < n_f and ok[i] and start is not None and t[i] - t[i - 1] == 1
-        if same and max_move is not None:
+    seen = ok if seen is None else ok & np.asarray(seen, bool)
+    runs, start, last = [], None, None
+
+    def close(end):
+        if start is not None and end - start >= win:
+            runs.append((start, end))
+
+    for i in range(n_f):
+        if not ok[i] or (start is not None and t[i] - t[i - 1] != 1):
+            close(i)
+            start, last = None, None
+            if not ok[i]:
+                continue
+        if start is None:
+            start, last = i, (i if seen[i] else None)
+            continue
+        if not seen[i]:
+            continue
+        if max_move is not None and last is not None:
             a = P[i] - P[i, tree.root]
-            b = P[i - 1] - P[i - 1, tree.root]
-            same = float(np.linalg.norm(a - b, axis=1).mean()) < max_move
-        if i < n_f and ok[i] and start is None:
-            start = i
-        elif not same:
-            if start is not None and i - start >= win:
-                runs.append((start, i))
-            start = i if i < n_f and ok[i] else None
+            b = P[last] - P[last, tree.root]
+            if float(np.linalg.norm(a - b, axis=1).mean()) >= max_move:
+                close(last + 1)
+                start = i
+        last = i
+    close(n_f)
     return runs
 
 
@@ -1313,7 +1331,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         from scipy.signal import savgol_filter
 
         win = int(smooth) | 1
-        runs = motion_runs(P, t, tree, win, SMOOTH_MOVE)
+        runs = motion_runs(P, t, tree, win, SMOOTH_MOVE, seen=~interp)
         for a, b in runs:
             D = np.stack([_directions(P[i], tree) for i in range(a, b)])
             R = P[a:b, tree.root]

@@ -40,7 +40,8 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    term ``|d| - 1``; then the root is moved by the mean offset of the other joints from their
    placements and the chains fitted again (``ROOT_STEPS``). An arc with neither a curve nor a
    placed joint in the frame keeps the bone directions of the last fitted frame when that is
-   at most ``HOLD_FRAMES`` (5) before and the same motion (``_continues``), else takes a rest pose
+   at most ``HOLD_FRAMES`` (5) before and the same motion (``_continues``) and a frame placed
+   the joint at most ``HOLD_AGE`` (8) frames before, else takes a rest pose
    (:func:`rest_fill`: a limb merged with the body hangs along the trunk, an arm's shoulder
    opposite its mate raised :data:`HELD_SHOULDER`, its forearm folded up and across the
    trunk's front); its joints are
@@ -59,9 +60,13 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    the seen arms too).
 4. **Gaps** — stretches of at most ``max_gap`` unfitted frames between fitted ones are filled
    by interpolating the root position and the bone directions (normalized linear), flagged
-   ``diagnostics["interpolated"] = true``; never silently. Optional Savitzky–Golay smoothing
-   (:func:`scipy.signal.savgol_filter`) of the root and bone directions over runs of fitted
-   frames, flagged ``diagnostics["smoothed"]``.
+   ``diagnostics["interpolated"] = true``; never silently. Savitzky–Golay smoothing
+   (:func:`scipy.signal.savgol_filter`, window :data:`SMOOTH`, 9 frames by default; 0: off) of
+   the root and bone directions over runs of fitted frames of one continuing motion
+   (:func:`motion_runs`: consecutive frame numbers, the joints moving less than
+   :data:`SMOOTH_MOVE` from one frame the fit saw to the next, the interpolated frames between
+   them not counted as steps — a capture of unrelated poses makes no run),
+   flagged ``diagnostics["smoothed"]``; the bones keep their constant lengths.
 """
 from __future__ import annotations
 
@@ -728,6 +733,22 @@ HOLD_FRAMES = 5     # the last fitted frame at most this many frames before (3 �
                     # random poses 21–32 unchanged: they fail the motion check)
 
 
+HOLD_AGE = 8        # frames: a joint is held from the last fitted frame only when a frame placed
+                    # it at most this many frames before; older, it takes the rest pose and the
+                    # fills (evidence, hints, hull shoulders) afresh. None: no limit. In random
+                    # motion a lost arm stays lost 20–40 frames, and held from frame to frame it
+                    # drifts with each frame's fills (development seeds 51–56, 204 lost arms:
+                    # mean shoulder / elbow / wrist error 12.9 cm median, 15–17 cm after 4–7 and
+                    # over 30 frames; with HOLD_AGE 8: 11.2 cm). Development seeds (random motion
+                    # 51–56, walks 41–46, unrelated random poses 21–32; gate on, no smoothing;
+                    # MPJPE median): None 6.12 / 4.29 / 5.60 cm; 0 (never held) 5.93 / 4.37;
+                    # 1 / 3 / 5 / 8 / 12: random motion 5.90 / 5.93 / 5.95 / 5.91 / 5.93, walks
+                    # 4.37 / 4.31 / 4.29 / 4.29 / 4.29 cm (walks' arms are lost for 1–7 frames
+                    # and hang straight: holding them is right); unrelated poses 5.60 at each
+                    # (they fail the motion check). With SMOOTH 9: None / 5 / 8 / 12: random
+                    # motion 5.30 / 5.17 / 5.07 / 5.18, walks 3.58 / 3.57 / 3.59 / 3.59 cm
+
+
 def _continues(prev, start, dt):
     """Whether the last fitted frame ``prev``, ``dt`` frames before, is the same motion: the
     joints seen in both moved (relative to the first of them, the root when seen) less than
@@ -1131,6 +1152,73 @@ def tip_targets(init, tree: KinematicTree, turn=None, stretch=None) -> np.ndarra
     return out
 
 
+SMOOTH = 9          # frames: the default Savitzky–Golay window (order 2) over the runs of
+                    # continuing motion (:func:`motion_runs`); 0 / None given to fit_sequence as 0:
+                    # off. Per-frame fits jitter (each frame's curves alone) while a body moves
+                    # smoothly. Development seeds (random motion 51–56, walks 41–46, unrelated
+                    # random poses 21–32; gate on, HOLD_AGE 8; MPJPE median over the pooled
+                    # matched frames): off 5.91 / 4.29 / 5.60 cm; 7: 5.21 / 3.60; 9: 5.07 /
+                    # 3.59 / 5.60; 11: 5.10 / 3.51; 13: 5.09 / 3.59 cm. Without the motion check
+                    # (SMOOTH_MOVE None) unrelated poses are averaged together: window 5 / 7 / 9
+                    # random poses 36.3 / 46.9 / 51.6 cm
+SMOOTH_MOVE = 0.15  # m: a run of continuing motion breaks where the joints (from the root) moved
+                    # more than this from the frame before, mean over the joints (as HOLD_MAX;
+                    # window 9: 0.1 / 0.15 / 0.25 m: random motion 5.31 / 5.07 / 5.11, walks 3.59
+                    # / 3.59 / 3.60 cm, unrelated random poses 5.60 at each)
+
+
+def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None) -> list:
+    """Runs ``(a, b)`` (frames ``a`` … ``b - 1``) of at least ``win`` fitted frames with
+    consecutive frame numbers ``t`` along which the motion continues: each frame the fit saw
+    (``seen``, default every fitted frame; not one interpolated between two others) has its
+    joints, taken from the root, less than ``max_move`` (m, mean over the joints; None: no
+    check) from those of the last frame the fit saw before it in the run — unrelated poses (a
+    random-pose capture) make no run, not even across the frames interpolated between them
+    (their steps are a fraction of the jump). A run ends at the last seen frame before a jump.
+
+    Parameters
+    ----------
+    P : (n_frames, n_joints, 3) joints (NaN: frame not fitted)
+    t : (n_frames,) frame numbers
+    win : the least run length (frames)
+    max_move : the largest mean move of the joints from one seen frame to the next (m)
+    seen : (n_frames,) bool, the frames the fit saw (None: every fitted frame)
+
+    Returns
+    -------
+    list of (a, b) index pairs.
+    """
+    n_f = len(P)
+    ok = ~np.isnan(P).reshape(n_f, -1).any(axis=1)
+    seen = ok if seen is None else ok & np.asarray(seen, bool)
+    runs, start, last = [], None, None
+
+    def close(end):
+        if start is not None and end - start >= win:
+            runs.append((start, end))
+
+    for i in range(n_f):
+        if not ok[i] or (start is not None and t[i] - t[i - 1] != 1):
+            close(i)
+            start, last = None, None
+            if not ok[i]:
+                continue
+        if start is None:
+            start, last = i, (i if seen[i] else None)
+            continue
+        if not seen[i]:
+            continue
+        if max_move is not None and last is not None:
+            a = P[i] - P[i, tree.root]
+            b = P[last] - P[last, tree.root]
+            if float(np.linalg.norm(a - b, axis=1).mean()) >= max_move:
+                close(last + 1)
+                start = i
+        last = i
+    close(n_f)
+    return runs
+
+
 def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=None,
                  quantile=None, slide=None, hints=None, evidence=None, shoulders=None,
                  gaps=None):
@@ -1141,7 +1229,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     poses : list of Pose (curves in their diagnostics)
     model : Model with ``[[joint]]`` declarations
     max_gap : longest run of unfitted frames filled by interpolation (0: none)
-    smooth : None or an odd Savitzky–Golay window (frames, polynomial order 2)
+    smooth : an odd Savitzky–Golay window (frames, polynomial order 2) over the runs of
+        continuing motion (:func:`motion_runs`); None: :data:`SMOOTH` (9); 0: off
     inner_weight : weight of the initial placement of the joints inside an arc (elbows,
         knees, ...) against the curve term. Calibration set of the model's joints (seeds
         101–116, 8 walks and 6 random-pose sequences, gate off, MPJPE median): 0.3 → 1.0 →
@@ -1189,6 +1278,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     P = np.full_like(init, np.nan)
     rms = [None] * n_f
     prev, t = None, frame_index(poses)
+    seen_at = np.full(len(tree.names), -np.inf)   # the frame that last placed each joint
     limbs = tree.limbs
     if not np.isnan(L[[j for j in range(len(L)) if tree.parents[j] >= 0]]).any():
         for i, p in enumerate(poses):
@@ -1196,9 +1286,13 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
                 continue
             start = init[i].copy()
             miss = np.isnan(start).any(axis=1)
+            seen_at[~miss] = t[i]
             if miss.any() and _continues(prev, start, t[i] - t_prev if prev is not None else 0):
-                start[miss] = prev[miss] - prev[tree.root] + np.nan_to_num(start[tree.root])
-            elif miss.any():                      # an unrelated pose before: the rest pose
+                hold = miss.copy()
+                if HOLD_AGE is not None:          # only joints seen at most HOLD_AGE frames ago
+                    hold &= t[i] - seen_at <= HOLD_AGE
+                start[hold] = prev[hold] - prev[tree.root] + np.nan_to_num(start[tree.root])
+            if miss.any() and np.isnan(start).any():   # an unrelated pose before: the rest pose
                 start = rest_fill(start, p, tree, L, limbs)
             if miss.any() and (ARM_EVIDENCE if evidence is None else evidence):
                 from .unseen import evidence_fill
@@ -1232,19 +1326,12 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
                                    (1 - s) * Lf[a] + s * Lf[b], tree)
                     interp[i] = True
     smoothed = np.zeros(n_f, dtype=bool)
+    smooth = SMOOTH if smooth is None else smooth
     if smooth:
         from scipy.signal import savgol_filter
 
         win = int(smooth) | 1
-        ok = ~np.isnan(P).any(axis=(1, 2))
-        runs, start = [], None
-        for i in range(n_f + 1):
-            if i < n_f and ok[i] and (start is None or t[i] - t[i - 1] == 1):
-                start = i if start is None else start
-            else:
-                if start is not None and i - start >= win:
-                    runs.append((start, i))
-                start = i if i < n_f and ok[i] else None
+        runs = motion_runs(P, t, tree, win, SMOOTH_MOVE, seen=~interp)
         for a, b in runs:
             D = np.stack([_directions(P[i], tree) for i in range(a, b)])
             R = P[a:b, tree.root]

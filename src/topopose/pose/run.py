@@ -202,7 +202,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     skeleton : bool
         Fit the full kinematic skeleton (:mod:`topopose.pose.kinematic_fit`): ``Pose.joints``.
     smooth : int, optional
-        Savitzky–Golay window (frames) smoothing the skeleton.
+        Savitzky–Golay window (frames) smoothing the skeleton over runs of continuing motion
+        (default :data:`topopose.pose.kinematic_fit.SMOOTH`, 9; 0: off).
     trim : bool, optional
         Hands trimmed back out of the hull's phantom volume where the silhouettes' evidence
         ends (:mod:`topopose.pose.trim`, recorded per frame, applied after the identities;

@@ -1,0 +1,153 @@
+"""The skeleton over time (issue 15): a lost joint held only while recent (``HOLD_AGE``), and the
+default smoothing over runs of continuing motion (``SMOOTH``, :func:`motion_runs`), on hand-made
+bodies and chains whose truth is known."""
+import numpy as np
+import pytest
+
+from topopose.pose import kinematic_fit as kf
+from topopose.pose.kinematic_fit import fit_sequence, kinematic_tree
+
+from test_pose_sides_skeleton import HUMAN, _body, _numbered_frame, _true_joints, _walking_arm
+
+
+def _still_body(frame, yaw, shift, seed=5):
+    """The same rigid body (``_body`` with a fixed translation draw) turned by ``yaw`` and
+    moved by ``shift``, as the per-frame matcher gives it; returns (pose, true parts)."""
+    parts, curves = _body(yaw, np.random.default_rng(seed))
+    parts = {k: v + shift for k, v in parts.items()}
+    curves = {k: v + shift for k, v in curves.items()}
+    pose, _ = _numbered_frame(f"{frame:06d}", parts, curves, False, False)
+    return pose, parts
+
+
+def test_motion_runs_split_at_jumps_unfitted_frames_and_missing_frame_numbers():
+    """A chain moving a little per frame (``_walking_arm``: 2 cm forward, the arm turning) makes
+    one run; a frame whose joints jump 0.5 m from the root (an unrelated pose), an unfitted
+    frame and a missing frame number each end a run, and runs shorter than ``win`` are
+    dropped. Without the move check the jump does not split."""
+    tree, _, P, _ = _walking_arm(n=30, step=0.02, turn=0.01)
+    t = np.arange(30.0)
+    assert kf.motion_runs(P, t, tree, 5, 0.15) == [(0, 30)]
+    Q = P.copy()
+    other = [j for j in range(len(tree.names)) if j != tree.root]
+    Q[12:, other] += [0.0, 0.0, 0.5]                 # from frame 12 on: another pose (held)
+    Q[20] = np.nan                                   # frame 20 not fitted
+    t2 = t.copy()
+    t2[26:] += 1                                     # a frame number missing before index 26
+    assert kf.motion_runs(Q, t2, tree, 5, 0.15) == [(0, 12), (12, 20), (21, 26)]
+    assert kf.motion_runs(Q, t2, tree, 6, 0.15) == [(0, 12), (12, 20)]
+    assert kf.motion_runs(Q, t2, tree, 9, 0.15) == [(0, 12)]
+    assert kf.motion_runs(Q, t2, tree, 5, None) == [(0, 20), (21, 26)]
+    assert kf.motion_runs(Q, t, tree, 5, 0.15) == [(0, 12), (12, 20), (21, 30)]
+    # frames 8–15 interpolated (not seen by the fit): the jump is checked between the seen
+    # frames 7 and 16, the run ends at frame 7, the interpolated frames belong to none
+    seen = np.ones(30, dtype=bool)
+    seen[8:16] = False
+    assert kf.motion_runs(Q, t, tree, 4, 0.15, seen=seen) == [(0, 8), (16, 20), (21, 30)]
+    assert kf.motion_runs(Q, t, tree, 5, 0.15, seen=seen) == [(0, 8), (21, 30)]
+    assert kf.motion_runs(P, t, tree, 5, 0.15, seen=seen) == [(0, 30)]
+
+
+def test_default_smoothing_brings_a_noisy_continuing_motion_closer_to_the_truth(monkeypatch):
+    """A rigid body turning 0.02 rad and moving 1 cm per frame, its curves noisy (1 cm): the
+    default fit (``SMOOTH``) is nearer each frame's true joints than the unsmoothed fit, flags
+    the frames ``smoothed`` and keeps every bone at its constant length."""
+    assert kf.SMOOTH == 9
+    monkeypatch.setattr(kf, "TIP_TURN", {})          # curves through the tips' truth
+    monkeypatch.setattr(kf, "TIP_STRETCH", {})
+    rng = np.random.default_rng(0)
+    tree = kinematic_tree(HUMAN)
+    poses, truth = [], []
+    for i in range(21):
+        pose, _ = _still_body(i, 0.02 * i, np.array([0.01 * i, 0.0, 0.0]))
+        truth.append(np.array([_true_joints(pose, tree)[n] for n in tree.names]))
+        pose.diagnostics["curves"] = {k: v + rng.normal(scale=0.01, size=v.shape)
+                                      for k, v in pose.diagnostics["curves"].items()}
+        poses.append(pose)
+    err = {}
+    for smooth in (None, 0):
+        out, tree, L = fit_sequence(poses, HUMAN, smooth=smooth)
+        P = np.array([[p.joints[n] for n in tree.names] for p in out])
+        err[smooth] = float(np.linalg.norm(P - np.array(truth), axis=2).mean())
+        if smooth is None:
+            assert all(p.diagnostics.get("smoothed") for p in out)
+            for j, par in enumerate(tree.parents):
+                if par >= 0:
+                    assert np.allclose(np.linalg.norm(P[:, j] - P[:, par], axis=1), L[j])
+        else:
+            assert not any(p.diagnostics.get("smoothed") for p in out)
+    assert err[None] < 0.8 * err[0], err
+
+
+def test_default_smoothing_leaves_unrelated_poses_alone():
+    """A capture of unrelated poses (the body turned half about the vertical from each frame to
+    the next: hands, shoulders and feet swap sides): no run of continuing motion, the default
+    fit equals the unsmoothed one joint for joint; without the move check it would not."""
+    poses = [_still_body(i, np.pi * (i % 2), np.zeros(3))[0] for i in range(15)]
+    a, tree, _ = fit_sequence(poses, HUMAN)
+    b, _, _ = fit_sequence(poses, HUMAN, smooth=0)
+    for p, q in zip(a, b):
+        assert "smoothed" not in p.diagnostics
+        for n in tree.names:
+            assert np.array_equal(p.joints[n], q.joints[n])
+    # unrelated poses (turned 1.2 rad) with two rejected frames between: the frames
+    # interpolated between them step a third of the jump each, yet no run links them
+    rej = []
+    for i in range(30):
+        p, _ = _still_body(i, 1.2 * ((i // 3) % 2), np.zeros(3))
+        p.status = "matched" if i % 3 == 0 else "rejected"
+        rej.append(p)
+    a, _, _ = fit_sequence(rej, HUMAN)
+    b2, _, _ = fit_sequence(rej, HUMAN, smooth=0)
+    assert sum(bool(p.diagnostics.get("interpolated")) for p in a) == 18
+    assert sum(bool(p.joints) for p in a) == 28            # the last two: nothing after
+    for p, q in zip(a, b2):
+        assert "smoothed" not in p.diagnostics
+        for n in p.joints:
+            assert np.array_equal(p.joints[n], q.joints[n])
+    keep = kf.SMOOTH_MOVE
+    try:
+        kf.SMOOTH_MOVE = None
+        c, _, _ = fit_sequence(poses, HUMAN)
+    finally:
+        kf.SMOOTH_MOVE = keep
+    assert max(np.linalg.norm(p.joints["wrist_1"] - q.joints["wrist_1"])
+               for p, q in zip(c, b)) > 0.1
+
+
+@pytest.mark.parametrize("age", [3, 8])
+def test_a_lost_arm_is_held_up_to_hold_age_frames_after_it_was_seen(monkeypatch, age):
+    """One still body (moved 1 cm per frame): frame 0 sees every part, frames 1… do not see
+    hand_2. Up to ``HOLD_AGE`` frames after frame 0 the unseen arm is frame 0's arm moved
+    with the root (the truth: the same rigid body); later it takes the rest pose, its upper
+    arm hanging along the trunk (nothing else fills it: no hull evidence, hints or hull
+    shoulders in these frames). Without the limit (None) it is held throughout."""
+    monkeypatch.setattr(kf, "HOLD_AGE", age)
+    n = age + 4
+    frames, shifts = [], []
+    for i in range(n):
+        s = np.array([0.01 * i, 0.0, 0.0])
+        pose, parts = _still_body(i, 0.7, s)
+        if i:
+            pose.parts["hand_2"] = None
+            del pose.diagnostics["curves"]["hand_2"]
+        frames.append(pose)
+        shifts.append(s)
+    down = parts["crotch"] - parts["torso"]
+    down /= np.linalg.norm(down)
+    arm = ("shoulder_2", "elbow_2", "wrist_2", "fingertip_2")
+
+    def held_and_hanging(out):
+        res = []
+        for i, p in enumerate(out[1:], 1):
+            assert "wrist_2" in p.diagnostics["held_joints"]
+            off = max(np.linalg.norm(p.joints[k] - (out[0].joints[k] + shifts[i])) for k in arm)
+            u = p.joints["elbow_2"] - p.joints["shoulder_2"]
+            res.append((off < 0.005, np.dot(u, down) / np.linalg.norm(u) > 0.999))
+        return res
+
+    res = held_and_hanging(fit_sequence(frames, HUMAN, max_gap=0, smooth=0)[0])
+    assert res == [(True, False)] * age + [(False, True)] * (n - 1 - age)
+    monkeypatch.setattr(kf, "HOLD_AGE", None)
+    res = held_and_hanging(fit_sequence(frames, HUMAN, max_gap=0, smooth=0)[0])
+    assert res == [(True, False)] * (n - 1)

@@ -219,7 +219,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         run; True (``run --consistency``): the consistency instead of the gate; False
         (``--no-consistency``): the gate alone; a dict gives
         :func:`~topopose.pose.consistency.judge_sequence`'s settings
-        (``benchmarks/results/consistency.md``).
+        (``benchmarks/results/consistency.md``). With ``track``, ``sides`` and ``skeleton``
+        all off, None means False: the per-frame results as the estimator gave them.
     support : bool, optional
         Record each frame's ``diagnostics["unexplained"]`` (:mod:`topopose.pose.support`),
         which the consistency reads; None (default): with ``consistency`` (on by default) or
@@ -258,6 +259,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     if thickness is not None:
         options["thickness"] = float(thickness)
     from .motion import consistency_settings
+    if consistency is None and not (track or sides or skeleton):
+        consistency = False               # no sequence stage asked for: per-frame results
     try:
         judged = consistency_settings(consistency) is not None
     except ValueError as e:

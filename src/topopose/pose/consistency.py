@@ -53,8 +53,7 @@ passing) as ``run`` writes it (the hands' trim on), the gate alone / ``--consist
 union (the default): development seeds, 8 cameras 96 % (667) / 98 % (192) / 96 % (668; 95 %
 of the right frames), 4 cameras 100 % (12) / 96 % (28) / 97 % (37), phone-like 4 cameras
 100 % (1) / 100 % (8) / 100 % (8); held-out seeds 1–4, 8 cameras 97 % (155) / 100 % (56) /
-97 % (155), 4 cameras 67 % (3) / 100 % (2) / 100 % (2: the wrong frame the gate matched has
-a foot held at its prediction, 0.03 × height from it), phone-like 100 % (1) / 100 % (1) /
+97 % (155), 4 cameras — (0) / 100 % (4) / 100 % (4), phone-like — (0) / 100 % (1) /
 100 % (1); the real recording (Pose2Sim's balancing trial, 4 phone cameras,
 ``benchmarks/real.py``, ``results/real.md``; 75–80 % of the frames right as written), where
 the gate passes none and the union is the consistency: ``person`` silhouettes 28 frames at

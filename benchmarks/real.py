@@ -580,7 +580,7 @@ def report(doc) -> str:
                      r["failed"]])
     L += _table(["silhouettes", "matched without the gate", "right (target ≥ 70 %)",
                  "precision of matched (target ≥ 95 %)",
-                 "matched with the confidence gate (the run's default)", "head med / p90",
+                 "matched with the confidence gate (per frame; the run's default adds its consistency: below)", "head med / p90",
                  "hands med / p90", "feet med / p90", "failed"], rows)
     L += ["", "## As `topopose run` writes it", "",
           "The same run's poses after the run's default confidence gate and its sequence stages "

@@ -290,31 +290,26 @@ def judge_sequence(poses, model, index=None, max_deviation=MAX_DEVIATION,
         if held:                           # no evidence: not matched, whatever else says
             reasons.append(f"{', '.join(held)} held at the tracked prediction (no evidence "
                            f"in this frame)")
-        if worst is None:                  # no neighbours to compare with (the run's ends)
-            if held:
-                info["reasons"] = reasons
-            p.diagnostics["consistency"] = info
-            if held and p.status == "matched":
-                p.status, p.error = "rejected", "inconsistent with the run: " + reasons[0]
-            continue                       # else left as the gate decided
-        if d[worst] > max_deviation:
-            reasons.append(f"{worst} {d[worst]:.2f} × height from its neighbours' prediction "
-                           f"(above {max_deviation:g})")
-        if r is not None and r < min_rank:
-            reasons.append(f"confidence ranks {r:.2f} in the run (below {min_rank:g})")
-        u = p.diagnostics.get("unexplained")
-        if u is not None:
-            info["unexplained"] = u
-        if max_unexplained is not None and u is not None and u > max_unexplained:
-            reasons.append(f"{u:.2f} of a silhouette unexplained by the placed model "
-                           f"(above {max_unexplained:g})")
-        if lengths is not None:
-            ratios = length_ratios(p, model, lengths)
-            info["length_ratios"] = {k: round(v, 3) for k, v in ratios.items()}
-            off = [k for k, v in ratios.items()
-                   if not 1 / max_length_ratio <= v <= max_length_ratio]
-            if off:
-                reasons.append(f"arc length of {', '.join(off)} off the subject's own")
+        ends = worst is None               # no neighbours (the run's ends): only a held part
+        if not ends:                       # counts, else the gate decides
+            if d[worst] > max_deviation:
+                reasons.append(f"{worst} {d[worst]:.2f} × height from its neighbours' "
+                               f"prediction (above {max_deviation:g})")
+            if r is not None and r < min_rank:
+                reasons.append(f"confidence ranks {r:.2f} in the run (below {min_rank:g})")
+            u = p.diagnostics.get("unexplained")
+            if u is not None:
+                info["unexplained"] = u
+            if max_unexplained is not None and u is not None and u > max_unexplained:
+                reasons.append(f"{u:.2f} of a silhouette unexplained by the placed model "
+                               f"(above {max_unexplained:g})")
+            if lengths is not None:
+                ratios = length_ratios(p, model, lengths)
+                info["length_ratios"] = {k: round(v, 3) for k, v in ratios.items()}
+                off = [k for k, v in ratios.items()
+                       if not 1 / max_length_ratio <= v <= max_length_ratio]
+                if off:
+                    reasons.append(f"arc length of {', '.join(off)} off the subject's own")
         if reasons:
             info["reasons"] = reasons
         p.diagnostics["consistency"] = info
@@ -324,7 +319,7 @@ def judge_sequence(poses, model, index=None, max_deviation=MAX_DEVIATION,
             if p.status == "matched" and (not union or held):
                 p.status = "rejected"
                 p.error = "inconsistent with the run: " + "; ".join(reasons)
-        elif p.status == "rejected":
+        elif p.status == "rejected" and not ends:
             info["gate"] = p.error        # what the absolute gate said
             p.status, p.error = "matched", None
     return True

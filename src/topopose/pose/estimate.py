@@ -250,6 +250,10 @@ class FrameEstimator:
         Record ``diagnostics["trim"]``: the hands' skeleton curves cut back where the
         silhouettes' evidence ends (:mod:`.trim`; the sequence stage applies them). None
         (default): on.
+    centre : bool or None
+        Record ``diagnostics["centred"]`` (and ``"centred_trim"``): the offsets moving the
+        limbs' curve samples onto the silhouettes' centre lines (:mod:`.centre`; the kinematic
+        fit applies them, nothing else changes). None (default): off.
     """
 
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
@@ -261,7 +265,8 @@ class FrameEstimator:
                  head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
                  short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
                  hand_trunk=None, head_ball=None, keep_junctions=None, head_doubt=None,
-                 head_axis=None, junction_core=None, support=None, trim=None):
+                 head_axis=None, junction_core=None, support=None, trim=None,
+                 centre=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
@@ -270,6 +275,8 @@ class FrameEstimator:
             self.support = bool(support)
         if trim is not None:
             self.trim = bool(trim)
+        if centre is not None:
+            self.centre = bool(centre)
         # the fitted confidence knows upright subjects only (its head features look up): without
         # the coordinate constraints (acrobatic poses) the default gate is off — on, it rejected
         # 105 of the 198 frames of benchmarks/applications.py's acrobatic sequence, every
@@ -407,6 +414,9 @@ class FrameEstimator:
     # record the hands' curves trimmed out of the hull's phantom volume (pose.trim; applied by
     # the sequence stage, nothing else changes)
     trim = True
+    # record the limbs' curves moved onto the silhouettes' centre lines (pose.centre; applied
+    # by the kinematic fit, nothing else changes)
+    centre = False
 
     # ------------------------------------------------------------------ stages
     def hull(self, frame):
@@ -422,7 +432,7 @@ class FrameEstimator:
 
         consensus = self.repair if self.tolerance > 0 and self.repair >= 0 else None
         masks = None
-        if self.support or self.trim:     # the silhouettes the hull is carved from, kept
+        if self.support or self.trim or self.centre:   # the silhouettes the hull is carved from
             from ..hull import uses_soft_fusion
             from .support import compared_views
             self._silhouettes = None
@@ -431,7 +441,7 @@ class FrameEstimator:
                 self._silhouettes = compared_views(self.cap.cameras, masks)
         vol = visual_hull(self.cap, frame, resolution=self.resolution, tolerance=self.tolerance,
                           consensus=consensus, refocus=self.refocus, masks=masks)
-        if (self.support or self.trim) and self._silhouettes is None:   # probabilities, cached
+        if (self.support or self.trim or self.centre) and self._silhouettes is None:  # cached
             from ..capture.background import foreground_maps, scaled_camera
             p = self.cap.options["silhouettes"]
             cut = int(255 * float(p.get("cut", 0.5)))
@@ -735,6 +745,18 @@ class FrameEstimator:
                 if cut:
                     diag["trim"] = {q: c.tolist() for q, c in cut.items()}
                 timings["trim"] = (time.perf_counter() - t1) * 1e3
+            if self.centre and diag.get("curves") and getattr(self, "_silhouettes", None):
+                # the limbs' curves onto the silhouettes' centre lines (§13.3.1)
+                from .centre import frame_offsets
+                t1 = time.perf_counter()
+                cen, cen_trim = frame_offsets(diag["curves"], diag.get("trim"),
+                                              *self._silhouettes, vol.data, vol.origin,
+                                              vol.voxel_size, edt)
+                if cen:
+                    diag["centred"] = cen
+                if cen_trim:
+                    diag["centred_trim"] = cen_trim
+                timings["centre"] = (time.perf_counter() - t1) * 1e3
             if self.support and diag.get("curves") and getattr(self, "_silhouettes", None):
                 # analysis by synthesis: the silhouette the placed model leaves unexplained
                 from .support import support_features

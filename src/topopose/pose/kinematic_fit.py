@@ -227,6 +227,25 @@ SPINE_BACK = 0.15   # the trunk's joints moved back by this × the frame's spine
                     # walks 5.47 → 5.31 → 5.31 → 5.41, random 7.34 → 7.12 → 7.22 → 7.13 cm)
 
 
+CENTRED = True     # the limbs' curves moved onto the silhouettes' centre lines when the frame
+                   # recorded them (``diagnostics["centred"]``, :mod:`.centre`)
+
+
+def centred_curves(curves, offsets, limbs) -> dict:
+    """``curves`` with the limbs' (``limbs``) samples moved by their recorded ``offsets``
+    (:func:`topopose.pose.centre.centre_offsets`); a curve whose offsets do not match its
+    samples (replaced since) is kept as it is."""
+    out = dict(curves)
+    for v, o in offsets.items():
+        c = out.get(v)
+        if v in limbs and c is not None:
+            o = np.asarray(o, float)
+            c = np.asarray(c, float)
+            if o.shape == c.shape:
+                out[v] = c + o
+    return out
+
+
 def frame_curves(pose, tree: KinematicTree, spine=None) -> dict:
     """The frame's skeleton curves, those of the trunk's arcs (arcs not ending at a limb, a
     ``[[mirror]]`` part: head, crotch) moved back by ``spine`` × ``diagnostics["spine_shift"]``
@@ -235,8 +254,12 @@ def frame_curves(pose, tree: KinematicTree, spine=None) -> dict:
     hull's middle, the rig's spine, neck, pelvis, shoulder and hip joints lie behind it: after
     the fit they sat 2–4 cm in front of the truth (development seeds, medians: neck 2.5–3.7,
     pelvis 2.7–4.4, hips 3.5–3.7 cm). The joints with an ``offset`` (shoulders, hips) move
-    back by the same amount (:func:`initial_placement`)."""
+    back by the same amount (:func:`initial_placement`). With :data:`CENTRED`, the limbs'
+    curves first moved onto the silhouettes' centre lines the frame recorded
+    (``diagnostics["centred"]``, :func:`centred_curves`)."""
     curves = pose.diagnostics.get("curves") or {}
+    if CENTRED and pose.diagnostics.get("centred"):
+        curves = centred_curves(curves, pose.diagnostics["centred"], tree.limbs)
     spine = SPINE_BACK if spine is None else spine
     s = pose.diagnostics.get("spine_shift")
     if not spine or s is None or not tree.limbs:

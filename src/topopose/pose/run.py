@@ -151,12 +151,17 @@ def _progress(total, enabled, desc):
                 smoothing=0)
 
 
+#: ``run``'s default for ``centre`` (:mod:`topopose.pose.centre`: the limbs' curves onto the
+#: silhouettes' centre lines, recorded per frame for the kinematic fit)
+CENTRE = False
+
+
 def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
         workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
         tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None, track=True,
         sides=True, skeleton=True, smooth=None, bvh=None, consistency=None,
-        support=None, support_test=False, trim=None) -> RunResult:
+        support=None, support_test=False, trim=None, centre=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -208,6 +213,11 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         Hands trimmed back out of the hull's phantom volume where the silhouettes' evidence
         ends (:mod:`topopose.pose.trim`, recorded per frame, applied after the identities;
         default :data:`topopose.pose.motion.TRIM`, on).
+    centre : bool, optional
+        Record per frame the limbs' curves moved onto the silhouettes' centre lines
+        (:mod:`topopose.pose.centre`, ``diagnostics["centred"]``; the kinematic fit uses them,
+        :data:`topopose.pose.kinematic_fit.CENTRED`); None (default): :data:`CENTRE`. Recorded
+        in the run's per-frame options (the poses file's header).
     bvh : path, optional
         BVH export of the fitted skeleton (Blender).
     consistency : bool, "union", dict or None
@@ -267,6 +277,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         raise InputError(str(e)) from None
     if support or (support is None and (judged or support_test)):   # read by them
         options["support"] = True
+    if CENTRE if centre is None else centre:
+        options["centre"] = True
     todo = select_frames(cap, frames)
     if c3d is not None:
         from .export import require_c3d

@@ -40,7 +40,8 @@ from scipy.optimize import linear_sum_assignment
 
 from .curves import model_arcs
 
-PER_PART_DIAGNOSTICS = ("curves", "misplaced", "hand_hints", "detect_parts", "trim")
+PER_PART_DIAGNOSTICS = ("curves", "misplaced", "hand_hints", "detect_parts", "trim", "centred",
+                        "centred_trim")
 # When fewer than this share of a sequence's frames are usable (matched, or rejected by the
 # confidence gate only), the frames the alignment rejected are observations too: a recording
 # whose every frame misses T_d (the real recording, 4 cameras: 96 of 100 frames above it)

@@ -202,18 +202,27 @@ def trimmed_curves(curves, parts, cameras, silhouettes, voxel, stems=None, **kw)
 def apply_trim(pose):
     """``pose`` with each part of ``diagnostics["trim"]`` still at its curve's end moved to the
     trimmed curve's end, the curve replaced, and the part listed in ``diagnostics["trimmed"]``
-    (the sequence stage); the pose itself when nothing moves."""
+    (the sequence stage); the pose itself when nothing moves. The curve's centre-line offsets
+    (``diagnostics["centred"]``, :mod:`.centre`) become the trimmed curve's
+    (``diagnostics["centred_trim"]``)."""
     trim = pose.diagnostics.get("trim") or {}
     curves = pose.diagnostics.get("curves") or {}
     parts, new_curves, moved = dict(pose.parts), dict(curves), []
+    cen = dict(pose.diagnostics.get("centred") or {})
+    cen_trim = pose.diagnostics.get("centred_trim") or {}
     for q, cut in trim.items():
         if _at_end(q, curves, parts):
             new_curves[q] = np.asarray(cut, float)
             parts[q] = new_curves[q][-1].copy()
             moved.append(q)
+            cen.pop(q, None)            # the trimmed curve's own centre-line offsets, if any
+            if q in cen_trim:
+                cen[q] = cen_trim[q]
     if not moved:
         return pose
     diag = {**pose.diagnostics, "curves": new_curves, "trimmed": moved}
+    if cen or "centred" in diag:
+        diag["centred"] = cen
     return replace(pose, parts=parts, diagnostics=diag)
 
 

@@ -142,3 +142,37 @@ def test_the_estimator_records_the_offsets_and_keeps_the_frame():
             seen += int((np.abs(o).sum(axis=1) > 0).sum())
     assert seen > 0
     assert "centre" in on.estimate(cap.frames[-1]).timings_ms
+
+
+def test_trim_and_relabel_carry_the_offsets_with_their_curves():
+    """The sequence stage: a trimmed hand takes its trimmed curve's offsets (none recorded:
+    none), a relabelled part its own, and the fit's curves add them to the limbs only."""
+    from topopose.pose.kinematic_fit import frame_curves, kinematic_tree
+    from topopose.pose.model import load_model
+    from topopose.pose.pose import Pose
+    from topopose.pose.track import relabel
+    from topopose.pose.trim import apply_trim
+
+    model = load_model("human")
+    tree = kinematic_tree(model)
+    full, cut = _curve([0, 0, 0]), _curve([0, 0, 0])[:8]
+    cut16 = np.vstack([cut, np.repeat(cut[-1:], 8, axis=0)])
+    o_full, o_cut = np.full((16, 3), 0.01), np.full((16, 3), 0.02)
+    parts = {"hand_1": full[-1], "hand_2": full[-1] + 1.0}
+    diag = {"curves": {"hand_1": full, "hand_2": full + 1.0},
+            "trim": {"hand_1": cut16}, "centred": {"hand_1": o_full, "hand_2": o_full},
+            "centred_trim": {"hand_1": o_cut}}
+    p = apply_trim(Pose("000000", "matched", 1.0, parts, diagnostics=diag))
+    assert p.diagnostics["trimmed"] == ["hand_1"]
+    assert np.allclose(p.diagnostics["centred"]["hand_1"], o_cut)
+    got = frame_curves(p, tree, spine=0.0)
+    assert np.allclose(got["hand_1"], cut16 + o_cut)
+    assert np.allclose(got["hand_2"], full + 1.0 + o_full)
+    # no offsets for the trimmed curve: the old ones are dropped, not added to another curve
+    q = apply_trim(Pose("000000", "matched", 1.0, parts,
+                        diagnostics={**diag, "centred_trim": {}}))
+    assert "hand_1" not in q.diagnostics["centred"]
+    assert np.allclose(frame_curves(q, tree, spine=0.0)["hand_1"], cut16)
+    r = relabel(p, {"hand_1": "hand_2", "hand_2": "hand_1"})
+    assert np.allclose(r.diagnostics["centred"]["hand_2"], o_cut)
+    assert np.allclose(frame_curves(r, tree, spine=0.0)["hand_2"], cut16 + o_cut)

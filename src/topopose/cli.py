@@ -425,6 +425,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--trim", action=argparse.BooleanOptionalAction, default=None,
                    help="hands moved back out of the hull's phantom volume, where the "
                         "silhouettes' evidence ends (default on: pose/trim.py)")
+    s.add_argument("--centre", action=argparse.BooleanOptionalAction, default=None,
+                   help="the limbs' skeleton curves moved onto the silhouettes' centre lines "
+                        "for the skeleton's fit, recorded per frame (pose/centre.py; default: "
+                        "topopose.pose.run.CENTRE)")
     s.add_argument("--consistency", action=argparse.BooleanOptionalAction, default=None,
                    help="sequences of one subject: 'matched' decided by agreement with the "
                         "neighbouring frames and the silhouettes the placed model explains "

@@ -567,7 +567,8 @@ def run_cli(a) -> int:
               sides=getattr(a, "sides", True), skeleton=getattr(a, "skeleton", True),
               smooth=getattr(a, "smooth", None), bvh=getattr(a, "bvh", None),
               consistency=getattr(a, "consistency", None),
-              support_test=getattr(a, "support", None) or False, trim=getattr(a, "trim", None))
+              support_test=getattr(a, "support", None) or False, trim=getattr(a, "trim", None),
+              centre=getattr(a, "centre", None))
     if getattr(a, "rerun", None):
         from ..viz.rerun import record_run
         record_run(a.rerun, a.capture, res.poses, model=a.model, resolution=a.resolution,

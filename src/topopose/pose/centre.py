@@ -40,11 +40,19 @@ VIEW_WIDTH = 1.5             # … and ≤ this × the narrowest accepting view'
 LIMB_RADIUS = 0.6            # samples thicker than this × the largest inscribed radius: trunk
 MAX_SHIFT = 1.0              # × the local inscribed radius: the largest move of a sample
 MIN_SPREAD = 0.1             # smallest eigenvalue of the views' normal matrix (unit normals)
-ITERATIONS = 2
+ITERATIONS = 1               # steps (each from the moved samples; see the figures below)
 MIN_VIEWS = 2                # fewer views observing a sample: it stays (1: moved along the one
                              # direction its views constrain)
 STEP = 0.5                   # px along the scan
 PAD = 2.0                    # px of width tolerance (pixel rounding of the contour)
+# Development seeds (benchmarks/centre_dev.py, results/centre_dev.md: walks 41–44, random
+# motion 51–53, 40 frames; MPJPE median over the good frames, off → on): 8 cameras 3.63 → 3.43
+# (ITERATIONS 2) / 3.44 (1, half the cost); 4p 10.53 → 10.55 / 10.44; 4pd 8.83 → 8.79 / 8.85.
+# LIMB_RADIUS 0.45: 3.43 / 10.55; HULL_WIDTH 2 with SCAN 5 (seeds 41, 42, 51, 52): 4p 11.22
+# against 11.26, 4pd 8.89 against 8.86;
+# MIN_VIEWS 1: 4p 10.55, 4pd 8.70. Every limb sample moved onto the true bone (an oracle)
+# gives 3.58 / 10.31 / 8.60: with 4 cameras the limbs' curves lie no farther off the limbs'
+# axes than with 8 (median 26 against 24 mm, 19 after centring), their error is elsewhere.
 
 
 def tangents(curve) -> np.ndarray:

@@ -21,7 +21,8 @@ planes are nearly parallel (:data:`MIN_SPREAD`), stays. :data:`ITERATIONS` such 
 
 Samples thicker than :data:`LIMB_RADIUS` × the hull's largest inscribed radius (the trunk's;
 a hand's curve begins at the chest) are left. The result is recorded per frame by
-:class:`~.estimate.FrameEstimator` (``centre=True``) as ``diagnostics["centred"]``: per limb
+:class:`~.estimate.FrameEstimator` (``centre=True``; ``topopose run`` by default,
+:data:`topopose.pose.run.CENTRE`) as ``diagnostics["centred"]``: per limb
 part, the offsets (n, 3) of its curve's samples (the frame's parts, statuses, confidence and
 ``curves`` unchanged), and ``diagnostics["centred_trim"]`` for the hands' trimmed curves
 (:mod:`.trim`); the kinematic fit adds them to the curves (:func:`topopose.pose.kinematic_fit.

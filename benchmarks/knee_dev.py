@@ -30,20 +30,21 @@ from topopose.pose.model import load_model  # noqa: E402
 
 
 def ends(variant) -> dict:
-    """``knee40_elbow50`` → {"knee": 40.0, "elbow": 50.0}; ``off`` → {}."""
+    """``knee40_elbow50`` → {("foot", "knee"): 40.0, ("hand", "elbow"): 50.0}; ``off`` → {}."""
     if variant == "off":
         return {}
-    return {m.group(1): float(m.group(2))
+    stem = {"knee": "foot", "elbow": "hand"}
+    return {(stem[m.group(1)], m.group(1)): float(m.group(2))
             for m in (re.fullmatch(r"([a-z]+)([0-9.]+)", tok) for tok in variant.split("_"))
             if m.group(1) != "w"}
 
 
-def weight(variant) -> float:
-    """``knee40_w1`` → 1.0; without ``w``: :data:`~topopose.pose.kinematic_fit.FROM_END_WEIGHT`."""
+def weight(variant, default) -> float:
+    """``knee40_w1`` → 1.0; without ``w``: ``default`` (the module's ``FROM_END_WEIGHT``)."""
     for tok in variant.split("_"):
         if tok.startswith("w"):
             return float(tok[1:])
-    return kf.FROM_END_WEIGHT
+    return default
 
 
 def main(argv=None):
@@ -65,7 +66,7 @@ def main(argv=None):
             for motion, seed, build in seqs:
                 cap, poses = CD.per_frame(a.work, motion, seed, build, a.frames, model, st, "on")
                 for v in variants:
-                    kf.FROM_END, kf.FROM_END_WEIGHT = ends(v), weight(v)
+                    kf.FROM_END, kf.FROM_END_WEIGHT = ends(v), weight(v, old_w)
                     r = CD.measure(cap, poses, model, True)
                     r.update(setup=st, motion=motion, seed=seed, variant=v, ms=0.0)
                     rows.append(r)

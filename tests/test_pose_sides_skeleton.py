@@ -1084,7 +1084,7 @@ def test_knee_from_the_far_end_when_the_legs_junction_drops(monkeypatch):
     m). Frames with the full curve keep their knee."""
     from topopose.pose import kinematic_fit as kf
 
-    monkeypatch.setattr(kf, "FROM_END", {"knee": 40})
+    monkeypatch.setattr(kf, "FROM_END", {("foot", "knee"): 40})
     tree = kinematic_tree(HUMAN)
     rng = np.random.default_rng(7)
     poses, drop = [], {2, 5}

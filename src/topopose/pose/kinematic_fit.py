@@ -530,8 +530,9 @@ def bend_joints(out, used, curves, tree: KinematicTree, bend=None) -> np.ndarray
     return out
 
 
-FROM_END = {"knee": 40}  # joint base name → percentile: that middle joint placed by its distance
-    # from its curve's far end (the foot), the reference length the percentile of the sequence's
+FROM_END = {("foot", "knee"): 40}  # (limb end part's stem, joint base name) → percentile: that
+    # middle joint placed by its distance from its curve's far end (the human's foot; not the
+    # spider's legs, unmeasured), the reference length the percentile of the sequence's
     # leg-curve lengths (see from_end); {}: off (the fraction ``at`` from the junction). Issue 15,
     # development seeds (walks 41–44, random motion 51–53, 40 frames, the centred curves;
     # benchmarks/knee_dev.py, MPJPE median over the good frames, 4p / 4pd / 8 cameras): off
@@ -562,7 +563,8 @@ def _arc_position(c, s, x) -> float:
 
 def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
              weight=None) -> np.ndarray:
-    """``init`` with each ``ends`` joint (base name → percentile, default :data:`FROM_END`)
+    """``init`` with each ``ends`` joint ((its limb end part's stem, its base name) →
+    percentile, default :data:`FROM_END`)
     placed at its distance from its curve's far end rather than at its fraction from the start.
 
     A limb's curve starts at the hull's junction, which wanders (a 4-camera hull's phantom
@@ -582,7 +584,7 @@ def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
     poses : the frames' poses (their curves)
     tree : KinematicTree
     spine : as :func:`frame_curves`
-    ends : joint base name → percentile (None: :data:`FROM_END`)
+    ends : (limb end part's stem, joint base name) → percentile (None: :data:`FROM_END`)
     weight : the share of the place from the far end (None: :data:`FROM_END_WEIGHT`)
 
     Returns
@@ -592,7 +594,8 @@ def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
     ends = FROM_END if ends is None else ends
     w = FROM_END_WEIGHT if weight is None else weight
     init = np.array(init, dtype=float, copy=True)
-    js = [j for j, b in enumerate(tree.base) if b in ends and tree.arc[j][1] in tree.limbs
+    key = [(part_stem(tree.arc[j][1]), b) for j, b in enumerate(tree.base)]
+    js = [j for j, b in enumerate(tree.base) if key[j] in ends and tree.arc[j][1] in tree.limbs
           and not _beside(tree, j) and 0.0 < tree.at[j] < 1.0]
     if not js:
         return init
@@ -614,7 +617,7 @@ def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
             s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
             if s[-1] <= 0:
                 continue
-            L = float(np.percentile(lengths[part_stem(v)], ends[tree.base[j]]))
+            L = float(np.percentile(lengths[part_stem(v)], ends[key[j]]))
             t = _arc_position(c, s, init[i, j]) / s[-1]
             x = max(0.0, s[-1] - (1.0 - t) * L)
             x = w * x + (1.0 - w) * t * s[-1]

@@ -564,16 +564,16 @@ def _arc_position(c, s, x) -> float:
 def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
              weight=None) -> np.ndarray:
     """``init`` with each ``ends`` joint ((its limb end part's stem, its base name) →
-    percentile, default :data:`FROM_END`)
-    placed at its distance from its curve's far end rather than at its fraction from the start.
+    percentile, default :data:`FROM_END`) placed by its distance from its curve's far end, not
+    only at its fraction from the start.
 
     A limb's curve starts at the hull's junction, which wanders (a 4-camera hull's phantom
     volume between the legs moves the legs' junction: development seeds, the leg curves'
     median length 110 cm with 4 cameras, 101 cm with 8, the knee's distance from the foot end
     50 / 49 cm); its far end (the thinned foot or hand) wanders less. The joint's fraction
-    ``t`` of its curve (the curve point nearest its initial place) is read against the sequence's reference length
-    ``L`` of that limb's curves (their ``percentile`` % over the frames, mirror limbs pooled:
-    a curve cut short lies below it): from the end, the joint's arc length is
+    ``t`` of its curve (the curve point nearest its initial place) is read against the
+    sequence's reference length ``L`` of that limb's curves (their ``percentile`` % over the
+    frames, mirror limbs pooled: a curve cut short lies below it): from the end, the joint's arc length is
     ``s_end − (1 − t) L`` (at least 0) — where it would be on a curve of the full length ending
     at the same place; it goes to ``weight`` × that + (1 − ``weight``) × ``t s_end`` (its place
     from the start: the far end wanders too, the two errors partly cancel). Thesis §13.3.1

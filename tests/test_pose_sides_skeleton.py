@@ -1073,3 +1073,40 @@ def test_fit_sequence_places_the_toe_on_its_turned_target(monkeypatch):
                               p.joints["toe_1"] - p.joints["ankle_1"]) for p in out]
     for b0, b1 in zip(bends[0.0], bends[20.0]):
         assert abs((b1 - b0) - 20.0) < 3.0, (b0, b1)
+
+
+def test_knee_from_the_far_end_when_the_legs_junction_drops(monkeypatch):
+    """Oracle: straight hand-made legs, the crotch junction 0.95 m up, the knee at 0.475 m (the
+    curve's half), the foot at 0 (the far end). In 2 of 7 frames the junction drops 12 cm (the
+    4-camera hull's phantom crotch): the knee, still at 0.475 m, must be found there within a
+    voxel (2 cm) from the far end alone (``weight`` 1); at the fraction ``at`` of the short
+    curve it is 6 cm low (0.415 m), and with the default half weight half-way between (0.445
+    m). Frames with the full curve keep their knee."""
+    from topopose.pose import kinematic_fit as kf
+
+    monkeypatch.setattr(kf, "FROM_END", {("foot", "knee"): 40})
+    tree = kinematic_tree(HUMAN)
+    rng = np.random.default_rng(7)
+    poses, drop = [], {2, 5}
+    for i in range(7):
+        parts, curves = _body(0.0, rng)
+        for side, y in (("left_foot", 0.1), ("right_foot", -0.1)):
+            o = parts["crotch"] * [1, 1, 0] + [0, y, 0]
+            top = 0.95 - (0.12 if i in drop else 0.0)
+            parts[side] = o.copy()
+            curves[side] = resample([o + [0, 0, top], o], 64)
+        pose, _ = _numbered_frame(f"{i:06d}", parts, curves, False, False)
+        poses.append(pose)
+    init = np.stack([kf.initial_placement(p, tree) for p in poses])
+    out = kf.from_end(init, poses, tree, weight=1.0)
+    half = kf.from_end(init, poses, tree)
+    assert kf.FROM_END_WEIGHT == 0.5
+    for k in (tree.names.index("knee_1"), tree.names.index("knee_2")):
+        assert np.all(np.abs(out[:, k, 2] - 0.475) < 0.02), out[:, k, 2]
+        assert np.all(np.abs(half[sorted(drop), k, 2] - 0.445) < 0.01), half[:, k, 2]
+        assert np.all(np.abs(init[sorted(drop), k, 2] - 0.475) > 0.05)   # the fraction misses
+        keep = [i for i in range(7) if i not in drop]
+        assert np.allclose(out[keep, k], init[keep, k], atol=1e-9)
+    other = [j for j, b in enumerate(tree.base) if b != "knee"]
+    assert np.allclose(out[:, other], init[:, other], equal_nan=True)
+    assert np.allclose(kf.from_end(init, poses, tree, ends={}), init, equal_nan=True)

@@ -20,8 +20,10 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    (``diagnostics["hull_shoulders"]``: the trunk's cross-section below the neck,
    :func:`topopose.pose.unseen.hull_shoulders`; :data:`SEEN_HULL_SHOULDER`). A bent limb's
    middle joint (elbow, wrist, knee, ankle) is at its curve's bend (:func:`bend_joints`,
-   :data:`BEND`). The tips' targets are corrected for the thinned branch end (sequence stage,
-   :func:`tip_targets`): the toe turned away from the shank (:data:`TIP_TURN`), the fingertip
+   :data:`BEND`). The knees are then placed by their distance from the leg curve's far end
+   (sequence stage, :func:`from_end`, :data:`FROM_END`): a 4-camera hull's leg junction
+   wanders, the foot end does not. The tips' targets are corrected for the thinned branch end
+   (sequence stage, :func:`tip_targets`): the toe turned away from the shank (:data:`TIP_TURN`), the fingertip
    moved out along the hand (:data:`TIP_STRETCH`).
 2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
    the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
@@ -526,6 +528,102 @@ def bend_joints(out, used, curves, tree: KinematicTree, bend=None) -> np.ndarray
         if dist[i] > bend * n:
             out[j] = c[inside][i]
     return out
+
+
+FROM_END = {("foot", "knee"): 40}  # (limb end part's stem, joint base name) → percentile: that
+    # middle joint placed by its distance from its curve's far end (the human's foot; not the
+    # spider's legs, unmeasured), the reference length the percentile of the sequence's
+    # leg-curve lengths (see from_end); {}: off (the fraction ``at`` from the junction). Issue 15,
+    # development seeds (walks 41–44, random motion 51–53, 40 frames, the centred curves;
+    # benchmarks/knee_dev.py, MPJPE median over the good frames, 4p / 4pd / 8 cameras): off
+    # 10.44 / 8.85 / 3.44 cm (knees 7.5 / 7.4 / 2.5); percentile 30: 10.38 / 8.92 / 3.45; 40:
+    # 10.40 / 8.81 / 3.45 (knees 6.2 / 5.4 / 2.6); 50: 10.53 / 8.72 / 3.45 (knees 6.0 / 5.8 /
+    # 2.6); 60: 10.52 / 8.75 / 3.41 — each from the end alone; half-way to the place at ``at``
+    # (:data:`FROM_END_WEIGHT`), 40: 10.30 / 8.73 / 3.39 cm (knees 6.0 / 6.5 / 2.5), 50: 10.37 /
+    # 8.78 / 3.40. Elbows from the hand's end as well: mixed (docs/tried.md).
+
+
+FROM_END_WEIGHT = 0.5   # the joint's arc length: this share of the one from the far end, the rest
+    # of the one at its fraction ``at`` (1: from the end alone). From the end alone the knees
+    # improve where the junction drops and worsen where it does not (development seeds,
+    # percentile 40, knees per sequence 4p 4.7 → 5.6, 9.1 → 5.5, 5.1 → 7.0 ...); MPJPE 4p / 4pd
+    # / 8 cameras with the weight 0.3 / 0.5 / 0.7 / 1: 10.31 / 10.30 / 10.28 / 10.40, 8.78 /
+    # 8.73 / 8.75 / 8.81, 3.40 / 3.39 / 3.40 / 3.45 cm (off: 10.44 / 8.85 / 3.44)
+
+
+def _arc_position(c, s, x) -> float:
+    """The arc length (``s``: the curve's cumulative lengths) of the point of curve ``c``
+    nearest ``x``, on its segments."""
+    A, D = c[:-1], np.diff(c, axis=0)
+    dd = np.maximum((D * D).sum(axis=1), 1e-12)
+    u = np.clip(((x - A) * D).sum(axis=1) / dd, 0.0, 1.0)
+    k = int(np.argmin(np.linalg.norm(A + u[:, None] * D - x, axis=1)))
+    return float(s[k] + u[k] * np.sqrt(dd[k]))
+
+
+def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
+             weight=None) -> np.ndarray:
+    """``init`` with each ``ends`` joint ((its limb end part's stem, its base name) →
+    percentile, default :data:`FROM_END`) placed by its distance from its curve's far end, not
+    only at its fraction from the start.
+
+    A limb's curve starts at the hull's junction, which wanders (a 4-camera hull's phantom
+    volume between the legs moves the legs' junction: development seeds, the leg curves'
+    median length 110 cm with 4 cameras, 101 cm with 8, the knee's distance from the foot end
+    50 / 49 cm); its far end (the thinned foot or hand) wanders less. The joint's fraction
+    ``t`` of its curve (the curve point nearest its initial place) is read against the
+    sequence's reference length ``L`` of that limb's curves (their ``percentile`` % over the
+    frames, mirror limbs pooled: a curve cut short lies below it): from the end, the joint's arc length is
+    ``s_end − (1 − t) L`` (at least 0) — where it would be on a curve of the full length ending
+    at the same place; it goes to ``weight`` × that + (1 − ``weight``) × ``t s_end`` (its place
+    from the start: the far end wanders too, the two errors partly cancel). Thesis §13.3.1
+    (the kinematic model initialized from the skeleton curves).
+
+    Parameters
+    ----------
+    init : (n_frames, n_joints, 3) the joints' initial placement (NaN: none)
+    poses : the frames' poses (their curves)
+    tree : KinematicTree
+    spine : as :func:`frame_curves`
+    ends : (limb end part's stem, joint base name) → percentile (None: :data:`FROM_END`)
+    weight : the share of the place from the far end (None: :data:`FROM_END_WEIGHT`)
+
+    Returns
+    -------
+    (n_frames, n_joints, 3) array, a copy of ``init``.
+    """
+    ends = FROM_END if ends is None else ends
+    w = FROM_END_WEIGHT if weight is None else weight
+    init = np.array(init, dtype=float, copy=True)
+    key = [(part_stem(tree.arc[j][1]), b) for j, b in enumerate(tree.base)]
+    js = [j for j, b in enumerate(tree.base) if key[j] in ends and tree.arc[j][1] in tree.limbs
+          and not _beside(tree, j) and 0.0 < tree.at[j] < 1.0]
+    if not js:
+        return init
+    curves = [frame_curves(p, tree, spine) if p.matched else {} for p in poses]
+    lengths = {}
+    for cs in curves:
+        for v, c in cs.items():
+            if v in tree.limbs:
+                c = np.asarray(c, float)
+                lengths.setdefault(part_stem(v), []).append(
+                    float(np.linalg.norm(np.diff(c, axis=0), axis=1).sum()))
+    for i, cs in enumerate(curves):
+        for j in js:
+            v = tree.arc[j][1]
+            c = cs.get(v)
+            if c is None or np.isnan(init[i, j]).any() or part_stem(v) not in lengths:
+                continue
+            c = np.asarray(c, float)
+            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+            if s[-1] <= 0:
+                continue
+            L = float(np.percentile(lengths[part_stem(v)], ends[key[j]]))
+            t = _arc_position(c, s, init[i, j]) / s[-1]
+            x = max(0.0, s[-1] - (1.0 - t) * L)
+            x = w * x + (1.0 - w) * t * s[-1]
+            init[i, j] = _along(c, x / s[-1])
+    return init
 
 
 WIDTH_RADIUS = "sequence"   # the hull radius of the joints' ``width``: the sequence's median
@@ -1294,6 +1392,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     init = np.stack([initial_placement(p, tree, spine, radius, shoulders) if p.matched
                      else np.full((len(tree.names), 3), np.nan) for p in poses]) \
         if poses else np.zeros((0, len(tree.names), 3))
+    init = from_end(init, poses, tree, spine)     # limb middle joints from the far end
     init = tip_targets(init, tree)
     L = bone_lengths(init, tree, quantile)
     n_f = len(poses)

@@ -281,6 +281,7 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     from topopose.capture import prefetch
     from topopose.pose.confidence import temporal_confidence
     from topopose.pose.estimate import FrameEstimator, default_gate
+    from topopose.pose.run import CENTRE as RUN_CENTRE     # the limbs' centring, on by default
 
     cdir = work / method.replace("+", "_")
     if cdir.exists():
@@ -303,7 +304,7 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
             cap = tp.load_capture(cdir)
             frames = cap.frames[:nframes] if nframes else cap.frames
             est = FrameEstimator(cap, "human", resolution, gate=False,   # both decisions scored
-                                 support=support)
+                                 support=support, centre=RUN_CENTRE)    # as `topopose run`
             poses = []
             with prefetch(cap, frames):
                 t_setup = time.perf_counter() - t0    # background learned (prefetch learns it first)

@@ -16,8 +16,9 @@ line along the projected curve through the centre point; with the projection lin
 sample (its Jacobian ``J``, lens distortion included), the image normal ``n`` of the projected
 curve and the centre's offset ``c`` along it: ``nᵀ J δ = c``. The sample moves by the
 least-squares ``δ`` over its views' planes, perpendicular to the curve only, bounded by
-:data:`MAX_SHIFT` × the local radius; a sample seen by fewer than two views, or by views whose
-planes are nearly parallel (:data:`MIN_SPREAD`), stays. :data:`ITERATIONS` such steps.
+:data:`MAX_SHIFT` × the local radius; a sample seen by fewer than :data:`MIN_VIEWS` (two)
+views stays, one seen by views whose planes are nearly parallel (:data:`MIN_SPREAD`) moves
+only along the one direction they constrain. :data:`ITERATIONS` such steps.
 
 Samples thicker than :data:`LIMB_RADIUS` × the hull's largest inscribed radius (the trunk's;
 a hand's curve begins at the chest) are left. The result is recorded per frame by
@@ -111,7 +112,7 @@ def scan_widths(mask, uv, normal, half) -> tuple:
 
 
 def centre_offsets(curves, cameras, silhouettes, radius, max_radius, voxel, stems=None,
-                   iterations=None, stats=None) -> dict:
+                   iterations=None) -> dict:
     """Per limb part of ``stems`` (default :data:`STEMS`): the offsets (n, 3) that move its
     curve's samples onto the silhouettes' centre lines (module docstring); zero for a sample
     left where it was. Parts with no sample moved are left out.
@@ -125,8 +126,6 @@ def centre_offsets(curves, cameras, silhouettes, radius, max_radius, voxel, stem
         :func:`topopose.pose.support.curve_radii`)
     max_radius : the hull's largest inscribed radius (capture units)
     voxel : the hull's voxel edge (capture units)
-    stats : dict, optional
-        Counts of the first iteration's views and samples by outcome, added to (diagnostics).
 
     Returns
     -------
@@ -155,7 +154,7 @@ def centre_offsets(curves, cameras, silhouettes, radius, max_radius, voxel, stem
     B = np.stack([b1, np.cross(T, b1)], axis=2)
     P = P0.copy()
     h = 0.1 * float(voxel)
-    for _ in range(its):   # noqa: B007 (the iteration's number: stats of the first)
+    for _ in range(its):
         idx = np.flatnonzero(use)
         if not len(idx):
             break
@@ -181,15 +180,6 @@ def centre_offsets(curves, cameras, silhouettes, radius, max_radius, voxel, stem
             gB = np.einsum("nj,njk->nk", g, Bb) / np.where(gn > 0, gn, 1.0)[:, None]
             rhs = centre / np.where(gn > 0, gn, 1.0)                 # capture units
             rows.append((good, gB, rhs, np.where(good, width, np.inf)))
-            if stats is not None and _ == 0:
-                xin = np.rint(np.where(ok[:, None], uv, -1)).astype(int)
-                inb = ok & (xin[:, 0] >= 0) & (xin[:, 1] >= 0) & (xin[:, 0] < S.shape[1]) \
-                    & (xin[:, 1] < S.shape[0])
-                at = np.zeros(len(idx), bool)
-                at[inb] = np.asarray(S, bool)[xin[inb, 1], xin[inb, 0]]
-                for key, nk in (("views", len(idx)), ("outside", int((~at).sum())), ("unscanned", int((~np.isfinite(width)).sum())),
-                               ("too_wide", int((np.isfinite(width) & ~good).sum()))):
-                    stats[key] = stats.get(key, 0) + nk
         narrow = np.min([w for *_, w in rows], axis=0)
         A = np.zeros((len(idx), 2, 2))
         v = np.zeros((len(idx), 2))
@@ -201,14 +191,7 @@ def centre_offsets(curves, cameras, silhouettes, radius, max_radius, voxel, stem
             cnt += k
         lam = np.linalg.eigvalsh(A)[:, 0]
         solve = (cnt >= 2) & (lam >= MIN_SPREAD)
-        if stats is not None and _ == 0:
-            for key, nk in (("samples", len(idx)), ("trunk", int((~use).sum())),
-                           ("one_view", int((cnt < 2).sum())),
-                           ("parallel", int(((cnt >= 2) & (lam < MIN_SPREAD)).sum())),
-                           ("wider_than_narrowest", int(sum((g & (w > VIEW_WIDTH * narrow)).sum()
-                                                            for g, _b, _r, w in rows)))):
-                stats[key] = stats.get(key, 0) + nk
-        # one view (or nearly parallel views): with MIN_VIEWS 1, the move along the one
+        # nearly parallel views (or, with MIN_VIEWS 1, one view): the move along the one
         # direction they constrain (the least-norm solution)
         part = (cnt >= MIN_VIEWS) & ~solve & (cnt > 0)
         if not (solve.any() or part.any()):

@@ -1110,3 +1110,24 @@ def test_knee_from_the_far_end_when_the_legs_junction_drops(monkeypatch):
     other = [j for j, b in enumerate(tree.base) if b != "knee"]
     assert np.allclose(out[:, other], init[:, other], equal_nan=True)
     assert np.allclose(kf.from_end(init, poses, tree, ends={}), init, equal_nan=True)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_chain_residuals_jacobian_matches_finite_differences(seed):
+    """The skeleton fit's exact Jacobian (:func:`chain_residuals`) against scipy's central
+    differences at random chains, targets, weights and curves."""
+    from scipy.optimize._numdiff import approx_derivative
+
+    from topopose.pose.kinematic_fit import chain_residuals
+
+    rng = np.random.default_rng(seed)
+    m = 1 + seed
+    x = rng.normal(size=3 * m)
+    p0, L = rng.normal(size=3), rng.uniform(0.1, 0.4, m)
+    tgt, w = rng.normal(size=(m, 3)), rng.uniform(0.0, 1.0, (m, 1))
+    for curve in (None, 0.5 * rng.normal(size=(16, 3))):
+        args = (p0, L, tgt, w, curve, 1.3)
+        r, J = chain_residuals(x, *args, jac=True)
+        assert np.array_equal(r, chain_residuals(x, *args))
+        num = approx_derivative(lambda z: chain_residuals(z, *args), x, method="3-point")
+        assert J.shape == num.shape and np.abs(J - num).max() < 1e-7

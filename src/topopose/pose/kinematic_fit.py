@@ -746,12 +746,70 @@ def forward(root, dirs, L, tree: KinematicTree, order=None) -> np.ndarray:
 
 def _seg_dist(q, A, B):
     """Distance of points q (m, 3) to the nearest of segments A→B (k, 3)."""
+    return _seg_nearest(q, A, B)[0]
+
+
+def _seg_nearest(q, A, B):
+    """Distance of points q (m, 3) to the nearest of segments A→B (k, 3), that segment's
+    index and the parameter (0 at A, 1 at B) of the nearest point on it."""
     ab = B - A
     t = np.einsum("mkc,kc->mk", q[:, None, :] - A[None], ab) / np.maximum(
         np.einsum("kc,kc->k", ab, ab), 1e-12)
     t = np.clip(t, 0.0, 1.0)
     proj = A[None] + t[..., None] * ab[None]
-    return np.linalg.norm(q[:, None, :] - proj, axis=2).min(axis=1)
+    d = np.linalg.norm(q[:, None, :] - proj, axis=2)
+    s = d.argmin(axis=1)
+    rows = np.arange(len(q))
+    return d[rows, s], s, t[rows, s]
+
+
+def chain_residuals(x, p0, L, target, weight, curve=None, curve_weight=1.0, jac=False):
+    """Residuals of one arc chain (:func:`fit_frame`) and, with ``jac``, their Jacobian.
+
+    The chain's joints are ``Q_b = p0 + sum_{j <= b} L_j d_j / |d_j|`` for the bone
+    directions ``x = (d_0, ..., d_{m-1})`` (m, 3 flattened). Residuals: each joint's weighted
+    offset from its target (``weight`` (m, 1), 0 for a joint without one), the gauge
+    ``0.1 (|d_j| - 1)``, and, with a curve (k, 3), every sample's distance to the nearest
+    segment of the polyline ``p0, Q_0 … Q_{m-1}`` × ``curve_weight / sqrt(k)``.
+
+    The Jacobian is exact where the nearest segment does not change (the envelope of the
+    distance to a segment: its derivative moves the segment's two ends by (1 - t) and t);
+    ``dQ_b / dd_j = L_j (I - u_j u_j^T) / |d_j|`` for j <= b, ``u_j = d_j / |d_j|``.
+
+    Returns
+    -------
+    r : (3m + m [+ k],) residuals; with ``jac``, (r, J) with J of shape (len(r), 3m)
+    """
+    d = x.reshape(-1, 3)
+    m = len(d)
+    nd = np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+    u = d / nd[:, None]
+    Q = p0 + np.cumsum(L[:, None] * u, axis=0)
+    r = [((Q - target) * weight).ravel(), 0.1 * (nd - 1.0)]
+    if curve is not None:
+        A = np.vstack([p0, Q])
+        dist, seg, t = _seg_nearest(curve, A[:-1], A[1:])
+        k = curve_weight / np.sqrt(len(curve))
+        r.append(k * dist)
+    r = np.concatenate(r)
+    if not jac:
+        return r
+    # G[j] = L_j (I - u_j u_j^T) / |d_j|: the move of every joint from bone j on per unit of d_j
+    G = L[:, None, None] * (np.eye(3)[None] - u[:, :, None] * u[:, None, :]) / nd[:, None, None]
+    J = np.zeros((len(r), 3 * m))
+    for b in range(m):
+        for j in range(b + 1):
+            J[3 * b:3 * b + 3, 3 * j:3 * j + 3] = weight[b, 0] * G[j]
+        J[3 * m + b, 3 * b:3 * b + 3] = 0.1 * u[b]
+    if curve is not None:
+        P = A[seg] + t[:, None] * (A[seg + 1] - A[seg])
+        nrm = np.where(dist[:, None] > 1e-12, (P - curve) / np.maximum(dist, 1e-12)[:, None], 0.0)
+        rows = 4 * m + np.arange(len(curve))
+        for j in range(m):
+            # segment s runs from A_s (moved by the bones j < s) to A_{s+1} (by the bones j <= s)
+            f = np.where(j < seg, 1.0, np.where(j == seg, t, 0.0))
+            J[rows, 3 * j:3 * j + 3] = k * f[:, None] * (nrm @ G[j])
+    return r, J
 
 
 ROOT_STEPS = 1      # root refinements (development seeds 21–33 random poses, MPJPE median of
@@ -808,21 +866,12 @@ def fit_frame(target, curves, L, tree: KinematicTree, start=None, inner_weight=1
         tgt0 = np.nan_to_num(tgt)
         p0 = P[js[0]]
 
-        def chain(x):
-            d = x.reshape(-1, 3)
-            nd = np.linalg.norm(d, axis=1)
-            return p0 + np.cumsum(Lb[:, None] * d / np.maximum(nd, 1e-12)[:, None], axis=0), nd
-
-        def res(x):
-            Q, nd = chain(x)
-            r = [((Q - tgt0) * wb).ravel(), 0.1 * (nd - 1.0)]
-            if c is not None:
-                A = np.vstack([p0, Q])
-                r.append(curve_weight * _seg_dist(c, A[:-1], A[1:]) / np.sqrt(len(c)))
-            return np.concatenate(r)
-
-        sol = least_squares(res, x0, method="lm", max_nfev=200)
-        Q, _ = chain(sol.x)
+        args = (p0, Lb, tgt0, wb, c, curve_weight)
+        sol = least_squares(chain_residuals, x0, jac=lambda x, *a: chain_residuals(
+            x, *a, jac=True)[1], args=args, method="lm", max_nfev=200)
+        dd = sol.x.reshape(-1, 3)
+        Q = p0 + np.cumsum(Lb[:, None] * dd / np.maximum(np.linalg.norm(dd, axis=1), 1e-12)[:, None],
+                           axis=0)
         P[bones] = Q
         if c is not None:
             A = np.vstack([p0, Q])

@@ -37,8 +37,8 @@ the general 256 × 256 model, ~250 kB, inside the ``mediapipe`` wheel up to 0.10
 downloaded at run time) gives a per-pixel person probability. It is run on the bounding
 rectangle of the camera's subject zone (:mod:`.background`), so the person fills the network's
 input. Install with ``pip install "topopose[segment]"`` (MediaPipe 0.10.14 requires
-``opencv-contrib-python``, which conflicts with ``opencv-python-headless`` when both are
-installed: keep one).
+``opencv-contrib-python``; the extra keeps it below 5, where it and ``opencv-python-headless``
+install the same ``cv2``).
 """
 from __future__ import annotations
 

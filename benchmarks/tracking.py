@@ -53,6 +53,9 @@ is measured beside its peer in the same run:
   per joint, and the unseen arms' error.
 * **bent limbs** (:func:`~topopose.pose.kinematic_fit.bend_joints`, ``BEND``, off by default):
   the fit against the same fit with the middle joints at their curve's bend (:func:`fit_with_bend`).
+* **girdle** (:func:`~topopose.pose.kinematic_fit.girdle_targets`: the neck and the
+  shoulders as one symmetric rigid body): the fit against the same fit with each on its own
+  target (:func:`fit_without_girdle`).
 * **tips** (:func:`~topopose.pose.kinematic_fit.tip_targets`: the toe turned from the shank,
   the fingertip moved out along the hand): the fit against the same fit with the tips' targets
   as the curves give them (:func:`fit_without_tips`).
@@ -504,6 +507,19 @@ def fit_without_tips(tracked, model):
         kf.TIP_TURN, kf.TIP_STRETCH = keep
 
 
+def fit_without_girdle(tracked, model):
+    """The fit with each joint of a girdle on its own target (``kinematic_fit.GIRDLE`` off), the
+    peer of the neck and shoulders placed as one symmetric rigid body."""
+    from topopose.pose import kinematic_fit as kf
+
+    keep = kf.GIRDLE
+    kf.GIRDLE = False
+    try:
+        return fit_sequence(tracked, model)
+    finally:
+        kf.GIRDLE = keep
+
+
 def ungated(poses):
     """The poses as with the confidence gate off: frames only the gate rejected are matched
     (the gate judges a frame after its alignment; it changes nothing else)."""
@@ -617,6 +633,8 @@ def analyse(raw, cap, model):
     err_leg70, leg_holding, leg_arms = peer_errors(
         fit_sequence(tracked, model, quantile=BONE_QUANTILE)[0])
     err_notips, tips_holding, tips_arms = peer_errors(fit_without_tips(tracked, model)[0])
+    err_nogirdle, girdle_holding, girdle_arms = peer_errors(
+        fit_without_girdle(tracked, model)[0])
     hint_end = []        # each hint's end: distance to the nearest true elbow and wrist
     for p in raw:
         gj = gt["frames"][p.frame]["joints"]
@@ -692,6 +710,9 @@ def analyse(raw, cap, model):
            "sh_holding": [mpjpe([a for a, _ in sh_holding])[3], mpjpe([b for _, b in sh_holding])[3]],
            "mpjpe_leg70": mpjpe(err_leg70), "leg_arms": leg_arms,
            "mpjpe_notips": mpjpe(err_notips), "tips_arms": tips_arms,
+           "mpjpe_nogirdle": mpjpe(err_nogirdle), "girdle_arms": girdle_arms,
+           "girdle_holding": [mpjpe([a for a, _ in girdle_holding])[3],
+                              mpjpe([b for _, b in girdle_holding])[3]],
            "tips_holding": [mpjpe([a for a, _ in tips_holding])[3],
                             mpjpe([b for _, b in tips_holding])[3]],
            "leg_holding": [mpjpe([a for a, _ in leg_holding])[3],
@@ -1100,6 +1121,11 @@ def report(rows, info, real=None):
                           "shank, `TIP_TURN`; the fingertip 1.08 × further from the wrist, "
                           "`TIP_STRETCH`), now ← the tips as the curves give them", "notips",
                           "tips_holding", "tips_arms"),
+              peer_bullet(rs, pj, pooled, "the neck and the shoulders as one symmetric rigid "
+                          "body (`kinematic_fit.girdle_targets`: the model's `girdle`, the neck "
+                          "on the shoulders' mid-plane 0.1 × their width past their midpoint), "
+                          "now ← each on its own target (`GIRDLE = False`)", "nogirdle",
+                          "girdle_holding", "girdle_arms"),
               "- the unseen arm's shoulder, the neck's length, the raised arm's shoulder "
               "(`kinematic_fit.HELD_SHOULDER`: an unseen "
               "arm's shoulder opposite its mate, raised 30° from the plane across the trunk, "

@@ -195,6 +195,9 @@ def test_kinematic_tree_of_the_models():
 def test_fit_constant_bone_lengths_recovers_joints_and_fills_gaps(monkeypatch):
     from topopose.pose import kinematic_fit as kf
 
+    # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
+    # girdle puts it (the rig's 0.1): each joint on its own target here
+    monkeypatch.setattr(kf, "GIRDLE", False)
     # these curves run exactly through the tips' truth: no thinned branch end to correct
     monkeypatch.setattr(kf, "TIP_TURN", {})
     monkeypatch.setattr(kf, "TIP_STRETCH", {})
@@ -265,10 +268,15 @@ def test_tip_joint_lies_beyond_the_branch_end_along_its_last_direction():
     assert by["fingertip_1"] > 0 and by["toe_2"] > 0 and by["wrist_1"] == 0 and by["neck"] == 0
 
 
-def test_frame_without_head_keeps_a_skeleton_with_held_joints():
+def test_frame_without_head_keeps_a_skeleton_with_held_joints(monkeypatch):
     """A frame whose head (part and curve) is missing: the root (chest, at the torso part) is
     still placed, the head's chain keeps the previous frame's directions (flagged), and every
     other joint is fitted as in the complete frame."""
+    from topopose.pose import kinematic_fit as kf
+
+    # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
+    # girdle puts it (the rig's 0.1): each joint on its own target here
+    monkeypatch.setattr(kf, "GIRDLE", False)
     rng = np.random.default_rng(5)
     tree = kinematic_tree(HUMAN)
     parts, curves = _body(0.4, rng)
@@ -324,7 +332,7 @@ def test_an_unseen_arm_is_held_from_the_last_fitted_frame_up_to_hold_frames_back
         assert hangs
 
 
-def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_forward():
+def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_forward(monkeypatch):
     """Not the frame before (a capture of unrelated poses): no earlier arm to hold; the unseen
     arm's shoulder is opposite its mate across the trunk, raised ``HELD_SHOULDER`` from the
     plane across it (:func:`test_an_unseen_shoulder_is_not_raised_with_its_raised_mate`), the
@@ -333,6 +341,11 @@ def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_fo
     across the trunk; the toes of _body point 0.2 m forward, the ankle is 5 cm above them, so
     within 20°; across: towards the other shoulder); the frame right after a frame of the
     same body holds that frame's arm instead."""
+    from topopose.pose import kinematic_fit as kf
+
+    # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
+    # girdle puts it (the rig's 0.1): each joint on its own target here
+    monkeypatch.setattr(kf, "GIRDLE", False)
     from topopose.pose.kinematic_fit import ACROSS, FOLD, HELD_SHOULDER
 
     full, cut, parts2, m = _hand_2_unseen(0.9, 8)          # the right hand: not found
@@ -603,6 +616,11 @@ def test_neck_slides_with_the_chest_junction(monkeypatch):
     fitted neck is its placement on the curve; with every bone constant (``slide=False``) the
     neck keeps a fixed distance from the moving junction and leaves it (the truth: the neck's
     placement on the frame's curve, which runs through the true neck)."""
+    from topopose.pose import kinematic_fit as kf
+
+    # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
+    # girdle puts it (the rig's 0.1): each joint on its own target here
+    monkeypatch.setattr(kf, "GIRDLE", False)
     from topopose.pose.kinematic_fit import frame_lengths, initial_placement
 
     rng = np.random.default_rng(5)
@@ -700,6 +718,10 @@ def test_neck_bone_at_its_median_follows_a_junction_sliding_both_ways(monkeypatc
     at its median length (``SLIDE_QUANTILE``) is the true length and the fitted neck stays
     nearer the true neck than with the limbs' 70th percentile, which is too long."""
     from topopose.pose import kinematic_fit as kf
+
+    # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
+    # girdle puts it (the rig's 0.1): each joint on its own target here
+    monkeypatch.setattr(kf, "GIRDLE", False)
 
     tree = kinematic_tree(HUMAN)
     k = tree.names.index("neck")
@@ -1131,3 +1153,54 @@ def test_chain_residuals_jacobian_matches_finite_differences(seed):
         assert np.array_equal(r, chain_residuals(x, *args))
         num = approx_derivative(lambda z: chain_residuals(z, *args), x, method="3-point")
         assert J.shape == num.shape and np.abs(J - num).max() < 1e-7
+
+
+def test_girdle_places_neck_and_shoulders_as_one_symmetric_rigid_body():
+    """The neck's target pushed 8 cm along the shoulder line in one frame: after
+    :func:`girdle_targets` the three joints form the declared template (shoulders the
+    sequence's median width apart, the neck on their mid-plane 0.1 × that width from their
+    midpoint), with the targets' centroid, and no rotation of that template about it fits the
+    targets better (2,000 random rotations). Frames missing a shoulder and the switch off keep
+    their targets; the model field round-trips and is checked."""
+    from scipy.spatial.transform import Rotation
+
+    from topopose.pose import kinematic_fit as kf
+
+    tree = kinematic_tree(HUMAN)
+    rng = np.random.default_rng(5)
+    init = []
+    for i in range(4):
+        parts, curves = _body(0.4 * i, rng)
+        init.append(kf.initial_placement(_numbered_frame(f"{i:06d}", parts, curves, False,
+                                                         False)[0], tree))
+    init = np.stack(init)
+    c, a, b = (tree.names.index(x) for x in ("neck", "shoulder_1", "shoulder_2"))
+    init[1, c] += 0.08 * (init[1, a] - init[1, b]) / np.linalg.norm(init[1, a] - init[1, b])
+    init[3, a] += 0.03 * (init[3, a] - init[3, b]) / np.linalg.norm(init[3, a] - init[3, b])
+    init[2, b] = np.nan
+    out = kf.girdle_targets(init, tree)
+    W = np.median(np.linalg.norm(init[[0, 1, 3], a] - init[[0, 1, 3], b], axis=1))
+    for f in (0, 1, 3):
+        n, s1, s2 = out[f, c], out[f, a], out[f, b]
+        assert abs(np.linalg.norm(s1 - s2) - W) < 1e-9
+        assert abs(np.linalg.norm(n - s1) - np.linalg.norm(n - s2)) < 1e-9
+        assert abs(np.linalg.norm(n - 0.5 * (s1 + s2)) - 0.1 * W) < 1e-9
+        X = init[f, [c, a, b]]
+        assert np.allclose(out[f, [c, a, b]].mean(axis=0), X.mean(axis=0), atol=1e-12)
+        best = np.sum((out[f, [c, a, b]] - X) ** 2)
+        T = out[f, [c, a, b]] - X.mean(axis=0)
+        for R in Rotation.random(2000, random_state=f):
+            assert np.sum((X.mean(axis=0) + R.apply(T) - X) ** 2) >= best - 1e-12
+    moved = np.linalg.norm(out[1, c] - init[1, c])
+    assert moved > 0.04                                    # the pushed neck came back
+    assert np.array_equal(out[2], init[2], equal_nan=True)
+    others = [j for j in range(len(tree.names)) if j not in (c, a, b)]
+    assert np.array_equal(out[:, others], init[:, others], equal_nan=True)
+    assert np.array_equal(kf.girdle_targets(init, tree, on=False), init, equal_nan=True)
+    d = HUMAN.to_dict()
+    assert model_from_dict(d).joints == HUMAN.joints
+    for bad in (["elbow_9", 0.1], ["shoulder"], ["shoulder", 2.0], ["neck", 0.1]):
+        e = {**d, "joint": [dict(j) for j in d["joint"]]}
+        next(j for j in e["joint"] if j["name"] == "neck")["girdle"] = bad
+        with pytest.raises(InputError, match="joint\\[.*girdle"):
+            model_from_dict(e)

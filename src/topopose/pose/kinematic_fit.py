@@ -24,7 +24,9 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    (sequence stage, :func:`from_end`, :data:`FROM_END`): a 4-camera hull's leg junction
    wanders, the foot end does not. The tips' targets are corrected for the thinned branch end
    (sequence stage, :func:`tip_targets`): the toe turned away from the shank (:data:`TIP_TURN`), the fingertip
-   moved out along the hand (:data:`TIP_STRETCH`).
+   moved out along the hand (:data:`TIP_STRETCH`). A joint declared with a ``girdle`` (the neck
+   with the shoulders) and that mirror pair are then placed as one symmetric rigid body
+   (sequence stage, :func:`girdle_targets`, :data:`GIRDLE`).
 2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
    the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
    constant over the sequence; a ``slide`` bone (the neck's) at its median
@@ -72,6 +74,7 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -101,6 +104,7 @@ class KinematicTree:
     width: list = None             # (along the trunk, outward) × hull radius, from the junction
     at_raised: list = None         # at when the arc's end part is past its start along the trunk
     slide: list = None             # the bone from its parent takes the frame's length (slide)
+    girdle: list = None            # (pair's joint name, height) or None: one rigid body with it
 
     @property
     def root(self) -> int:
@@ -134,7 +138,7 @@ def kinematic_tree(model) -> KinematicTree:
     if not model.joints:
         raise InputError(f"model {model.name!r}: no [[joint]] declared; the full skeleton needs "
                          "joints along the arcs (see topopose.pose.model)")
-    names, base, arc, at, offset, beyond, width, raised, slide = ([] for _ in range(9))
+    names, base, arc, at, offset, beyond, width, raised, slide, girdle = ([] for _ in range(10))
     arcs = model_arcs(model)
     for u, v in arcs:
         for js in model.joints:
@@ -157,6 +161,8 @@ def kinematic_tree(model) -> KinematicTree:
             width.append(tuple(float(x) for x in js.width))
             raised.append(r)
             slide.append(bool(js.slide))
+            girdle.append(None if js.girdle is None else (str(js.girdle[0]),
+                                                          float(js.girdle[1])))
             beyond.append(float(js.beyond) if t == 1.0 else 0.0)
             base.append(js.name)
             arc.append((u, v))
@@ -198,7 +204,7 @@ def kinematic_tree(model) -> KinematicTree:
     return KinematicTree(names, base, parents, arc, at, offset,
                          tuple(model.facing.get("trunk", ())), beyond,
                          frozenset(x for parts, _names in model.mirrors for x in parts), width,
-                         raised, slide)
+                         raised, slide, girdle)
 
 
 TIP_DIRECTION = 0.1      # the tip direction: along the curve's last 10 % (see _along)
@@ -1322,6 +1328,73 @@ def tip_targets(init, tree: KinematicTree, turn=None, stretch=None) -> np.ndarra
     return out
 
 
+GIRDLE = True  # the joints a model declares as one girdle (``girdle = [pair, height]`` on a
+               # joint: the neck with the shoulders) placed as one symmetric rigid body
+               # (:func:`girdle_targets`); False: each joint alone. Development seeds (walks
+               # 41–46, random motion 51–56, unrelated random poses 21–32; gate off, cached
+               # per-frame results, benchmarks/trunk_dev.py's measure; MPJPE median over the
+               # good frames, 4p / 4pd / 8 cameras): off 8.90 / 7.47 / 3.67 cm, neck and
+               # shoulders at height 0 / 0.1 / 0.15 × the shoulder width 8.63 / 8.59 / – ,
+               # 7.16 / 7.13 / – , 3.71 / 3.61 / – (necks 8.8 → 8.2, 6.8 → 5.7, 4.2 → 3.6;
+               # shoulders 9.0 → 9.6, 9.0 → 9.1, 3.7 → 4.0 cm at 0.1); the neck alone moved
+               # (0.1): 8.72 / 7.19 / 3.69; the neck weighted 0.5: 8.66 / 7.17 / 3.61; the
+               # pelvis and hips as a girdle (height 0): 9.08 / 7.52 / 3.78 (worse). All
+               # frames (most of them wrong per frame with 4 cameras) off → 0.1: 14.65 → 14.46,
+               # 13.99 → 14.12, 4.54 → 4.47 cm. On the truth the neck lies 4–6 cm above the
+               # shoulders' midpoint, on the mid-plane; the 4-camera fit put it 10 cm from it,
+               # 1 cm up (development seeds)
+
+
+def girdle_targets(init, tree: KinematicTree, on=None) -> np.ndarray:
+    """The targets of each declared girdle as one symmetric rigid body (sequence stage).
+
+    A joint declared with ``girdle = [pair, h]`` (the neck with ``shoulder``) and the two
+    joints of that mirror pair are placed by the rigid template that fits their three
+    targets best (:meth:`scipy.spatial.transform.Rotation.align_vectors`, the Kabsch
+    solution): the pair ``W`` apart, ``W`` the sequence's median distance between their
+    targets, the joint on the pair's mid-plane ``h W`` from their midpoint. Each frame's three
+    targets come from separate skeleton curves and junctions, which with few cameras scatter
+    apart (the neck beside the shoulders' midpoint); the template shares their evidence.
+    Frames where any of the three is unplaced keep their targets.
+
+    Parameters
+    ----------
+    init : (n_frames, n_joints, 3) targets (NaN: not placed)
+    tree : KinematicTree
+    on : bool (default :data:`GIRDLE`)
+
+    Returns
+    -------
+    (n_frames, n_joints, 3) array, a copy of ``init``.
+    """
+    from scipy.spatial.transform import Rotation
+
+    out = np.array(init, dtype=float, copy=True)
+    if not (GIRDLE if on is None else on) or not tree.girdle:
+        return out
+    for c, g in enumerate(tree.girdle):
+        if g is None:
+            continue
+        pair = [j for j, b in enumerate(tree.base) if b == g[0]]
+        if len(pair) != 2:
+            continue
+        js = [c, *pair]
+        ok = ~np.isnan(out[:, js]).any(axis=(1, 2))
+        if not ok.any():
+            continue
+        W = float(np.median(np.linalg.norm(out[ok, pair[0]] - out[ok, pair[1]], axis=1)))
+        T = np.array([[0.0, 0.0, g[1] * W], [0.5 * W, 0.0, 0.0], [-0.5 * W, 0.0, 0.0]])
+        T -= T.mean(axis=0)
+        for f in np.flatnonzero(ok):
+            X = out[f, js]
+            m = X.mean(axis=0)
+            with warnings.catch_warnings():      # three targets in a line: any turn about it
+                warnings.simplefilter("ignore", UserWarning)
+                R, _ = Rotation.align_vectors(X - m, T)
+            out[f, js] = m + R.apply(T)
+    return out
+
+
 SMOOTH = 9          # frames: the default Savitzky–Golay window (order 2) over the runs of
                     # continuing motion (:func:`motion_runs`); 0 / None given to fit_sequence as 0:
                     # off. Per-frame fits jitter (each frame's curves alone) while a body moves
@@ -1443,6 +1516,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         if poses else np.zeros((0, len(tree.names), 3))
     init = from_end(init, poses, tree, spine)     # limb middle joints from the far end
     init = tip_targets(init, tree)
+    init = girdle_targets(init, tree)
     L = bone_lengths(init, tree, quantile)
     n_f = len(poses)
     Lf = np.tile(L, (n_f, 1))              # per frame: a sliding bone's length varies

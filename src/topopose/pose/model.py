@@ -53,6 +53,10 @@ File format (TOML, DESIGN.md "Model tree file")::
     slide = true            # optional: the bone from the joint's parent has no constant
                             # length (the parent is a junction of the skeleton curves that
                             # slides along the trunk); e.g. the neck below the chest junction
+    girdle = ["shoulder", 0.1]  # optional: this joint and a mirror pair of joints (named by
+                            # the pair's joint name) are one symmetric rigid body, this joint
+                            # on its mid-plane, past the pair's midpoint by the number × the
+                            # pair's width; e.g. the neck and the shoulders
 
 Mirror pairs: once :mod:`.chirality` knows the subject's left, ``parts[0]`` (the one on the
 subject's left) is output as ``names[0]`` and ``parts[1]`` as ``names[1]``; the numbered
@@ -84,7 +88,8 @@ _EDGE_KEYS = {"parts", "length"}
 _CONSTRAINT_KEYS = {"kind", "parts", "axis", "relation"}
 _MIRROR_KEYS = {"parts", "names"}
 _FACING_KEYS = {"feet", "axis", "trunk"}
-_JOINT_KEYS = {"name", "arc", "at", "offset", "beyond", "width", "at_raised", "slide"}
+_JOINT_KEYS = {"name", "arc", "at", "offset", "beyond", "width", "at_raised", "slide",
+               "girdle"}
 
 
 @dataclass(frozen=True)
@@ -102,6 +107,8 @@ class JointSpec:
     at_raised: float = None        # at when the arc's end part is past its first part along the
                                    # trunk ([facing] trunk = [from, to]): a raised hand
     slide: bool = False            # the bone from its parent: the frame's length, not constant
+    girdle: tuple = None           # (pair's joint name, height × the pair's width): this joint
+                                   # and that mirror pair, one symmetric rigid body
 
 
 @dataclass
@@ -225,6 +232,8 @@ class Model:
                             | ({"at_raised": float(j.at_raised)} if j.at_raised is not None
                                else {})
                             | ({"slide": True} if j.slide else {})
+                            | ({"girdle": [j.girdle[0], float(j.girdle[1])]} if j.girdle
+                               else {})
                             for j in self.joints]
         return out
 
@@ -324,6 +333,13 @@ def validate_model(m: Model) -> None:
                              f"trunk = [from, to]; got {j.at_raised!r}")
         if not isinstance(j.slide, bool):
             raise InputError(f"{jw}: field 'slide' must be true or false, got {j.slide!r}")
+        if j.girdle is not None and (
+                not isinstance(j.girdle, (list, tuple)) or len(j.girdle) != 2
+                or not isinstance(j.girdle[0], str) or isinstance(j.girdle[1], bool)
+                or not isinstance(j.girdle[1], (int, float)) or not -1.0 <= j.girdle[1] <= 1.0
+                or j.girdle[0] not in {x.name for x in m.joints} or j.girdle[0] == j.name):
+            raise InputError(f"{jw}: field 'girdle' must be [another joint's name, a number in "
+                             f"[-1, 1]], got {j.girdle!r}")
         if (not isinstance(j.arc, (list, tuple)) or len(j.arc) != 2
                 or not all(isinstance(x, str) for x in j.arc)):
             raise InputError(f"{jw}: field 'arc' must be two part names (or numbered stems)")
@@ -476,7 +492,7 @@ def model_from_dict(d: dict, source: str = "model") -> Model:
     for i, j in enumerate(d.get("joint") or []):
         if not isinstance(j, dict) or not {"name", "arc", "at"} <= set(j) <= _JOINT_KEYS:
             raise InputError(f"{source}: joint[{i}]: expected a table with name, arc, at "
-                             "(and optional offset, beyond, width, at_raised, slide)")
+                             "(and optional offset, beyond, width, at_raised, slide, girdle)")
         off = j.get("offset", (0.0, 0.0))
         joints.append(JointSpec(j["name"], tuple(j["arc"]) if isinstance(j["arc"], list)
                                 else j["arc"], j["at"],
@@ -484,7 +500,9 @@ def model_from_dict(d: dict, source: str = "model") -> Model:
                                 j.get("beyond", 0.0),
                                 tuple(j["width"]) if isinstance(j.get("width"), list)
                                 else j.get("width", (0.0, 0.0)), j.get("at_raised"),
-                                j.get("slide", False)))
+                                j.get("slide", False),
+                                tuple(j["girdle"]) if isinstance(j.get("girdle"), list)
+                                else j.get("girdle")))
     return Model(name=name, tree=tree, root=meta.get("root"), complete=complete,
                  threshold=meta.get("threshold"), description=meta.get("description", ""),
                  source=source, mirrors=mirrors, facing=dict(facing), joints=joints)

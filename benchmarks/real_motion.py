@@ -36,6 +36,12 @@ sides, the defaults), the TRC is exported as ``run --trc`` writes it and read ba
   per-frame numbering (raw) against the tracked one (``diagnostics["chirality"]`` names the
   tracked part behind each side name).
 
+* **the reference itself**: Pose2Sim's bone lengths, left and right, and their spread over
+  the frames (:func:`reference_spread`: a rigid bone varies by the reference's own noise), and
+  where its markers and ours lie against the visual hull (:func:`markers_in_hull`);
+* **peers**: the motion stage again from the same per-frame poses with a default switched
+  off (:data:`PEERS`, :func:`peer_scores`).
+
 Every figure on all 100 frames and on the *right* frames (per-frame result: head, both hands,
 both feet within 0.15 m of Pose2Sim, as ``benchmarks/real.py``). Writes ``real_motion.md``,
 ``real_motion.json`` and ``real_motion.png`` (our joints against Pose2Sim's over time).
@@ -263,6 +269,35 @@ def run_recording(rec: Path, work: Path, raw_path=None):
                                                "motion_stage_s": round(t_motion, 3)}
 
 
+# peers of the default motion stage, from the same per-frame poses: kinematic_fit constants
+PEERS = {"the neck and shoulders each on its own target (GIRDLE = False)": {"GIRDLE": False}}
+
+
+def peer_scores(raw, cap, model, ref, work) -> dict:
+    """The motion stage again from the same per-frame poses with each of :data:`PEERS`'
+    settings: MPJPE (side names) on all and on the right frames, as :func:`score` gives it."""
+    from topopose.pose import kinematic_fit as kf
+    from topopose.pose.export import OPENSIM_LABELS, marker_names, write_trc
+    from topopose.pose.motion import process_sequence
+
+    out = {}
+    for k, (label, consts) in enumerate(PEERS.items()):
+        keep = {c: getattr(kf, c) for c in consts}
+        try:
+            for c, v in consts.items():
+                setattr(kf, c, v)
+            motion = process_sequence(raw, model, cap.up_vector)
+        finally:
+            for c, v in keep.items():
+                setattr(kf, c, v)
+        path = Path(work) / f"peer{k}.trc"
+        write_trc(path, motion.poses, marker_names(motion.poses, model.parts),
+                  fps=cap.fps or 25.0, units=cap.units, up=cap.up, labels=OPENSIM_LABELS)
+        s, _m, _r = score(raw, motion.poses, path, ref, model)
+        out[label] = {w: s[w]["mpjpe_named"] for w in ("all", "right")}
+    return out
+
+
 BONES_P2S = [("Head", "Neck"), ("Neck", "LShoulder"), ("LShoulder", "LElbow"), ("LElbow", "LWrist"),
              ("Neck", "RShoulder"), ("RShoulder", "RElbow"), ("RElbow", "RWrist"),
              ("LHip", "RHip"), ("LHip", "LKnee"), ("LKnee", "LAnkle"), ("LAnkle", "LBigToe"),
@@ -361,6 +396,69 @@ def widths(markers, ref):
     return out
 
 
+def reference_spread(ref) -> dict:
+    """Pose2Sim's own consistency: per bone of ``BONES_COMPARED``, each side's length (median
+    over frames, m) and its standard deviation over the frames (cm). A rigid bone's length
+    varies only by the reference's own noise: its spread bounds how closely any other method
+    can agree with the reference, and the left / right difference is a per-side bias of it."""
+    out = {}
+    for name, _j, a, b in BONES_COMPARED:
+        L = {sd: np.linalg.norm(ref[f"{sd}{a}"] - ref[f"{sd}{b}"], axis=1) for sd in "LR"}
+        out[name] = {sd: [round(float(np.median(v)), 3), round(float(np.std(v)) * 100, 1)]
+                     for sd, v in L.items()}
+    return out
+
+
+HULL_MARKERS = ("Neck", "LShoulder", "RShoulder", "LElbow", "RElbow", "LHip", "RHip", "LKnee",
+                "RKnee")
+
+
+def markers_in_hull(cap, markers, ref, rows, up) -> dict:
+    """Where Pose2Sim's markers and ours lie against each frame's visual hull (100³, the run's
+    silhouettes and tolerance) on frames ``rows``: per marker of :data:`HULL_MARKERS`, the share
+    of frames in which it lies outside the hull, and for those inside, the median distance to
+    the hull's front and back along Pose2Sim's forward (cm). The hull holds the body when the
+    silhouettes and the calibration are right, so a joint centre lies inside it, away from its
+    surface; a surface landmark lies near it."""
+    from topopose.pose.estimate import FrameEstimator
+
+    est = FrameEstimator(cap, "human", resolution=100, threshold=1e9, gate=False)
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    acc = {}
+    for i in rows:
+        vol = est.hull(cap.frame_name(cap.frames[i]))
+        org, vs, D = np.asarray(vol.origin, float), vol.voxel_size, vol.data
+
+        def inside(x):
+            c = np.round((x - org) / vs).astype(int)
+            return bool((c >= 0).all() and (c < D.shape).all() and D[tuple(c)])
+
+        def run(x, d):
+            k = 0
+            while k < 200 and inside(x + (k + 1) * 0.5 * vs * d):
+                k += 1
+            return k * 0.5 * vs
+        lat = ref["LHip"][i] - ref["RHip"][i]
+        lat = lat - np.dot(lat, up) * up
+        fwd = np.cross(lat / np.linalg.norm(lat), up)
+        for who, get in (("pose2sim", lambda n: ref[n][i]), ("ours", lambda n: markers[i].get(n))):
+            for n in HULL_MARKERS:
+                x = get(n)
+                if x is None or np.isnan(x).any():
+                    continue
+                x = np.asarray(x, float)
+                acc.setdefault((who, n), []).append(
+                    (run(x, fwd), run(x, -fwd)) if inside(x) else None)
+    out = {}
+    for (who, n), v in acc.items():
+        ins = np.array([x for x in v if x is not None]).reshape(-1, 2)
+        out.setdefault(n, {})[who] = {
+            "outside": round(1.0 - len(ins) / len(v), 2),
+            "front_back_cm": [round(100 * float(x), 1) for x in np.median(ins, axis=0)]
+            if len(ins) else None}
+    return out
+
+
 def signed_bias(markers, ref, rows, up) -> dict:
     """Per joint, median over ``rows`` (frames) of our marker − Pose2Sim's in Pose2Sim's body
     frame (cm): lateral (outward for a mirror joint, pairs paired optimally, both sides pooled
@@ -396,6 +494,10 @@ def signed_bias(markers, ref, rows, up) -> dict:
             acc.setdefault(f"L{stem}", []).append(comp(a - L))
             acc.setdefault(f"R{stem}", []).append(comp(b - R, -1.0))
     return {k: [round(float(x), 1) for x in np.median(np.array(v), axis=0)] for k, v in acc.items()}
+
+
+def _fb(v):
+    return "–" if v["front_back_cm"] is None else " / ".join(map(str, v["front_back_cm"]))
 
 
 def _fmt(v):
@@ -443,15 +545,32 @@ def report(doc) -> str:
             L.append(f"- toes (not in the MPJPE) against Pose2Sim's big toes, paired optimally: "
                      f"{_fmt(t['median'])} cm median ({t['n']} feet)")
         L.append("")
+    for label, pr in doc.get("peers", {}).items():
+        L += [f"Peer, the same per-frame poses, {label}: MPJPE all frames "
+              f"{_fmt(pr['all']['mpjpe'])} cm (p90 {_fmt(pr['all']['mpjpe_p90'])}), right frames "
+              f"{_fmt(pr['right']['mpjpe'])} cm; per joint (all / right): "
+              + ", ".join(f"{j} {_fmt(v)} / {_fmt(pr['right']['per_joint'].get(j))}"
+                          for j, v in pr["all"]["per_joint"].items()), ""]
     from topopose.pose.kinematic_fit import BONE_QUANTILE
 
     L += ["Bone lengths (ours: constant over the sequence, the "
           f"{BONE_QUANTILE}th percentile over its frames' initial "
           "placements; Pose2Sim: left side, median over frames), m: "
           + ", ".join(f"{k} {a} vs {b}" for k, (a, b) in doc["bone_lengths_vs_pose2sim_m"].items()),
+          "", "Pose2Sim's own bone lengths, left / right (m, median over frames; its standard "
+          "deviation over the frames in cm — a rigid bone's length varies by the reference's "
+          "own noise only): "
+          + ", ".join(f"{k} {v['L'][0]} ± {v['L'][1]} / {v['R'][0]} ± {v['R'][1]}"
+                      for k, v in doc.get("pose2sim_bone_spread", {}).items()),
           "", "Widths (ours vs Pose2Sim, m; median over frames): "
           + ", ".join(f"{k} {' vs '.join(map(str, v))}"
                       for k, v in doc.get("widths_vs_pose2sim_m", {}).items()),
+          "", "Against the visual hull, right frames (share of frames outside it; inside, the "
+          "median distance to its front / back along Pose2Sim's forward, cm), Pose2Sim vs ours: "
+          + ", ".join(f"{n} {v['pose2sim']['outside']} ({_fb(v['pose2sim'])}) vs "
+                      f"{v['ours']['outside']} ({_fb(v['ours'])})"
+                      for n, v in doc.get("markers_in_hull", {}).items()
+                      if "pose2sim" in v and "ours" in v),
           "", f"Hull fatness (hull litres / height³, median over frames): {doc.get('hull_fatness')}"
           " (synthetic body: `tracking_bias_dev.md`).",
           "", "Signed bias on the right frames (ours − Pose2Sim, cm, median; Pose2Sim's body "
@@ -496,6 +615,9 @@ def main(argv=None):
         s, markers, right = score(raw, motion.poses, trc_path, ref, model)
         picture(out / "real_motion.png", markers, ref, right, motion.poses,
                 np.asarray(cap.up_vector, float))
+        peers = peer_scores(raw, cap, model, ref, tmp)
+        in_hull = markers_in_hull(cap, markers, ref, [i for i in range(len(right)) if right[i]],
+                                  cap.up_vector)
     doc = {"recording": str(rec), "machine": machine(resolution=100, cameras=4),
            "threshold": model.threshold, "seconds": secs, "picture": "real_motion.png",
            "hand_hints": not a.no_hand_hints,
@@ -505,7 +627,9 @@ def main(argv=None):
                name: [round(float(motion.lengths[motion.tree.names.index(j)]), 3),
                       round(float(np.median(np.linalg.norm(ref[f"{sd}{a}"] - ref[f"{sd}{b}"], axis=1))), 3)]
                for name, j, a, b in BONES_COMPARED for sd in "L"},
+           "pose2sim_bone_spread": reference_spread(ref),
            "widths_vs_pose2sim_m": widths(markers, ref),
+           "markers_in_hull": in_hull, "peers": peers,
            "hull_fatness": round(float(np.median([p.diagnostics["hull_litres"]
                                                    / p.diagnostics["height"] ** 3 for p in raw
                                                    if p.diagnostics.get("height")])), 2),

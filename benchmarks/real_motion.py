@@ -433,7 +433,7 @@ def markers_in_hull(cap, markers, ref, rows, up) -> dict:
             c = np.round((x - org) / vs).astype(int)
             return bool((c >= 0).all() and (c < D.shape).all() and D[tuple(c)])
 
-        def run(x, d):
+        def reach(x, d):          # how far the hull goes from x along d
             k = 0
             while k < 200 and inside(x + (k + 1) * 0.5 * vs * d):
                 k += 1
@@ -448,7 +448,7 @@ def markers_in_hull(cap, markers, ref, rows, up) -> dict:
                     continue
                 x = np.asarray(x, float)
                 acc.setdefault((who, n), []).append(
-                    (run(x, fwd), run(x, -fwd)) if inside(x) else None)
+                    (reach(x, fwd), reach(x, -fwd)) if inside(x) else None)
     out = {}
     for (who, n), v in acc.items():
         ins = np.array([x for x in v if x is not None]).reshape(-1, 2)

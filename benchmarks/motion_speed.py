@@ -3,7 +3,7 @@ hands' trim, the kinematic skeleton, left and right, the consistency), with the 
 exact Jacobian against the finite-difference one it replaced (the peer), in one run.
 
     python benchmarks/motion_speed.py [--work DIR] [--frames 40] [--real RECORDING]
-                                      [--out benchmarks/results]
+                                      [--out benchmarks/results] [--quick]
 
 Subjects: the anatomically real ``body`` walking, seen by 8 cameras (640×480, noise 1) and by
 4 phones in facing pairs (``tracking.py``'s ``4p``: the AHA threshold and the confidence gate
@@ -156,7 +156,10 @@ def main(argv=None):
     ap.add_argument("--frames", type=int, default=40)
     ap.add_argument("--real", default=str(HERE / "data" / "pose2sim_balancing"))
     ap.add_argument("--out", default=None)
+    ap.add_argument("--quick", action="store_true", help="12 frames per synthetic walk")
     a = ap.parse_args(argv)
+    if a.quick:
+        a.frames = 12
     model = load_model("human")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -171,7 +171,8 @@ def main(argv=None):
         if got is not None:
             rows.append(measure("real recording (4 phones, person)", got[0], got[1], model, got[2]))
     doc = {"machine": machine(), "rows": rows}
-    write_results(Path(a.out or results_dir()) / "motion_speed", doc, report)
+    write_results(Path(a.out or results_dir()) / ("motion_speed_quick" if a.quick
+                                                  else "motion_speed"), doc, report)
     print(report(doc))
     return 0
 

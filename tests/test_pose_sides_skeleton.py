@@ -1204,3 +1204,7 @@ def test_girdle_places_neck_and_shoulders_as_one_symmetric_rigid_body():
         next(j for j in e["joint"] if j["name"] == "neck")["girdle"] = bad
         with pytest.raises(InputError, match="joint\\[.*girdle"):
             model_from_dict(e)
+    e = {**d, "joint": [dict(j) for j in d["joint"]]}
+    next(j for j in e["joint"] if j["name"] == "neck")["girdle"] = ["skull", 0.1]
+    with pytest.raises(InputError, match="girdle.*'skull'.*1 joints, not a mirror pair"):
+        kinematic_tree(model_from_dict(e))

@@ -169,6 +169,10 @@ def kinematic_tree(model) -> KinematicTree:
             at.append(t)
     if len(set(names)) != len(names):
         raise InputError(f"model {model.name!r}: two joints share a name ({names})")
+    for g in {g for g in girdle if g is not None}:
+        if base.count(g[0]) != 2:
+            raise InputError(f"model {model.name!r}: field 'girdle' names joint {g[0]!r}, which "
+                             f"the arcs make {base.count(g[0])} joints, not a mirror pair of 2")
     anchor = {}
     for j, ((u, v), t) in enumerate(zip(arc, at)):
         if t == 0.0:
@@ -1375,9 +1379,7 @@ def girdle_targets(init, tree: KinematicTree, on=None) -> np.ndarray:
     for c, g in enumerate(tree.girdle):
         if g is None:
             continue
-        pair = [j for j, b in enumerate(tree.base) if b == g[0]]
-        if len(pair) != 2:
-            continue
+        pair = [j for j, b in enumerate(tree.base) if b == g[0]]      # two: kinematic_tree
         js = [c, *pair]
         ok = ~np.isnan(out[:, js]).any(axis=(1, 2))
         if not ok.any():

@@ -354,7 +354,7 @@ def picture(path, markers, ref, right, final, up=np.array([0.0, 0.0, 1.0])):
         a1.plot(t, ref[mk][:, 2], color=col, ls=ls, lw=1.2, alpha=0.6, label=f"Pose2Sim {mk}")
         ours = np.array([m.get(mk, np.full(3, np.nan))[2] for m in markers])
         a1.plot(t, ours, "o" if "Wrist" in mk else "s", color=col, ms=2.5, label=f"ours {mk}")
-    a1.set_xlabel("frame (30 frames/s)")
+    a1.set_xlabel("frame (the recording: 60 frames/s)")
     a1.set_ylabel("height (m)")
     a1.legend(fontsize=6.5, ncol=4)
     a1.set_title("heights of the wrists and ankles over time (ours: markers by our side names)",

@@ -773,6 +773,15 @@ def _seg_nearest(q, A, B):
     return d[rows, s], s, t[rows, s]
 
 
+def chain_joints(x, p0, L):
+    """The joints ``Q_b = p0 + sum_{j <= b} L_j u_j`` of one arc chain for the bone directions
+    ``x`` (flattened (m, 3)), with the unit directions ``u`` and their norms ``|d_j|``."""
+    d = x.reshape(-1, 3)
+    nd = np.maximum(np.linalg.norm(d, axis=1), 1e-12)
+    u = d / nd[:, None]
+    return p0 + np.cumsum(L[:, None] * u, axis=0), u, nd
+
+
 def chain_residuals(x, p0, L, target, weight, curve=None, curve_weight=1.0, jac=False):
     """Residuals of one arc chain (:func:`fit_frame`) and, with ``jac``, their Jacobian.
 
@@ -790,11 +799,8 @@ def chain_residuals(x, p0, L, target, weight, curve=None, curve_weight=1.0, jac=
     -------
     r : (3m + m [+ k],) residuals; with ``jac``, (r, J) with J of shape (len(r), 3m)
     """
-    d = x.reshape(-1, 3)
-    m = len(d)
-    nd = np.maximum(np.linalg.norm(d, axis=1), 1e-12)
-    u = d / nd[:, None]
-    Q = p0 + np.cumsum(L[:, None] * u, axis=0)
+    Q, u, nd = chain_joints(x, p0, L)
+    m = len(u)
     r = [((Q - target) * weight).ravel(), 0.1 * (nd - 1.0)]
     if curve is not None:
         A = np.vstack([p0, Q])
@@ -879,9 +885,7 @@ def fit_frame(target, curves, L, tree: KinematicTree, start=None, inner_weight=1
         args = (p0, Lb, tgt0, wb, c, curve_weight)
         sol = least_squares(chain_residuals, x0, jac=lambda x, *a: chain_residuals(
             x, *a, jac=True)[1], args=args, method="lm", max_nfev=200)
-        dd = sol.x.reshape(-1, 3)
-        Q = p0 + np.cumsum(Lb[:, None] * dd / np.maximum(np.linalg.norm(dd, axis=1), 1e-12)[:, None],
-                           axis=0)
+        Q = chain_joints(sol.x, p0, Lb)[0]
         P[bones] = Q
         if c is not None:
             A = np.vstack([p0, Q])

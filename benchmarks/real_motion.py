@@ -39,6 +39,8 @@ sides, the defaults), the TRC is exported as ``run --trc`` writes it and read ba
 * **the reference itself**: Pose2Sim's bone lengths, left and right, and their spread over
   the frames (:func:`reference_spread`: a rigid bone varies by the reference's own noise), and
   where its markers and ours lie against the visual hull (:func:`markers_in_hull`);
+* **the grid's placement alone** (:func:`grid_spread`, ``--spread``): the whole benchmark
+  again at resolutions 96, 98, 102, 104 (voxel size and lattice moved, the subject not);
 * **peers**: the motion stage again from the same per-frame poses with a default switched
   off (:data:`PEERS`, :func:`peer_scores`).
 
@@ -230,7 +232,7 @@ def toe_errors(markers, ref, rows) -> dict:
     return {"median": float(np.median(errs)) if errs else None, "n": len(errs)}
 
 
-def run_recording(rec: Path, work: Path, raw_path=None):
+def run_recording(rec: Path, work: Path, raw_path=None, resolution=100):
     """Per-frame run (gates off) and the motion stage; returns raw poses, motion, capture, TRC."""
     import topopose as tp
     from real import make_capture
@@ -254,7 +256,7 @@ def run_recording(rec: Path, work: Path, raw_path=None):
     else:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            raw = run(cap, model=model, resolution=100, threshold=1e9, gate=False,
+            raw = run(cap, model=model, resolution=resolution, threshold=1e9, gate=False,
                       output=raw_path or work / "raw.jsonl", progress=False, track=False,
                       sides=False, skeleton=False).poses
     t_frames = None if reused else round(time.perf_counter() - t0, 2)
@@ -267,6 +269,21 @@ def run_recording(rec: Path, work: Path, raw_path=None):
               fps=cap.fps or 25.0, units=cap.units, up=cap.up, labels=OPENSIM_LABELS)
     return raw, motion, cap, model, trc_path, {"per_frame_run_s": t_frames,
                                                "motion_stage_s": round(t_motion, 3)}
+
+
+def grid_spread(rec: Path, work: Path, ref, resolutions) -> dict:
+    """The whole benchmark's MPJPE (side names) again at other grid resolutions: the voxel
+    size and the lattice move, the subject does not — how much of a difference between two
+    figures the grid's placement alone can make (the synthetic figures average many seeds;
+    this recording has one subject, one take)."""
+    out = {}
+    for r in resolutions:
+        raw, motion, _cap, model, trc_path, _t = run_recording(rec, work / f"r{r}", resolution=r)
+        s, _m, _r = score(raw, motion.poses, trc_path, ref, model)
+        out[r] = {"right_frames": s["right_frames"],
+                  **{w: {k: s[w]["mpjpe_named"][k] for k in ("mpjpe", "mpjpe_p90")}
+                     for w in ("all", "right")}}
+    return out
 
 
 # peers of the default motion stage, from the same per-frame poses: kinematic_fit constants
@@ -578,6 +595,22 @@ def report(doc) -> str:
           + ", ".join(f"{k} ({', '.join(f'{x:+.1f}' for x in v)})"
                       for k, v in doc.get("signed_bias_right_cm", {}).items()),
           "", f"Picture: `{doc['picture']}`.", ""]
+    sp = doc.get("grid_spread")
+    if sp:
+        rows = {100: {"right_frames": s["right_frames"],
+                      **{w: s[w]["mpjpe_named"] for w in ("all", "right")}}, **sp}
+        vals = {w: [v[w]["mpjpe"] for v in rows.values()] for w in ("all", "right")}
+        L += ["## The grid's placement alone (`grid_spread`)", "",
+              "The same benchmark at other resolutions (voxel size and lattice moved, the "
+              "subject not): MPJPE with side names, cm, all frames (p90) / right frames "
+              "(their number).", "",
+              "| resolution | all frames | right frames |", "|---|---|---|"]
+        L += [f"| {r} | {_fmt(v['all']['mpjpe'])} ({_fmt(v['all']['mpjpe_p90'])}) | "
+              f"{_fmt(v['right']['mpjpe'])} ({v['right_frames']}) |" for r, v in sorted(rows.items())]
+        L += ["", "Range over the resolutions: all frames "
+              f"{_fmt(min(vals['all']))}–{_fmt(max(vals['all']))} cm (mean "
+              f"{_fmt(float(np.mean(vals['all'])))}), right frames {_fmt(min(vals['right']))}–"
+              f"{_fmt(max(vals['right']))} cm (mean {_fmt(float(np.mean(vals['right'])))}).", ""]
     return "\n".join(L)
 
 
@@ -591,6 +624,9 @@ def main(argv=None):
     ap.add_argument("--no-hand-hints", action="store_true",
                     help="the kinematic fit without the hand hints (kinematic_fit.HAND_HINTS): "
                          "the peer of the default")
+    ap.add_argument("--spread", default="96,98,102,104",
+                    help="other grid resolutions to run the benchmark at (grid_spread; "
+                         "'' to skip)")
     a = ap.parse_args(argv)
     if a.no_hand_hints:
         from topopose.pose import kinematic_fit
@@ -618,6 +654,7 @@ def main(argv=None):
         peers = peer_scores(raw, cap, model, ref, tmp)
         in_hull = markers_in_hull(cap, markers, ref, [i for i in range(len(right)) if right[i]],
                                   cap.up_vector)
+        spread = grid_spread(rec, Path(tmp), ref, [int(r) for r in a.spread.split(",") if r])
     doc = {"recording": str(rec), "machine": machine(resolution=100, cameras=4),
            "threshold": model.threshold, "seconds": secs, "picture": "real_motion.png",
            "hand_hints": not a.no_hand_hints,
@@ -635,7 +672,7 @@ def main(argv=None):
                                                    if p.diagnostics.get("height")])), 2),
            "signed_bias_right_cm": signed_bias(markers, ref, [i for i in range(len(right))
                                                               if right[i]], cap.up_vector),
-           "scores": s}
+           "scores": s, "grid_spread": spread}
     (out / "real_motion.json").write_text(json.dumps(doc, indent=1))
     (out / "real_motion.md").write_text(report(doc))
     print(report(doc))

@@ -97,9 +97,9 @@ def test_a_camera_where_no_one_is_found_does_not_vote(tmp_path, fake_mediapipe):
 
 
 
-# --- the capture volume of "person": fitted to the first frame, grown with the subject ---
+# --- the grid of "person": follows the subject, one voxel size, independent of frame order ---
 
-def _moving(tmp_path):
+def _moving(tmp_path, name="cap"):
     """No [capture.volume]: a capsule that stands still for two frames, then steps 0.35 m
     aside and raises its top (frame 2)."""
     cams = ring(n=4, size=(160, 120), f=200)
@@ -110,7 +110,7 @@ def _moving(tmp_path):
     truth = {f"{i:06d}": capsule_masks(cams, a, b, 0.15) for i, (a, b) in enumerate(ends)}
     frames = {f: [np.where(m[:, :, None], np.uint8([200, 220, 240]), bg)
                   for m, bg in zip(ms, empty)] for f, ms in truth.items()}
-    root = write_capture(tmp_path / "cap", cams, {}, images=frames)
+    root = write_capture(tmp_path / name, cams, {}, images=frames)
     (root / "capture.toml").write_text(TOML.split("\n\n")[1])       # no volume
     return load_capture(root), cams, ends, truth
 
@@ -124,37 +124,63 @@ def _true_hull(cams, masks, vol):
     return occ
 
 
-def test_person_volume_fitted_to_the_first_frame_grows_with_the_subject(tmp_path, fake_mediapipe):
-    """The first frame's volume holds that frame's capsule (with the margin) and no sampled
-    frame is read for it; frame 1 (same place) keeps it; frame 2 (the subject stepped out of
-    it) grows it to hold the new capsule, and its hull is the true silhouettes' hull on the
-    grown grid (not cut at the old border)."""
+def test_person_grid_follows_the_subject_whatever_the_frame_order(tmp_path, fake_mediapipe):
+    """Every frame's hull is the true silhouettes' hull on a grid around it (frame 2 stepped
+    0.35 m aside and grew: not cut), with one voxel size set by the first frame's box and its
+    margin, and no sampled frame read; the same frame gives the same grid and hull processed
+    alone, in order, or after the others."""
     from topopose.capture import prefetch
-    from topopose.hull import capture_box
 
     cap, cams, ends, truth = _moving(tmp_path)
     with prefetch(cap, cap.frames):
-        h0 = visual_hull(cap, "000000", resolution=40)
-        box0 = capture_box(cap, 0, [])
-        h1 = visual_hull(cap, "000001", resolution=40)
-        h2 = visual_hull(cap, "000002", resolution=40)
+        hulls = {f: visual_hull(cap, f, resolution=40) for f in cap.frames}
     assert ("sequence_backgrounds",) not in cap.cache and ("fitted_boxes", 0) not in cap.cache
     a, b = (np.array(x) for x in ends[0])
     m = 0.1 - 0.02        # ⅔ of zone_margin (0.15 m), less a pixel (≈ 1.5 cm at 3 m: the
     #                       silhouettes sample pixel centres, so the hull may be that short)
-    assert np.all(box0[0] <= np.minimum(a, b) - 0.15 - m)
-    assert np.all(box0[1] >= np.maximum(a, b) + 0.15 + m)
-    assert np.all(box0[1] - box0[0] < np.abs(b - a) + 2 * (0.15 + m) + 1.0)   # cone phantoms
-    assert not h0.diagnostics["touches_border"] and "volume_grown" not in h0.diagnostics
-    assert "volume_grown" not in h1.diagnostics and h1.voxel_size == h0.voxel_size
-    assert h2.diagnostics["volume_grown"] and not h2.diagnostics["touches_border"]
-    lo, hi = capture_box(cap, 0, [])
-    a2, b2 = (np.array(x) for x in ends[2])
-    assert np.all(lo <= np.minimum(a2, b2) - 0.15 - m) and np.all(hi >= np.maximum(a2, b2) + 0.15 + m)
-    assert np.all(lo <= box0[0]) and np.all(hi >= box0[1])
-    for h, f in ((h0, "000000"), (h1, "000001"), (h2, "000002")):
+    side = float(np.abs(b - a).max()) + 2 * 0.15
+    vs = {h.voxel_size for h in hulls.values()}
+    assert len(vs) == 1
+    assert side + 2 * m <= vs.pop() * 38 < side + 2 * (m + 0.04) + 1.0      # cone phantoms
+    for f, h in hulls.items():
         t = _true_hull(cams, truth[f], h)
         assert t.sum() > 200 and np.array_equal(h.data, t)
+        assert h.diagnostics["grid"] == "zone" and not h.diagnostics["touches_border"]
+        assert h.data.shape == tuple(np.array(h.diagnostics["bbox"][1]) + 2)     # cropped
+    lo2 = hulls["000002"].origin
+    assert lo2[0] > hulls["000000"].origin[0] + 0.2         # the grid moved with the subject
+    for k, order in enumerate((["000002"], ["000002", "000000", "000001"])):
+        # alone, or first (before the frame that sizes the grid)
+        other, *_ = _moving(tmp_path, f"cap{k}")
+        with prefetch(other, order):
+            again = {f: visual_hull(other, f, resolution=40) for f in order}
+        for f, h in again.items():
+            assert np.allclose(h.origin, hulls[f].origin) and h.voxel_size == hulls[f].voxel_size
+            assert np.array_equal(h.data, hulls[f].data)
+
+
+def _world(h):
+    return {tuple(np.round((h.origin + h.voxel_size * np.array(ijk)) / h.voxel_size).astype(int))
+            for ijk in np.argwhere(h.data)}
+
+
+def test_person_frame_leaving_the_zone_gets_a_refocused_grid(tmp_path, fake_mediapipe,
+                                                              monkeypatch):
+    """With a zone reaching 5 cm beyond the first frame's box, frame 2 (0.35 m aside) touches
+    its border and is carved on a refocused grid of the same lattice: the true silhouettes'
+    hull, the same voxels in the world as the zone's hull of a 1 m zone."""
+    from topopose.hull import hull as H
+
+    cap, cams, _ends, truth = _moving(tmp_path)
+    wide = visual_hull(cap, "000002", resolution=40)
+    monkeypatch.setattr(H, "PERSON_ZONE", 0.05)
+    small, *_ = _moving(tmp_path, "small")
+    h0, h2 = (visual_hull(small, f, resolution=40) for f in ("000000", "000002"))
+    assert h0.diagnostics["grid"] == "zone" and h2.diagnostics["grid"] == "refocus"
+    assert not h2.diagnostics["touches_border"] and h2.voxel_size == wide.voxel_size
+    t = _true_hull(cams, truth["000002"], h2)
+    assert t.sum() > 200 and np.array_equal(h2.data, t)
+    assert _world(h2) == _world(wide) and wide.diagnostics["grid"] == "zone"
 
 
 def test_cameras_run_in_threads_each_on_its_own_network(fake_mediapipe):

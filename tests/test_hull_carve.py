@@ -340,6 +340,23 @@ def test_fit_box_from_small_masks_equals_their_upsampling(dist):
         assert np.all(b[1] - b[0] < within[1] - within[0])   # the coarse passes did shrink it
 
 
+def test_pixel_box_equals_the_set_pixels_extremes():
+    """``_pixel_box`` (cv2.boundingRect) against ``np.nonzero`` on random sparse masks,
+    C-ordered or not, and None for an empty one."""
+    from topopose.hull.hull import _pixel_box
+
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        m = np.zeros(rng.integers(1, 40, 2), bool)
+        m[rng.integers(0, m.shape[0], 3), rng.integers(0, m.shape[1], 3)] = rng.random() < 0.8
+        for a in (m, m.T, m.astype(np.uint8)):
+            ys, xs = np.nonzero(a)
+            want = None if xs.size == 0 else (xs.min(), xs.max(), ys.min(), ys.max())
+            got = _pixel_box(a)
+            assert (got is None) == (want is None)
+            assert got is None or tuple(int(v) for v in got) == tuple(int(v) for v in want)
+
+
 def test_keep_largest_component_kernel_equals_bincount_path():
     """``keep_largest_component`` keeps the largest label by a kernel (a speed-up): the same
     occupancy and dropped sizes as the plain ``bincount`` / ``argmax`` path (the oracle, also

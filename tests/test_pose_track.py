@@ -305,6 +305,31 @@ def test_outlier_snaps_to_the_free_leaf_nearest_its_prediction():
     assert np.isnan(snapped).all()
 
 
+def test_a_snap_does_not_keep_a_track_on_a_phantom_leaf():
+    """From frame 8 the per-frame result follows the real foot on a trajectory of its own
+    (0.5 m from the track, 3 cm / frame), while a phantom leaf stays where the track is: the
+    leaf is taken for ``max_gap`` frames (8–12), then the per-frame trajectory re-initializes
+    the identity (frame 13) and is followed; the other foot is never touched (the real
+    recording, frames 26–48: a raised foot held on a phantom leaf for 23 frames)."""
+    n = 24
+    t = np.arange(n, dtype=float)
+    a = np.stack([0.0 * t, 0.15 + 0 * t, 0.1 + 0 * t], axis=1)
+    b = np.stack([0.0 * t, -0.15 + 0 * t, 0.1 + 0 * t], axis=1)
+    real = a.copy()
+    real[8:, 0] = 0.5 + 0.03 * (t[8:] - 8)
+    obs = [np.stack([real[i], b[i]]) for i in range(n)]
+    cands = [np.array([a[i] + [0.0, 0.0, 0.02]]) for i in range(n)]
+    perm, seg, held, pred, snapped = assign_identities(t, obs, gate=0.3, reinit=3, max_gap=5,
+                                                       detail=True, candidates=cands)
+    moved = ~np.isnan(snapped).any(axis=2)
+    assert list(np.flatnonzero(moved[:, 0])) == [8, 9, 10, 11, 12] and not moved[:, 1].any()
+    assert [list(p) for p in perm] == [[0, 1]] * n and not held.any()
+    assert seg[12] == seg[0] and seg[13] > seg[12]
+    for i in range(15, n):
+        assert np.linalg.norm(pred[i, 0] - real[i]) < 0.05        # following the real foot
+        assert np.linalg.norm(pred[i, 1] - b[i]) < 0.01
+
+
 def test_track_moves_a_snapped_part_to_its_leaf_and_flags_it():
     human = load_model("human")
     poses, (h1, h2, f1, f2) = _walking()

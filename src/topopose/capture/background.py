@@ -32,8 +32,8 @@ p = 1 / (1 + exp(−(d − threshold) / (threshold / 4))). Pixels that were neve
 :func:`topopose.hull.soft.soft_carve` (Franco & Boyer's occupancy grid).
 
 ``"person"`` learns no background (the network alone, :mod:`.segment`). Without
-``[capture.volume]`` its capture volume is fitted to the first frame's silhouettes and grows when
-the subject reaches its border (:func:`topopose.hull.hull.capture_box`).
+``[capture.volume]`` its grid follows the subject, one voxel size for the capture
+(:func:`topopose.hull.visual_hull`).
 
 ``"selfie"`` uses MediaPipe's selfie-segmentation network (an optional dependency whose model
 ships inside the wheel, see :mod:`.segment`) on the zone's bounding rectangle;

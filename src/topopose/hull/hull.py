@@ -12,13 +12,20 @@ Grid: ``resolution`` voxels along the longest side of the capture volume. The ca
    part of the hull can be lost however thin). The capture's fitted volume is the union of the
    fitted boxes of up to 32 evenly spaced frames (all frames when there are fewer), computed once
    and cached on the capture. A fitted grid keeps one empty voxel all round (N − 2 voxels span
-   the fitted box). Silhouette method ``"person"``: fitted to the first frame processed and
-   grown when a later frame's hull reaches its border (:func:`capture_box`).
+   the fitted box).
+3. silhouette method ``"person"`` without ``[capture.volume]``: a *zone* grid, the hull box of
+   the capture's first frame with a subject grown by :data:`PERSON_ZONE` (1 m) on each side,
+   with the voxel size of that box grown by ⅔ ``zone_margin`` (N − 2 voxels along its longest
+   side); each frame is carved on it (one carver for the capture: empty blocks cost little)
+   and cropped to its hull with a one-voxel empty margin, and a frame whose hull reaches the
+   zone's border is carved on a refocused grid of the same lattice (below). A frame's hull is
+   thus the same whatever frames are processed, in whatever order.
 
 ``refocus=True`` (thesis §13.2.2.1: "refocus the grid on the subject at each frame") fits the
 box of each frame (three conservative coarse passes over the capture volume — a fitted one is
 enlarged by a quarter on each side) and puts a grid on it with a voxel size fixed for the whole
-capture: the largest side of the fitted boxes of the sampled frames divided by N − 2. Grid
+capture: the largest side of the fitted boxes of the sampled frames divided by N − 2 (``"person"``:
+the zone's voxel size, and the frame's box fitted with no capture volume). Grid
 origins are snapped to multiples of the voxel size, so voxel centres lie on one world lattice in
 every frame; the grid keeps a one-voxel empty margin (clipped to the capture volume when one is
 set). Each new grid builds its carver (tables) in that frame, so refocusing costs the fit and
@@ -62,13 +69,13 @@ def _pixel_box(mask):
     """(x min, x max, y min, y max) of the set pixels of ``mask``, or None when there is none
     (read on the small mask of an upsampled one: the same box)."""
     up = _upsampled(mask)
-    ys, xs = np.nonzero(mask if up is None else up[0])
-    if xs.size == 0:
+    m = np.asarray(mask if up is None else up[0])
+    m8 = m.view(np.uint8) if m.dtype == bool and m.flags.c_contiguous else (m != 0).astype(np.uint8)
+    x, y, w, h = cv2.boundingRect(m8)
+    if w == 0:
         return None
-    if up is None:
-        return xs.min(), xs.max(), ys.min(), ys.max()
-    _, fx, fy = up
-    return xs.min() * fx, xs.max() * fx + fx - 1, ys.min() * fy, ys.max() * fy + fy - 1
+    fx, fy = (1, 1) if up is None else up[1:]
+    return x * fx, (x + w) * fx - 1, y * fy, (y + h) * fy - 1
 
 
 def _silhouette_planes(cam, mask) -> np.ndarray | None:
@@ -321,49 +328,61 @@ def _soft_carve(cap, pix, maps, shape):
     return occ.view(bool), st
 
 
-def _grows(cap) -> bool:
-    """The capture volume is fitted to the first frame processed and grows with the subject
-    (silhouette method ``"person"`` without ``[capture.volume]``)."""
+def _person_grid(cap) -> bool:
+    """Silhouette method ``"person"`` without ``[capture.volume]`` (see the module docstring)."""
     return cap.volume is None and (cap.options.get("silhouettes") or {}).get("method") == "person"
 
 
-def _grown_box(cap, masks, tolerance, box=None):
-    """``"person"``: the box of the frame's hull (:func:`fit_box`) grown by ⅔ ``zone_margin``
-    (10 cm by default), joined with ``box`` (the current volume); None when the frame's hull is
-    empty and no ``box`` is given."""
+#: ``"person"``: how far (metres) the zone grid reaches beyond the first frame's box
+PERSON_ZONE = 1.0
+
+
+def _person_zone(cap, resolution, tolerance, name=None, masks=None) -> tuple:
+    """``"person"``: ``(voxel size, zone grid (origin, shape))``, cached. The voxel size is
+    the longest side of the hull box of the capture's first frame with a subject
+    (:func:`fit_box`), grown by ⅔ ``zone_margin`` on each side (10 cm by default), divided by
+    ``resolution`` − 2; the zone is that box grown by :data:`PERSON_ZONE` on each side, on the
+    lattice of multiples of the voxel size. One frame segmented, not 32 sampled ones (on the
+    Pose2Sim recording 8–44 s; none more when the frame processed, ``name`` with its
+    silhouettes ``masks``, is that frame), and the same whatever frames are processed, in
+    whatever order."""
     from ..capture.calibration import _UNITS
 
-    b = fit_box(cap.cameras, masks, tolerance)
-    if b is None:
-        return box
-    m = float(cap.options["silhouettes"]["zone_margin"]) / _UNITS.get(cap.units, 1.0) * 2 / 3
-    lo, hi = b[0] - m, b[1] + m
-    if box is not None:
-        lo, hi = np.minimum(lo, box[0]), np.maximum(hi, box[1])
-    return lo, hi
+    key = ("person_zone", resolution, tolerance)
+    if key not in cap.cache:
+        unit = _UNITS.get(cap.units, 1.0)
+        m = float(cap.options["silhouettes"]["zone_margin"]) / unit * 2 / 3
+        for f in cap.frames:
+            try:
+                sil = masks if f == name and masks is not None else cap.silhouettes(f)
+                b = fit_box(cap.cameras, sil, tolerance)
+            except InputError:          # a broken frame is reported when it is processed
+                continue
+            if b is not None:
+                break
+        else:
+            raise InputError(f"{cap.path or 'capture'}: cannot size the voxel grid: no frame has "
+                             f"a subject seen by the cameras (set [capture.volume] in capture.toml)")
+        vs = (float((b[1] - b[0]).max()) + 2 * m) / (resolution - 2)
+        z = PERSON_ZONE / unit
+        ilo = np.floor((b[0] - z) / vs).astype(int)
+        ihi = np.ceil((b[1] + z) / vs).astype(int)
+        cap.cache[key] = vs, (ilo * vs, tuple(int(x) for x in ihi - ilo + 1))
+    return cap.cache[key]
 
 
-def capture_box(cap, tolerance: int = 0, masks=None) -> tuple:
+def capture_box(cap, tolerance: int = 0) -> tuple:
     """The capture volume (lo, hi): ``cap.volume``, the box the subject sweeps (silhouettes
     learned from the sequence, :mod:`topopose.capture.background`), or fitted to sampled frames
     (cached).
 
-    Silhouette method ``"person"`` (no background model, no set-up): the box of the hull of
-    the first frame processed (its silhouettes ``masks``), grown by ⅔ ``zone_margin``, and
-    grown again by :func:`visual_hull` to a later frame's hull that reaches its border (so the
-    first frame costs one :func:`fit_box`, not 32 sampled frames segmented: on the Pose2Sim
-    recording 8–44 s before).
+    Silhouette method ``"person"`` does not use it: its grid follows the subject
+    (:func:`visual_hull`).
     """
     if cap.volume is not None:
         lo, hi = (np.asarray(v, dtype=float) for v in cap.volume)
         return lo, hi
-    if _grows(cap) and masks is not None:
-        key = ("grown_box", tolerance)
-        if cap.cache.get(key) is None:
-            cap.cache[key] = _grown_box(cap, masks, tolerance)
-        if cap.cache[key] is not None:
-            return cap.cache[key]
-    elif (cap.options.get("silhouettes") or {}).get("method") in (
+    if (cap.options.get("silhouettes") or {}).get("method") in (
             "sequence", "selfie", "sequence+selfie"):
         from ..capture.background import subject_box
 
@@ -507,16 +526,21 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
     if user_box is None and cap.volume is not None:
         user_box = _check_volume_arg(cap.volume)
     empty = False
+    person = user_box is None and _person_grid(cap)
     if refocus:
-        vs = _refocus_voxel_size(cap, resolution, tolerance, user_box)
         # the subject's box: coarse passes over the capture volume (given, or fitted to the
-        # sampled frames and enlarged by a quarter on each side for frames outside the sample)
-        if user_box is not None:
-            within = user_box
+        # sampled frames and enlarged by a quarter on each side for frames outside the sample;
+        # "person": the frame's own cone box, on the zone grid's lattice)
+        if person:
+            vs, within = _person_zone(cap, resolution, tolerance, name, masks)[0], None
         else:
-            glo, ghi = capture_box(cap, tolerance)
-            grow = 0.25 * (ghi - glo)
-            within = (glo - grow, ghi + grow)
+            vs = _refocus_voxel_size(cap, resolution, tolerance, user_box)
+            if user_box is not None:
+                within = user_box
+            else:
+                glo, ghi = capture_box(cap, tolerance)
+                grow = 0.25 * (ghi - glo)
+                within = (glo - grow, ghi + grow)
         box = fit_box(cap.cameras, masks, tolerance, within=within)
         if box is not None and user_box is not None:
             box = (np.maximum(box[0], user_box[0]), np.minimum(box[1], user_box[1]))
@@ -535,11 +559,13 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
             ilo, ihi = np.maximum(ilo, ulo), np.minimum(ihi, np.maximum(uhi, ulo))
         shape = tuple(int(s) for s in np.maximum(ihi - ilo + 1, 1))
         origin = ilo * vs
+    elif person:
+        vs, (origin, shape) = _person_zone(cap, resolution, tolerance, name, masks)
     else:
         if user_box is not None:
             origin, vs, shape = grid_for_box(*user_box, resolution, margin=False)
         else:
-            origin, vs, shape = grid_for_box(*capture_box(cap, tolerance, masks), resolution,
+            origin, vs, shape = grid_for_box(*capture_box(cap, tolerance), resolution,
                                              margin=True)
     t["fit"] = (time.perf_counter() - t0) * 1e3
     t0 = time.perf_counter()
@@ -595,23 +621,24 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
             "components_share": [round(d / total, 4) for d in dropped] if total else [],
             "largest_share": round(nvox / total, 4) if total else 0.0,
             "fusion": "soft" if soft else "hard",
-            "grid": "refocus" if refocus else "fixed", "tolerance": tolerance,
+            "grid": "refocus" if refocus else "zone" if person else "fixed",
+            "tolerance": tolerance,
             "empty": empty, "timings_ms": t,
             "work": {"blocks": int(st[0]), "voxel_tests": int(st[1]), "projections": int(st[2]),
                      "full_blocks": int(st[3]), "empty_blocks": int(st[4])}, **cdiag}
-    if touches and user_box is None and not refocus and _grows(cap):
-        # "person": the subject reached the border of the volume fitted so far: the volume
-        # grows to this frame's hull (and margin), and the frame is carved again on it
-        key = ("grown_box", tolerance)
-        old = cap.cache.get(key)
-        new = _grown_box(cap, masks, tolerance, old)
-        if old is not None and np.any((new[0] < old[0]) | (new[1] > old[1])):
-            cap.cache[key] = new
-            vol = visual_hull(cap, name, resolution, tolerance, refocus, keep_largest, volume,
+    if person and not refocus:
+        if touches:                     # the subject left the zone: a grid of its own
+            vol = visual_hull(cap, name, resolution, tolerance, True, keep_largest, volume,
                               masks, consensus, max_removed)
-            vol.diagnostics["volume_grown"] = True
             vol.diagnostics["timings_ms"]["silhouettes"] = t["silhouettes"]
             return vol
+        # cropped to the hull's box and a one-voxel empty margin (the refocused grid's)
+        lo = np.zeros(3, int) if bbox is None else np.array(bbox[0]) - 1
+        hi = np.zeros(3, int) if bbox is None else np.array(bbox[1]) + 1
+        occ = np.ascontiguousarray(occ[tuple(slice(a, b + 1) for a, b in zip(lo, hi))])
+        origin = origin + lo * vs
+        if bbox is not None:
+            diag["bbox"] = ([1, 1, 1], [int(x) for x in hi - lo - 1])
     return Volume(occ, origin, vs, diag)
 
 

@@ -21,7 +21,10 @@ part was matched to, ``diagnostics["free_leaves"]``) within half the gate of its
 per-frame result puts a hand on a phantom branch of the hull while the real hand's branch is
 left unmatched (the real recording, ``benchmarks/real.py``: hands 0.64 m off in 3 frames, right
 as ``run`` writes it 68 → 71 of 100; synthetic 8-camera walks, ``benchmarks/tracking.py``:
-nothing snapped, figures unchanged). Other outliers re-initialize their identity only when
+nothing snapped, figures unchanged). A snap corrects a glitch: when the per-frame positions
+behind ``max_gap`` + 1 snaps in a row follow a trajectory of their own, the identity is
+re-initialized there (the real recording: a raised foot was otherwise kept on a phantom leaf
+for 23 frames while the per-frame result had it right). Other outliers re-initialize their identity only when
 they are consistently different for ``reinit`` frames (a trajectory of their own). Tracking is *lost* when no
 identity was updated for ``max_gap`` frames; the new segment takes the per-frame numbering, or,
 after a gap of at most ``relink`` frames, the numbering that keeps each part on its side of
@@ -149,7 +152,9 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
         :func:`free_leaves`). An outlier of an established identity (beyond the gate, ``reinit``
         inlier updates in a row) moves to the candidate nearest the identity's prediction when
         that one lies within ``snap`` of it and nearer than the observation: the observation
-        then counts as an inlier at the candidate (*snapped*), each candidate used once
+        then counts as an inlier at the candidate (*snapped*), each candidate used once; the
+        per-frame observations behind max(``reinit``, ``max_gap`` + 1) snaps in a row that
+        are consistent among themselves re-initialize the identity as outliers do
     snap : largest distance between a prediction and a candidate; default ``gate`` / 2
 
     Returns
@@ -212,6 +217,7 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
             dt = np.maximum(times[i] - last_t, 1.0)       # the gate widens over gaps
             outlier = np.array([seen[j] and cost[p[j], j] > gate * (1 + 0.5 * (dt[p[j]] - 1))
                                 for j in range(k)])
+            orig, moved = obs.copy(), np.zeros(k, dtype=bool)
             if candidates is not None and candidates[i] is not None and len(candidates[i]):
                 # an outlier of an established track moves to the free skeleton leaf nearest
                 # its prediction (the frame put the part on another branch: a phantom one)
@@ -224,23 +230,29 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
                     m = int(np.argmin(d))
                     if d[m] <= snap and d[m] < cost[a, j]:
                         obs[j] = snapped[i, j] = free[m]
-                        outlier[j] = False
+                        outlier[j], moved[j] = False, True
                         free = np.delete(free, m, axis=0)
             # only an established track (``reinit`` inlier updates in a row) holds a part: the
             # prediction of a track that follows unrelated poses means nothing
             held[i, :k] = outlier & bad & (streak[p] >= reinit)
+            moved &= ~bad                             # a misplaced observation counts for nothing
             bad = held[i, :k]
             fresh = []
-            for j in np.flatnonzero(outlier & ~bad):
+            for j in np.flatnonzero((outlier & ~bad) | moved):
                 a = p[j]
                 c = cand[a]
                 if c and (times[i] - c[-1][0] > max_gap or
-                          np.linalg.norm(obs[j] - c[-1][1]) > gate * (times[i] - c[-1][0])):
+                          np.linalg.norm(orig[j] - c[-1][1]) > gate * (times[i] - c[-1][0])):
                     c.clear()                         # not consistent with the previous ones
-                c.append((times[i], obs[j]))
-                if len(c) >= reinit:
+                c.append((times[i], orig[j]))
+                # snapped: the per-frame result's own trajectory wins after max_gap frames (a
+                # snap corrects a glitch, it must not keep a track on a phantom leaf)
+                if len(c) >= (max(reinit, max_gap + 1) if moved[j] else reinit):
                     fresh.append(j)
-            for j in np.flatnonzero(seen & ~outlier):
+                    if moved[j]:
+                        obs[j], snapped[i, j] = orig[j], np.nan
+                        outlier[j], moved[j] = True, False
+            for j in np.flatnonzero(seen & ~outlier & ~moved):
                 cand[p[j]].clear()
             streak[p[outlier & ~bad]] = 0
             if len(fresh) == k:                       # the whole group: per-frame numbering

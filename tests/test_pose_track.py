@@ -328,6 +328,10 @@ def test_a_snap_does_not_keep_a_track_on_a_phantom_leaf():
     for i in range(15, n):
         assert np.linalg.norm(pred[i, 0] - real[i]) < 0.05        # following the real foot
         assert np.linalg.norm(pred[i, 1] - b[i]) < 0.01
+    # the rule before: snaps never give way, the track stays on the phantom leaf
+    *_, snapped = assign_identities(t, obs, gate=0.3, reinit=3, max_gap=5, detail=True,
+                                    candidates=cands, snap_run=10 ** 9)
+    assert (~np.isnan(snapped[8:, 0]).any(axis=1)).all()
 
 
 def test_track_moves_a_snapped_part_to_its_leaf_and_flags_it():

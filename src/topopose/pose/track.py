@@ -113,7 +113,7 @@ def body_scale(poses) -> float:
 
 def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, misplaced=None,
                       reinit=3, anchors=None, relink=None, up=None, detail=False,
-                      candidates=None, snap=None):
+                      candidates=None, snap=None, snap_run=None):
     """Track one interchangeable group.
 
     Parameters
@@ -153,9 +153,11 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
         inlier updates in a row) moves to the candidate nearest the identity's prediction when
         that one lies within ``snap`` of it and nearer than the observation: the observation
         then counts as an inlier at the candidate (*snapped*), each candidate used once; the
-        per-frame observations behind max(``reinit``, ``max_gap`` + 1) snaps in a row that
+        per-frame observations behind max(``reinit``, ``snap_run`` + 1) snaps in a row that
         are consistent among themselves re-initialize the identity as outliers do
     snap : largest distance between a prediction and a candidate; default ``gate`` / 2
+    snap_run : see ``candidates``; default ``max_gap`` (a large number: snaps never give way,
+        the rule before session 32, ``benchmarks/real_snap.py``'s peer)
 
     Returns
     -------
@@ -176,6 +178,7 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
     predicted = np.full((n, kmax, 3), np.nan)
     snapped = np.full((n, kmax, 3), np.nan)
     snap = 0.5 * gate if snap is None else float(snap)
+    snap_run = max_gap if snap_run is None else snap_run
     last = prev = last_t = prev_t = None
     seg = -1
     relink = 3 * max_gap if relink is None else relink
@@ -247,7 +250,7 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
                 c.append((times[i], orig[j]))
                 # snapped: the per-frame result's own trajectory wins after max_gap frames (a
                 # snap corrects a glitch, it must not keep a track on a phantom leaf)
-                if len(c) >= (max(reinit, max_gap + 1) if moved[j] else reinit):
+                if len(c) >= (max(reinit, snap_run + 1) if moved[j] else reinit):
                     fresh.append(j)
                     if moved[j]:
                         obs[j], snapped[i, j] = orig[j], np.nan
@@ -358,7 +361,7 @@ def on_other_parts(poses, usable, group, others, radius):
 
 
 def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, reinit=3,
-          few=FEW_USABLE, snap=True) -> list:
+          few=FEW_USABLE, snap=True, snap_run=None) -> list:
     """Give the numbered parts of a sequence stable identities (see the module docstring).
 
     Parameters
@@ -372,6 +375,7 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
     velocity, reinit : see :func:`assign_identities`
     snap : move outliers to the frame's free skeleton leaves (``diagnostics["free_leaves"]``,
         :func:`free_leaves`) as :func:`assign_identities` does with ``candidates``
+    snap_run : see :func:`assign_identities`
     use_rejected : frames only the confidence gate rejected (:func:`gated_only`) are
         observations too: the gate rejects many right frames, whose gaps would otherwise lose
         the tracks (``benchmarks/tracking.py``, walks: identity switches on matched frames per
@@ -425,7 +429,7 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
                   for p, u in zip(poses, usable)] if snap else None)
         perm, seg, held, pred, *moved = assign_identities(
             times, obs, gate, max_gap, velocity, misplaced=bad, reinit=reinit, anchors=anchors,
-            up=up, detail=True, candidates=cands)
+            up=up, detail=True, candidates=cands, snap_run=snap_run)
         stem = str(group[0]).rpartition("_")[0]
         for i, p in enumerate(perm):
             if p is None:

@@ -1,0 +1,104 @@
+"""The real recording's figures over several voxel grids: how much the grid alone moves them.
+
+    python benchmarks/real_spread.py [RECORDING] [--methods person,person+track+every2]
+                                     [--resolutions 96,98,100,102,104] [--out benchmarks/results]
+
+``benchmarks/real.py``'s run (:func:`real.run_method`: end to end from the 4 videos, scored
+against Pose2Sim's 3D result) at each resolution: the voxel size and the lattice move, the
+subject does not. A change of the method is a gain only when it beats this spread: one grid's
+figure is a draw from it (``real_motion.py`` reports the same for the full skeleton's MPJPE,
+``grid_spread``). Per method and resolution: frames *right* per frame and as ``topopose run``
+writes them, ``matched`` as ``run`` writes it and its precision; then the mean, min and max
+over the resolutions. To compare two versions of topopose, run this script under each (e.g. a
+``git worktree`` of the older commit with ``PYTHONPATH=<worktree>/src``).
+
+Writes ``real_spread.md`` and ``real_spread.json``. Needs ``mediapipe`` (``person``).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+FIELDS = (("right per frame", lambda r: r["right_share"]),
+          ("right as run writes it", lambda r: r["as_run"]["right_share"]),
+          ("matched as run writes it", lambda r: r["as_run"]["matched"]),
+          ("precision of matched", lambda r: r["as_run"]["matched_precision"]))
+
+
+def spread(rec: Path, methods, resolutions, ref) -> dict:
+    """``{method: {resolution: {field: value}}}`` (fields: :data:`FIELDS`)."""
+    from real import run_method
+
+    out = {m: {} for m in methods}
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in resolutions:
+            for m in methods:
+                res, _poses = run_method(rec, m, r, 0, Path(tmp), ref)
+                out[m][r] = {name: get(res) for name, get in FIELDS}
+                print(m, r, out[m][r], flush=True)
+    return out
+
+
+def report(doc) -> str:
+    m = doc["machine"]
+    L = ["# The real recording over several voxel grids", "",
+         f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
+         "Written by `benchmarks/real_spread.py` (`real.py`'s run at each resolution; 0.15 m "
+         "for *right*, Pose2Sim's 3D result as reference).", ""]
+    for meth, rows in doc["spread"].items():
+        res = list(rows)
+        L += [f"## `{meth}`", "", "| | " + " | ".join(str(r) for r in res)
+              + " | mean | min – max |", "|---" * (len(res) + 3) + "|"]
+        for name, _get in FIELDS:
+            v = [rows[r][name] for r in res]
+            w = [x for x in v if x is not None]
+            fmt = (lambda x: "–" if x is None else f"{x:.0f}") if name.startswith("matched") else \
+                (lambda x: "–" if x is None else f"{100 * x:.0f} %")
+            L.append(f"| {name} | " + " | ".join(fmt(x) for x in v) + " | "
+                     + (f"{fmt(float(np.mean(w)))} | {fmt(min(w))} – {fmt(max(w))} |" if w else "– | – |"))
+        L.append("")
+    return "\n".join(L)
+
+
+def main(argv=None):
+    from _machine import machine
+    from real import DEFAULT, open_recording
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("recording", nargs="?", default=str(DEFAULT))
+    ap.add_argument("--methods", default="person,person+track+every2")
+    ap.add_argument("--resolutions", default="96,98,100,102,104")
+    ap.add_argument("--out", default=str(HERE / "results"))
+    a = ap.parse_args(argv)
+    opened = open_recording(a.recording)
+    if opened is None:
+        return 2
+    try:
+        import mediapipe  # noqa: F401
+    except ImportError:
+        print("mediapipe not installed: the person silhouettes, hence this benchmark, are "
+              "skipped (pip install mediapipe)")
+        return 0
+    rec, ref = opened
+    methods = [m for m in a.methods.split(",") if m]
+    resolutions = [int(r) for r in a.resolutions.split(",") if r]
+    doc = {"recording": str(rec), "machine": machine(), "resolutions": resolutions,
+           "spread": spread(rec, methods, resolutions, ref)}
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "real_spread.json").write_text(json.dumps(doc, indent=1))
+    (out / "real_spread.md").write_text(report(doc))
+    print(report(doc))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

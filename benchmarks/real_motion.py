@@ -1,7 +1,7 @@
 """From poses to motion on the real recording (Pose2Sim's balancing trial) against Pose2Sim's 3D
 result: the full skeleton's per-joint error, left and right, identities over time (issue 15).
 
-    python benchmarks/real_motion.py [RECORDING] [--raw RAW.jsonl] [--out benchmarks/results]
+    python benchmarks/real_motion.py [RECORDING] [--raw RAW.jsonl] [--out DIR] [--spread R,...] [--quick]
 
 RECORDING (default ``benchmarks/data/pose2sim_balancing/``, see ``benchmarks/real.py``): 4 videos,
 ``Calib.toml`` and ``reference/pose2sim_3d.trc`` (TRC axes (X, Y, Z) = world (y, z, x)).
@@ -615,19 +615,22 @@ def report(doc) -> str:
 
 
 def main(argv=None):
-    from _machine import machine
+    from _machine import machine, results_dir
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
     ap.add_argument("--raw", default=None, help="per-frame poses.jsonl to reuse (or write)")
-    ap.add_argument("--out", default=str(HERE / "results"))
+    ap.add_argument("--out", default=str(results_dir()))
     ap.add_argument("--no-hand-hints", action="store_true",
                     help="the kinematic fit without the hand hints (kinematic_fit.HAND_HINTS): "
                          "the peer of the default")
     ap.add_argument("--spread", default="96,98,102,104",
                     help="other grid resolutions to run the benchmark at (grid_spread; "
                          "'' to skip)")
+    ap.add_argument("--quick", action="store_true", help="without the other grids (--spread '')")
     a = ap.parse_args(argv)
+    if a.quick:
+        a.spread = ""
     if a.no_hand_hints:
         from topopose.pose import kinematic_fit
         kinematic_fit.HAND_HINTS = False

@@ -2,7 +2,7 @@
 ``max_gap`` frames (session 32) against snaps that never give way (the rule before).
 
     python benchmarks/real_snap.py [RECORDING] [--methods person+track+every2,person]
-                                   [--resolutions 100,96] [--out benchmarks/results]
+                                   [--resolutions 100,96] [--out DIR] [--quick]
 
 Per method and grid resolution, one end-to-end run (:func:`real.run_method`), then the poses as
 ``topopose run`` writes them (:func:`real.as_run`) twice from the same per-frame poses: with
@@ -131,15 +131,18 @@ def report(doc) -> str:
 
 
 def main(argv=None):
-    from _machine import machine
+    from _machine import machine, results_dir
     from real import DEFAULT, open_recording
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
     ap.add_argument("--methods", default="person+track+every2,person")
     ap.add_argument("--resolutions", default="100,96")
-    ap.add_argument("--out", default=str(HERE / "results"))
+    ap.add_argument("--out", default=str(results_dir()))
+    ap.add_argument("--quick", action="store_true", help="one method at 100³ only")
     a = ap.parse_args(argv)
+    if a.quick:
+        a.methods, a.resolutions = "person+track+every2", "100"
     opened = open_recording(a.recording)
     if opened is None:
         return 2

@@ -1,7 +1,7 @@
 """The real recording's figures over several voxel grids: how much the grid alone moves them.
 
     python benchmarks/real_spread.py [RECORDING] [--methods person,person+track+every2]
-                                     [--resolutions 96,98,100,102,104] [--out benchmarks/results]
+                                     [--resolutions 96,98,100,102,104] [--out DIR] [--quick]
 
 ``benchmarks/real.py``'s run (:func:`real.run_method`: end to end from the 4 videos, scored
 against Pose2Sim's 3D result) at each resolution: the voxel size and the lattice move, the
@@ -69,15 +69,18 @@ def report(doc) -> str:
 
 
 def main(argv=None):
-    from _machine import machine
+    from _machine import machine, results_dir
     from real import DEFAULT, open_recording
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
     ap.add_argument("--methods", default="person,person+track+every2")
     ap.add_argument("--resolutions", default="96,98,100,102,104")
-    ap.add_argument("--out", default=str(HERE / "results"))
+    ap.add_argument("--out", default=str(results_dir()))
+    ap.add_argument("--quick", action="store_true", help="one method at 100³ only")
     a = ap.parse_args(argv)
+    if a.quick:
+        a.methods, a.resolutions = "person", "100"
     opened = open_recording(a.recording)
     if opened is None:
         return 2

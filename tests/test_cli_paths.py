@@ -210,13 +210,18 @@ def test_every_option_has_help():
 def test_bench_runs_every_stage_into_an_untracked_folder(tmp_path, monkeypatch, capsys):
     b = tmp_path / "benchmarks"
     b.mkdir()
-    (b / "a_stops.py").write_text("import sys\nprint('a ran')\nsys.exit(3)\n")
+    (b / "a_stops.py").write_text("import sys  # '--quick' is sys.argv[1]: \"--quick\"\n"
+                                   "print('a ran')\nsys.exit(3)\n")
     (b / "b_writes.py").write_text(
-        "import os, pathlib\npathlib.Path(os.environ['TOPOPOSE_BENCH_RESULTS'], 'b.md').write_text('x')\n")
+        "import os, pathlib, sys\nassert sys.argv[1:] in ([], ['--quick'])  # \"--quick\"\n"
+        "pathlib.Path(os.environ['TOPOPOSE_BENCH_RESULTS'], 'b.md').write_text('x')\n")
+    (b / "c_slow.py").write_text("import sys\nsys.exit(0 if len(sys.argv) == 1 else 2)\n")
     monkeypatch.chdir(tmp_path)
     assert main(["bench", "--quick"]) == 1                  # a failed, b still ran
     out = capsys.readouterr().out
     assert "a_stops (exit 3)" in out and "1/2 benchmarks ran" in out
+    assert "c_slow.py: no --quick mode, skipped" in out     # not run with an argument it refuses
+    assert main(["bench", "c"]) == 0
     assert (b / "results" / "quick" / "b.md").exists() and not (b / "results" / "b.md").exists()
     assert main(["bench", "b", "--save"]) == 0 and (b / "results" / "b.md").exists()
     one_line_exit_2(capsys, ["bench", "zz"], "zz")

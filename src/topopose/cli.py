@@ -215,6 +215,11 @@ def cmd_bench(a):
         scripts = [p for p in scripts if p.stem.startswith(a.stage)]
         if not scripts:
             raise InputError(f"topopose bench: no benchmark named {a.stage!r} in {bdir}")
+    if a.quick:                              # a script without a quick mode would run in full
+        slow = [p for p in scripts if '"--quick"' not in p.read_text(encoding="utf-8")]
+        for p in slow:
+            print(f"== {p.name}: no --quick mode, skipped (run it without --quick)")
+        scripts = [p for p in scripts if p not in slow]
     # results go to the tracked benchmarks/results/ only with --save; else to an untracked
     # folder (benchmarks/results/quick/ is ignored by git)
     out = bdir / "results" if a.save else bdir / "results" / "quick"
@@ -290,7 +295,8 @@ HELP = {
                                "intri/extri.yml, OpenCV FileStorage, P matrices)",
     (None, "poses"): "poses file written by `topopose run` (JSON Lines)",
     ("bench", "stage"): "benchmark to run (hull, thinning, tree, alignment_speed, ...; default all)",
-    ("bench", "--quick"): "small inputs, a few minutes in all",
+    ("bench", "--quick"): "small inputs, a few minutes in all (scripts without a quick mode "
+                          "are skipped)",
 }
 
 

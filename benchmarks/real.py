@@ -32,7 +32,7 @@ were chosen on synthetic walks by ``benchmarks/consistency.py``, never on this r
 Speed: end to end from the videos, one process as ``topopose run`` (a reader thread decodes
 the 4 videos and computes the foreground probabilities ahead of the hull, skeleton and
 alignment), resolution 100; the set-up (learning the background from 25 sampled frames;
-``person`` has none: its capture volume is fitted to the first frame) and the first frame are
+``person`` has none: its zone grid is sized on the first frame) and the first frame are
 reported apart, with their breakdowns.
 """
 from __future__ import annotations

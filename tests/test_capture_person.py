@@ -412,3 +412,19 @@ def test_masks_of_a_kept_map_are_reused_and_equal(tmp_path, fake_mediapipe):
     fresh = masks_from_maps(cap, second)
     for a, b in zip(got, fresh):
         assert np.array_equal(a, b) and np.array_equal(a.small, b.small)
+
+
+def test_person_capture_without_a_subject_names_the_file_and_the_fix(tmp_path, fake_mediapipe):
+    """No frame has a subject: the grid cannot be sized; the error names the capture and the
+    field that fixes it, and no hull is returned."""
+    from topopose.errors import InputError
+
+    cams = ring(n=4, size=(160, 120), f=200)
+    rng = np.random.default_rng(5)
+    dark = {f"{i:06d}": [rng.integers(0, 120, (c.size[1], c.size[0], 3)).astype(np.uint8)
+                         for c in cams] for i in range(2)}
+    root = write_capture(tmp_path / "cap", cams, {}, images=dark)
+    (root / "capture.toml").write_text(TOML.split("\n\n")[1])
+    cap = load_capture(root)
+    with pytest.raises(InputError, match=r"cap.*cannot size the voxel grid.*\[capture\.volume\]"):
+        visual_hull(cap, "000001", resolution=40)

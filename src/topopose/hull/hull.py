@@ -24,8 +24,8 @@ Grid: ``resolution`` voxels along the longest side of the capture volume. The ca
 ``refocus=True`` (thesis §13.2.2.1: "refocus the grid on the subject at each frame") fits the
 box of each frame (three conservative coarse passes over the capture volume — a fitted one is
 enlarged by a quarter on each side) and puts a grid on it with a voxel size fixed for the whole
-capture: the largest side of the fitted boxes of the sampled frames divided by N − 2 (``"person"``:
-the zone's voxel size, and the frame's box fitted with no capture volume). Grid
+capture: the largest side of the fitted boxes of the sampled frames divided by N − 2
+(``"person"``: the zone's voxel size, the frame's box fitted with no capture volume). Grid
 origins are snapped to multiples of the voxel size, so voxel centres lie on one world lattice in
 every frame; the grid keeps a one-voxel empty margin (clipped to the capture volume when one is
 set). Each new grid builds its carver (tables) in that frame, so refocusing costs the fit and
@@ -361,8 +361,9 @@ def _person_zone(cap, resolution, tolerance, name=None, masks=None) -> tuple:
             if b is not None:
                 break
         else:
-            raise InputError(f"{cap.path or 'capture'}: cannot size the voxel grid: no frame has "
-                             f"a subject seen by the cameras (set [capture.volume] in capture.toml)")
+            raise InputError(f"{cap.path or 'capture'}: cannot size the voxel grid: no frame "
+                             f"has a subject seen by the cameras (set [capture.volume] in "
+                             f"capture.toml)")
         vs = (float((b[1] - b[0]).max()) + 2 * m) / (resolution - 2)
         z = PERSON_ZONE / unit
         ilo = np.floor((b[0] - z) / vs).astype(int)

@@ -24,8 +24,9 @@ as ``run`` writes it 68 → 71 of 100; synthetic 8-camera walks, ``benchmarks/tr
 nothing snapped, figures unchanged). A snap corrects a glitch: when the per-frame positions
 behind ``max_gap`` + 1 snaps in a row follow a trajectory of their own, the identity is
 re-initialized there (the real recording: a raised foot was otherwise kept on a phantom leaf
-for 23 frames while the per-frame result had it right). Other outliers re-initialize their identity only when
-they are consistently different for ``reinit`` frames (a trajectory of their own). Tracking is *lost* when no
+for 23 frames while the per-frame result had it right). Other outliers re-initialize their
+identity only when they are consistently different for ``reinit`` frames (a trajectory of their
+own). Tracking is *lost* when no
 identity was updated for ``max_gap`` frames; the new segment takes the per-frame numbering, or,
 after a gap of at most ``relink`` frames, the numbering that keeps each part on its side of
 the part its limb hangs from (positions relative to the torso for the hands; only their
@@ -248,7 +249,7 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
                           np.linalg.norm(orig[j] - c[-1][1]) > gate * (times[i] - c[-1][0])):
                     c.clear()                         # not consistent with the previous ones
                 c.append((times[i], orig[j]))
-                # snapped: the per-frame result's own trajectory wins after max_gap frames (a
+                # snapped: the per-frame result's own trajectory wins after snap_run frames (a
                 # snap corrects a glitch, it must not keep a track on a phantom leaf)
                 if len(c) >= (max(reinit, snap_run + 1) if moved[j] else reinit):
                     fresh.append(j)

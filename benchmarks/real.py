@@ -127,10 +127,26 @@ def make_capture(rec: Path, out: Path, method: str, extra: str = "") -> None:
 def open_recording(path):
     """The recording's folder and Pose2Sim's 3D result, or None (said) when it is absent."""
     rec = Path(path)
-    if not (rec / "videos").is_dir():
-        print(f"{rec}: recording not found (needs videos/ and Calib.toml); pass its path")
+    if not (rec / "videos").is_dir() or not (rec / "reference" / "pose2sim_3d.trc").is_file():
+        print(f"{rec}: recording not found (needs videos/, Calib.toml, reference/); pass its path")
         return None
     return rec, read_trc(rec / "reference" / "pose2sim_3d.trc")
+
+
+def person_recording(path):
+    """:func:`open_recording` for a benchmark of the ``person`` silhouettes: ``(folder,
+    reference)``, or the exit code after saying why not (2: no recording; 0: no MediaPipe,
+    nothing measured)."""
+    opened = open_recording(path)
+    if opened is None:
+        return 2
+    try:
+        import mediapipe  # noqa: F401
+    except ImportError:
+        print("mediapipe not installed: the person silhouettes, hence this benchmark, are "
+              "skipped (pip install mediapipe)")
+        return 0
+    return opened
 
 
 def person_capture(rec: Path, out: Path, settings=()):

@@ -634,19 +634,12 @@ def main(argv=None):
     if a.no_hand_hints:
         from topopose.pose import kinematic_fit
         kinematic_fit.HAND_HINTS = False
-    rec = Path(a.recording)
-    if not (rec / "videos").is_dir() or not (rec / "reference" / "pose2sim_3d.trc").is_file():
-        print(f"{rec}: recording not found (needs videos/, Calib.toml, reference/); pass its path")
-        return 2
-    try:
-        import mediapipe  # noqa: F401
-    except ImportError:
-        print("mediapipe not installed: the person silhouettes, hence this benchmark, are "
-              "skipped (pip install mediapipe)")
-        return 0
-    from real import read_trc
+    from real import person_recording
 
-    ref = read_trc(rec / "reference" / "pose2sim_3d.trc")
+    opened = person_recording(a.recording)
+    if isinstance(opened, int):
+        return opened
+    rec, ref = opened
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:

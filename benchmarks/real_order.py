@@ -55,23 +55,17 @@ def same(a, b) -> bool:
 def main(argv=None):
     import topopose
     from _machine import machine, results_dir
-    from real import DEFAULT
+    from real import DEFAULT, person_recording
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
     ap.add_argument("--out", default=str(results_dir()))
     ap.add_argument("--quick", action="store_true", help="frames 80-99 only")
     a = ap.parse_args(argv)
-    rec = Path(a.recording)
-    if not (rec / "videos").is_dir():
-        print(f"{rec}: recording not found (needs videos/ and Calib.toml); pass its path")
-        return 2
-    try:
-        import mediapipe  # noqa: F401
-    except ImportError:
-        print("mediapipe not installed: the person silhouettes, hence this benchmark, are "
-              "skipped (pip install mediapipe)")
-        return 0
+    opened = person_recording(a.recording)
+    if isinstance(opened, int):
+        return opened
+    rec = opened[0]
     whole, half = ("80:100", "90:100") if a.quick else (None, "50:100")
     with tempfile.TemporaryDirectory() as tmp:
         t = Path(tmp)

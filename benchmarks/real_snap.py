@@ -132,7 +132,7 @@ def report(doc) -> str:
 
 def main(argv=None):
     from _machine import machine, results_dir
-    from real import DEFAULT, open_recording
+    from real import DEFAULT, person_recording
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
@@ -143,15 +143,9 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if a.quick:
         a.methods, a.resolutions = "person+track+every2", "100"
-    opened = open_recording(a.recording)
-    if opened is None:
-        return 2
-    try:
-        import mediapipe  # noqa: F401
-    except ImportError:
-        print("mediapipe not installed: the person silhouettes, hence this benchmark, are "
-              "skipped (pip install mediapipe)")
-        return 0
+    opened = person_recording(a.recording)
+    if isinstance(opened, int):
+        return opened
     rec, ref = opened
     runs = compare(rec, [m for m in a.methods.split(",") if m],
                    [int(r) for r in a.resolutions.split(",") if r], ref)

@@ -486,7 +486,8 @@ def time_breakdown(rec: Path, n: int = 20) -> dict:
 def _picture(cap, est, poses, res, path):
     """Silhouettes with the reprojected parts and the hull/skeleton of a matched, right frame
     (else the best-confidence one) at ``path``, and of the worst wrong frame (largest error of
-    head, hands, feet) at ``path`` with suffix ``_wrong``."""
+    a placed head, hand or foot; a part left unplaced ranks as just wrong, 0.15 m) at ``path``
+    with suffix ``_wrong``."""
     from topopose.viz.view import render_frame
 
     rows = {r["frame"]: r for r in res["rows"]}
@@ -494,7 +495,8 @@ def _picture(cap, est, poses, res, path):
     pick = good[len(good) // 2] if good else max(
         (p for p in poses if p.status != "failed"), key=lambda p: p.diagnostics.get("confidence", 0))
     wrong = [p for p in poses if rows[p.frame]["errors"] and not rows[p.frame]["right"]]
-    worst = max(wrong, key=lambda p: max(rows[p.frame]["errors"].values()), default=None)
+    worst = max(wrong, key=lambda p: max(v if np.isfinite(v) else RIGHT
+                                         for v in rows[p.frame]["errors"].values()), default=None)
     for p, out in ((pick, Path(path)), (worst, Path(path).with_name(Path(path).stem + "_wrong.png"))):
         if p is None:
             continue
@@ -504,7 +506,8 @@ def _picture(cap, est, poses, res, path):
                      title=f"Pose2Sim balancing, frame {p.frame}: {p.status}, confidence "
                            f"{p.diagnostics.get('confidence')}, "
                            f"{'right' if rows[p.frame]['right'] else 'wrong'} (≤ 0.15 m); largest "
-                           f"error {max(e.values(), default=float('nan')):.2f} m")
+                           f"error {max(e.values(), default=float('nan')):.2f} m"
+                           + (" (a part not placed)" if any(np.isinf(v) for v in e.values()) else ""))
     return pick.frame
 
 

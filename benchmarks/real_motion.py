@@ -326,28 +326,25 @@ BONES_OURS = [("head", "Neck"), ("Neck", "LShoulder"), ("LShoulder", "LElbow"), 
               ("Neck", "Hip")]
 
 
-def picture(path, markers, ref, right, final, up=np.array([0.0, 0.0, 1.0])):
-    """Our exported joints against Pose2Sim's: stick figures of 8 frames (front view) and the
-    heights of the wrists and ankles over the 100 frames."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    n = len(markers)
+def _view_axes(final, up):
+    """The subject's mean forward (from the per-frame facing) and left, horizontal."""
     fwd = np.array([p.diagnostics["facing"] for p in final if p.diagnostics.get("facing")])
     f = fwd.mean(axis=0) if len(fwd) else np.array([1.0, 0, 0])
     f = f - np.dot(f, up) * up
     f /= np.linalg.norm(f)
-    lat = np.cross(up, f)                                   # the subject's left, seen from the front
-    fig, (a0, a1) = plt.subplots(2, 1, figsize=(12, 7.5), gridspec_kw={"height_ratios": [1.2, 1]})
-    picks = np.linspace(0, n - 1, 8).round().astype(int)
+    return f, np.cross(up, f)
+
+
+def _sticks(ax, markers, ref, picks, horiz, labels):
+    """Stick figures of the frames ``picks`` side by side, Pose2Sim's (thick grey) and ours
+    (red: named left, blue: named right, black: trunk), ``horiz`` the view's horizontal axis."""
     for k, i in enumerate(picks):
         off = 1.2 * k
         c0 = ref["Neck"][i]
-        xy = lambda x: (off - np.dot(x - c0, lat), x[2])   # front view: the subject's left on the right
+        xy = lambda x: (off + np.dot(x - c0, horiz), x[2])   # noqa: E731
         for a, b in BONES_P2S:
             A, B = xy(ref[a][i]), xy(ref[b][i])
-            a0.plot([A[0], B[0]], [A[1], B[1]], color="0.55", lw=3, alpha=0.6, solid_capstyle="round")
+            ax.plot([A[0], B[0]], [A[1], B[1]], color="0.55", lw=3, alpha=0.6, solid_capstyle="round")
         m = markers[i]
         for a, b in BONES_OURS:
             A, B = m.get(a), m.get(b)
@@ -357,10 +354,25 @@ def picture(path, markers, ref, right, final, up=np.array([0.0, 0.0, 1.0])):
                 "R" if a.startswith(("R", "right")) or b.startswith(("R", "right")) else ""
             col = {"L": "tab:red", "R": "tab:blue"}.get(side, "k")
             A, B = xy(A), xy(B)
-            a0.plot([A[0], B[0]], [A[1], B[1]], color=col, lw=1.3)
-        a0.text(off, -0.12, f"frame {i}" + (" (right)" if right[i] else ""), ha="center", fontsize=7)
-    a0.set_aspect("equal")
-    a0.axis("off")
+            ax.plot([A[0], B[0]], [A[1], B[1]], color=col, lw=1.3)
+        ax.text(off, -0.12, labels[k], ha="center", fontsize=7)
+    ax.set_aspect("equal")
+    ax.axis("off")
+
+
+def picture(path, markers, ref, right, final, up=np.array([0.0, 0.0, 1.0])):
+    """Our exported joints against Pose2Sim's: stick figures of 8 frames (front view) and the
+    heights of the wrists and ankles over the 100 frames."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(markers)
+    _f, lat = _view_axes(final, up)                         # front view: the subject's left
+    fig, (a0, a1) = plt.subplots(2, 1, figsize=(12, 7.5), gridspec_kw={"height_ratios": [1.2, 1]})
+    picks = np.linspace(0, n - 1, 8).round().astype(int)
+    _sticks(a0, markers, ref, picks, -lat, [f"frame {i}" + (" (right)" if right[i] else "")
+                                            for i in picks])   # on the right
     a0.set_title("Pose2Sim balancing trial, front view: Pose2Sim's 3D result (thick grey) and our "
                  "exported skeleton (red: named left, blue: named right, black: trunk)\n"
                  "every frame's best guess (AHA threshold and gate off); '(right)': the per-frame "
@@ -379,6 +391,34 @@ def picture(path, markers, ref, right, final, up=np.array([0.0, 0.0, 1.0])):
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def worst_picture(path, markers, ref, right, final, up=np.array([0.0, 0.0, 1.0]), k=8):
+    """The ``k`` frames with the largest MPJPE (side names): stick figures seen from the front
+    and from the subject's left, ours against Pose2Sim's. Returns their (frame, MPJPE m)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    err = []
+    for i, m in enumerate(markers):
+        v = [x for e in joint_errors(m, ref, i).values() for x in (e if isinstance(e, list) else [e])]
+        err.append(float(np.mean(v)) if v else -1.0)
+    picks = [int(i) for i in np.argsort(err)[::-1][:k] if err[i] >= 0]
+    f, lat = _view_axes(final, up)
+    labels = [f"frame {i}: {100 * err[i]:.0f} cm" + (" (right)" if right[i] else "") for i in picks]
+    fig, (a0, a1) = plt.subplots(2, 1, figsize=(12, 7.5))
+    _sticks(a0, markers, ref, picks, -lat, labels)
+    _sticks(a1, markers, ref, picks, f, labels)
+    a0.set_title(f"The {len(picks)} frames with the largest MPJPE: Pose2Sim's 3D result (thick "
+                 "grey) and our exported skeleton (red: named left, blue: named right, black: "
+                 "trunk); front view", fontsize=8.5)
+    a1.set_title("the same frames seen from the subject's left (its forward to the right)",
+                 fontsize=8.5)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return [(i, round(err[i], 4)) for i in picks]
 
 
 # (name, our bone's child joint, Pose2Sim's markers at its ends) for the bone-length comparison
@@ -594,7 +634,10 @@ def report(doc) -> str:
           "frame: outward (left for Head/Neck), forward, up; compare `tracking_bias_dev.md`): "
           + ", ".join(f"{k} ({', '.join(f'{x:+.1f}' for x in v)})"
                       for k, v in doc.get("signed_bias_right_cm", {}).items()),
-          "", f"Picture: `{doc['picture']}`.", ""]
+          "", f"Picture: `{doc['picture']}`.", "",
+          "The frames with the largest MPJPE (frame: cm): "
+          + ", ".join(f"{i}: {100 * e:.0f}" for i, e in doc.get("worst_frames", []))
+          + f"; picture `{doc.get('worst_picture')}`.", ""]
     sp = doc.get("grid_spread")
     if sp:
         rows = {100: {"right_frames": s["right_frames"],
@@ -647,6 +690,8 @@ def main(argv=None):
         s, markers, right = score(raw, motion.poses, trc_path, ref, model)
         picture(out / "real_motion.png", markers, ref, right, motion.poses,
                 np.asarray(cap.up_vector, float))
+        worst = worst_picture(out / "real_motion_worst.png", markers, ref, right, motion.poses,
+                              np.asarray(cap.up_vector, float))
         peers = peer_scores(raw, cap, model, ref, tmp)
         in_hull = markers_in_hull(cap, markers, ref, [i for i in range(len(right)) if right[i]],
                                   cap.up_vector)
@@ -668,7 +713,8 @@ def main(argv=None):
                                                    if p.diagnostics.get("height")])), 2),
            "signed_bias_right_cm": signed_bias(markers, ref, [i for i in range(len(right))
                                                               if right[i]], cap.up_vector),
-           "scores": s, "grid_spread": spread}
+           "scores": s, "grid_spread": spread, "worst_frames": worst,
+           "worst_picture": "real_motion_worst.png"}
     (out / "real_motion.json").write_text(json.dumps(doc, indent=1))
     (out / "real_motion.md").write_text(report(doc))
     print(report(doc))

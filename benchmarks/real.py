@@ -483,6 +483,16 @@ def time_breakdown(rec: Path, n: int = 20) -> dict:
     return {k: {"wall_ms": round(1000 * a, 2), "cpu_ms": round(1000 * b, 2)} for k, (a, b) in out.items()}
 
 
+def runs_over(rec, methods, resolutions, ref):
+    """:func:`run_method` for each method at each resolution, in a temporary folder: yields
+    ``(method, resolution, result, poses)``."""
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in resolutions:
+            for m in methods:
+                res, poses = run_method(rec, m, r, 0, Path(tmp), ref)
+                yield m, r, res, poses
+
+
 def _picture(cap, est, poses, res, path):
     """Silhouettes with the reprojected parts and the hull/skeleton of a matched, right frame
     (else the best-confidence one) at ``path``, and of the worst wrong frame (largest error of

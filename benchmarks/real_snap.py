@@ -19,7 +19,6 @@ import argparse
 import functools
 import json
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -63,26 +62,22 @@ def compare(rec, methods, resolutions, ref) -> dict:
 
     model = load_model("human")
     out = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        for m in methods:
-            for r in resolutions:
-                res, poses = real.run_method(rec, m, r, 0, Path(tmp), ref)
-                poses = sorted(poses, key=lambda p: p.frame)
-                idx = {p.frame: i for i, p in enumerate(poses)}
-                mc = res["min_confidence"]
-                row = {"right per frame": res["right_share"], "worst per frame": worst(res)}
-                for label, run_ in (("now", None), ("before", NEVER)):
-                    ps = written(poses, model, np.array([0.0, 0.0, 1.0]), mc, run_)
-                    s = real.summarize(ps, ref, idx, mc)
-                    row[label] = {"right": s["right_share"], "matched": s["matched"],
-                                  "precision": s["matched_precision"],
-                                  "snapped": sum(len(p.diagnostics.get("snapped") or [])
-                                                 for p in ps),
-                                  "worst": worst(s)}
-                out[f"{m} @ {r}"] = row
-                print(m, r, {k: (v if not isinstance(v, dict) else
-                                 {a: b for a, b in v.items() if a != "worst"})
-                             for k, v in row.items() if k != "worst per frame"}, flush=True)
+    for m, r, res, poses in real.runs_over(rec, methods, resolutions, ref):
+        poses = sorted(poses, key=lambda p: p.frame)
+        idx = {p.frame: i for i, p in enumerate(poses)}
+        mc = res["min_confidence"]
+        row = {"right per frame": res["right_share"], "worst per frame": worst(res)}
+        for label, run_ in (("now", None), ("before", NEVER)):
+            ps = written(poses, model, np.array([0.0, 0.0, 1.0]), mc, run_)
+            s = real.summarize(ps, ref, idx, mc)
+            row[label] = {"right": s["right_share"], "matched": s["matched"],
+                          "precision": s["matched_precision"],
+                          "snapped": sum(len(p.diagnostics.get("snapped") or []) for p in ps),
+                          "worst": worst(s)}
+        out[f"{m} @ {r}"] = row
+        print(m, r, {k: (v if not isinstance(v, dict) else
+                         {a: b for a, b in v.items() if a != "worst"})
+                     for k, v in row.items() if k != "worst per frame"}, flush=True)
     return out
 
 

@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -35,15 +34,12 @@ FIELDS = (("right per frame", lambda r: r["right_share"]),
 
 def spread(rec: Path, methods, resolutions, ref) -> dict:
     """``{method: {resolution: {field: value}}}`` (fields: :data:`FIELDS`)."""
-    from real import run_method
+    from real import runs_over
 
     out = {m: {} for m in methods}
-    with tempfile.TemporaryDirectory() as tmp:
-        for r in resolutions:
-            for m in methods:
-                res, _poses = run_method(rec, m, r, 0, Path(tmp), ref)
-                out[m][r] = {name: get(res) for name, get in FIELDS}
-                print(m, r, out[m][r], flush=True)
+    for m, r, res, _poses in runs_over(rec, methods, resolutions, ref):
+        out[m][r] = {name: get(res) for name, get in FIELDS}
+        print(m, r, out[m][r], flush=True)
     return out
 
 

@@ -493,6 +493,30 @@ def runs_over(rec, methods, resolutions, ref):
                 yield m, r, res, poses
 
 
+def runs_command(doc, argv, methods, resolutions, quick_method):
+    """The command line of a benchmark over :func:`runs_over` (``real_spread.py``,
+    ``real_snap.py``): ``(recording, reference, methods, resolutions, out folder)``, or the exit
+    code after saying why not (:func:`person_recording`). ``--quick``: ``quick_method`` at 100³."""
+    from _machine import results_dir
+
+    ap = argparse.ArgumentParser(description=doc.split("\n")[0])
+    ap.add_argument("recording", nargs="?", default=str(DEFAULT))
+    ap.add_argument("--methods", default=methods)
+    ap.add_argument("--resolutions", default=resolutions)
+    ap.add_argument("--out", default=str(results_dir()))
+    ap.add_argument("--quick", action="store_true", help="one method at 100³ only")
+    a = ap.parse_args(argv)
+    if a.quick:
+        a.methods, a.resolutions = quick_method, "100"
+    opened = person_recording(a.recording)
+    if isinstance(opened, int):
+        return opened
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    return (*opened, [m for m in a.methods.split(",") if m],
+            [int(r) for r in a.resolutions.split(",") if r], out)
+
+
 def _picture(cap, est, poses, res, path):
     """Silhouettes with the reprojected parts and the hull/skeleton of a matched, right frame
     (else the best-confidence one) at ``path``, and of the worst wrong frame (largest error of

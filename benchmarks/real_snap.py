@@ -15,7 +15,6 @@ now, as written before (on the Pose2Sim recording at 100³ with ``person_track``
 """
 from __future__ import annotations
 
-import argparse
 import functools
 import json
 import sys
@@ -126,26 +125,15 @@ def report(doc) -> str:
 
 
 def main(argv=None):
-    from _machine import machine, results_dir
-    from real import DEFAULT, person_recording
+    from _machine import machine
+    from real import runs_command
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("recording", nargs="?", default=str(DEFAULT))
-    ap.add_argument("--methods", default="person+track+every2,person")
-    ap.add_argument("--resolutions", default="100,96")
-    ap.add_argument("--out", default=str(results_dir()))
-    ap.add_argument("--quick", action="store_true", help="one method at 100³ only")
-    a = ap.parse_args(argv)
-    if a.quick:
-        a.methods, a.resolutions = "person+track+every2", "100"
-    opened = person_recording(a.recording)
-    if isinstance(opened, int):
-        return opened
-    rec, ref = opened
-    runs = compare(rec, [m for m in a.methods.split(",") if m],
-                   [int(r) for r in a.resolutions.split(",") if r], ref)
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
+    got = runs_command(__doc__, argv, "person+track+every2,person", "100,96",
+                       "person+track+every2")
+    if isinstance(got, int):
+        return got
+    rec, ref, methods, resolutions, out = got
+    runs = compare(rec, methods, resolutions, ref)
     first = next(iter(runs))
     picture(out / "real_snap.png", first, runs[first])
     doc = {"recording": str(rec), "machine": machine(), "picture": "real_snap.png", "runs": runs}

@@ -16,7 +16,6 @@ Writes ``real_spread.md`` and ``real_spread.json``. Needs ``mediapipe`` (``perso
 """
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -65,28 +64,15 @@ def report(doc) -> str:
 
 
 def main(argv=None):
-    from _machine import machine, results_dir
-    from real import DEFAULT, person_recording
+    from _machine import machine
+    from real import runs_command
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("recording", nargs="?", default=str(DEFAULT))
-    ap.add_argument("--methods", default="person,person+track+every2")
-    ap.add_argument("--resolutions", default="96,98,100,102,104")
-    ap.add_argument("--out", default=str(results_dir()))
-    ap.add_argument("--quick", action="store_true", help="one method at 100³ only")
-    a = ap.parse_args(argv)
-    if a.quick:
-        a.methods, a.resolutions = "person", "100"
-    opened = person_recording(a.recording)
-    if isinstance(opened, int):
-        return opened
-    rec, ref = opened
-    methods = [m for m in a.methods.split(",") if m]
-    resolutions = [int(r) for r in a.resolutions.split(",") if r]
+    got = runs_command(__doc__, argv, "person,person+track+every2", "96,98,100,102,104", "person")
+    if isinstance(got, int):
+        return got
+    rec, ref, methods, resolutions, out = got
     doc = {"recording": str(rec), "machine": machine(), "resolutions": resolutions,
            "spread": spread(rec, methods, resolutions, ref)}
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
     (out / "real_spread.json").write_text(json.dumps(doc, indent=1))
     (out / "real_spread.md").write_text(report(doc))
     print(report(doc))

@@ -262,7 +262,7 @@ def run_recording(rec: Path, work: Path, raw_path=None, resolution=100):
     t_frames = None if reused else round(time.perf_counter() - t0, 2)
     raw = sorted(raw, key=lambda p: p.frame)
     t0 = time.perf_counter()
-    motion = process_sequence(raw, model, cap.up_vector)      # as topopose run
+    motion = process_sequence(raw, model, cap.up_vector, fps=cap.fps)   # as topopose run
     t_motion = time.perf_counter() - t0
     trc_path = work / "motion.trc"
     write_trc(trc_path, motion.poses, marker_names(motion.poses, model.parts),
@@ -287,7 +287,9 @@ def grid_spread(rec: Path, work: Path, ref, resolutions) -> dict:
 
 
 # peers of the default motion stage, from the same per-frame poses: kinematic_fit constants
-PEERS = {"the neck and shoulders each on its own target (GIRDLE = False)": {"GIRDLE": False}}
+PEERS = {"the neck and shoulders each on its own target (GIRDLE = False)": {"GIRDLE": False},
+         "the smoothing window 9 frames at 60 frames/s, as before session 33 "
+         "(SMOOTH_RATE = None)": {"SMOOTH_RATE": None}}
 
 
 def peer_scores(raw, cap, model, ref, work) -> dict:
@@ -303,7 +305,7 @@ def peer_scores(raw, cap, model, ref, work) -> dict:
         try:
             for c, v in consts.items():
                 setattr(kf, c, v)
-            motion = process_sequence(raw, model, cap.up_vector)
+            motion = process_sequence(raw, model, cap.up_vector, fps=cap.fps)
         finally:
             for c, v in keep.items():
                 setattr(kf, c, v)

@@ -1,6 +1,8 @@
 """The skeleton over time (issue 15): a lost joint held only while recent (``HOLD_AGE``), and the
-default smoothing over runs of continuing motion (``SMOOTH``, :func:`motion_runs`), on hand-made
-bodies and chains whose truth is known."""
+default smoothing over runs of continuing motion (``SMOOTH`` at the capture's frame rate,
+:func:`motion_runs`), on hand-made bodies and chains whose truth is known."""
+import copy
+
 import numpy as np
 import pytest
 
@@ -48,6 +50,22 @@ def test_motion_runs_split_at_jumps_unfitted_frames_and_missing_frame_numbers():
     assert kf.motion_runs(P, t, tree, 5, 0.15, seen=seen) == [(0, 30)]
 
 
+def test_motion_runs_ride_over_jitter_and_leave_out_a_single_wrong_frame():
+    """The walking chain with 7 cm of noise on every joint each frame (a 4-camera fit's
+    jitter: most frames move ≥ 0.15 m from the one before, which split the runs when each
+    frame was compared with the previous one) and one wrong frame (15: joints 0.5 m off):
+    one run each side of the wrong frame, which belongs to none."""
+    tree, _, P, _ = _walking_arm(n=40, step=0.02, turn=0.01)
+    other = [j for j in range(len(tree.names)) if j != tree.root]
+    Q = P.copy()
+    Q[:, other] += np.random.default_rng(3).normal(scale=0.07, size=Q[:, other].shape)
+    Q[15, other] += [0.0, 0.0, 0.5]
+    rel = Q - Q[:, tree.root:tree.root + 1]
+    steps = np.linalg.norm(np.diff(rel, axis=0), axis=2).mean(axis=1)
+    assert np.mean(steps >= 0.15) > 0.4                    # the jitter the old rule broke at
+    assert kf.motion_runs(Q, np.arange(40.0), tree, 9, 0.15) == [(0, 15), (16, 40)]
+
+
 def test_default_smoothing_brings_a_noisy_continuing_motion_closer_to_the_truth(monkeypatch):
     """A rigid body turning 0.02 rad and moving 1 cm per frame, its curves noisy (1 cm): the
     default fit (``SMOOTH``) is nearer each frame's true joints than the unsmoothed fit, flags
@@ -77,6 +95,43 @@ def test_default_smoothing_brings_a_noisy_continuing_motion_closer_to_the_truth(
         else:
             assert not any(p.diagnostics.get("smoothed") for p in out)
     assert err[None] < 0.8 * err[0], err
+
+
+def test_the_default_window_keeps_its_duration_at_the_capture_frame_rate(monkeypatch):
+    """``SMOOTH`` is 9 frames at 25 frames/s (0.36 s): at 60 frames/s the default window is 21
+    frames, and ``process_sequence(fps=60)`` (what ``run`` passes: the capture's rate) fits
+    with it. The same noisy turning body filmed at 60 frames/s (its motion per frame scaled by
+    25 / 60) comes nearer its noise-free fit with the 21-frame window than with 9 frames
+    (0.15 s)."""
+    from topopose.pose.motion import process_sequence
+
+    assert (kf.smooth_window(25), kf.smooth_window(60), kf.smooth_window(None)) == (9, 21, 9)
+    assert kf.smooth_window(1) == 3
+    monkeypatch.setattr(kf, "TIP_TURN", {})
+    monkeypatch.setattr(kf, "TIP_STRETCH", {})
+    rng = np.random.default_rng(1)
+    tree = kinematic_tree(HUMAN)
+    poses, clean = [], []
+    for i in range(45):
+        pose, _ = _still_body(i, 0.02 * i * 25 / 60, np.array([0.01 * i * 25 / 60, 0.0, 0.0]))
+        clean.append(pose)
+        pose = copy.deepcopy(pose)
+        pose.diagnostics["curves"] = {k: v + rng.normal(scale=0.01, size=v.shape)
+                                      for k, v in pose.diagnostics["curves"].items()}
+        poses.append(pose)
+    out, _, _ = fit_sequence(clean, HUMAN, smooth=0)
+    truth = [[p.joints[n] for n in tree.names] for p in out]
+    err, fits = {}, {}
+    for smooth in (9, 21):
+        out, _, _ = fit_sequence(poses, HUMAN, smooth=smooth)
+        fits[smooth] = np.array([[p.joints[n] for n in tree.names] for p in out])
+        err[smooth] = float(np.linalg.norm(fits[smooth] - np.array(truth), axis=2).mean())
+    assert err[21] < 0.9 * err[9], err
+    m = process_sequence(poses, HUMAN, np.array([0.0, 0.0, 1.0]), track=False, sides=False,
+                         fps=60, consistency=False)
+    got = np.array([[p.joints[n] for n in tree.names] for p in m.poses])
+    assert np.allclose(got, fits[21])
+    assert not np.allclose(got, fits[9])
 
 
 def test_default_smoothing_leaves_unrelated_poses_alone():

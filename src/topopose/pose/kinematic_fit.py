@@ -65,7 +65,8 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
 4. **Gaps** — stretches of at most ``max_gap`` unfitted frames between fitted ones are filled
    by interpolating the root position and the bone directions (normalized linear), flagged
    ``diagnostics["interpolated"] = true``; never silently. Savitzky–Golay smoothing
-   (:func:`scipy.signal.savgol_filter`, window :data:`SMOOTH`, 9 frames by default; 0: off) of
+   (:func:`scipy.signal.savgol_filter`, window :data:`SMOOTH`: 9 frames at 25 frames/s, the
+   same 0.36 s at the capture's rate, :func:`smooth_window`; 0: off) of
    the root and bone directions over runs of fitted frames of one continuing motion
    (:func:`motion_runs`: consecutive frame numbers, the joints moving less than
    :data:`SMOOTH_MOVE` from one frame the fit saw to the next, the interpolated frames between
@@ -1410,27 +1411,54 @@ SMOOTH = 9          # frames: the default Savitzky–Golay window (order 2) over
                     # 3.59 / 5.60; 11: 5.10 / 3.51; 13: 5.09 / 3.59 cm. Without the motion check
                     # (SMOOTH_MOVE None) unrelated poses are averaged together: window 5 / 7 / 9
                     # random poses 36.3 / 46.9 / 51.6 cm
-SMOOTH_MOVE = 0.15  # m: a run of continuing motion breaks where the joints (from the root) moved
-                    # more than this from the frame before, mean over the joints (as HOLD_MAX;
-                    # window 9: 0.1 / 0.15 / 0.25 m: random motion 5.31 / 5.07 / 5.11, walks 3.59
-                    # / 3.59 / 3.60 cm, unrelated random poses 5.60 at each)
+SMOOTH_RATE = 25.0  # frames/s SMOOTH was chosen at: at another rate the default window keeps
+                    # its duration, 0.36 s (:func:`smooth_window`). Development motions at 60
+                    # frames/s (benchmarks/fps_dev.py, results/fps_dev.md: walks 41–43, random
+                    # motion 51–53, 1.6 s each, 8 cameras; MPJPE median over the matched frames):
+                    # window 0 / 9 / 15 / 21 / 27 frames: 4.86 / 4.02 / 3.85 / 3.73 / 3.76 cm
+                    # (at 25 frames/s: 4.97 / 4.20 / 4.31 / 4.68 / 4.93): 9 frames at 60 frames/s
+                    # (0.15 s) was too short, 21 (0.35 s) is 9 at 25
+SMOOTH_MOVE = 0.15  # m: a frame whose joints (from the root) lie this far from its
+                    # neighbourhood's median is an outlier, and a run breaks where successive
+                    # neighbourhoods lie this far apart (mean over the joints; :func:`motion_runs`).
+                    # Until session 33 each frame was compared with the one before (window 9:
+                    # 0.1 / 0.15 / 0.25 m: random motion 5.31 / 5.07 / 5.11, walks 3.59 / 3.59 /
+                    # 3.60 cm, unrelated random poses 5.60 at each): a 4-camera fit's per-frame
+                    # jitter broke the runs, the real recording had 27 of 100 frames smoothed.
+                    # Against the neighbourhood (benchmarks/fps_dev.py, results/fps_dev_runs.md):
+                    # development 8 cameras 4.20 → 4.23 cm at 25 frames/s, 3.73 → 3.71 at 60;
+                    # 4p 10.04 → 9.89 / 9.74 → 9.74 cm; unrelated random poses (seeds 21–24)
+                    # 5.44 cm, no frame smoothed, either way
+
+
+def _apart(a, b) -> float:
+    """Mean distance between two sets of joints (n_joints, 3)."""
+    return float(np.linalg.norm(a - b, axis=1).mean())
 
 
 def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None) -> list:
     """Runs ``(a, b)`` (frames ``a`` … ``b - 1``) of at least ``win`` fitted frames with
-    consecutive frame numbers ``t`` along which the motion continues: each frame the fit saw
-    (``seen``, default every fitted frame; not one interpolated between two others) has its
-    joints, taken from the root, less than ``max_move`` (m, mean over the joints; None: no
-    check) from those of the last frame the fit saw before it in the run — unrelated poses (a
-    random-pose capture) make no run, not even across the frames interpolated between them
-    (their steps are a fraction of the jump). A run ends at the last seen frame before a jump.
+    consecutive frame numbers ``t`` along which the motion continues. Each frame the fit saw
+    (``seen``, default every fitted frame; not one interpolated between two others) is
+    compared with its neighbourhood: the per-joint median, joints taken from the root, of the
+    seen frames at most ``win // 2`` frame numbers away (itself included). A frame at least
+    ``max_move`` (m, mean over the joints; None: no check) from its neighbourhood, or with
+    fewer than 3 seen frames in it, is an *outlier*: it belongs to no run (a single wrong
+    frame among right ones). Between two successive seen frames that are not outliers, a run
+    breaks where both the frames and their neighbourhoods lie ``max_move`` apart (the motion
+    jumped and stayed; the frames interpolated between them belong to none). Unrelated poses (a random-pose
+    capture) make no run: each frame is far from its neighbours' median, or the medians jump.
+    Per-frame jitter does not break a run, as it did when each frame was compared with the
+    one before (the real recording's 4-camera fits: 27 of 100 frames smoothed, now 59; see
+    :data:`SMOOTH_MOVE`).
 
     Parameters
     ----------
     P : (n_frames, n_joints, 3) joints (NaN: frame not fitted)
     t : (n_frames,) frame numbers
-    win : the least run length (frames)
-    max_move : the largest mean move of the joints from one seen frame to the next (m)
+    win : the least run length (frames); ``win // 2`` the neighbourhood's reach
+    max_move : the largest mean distance of a frame's joints from its neighbourhood's, and
+        between two successive neighbourhoods (m)
     seen : (n_frames,) bool, the frames the fit saw (None: every fitted frame)
 
     Returns
@@ -1438,8 +1466,22 @@ def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None) -> lis
     list of (a, b) index pairs.
     """
     n_f = len(P)
+    t = np.asarray(t)
     ok = ~np.isnan(P).reshape(n_f, -1).any(axis=1)
     seen = ok if seen is None else ok & np.asarray(seen, bool)
+    outlier = np.zeros(n_f, dtype=bool)
+    M = None
+    if max_move is not None:
+        Q = P - P[:, tree.root:tree.root + 1]
+        M = np.full_like(Q, np.nan)
+        idx = np.flatnonzero(seen)
+        for i in idx:
+            near = idx[np.abs(t[idx] - t[i]) <= win // 2]
+            if len(near) < 3:
+                outlier[i] = True
+                continue
+            M[i] = np.median(Q[near], axis=0)
+            outlier[i] = _apart(Q[i], M[i]) >= max_move
     runs, start, last = [], None, None
 
     def close(end):
@@ -1447,30 +1489,44 @@ def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None) -> lis
             runs.append((start, end))
 
     for i in range(n_f):
-        if not ok[i] or (start is not None and t[i] - t[i - 1] != 1):
+        if not ok[i] or outlier[i] or (start is not None and t[i] - t[i - 1] != 1):
             close(i)
             start, last = None, None
-            if not ok[i]:
+            if not ok[i] or outlier[i]:
                 continue
         if start is None:
             start, last = i, (i if seen[i] else None)
             continue
         if not seen[i]:
             continue
-        if max_move is not None and last is not None:
-            a = P[i] - P[i, tree.root]
-            b = P[last] - P[last, tree.root]
-            if float(np.linalg.norm(a - b, axis=1).mean()) >= max_move:
-                close(last + 1)
-                start = i
+        if M is not None and last is not None and _apart(Q[i], Q[last]) >= max_move \
+                and _apart(M[i], M[last]) >= max_move:
+            close(last + 1)
+            start = i
         last = i
     close(n_f)
     return runs
 
 
+def smooth_window(fps=None) -> int:
+    """The default smoothing window (frames) at ``fps`` frames/s: the odd number of frames
+    nearest :data:`SMOOTH` / :data:`SMOOTH_RATE` seconds (at least 3); :data:`SMOOTH` itself
+    when the rate is unknown, :data:`SMOOTH` is off or :data:`SMOOTH_RATE` is None (the
+    window in frames at any rate, as before session 33).
+
+    Examples
+    --------
+    >>> smooth_window(25), smooth_window(60), smooth_window(None), smooth_window(10)
+    (9, 21, 9, 3)
+    """
+    if not SMOOTH or not fps or not SMOOTH_RATE:
+        return SMOOTH or 0
+    return max(3, 2 * int(round((SMOOTH * float(fps) / SMOOTH_RATE - 1) / 2)) + 1)
+
+
 def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=None,
                  quantile=None, slide=None, hints=None, evidence=None, shoulders=None,
-                 gaps=None):
+                 gaps=None, fps=None):
     """Fit the full skeleton to every matched frame of a sequence (see the module docstring).
 
     Parameters
@@ -1479,7 +1535,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     model : Model with ``[[joint]]`` declarations
     max_gap : longest run of unfitted frames filled by interpolation (0: none)
     smooth : an odd Savitzky–Golay window (frames, polynomial order 2) over the runs of
-        continuing motion (:func:`motion_runs`); None: :data:`SMOOTH` (9); 0: off
+        continuing motion (:func:`motion_runs`); None: :func:`smooth_window` of ``fps``
+        (:data:`SMOOTH`, 9 frames at 25 frames/s: 0.36 s); 0: off
     inner_weight : weight of the initial placement of the joints inside an arc (elbows,
         knees, ...) against the curve term. Calibration set of the model's joints (seeds
         101–116, 8 walks and 6 random-pose sequences, gate off, MPJPE median): 0.3 → 1.0 →
@@ -1501,6 +1558,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     gaps : the joints a frame did not see, between two frames of the same motion that saw
         them at most ``max_gap`` frames apart, interpolated (:func:`held_gaps`; default
         :data:`HELD_GAP`)
+    fps : the capture's frame rate (frames/s) the default window is scaled to (None: 25)
 
     Returns
     -------
@@ -1577,7 +1635,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
                                    (1 - s) * Lf[a] + s * Lf[b], tree)
                     interp[i] = True
     smoothed = np.zeros(n_f, dtype=bool)
-    smooth = SMOOTH if smooth is None else smooth
+    smooth = smooth_window(fps) if smooth is None else smooth
     if smooth:
         from scipy.signal import savgol_filter
 

@@ -53,7 +53,7 @@ class Motion:
 
 
 def process_sequence(poses, model, up, track=True, sides=True, skeleton=True, max_gap=5,
-                     smooth=None, consistency=None, trim=None) -> Motion:
+                     smooth=None, consistency=None, trim=None, fps=None) -> Motion:
     """Run the sequence stages on the poses of one capture (sorted by frame).
 
     Parameters
@@ -63,7 +63,8 @@ def process_sequence(poses, model, up, track=True, sides=True, skeleton=True, ma
     up : the capture's up vector
     track, sides, skeleton : which stages to run (each needs what the model declares:
         interchangeable parts, ``[[mirror]]`` + ``[facing]``, ``[[joint]]``)
-    max_gap, smooth : gap filling and smoothing of the skeleton (:func:`.fit_sequence`)
+    max_gap, smooth, fps : gap filling and smoothing of the skeleton (:func:`.fit_sequence`;
+        ``fps``, the capture's frame rate, scales the default smoothing window)
     consistency : bool, "union", dict or None
         Last, on the poses as written, when the run is a coherent sequence: ``matched``
         decided with the run's own consistency (:func:`.consistency.judge_sequence`, see
@@ -86,7 +87,7 @@ def process_sequence(poses, model, up, track=True, sides=True, skeleton=True, ma
         out.stages.append("trim")
     if skeleton and model.joints:
         out.poses, out.tree, out.lengths = fit_sequence(out.poses, model, max_gap=max_gap,
-                                                        smooth=smooth)
+                                                        smooth=smooth, fps=fps)
         out.stages.append("skeleton")
     if sides and model.mirrors and model.facing:
         out.poses = assign_sides(out.poses, model, up, use_time=track)

@@ -209,7 +209,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         Fit the full kinematic skeleton (:mod:`topopose.pose.kinematic_fit`): ``Pose.joints``.
     smooth : int, optional
         Savitzky–Golay window (frames) smoothing the skeleton over runs of continuing motion
-        (default :data:`topopose.pose.kinematic_fit.SMOOTH`, 9; 0: off).
+        (default :func:`topopose.pose.kinematic_fit.smooth_window` of the capture's frame
+        rate: 9 frames at 25 frames/s, 0.36 s; 0: off).
     trim : bool, optional
         Hands trimmed back out of the hull's phantom volume where the silhouettes' evidence
         ends (:mod:`topopose.pose.trim`, recorded per frame, applied after the identities;
@@ -379,7 +380,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         from .motion import process_sequence
         motion = process_sequence(poses, m, cap.up_vector, track=track, sides=sides,
                                   skeleton=skeleton, smooth=smooth, consistency=consistency,
-                                  trim=trim)
+                                  trim=trim, fps=cap.fps)
         poses = motion.poses
         if out is not None:
             write_poses(out, poses, header)

@@ -1,0 +1,142 @@
+"""Issue 15, development only: the skeleton's smoothing at another frame rate. The same
+development motions (``benchmarks/tracking.py``'s walks 41–43 and random motion 51–53, 1.6 s
+each) rendered at 25 frames/s (the rate every development figure was measured at) and at 60
+frames/s (the real recording's), and 30 unrelated random poses (seeds 21–24, 8 cameras, 25
+frames/s: no smoothing may touch them); the per-frame results cached, the sequence stage re-run
+per smoothing window (:func:`topopose.pose.kinematic_fit.fit_sequence`'s ``smooth``, frames).
+
+    python benchmarks/fps_dev.py --work DIR [--setups 8,4p] [--fps 25,60]
+                                 [--windows 0,9,15,21,27] [--seconds 1.6] [--out DIR]
+
+Per set-up, rate and window: the full skeleton's MPJPE (cm; median over the pooled frames of
+the per-frame mean over the issue's joints) on the matched frames (8 cameras: the gated run as
+``tracking.py``) or, for 4 phones (threshold and gate off, as ``real_motion.py``), on the frames
+whose per-frame pose is right (``evaluate``: good). Never the held-out seeds. Writes
+``fps_dev.md`` / ``.json`` (``--name``).
+"""
+import argparse
+import json
+import pickle
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+import tracking as T  # noqa: E402
+from _machine import machine, machine_line  # noqa: E402
+
+from topopose.capture import load_capture  # noqa: E402
+from topopose.capture.synth import synthetic_capture, write_capture  # noqa: E402
+from topopose.pose import kinematic_fit as kf  # noqa: E402
+from topopose.pose import run  # noqa: E402
+from topopose.pose.model import load_model  # noqa: E402
+from topopose.pose.quality import evaluate  # noqa: E402
+from topopose.pose.track import track  # noqa: E402
+
+SEQUENCES = [s for s in T.DEV_SEQUENCES if s[1] in (41, 42, 43, 51, 52, 53, 21, 22, 23, 24)]
+MOTIONS = ("walk", T.SMOOTH, "random")
+
+
+def sequence(work, motion, seed, build, setup, fps, seconds, model):
+    """The capture and its per-frame poses (both cached in ``work``)."""
+    d = Path(work) / f"{motion}_{seed}_{build}_{setup}_{fps}"
+    if motion == "random":                      # unrelated poses: the length is no duration
+        seconds = 30 / fps
+    if not (d / "gt.json").exists():
+        cams, size, noise, layout = T.SETUPS[setup]
+        cap = synthetic_capture("body", frames=int(round(seconds * fps)), seed=seed,
+                                cameras=cams, size=size, noise=noise, motion=motion,
+                                build=build, layout=layout, fps=fps)
+        write_capture(cap, d)
+    cap = load_capture(d)
+    f = d / "poses.pkl"
+    if not f.exists():
+        loose = {} if setup == "8" else {"threshold": 1e9, "gate": False}
+        res = run(cap, model=model, resolution=100, progress=False, track=False, sides=False,
+                  skeleton=False, **loose)
+        f.write_bytes(pickle.dumps(res.poses))
+    return cap, pickle.loads(f.read_bytes())
+
+
+def measure(cap, poses, model, window, setup):
+    """MPJPE (median over the frames counted, see the module docstring) with ``window``."""
+    fitted, tree, _ = kf.fit_sequence(track(poses, model), model, smooth=window)
+    keep = None
+    if setup != "8":
+        keep = {fs.frame for fs in evaluate(cap.gt, poses, model=model).frames
+                if fs.quality == "good"}
+    errs = []
+    for p in fitted:
+        if not (p.matched and p.joints) or (keep is not None and p.frame not in keep):
+            continue
+        P = np.array([p.joints[n] for n in tree.names])
+        errs.append(T.joint_errors(tree.names, P, cap.gt["frames"][p.frame]["joints"]))
+    m = T.mpjpe(errs)
+    return {"mpjpe": m[0], "frames": m[2], "per_frame": m[3],
+            "smoothed": sum(bool(p.diagnostics.get("smoothed")) for p in fitted)}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--work", required=True)
+    ap.add_argument("--setups", default="8,4p")
+    ap.add_argument("--fps", default="25,60")
+    ap.add_argument("--windows", default="0,9,15,21,27")
+    ap.add_argument("--seconds", type=float, default=1.6)
+    ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    ap.add_argument("--name", default="fps_dev")
+    a = ap.parse_args(argv)
+    model = load_model("human")
+    setups, rates = a.setups.split(","), [int(x) for x in a.fps.split(",")]
+    windows = [int(x) for x in a.windows.split(",")]
+    rows = []
+    for st in setups:
+        for fps in rates:
+            for motion, seed, build in SEQUENCES:
+                if motion == "random" and (st != "8" or fps != rates[0]):
+                    continue
+                cap, poses = sequence(a.work, motion, seed, build, st, fps, a.seconds, model)
+                for w in windows:
+                    r = measure(cap, poses, model, w, st)
+                    r.update(setup=st, fps=fps, motion=motion, seed=seed, window=w)
+                    rows.append(r)
+                    print(json.dumps({k: r[k] for k in ("setup", "fps", "motion", "seed",
+                                                        "window", "frames", "mpjpe", "smoothed")}),
+                          flush=True)
+    info = machine(resolution=100, subject="body", seconds=a.seconds)
+    lines = ["# The skeleton's smoothing window at 25 and 60 frames/s (issue 15, development "
+             "seeds)", "", machine_line(info), "",
+             f"Walks 41–43 and random motion 51–53, {a.seconds} s each, rendered at each rate, "
+             "and 30 unrelated random poses (seeds 21–24, 8 cameras, the first rate); MPJPE "
+             "(cm) median over the pooled frames (8 cameras: matched; 4p: good), per "
+             "Savitzky–Golay window in frames (in brackets: its length in seconds, the frames "
+             "counted and those smoothed; 0: off).", "",
+             "| set-up | frames/s | motion | " + " | ".join(str(w) for w in windows) + " |",
+             "|---|---|---|" + "---|" * len(windows)]
+    for st in setups:
+        for fps in rates:
+            for motion in MOTIONS + ("all",):
+                cells = []
+                for w in windows:
+                    rs = [r for r in rows if r["setup"] == st and r["fps"] == fps
+                          and r["window"] == w and (r["motion"] == motion or motion == "all"
+                                                    and r["motion"] != "random")]
+                    pf = [x for r in rs for x in r["per_frame"]]
+                    cells.append(f"{100 * np.median(pf):.2f} ({w / fps:.2f} s, n {len(pf)}, "
+                                 f"{sum(r['smoothed'] for r in rs)} smoothed)" if pf else "–")
+                if all(c == "–" for c in cells):
+                    continue
+                lines.append(f"| {st} | {fps} | {motion} | " + " | ".join(cells) + " |")
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"{a.name}.json").write_text(json.dumps(
+        {"machine": info, "rows": [{k: v for k, v in r.items() if k != "per_frame"}
+                                   for r in rows]}))
+    text = "\n".join(lines) + "\n"
+    (out / f"{a.name}.md").write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()

@@ -66,14 +66,19 @@ def measure(cap, poses, model, window, setup):
     if setup != "8":
         keep = {fs.frame for fs in evaluate(cap.gt, poses, model=model).frames
                 if fs.quality == "good"}
-    errs = []
+    errs, flagged = [], {True: [], False: []}
     for p in fitted:
-        if not (p.matched and p.joints) or (keep is not None and p.frame not in keep):
+        if not p.joints or p.diagnostics.get("interpolated"):
             continue
         P = np.array([p.joints[n] for n in tree.names])
-        errs.append(T.joint_errors(tree.names, P, cap.gt["frames"][p.frame]["joints"]))
+        e = T.joint_errors(tree.names, P, cap.gt["frames"][p.frame]["joints"])
+        if "neighbour_distance" in p.diagnostics:     # every fitted frame, right or not
+            flagged[bool(p.diagnostics.get("temporal_outlier"))] += T.mpjpe([e])[3]
+        if p.matched and (keep is None or p.frame in keep):
+            errs.append(e)
     m = T.mpjpe(errs)
-    return {"mpjpe": m[0], "frames": m[2], "per_frame": m[3],
+    return {"mpjpe": m[0], "frames": m[2], "per_frame": m[3], "outliers": flagged[True],
+            "inliers": flagged[False],
             "smoothed": sum(bool(p.diagnostics.get("smoothed")) for p in fitted)}
 
 
@@ -128,10 +133,27 @@ def main(argv=None):
                 if all(c == "–" for c in cells):
                     continue
                 lines.append(f"| {st} | {fps} | {motion} | " + " | ".join(cells) + " |")
+    lines += ["", "Temporal outliers (`diagnostics[\"temporal_outlier\"]`: a frame's joints 0.15 m "
+              "or more from its neighbours' median, the default window's neighbourhood), every "
+              "fitted frame not interpolated, right or not: frames flagged / judged, MPJPE (cm, "
+              "median over frames) of the flagged and of the others.", "",
+              "| set-up | frames/s | flagged | MPJPE flagged | MPJPE others |", "|---|---|---|---|---|"]
+    for st in setups:
+        for fps in rates:
+            w = kf.smooth_window(fps)
+            rs = [r for r in rows if r["setup"] == st and r["fps"] == fps and r["window"] == w
+                  and r["motion"] != "random"]
+            o = [x for r in rs for x in r["outliers"]]
+            i = [x for r in rs for x in r["inliers"]]
+            if rs:
+                lines.append(f"| {st} | {fps} | {len(o)} / {len(o) + len(i)} | "
+                             + (f"{100 * np.median(o):.1f}" if o else "–") + " | "
+                             + (f"{100 * np.median(i):.1f}" if i else "–") + " |")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / f"{a.name}.json").write_text(json.dumps(
-        {"machine": info, "rows": [{k: v for k, v in r.items() if k != "per_frame"}
+        {"machine": info, "rows": [{k: v for k, v in r.items()
+                                    if k not in ("per_frame", "outliers", "inliers")}
                                    for r in rows]}))
     text = "\n".join(lines) + "\n"
     (out / f"{a.name}.md").write_text(text)

@@ -214,7 +214,25 @@ def score(raw, final, trc_path, ref, model):
             "held": sum(len(final[i].diagnostics.get("predicted") or []) for i in rows)}
     for label, rows in (("all", list(range(n))), ("right", [i for i in range(n) if right[i]])):
         out[label]["toe_vs_bigtoe"] = toe_errors(markers, ref, rows)
+    out["temporal_outliers"] = temporal_outliers(final, markers, ref, right)
     return out, markers, right
+
+
+def temporal_outliers(final, markers, ref, right) -> dict:
+    """The frames the fit flags ``temporal_outlier`` (joints off their neighbours' median,
+    :func:`topopose.pose.kinematic_fit.neighbourhood`): which, how many of them are wrong per
+    frame, and the MPJPE (side names, median over frames, m) of the flagged frames and of the
+    others with a skeleton."""
+    flagged = [i for i, p in enumerate(final) if p.diagnostics.get("temporal_outlier")]
+    judged = [i for i, p in enumerate(final) if "neighbour_distance" in p.diagnostics]
+
+    def med(rows):
+        return mpjpe([joint_errors(markers[i], ref, i) for i in rows])["mpjpe"]
+    others = [i for i in range(len(final)) if final[i].joints and i not in flagged]
+    return {"frames": flagged, "judged": len(judged),
+            "wrong_flagged": sum(not right[i] for i in flagged),
+            "wrong": sum(not r for r in right), "mpjpe_flagged": med(flagged),
+            "mpjpe_others": med(others), "others": len(others)}
 
 
 def toe_errors(markers, ref, rows) -> dict:
@@ -604,6 +622,13 @@ def report(doc) -> str:
             L.append(f"- toes (not in the MPJPE) against Pose2Sim's big toes, paired optimally: "
                      f"{_fmt(t['median'])} cm median ({t['n']} feet)")
         L.append("")
+    o = s.get("temporal_outliers")
+    if o:
+        L += [f"Frames the fit flags `temporal_outlier` (joints 0.15 m or more from their "
+              f"neighbours' median; {o['judged']} frames judged): {len(o['frames'])} "
+              f"({', '.join(map(str, o['frames']))}), {o['wrong_flagged']} of them wrong per "
+              f"frame (of {o['wrong']} wrong frames); MPJPE {_fmt(o['mpjpe_flagged'])} cm on "
+              f"them against {_fmt(o['mpjpe_others'])} cm on the {o['others']} others.", ""]
     for label, pr in doc.get("peers", {}).items():
         L += [f"Peer, the same per-frame poses, {label}: MPJPE all frames "
               f"{_fmt(pr['all']['mpjpe'])} cm (p90 {_fmt(pr['all']['mpjpe_p90'])}), right frames "

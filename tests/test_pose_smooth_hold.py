@@ -134,6 +134,28 @@ def test_the_default_window_keeps_its_duration_at_the_capture_frame_rate(monkeyp
     assert not np.allclose(got, fits[9])
 
 
+def test_a_frame_off_the_motion_around_it_is_flagged_and_left_unsmoothed():
+    """A body moving 1 cm a frame; frame 7's curves are those of the body turned half about
+    the vertical (hands and feet on the other sides: a wrong per-frame result). The fit
+    records each frame's distance from its neighbours' median; frame 7 alone is a
+    ``temporal_outlier`` (≥ ``SMOOTH_MOVE``), left out of the runs (its joints those of the
+    unsmoothed fit), the frames around it smoothed."""
+    poses = []
+    for i in range(21):
+        yaw = np.pi if i == 7 else 0.0
+        poses.append(_still_body(i, yaw, np.array([0.01 * i, 0.0, 0.0]))[0])
+    out, tree, _ = fit_sequence(poses, HUMAN)
+    raw, _, _ = fit_sequence(poses, HUMAN, smooth=0)
+    flagged = [i for i, p in enumerate(out) if p.diagnostics.get("temporal_outlier")]
+    assert flagged == [7]
+    d = [p.diagnostics["neighbour_distance"] for p in out]
+    assert d[7] >= kf.SMOOTH_MOVE and max(d[:7] + d[8:]) < 0.5 * kf.SMOOTH_MOVE
+    assert "smoothed" not in out[7].diagnostics
+    assert all(np.array_equal(out[7].joints[n], raw[7].joints[n]) for n in tree.names)
+    assert all(out[i].diagnostics.get("smoothed") for i in range(8, 21))
+    assert not any("neighbour_distance" in p.diagnostics for p in raw)   # smoothing off
+
+
 def test_default_smoothing_leaves_unrelated_poses_alone():
     """A capture of unrelated poses (the body turned half about the vertical from each frame to
     the next: hands, shoulders and feet swap sides): no run of continuing motion, the default

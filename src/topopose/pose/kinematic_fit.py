@@ -1436,6 +1436,23 @@ def _apart(a, b) -> float:
     return float(np.linalg.norm(a - b, axis=1).mean())
 
 
+def neighbourhood(P, t, tree: KinematicTree, reach, seen) -> tuple:
+    """Per frame the fit saw (``seen``): the per-joint median ``M`` of its neighbourhood (the
+    seen frames at most ``reach`` frame numbers away, itself included), joints taken from the
+    root, and the frame's distance from it (m, mean over the joints); NaN for the other
+    frames and for a frame with fewer than 3 seen frames in reach (:func:`motion_runs`)."""
+    Q = P - P[:, tree.root:tree.root + 1]
+    M = np.full_like(Q, np.nan)
+    dist = np.full(len(P), np.nan)
+    idx = np.flatnonzero(seen)
+    for i in idx:
+        near = idx[np.abs(t[idx] - t[i]) <= reach]
+        if len(near) >= 3:
+            M[i] = np.median(Q[near], axis=0)
+            dist[i] = _apart(Q[i], M[i])
+    return M, dist
+
+
 def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None) -> list:
     """Runs ``(a, b)`` (frames ``a`` … ``b - 1``) of at least ``win`` fitted frames with
     consecutive frame numbers ``t`` along which the motion continues. Each frame the fit saw
@@ -1470,18 +1487,11 @@ def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None) -> lis
     ok = ~np.isnan(P).reshape(n_f, -1).any(axis=1)
     seen = ok if seen is None else ok & np.asarray(seen, bool)
     outlier = np.zeros(n_f, dtype=bool)
-    M = None
+    M = Q = None
     if max_move is not None:
         Q = P - P[:, tree.root:tree.root + 1]
-        M = np.full_like(Q, np.nan)
-        idx = np.flatnonzero(seen)
-        for i in idx:
-            near = idx[np.abs(t[idx] - t[i]) <= win // 2]
-            if len(near) < 3:
-                outlier[i] = True
-                continue
-            M[i] = np.median(Q[near], axis=0)
-            outlier[i] = _apart(Q[i], M[i]) >= max_move
+        M, dist = neighbourhood(P, t, tree, win // 2, seen)
+        outlier = seen & ~(dist < max_move)         # NaN: too few neighbours to judge
     runs, start, last = [], None, None
 
     def close(end):
@@ -1564,7 +1574,10 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     -------
     poses : list of Pose with ``joints`` (numbered joint names, e.g. ``elbow_1``) and
         ``diagnostics["skeleton_rms"]`` (curve distance after the fit),
-        ``["interpolated"]``, ``["smoothed"]``, ``["held_joints"]`` (not seen by the frame),
+        ``["interpolated"]``, ``["smoothed"]``, ``["neighbour_distance"]`` (m: the frame's
+        joints from its neighbours' median, :func:`neighbourhood`, when smoothing) and
+        ``["temporal_outlier"]`` (that distance ≥ :data:`SMOOTH_MOVE`: a frame off the motion
+        around it, most likely wrong), ``["held_joints"]`` (not seen by the frame),
         ``["interpolated_joints"]`` (those of them interpolated, :func:`held_gaps`)
     tree : KinematicTree
     lengths : ndarray, the bone length of each joint's bone (NaN for the root); a ``slide``
@@ -1635,11 +1648,13 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
                                    (1 - s) * Lf[a] + s * Lf[b], tree)
                     interp[i] = True
     smoothed = np.zeros(n_f, dtype=bool)
+    apart = np.full(n_f, np.nan)
     smooth = smooth_window(fps) if smooth is None else smooth
     if smooth:
         from scipy.signal import savgol_filter
 
         win = int(smooth) | 1
+        _, apart = neighbourhood(P, t, tree, win // 2, fitted & ~interp)
         runs = motion_runs(P, t, tree, win, SMOOTH_MOVE, seen=~interp)
         for a, b in runs:
             D = np.stack([_directions(P[i], tree) for i in range(a, b)])
@@ -1666,6 +1681,10 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
             diag["interpolated"] = True
         if smoothed[i]:
             diag["smoothed"] = True
+        if np.isfinite(apart[i]):
+            diag["neighbour_distance"] = round(float(apart[i]), 4)
+            if SMOOTH_MOVE is not None and apart[i] >= SMOOTH_MOVE:
+                diag["temporal_outlier"] = True
         q = type(p)(**{**p.__dict__, "diagnostics": diag,
                        "joints": {nm: P[i, j].copy() for j, nm in enumerate(tree.names)}})
         out.append(q)

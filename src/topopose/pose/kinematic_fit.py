@@ -66,12 +66,14 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    by interpolating the root position and the bone directions (normalized linear), flagged
    ``diagnostics["interpolated"] = true``; never silently. Savitzky–Golay smoothing
    (:func:`scipy.signal.savgol_filter`, window :data:`SMOOTH`: 9 frames at 25 frames/s, the
-   same 0.36 s at the capture's rate, :func:`smooth_window`; 0: off) of
-   the root and bone directions over runs of fitted frames of one continuing motion
-   (:func:`motion_runs`: consecutive frame numbers, the joints moving less than
-   :data:`SMOOTH_MOVE` from one frame the fit saw to the next, the interpolated frames between
-   them not counted as steps — a capture of unrelated poses makes no run),
-   flagged ``diagnostics["smoothed"]``; the bones keep their constant lengths.
+   same 0.36 s at the capture's rate, :func:`smooth_window`; 0: off) of the root and bone
+   directions over runs of fitted frames of one continuing motion (:func:`motion_runs`:
+   consecutive frame numbers, each frame within :data:`SMOOTH_MOVE` of its neighbours' median,
+   broken where the motion jumps and stays — a capture of unrelated poses makes no run),
+   flagged ``diagnostics["smoothed"]``; the bones keep their constant lengths. Each frame
+   records its distance from its neighbours' median (``diagnostics["neighbour_distance"]``,
+   :func:`neighbourhood`), ``diagnostics["temporal_outlier"]`` when it is :data:`SMOOTH_MOVE`
+   or more: a skeleton off the motion around it, most likely wrong.
 """
 from __future__ import annotations
 
@@ -1463,8 +1465,9 @@ def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None) -> lis
     fewer than 3 seen frames in it, is an *outlier*: it belongs to no run (a single wrong
     frame among right ones). Between two successive seen frames that are not outliers, a run
     breaks where both the frames and their neighbourhoods lie ``max_move`` apart (the motion
-    jumped and stayed; the frames interpolated between them belong to none). Unrelated poses (a random-pose
-    capture) make no run: each frame is far from its neighbours' median, or the medians jump.
+    jumped and stayed; the frames interpolated between them belong to none). Unrelated poses
+    (a random-pose capture) make no run: each frame is far from its neighbours' median, or
+    the frames and the medians jump.
     Per-frame jitter does not break a run, as it did when each frame was compared with the
     one before (the real recording's 4-camera fits: 27 of 100 frames smoothed, now 59; see
     :data:`SMOOTH_MOVE`).

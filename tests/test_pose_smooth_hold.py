@@ -154,6 +154,10 @@ def test_a_frame_off_the_motion_around_it_is_flagged_and_left_unsmoothed():
     assert all(np.array_equal(out[7].joints[n], raw[7].joints[n]) for n in tree.names)
     assert all(out[i].diagnostics.get("smoothed") for i in range(8, 21))
     assert not any("neighbour_distance" in p.diagnostics for p in raw)   # smoothing off
+    from topopose.pose.run import RunResult, summary_text
+    text = summary_text(RunResult(out, None, counts={"matched": 21}))
+    assert "1 skeleton off the motion around it (diagnostics.temporal_outlier)" in text
+    assert "off the motion" not in summary_text(RunResult(raw, None))
 
 
 def test_default_smoothing_leaves_unrelated_poses_alone():

@@ -603,5 +603,10 @@ def summary_text(res: RunResult) -> str:
         fps += ")"
     where = f" → {res.output}" if res.output else ""
     skipped = f" ({res.skipped} resumed)" if res.skipped else ""
+    k = sum(bool(p.diagnostics.get("temporal_outlier")) for p in res.poses)
+    off = ""
+    if k:                                     # kinematic_fit.neighbourhood
+        off = (f"; {k} skeleton{'s' if k > 1 else ''} off the motion around "
+               f"{'them' if k > 1 else 'it'} (diagnostics.temporal_outlier)")
     return (f"{n} frames{skipped}: {c.get('matched', 0)} matched, {c.get('rejected', 0)} rejected, "
-            f"{c.get('failed', 0)} failed in {res.seconds:.1f} s{fps}{where}")
+            f"{c.get('failed', 0)} failed in {res.seconds:.1f} s{fps}{where}{off}")

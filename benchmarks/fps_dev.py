@@ -5,7 +5,7 @@ frames/s (the real recording's), and 30 unrelated random poses (seeds 21–24, 8
 frames/s: no smoothing may touch them); the per-frame results cached, the sequence stage re-run
 per smoothing window (:func:`topopose.pose.kinematic_fit.fit_sequence`'s ``smooth``, frames).
 
-    python benchmarks/fps_dev.py --work DIR [--setups 8,4p] [--fps 25,60]
+    python benchmarks/fps_dev.py [--work DIR] [--setups 8,4p] [--fps 25,60]
                                  [--windows 0,9,15,21,27] [--seconds 1.6] [--out DIR]
 
 Per set-up, rate and window: the full skeleton's MPJPE (cm; median over the pooled frames of
@@ -24,7 +24,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 import tracking as T  # noqa: E402
-from _machine import machine, machine_line  # noqa: E402
+from _machine import machine, machine_line, results_dir  # noqa: E402
 
 from topopose.capture import load_capture  # noqa: E402
 from topopose.capture.synth import synthetic_capture, write_capture  # noqa: E402
@@ -84,14 +84,19 @@ def measure(cap, poses, model, window, setup):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--work", required=True)
+    ap.add_argument("--work", default=None,
+                    help="keep the captures and per-frame results here (default: a temp dir)")
     ap.add_argument("--setups", default="8,4p")
     ap.add_argument("--fps", default="25,60")
     ap.add_argument("--windows", default="0,9,15,21,27")
     ap.add_argument("--seconds", type=float, default=1.6)
-    ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    ap.add_argument("--out", default=str(results_dir()))
     ap.add_argument("--name", default="fps_dev")
     a = ap.parse_args(argv)
+    if a.work is None:
+        import tempfile
+
+        a.work = tempfile.mkdtemp(prefix="fps_dev_")
     model = load_model("human")
     setups, rates = a.setups.split(","), [int(x) for x in a.fps.split(",")]
     windows = [int(x) for x in a.windows.split(",")]

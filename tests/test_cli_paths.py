@@ -216,11 +216,15 @@ def test_bench_runs_every_stage_into_an_untracked_folder(tmp_path, monkeypatch, 
         "import os, pathlib, sys\nassert sys.argv[1:] in ([], ['--quick'])  # \"--quick\"\n"
         "pathlib.Path(os.environ['TOPOPOSE_BENCH_RESULTS'], 'b.md').write_text('x')\n")
     (b / "c_slow.py").write_text("import sys\nsys.exit(0 if len(sys.argv) == 1 else 2)\n")
+    (b / "d_dev.py").write_text("import argparse\nap = argparse.ArgumentParser()\n"
+                                "ap.add_argument('--work', required=True)\nap.parse_args()\n")
     monkeypatch.chdir(tmp_path)
     assert main(["bench", "--quick"]) == 1                  # a failed, b still ran
     out = capsys.readouterr().out
     assert "a_stops (exit 3)" in out and "1/2 benchmarks ran" in out
     assert "c_slow.py: no --quick mode, skipped" in out     # not run with an argument it refuses
+    assert "d_dev.py: needs arguments, skipped" in out      # would stop at its parser
+    assert main(["bench", "d"]) == 0 and "needs arguments" in capsys.readouterr().out
     assert main(["bench", "c"]) == 0
     assert (b / "results" / "quick" / "b.md").exists() and not (b / "results" / "b.md").exists()
     assert main(["bench", "b", "--save"]) == 0 and (b / "results" / "b.md").exists()

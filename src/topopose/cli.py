@@ -215,6 +215,10 @@ def cmd_bench(a):
         scripts = [p for p in scripts if p.stem.startswith(a.stage)]
         if not scripts:
             raise InputError(f"topopose bench: no benchmark named {a.stage!r} in {bdir}")
+    needs = [p for p in scripts if "required=True" in p.read_text(encoding="utf-8")]
+    for p in needs:                          # development studies and tools with arguments
+        print(f"== {p.name}: needs arguments, skipped (python benchmarks/{p.name} --help)")
+    scripts = [p for p in scripts if p not in needs]
     if a.quick:                              # a script without a quick mode would run in full
         slow = [p for p in scripts if '"--quick"' not in p.read_text(encoding="utf-8")]
         for p in slow:

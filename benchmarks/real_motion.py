@@ -51,7 +51,6 @@ both feet within 0.15 m of Pose2Sim, as ``benchmarks/real.py``). Writes ``real_m
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
@@ -685,7 +684,7 @@ def report(doc) -> str:
 
 
 def main(argv=None):
-    from _machine import machine, results_dir
+    from _machine import machine, results_dir, write_results
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
@@ -742,8 +741,7 @@ def main(argv=None):
                                                               if right[i]], cap.up_vector),
            "scores": s, "grid_spread": spread, "worst_frames": worst,
            "worst_picture": "real_motion_worst.png"}
-    (out / "real_motion.json").write_text(json.dumps(doc, indent=1))
-    (out / "real_motion.md").write_text(report(doc))
+    write_results(out / "real_motion", doc, report)
     print(report(doc))
     return 0
 

@@ -16,7 +16,6 @@ now, as written before (on the Pose2Sim recording at 100³ with ``person_track``
 from __future__ import annotations
 
 import functools
-import json
 import sys
 from pathlib import Path
 
@@ -125,7 +124,7 @@ def report(doc) -> str:
 
 
 def main(argv=None):
-    from _machine import machine
+    from _machine import machine, write_results
     from real import runs_command
 
     got = runs_command(__doc__, argv, "person+track+every2,person", "100,96",
@@ -137,8 +136,7 @@ def main(argv=None):
     first = next(iter(runs))
     picture(out / "real_snap.png", first, runs[first])
     doc = {"recording": str(rec), "machine": machine(), "picture": "real_snap.png", "runs": runs}
-    (out / "real_snap.json").write_text(json.dumps(doc, indent=1))
-    (out / "real_snap.md").write_text(report(doc))
+    write_results(out / "real_snap", doc, report)
     print(report(doc))
     return 0
 

@@ -16,7 +16,6 @@ Writes ``real_spread.md`` and ``real_spread.json``. Needs ``mediapipe`` (``perso
 """
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -64,7 +63,7 @@ def report(doc) -> str:
 
 
 def main(argv=None):
-    from _machine import machine
+    from _machine import machine, write_results
     from real import runs_command
 
     got = runs_command(__doc__, argv, "person,person+track+every2", "96,98,100,102,104", "person")
@@ -73,8 +72,7 @@ def main(argv=None):
     rec, ref, methods, resolutions, out = got
     doc = {"recording": str(rec), "machine": machine(), "resolutions": resolutions,
            "spread": spread(rec, methods, resolutions, ref)}
-    (out / "real_spread.json").write_text(json.dumps(doc, indent=1))
-    (out / "real_spread.md").write_text(report(doc))
+    write_results(out / "real_spread", doc, report)
     print(report(doc))
     return 0
 

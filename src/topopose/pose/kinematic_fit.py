@@ -1455,7 +1455,7 @@ def neighbourhood(P, t, tree: KinematicTree, reach, seen) -> tuple:
     return M, dist
 
 
-def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None) -> list:
+def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None, near=None) -> list:
     """Runs ``(a, b)`` (frames ``a`` … ``b - 1``) of at least ``win`` fitted frames with
     consecutive frame numbers ``t`` along which the motion continues. Each frame the fit saw
     (``seen``, default every fitted frame; not one interpolated between two others) is
@@ -1480,6 +1480,8 @@ def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None) -> lis
     max_move : the largest mean distance of a frame's joints from its neighbourhood's, and
         between two successive neighbourhoods (m)
     seen : (n_frames,) bool, the frames the fit saw (None: every fitted frame)
+    near : ``(M, dist)`` of :func:`neighbourhood` for these frames and ``win // 2``, if
+        already computed
 
     Returns
     -------
@@ -1493,7 +1495,7 @@ def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None) -> lis
     M = Q = None
     if max_move is not None:
         Q = P - P[:, tree.root:tree.root + 1]
-        M, dist = neighbourhood(P, t, tree, win // 2, seen)
+        M, dist = near if near is not None else neighbourhood(P, t, tree, win // 2, seen)
         outlier = seen & ~(dist < max_move)         # NaN: too few neighbours to judge
     runs, start, last = [], None, None
 
@@ -1657,8 +1659,9 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         from scipy.signal import savgol_filter
 
         win = int(smooth) | 1
-        _, apart = neighbourhood(P, t, tree, win // 2, fitted & ~interp)
-        runs = motion_runs(P, t, tree, win, SMOOTH_MOVE, seen=~interp)
+        near = neighbourhood(P, t, tree, win // 2, fitted & ~interp)
+        apart = near[1]
+        runs = motion_runs(P, t, tree, win, SMOOTH_MOVE, seen=~interp, near=near)
         for a, b in runs:
             D = np.stack([_directions(P[i], tree) for i in range(a, b)])
             R = P[a:b, tree.root]

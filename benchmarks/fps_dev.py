@@ -7,12 +7,15 @@ per smoothing window (:func:`topopose.pose.kinematic_fit.fit_sequence`'s ``smoot
 
     python benchmarks/fps_dev.py [--work DIR] [--setups 8,4p] [--fps 25,60]
                                  [--windows 0,9,15,21,27] [--seconds 1.6] [--out DIR]
+                                 [--name NAME] [--no-bridge]
 
 Per set-up, rate and window: the full skeleton's MPJPE (cm; median over the pooled frames of
 the per-frame mean over the issue's joints) on the matched frames (8 cameras: the gated run as
 ``tracking.py``) or, for 4 phones (threshold and gate off, as ``real_motion.py``), on the frames
-whose per-frame pose is right (``evaluate``: good). Never the held-out seeds. Writes
-``fps_dev.md`` / ``.json`` (``--name``).
+whose per-frame pose is right (``evaluate``: good), bridged temporal outliers
+(:func:`~topopose.pose.kinematic_fit.bridge_outliers`) counted; ``--no-bridge``: its peer,
+outliers kept as fitted. Never the held-out seeds. Writes ``fps_dev.md`` / ``.json``
+(``--name``).
 """
 import argparse
 import json
@@ -68,7 +71,7 @@ def measure(cap, poses, model, window, setup):
                 if fs.quality == "good"}
     errs, flagged = [], {True: [], False: []}
     for p in fitted:
-        if not p.joints or p.diagnostics.get("interpolated"):
+        if not p.joints or p.diagnostics.get("interpolated") and not p.matched:
             continue
         P = np.array([p.joints[n] for n in tree.names])
         e = T.joint_errors(tree.names, P, cap.gt["frames"][p.frame]["joints"])
@@ -79,7 +82,8 @@ def measure(cap, poses, model, window, setup):
     m = T.mpjpe(errs)
     return {"mpjpe": m[0], "frames": m[2], "per_frame": m[3], "outliers": flagged[True],
             "inliers": flagged[False],
-            "smoothed": sum(bool(p.diagnostics.get("smoothed")) for p in fitted)}
+            "smoothed": sum(bool(p.diagnostics.get("smoothed")) for p in fitted),
+            "bridged": sum(bool(p.matched and p.diagnostics.get("interpolated")) for p in fitted)}
 
 
 def main(argv=None):
@@ -92,7 +96,12 @@ def main(argv=None):
     ap.add_argument("--seconds", type=float, default=1.6)
     ap.add_argument("--out", default=str(results_dir()))
     ap.add_argument("--name", default="fps_dev")
+    ap.add_argument("--no-bridge", action="store_true",
+                    help="temporal outliers kept as fitted (kinematic_fit.BRIDGE = False): the "
+                         "peer of the default")
     a = ap.parse_args(argv)
+    if a.no_bridge:
+        kf.BRIDGE = False
     if a.work is None:
         import tempfile
 
@@ -112,16 +121,19 @@ def main(argv=None):
                     r.update(setup=st, fps=fps, motion=motion, seed=seed, window=w)
                     rows.append(r)
                     print(json.dumps({k: r[k] for k in ("setup", "fps", "motion", "seed",
-                                                        "window", "frames", "mpjpe", "smoothed")}),
+                                                        "window", "frames", "mpjpe", "smoothed",
+                                                        "bridged")}),
                           flush=True)
     info = machine(resolution=100, subject="body", seconds=a.seconds)
     lines = ["# The skeleton's smoothing window at 25 and 60 frames/s (issue 15, development "
              "seeds)", "", machine_line(info), "",
              f"Walks 41–43 and random motion 51–53, {a.seconds} s each, rendered at each rate, "
              "and 30 unrelated random poses (seeds 21–24, 8 cameras, the first rate); MPJPE "
-             "(cm) median over the pooled frames (8 cameras: matched; 4p: good), per "
+             f"(cm) median over the pooled frames (8 cameras: matched; 4p: good)"
+             f"{'; temporal outliers not bridged (`--no-bridge`)' if a.no_bridge else ''}, per "
              "Savitzky–Golay window in frames (in brackets: its length in seconds, the frames "
-             "counted and those smoothed; 0: off).", "",
+             "counted, those smoothed and the temporal outliers bridged, "
+             "`kinematic_fit.bridge_outliers`; 0: off).", "",
              "| set-up | frames/s | motion | " + " | ".join(str(w) for w in windows) + " |",
              "|---|---|---|" + "---|" * len(windows)]
     for st in setups:
@@ -134,7 +146,8 @@ def main(argv=None):
                                                     and r["motion"] != "random")]
                     pf = [x for r in rs for x in r["per_frame"]]
                     cells.append(f"{100 * np.median(pf):.2f} ({w / fps:.2f} s, n {len(pf)}, "
-                                 f"{sum(r['smoothed'] for r in rs)} smoothed)" if pf else "–")
+                                 f"{sum(r['smoothed'] for r in rs)} smoothed, "
+                                 f"{sum(r['bridged'] for r in rs)} bridged)" if pf else "–")
                 if all(c == "–" for c in cells):
                     continue
                 lines.append(f"| {st} | {fps} | {motion} | " + " | ".join(cells) + " |")

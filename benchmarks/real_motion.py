@@ -220,7 +220,7 @@ def score(raw, final, trc_path, ref, model):
 def temporal_outliers(final, markers, ref, right) -> dict:
     """The frames the fit flags ``temporal_outlier`` (joints off their neighbours' median,
     :func:`topopose.pose.kinematic_fit.neighbourhood`): which, how many of them are wrong per
-    frame, and the MPJPE (side names, median over frames, m) of the flagged frames and of the
+    frame, which were bridged (:func:`~topopose.pose.kinematic_fit.bridge_outliers`), and the MPJPE (side names, median over frames, m) of the flagged frames and of the
     others with a skeleton."""
     flagged = [i for i, p in enumerate(final) if p.diagnostics.get("temporal_outlier")]
     judged = [i for i, p in enumerate(final) if "neighbour_distance" in p.diagnostics]
@@ -229,6 +229,7 @@ def temporal_outliers(final, markers, ref, right) -> dict:
         return mpjpe([joint_errors(markers[i], ref, i) for i in rows])["mpjpe"]
     others = [i for i in range(len(final)) if final[i].joints and i not in flagged]
     return {"frames": flagged, "judged": len(judged),
+            "bridged": [i for i in flagged if final[i].diagnostics.get("interpolated")],
             "wrong_flagged": sum(not right[i] for i in flagged),
             "wrong": sum(not r for r in right), "mpjpe_flagged": med(flagged),
             "mpjpe_others": med(others), "others": len(others)}
@@ -306,7 +307,9 @@ def grid_spread(rec: Path, work: Path, ref, resolutions) -> dict:
 # peers of the default motion stage, from the same per-frame poses: kinematic_fit constants
 PEERS = {"the neck and shoulders each on its own target (GIRDLE = False)": {"GIRDLE": False},
          "the smoothing window 9 frames at 60 frames/s, as before session 33 "
-         "(SMOOTH_RATE = None)": {"SMOOTH_RATE": None}}
+         "(SMOOTH_RATE = None)": {"SMOOTH_RATE": None},
+         "temporal outliers kept as fitted, not bridged, as before session 34 (BRIDGE = False)":
+             {"BRIDGE": False}}
 
 
 def peer_scores(raw, cap, model, ref, work) -> dict:
@@ -626,8 +629,11 @@ def report(doc) -> str:
         L += [f"Frames the fit flags `temporal_outlier` (joints 0.15 m or more from their "
               f"neighbours' median; {o['judged']} frames judged): {len(o['frames'])} "
               f"({', '.join(map(str, o['frames']))}), {o['wrong_flagged']} of them wrong per "
-              f"frame (of {o['wrong']} wrong frames); MPJPE {_fmt(o['mpjpe_flagged'])} cm on "
-              f"them against {_fmt(o['mpjpe_others'])} cm on the {o['others']} others.", ""]
+              f"frame (of {o['wrong']} wrong frames); bridged (interpolated from the frames "
+              f"either side): {len(o.get('bridged', []))} "
+              f"({', '.join(map(str, o.get('bridged', []))) or 'none'}); MPJPE "
+              f"{_fmt(o['mpjpe_flagged'])} cm on the flagged frames as exported against "
+              f"{_fmt(o['mpjpe_others'])} cm on the {o['others']} others.", ""]
     for label, pr in doc.get("peers", {}).items():
         L += [f"Peer, the same per-frame poses, {label}: MPJPE all frames "
               f"{_fmt(pr['all']['mpjpe'])} cm (p90 {_fmt(pr['all']['mpjpe_p90'])}), right frames "

@@ -385,8 +385,7 @@ def bias_sequence(work, motion, seed, build, frames, model, setup):
     for key in ("fit", "init"):
         errs, bias, lengths = [], {}, {}
         for p in fitted:
-            if not (p.matched and p.joints) or p.diagnostics.get("interpolated") \
-                    or p.frame not in good:
+            if not (p.matched and p.joints) or p.frame not in good:
                 continue
             gj = cap.gt["frames"][p.frame]["joints"]
             P = (np.array([p.joints[n] for n in tree.names]) if key == "fit"
@@ -592,7 +591,7 @@ def analyse(raw, cap, model):
         """Per fitted frame that ``peer`` fits too: (frame, truth's joints, fit's and peer's
         joints, held joints, [(kind, fit's arm error, peer's arm error)] for arms 1 and 2)."""
         for p, q in zip(fitted, peer):
-            if not (p.matched and p.joints and q.joints) or p.diagnostics.get("interpolated"):
+            if not (p.matched and p.joints and q.joints):
                 continue
             gj = gt["frames"][p.frame]["joints"]
             P, Pq = (np.array([x.joints[n] for n in tree.names]) for x in (p, q))
@@ -644,14 +643,14 @@ def analyse(raw, cap, model):
                              for r in ("ForeArm_head", "Hand_head")])
     err_fixed, err_fixed_seen = [], []       # the neck's bone sliding
     for q in fixed:
-        if q.matched and q.joints and not q.diagnostics.get("interpolated"):
+        if q.matched and q.joints:
             P = np.array([q.joints[n] for n in tree.names])
             err_fixed.append(joint_errors(tree.names, P, gt["frames"][q.frame]["joints"]))
             P[[tree.names.index(h) for h in q.diagnostics.get("held_joints") or []]] = np.nan
             err_fixed_seen.append(joint_errors(tree.names, P, gt["frames"][q.frame]["joints"]))
     err_main = []
     for q in mainf:
-        if q.matched and q.joints and not q.diagnostics.get("interpolated"):
+        if q.matched and q.joints:
             err_main.append(joint_errors(treem.names, np.array([q.joints[n] for n in treem.names]),
                                          gt["frames"][q.frame]["joints"]))
     t0 = time.perf_counter()
@@ -666,7 +665,7 @@ def analyse(raw, cap, model):
         if not p.matched:
             continue
         gj = gt["frames"][p.frame]["joints"]
-        if p.joints and not p.diagnostics.get("interpolated"):
+        if p.joints:
             P = np.array([p.joints[n] for n in tree.names])
             err_fit.append(joint_errors(tree.names, P, gj))
             held = [tree.names.index(h) for h in p.diagnostics.get("held_joints") or []]
@@ -674,11 +673,11 @@ def analyse(raw, cap, model):
             err_seen.append(joint_errors(tree.names, P, gj))
             if p.frame in good_frames:
                 err_good.append(err_fit[-1])
-        if q.joints and not q.diagnostics.get("interpolated"):
+        if q.joints:
             err_before.append(joint_errors(tree0.names, np.array([q.joints[n] for n in tree0.names]), gj))
         P0 = initial_placement(p, tree)
         err_init.append(joint_errors(tree.names, P0, gj))
-        if p.joints and not p.diagnostics.get("interpolated"):
+        if p.joints:
             held_names = p.diagnostics.get("held_joints") or []
             Pf = np.array([p.joints[n] for n in tree.names])
             fa = arm_errors(tree.names, Pf, gj, held_names)

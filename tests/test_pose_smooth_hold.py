@@ -134,30 +134,104 @@ def test_the_default_window_keeps_its_duration_at_the_capture_frame_rate(monkeyp
     assert not np.allclose(got, fits[9])
 
 
-def test_a_frame_off_the_motion_around_it_is_flagged_and_left_unsmoothed():
-    """A body moving 1 cm a frame; frame 7's curves are those of the body turned half about
-    the vertical (hands and feet on the other sides: a wrong per-frame result). The fit
-    records each frame's distance from its neighbours' median; frame 7 alone is a
-    ``temporal_outlier`` (≥ ``SMOOTH_MOVE``), left out of the runs (its joints those of the
-    unsmoothed fit), the frames around it smoothed."""
-    poses = []
-    for i in range(21):
-        yaw = np.pi if i == 7 else 0.0
-        poses.append(_still_body(i, yaw, np.array([0.01 * i, 0.0, 0.0]))[0])
+def _turned_frames(n, wrong):
+    """A body moving 1 cm a frame, the frames in ``wrong`` with the curves of the body turned
+    half about the vertical (hands and feet on the other sides: a wrong per-frame result);
+    returns (poses, the true joints per frame)."""
+    tree = kinematic_tree(HUMAN)
+    poses, truth = [], []
+    for i in range(n):
+        shift = np.array([0.01 * i, 0.0, 0.0])
+        pose = _still_body(i, np.pi if i in wrong else 0.0, shift)[0]
+        right = _still_body(i, 0.0, shift)[0]
+        truth.append(np.array([_true_joints(right, tree)[m] for m in tree.names]))
+        poses.append(pose)
+    return poses, np.array(truth)
+
+
+def test_a_frame_off_the_motion_around_it_is_flagged_and_bridged(monkeypatch):
+    """Frame 7 of a body moving 1 cm a frame is wrong (turned half about the vertical). The
+    fit records each frame's distance from its neighbours' median; frame 7 alone is a
+    ``temporal_outlier`` (≥ ``SMOOTH_MOVE``) and is bridged: replaced by the interpolation of
+    frames 6 and 8, flagged ``interpolated``, within 2 cm of the truth where its own fit is
+    0.2 m off, and smoothed with the run it no longer breaks. With ``BRIDGE`` off it keeps
+    its own (unsmoothed) fit, flagged only."""
+    poses, truth = _turned_frames(21, {7})
     out, tree, _ = fit_sequence(poses, HUMAN)
     raw, _, _ = fit_sequence(poses, HUMAN, smooth=0)
+    J = lambda p: np.array([p.joints[n] for n in tree.names])   # noqa: E731
     flagged = [i for i, p in enumerate(out) if p.diagnostics.get("temporal_outlier")]
     assert flagged == [7]
     d = [p.diagnostics["neighbour_distance"] for p in out]
     assert d[7] >= kf.SMOOTH_MOVE and max(d[:7] + d[8:]) < 0.5 * kf.SMOOTH_MOVE
-    assert "smoothed" not in out[7].diagnostics
-    assert all(np.array_equal(out[7].joints[n], raw[7].joints[n]) for n in tree.names)
-    assert all(out[i].diagnostics.get("smoothed") for i in range(8, 21))
+    assert [i for i, p in enumerate(out) if p.diagnostics.get("interpolated")] == [7]
+    assert np.linalg.norm(J(raw[7]) - truth[7], axis=1).mean() > 0.2
+    assert np.linalg.norm(J(out[7]) - truth[7], axis=1).mean() < 0.02
+    assert all(p.diagnostics.get("smoothed") for p in out)
     assert not any("neighbour_distance" in p.diagnostics for p in raw)   # smoothing off
     from topopose.pose.run import RunResult, summary_text
     text = summary_text(RunResult(out, None, counts={"matched": 21}))
-    assert "1 skeleton off the motion around it (diagnostics.temporal_outlier)" in text
+    assert ("1 skeleton off the motion around it (diagnostics.temporal_outlier, 1 interpolated "
+            "from the frames either side)") in text
     assert "off the motion" not in summary_text(RunResult(raw, None))
+    monkeypatch.setattr(kf, "BRIDGE", False)
+    kept, _, _ = fit_sequence(poses, HUMAN)
+    assert kept[7].diagnostics.get("temporal_outlier")
+    assert "smoothed" not in kept[7].diagnostics and "interpolated" not in kept[7].diagnostics
+    assert np.array_equal(J(kept[7]), J(raw[7]))
+    assert all(kept[i].diagnostics.get("smoothed") for i in range(8, 21))
+    text = summary_text(RunResult(kept, None, counts={"matched": 21}))
+    assert "1 skeleton off the motion around it (diagnostics.temporal_outlier)" in text
+
+
+def test_bridging_needs_a_short_stretch_between_two_frames_of_one_motion():
+    """Two wrong frames together (8, 9) are bridged (``max_gap`` 5); a wrong stretch longer
+    than ``max_gap`` or at the sequence's end is not (no frames of the motion on both sides),
+    and :func:`bridge_outliers` leaves a stretch whose two ends lie apart (another motion),
+    one whose pose recurs among the frames around it, and one across a missing frame
+    number."""
+    poses, truth = _turned_frames(30, {8, 9})
+    out, tree, _ = fit_sequence(poses, HUMAN)
+    J = lambda p: np.array([p.joints[n] for n in tree.names])   # noqa: E731
+    assert [i for i, p in enumerate(out) if p.diagnostics.get("interpolated")] == [8, 9]
+    assert max(np.linalg.norm(J(out[i]) - truth[i], axis=1).mean() for i in (8, 9)) < 0.02
+    out, _, _ = fit_sequence(poses, HUMAN, max_gap=1)
+    assert not any(p.diagnostics.get("interpolated") for p in out)
+    poses, _ = _turned_frames(30, {27, 28, 29})
+    out, _, _ = fit_sequence(poses, HUMAN)
+    assert not any(p.diagnostics.get("interpolated") for p in out)
+    tree, _, P, _ = _walking_arm(n=6, step=0.02, turn=0.01)
+    other = [j for j in range(len(tree.names)) if j != tree.root]
+    P[3:, other] += [0.0, 0.0, 0.5]                   # from frame 3: another pose
+    L = np.ones((6, len(tree.names)))
+    bad = np.array([0, 0, 1, 0, 0, 0.0])
+    Q, done = kf.bridge_outliers(P, np.arange(6), tree, L, bad, 5, 0.15)
+    assert not done.any() and np.array_equal(Q, P)
+    P[3:, other] -= [0.0, 0.0, 0.5]
+    assert not kf.bridge_outliers(P, np.arange(6), tree, L, bad, 5, 0.15)[1].any()  # recurs
+    P[2, other] += [0.0, 0.5, 0.0]                    # frame 2 alone off the motion
+    Q, done = kf.bridge_outliers(P, np.arange(6), tree, L, bad, 5, 0.15)
+    assert done.tolist() == [False, False, True, False, False, False]
+    assert np.allclose(Q[[0, 1, 3, 4, 5]], P[[0, 1, 3, 4, 5]])
+    t = np.array([0, 1, 2, 4, 5, 6])                  # a frame number missing after frame 2
+    assert not kf.bridge_outliers(P, t, tree, L, bad, 5, 0.15)[1].any()
+
+
+def test_bridging_leaves_a_capture_of_mostly_outliers_alone():
+    """A wrong frame (6) of a continuing motion is bridged when most frames around it are not
+    outliers; when most are (a capture of unrelated poses, a few of them near their
+    neighbours' median by chance) the same two agreeing ends do not bridge it."""
+    tree, _, P, _ = _walking_arm(n=13, step=0.02, turn=0.01)
+    other = [j for j in range(len(tree.names)) if j != tree.root]
+    P[6, other] += [0.0, 0.5, 0.0]
+    L = np.ones((13, len(tree.names)))
+    dist = np.full(13, 0.05)
+    dist[6] = 0.5
+    assert np.flatnonzero(kf.bridge_outliers(P, np.arange(13), tree, L, dist, 5, 0.15, reach=4)[1]
+                          ).tolist() == [6]
+    dist[[1, 2, 3, 4, 8, 9, 10, 11]] = 0.2               # outliers all around (their own poses
+    P[[1, 2, 3, 4, 8, 9, 10, 11]] += np.random.default_rng(0).normal(0, 0.3, (8, *P.shape[1:]))
+    assert not kf.bridge_outliers(P, np.arange(13), tree, L, dist, 5, 0.15, reach=4)[1].any()
 
 
 def test_default_smoothing_leaves_unrelated_poses_alone():

@@ -73,7 +73,9 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    flagged ``diagnostics["smoothed"]``; the bones keep their constant lengths. Each frame
    records its distance from its neighbours' median (``diagnostics["neighbour_distance"]``,
    :func:`neighbourhood`), ``diagnostics["temporal_outlier"]`` when it is :data:`SMOOTH_MOVE`
-   or more: a skeleton off the motion around it, most likely wrong.
+   or more: a skeleton off the motion around it, most likely wrong. A stretch of at most
+   ``max_gap`` such frames between two frames of one motion is *bridged*: interpolated from
+   them as a gap and flagged ``interpolated`` too (:func:`bridge_outliers`, :data:`BRIDGE`).
 """
 from __future__ import annotations
 
@@ -1539,6 +1541,113 @@ def smooth_window(fps=None) -> int:
     return max(3, 2 * int(round((SMOOTH * float(fps) / SMOOTH_RATE - 1) / 2)) + 1)
 
 
+def _interpolate(P, t, L, tree: KinematicTree, a, b) -> None:
+    """Frames ``a + 1 … b - 1`` of ``P`` (in place) interpolated between frames ``a`` and ``b``
+    by their frame numbers ``t``: the root position and the bone directions linearly
+    (normalized), the bone lengths ``L`` (per frame) too."""
+    Da, Db = _directions(P[a], tree), _directions(P[b], tree)
+    for k in range(a + 1, b):
+        s = (t[k] - t[a]) / (t[b] - t[a])
+        root = (1 - s) * P[a, tree.root] + s * P[b, tree.root]
+        P[k] = forward(root, (1 - s) * Da + s * Db, (1 - s) * L[a] + s * L[b], tree)
+
+
+BRIDGE = True  # a temporal outlier between two frames of the same motion is replaced by their
+    # interpolation (:func:`bridge_outliers`); False: it keeps its own fit, flagged only.
+    # Development seeds (benchmarks/fps_dev.py, results/fps_dev_bridge.md; MPJPE median over
+    # the good frames, the default window): 4p 9.89 → 9.75 cm at 25 frames/s (15 frames
+    # bridged), 9.74 → 9.27 at 60 (37); 8 cameras 4.23 / 3.71 cm, no frame bridged; unrelated
+    # random poses (seeds 21–24) none bridged. Without the majority rule 4p 9.37 / 8.90 cm,
+    # but held-out unrelated random poses were bridged (s12: 4.8 → 5.1 cm)
+
+
+def bridge_outliers(P, t, tree: KinematicTree, L, dist, max_gap, max_move, M=None, reach=None):
+    """``P`` with short stretches of *outlier* frames (a skeleton ``max_move`` or more from its
+    neighbours' median, :func:`neighbourhood`) replaced by the interpolation of the frames
+    either side (root position and bone directions, as the gap filling) — the issue's "gap
+    filling of short rejected stretches" for frames the per-frame stage matched but the
+    motion around them rejects (issue 15). A stretch is bridged when
+
+    * it has at most ``max_gap`` frames, consecutive frame numbers to the two frames either
+      side, and those two were judged and are not outliers;
+    * the two are of one motion: less than ``max_move`` apart (mean over the joints, from the
+      root), or their neighbourhoods' medians ``M`` are (a 4-camera fit jitters; as
+      :func:`motion_runs`);
+    * its pose does not recur: no other judged frame within ``reach`` frame numbers lies less
+      than ``max_move`` from one of its frames (two poses taken in turn are the capture's);
+    * most judged frames within ``reach`` of it (itself included) are not outliers: a wrong
+      frame among right ones. In a capture of unrelated poses most frames are outliers, and
+      the few near their neighbours' median are typical poses, not one motion.
+
+    Parameters
+    ----------
+    P : (n_frames, n_joints, 3) joints (NaN: frame not fitted)
+    t : (n_frames,) frame numbers
+    L : (n_frames, n_joints) bone lengths per frame
+    dist : (n_frames,) each frame's distance from its neighbours' median (m; NaN: not
+        judged: not fitted, interpolated, or too few neighbours)
+    max_gap : longest stretch bridged (frames)
+    max_move : m, the outliers' distance and the ends' largest one
+    M : (n_frames, n_joints, 3) the neighbourhood medians (:func:`neighbourhood`), or None
+    reach : frames around a stretch looked at (None: ``max_gap``)
+
+    Returns
+    -------
+    P : a copy, bridged; bridged : (n_frames,) bool
+
+    Examples
+    --------
+    A chain whose middle frame jumped away (the root stays, the bones point elsewhere):
+
+    >>> from topopose.pose.model import load_model
+    >>> tree = kinematic_tree(load_model("human"))
+    >>> rng = np.random.default_rng(0)
+    >>> P = np.stack([np.cumsum(rng.normal(0, 0.1, (len(tree.names), 3)), 0)] * 3)
+    >>> P[1] += rng.normal(0, 0.5, P[1].shape)
+    >>> L = np.ones((3, len(tree.names)))
+    >>> Q, done = bridge_outliers(P, np.arange(3), tree, L, np.array([0, 1, 0]), 5, 0.15)
+    >>> done.tolist(), bool(np.allclose(Q[1] - Q[1, tree.root], forward(
+    ...     np.zeros(3), _directions(P[0], tree), L[0], tree)))
+    ([False, True, False], True)
+    """
+    P = np.array(P, dtype=float, copy=True)
+    t = np.asarray(t)
+    dist = np.asarray(dist, float)
+    outlier, end = dist >= max_move, dist < max_move          # NaN: neither
+    judged = np.flatnonzero(np.isfinite(dist))
+    reach = max_gap if reach is None else reach
+    Q = P - P[:, tree.root:tree.root + 1]
+    done = np.zeros(len(P), dtype=bool)
+
+    def bridgeable(i, j):
+        a, b = i - 1, j + 1
+        if a < 0 or b >= len(P) or not (end[a] and end[b]) or j - i + 1 > max_gap \
+                or t[i] - t[a] != 1 or t[b] - t[j] != 1:
+            return False
+        if _apart(Q[a], Q[b]) >= max_move and (M is None or _apart(M[a], M[b]) >= max_move):
+            return False
+        around = judged[(t[judged] >= t[i] - reach) & (t[judged] <= t[j] + reach)]
+        if 2 * np.count_nonzero(outlier[around]) >= len(around):
+            return False
+        others = around[(around < i) | (around > j)]
+        return not any(_apart(Q[k], Q[m]) < max_move for m in range(i, j + 1) for k in others
+                       if abs(t[k] - t[m]) <= reach)
+
+    i = 0
+    while i < len(P):
+        if not outlier[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < len(P) and outlier[j + 1] and t[j + 1] - t[j] == 1:
+            j += 1
+        if bridgeable(i, j):
+            _interpolate(P, t, L, tree, i - 1, j + 1)
+            done[i:j + 1] = True
+        i = j + 1
+    return P, done
+
+
 def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=None,
                  quantile=None, slide=None, hints=None, evidence=None, shoulders=None,
                  gaps=None, fps=None):
@@ -1582,7 +1691,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         ``["interpolated"]``, ``["smoothed"]``, ``["neighbour_distance"]`` (m: the frame's
         joints from its neighbours' median, :func:`neighbourhood`, when smoothing) and
         ``["temporal_outlier"]`` (that distance ≥ :data:`SMOOTH_MOVE`: a frame off the motion
-        around it, most likely wrong), ``["held_joints"]`` (not seen by the frame),
+        around it, most likely wrong; ``["interpolated"]`` too when bridged,
+        :func:`bridge_outliers`), ``["held_joints"]`` (not seen by the frame),
         ``["interpolated_joints"]`` (those of them interpolated, :func:`held_gaps`)
     tree : KinematicTree
     lengths : ndarray, the bone length of each joint's bone (NaN for the root); a ``slide``
@@ -1604,7 +1714,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     Lf = np.tile(L, (n_f, 1))              # per frame: a sliding bone's length varies
     P = np.full_like(init, np.nan)
     rms = [None] * n_f
-    prev, t = None, frame_index(poses)
+    prev, t_prev, t = None, None, frame_index(poses)
     seen_at = np.full(len(tree.names), -np.inf)   # the frame that last placed each joint
     limbs = tree.limbs
     if not np.isnan(L[[j for j in range(len(L)) if tree.parents[j] >= 0]]).any():
@@ -1642,16 +1752,10 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     interp = np.zeros(n_f, dtype=bool)
     idx = np.flatnonzero(fitted)
     if max_gap and len(idx) > 1:
-        D = np.stack([_directions(P[i], tree) if fitted[i] else np.zeros_like(P[i])
-                      for i in range(n_f)])
         for a, b in zip(idx, idx[1:]):
             if 1 < b - a <= max_gap + 1:
-                for i in range(a + 1, b):
-                    s = (t[i] - t[a]) / (t[b] - t[a])
-                    root = (1 - s) * P[a, tree.root] + s * P[b, tree.root]
-                    P[i] = forward(root, (1 - s) * D[a] + s * D[b],
-                                   (1 - s) * Lf[a] + s * Lf[b], tree)
-                    interp[i] = True
+                _interpolate(P, t, Lf, tree, a, b)
+                interp[a + 1:b] = True
     smoothed = np.zeros(n_f, dtype=bool)
     apart = np.full(n_f, np.nan)
     smooth = smooth_window(fps) if smooth is None else smooth
@@ -1661,6 +1765,12 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         win = int(smooth) | 1
         near = neighbourhood(P, t, tree, win // 2, fitted & ~interp)
         apart = near[1]
+        if BRIDGE and max_gap and SMOOTH_MOVE is not None:
+            P, bridged = bridge_outliers(P, t, tree, Lf, apart, max_gap, SMOOTH_MOVE, near[0],
+                                         win // 2)
+            if bridged.any():           # the runs go on through them (not judged again)
+                interp |= bridged
+                near = neighbourhood(P, t, tree, win // 2, fitted & ~interp)
         runs = motion_runs(P, t, tree, win, SMOOTH_MOVE, seen=~interp, near=near)
         for a, b in runs:
             D = np.stack([_directions(P[i], tree) for i in range(a, b)])

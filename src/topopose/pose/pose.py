@@ -42,7 +42,8 @@ class Pose:
         The full kinematic skeleton of the frame (:mod:`.kinematic_fit`): neck, shoulders,
         elbows, ... with bone lengths constant over the sequence; empty when not fitted.
         ``diagnostics["interpolated"]`` is true when they were filled in across a short
-        rejected stretch rather than fitted to this frame.
+        rejected stretch rather than fitted to this frame (also when this frame's own fit
+        was off the motion around it: ``diagnostics["temporal_outlier"]``).
     """
 
     frame: str

@@ -603,10 +603,12 @@ def summary_text(res: RunResult) -> str:
         fps += ")"
     where = f" → {res.output}" if res.output else ""
     skipped = f" ({res.skipped} resumed)" if res.skipped else ""
-    k = sum(bool(p.diagnostics.get("temporal_outlier")) for p in res.poses)
+    out = [p for p in res.poses if p.diagnostics.get("temporal_outlier")]
     off = ""
-    if k:                                     # kinematic_fit.neighbourhood
+    if out:                                   # kinematic_fit.neighbourhood, bridge_outliers
+        k, b = len(out), sum(bool(p.diagnostics.get("interpolated")) for p in out)
         off = (f"; {k} skeleton{'s' if k > 1 else ''} off the motion around "
-               f"{'them' if k > 1 else 'it'} (diagnostics.temporal_outlier)")
+               f"{'them' if k > 1 else 'it'} (diagnostics.temporal_outlier"
+               + (f", {b} interpolated from the frames either side" if b else "") + ")")
     return (f"{n} frames{skipped}: {c.get('matched', 0)} matched, {c.get('rejected', 0)} rejected, "
             f"{c.get('failed', 0)} failed in {res.seconds:.1f} s{fps}{where}{off}")

@@ -8,9 +8,10 @@ against their fraction ``at`` from the junction; the full skeleton's MPJPE per c
 
 The per-frame runs are ``centre_dev.py``'s (cached in ``--work``, the same files: a work dir
 of ``centre_dev.py`` is reused); per variant the sequence stage only. Variants: ``off`` (no
-joint from the end), ``JOINTpercentile`` joined by ``_`` (e.g. ``knee40``, ``knee40_elbow50``:
-those joints from the end, the reference length at that percentile; ``_w1``: from the end
-alone, else half-way to the place at ``at``, ``FROM_END_WEIGHT``). MPJPE over the good
+joint from the end), ``JOINTpercentile`` joined by ``_`` (JOINT: knee, ankle, elbow, wrist;
+e.g. ``knee40``, ``knee40_elbow50``: those joints from the end, the reference length at that
+percentile; ``_w1``: from the end alone, else half-way to the place at ``at``,
+``FROM_END_WEIGHT``). MPJPE over the good
 frames (median), per joint the median error. Never the held-out seeds. Writes ``knee_dev.md``
 / ``.json``.
 """
@@ -33,7 +34,7 @@ def ends(variant) -> dict:
     """``knee40_elbow50`` → {("foot", "knee"): 40.0, ("hand", "elbow"): 50.0}; ``off`` → {}."""
     if variant == "off":
         return {}
-    stem = {"knee": "foot", "elbow": "hand"}
+    stem = {"knee": "foot", "ankle": "foot", "elbow": "hand", "wrist": "hand"}
     return {(stem[m.group(1)], m.group(1)): float(m.group(2))
             for m in (re.fullmatch(r"([a-z]+)([0-9.]+)", tok) for tok in variant.split("_"))
             if m.group(1) != "w"}
@@ -42,7 +43,7 @@ def ends(variant) -> dict:
 def weight(variant, default) -> float:
     """``knee40_w1`` → 1.0; without ``w``: ``default`` (the module's ``FROM_END_WEIGHT``)."""
     for tok in variant.split("_"):
-        if tok.startswith("w"):
+        if re.fullmatch(r"w[0-9.]+", tok):
             return float(tok[1:])
     return default
 

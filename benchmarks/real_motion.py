@@ -220,8 +220,9 @@ def score(raw, final, trc_path, ref, model):
 def temporal_outliers(final, markers, ref, right) -> dict:
     """The frames the fit flags ``temporal_outlier`` (joints off their neighbours' median,
     :func:`topopose.pose.kinematic_fit.neighbourhood`): which, how many of them are wrong per
-    frame, which were bridged (:func:`~topopose.pose.kinematic_fit.bridge_outliers`), and the MPJPE (side names, median over frames, m) of the flagged frames and of the
-    others with a skeleton."""
+    frame, which were bridged (:func:`~topopose.pose.kinematic_fit.bridge_outliers`), and the
+    MPJPE (side names, median over frames, m) of the flagged frames and of the others with a
+    skeleton."""
     flagged = [i for i, p in enumerate(final) if p.diagnostics.get("temporal_outlier")]
     judged = [i for i, p in enumerate(final) if "neighbour_distance" in p.diagnostics]
 

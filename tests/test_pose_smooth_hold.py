@@ -167,6 +167,12 @@ def test_a_frame_off_the_motion_around_it_is_flagged_and_bridged(monkeypatch):
     assert [i for i, p in enumerate(out) if p.diagnostics.get("interpolated")] == [7]
     assert np.linalg.norm(J(raw[7]) - truth[7], axis=1).mean() > 0.2
     assert np.linalg.norm(J(out[7]) - truth[7], axis=1).mean() < 0.02
+    # its parts too (hands and feet back on their sides), from frames 6 and 8
+    right = _still_body(7, 0.0, np.array([0.07, 0.0, 0.0]))[0].parts
+    assert sorted(out[7].diagnostics["interpolated_parts"]) == sorted(right)
+    assert max(np.linalg.norm(out[7].parts[k] - right[k]) for k in right) < 1e-9
+    assert max(np.linalg.norm(poses[7].parts[k] - right[k]) for k in right) > 0.2
+    assert "interpolated_parts" not in out[6].diagnostics and out[6].parts is poses[6].parts
     assert all(p.diagnostics.get("smoothed") for p in out)
     assert not any("neighbour_distance" in p.diagnostics for p in raw)   # smoothing off
     from topopose.pose.run import RunResult, summary_text

@@ -74,8 +74,9 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    records its distance from its neighbours' median (``diagnostics["neighbour_distance"]``,
    :func:`neighbourhood`), ``diagnostics["temporal_outlier"]`` when it is :data:`SMOOTH_MOVE`
    or more: a skeleton off the motion around it, most likely wrong. A stretch of at most
-   ``max_gap`` such frames between two frames of one motion is *bridged*: interpolated from
-   them as a gap and flagged ``interpolated`` too (:func:`bridge_outliers`, :data:`BRIDGE`).
+   ``max_gap`` such frames between two frames of one motion is *bridged*: its joints and
+   parts interpolated from them as a gap, flagged ``interpolated`` too
+   (:func:`bridge_outliers`, :func:`bridged_parts`, :data:`BRIDGE`).
 """
 from __future__ import annotations
 
@@ -1648,6 +1649,24 @@ def bridge_outliers(P, t, tree: KinematicTree, L, dist, max_gap, max_move, M=Non
     return P, done
 
 
+def bridged_parts(poses, t, bridged, i) -> tuple:
+    """The parts of bridged frame ``i`` (:func:`bridge_outliers`): each part placed in both
+    frames either side of its stretch interpolated between them by frame number, the others
+    as the frame had them; returns (parts, the names interpolated)."""
+    a, b = i - 1, i + 1
+    while bridged[a]:
+        a -= 1
+    while bridged[b]:
+        b += 1
+    s = (t[i] - t[a]) / (t[b] - t[a])
+    pa, pb = poses[a].parts, poses[b].parts
+    done = sorted(k for k in pa if pa[k] is not None and pb.get(k) is not None)
+    parts = dict(poses[i].parts)
+    for k in done:
+        parts[k] = (1 - s) * np.asarray(pa[k], float) + s * np.asarray(pb[k], float)
+    return parts, done
+
+
 def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=None,
                  quantile=None, slide=None, hints=None, evidence=None, shoulders=None,
                  gaps=None, fps=None):
@@ -1692,7 +1711,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         joints from its neighbours' median, :func:`neighbourhood`, when smoothing) and
         ``["temporal_outlier"]`` (that distance ≥ :data:`SMOOTH_MOVE`: a frame off the motion
         around it, most likely wrong; ``["interpolated"]`` too when bridged,
-        :func:`bridge_outliers`), ``["held_joints"]`` (not seen by the frame),
+        :func:`bridge_outliers`, and ``["interpolated_parts"]``, the parts it took from the
+        frames either side, :func:`bridged_parts`), ``["held_joints"]`` (not seen by the frame),
         ``["interpolated_joints"]`` (those of them interpolated, :func:`held_gaps`)
     tree : KinematicTree
     lengths : ndarray, the bone length of each joint's bone (NaN for the root); a ``slide``
@@ -1757,6 +1777,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
                 _interpolate(P, t, Lf, tree, a, b)
                 interp[a + 1:b] = True
     smoothed = np.zeros(n_f, dtype=bool)
+    bridged = np.zeros(n_f, dtype=bool)
     apart = np.full(n_f, np.nan)
     smooth = smooth_window(fps) if smooth is None else smooth
     if smooth:
@@ -1786,6 +1807,9 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
             out.append(type(p)(**{**p.__dict__, "joints": {}}) if p.joints else p)
             continue
         diag = dict(p.diagnostics)
+        parts = p.parts
+        if bridged[i]:                        # its parts too, from the same two frames
+            parts, diag["interpolated_parts"] = bridged_parts(poses, t, bridged, i)
         if rms[i] is not None:
             diag["skeleton_rms"] = round(rms[i], 5)
         hj = [nm for j, nm in enumerate(tree.names) if held[i, j]]
@@ -1801,7 +1825,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
             diag["neighbour_distance"] = round(float(apart[i]), 4)
             if SMOOTH_MOVE is not None and apart[i] >= SMOOTH_MOVE:
                 diag["temporal_outlier"] = True
-        q = type(p)(**{**p.__dict__, "diagnostics": diag,
+        q = type(p)(**{**p.__dict__, "diagnostics": diag, "parts": parts,
                        "joints": {nm: P[i, j].copy() for j, nm in enumerate(tree.names)}})
         out.append(q)
     return out, tree, L

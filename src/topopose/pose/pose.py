@@ -43,7 +43,8 @@ class Pose:
         elbows, ... with bone lengths constant over the sequence; empty when not fitted.
         ``diagnostics["interpolated"]`` is true when they were filled in across a short
         rejected stretch rather than fitted to this frame (also when this frame's own fit
-        was off the motion around it: ``diagnostics["temporal_outlier"]``).
+        was off the motion around it: ``diagnostics["temporal_outlier"]``; its parts listed
+        in ``diagnostics["interpolated_parts"]`` were then interpolated too).
     """
 
     frame: str

@@ -58,3 +58,24 @@ def write_results(out, doc: dict, report) -> None:
     out.with_suffix(".json").write_text(json.dumps(doc, indent=1, default=str))
     out.with_suffix(".md").write_text(report(doc))
     print(f"wrote {out}.md / .json")
+
+
+def apply_settings(module, pairs) -> dict:
+    """Set ``module``'s constants from ``NAME=VALUE`` strings (a Python literal each, e.g.
+    ``DESPIKE=None``, ``FROM_START={}``): a development study's peer of a default. Returns
+    the settings applied (recorded beside the figures); an unknown name or a value that is no
+    literal is an error that names it."""
+    import ast
+
+    out = {}
+    for pair in pairs or ():
+        name, sep, value = pair.partition("=")
+        if not sep or not hasattr(module, name.strip()):
+            raise SystemExit(f"--set {pair!r}: {module.__name__} has no constant {name.strip()!r}")
+        try:
+            v = ast.literal_eval(value.strip())
+        except (ValueError, SyntaxError):
+            raise SystemExit(f"--set {pair!r}: {value.strip()!r} is not a Python literal") from None
+        setattr(module, name.strip(), v)
+        out[name.strip()] = value.strip()
+    return out

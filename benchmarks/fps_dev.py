@@ -7,14 +7,16 @@ per smoothing window (:func:`topopose.pose.kinematic_fit.fit_sequence`'s ``smoot
 
     python benchmarks/fps_dev.py [--work DIR] [--setups 8,4p] [--fps 25,60]
                                  [--windows 0,9,15,21,27] [--seconds 1.6] [--out DIR]
-                                 [--name NAME] [--no-bridge]
+                                 [--name NAME] [--no-bridge] [--set NAME=VALUE ...]
 
 Per set-up, rate and window: the full skeleton's MPJPE (cm; median over the pooled frames of
 the per-frame mean over the issue's joints) on the matched frames (8 cameras: the gated run as
 ``tracking.py``) or, for 4 phones (threshold and gate off, as ``real_motion.py``), on the frames
 whose per-frame pose is right (``evaluate``: good), bridged temporal outliers
 (:func:`~topopose.pose.kinematic_fit.bridge_outliers`) counted; ``--no-bridge``: its peer,
-outliers kept as fitted. Never the held-out seeds. Writes ``fps_dev.md`` / ``.json``
+outliers kept as fitted; ``--set``: any other :mod:`~topopose.pose.kinematic_fit` constant
+(e.g. ``--set DESPIKE=None --set "FROM_START={}"``, the peer of session 35's defaults). Never
+the held-out seeds. Writes ``fps_dev.md`` / ``.json``
 (``--name``).
 """
 import argparse
@@ -27,7 +29,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 import tracking as T  # noqa: E402
-from _machine import machine, machine_line, results_dir  # noqa: E402
+from _machine import apply_settings, machine, machine_line, results_dir  # noqa: E402
 
 from topopose.capture import load_capture  # noqa: E402
 from topopose.capture.synth import synthetic_capture, write_capture  # noqa: E402
@@ -99,9 +101,12 @@ def main(argv=None):
     ap.add_argument("--no-bridge", action="store_true",
                     help="temporal outliers kept as fitted (kinematic_fit.BRIDGE = False): the "
                          "peer of the default")
+    ap.add_argument("--set", action="append", metavar="NAME=VALUE",
+                    help="a kinematic_fit constant for this run (a Python literal; repeatable)")
     a = ap.parse_args(argv)
     if a.no_bridge:
         kf.BRIDGE = False
+    settings = apply_settings(kf, a.set)
     if a.work is None:
         import tempfile
 
@@ -124,13 +129,14 @@ def main(argv=None):
                                                         "window", "frames", "mpjpe", "smoothed",
                                                         "bridged")}),
                           flush=True)
-    info = machine(resolution=100, subject="body", seconds=a.seconds)
+    info = machine(resolution=100, subject="body", seconds=a.seconds, settings=settings)
     lines = ["# The skeleton's smoothing window at 25 and 60 frames/s (issue 15, development "
              "seeds)", "", machine_line(info), "",
              f"Walks 41–43 and random motion 51–53, {a.seconds} s each, rendered at each rate, "
              "and 30 unrelated random poses (seeds 21–24, 8 cameras, the first rate); MPJPE "
              f"(cm) median over the pooled frames (8 cameras: matched; 4p: good)"
-             f"{'; temporal outliers not bridged (`--no-bridge`)' if a.no_bridge else ''}, per "
+             f"{'; temporal outliers not bridged (`--no-bridge`)' if a.no_bridge else ''}"
+             f"{''.join(f'; `{k} = {v}`' for k, v in settings.items())}, per "
              "Savitzky–Golay window in frames (in brackets: its length in seconds, the frames "
              "counted, those smoothed and the temporal outliers bridged, "
              "`kinematic_fit.bridge_outliers`; 0: off).", "",

@@ -5,6 +5,7 @@ against their fraction ``at`` from the junction; the full skeleton's MPJPE per c
 
     python benchmarks/knee_dev.py --work DIR [--seeds 41,42,43,44,51,52,53] [--setups 8,4p,4pd]
                                   [--frames 40] [--variants off,knee40] [--out benchmarks/results]
+                                  [--set NAME=VALUE ...]
 
 The per-frame runs are ``centre_dev.py``'s (cached in ``--work``, the same files: a work dir
 of ``centre_dev.py`` is reused); per variant the sequence stage only. Variants: ``off`` (no
@@ -12,7 +13,9 @@ joint from the end), ``JOINTpercentile`` joined by ``_`` (JOINT: knee, ankle, el
 e.g. ``knee40``, ``knee40_elbow50``: those joints from the end, the reference length at that
 percentile; ``_w1``: from the end alone, else half-way to the place at ``at``,
 ``FROM_END_WEIGHT``). MPJPE over the good
-frames (median), per joint the median error. Never the held-out seeds. Writes ``knee_dev.md``
+frames (median), per joint the median error. ``--set``: any other
+:mod:`~topopose.pose.kinematic_fit` constant for the run (a Python literal, e.g. ``--set
+"FROM_START={}"``). Never the held-out seeds. Writes ``knee_dev.md``
 / ``.json``.
 """
 import argparse
@@ -24,7 +27,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).parent))
 import centre_dev as CD  # noqa: E402
 import tracking as T  # noqa: E402
-from _machine import machine  # noqa: E402
+from _machine import apply_settings, machine  # noqa: E402
 
 from topopose.pose import kinematic_fit as kf  # noqa: E402
 from topopose.pose.model import load_model  # noqa: E402
@@ -56,7 +59,10 @@ def main(argv=None):
     ap.add_argument("--frames", type=int, default=40)
     ap.add_argument("--variants", default="off,knee40_w1,knee40,knee40_elbow50")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    ap.add_argument("--set", action="append", metavar="NAME=VALUE",
+                    help="a kinematic_fit constant for this run (a Python literal; repeatable)")
     a = ap.parse_args(argv)
+    settings = apply_settings(kf, a.set)
     model = load_model("human")
     keep = {int(x) for x in a.seeds.split(",")}
     seqs = [s for s in T.DEV_SEQUENCES if s[1] in keep]
@@ -75,7 +81,8 @@ def main(argv=None):
                                                         "frames", "mpjpe")}), flush=True)
     finally:
         kf.FROM_END, kf.FROM_END_WEIGHT = old, old_w
-    info = machine(resolution=100, subject="body", seeds=a.seeds, frames=a.frames)
+    info = machine(resolution=100, subject="body", seeds=a.seeds, frames=a.frames,
+                   settings=settings)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "knee_dev.json").write_text(json.dumps(
@@ -90,7 +97,7 @@ def main(argv=None):
         "length the 40th percentile of the sequence's leg curves (`kinematic_fit.from_end`); "
         "`knee40` (kept): half-way between that and the place at `at` (`FROM_END_WEIGHT` 0.5); "
         "`_elbow50`: the elbows too (not kept). "
-        "ms/frame: unused (0).")
+        "ms/frame: unused (0)." + "".join(f" Set: `{k} = {v}`." for k, v in settings.items()))
     (out / "knee_dev.md").write_text(text)
     print(text)
 

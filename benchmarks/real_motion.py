@@ -28,6 +28,8 @@ sides, the defaults), the TRC is exported as ``run --trc`` writes it and read ba
   ``LBigToe`` / ``RBigToe``, paired optimally, median over frames × feet (the big toe's tip is
   not quite our toe, the foot's tip; the figure follows the toe's placement, e.g.
   :func:`~topopose.pose.kinematic_fit.tip_targets`).
+* **PA-MPJPE** (:func:`procrustes_mpjpe`): the same 14 joints after a per-frame rigid
+  alignment to Pose2Sim's — how much of the error is the skeleton's shape, not its place.
 * **chirality**: per frame and mirror pair (hands, feet), right when ``left_X`` + ``right_X``
   are nearer Pose2Sim's L/R segments (hand: wrist → 0.1 m beyond it, foot: ankle → big toe)
   than the swapped pair; wrong; or unsure (numbered names kept).
@@ -134,6 +136,30 @@ def mpjpe(per_frame_errors: list) -> dict:
             "per_frame": means}
 
 
+NAMED = SINGLE + tuple(f"{s}{OURS[k]}" for k in PAIRED for s in "LR")
+
+
+def procrustes_mpjpe(markers, ref, rows) -> dict:
+    """PA-MPJPE: per frame of ``rows`` with all 14 joints side-named, our joints rigidly
+    aligned (rotation and translation, no scale; Kabsch, :func:`scipy.spatial.transform.
+    Rotation.align_vectors`) to Pose2Sim's before the mean error — the error of the
+    skeleton's shape alone, the subject's place and facing taken out (the figure pose
+    benchmarks such as Human3.6M's protocol 2 report beside the MPJPE, there with a scale
+    too). Median over frames (m) and the count."""
+    from scipy.spatial.transform import Rotation
+
+    errs = []
+    for i in rows:
+        X = [markers[i].get(n) for n in NAMED]
+        if any(x is None or np.isnan(x).any() for x in X):
+            continue
+        X, Y = np.array(X), np.array([ref[n][i] for n in NAMED])
+        a, b = X - X.mean(axis=0), Y - Y.mean(axis=0)
+        R, _ = Rotation.align_vectors(b, a)
+        errs.append(float(np.linalg.norm(R.apply(a) - b, axis=1).mean()))
+    return {"median": float(np.median(errs)) if errs else None, "frames": len(errs)}
+
+
 def tracked_parts(pose) -> dict:
     """The pose's parts under their tracked numbered names (``left_hand`` → ``hand_2`` when
     ``diagnostics["chirality"]`` says hand_2 was named left_hand)."""
@@ -213,6 +239,7 @@ def score(raw, final, trc_path, ref, model):
             "held": sum(len(final[i].diagnostics.get("predicted") or []) for i in rows)}
     for label, rows in (("all", list(range(n))), ("right", [i for i in range(n) if right[i]])):
         out[label]["toe_vs_bigtoe"] = toe_errors(markers, ref, rows)
+        out[label]["pa_mpjpe"] = procrustes_mpjpe(markers, ref, rows)
     out["temporal_outliers"] = temporal_outliers(final, markers, ref, right)
     return out, markers, right
 
@@ -310,7 +337,13 @@ PEERS = {"the neck and shoulders each on its own target (GIRDLE = False)": {"GIR
          "the smoothing window 9 frames at 60 frames/s, as before session 33 "
          "(SMOOTH_RATE = None)": {"SMOOTH_RATE": None},
          "temporal outliers kept as fitted, not bridged, as before session 34 (BRIDGE = False)":
-             {"BRIDGE": False}}
+             {"BRIDGE": False},
+         "one frame's swung bones smoothed with the others, as before session 35 "
+         "(DESPIKE = None)": {"DESPIKE": None},
+         "hanging arms' elbows and wrists at their fractions only, as before session 35 "
+         "(FROM_START = {})": {"FROM_START": set()},
+         "both, as session 34 (DESPIKE = None, FROM_START = {})":
+             {"DESPIKE": None, "FROM_START": set()}}
 
 
 def peer_scores(raw, cap, model, ref, work) -> dict:
@@ -598,6 +631,9 @@ def report(doc) -> str:
          f"Motion stage as `topopose run` (track, skeleton, sides): {s['with_skeleton']} frames "
          f"with a skeleton ({s['interpolated']} interpolated). Errors in cm, exported TRC read "
          "back. Time: " + ", ".join(f"{k} {v}" for k, v in doc["seconds"].items()) + ".", ""]
+    if doc.get("settings"):
+        L += ["**A development variant, not the defaults** (`--set`): " + ", ".join(
+            f"`{k} = {v}`" for k, v in doc["settings"].items()) + ".", ""]
     for label, title in (("all", "all frames"), ("right", "frames whose per-frame pose is right")):
         r = s[label]
         a, b = r["mpjpe_named"], r["mpjpe_paired"]
@@ -624,6 +660,11 @@ def report(doc) -> str:
         if t and t["median"] is not None:
             L.append(f"- toes (not in the MPJPE) against Pose2Sim's big toes, paired optimally: "
                      f"{_fmt(t['median'])} cm median ({t['n']} feet)")
+        pa = r.get("pa_mpjpe")
+        if pa and pa["median"] is not None:
+            L.append(f"- PA-MPJPE (each frame's 14 side-named joints rigidly aligned to "
+                     f"Pose2Sim's first: the skeleton's shape alone): {_fmt(pa['median'])} cm "
+                     f"median ({pa['frames']} frames)")
         L.append("")
     o = s.get("temporal_outliers")
     if o:
@@ -691,7 +732,7 @@ def report(doc) -> str:
 
 
 def main(argv=None):
-    from _machine import machine, results_dir, write_results
+    from _machine import apply_settings, machine, results_dir, write_results
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
@@ -704,7 +745,13 @@ def main(argv=None):
                     help="other grid resolutions to run the benchmark at (grid_spread; "
                          "'' to skip)")
     ap.add_argument("--quick", action="store_true", help="without the other grids (--spread '')")
+    ap.add_argument("--set", action="append", metavar="NAME=VALUE",
+                    help="a kinematic_fit constant for this run (a Python literal; repeatable): "
+                         "a development variant, never a published figure")
     a = ap.parse_args(argv)
+    from topopose.pose import kinematic_fit as kf
+
+    settings = apply_settings(kf, a.set)
     if a.quick:
         a.spread = ""
     if a.no_hand_hints:
@@ -731,7 +778,7 @@ def main(argv=None):
         spread = grid_spread(rec, Path(tmp), ref, [int(r) for r in a.spread.split(",") if r])
     doc = {"recording": str(rec), "machine": machine(resolution=100, cameras=4),
            "threshold": model.threshold, "seconds": secs, "picture": "real_motion.png",
-           "hand_hints": not a.no_hand_hints,
+           "hand_hints": not a.no_hand_hints, "settings": settings,
            "bone_lengths_m": {motion.tree.names[j]: round(float(x), 4)
                               for j, x in enumerate(motion.lengths) if np.isfinite(x)},
            "bone_lengths_vs_pose2sim_m": {

@@ -89,7 +89,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import machine  # noqa: E402
+from _machine import apply_settings, machine  # noqa: E402
 
 from topopose.capture import load_capture  # noqa: E402
 from topopose.capture.synth import SMOOTH, synthetic_capture, write_capture  # noqa: E402
@@ -866,7 +866,13 @@ def main(argv=None):
     ap.add_argument("--seeds", default=None, help="only these seeds (comma-separated)")
     ap.add_argument("--real-json", default=None,
                     help="with --bias: real_motion.json, the real recording's bias beside")
+    ap.add_argument("--set", action="append", metavar="NAME=VALUE",
+                    help="a kinematic_fit constant for this run (a Python literal; repeatable): "
+                         "the peer of a default, e.g. results/tracking_before.md")
     a = ap.parse_args(argv)
+    from topopose.pose import kinematic_fit
+
+    settings = apply_settings(kinematic_fit, a.set)
     model = load_model("human")
     work = a.work or tempfile.mkdtemp(prefix="topopose_tracking_")
     seqs = DEV_SEQUENCES if a.dev else SEQUENCES
@@ -928,7 +934,7 @@ def main(argv=None):
                     model)
         info = machine(resolution=100, cameras=SETUPS[a.setup][0], noise=SETUPS[a.setup][2],
                        subject="body", confidence_gate=gate and a.setup == "8",
-                       layout=SETUPS[a.setup][3],
+                       layout=SETUPS[a.setup][3], settings=settings,
                        **({} if a.setup == "8" else {"aha_threshold": "off"}))
         compact = [{k: (v[:3] if k.startswith("mpjpe") else v) for k, v in r.items()}
                    for r in rows[gate]]
@@ -974,7 +980,8 @@ def report(rows, info, real=None):
          f"Per-frame confidence gate: {gate}."
          + (" AHA threshold off (as `real_motion.py`)." if info.get("aha_threshold") == "off"
             else ""), "",
-         f"Machine: {info['cpu']}, {info['cores']} cores, load {info['load_average']}, {info['date']}.",
+         f"Machine: {info['cpu']}, {info['cores']} cores, load {info['load_average']}, {info['date']}."
+         + "".join(f" Set (`--set`): `{k} = {v}`." for k, v in (info.get("settings") or {}).items()),
          "Produced by `benchmarks/tracking.py`; every figure beside its peer in the same run. The "
          "per-frame matching on the body is being improved elsewhere (issue 11): matched frames "
          "include misplaced ones, and every figure counts them.", "",

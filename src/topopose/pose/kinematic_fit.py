@@ -22,7 +22,10 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    middle joint (elbow, wrist, knee, ankle) is at its curve's bend (:func:`bend_joints`,
    :data:`BEND`). The knees are then placed by their distance from the leg curve's far end
    (sequence stage, :func:`from_end`, :data:`FROM_END`): a 4-camera hull's leg junction
-   wanders, the foot end does not. The tips' targets are corrected for the thinned branch end
+   wanders, the foot end does not. A hanging arm's elbow and wrist then move half-way to
+   their places by the sequence's bone lengths from the shoulder along the curve
+   (:func:`from_start`, :data:`FROM_START`): the arm's curve ends short where the masks lose
+   the hand, and its start slides with the chest junction. The tips' targets are corrected for the thinned branch end
    (sequence stage, :func:`tip_targets`): the toe turned away from the shank (:data:`TIP_TURN`), the fingertip
    moved out along the hand (:data:`TIP_STRETCH`). A joint declared with a ``girdle`` (the neck
    with the shoulders) and that mirror pair are then placed as one symmetric rigid body
@@ -70,7 +73,10 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    directions over runs of fitted frames of one continuing motion (:func:`motion_runs`:
    consecutive frame numbers, each frame within :data:`SMOOTH_MOVE` of its neighbours' median,
    broken where the motion jumps and stays — a capture of unrelated poses makes no run),
-   flagged ``diagnostics["smoothed"]``; the bones keep their constant lengths. Each frame
+   flagged ``diagnostics["smoothed"]``; the bones keep their constant lengths. Before the
+   filter a bone direction far off its window's median (one frame's limb on a wrong branch)
+   is replaced by that median (:func:`despike`, a Hampel filter, :data:`DESPIKE`), listed in
+   ``diagnostics["despiked_joints"]``. Each frame
    records its distance from its neighbours' median (``diagnostics["neighbour_distance"]``,
    :func:`neighbourhood`), ``diagnostics["temporal_outlier"]`` when it is :data:`SMOOTH_MOVE`
    or more: a skeleton off the motion around it, most likely wrong. A stretch of at most
@@ -389,18 +395,10 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
     curves = frame_curves(pose, tree, spine)
     out = np.full((len(tree.names), 3), np.nan)
     used = np.full(len(tree.names), np.nan)      # the relative arc length each joint took
-    ax = None
-    if tree.trunk and tree.at_raised and any(r is not None for r in tree.at_raised):
-        a, b = (pose.parts.get(x) for x in tree.trunk)
-        if a is not None and b is not None:
-            ax = np.asarray(b, float) - np.asarray(a, float)
     for j, ((u, v), t) in enumerate(zip(tree.arc, tree.at)):
         c = curves.get(v)
-        if ax is not None and tree.at_raised[j] is not None:
-            pu, pv = pose.parts.get(u), pose.parts.get(v)
-            if pu is not None and pv is not None and \
-                    np.dot(np.asarray(pv, float) - np.asarray(pu, float), ax) > 0:
-                t = tree.at_raised[j]          # a raised limb (see the model's at_raised)
+        if tree.at_raised and tree.at_raised[j] is not None and _raised(pose, tree, j):
+            t = tree.at_raised[j]              # a raised limb (see the model's at_raised)
         beyond = tree.beyond[j] if tree.beyond else 0.0
         used[j] = t
         if c is not None:
@@ -442,11 +440,8 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
                     continue
             moved[j] = out[j] + along * S * ax
             if RAISED_SHOULDER and tree.arc[j][1] in tree.limbs and \
-                    tree.arc[j][0] == tree.trunk[1]:                  # a raised arm's shoulder
-                pu, pv = pose.parts.get(tree.arc[j][0]), pose.parts.get(tree.arc[j][1])
-                if pu is not None and pv is not None and \
-                        np.dot(np.asarray(pv, float) - np.asarray(pu, float), ax) > 0:
-                    moved[j] -= RAISED_SHOULDER * S * ax
+                    tree.arc[j][0] == tree.trunk[1] and _raised(pose, tree, j):
+                moved[j] -= RAISED_SHOULDER * S * ax              # a raised arm's shoulder
             if outward and len(mates) == 1 and not np.isnan(out[mates[0]]).any():
                 lat = out[j] - out[mates[0]]
                 lat -= np.dot(lat, ax) * ax
@@ -464,8 +459,7 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
                 u, v = tree.arc[j]
                 if not _beside(tree, j) or np.isnan(moved[j]).any() or v not in tree.limbs \
                         or u != tree.trunk[1] or pose.parts.get(v) is None or \
-                        np.dot(np.asarray(pose.parts[v], float) - np.asarray(pose.parts[u], float),
-                               ax) > 0:
+                        _raised(pose, tree, j):
                     continue
                 h = H[int(np.argmin(np.linalg.norm(H - moved[j], axis=1)))]
                 if np.linalg.norm(h - moved[j]) <= HULL_GATE:
@@ -577,6 +571,13 @@ def _arc_position(c, s, x) -> float:
     return float(s[k] + u[k] * np.sqrt(dd[k]))
 
 
+def _limb_joints(tree: KinematicTree, keys) -> list:
+    """The joints inside a limb's arc (``0 < at < 1``, on its curve, not beside it) whose
+    (limb end part's stem, base name) is in ``keys``, in tree order (parents first)."""
+    return [j for j, b in enumerate(tree.base) if (part_stem(tree.arc[j][1]), b) in keys
+            and tree.arc[j][1] in tree.limbs and not _beside(tree, j) and 0.0 < tree.at[j] < 1.0]
+
+
 def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
              weight=None) -> np.ndarray:
     """``init`` with each ``ends`` joint ((its limb end part's stem, its base name) →
@@ -612,8 +613,7 @@ def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
     w = FROM_END_WEIGHT if weight is None else weight
     init = np.array(init, dtype=float, copy=True)
     key = [(part_stem(tree.arc[j][1]), b) for j, b in enumerate(tree.base)]
-    js = [j for j, b in enumerate(tree.base) if key[j] in ends and tree.arc[j][1] in tree.limbs
-          and not _beside(tree, j) and 0.0 < tree.at[j] < 1.0]
+    js = _limb_joints(tree, ends)
     if not js:
         return init
     curves = [frame_curves(p, tree, spine) if p.matched else {} for p in poses]
@@ -639,6 +639,122 @@ def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
             x = max(0.0, s[-1] - (1.0 - t) * L)
             x = w * x + (1.0 - w) * t * s[-1]
             init[i, j] = _along(c, x / s[-1])
+    return init
+
+
+FROM_START = {("hand", "elbow"), ("hand", "wrist")}  # (limb end part's stem, joint base
+    # name): those joints of a hanging limb (its end part below its first along the trunk)
+    # also placed by the sequence's bone lengths from their parent (see from_start); set():
+    # off. Issue 15, session 35: on the real recording the hanging left arm's curve ends 2–11
+    # cm past the wrist from frame to frame (the masks lose part of the hand) and its start,
+    # the chest junction, slides, so the fraction ``at`` put the elbow 10.4 cm and the wrist
+    # 9.4 cm off (median over the right frames; the fits either side of a short frame within
+    # 3 cm). Development seeds, with DESPIKE (benchmarks/knee_dev.py, good frames, 8 / 4p /
+    # 4pd): 3.50 / 8.90 / 8.34 → 3.40 / 8.72 / 8.21 cm (elbows 4.0 / 9.3 / 11.5 → 3.5 / 8.4 /
+    # 10.1); benchmarks/fps_dev.py (8 cameras 25 / 60 frames/s, 4p 25 / 60): 4.25 / 3.70 /
+    # 9.75 / 9.27 → 4.16 / 3.64 / 9.55 / 9.28 cm. Not kept (docs/tried.md): weight 1 (4pd
+    # 8.49: the fat hulls' bone lengths are 1.2–1.3 × the truth's), raised arms too, the
+    # fingertips too, the knees and ankles (the real recording 6.6 → 7.6 cm)
+FROM_START_WEIGHT = 0.5  # the joint goes this share of the way from its place at ``at`` to its
+    # place by the bone length (as FROM_END_WEIGHT; 0.7: 8 / 4p / 4pd 3.44 / 8.63 / 8.39 cm)
+REACH_PAST = 0.1   # m: a joint placed by its bone's length at most this far past its curve's
+    # end (a hand lost in the masks shortens the arm's curve by a few cm; a curve much shorter
+    # is no lost hand): beyond, its place at ``at`` is kept
+
+
+def _raised(pose, tree: KinematicTree, j) -> bool:
+    """Whether joint ``j``'s arc ends past its first part along the trunk (a hand above the
+    chest junction: a raised arm, as ``at_raised``)."""
+    if not tree.trunk:
+        return False
+    a, b = (pose.parts.get(x) for x in tree.trunk)
+    pu, pv = (pose.parts.get(x) for x in tree.arc[j])
+    if a is None or b is None or pu is None or pv is None:
+        return False
+    return float(np.dot(np.asarray(pv, float) - np.asarray(pu, float),
+                        np.asarray(b, float) - np.asarray(a, float))) > 0
+
+
+def _reach(c, s, x0, origin, length):
+    """The first point of curve ``c`` (cumulative lengths ``s``) past arc length ``x0`` at
+    distance ``length`` from ``origin``; past the curve's end along its last direction
+    (:data:`TIP_DIRECTION`, as :func:`_along`) when the curve ends nearer, by at most
+    :data:`REACH_PAST`. None when it cannot reach."""
+    d = np.linalg.norm(c - origin, axis=1)
+    k0 = int(np.searchsorted(s, x0, side="right"))
+    for k in range(max(k0, 1), len(c)):
+        if d[k] >= length > d[k - 1]:
+            a, b = c[k - 1], c[k]
+            # |a + u (b - a) - origin| = length on the segment, u in [0, 1]
+            ab, ao = b - a, a - origin
+            A, B, C = ab @ ab, 2 * ab @ ao, ao @ ao - length ** 2
+            u = (-B + np.sqrt(max(B * B - 4 * A * C, 0.0))) / (2 * A) if A > 0 else 0.0
+            return a + np.clip(u, 0.0, 1.0) * ab
+    back = np.array([np.interp((1 - TIP_DIRECTION) * s[-1], s, c[:, k]) for k in range(3)])
+    e = c[-1] - back
+    if np.linalg.norm(e) <= 0:
+        return None
+    e = e / np.linalg.norm(e)
+    ao = c[-1] - origin
+    B, C = 2 * e @ ao, ao @ ao - length ** 2
+    disc = B * B - 4 * C
+    if disc < 0:
+        return None
+    u = (-B + np.sqrt(disc)) / 2
+    return c[-1] + u * e if 0 <= u <= REACH_PAST else None
+
+
+def from_start(init, poses, tree: KinematicTree, L, joints=None, weight=None,
+               spine=None) -> np.ndarray:
+    """``init`` with each ``joints`` joint of a hanging limb (its end part below its first part
+    along the trunk, :func:`_raised`) moved towards the point of its curve at its bone's
+    length ``L`` from its parent (the parent placed first; the first such point past the
+    parent's own place on the curve, :func:`_reach`).
+
+    The fraction ``at`` reads a joint's place against the frame's curve, whose two ends wander
+    (the chest junction slides; a hand lost in the masks cuts the arm's curve short); the
+    bones' lengths are the sequence's (:func:`bone_lengths`). The joint goes ``weight``
+    (default :data:`FROM_START_WEIGHT`) of the way; a curve that ends short is continued along
+    its last direction by at most :data:`REACH_PAST`. Thesis §13.3.1 (the kinematic model
+    initialized from the skeleton curves).
+
+    Parameters
+    ----------
+    init : (n_frames, n_joints, 3) the joints' initial placement (NaN: none)
+    poses : the frames' poses (their curves and parts)
+    tree : KinematicTree
+    L : (n_joints,) the sequence's bone lengths
+    joints : (limb end part's stem, joint base name) pairs (None: :data:`FROM_START`)
+    weight : the share of the way to the place by the bone length
+    spine : as :func:`frame_curves`
+
+    Returns
+    -------
+    (n_frames, n_joints, 3) array, a copy of ``init``.
+    """
+    joints = FROM_START if joints is None else joints
+    w = FROM_START_WEIGHT if weight is None else weight
+    init = np.array(init, dtype=float, copy=True)
+    js = _limb_joints(tree, joints)
+    if not js:
+        return init
+    for i, p in enumerate(poses):
+        if not p.matched:
+            continue
+        cs = frame_curves(p, tree, spine)
+        for j in js:                                   # in tree order: parents first
+            c = cs.get(tree.arc[j][1])
+            a = tree.parents[j]
+            if c is None or np.isnan(init[i, j]).any() or a < 0 or np.isnan(init[i, a]).any() \
+                    or np.isnan(L[j]) or _raised(p, tree, j):
+                continue
+            c = np.asarray(c, float)
+            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+            if s[-1] <= 0:
+                continue
+            x = _reach(c, s, _arc_position(c, s, init[i, a]), init[i, a], L[j])
+            if x is not None:
+                init[i, j] = w * x + (1.0 - w) * init[i, j]
     return init
 
 
@@ -1526,6 +1642,60 @@ def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None, near=N
     return runs
 
 
+DESPIKE = (3.0, 15.0)  # (k, floor in degrees) of :func:`despike`, the bones' spikes replaced
+    # before the smoothing; None: off. A frame whose matched curves put one limb on a wrong
+    # branch (the real recording's frames 36 and 42: the left arm's curve on another branch,
+    # its hand 0.6 m off) keeps the rest of its skeleton near its neighbours', so it stays in
+    # its run, and the Savitzky–Golay window averaged the wrong arm into the 20 frames around
+    # it (left elbow 7 cm off where the fits either side had it within 3 cm). Real recording
+    # (real_motion.py, session 34's poses): all / right frames 6.80 / 6.44 → 6.61 / 6.26 cm
+    # (k 2 / 5 with floor 10 / 15°: 6.66 / 6.42, 6.75 / 6.33; floor 8 / 25°: 6.56 / 6.26,
+    # 6.61 / 6.26). Development seeds: neutral (fps_dev.py, 8 cameras 25 / 60 frames/s, 4p 25
+    # / 60: 4.23 / 3.71 / 9.75 / 9.27 → 4.25 / 3.70 / 9.75 / 9.27 cm; knee_dev.py, 8 / 4p /
+    # 4pd: 3.43 / 8.97 / 8.34 → 3.50 / 8.90 / 8.34); unrelated random poses untouched (no run)
+
+
+def despike(D, half, k, floor):
+    """A Hampel filter on bone directions: each frame's direction of each bone more than
+    ``max(med + k × MAD, floor)`` degrees from the median direction of its window (the frames
+    at most ``half`` away, itself included; ``med``, ``MAD``: the median and the scaled median
+    absolute deviation of the window's angles to it) is replaced by that median direction.
+
+    Parameters
+    ----------
+    D : (n_frames, n_joints, 3) unit bone directions (:func:`_directions`; the root's zero)
+    half : the window's half-width (frames)
+    k, floor : the threshold's MAD factor and its least value (degrees)
+
+    Returns
+    -------
+    (D with the spikes replaced, (n_frames, n_joints) bool: the bones replaced)
+
+    Examples
+    --------
+    >>> D = np.tile([0.0, 0.0, -1.0], (7, 1, 1))
+    >>> D[3, 0] = [1.0, 0.0, 0.0]                  # one frame's bone swung out 90 degrees
+    >>> out, bad = despike(D, 3, 3.0, 15.0)
+    >>> bad[:, 0].tolist(), out[3, 0].tolist()
+    ([False, False, False, True, False, False, False], [0.0, 0.0, -1.0])
+    """
+    n = len(D)
+    out = D.copy()
+    bad = np.zeros(D.shape[:2], dtype=bool)
+    for i in range(n):
+        W = D[max(0, i - half):i + half + 1]
+        m = np.median(W, axis=0)
+        norm = np.linalg.norm(m, axis=1)
+        m = m / np.maximum(norm, 1e-12)[:, None]
+        ang = np.degrees(np.arccos(np.clip(np.einsum("wjk,jk->wj", W, m), -1.0, 1.0)))
+        med = np.median(ang, axis=0)
+        mad = 1.4826 * np.median(np.abs(ang - med), axis=0)
+        a_i = np.degrees(np.arccos(np.clip(np.einsum("jk,jk->j", D[i], m), -1.0, 1.0)))
+        bad[i] = (a_i > np.maximum(med + k * mad, floor)) & (norm > 1e-9)
+        out[i, bad[i]] = m[bad[i]]
+    return out, bad
+
+
 def smooth_window(fps=None) -> int:
     """The default smoothing window (frames) at ``fps`` frames/s: the odd number of frames
     nearest :data:`SMOOTH` / :data:`SMOOTH_RATE` seconds (at least 3); :data:`SMOOTH` itself
@@ -1707,7 +1877,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     -------
     poses : list of Pose with ``joints`` (numbered joint names, e.g. ``elbow_1``) and
         ``diagnostics["skeleton_rms"]`` (curve distance after the fit),
-        ``["interpolated"]``, ``["smoothed"]``, ``["neighbour_distance"]`` (m: the frame's
+        ``["interpolated"]``, ``["smoothed"]``, ``["despiked_joints"]`` (the joints whose
+        bone direction :func:`despike` replaced), ``["neighbour_distance"]`` (m: the frame's
         joints from its neighbours' median, :func:`neighbourhood`, when smoothing) and
         ``["temporal_outlier"]`` (that distance ≥ :data:`SMOOTH_MOVE`: a frame off the motion
         around it, most likely wrong; ``["interpolated"]`` too when bridged,
@@ -1730,6 +1901,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     init = tip_targets(init, tree)
     init = girdle_targets(init, tree)
     L = bone_lengths(init, tree, quantile)
+    init = from_start(init, poses, tree, L, spine=spine)   # hanging arms by the bones' lengths
     n_f = len(poses)
     Lf = np.tile(L, (n_f, 1))              # per frame: a sliding bone's length varies
     P = np.full_like(init, np.nan)
@@ -1777,6 +1949,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
                 _interpolate(P, t, Lf, tree, a, b)
                 interp[a + 1:b] = True
     smoothed = np.zeros(n_f, dtype=bool)
+    spiked = np.zeros((n_f, len(tree.names)), dtype=bool)
     bridged = np.zeros(n_f, dtype=bool)
     apart = np.full(n_f, np.nan)
     smooth = smooth_window(fps) if smooth is None else smooth
@@ -1796,6 +1969,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         for a, b in runs:
             D = np.stack([_directions(P[i], tree) for i in range(a, b)])
             R = P[a:b, tree.root]
+            if DESPIKE:
+                D, spiked[a:b] = despike(D, win // 2, *DESPIKE)
             D = savgol_filter(D, win, 2, axis=0)
             R = savgol_filter(R, win, 2, axis=0)
             for k, i in enumerate(range(a, b)):
@@ -1821,6 +1996,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
             diag["interpolated"] = True
         if smoothed[i]:
             diag["smoothed"] = True
+        if spiked[i].any():
+            diag["despiked_joints"] = [nm for j, nm in enumerate(tree.names) if spiked[i, j]]
         if np.isfinite(apart[i]):
             diag["neighbour_distance"] = round(float(apart[i]), 4)
             if SMOOTH_MOVE is not None and apart[i] >= SMOOTH_MOVE:

@@ -44,7 +44,9 @@ class Pose:
         ``diagnostics["interpolated"]`` is true when they were filled in across a short
         rejected stretch rather than fitted to this frame (also when this frame's own fit
         was off the motion around it: ``diagnostics["temporal_outlier"]``; its parts listed
-        in ``diagnostics["interpolated_parts"]`` were then interpolated too).
+        in ``diagnostics["interpolated_parts"]`` were then interpolated too). A joint listed
+        in ``diagnostics["despiked_joints"]`` had its bone's direction, far off the frames
+        around it, replaced by theirs before the smoothing.
     """
 
     frame: str

@@ -610,5 +610,9 @@ def summary_text(res: RunResult) -> str:
         off = (f"; {k} skeleton{'s' if k > 1 else ''} off the motion around "
                f"{'them' if k > 1 else 'it'} (diagnostics.temporal_outlier"
                + (f", {b} interpolated from the frames either side" if b else "") + ")")
+    k = sum(bool(p.diagnostics.get("despiked_joints")) for p in res.poses)
+    if k:                                     # kinematic_fit.despike
+        off += (f"; {k} frame{'s' if k > 1 else ''} with a bone far off the frames around, "
+                "replaced by theirs (diagnostics.despiked_joints)")
     return (f"{n} frames{skipped}: {c.get('matched', 0)} matched, {c.get('rejected', 0)} rejected, "
             f"{c.get('failed', 0)} failed in {res.seconds:.1f} s{fps}{where}{off}")

@@ -25,11 +25,12 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    wanders, the foot end does not. A hanging arm's elbow and wrist then move half-way to
    their places by the sequence's bone lengths from the shoulder along the curve
    (:func:`from_start`, :data:`FROM_START`): the arm's curve ends short where the masks lose
-   the hand, and its start slides with the chest junction. The tips' targets are corrected for the thinned branch end
-   (sequence stage, :func:`tip_targets`): the toe turned away from the shank (:data:`TIP_TURN`), the fingertip
-   moved out along the hand (:data:`TIP_STRETCH`). A joint declared with a ``girdle`` (the neck
-   with the shoulders) and that mirror pair are then placed as one symmetric rigid body
-   (sequence stage, :func:`girdle_targets`, :data:`GIRDLE`).
+   the hand, and its start slides with the chest junction. The tips' targets are corrected
+   for the thinned branch end (sequence stage, :func:`tip_targets`): the toe turned away from
+   the shank (:data:`TIP_TURN`), the fingertip moved out along the hand (:data:`TIP_STRETCH`).
+   A joint declared with a ``girdle`` (the neck with the shoulders) and that mirror pair are
+   then placed as one symmetric rigid body (sequence stage, :func:`girdle_targets`,
+   :data:`GIRDLE`).
 2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
    the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
    constant over the sequence; a ``slide`` bone (the neck's) at its median
@@ -654,7 +655,7 @@ FROM_START = {("hand", "elbow"), ("hand", "wrist")}  # (limb end part's stem, jo
     # 10.1); benchmarks/fps_dev.py (8 cameras 25 / 60 frames/s, 4p 25 / 60): 4.25 / 3.70 /
     # 9.75 / 9.27 → 4.16 / 3.64 / 9.55 / 9.28 cm. Not kept (docs/tried.md): weight 1 (4pd
     # 8.49: the fat hulls' bone lengths are 1.2–1.3 × the truth's), raised arms too, the
-    # fingertips too, the knees and ankles (the real recording 6.6 → 7.6 cm)
+    # fingertips too, the knees and ankles (by arc length: the real recording 6.6 → 7.6 cm)
 FROM_START_WEIGHT = 0.5  # the joint goes this share of the way from its place at ``at`` to its
     # place by the bone length (as FROM_END_WEIGHT; 0.7: 8 / 4p / 4pd 3.44 / 8.63 / 8.39 cm)
 REACH_PAST = 0.1   # m: a joint placed by its bone's length at most this far past its curve's

@@ -34,12 +34,24 @@ def model_arcs(model) -> list:
     return out
 
 
+def arc_lengths(points) -> np.ndarray:
+    """Cumulative arc length at each vertex of the polyline ``points`` (n, 3): 0 first.
+
+    Examples
+    --------
+    >>> arc_lengths([[0, 0, 0], [3, 4, 0], [3, 4, 1]]).tolist()
+    [0.0, 5.0, 6.0]
+    """
+    p = np.asarray(points, dtype=float)
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+
+
 def resample(points, n=N_SAMPLES) -> np.ndarray:
     """``n`` points equally spaced along the polyline ``points`` (its ends kept)."""
     p = np.asarray(points, dtype=float)
     if len(p) == 1:
         return np.repeat(p, n, axis=0)
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+    s = arc_lengths(p)
     if s[-1] <= 0:
         return np.repeat(p[:1], n, axis=0)
     t = np.linspace(0.0, s[-1], n)

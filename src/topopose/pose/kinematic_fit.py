@@ -94,7 +94,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..errors import InputError
-from .curves import model_arcs
+from .curves import arc_lengths, model_arcs
 from .model import part_stem
 from .track import frame_index
 
@@ -232,18 +232,25 @@ def _along(curve, t, beyond=0.0):
     by ``beyond`` × its length along its last direction (the chord of its last
     ``TIP_DIRECTION``): thinning stops a skeleton branch short of the limb's tip."""
     c = np.asarray(curve, dtype=float)
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+    s = arc_lengths(c)
     if s[-1] <= 0:
         return c[0]
     x = t * s[-1]
     out = np.array([np.interp(x, s, c[:, k]) for k in range(3)])
     if beyond:
-        back = np.array([np.interp((1 - TIP_DIRECTION) * s[-1], s, c[:, k]) for k in range(3)])
-        d = c[-1] - back
-        n = np.linalg.norm(d)
-        if n > 0:
-            out = out + beyond * s[-1] * d / n
+        d = _end_direction(c, s)
+        if d is not None:
+            out = out + beyond * s[-1] * d
     return out
+
+
+def _end_direction(c, s):
+    """The unit direction of curve ``c`` (cumulative lengths ``s``) at its end: the chord of
+    its last :data:`TIP_DIRECTION` of length; None when that is a point."""
+    back = np.array([np.interp((1 - TIP_DIRECTION) * s[-1], s, c[:, k]) for k in range(3)])
+    d = c[-1] - back
+    n = float(np.linalg.norm(d))
+    return d / n if n > 0 else None
 
 
 SPINE_BACK = 0.15   # the trunk's joints moved back by this × the frame's spine shift (see
@@ -526,7 +533,7 @@ def bend_joints(out, used, curves, tree: KinematicTree, bend=None) -> np.ndarray
                 or c is None or np.isnan(used[[j, p, kids[0]]]).any():
             continue
         c = np.asarray(c, float)
-        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+        s = arc_lengths(c)
         inside = (s > used[p] * s[-1]) & (s < used[kids[0]] * s[-1])
         A, B = _along(c, used[p]), _along(c, used[kids[0]])
         n = float(np.linalg.norm(B - A))
@@ -632,7 +639,7 @@ def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
             if c is None or np.isnan(init[i, j]).any() or part_stem(v) not in lengths:
                 continue
             c = np.asarray(c, float)
-            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+            s = arc_lengths(c)
             if s[-1] <= 0:
                 continue
             L = float(np.percentile(lengths[part_stem(v)], ends[key[j]]))
@@ -691,11 +698,9 @@ def _reach(c, s, x0, origin, length):
             A, B, C = ab @ ab, 2 * ab @ ao, ao @ ao - length ** 2
             u = (-B + np.sqrt(max(B * B - 4 * A * C, 0.0))) / (2 * A) if A > 0 else 0.0
             return a + np.clip(u, 0.0, 1.0) * ab
-    back = np.array([np.interp((1 - TIP_DIRECTION) * s[-1], s, c[:, k]) for k in range(3)])
-    e = c[-1] - back
-    if np.linalg.norm(e) <= 0:
+    e = _end_direction(c, s)
+    if e is None:
         return None
-    e = e / np.linalg.norm(e)
     ao = c[-1] - origin
     B, C = 2 * e @ ao, ao @ ao - length ** 2
     disc = B * B - 4 * C
@@ -750,7 +755,7 @@ def from_start(init, poses, tree: KinematicTree, L, joints=None, weight=None,
                     or np.isnan(L[j]) or _raised(p, tree, j):
                 continue
             c = np.asarray(c, float)
-            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+            s = arc_lengths(c)
             if s[-1] <= 0:
                 continue
             x = _reach(c, s, _arc_position(c, s, init[i, a]), init[i, a], L[j])

@@ -35,7 +35,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .curves import N_SAMPLES, resample
+from .curves import N_SAMPLES, arc_lengths, resample
 from .model import part_stem
 
 STEMS = ("hand",)      # limb ends whose branch is trimmed; the feet too: no better (below)
@@ -129,7 +129,7 @@ def evidence_end(curve, others, cameras, depths, voxel, slack=None, gap=None,
     min_fraction = MIN_FRACTION if min_fraction is None else min_fraction
     c = np.asarray(curve, float)
     n = len(c)
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+    s = arc_lengths(c)
     rest = [np.asarray(o, float) for o in others if len(o)]
     rest = np.concatenate(rest) if rest else np.zeros((0, 3))
     views = []
@@ -191,7 +191,7 @@ def trimmed_curves(curves, parts, cameras, silhouettes, voxel, stems=None, **kw)
         others = [c for r, c in up.items() if r != q and part_stem(r) != part_stem(q)]
         c = up[q]
         j, r = evidence_end(c, others, cameras, depths, voxel, **kw)
-        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
+        s = arc_lengths(c)
         end = s[j] + r                  # the limb's end: its last disk's reach along the curve
         if end < s[-1] - voxel:
             cut = np.vstack([c[s < end], [np.interp(end, s, c[:, i]) for i in range(3)]])

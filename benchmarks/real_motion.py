@@ -283,17 +283,22 @@ def run_recording(rec: Path, work: Path, raw_path=None, resolution=100):
     import topopose as tp
     from real import make_capture
 
+    cdir = work / "capture"
+    make_capture(rec, cdir, "person", SILHOUETTES)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cap = tp.load_capture(cdir)
+    return run_capture(cap, work, raw_path, resolution)
+
+
+def run_capture(cap, work: Path, raw_path=None, resolution=100):
+    """:func:`run_recording` on a loaded (or in-memory) capture."""
     from topopose.pose import run
     from topopose.pose.export import OPENSIM_LABELS, marker_names, write_trc
     from topopose.pose.model import load_model
     from topopose.pose.motion import process_sequence
     from topopose.pose.pose import read_poses
 
-    cdir = work / "capture"
-    make_capture(rec, cdir, "person", SILHOUETTES)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cap = tp.load_capture(cdir)
     model = load_model("human")
     t0 = time.perf_counter()
     reused = raw_path is not None and Path(raw_path).exists()

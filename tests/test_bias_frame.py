@@ -3,22 +3,9 @@ joints against the truth): ``benchmarks/tracking.py``'s :func:`joint_bias` on th
 body's rig joints and ``benchmarks/real_motion.py``'s :func:`signed_bias` against Pose2Sim's
 markers. Oracle: joints moved by known offsets in a hand-built body frame, the whole scene
 turned about the up axis (the bias must not change), mirror joints numbered the other way."""
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
-
-
-def _benchmark(name):
-    if str(BENCH) not in sys.path:
-        sys.path.insert(0, str(BENCH))
-    spec = importlib.util.spec_from_file_location(name, BENCH / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from _benchmarks import load_benchmark
 
 
 def _rot(a):
@@ -51,7 +38,7 @@ def _moved(side, base):
 
 
 def test_joint_bias_recovers_known_offsets_in_any_heading():
-    tr = _benchmark("tracking")
+    tr = load_benchmark("tracking")
     for turn in (0.0, 1.1, -2.5):
         R = _rot(turn)
         gj = {k: (R @ np.asarray(v, float)).tolist() for k, v in RIG.items()}
@@ -75,7 +62,7 @@ def test_joint_bias_recovers_known_offsets_in_any_heading():
 
 
 def test_real_signed_bias_recovers_known_offsets():
-    rm = _benchmark("real_motion")
+    rm = load_benchmark("real_motion")
     ours_of = {"Arm_head": "Shoulder", "ForeArm_head": "Elbow", "Hand_head": "Wrist",
                "UpLeg_head": "Hip", "Leg_head": "Knee", "Foot_head": "Ankle"}
     R = _rot(0.7)
@@ -102,7 +89,7 @@ def test_real_toe_errors_pair_the_toes_with_the_big_toes_optimally():
     """Our toes 3 and 4 cm off Pose2Sim's big toes, named the wrong way round in one frame and
     missing in another: the median of the optimally paired distances, the missing frame left
     out."""
-    rm = _benchmark("real_motion")
+    rm = load_benchmark("real_motion")
     L, R = np.array([[0.1, 0.2, 0.0]] * 3), np.array([[-0.1, 0.2, 0.0]] * 3)
     ref = {"LBigToe": L, "RBigToe": R}
     up, side = np.array([0.0, 0.0, 0.03]), np.array([0.0, 0.04, 0.0])

@@ -1,25 +1,11 @@
 """benchmarks/phantom.py's tests of a wrong part (beyond / phantom / aligned), on hand-made
 geometry: four cameras in two facing pairs, a true hand, and our hand moved along one pair's
 rays (the phantom extension) or across them."""
-import importlib.util
-import sys
-from pathlib import Path
-
-import cv2
 import numpy as np
 from scipy.ndimage import distance_transform_edt
 
+from _benchmarks import load_benchmark
 from _capture_testutils import camera_at
-
-
-def _phantom():
-    bench = Path(__file__).resolve().parents[1] / "benchmarks"
-    if str(bench) not in sys.path:
-        sys.path.insert(0, str(bench))
-    spec = importlib.util.spec_from_file_location("phantom", bench / "phantom.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def _scene():
@@ -43,7 +29,7 @@ def _scene():
 
 
 def test_extension_along_a_facing_pair_is_the_phantom_mechanism():
-    ph = _phantom()
+    ph = load_benchmark("phantom")
     cams, dts, T = _scene()
     ours = T + np.array([0.3, 0.0, 0.0])          # 0.3 m along the x cameras' rays
     curve = np.linspace([0.0, 0.0, 0.3], T, 8).tolist() + np.linspace(T, ours, 9)[1:].tolist()
@@ -56,7 +42,7 @@ def test_extension_along_a_facing_pair_is_the_phantom_mechanism():
 
 
 def test_error_across_the_rays_is_not_aligned_and_a_short_curve_not_beyond():
-    ph = _phantom()
+    ph = load_benchmark("phantom")
     cams, dts, T = _scene()
     ours = T + np.array([0.0, 0.0, -0.3])         # across every ray (straight down)
     curve = np.linspace([0.0, 0.7, -0.2], ours, 16)  # never near the true hand before its end

@@ -9,6 +9,7 @@ import pytest
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
+from _benchmarks import load_benchmark
 from topopose.errors import InputError
 from topopose.pose import cluster as C
 from topopose.pose import detect as D
@@ -811,19 +812,6 @@ def test_segment_labels_a_head_without_a_skeleton_branch():
     assert np.mean(lab[trunk] == 2) > 0.99 and not lab[~vol.data].any()
 
 
-def _benchmark(name):
-    """A benchmark module of this repository (benchmarks/ is not a package)."""
-    import importlib.util
-    from pathlib import Path
-
-    bench = Path(__file__).resolve().parents[1] / "benchmarks"
-    sys_path = __import__("sys").path
-    if str(bench) not in sys_path:
-        sys_path.insert(0, str(bench))
-    spec = importlib.util.spec_from_file_location(name, bench / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def _gt_frame(body):
@@ -842,7 +830,7 @@ def test_detection_truth_points_of_a_built_capsule_human(flex):
     head the crown (the head ellipsoid's top), the former correspondence gt.json's own."""
     from topopose.capture.synth_subjects import BUILD, HUMAN_DEFAULT
 
-    A = _benchmark("applications")
+    A = load_benchmark("applications")
     body = BUILD["human"]({**HUMAN_DEFAULT, "spine_flex": flex, "pelvis_pitch": 20.0,
                            "sh_abd_l": 90.0, "elbow_r": 60.0})
     frame = _gt_frame(body)
@@ -865,7 +853,7 @@ def test_detection_truth_points_of_a_built_capsule_human(flex):
 def test_detection_truth_points_of_the_body_rig():
     """``body`` frames (rig joints recorded) take the rig points of BODY_PART_JOINTS, feet the
     foot bone's end (mid-foot) — the former correspondence keeps gt.json's feet."""
-    A = _benchmark("applications")
+    A = load_benchmark("applications")
     joints = {j: [float(i), 0.0, 0.0] for i, j in enumerate(A.BODY_PART_JOINTS.values())}
     parts = {k: [0.0, 0.0, -1.0] for k in ("head", "torso", "crotch", "hand_1", "hand_2",
                                            "foot_1", "foot_2")}
@@ -887,7 +875,7 @@ def test_error_blame_mean_and_median_of_the_blamed_offsets():
     decisions for nothing; per part the mean and the median of the blamed parts' offsets along
     up — the median stays with the typical offset where one gross mismatch (a hand on a foot's
     branch, −1.2 m) drags the mean. Oracle: numpy on the hand-listed offsets."""
-    A = _benchmark("applications")
+    A = load_benchmark("applications")
 
     def row(value, truth, blame=None, **dz):
         d = {"m0": value, "truth": truth}

@@ -4,14 +4,14 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from test_pose_applications import _benchmark
+from _benchmarks import load_benchmark
 
 
 def test_peer_points_on_a_straight_branch():
     """A head straight above the torso moves down by HEAD_CENTRE_DROP; a hand at the end of a
     straight horizontal branch moves on along it by HAND_REACH; the crotch becomes the crotch
     curve's end; parts without a curve or unplaced stay as they are."""
-    A = _benchmark("applications")
+    A = load_benchmark("applications")
     arm = np.c_[np.linspace(0.2, 0.8, 16), np.zeros(16), np.full(16, 1.4)]   # along +x
     crotch_curve = np.c_[np.zeros(16), np.zeros(16), np.linspace(1.3, 0.9, 16)]
     parts = {"torso": (0, 0, 1.3), "head": (0, 0, 1.7), "hand_1": (0.8, 0, 1.4),

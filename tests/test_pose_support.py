@@ -193,9 +193,9 @@ def _ring_cameras(n=4):
 def test_real_hands_robust_triangulation_drops_the_wrong_view():
     """benchmarks/real_hands.py: a point seen exactly in 3 views and 200 px off in the 4th is
     recovered (to 1e-6 m) with the 4th view left out; the plain DLT is pulled off by it."""
-    from test_pose_applications import _benchmark
+    from _benchmarks import load_benchmark
 
-    RH = _benchmark("real_hands")
+    RH = load_benchmark("real_hands")
     cams = _ring_cameras()
     X = np.array([0.1, -0.2, 1.2])
     uv = np.array([c.project(X[None])[0] for c in cams])
@@ -209,9 +209,9 @@ def test_real_hands_robust_triangulation_drops_the_wrong_view():
 def test_applications_counts_on_the_frames_the_support_keeps():
     """benchmarks/applications.py: ``supported`` keeps a frame within the limit or without the
     value (as ``judge_support``); the counts on the kept frames by hand."""
-    from test_pose_applications import _benchmark
+    from _benchmarks import load_benchmark
 
-    A = _benchmark("applications")
+    A = load_benchmark("applications")
 
     def row(u, v, t):
         return {"unexplained": u, "detect": {"p": {"truth": t, "m0": v}}}

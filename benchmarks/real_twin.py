@@ -20,7 +20,7 @@ cameras (the calibration at the ``person`` masks' half size, 544×960; ``--noise
 ``benchmarks/real_motion.py`` runs the recording (:func:`real_motion.run_capture`: 100³, AHA
 threshold and confidence gate off, then the motion stage of ``topopose run``). Set-ups
 (:data:`SETUPS`): ``4`` the recording's cameras; ``4d`` the same with silhouettes dilated 3 px
-(a hull as fat as MediaPipe's masks make it); ``6`` and ``8``: two or all four of them also
+(`tracking.py`'s model of MediaPipe's fatter masks); ``6`` and ``8``: two or all four of them also
 turned by 45° about the vertical through the subject (the same lenses, distances and
 heights; more views of the same motion).
 
@@ -243,8 +243,8 @@ def twin_cameras(rec: Path, setup: str, centre) -> list:
 # set-up → (silhouette dilation px, the recording's cameras also turned by 45°, title); the
 # recording's azimuths are −53°, 15°, 145°, −159°: "6" adds 60° and −114°
 SETUPS = {"4": (0, (), "the recording's 4 cameras"),
-          "4d": (3, (), "the recording's 4 cameras, silhouettes dilated 3 px (a hull as fat as "
-                        "the real masks', `tracking.py`'s 4pd)"),
+          "4d": (3, (), "the recording's 4 cameras, silhouettes dilated 3 px (`tracking.py`'s "
+                        "4pd, its model of the real masks' fatter hull)"),
           "6": (0, (1, 3), "the 4 cameras and 2 of them turned by 45°"),
           "8": (0, (0, 1, 2, 3), "the 4 cameras and the same 4 turned by 45°")}
 

@@ -208,7 +208,7 @@ def twin_bodies(ref, frames: int):
     build, lengths = fit_build(ref)
     poser, x, bodies, rms = Poser(build), None, [], []
     for i in range(frames):
-        pose, R, t, x, r = fit_pose(poser, {k: v[i] for k, v in ref.items()}, x)
+        pose, R, t, x, r = fit_pose(poser, markers_of(ref, i), x)
         bodies.append(pose_body(pose, build).transformed(R, t))
         rms.append(r)
     return build, lengths, bodies, np.array(rms)

@@ -812,8 +812,6 @@ def test_segment_labels_a_head_without_a_skeleton_branch():
     assert np.mean(lab[trunk] == 2) > 0.99 and not lab[~vol.data].any()
 
 
-
-
 def _gt_frame(body):
     """A gt.json frame of a built body, as capture/synth.py writes it."""
     return {"parts": {k: list(v) for k, v in body.parts.items()},

@@ -9,6 +9,7 @@ above ``max_unexplained`` and ignoring frames without the value.
 import numpy as np
 import pytest
 
+from _benchmarks import load_benchmark
 from topopose.capture.camera import Camera
 from topopose.pose import consistency as C
 from topopose.pose.support import support_features
@@ -193,8 +194,6 @@ def _ring_cameras(n=4):
 def test_real_hands_robust_triangulation_drops_the_wrong_view():
     """benchmarks/real_hands.py: a point seen exactly in 3 views and 200 px off in the 4th is
     recovered (to 1e-6 m) with the 4th view left out; the plain DLT is pulled off by it."""
-    from _benchmarks import load_benchmark
-
     RH = load_benchmark("real_hands")
     cams = _ring_cameras()
     X = np.array([0.1, -0.2, 1.2])
@@ -209,8 +208,6 @@ def test_real_hands_robust_triangulation_drops_the_wrong_view():
 def test_applications_counts_on_the_frames_the_support_keeps():
     """benchmarks/applications.py: ``supported`` keeps a frame within the limit or without the
     value (as ``judge_support``); the counts on the kept frames by hand."""
-    from _benchmarks import load_benchmark
-
     A = load_benchmark("applications")
 
     def row(u, v, t):

@@ -199,3 +199,45 @@ def test_bad_calibration_files_exit_2(tmp_path, capsys, fmt, text, words):
         assert w in err, (w, err)
     if fmt == "easymocap":
         assert "K_a" in err
+
+
+def _pmatrix_text(cam, name=None) -> str:
+    P = cam.matrix @ np.c_[cam.R, cam.translation]
+    return (f"{name} " if name else "") + " ".join(repr(float(x)) for x in P.ravel()) + "\n"
+
+
+@pytest.mark.parametrize("named", [True, False])
+def test_pmatrix_files_of_one_name_in_camera_folders(tmp_path, capsys, named):
+    """Ten ``camXX/cam_par.txt`` files (one name for all, beside the masks): one call imports
+    them, each camera named by its file's first token, or else by its folder; the capture
+    loads, and its cameras project as the P matrices do."""
+    cams = [type(c)(c.name, c.size, c.matrix, np.zeros(4), c.rotation, c.translation)
+            for c in ring(n=4, size=(320, 240), f=400)]
+    folders = [f"view{k}" for k in range(len(cams))]
+    files = []
+    for c, d in zip(cams, folders):
+        (tmp_path / d).mkdir()
+        f = tmp_path / d / "cam_par.txt"
+        f.write_text(_pmatrix_text(c, c.name if named else None))
+        files.append(f)
+    out = tmp_path / "cap" / "calibration.toml"
+    assert main(["calib", "import", *map(str, files), "--size", "320x240", "--out", str(out)]) == 0
+    want = [c.name for c in cams] if named else folders
+    assert f"{len(cams)} cameras ({', '.join(want)})" in capsys.readouterr().out
+    got = read_calibration(out)
+    assert [c.name for c in got] == want
+    for a, c in zip(got, cams):
+        assert np.max(np.abs(a.project(PTS) - c.project(PTS))) < 1e-6
+
+
+def test_pmatrix_same_stem_same_folder_name_is_refused(tmp_path):
+    """Two files whose stems and folders cannot tell their cameras apart: one line, exit 2."""
+    c = ring(n=1, size=(320, 240), f=400, dist=(0, 0, 0, 0))[0]
+    files = []
+    for d in ("a/x", "b/x"):
+        (tmp_path / d).mkdir(parents=True)
+        f = tmp_path / d / "P.txt"
+        f.write_text(_pmatrix_text(c))
+        files.append(f)
+    with pytest.raises(InputError, match="appear twice"):
+        import_calibration(files, size=(320, 240))

@@ -17,7 +17,10 @@
   (or ``dist_coeffs``, ``distCoeffs``, ``D``), ``rvec`` or ``R`` (Rodrigues or 3×3), ``tvec`` or
   ``T``, and ``image_width``/``image_height`` (or ``--size``).
 - ``pmatrix``: one text file per camera holding a 3×4 projection matrix P (12 numbers; words
-  such as ``CONTOUR`` are skipped), as Middlebury/DTU/Kinovis-style datasets ship them.
+  such as ``CONTOUR`` are skipped), as Middlebury/DTU/Kinovis-style datasets ship them. The
+  camera's name is the file's first token when it is a name (not a number nor such a word),
+  else the file's stem, or its folder's name when several files share a stem
+  (``cam00/cam_par.txt``, ``cam01/cam_par.txt`` …).
   ``P = s K [R | t]`` is split by an RQ decomposition (``scipy.linalg.rq``) with the signs
   fixed so that K has a positive diagonal and ``det R = +1``; K is scaled so that K[2,2] = 1;
   no lens distortion. The image size comes from ``--size`` or an image (``--image``).
@@ -272,8 +275,29 @@ def decompose_projection(P) -> tuple:
     return K / K[2, 2], R, t
 
 
-def read_pmatrix(path, size=None) -> Camera:
-    """One camera from a text file holding a 3×4 projection matrix (the file stem names it)."""
+#: words of P-matrix files that are no camera name (DTU / Middlebury headers)
+_PMATRIX_WORDS = {"contour", "p", "p:", "projection", "matrix", "camera"}
+
+
+def pmatrix_name(path) -> str | None:
+    """The camera name a P-matrix file gives (its first token, when that is neither a number
+    nor a format word such as ``CONTOUR``), or None."""
+    try:
+        toks = Path(path).read_text().replace(",", " ").split()
+    except (OSError, UnicodeDecodeError):
+        return None
+    if not toks:
+        return None
+    try:
+        float(toks[0])
+        return None
+    except ValueError:
+        return None if toks[0].lower() in _PMATRIX_WORDS else toks[0]
+
+
+def read_pmatrix(path, size=None, name=None) -> Camera:
+    """One camera from a text file holding a 3×4 projection matrix, named ``name`` (default:
+    the name the file gives, :func:`pmatrix_name`, else its stem)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: calibration file not found")
@@ -294,7 +318,19 @@ def read_pmatrix(path, size=None) -> Camera:
     if abs(np.linalg.det(P[:, :3])) < 1e-300 or np.linalg.matrix_rank(P[:, :3]) < 3:
         raise InputError(f"{path}: field 'P': the left 3×3 block of the projection matrix is singular")
     K, R, t = decompose_projection(P)
-    return _camera(path, path.name.split(".")[0], size, K, np.zeros(4), R, t)
+    if name is None:
+        name = pmatrix_name(path) or path.name.split(".")[0]
+    return _camera(path, name, size, K, np.zeros(4), R, t)
+
+
+def pmatrix_names(files) -> list:
+    """The camera name of each P-matrix file: the one it gives (:func:`pmatrix_name`), else its
+    stem, else (several files of one stem) its folder's name."""
+    given = [pmatrix_name(f) for f in files]
+    stems = [f.name.split(".")[0] for f in files]
+    return [g if g is not None else
+            (f.parent.name if stems.count(st) > 1 and f.parent.name else st)
+            for f, g, st in zip(files, given, stems)]
 
 
 # --------------------------------------------------------------------------- detection, CLI
@@ -345,12 +381,12 @@ def import_calibration(files, format: str | None = None, size=None) -> list:
     elif format == "opencv":
         cams = [read_opencv(f, size) for f in files]
     else:
-        cams = [read_pmatrix(f, size) for f in files]
+        cams = [read_pmatrix(f, size, n) for f, n in zip(files, pmatrix_names(files))]
     names = [c.name for c in cams]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise InputError(f"calib import: camera name(s) {dup} appear twice (one file per camera, "
-                         f"named after the camera)")
+                         f"named after the camera, or in a folder named after it)")
     return cams
 
 

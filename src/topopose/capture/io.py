@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
+from ..frames import frame_key
 from .calibration import read_calibration, read_capture_options
 from .camera import Camera
 from .capture import Capture
@@ -32,10 +33,6 @@ from .silhouettes import extract_silhouette
 from .sources import SKIPPED, VIDEO_EXTENSIONS, ImageSource, Prefetcher, VideoSource, imread
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
-
-
-def _natural_key(s: str):
-    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", s)]
 
 
 def _list_files(folder: Path, extensions, what: str) -> dict:
@@ -204,7 +201,7 @@ def load_capture(path) -> Capture:
                 raise _missing_entry(base, cam, table, "folder")
             files[cam.name] = _list_images(base / names[cam.name])
         src = ImageSource(files, {c.name: base / names[c.name] for c in cameras})
-        frames = sorted(set().union(*[set(f) for f in files.values()]), key=_natural_key)
+        frames = sorted(set().union(*[set(f) for f in files.values()]), key=frame_key)
         if not frames:
             raise InputError(f"{base}: no frame images in the camera folders "
                              f"(expected {base}/<camera>/<frame>.png)")

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..frames import sort_poses
 
 _TO_METRES = {"m": 1.0, "cm": 0.01, "mm": 0.001, "dm": 0.1, "km": 1000.0, "in": 0.0254,
               "ft": 0.3048}
@@ -131,7 +132,7 @@ def write_trc(path, poses, parts, fps=25.0, units="m", up="+z", y_up=True, label
         Marker label of each name (e.g. :data:`OPENSIM_LABELS`); unlisted names are kept.
     """
     path = Path(path)
-    poses = sorted(poses, key=lambda p: p.frame)
+    poses = sort_poses(poses)
     a = _matrix(poses, parts) * metres_per_unit(units)
     if y_up:
         a = a @ y_up_rotation(up).T
@@ -178,7 +179,7 @@ def write_csv(path, poses, parts) -> Path:
     Positions are written for matched frames only.
     """
     path = Path(path)
-    poses = sorted(poses, key=lambda p: p.frame)
+    poses = sort_poses(poses)
     a = _matrix(poses, parts)
     with open(path, "w", newline="") as fh:
         w = _csv.writer(fh)
@@ -206,7 +207,7 @@ def write_c3d(path, poses, parts, fps=25.0, units="m", labels=None) -> Path:
     ``labels`` as for :func:`write_trc`.
     """
     c3d = require_c3d()
-    poses = sorted(poses, key=lambda p: p.frame)
+    poses = sort_poses(poses)
     a = _matrix(poses, parts) * metres_per_unit(units) * 1000.0
     w = c3d.Writer(point_rate=float(fps or 25.0), point_units="mm")
     try:

@@ -94,6 +94,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..errors import InputError
+from ..frames import sort_poses
 from .curves import arc_lengths, model_arcs
 from .model import part_stem
 from .track import frame_index
@@ -1895,7 +1896,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     lengths : ndarray, the bone length of each joint's bone (NaN for the root); a ``slide``
         bone's is its sequence length, used where the frame has none
     """
-    poses = sorted(poses, key=lambda p: p.frame)
+    poses = sort_poses(poses)
     tree = kinematic_tree(model)
     radius = [np.linalg.norm(p.diagnostics["spine_shift"]) for p in poses
               if p.matched and p.diagnostics.get("spine_shift") is not None]

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..frames import sort_poses
 from .chirality import assign_sides, numbered
 from .kinematic_fit import fit_sequence
 from .track import track as track_identities
@@ -75,7 +76,7 @@ def process_sequence(poses, model, up, track=True, sides=True, skeleton=True, ma
         Whether to apply the hands' trim each frame recorded (``diagnostics["trim"]``,
         :func:`.trim.apply_trim`) after the identities (default :data:`TRIM`).
     """
-    poses = sorted((numbered(p, model) for p in poses), key=lambda p: p.frame)
+    poses = sort_poses(numbered(p, model) for p in poses)
     out = Motion(poses)
     if track and len(poses) > 1 and model.interchangeable():
         out.poses = track_identities(out.poses, model, max_gap=max_gap)

@@ -11,6 +11,7 @@ import numpy as np
 from ..match.tree import _jsonable
 
 from ..errors import InputError
+from ..frames import sort_frames, sort_poses
 
 STATUSES = ("matched", "rejected", "failed")
 
@@ -159,7 +160,7 @@ def read_poses(path, strict: bool = True) -> list:
             continue
         p = Pose.from_dict(d, source=f"{path}: line {i + 1}")
         poses[p.frame] = p
-    return [poses[k] for k in sorted(poses)]
+    return [poses[k] for k in sort_frames(poses)]
 
 
 def write_poses(path, poses, header: dict | None = None) -> None:
@@ -170,5 +171,5 @@ def write_poses(path, poses, header: dict | None = None) -> None:
     with atomic_output(path) as tmp, open(tmp, "w") as fh:
         if header is not None:
             fh.write(json.dumps(header, separators=(",", ":")) + "\n")
-        for p in sorted(poses, key=lambda p: p.frame):
+        for p in sort_poses(poses):
             fh.write(p.to_json() + "\n")

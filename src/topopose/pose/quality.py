@@ -28,6 +28,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from ..errors import InputError
+from ..frames import sort_poses
 
 CLASSES = ("good", "missing limb", "partial", "misplaced", "bad", "none")
 TP_CLASSES = ("good", "missing limb")
@@ -258,7 +259,7 @@ def evaluate(gt: dict, poses, model=None, tolerance=None, max_missing=1, groups=
     if model is not None and model.mirrors:       # left_hand → hand_1 (gt's left), see chirality
         from .chirality import numbered
         poses = [numbered(p, model) for p in poses]
-    for p in sorted(poses, key=lambda p: p.frame):
+    for p in sort_poses(poses):
         g = gt["frames"].get(p.frame)
         if g is None:
             raise InputError(f"gt.json: no ground truth for frame {p.frame!r}")

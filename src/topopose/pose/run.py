@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import InputError
+from ..frames import sort_frames, sort_poses
 from .estimate import FrameEstimator
 from .model import load_model
 from .pose import Pose, read_poses, write_poses
@@ -315,7 +316,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     if partial is not None:
         fh = open(partial, "w")
         fh.write(json.dumps(header, separators=(",", ":")) + "\n")
-        for p in sorted(done.values(), key=lambda p: p.frame):
+        for p in sort_poses(done.values()):
             fh.write(p.to_json() + "\n")
         fh.flush()
     bar = _progress(len(todo), progress and len(todo) > 0, f"{m.name} @ {resolution}³")
@@ -373,7 +374,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
                 write_poses(out, results.values(), header)   # sorted, atomic replace
             partial.unlink(missing_ok=True)
     seconds = time.perf_counter() - t0
-    poses = [results[k] for k in sorted(results)]
+    poses = [results[k] for k in sort_frames(results)]
     motion = None
     # a resume with nothing to do keeps the file
     if (track or sides or skeleton or judged) and todo:

@@ -42,6 +42,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from ..frames import sort_poses
 from .curves import model_arcs
 
 PER_PART_DIAGNOSTICS = ("curves", "misplaced", "hand_hints", "detect_parts", "trim", "centred",
@@ -396,7 +397,7 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
     ``diagnostics["snapped"]``, its per-frame position in ``diagnostics["misplaced"]``, its
     curve dropped.
     """
-    poses = sorted(poses, key=lambda p: p.frame)
+    poses = sort_poses(poses)
     if gate is None:
         gate = 0.25 * body_scale(poses)
     times = frame_index(poses)

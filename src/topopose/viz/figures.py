@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..frames import sort_poses
+
 CLASS_COLOURS = {"good": "#2ca02c", "missing limb": "#98df8a", "partial": "#ffbb78",
                  "misplaced": "#ff7f0e", "bad": "#d62728", "none": "#7f7f7f"}
 STATUS_COLOURS = {"matched": "#2ca02c", "rejected": "#ff7f0e", "failed": "#d62728"}
@@ -62,7 +64,7 @@ def _history(ax, frames, distances, colours, labels, threshold=None, title=""):
 def plot_distances(poses, path, evaluation=None, threshold=None, title=None):
     """AHA distance per frame, coloured by quality class (with ground truth) or status."""
     plt = _mpl()
-    poses = sorted(poses, key=lambda p: p.frame)
+    poses = sort_poses(poses)
     fig, ax = plt.subplots(figsize=(9, 3.6), dpi=110)
     if evaluation is not None:
         q = {f.frame: f.quality for f in evaluation.frames}

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..frames import sort_poses
 
 
 def require_rerun():
@@ -38,7 +39,7 @@ def record_run(path, capture, poses, model="human", resolution=100, tolerance=No
     colours = {p: (np.array(c[:3]) * 255).astype(np.uint8) for p, c in part_colours(m.parts).items()}
     rec = rr.RecordingStream("topopose")        # its own stream: no global state
     rec.save(str(path))
-    for i, pose in enumerate(sorted(poses, key=lambda p: p.frame)):
+    for i, pose in enumerate(sort_poses(poses)):
         try:
             rec.set_time("frame", sequence=i)
         except (AttributeError, TypeError):      # rerun-sdk < 0.23

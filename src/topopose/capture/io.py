@@ -15,8 +15,11 @@ fail with the reason. Folder, video and background names are matched to the cali
 """
 from __future__ import annotations
 
+import functools
+import os
 import re
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -369,23 +372,68 @@ def silhouettes_from_images(cap: Capture, frame: str, images) -> list:
             for cam, im in zip(cap.cameras, images)]
 
 
-def _read_masks(cap: Capture, frame: str) -> list:
-    out = []
+@functools.cache
+def decode_pool() -> ThreadPoolExecutor:
+    """The threads that decode mask files (one per core; OpenCV decodes without the GIL)."""
+    return ThreadPoolExecutor(max_workers=max(1, os.cpu_count() or 1),
+                              thread_name_prefix="topopose-decode")
+
+
+def reduce_mask(mask, factor: int):
+    """``mask`` read ``factor`` times smaller on each axis: a reduced pixel is set when its
+    block of factor × factor pixels is mostly set (``cv2.INTER_AREA``, rounded). Returned as an
+    :class:`~topopose.capture.background.UpsampledMask` (the reduced mask upsampled back, its
+    ``small`` attribute the reduced one, which the hull carver and the silhouette comparisons
+    read). A voxel centre falling in a block is then inside the reduced silhouette only if the
+    full one holds a pixel of that block, and outside only if it misses one: the hull lies
+    between those of the full silhouettes eroded and dilated by a (2·factor − 1)² square.
+    ``factor`` 1 (or a mask already reduced by it): ``mask`` as it is."""
+    from .background import UpsampledMask
+
+    k = int(factor)
+    if k <= 1:
+        return mask
+    small = getattr(mask, "small", None)
+    h, w = mask.shape
+    if small is not None and small.shape == (h // k, w // k):
+        return mask
+    m8 = np.ascontiguousarray(mask, dtype=bool).view(np.uint8)
+    small = cv2.resize(m8, (w // k, h // k), interpolation=cv2.INTER_AREA)
+    full = cv2.resize(small, (w, h), interpolation=cv2.INTER_NEAREST).view(bool).view(UpsampledMask)
+    full.small = small
+    return full
+
+
+def reduce_masks(masks, factors) -> list:
+    """:func:`reduce_mask` of each camera's mask by its factor (None: ``masks`` unchanged)."""
+    if factors is None:
+        return masks
+    return [reduce_mask(m, k) for m, k in zip(masks, factors)]
+
+
+def _read_mask(cap: Capture, cam, p, factor: int = 1):
+    img = fit_size(cap, p, imread(p, cv2.IMREAD_UNCHANGED), cam)
+    if img.ndim == 3:
+        img = img[:, :, :3].max(axis=2)
+    if img.dtype != np.uint8:   # 16-bit masks: same rule on the 8-bit scale
+        img = (img.astype(np.float64) * (255.0 / np.iinfo(img.dtype).max)
+               if np.issubdtype(img.dtype, np.integer) else img * 255.0)
+    return reduce_mask(img > 127, factor)
+
+
+def _read_masks(cap: Capture, frame: str, factors=None) -> list:
+    """The masks of one frame, decoded by :func:`decode_pool` (reduced by ``factors``)."""
     base = Path(cap.path) / "silhouettes"
     names = cap.options.get("names") or {}
+    paths = []
     for cam in cap.cameras:
         p = cap.files[cam.name].get(frame)
         if p is None:
             raise InputError(f"{base / names.get(cam.name, cam.name)}: frame {frame!r} missing for "
                              f"camera {cam.name!r} (other cameras have it)")
-        img = fit_size(cap, p, imread(p, cv2.IMREAD_UNCHANGED), cam)
-        if img.ndim == 3:
-            img = img[:, :, :3].max(axis=2)
-        if img.dtype != np.uint8:   # 16-bit masks: same rule on the 8-bit scale
-            img = (img.astype(np.float64) * (255.0 / np.iinfo(img.dtype).max)
-                   if np.issubdtype(img.dtype, np.integer) else img * 255.0)
-        out.append(img > 127)
-    return out
+        paths.append(p)
+    factors = factors or [1] * len(paths)
+    return list(decode_pool().map(lambda a: _read_mask(cap, *a), zip(cap.cameras, paths, factors)))
 
 
 def read_silhouettes(cap: Capture, frame: str) -> list:
@@ -414,11 +462,20 @@ def read_silhouettes(cap: Capture, frame: str) -> list:
     return _silhouettes_now(cap, frame)
 
 
-def _silhouettes_now(cap: Capture, frame: str, images=None) -> list:
+def read_direct(cap: Capture, frame) -> list:
+    """The silhouettes of ``frame`` read now, never taken from a running :func:`prefetch` (which
+    would drop the frames queued before it): for looking at a few frames out of order, e.g.
+    fitting the capture volume."""
+    if cap.masks is not None:
+        return cap.silhouettes(frame)
+    return _silhouettes_now(cap, cap.frame_name(frame))
+
+
+def _silhouettes_now(cap: Capture, frame: str, images=None, factors=None) -> list:
     if cap.files is None and cap.options.get("frame_source") is None:
         raise InputError(f"{cap.path or 'capture'}: no silhouette files nor in-memory masks")
     if cap.options.get("source", "silhouettes") == "silhouettes":
-        return _read_masks(cap, frame)
+        return _read_masks(cap, frame, factors)
     if images is None:
         images = read_images(cap, frame)
     return silhouettes_from_images(cap, frame, images)
@@ -447,11 +504,12 @@ def _person_needed(cap: Capture, names: list):
 
 
 @contextmanager
-def prefetch(cap: Capture, frames, depth: int = 4):
+def prefetch(cap: Capture, frames, depth: int = 4, factors=None):
     """Within the block, ``cap.silhouettes(f)`` for ``frames`` (in that order) comes from a reader
-    thread that decodes the frames sequentially (all cameras) and extracts their silhouettes
-    ahead of the computation, at most ``depth`` frames ahead. Other frames are read directly.
-    In-memory captures: no effect."""
+    thread that decodes the frames sequentially (masks: each frame's cameras in parallel,
+    :func:`decode_pool`) and extracts their silhouettes ahead of the computation, at most
+    ``depth`` frames ahead; masks are reduced by ``factors`` (per camera, :func:`reduce_mask`)
+    as they are decoded. Other frames are read directly. In-memory captures: no effect."""
     if cap.masks is not None or cap.path is None or "prefetch" in cap.cache:
         yield cap
         return
@@ -469,7 +527,7 @@ def prefetch(cap: Capture, frames, depth: int = 4):
                                    else None)
     else:
         def work(f, images):
-            return _silhouettes_now(cap, f, images)
+            return _silhouettes_now(cap, f, images, factors)
     pf = Prefetcher(names, work, src, depth,
                     (cap.options.get("silhouettes") or {}).get("decode_ahead", 2),
                     needed=_person_needed(cap, names))

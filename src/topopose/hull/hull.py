@@ -7,12 +7,15 @@ Grid: ``resolution`` voxels along the longest side of the capture volume. The ca
    crossing its border is cut there (the border voxels are then part of the hull);
 2. else **fitted to the silhouettes** (:func:`fit_box`): the axis-aligned bounding box of the
    intersection of the cameras' silhouette-bounding-rectangle cones (a convex polytope, six
-   linear programs), then shrunk by two conservative coarse passes (a 32³ grid over the box keeps
+   linear programs), then shrunk by conservative coarse passes (a 32³ grid over the box keeps
    every cell whose projected bounding rectangle meets the silhouette in enough cameras, so no
    part of the hull can be lost however thin). The capture's fitted volume is the union of the
-   fitted boxes of up to 32 evenly spaced frames (all frames when there are fewer), computed once
-   and cached on the capture. A fitted grid keeps one empty voxel all round (N − 2 voxels span
-   the fitted box).
+   cone boxes of a few frames sampled evenly across the whole sequence
+   (:class:`VolumeFit`), computed once and cached on the capture. A fitted grid keeps one empty
+   voxel all round (N − 2 voxels span the fitted box). A frame whose hull reaches the fitted
+   grid's side (the subject jumped between two sampled frames) is carved again on a grid fitted
+   to it with the same voxels on the same lattice (``diagnostics["grid"] = "beyond"``): a
+   subject inside the cameras' common view never crosses the border.
 3. silhouette method ``"person"`` without ``[capture.volume]``: a *zone* grid, the hull box of
    the capture's first frame with a subject grown by :data:`PERSON_ZONE` (1 m) on each side,
    with the voxel size of that box grown by ⅔ ``zone_margin`` (N − 2 voxels along its longest
@@ -39,6 +42,8 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -247,25 +252,114 @@ def _cone_box(cameras, masks, tolerance):
     return lo - pad, hi + pad
 
 
-def _sample_frames(frames: list) -> list:
-    if len(frames) <= _SAMPLE:
+@dataclass(frozen=True)
+class VolumeFit:
+    """How a capture volume is fitted to the silhouettes (no ``[capture.volume]``).
+
+    Parameters
+    ----------
+    samples : int
+        Frames sampled evenly across the whole sequence, first and last included (all frames
+        when there are fewer). Each gives the box of its silhouettes' bounding-rectangle cones
+        (six linear programs); the volume is their union. A frame whose subject reaches beyond it (a jump between two
+        samples) is carved on a grid of its own, with the same voxels (:func:`visual_hull`).
+    """
+
+    samples: int = 8
+
+
+#: the default fit (``docs/decisions.md``: first frame and frames beyond the volume on the
+#: child recording, ``benchmarks/real.py --child``)
+VOLUME_FIT = VolumeFit()
+
+
+@dataclass(frozen=True)
+class MaskResolution:
+    """The resolution a grid's silhouette test needs: each camera's mask is read reduced by an
+    integer factor (:func:`topopose.capture.io.reduce_mask`, block majority) while a voxel at
+    the grid's centre still spans ``pixels_per_voxel`` reduced pixels.
+
+    Parameters
+    ----------
+    pixels_per_voxel : float
+        Reduced pixels across a voxel at the grid's centre (at least).
+    max_factor : int
+        The largest reduction.
+    """
+
+    pixels_per_voxel: float = 1.25
+    max_factor: int = 8
+
+
+#: the default (``docs/decisions.md``: hull time and accuracy, ``benchmarks/pipeline.py``)
+MASK_RESOLUTION = MaskResolution()
+
+
+def mask_factors(cameras, origin, voxel_size, shape, res: MaskResolution = MASK_RESOLUTION) -> list:
+    """Per camera, the reduction of its masks for a grid (``origin``, ``voxel_size``,
+    ``shape``): the largest integer ≤ ``max_factor`` that divides the image's width and height
+    and leaves a voxel at the grid's centre ``pixels_per_voxel`` reduced pixels wide (1: full
+    resolution)."""
+    centre = np.asarray(origin, float) + (np.asarray(shape) - 1) / 2 * float(voxel_size)
+    out = []
+    for cam in cameras:
+        depth = float((cam.R @ centre + cam.translation)[2])
+        f = float(min(cam.matrix[0, 0], cam.matrix[1, 1]))
+        k = int(min(res.max_factor, f * float(voxel_size) / max(depth, 1e-9)
+                    / float(res.pixels_per_voxel))) if depth > 0 else 1
+        w, h = cam.size
+        while k > 1 and (w % k or h % k):
+            k -= 1
+        out.append(max(1, k))
+    return out
+
+
+def _sample_frames(frames: list, samples: int = _SAMPLE) -> list:
+    if len(frames) <= samples:
         return list(frames)
-    idx = np.unique(np.round(np.linspace(0, len(frames) - 1, _SAMPLE)).astype(int))
+    idx = np.unique(np.round(np.linspace(0, len(frames) - 1, samples)).astype(int))
     return [frames[i] for i in idx]
 
 
-def _sampled_boxes(cap, tolerance) -> list:
-    key = ("fitted_boxes", tolerance)
+def frame_box(cameras, masks, tolerance: int = 0) -> tuple | None:
+    """A box (lo, hi) holding one frame's hull, cheaply: the box of the intersection of all
+    the silhouettes' bounding-rectangle cones (six linear programs, :func:`fit_box`'s first
+    step at tolerance 0) grown by half its size on each side, shrunk by :func:`fit_box`'s
+    conservative coarse passes at ``tolerance``. A camera that misses the subject (no cone
+    to intersect): :func:`fit_box` itself. None: no subject."""
+    b = _cone_box(cameras, masks, 0)
+    if b is None:
+        return fit_box(cameras, masks, tolerance)
+    grow = 0.5 * (b[1] - b[0])
+    return fit_box(cameras, masks, tolerance, within=(b[0] - grow, b[1] + grow))
+
+
+def _sampled_boxes(cap, tolerance, fit: VolumeFit = VOLUME_FIT) -> list:
+    key = ("fitted_boxes", tolerance, fit)
     if key not in cap.cache:
+        from ..capture.io import read_direct
+
         boxes = []
-        for f in _sample_frames(cap.frames):
-            try:
-                masks = cap.silhouettes(f)
-            except InputError:          # a broken frame is reported when it is processed
-                continue
-            b = fit_box(cap.cameras, masks, tolerance)
-            if b is not None:
-                boxes.append(b)
+        frames = _sample_frames(cap.frames, fit.samples)
+        # the next frame read (not through a prefetch: it would skip frames) during this one's box
+        with ThreadPoolExecutor(max_workers=1) as reader:
+            nxt = reader.submit(read_direct, cap, frames[0]) if frames else None
+            for i in range(len(frames)):
+                fut = nxt
+                if i + 1 < len(frames):
+                    nxt = reader.submit(read_direct, cap, frames[i + 1])
+                try:
+                    masks = fut.result()
+                except InputError:      # a broken frame is reported when it is processed
+                    continue
+                # the box of the silhouettes' bounding-rectangle cones: it holds the frame's
+                # strict hull (the consensus hull keeps tolerant voxels within a voxel of it);
+                # a camera that misses the subject: the frame's own box at the tolerance
+                b = _cone_box(cap.cameras, masks, 0)
+                if b is None:
+                    b = frame_box(cap.cameras, masks, tolerance)
+                if b is not None:
+                    boxes.append(b)
         cap.cache[key] = boxes
     return cap.cache[key]
 
@@ -372,10 +466,10 @@ def _person_zone(cap, resolution, tolerance, name=None, masks=None) -> tuple:
     return cap.cache[key]
 
 
-def capture_box(cap, tolerance: int = 0) -> tuple:
+def capture_box(cap, tolerance: int = 0, fit: VolumeFit = VOLUME_FIT) -> tuple:
     """The capture volume (lo, hi): ``cap.volume``, the box the subject sweeps (silhouettes
-    learned from the sequence, :mod:`topopose.capture.background`), or fitted to sampled frames
-    (cached).
+    learned from the sequence, :mod:`topopose.capture.background`), or fitted to frames
+    sampled across the sequence (``fit``, :class:`VolumeFit`; cached).
 
     Silhouette method ``"person"`` does not use it: its grid follows the subject
     (:func:`visual_hull`).
@@ -390,7 +484,7 @@ def capture_box(cap, tolerance: int = 0) -> tuple:
         box = subject_box(cap)
         if box is not None:
             return box
-    boxes = _sampled_boxes(cap, tolerance)
+    boxes = _sampled_boxes(cap, tolerance, fit)
     if not boxes:
         raise InputError(f"{cap.path or 'capture'}: cannot fit a capture volume: no sampled frame "
                          f"has a subject seen by the cameras (set [capture.volume] in capture.toml)")
@@ -443,7 +537,7 @@ def get_carver(cap, origin, voxel_size, shape) -> HullCarver:
 # --------------------------------------------------------------------------- main entry
 def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: bool = False,
                 keep_largest: bool = True, volume=None, masks=None, consensus: int | None = None,
-                max_removed: float = 0.2) -> Volume:
+                max_removed: float = 0.2, _lattice=None) -> Volume:
     """Volumetric visual hull of one frame (thesis §2.3.2.2).
 
     Parameters
@@ -482,8 +576,8 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
         ``diagnostics``: ``components_dropped`` (sizes of the dropped components of the
         (tolerant) hull, largest first), ``voxels``, ``bbox`` (inclusive voxel index box
         ``([imin, jmin, kmin], [imax, jmax, kmax])`` holding every voxel of ``data``, or None
-        when empty), ``touches_border``, ``grid`` ("fixed" or
-        "refocus"), ``timings_ms`` (silhouettes, fit, setup, carve, components — the latter
+        when empty), ``touches_border``, ``grid`` ("fixed",
+        "refocus", "zone" or "beyond"), ``timings_ms`` (silhouettes, fit, setup, carve, components — the latter
         includes the consensus), ``work`` (kernel counters); with ``consensus``:
         ``consensus_removed`` (voxels the restriction removed) or ``consensus_skipped``
         (voxels it would have removed), and ``consensus`` (``repair``, ``strict_voxels``,
@@ -527,12 +621,17 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
     if user_box is None and cap.volume is not None:
         user_box = _check_volume_arg(cap.volume)
     empty = False
+    fitted = False                      # on the volume fitted to sampled frames
     person = user_box is None and _person_grid(cap)
     if refocus:
         # the subject's box: coarse passes over the capture volume (given, or fitted to the
         # sampled frames and enlarged by a quarter on each side for frames outside the sample;
         # "person": the frame's own cone box, on the zone grid's lattice)
-        if person:
+        base = np.zeros(3)
+        if _lattice is not None:
+            # a frame beyond the fitted volume: the fixed grid's voxels, on its lattice
+            vs, base = _lattice
+        elif person:
             vs, within = _person_zone(cap, resolution, tolerance, name, masks)[0], None
         else:
             vs = _refocus_voxel_size(cap, resolution, tolerance, user_box)
@@ -542,7 +641,8 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
                 glo, ghi = capture_box(cap, tolerance)
                 grow = 0.25 * (ghi - glo)
                 within = (glo - grow, ghi + grow)
-        box = fit_box(cap.cameras, masks, tolerance, within=within)
+        box = (frame_box(cap.cameras, masks, tolerance) if _lattice is not None
+               else fit_box(cap.cameras, masks, tolerance, within=within))
         if box is not None and user_box is not None:
             box = (np.maximum(box[0], user_box[0]), np.minimum(box[1], user_box[1]))
             if np.any(box[0] >= box[1]):
@@ -552,14 +652,14 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
             c = np.mean(user_box, axis=0) if user_box is not None else np.mean(
                 [cam.center for cam in cap.cameras], axis=0)
             box = (c - vs, c + vs)
-        ilo = np.floor(box[0] / vs + 0.5).astype(int) - 1
-        ihi = np.ceil(box[1] / vs - 0.5).astype(int) + 1
+        ilo = np.floor((box[0] - base) / vs + 0.5).astype(int) - 1
+        ihi = np.ceil((box[1] - base) / vs - 0.5).astype(int) + 1
         if user_box is not None:            # no margin beyond the capture volume
             ulo = np.ceil(user_box[0] / vs - 0.5 - 1e-9).astype(int)
             uhi = np.floor(user_box[1] / vs - 0.5 + 1e-9).astype(int)
             ilo, ihi = np.maximum(ilo, ulo), np.minimum(ihi, np.maximum(uhi, ulo))
         shape = tuple(int(s) for s in np.maximum(ihi - ilo + 1, 1))
-        origin = ilo * vs
+        origin = base + ilo * vs
     elif person:
         vs, (origin, shape) = _person_zone(cap, resolution, tolerance, name, masks)
     else:
@@ -568,6 +668,7 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
         else:
             origin, vs, shape = grid_for_box(*capture_box(cap, tolerance), resolution,
                                              margin=True)
+            fitted = not soft
     t["fit"] = (time.perf_counter() - t0) * 1e3
     t0 = time.perf_counter()
     if soft:
@@ -627,6 +728,14 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
             "empty": empty, "timings_ms": t,
             "work": {"blocks": int(st[0]), "voxel_tests": int(st[1]), "projections": int(st[2]),
                      "full_blocks": int(st[3]), "empty_blocks": int(st[4])}, **cdiag}
+    if fitted and touches:
+        # the subject reaches beyond the volume fitted to the sampled frames (it jumped between
+        # two of them): carved on a grid of its own, with the same voxels on the same lattice
+        vol = visual_hull(cap, name, resolution, tolerance, True, keep_largest, volume, masks,
+                          consensus, max_removed, _lattice=(vs, origin))
+        vol.diagnostics["grid"] = "beyond"
+        vol.diagnostics["timings_ms"]["silhouettes"] = t["silhouettes"]
+        return vol
     if person and not refocus:
         if touches:                     # the subject left the zone: a grid of its own
             vol = visual_hull(cap, name, resolution, tolerance, True, keep_largest, volume,

@@ -254,6 +254,10 @@ class FrameEstimator:
         Record ``diagnostics["centred"]`` (and ``"centred_trim"``): the offsets moving the
         limbs' curve samples onto the silhouettes' centre lines (:mod:`.centre`; the kinematic
         fit applies them, nothing else changes). None (default): off.
+    mask_resolution : MaskResolution, bool or None
+        Masks read at the resolution the fixed grid's silhouette test needs
+        (:class:`topopose.hull.hull.MaskResolution`, :func:`topopose.capture.io.reduce_mask`):
+        None or True: the default; False: full resolution.
     """
 
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
@@ -266,11 +270,14 @@ class FrameEstimator:
                  short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
                  hand_trunk=None, head_ball=None, keep_junctions=None, head_doubt=None,
                  head_axis=None, junction_core=None, support=None, trim=None,
-                 centre=None):
+                 centre=None, mask_resolution=None):
         from ..match import Matcher
         from .confidence import min_confidence_for
 
         self.min_share = float(min_share)
+        from ..hull.hull import MASK_RESOLUTION
+        self.mask_resolution = (MASK_RESOLUTION if mask_resolution is None or mask_resolution is True
+                                else (mask_resolution or None))
         if support is not None:
             self.support = bool(support)
         if trim is not None:
@@ -432,12 +439,17 @@ class FrameEstimator:
 
         consensus = self.repair if self.tolerance > 0 and self.repair >= 0 else None
         masks = None
+        factors = self.mask_factors()
+        if factors is not None:         # read at the resolution the grid needs
+            from ..capture.io import reduce_masks
+            masks = reduce_masks(self.cap.silhouettes(frame), factors)
         if self.support or self.trim or self.centre:   # the silhouettes the hull is carved from
             from ..hull import uses_soft_fusion
             from .support import compared_views
             self._silhouettes = None
             if not uses_soft_fusion(self.cap):
-                masks = self.cap.silhouettes(frame)
+                if masks is None:
+                    masks = self.cap.silhouettes(frame)
                 self._silhouettes = compared_views(self.cap.cameras, masks)
         vol = visual_hull(self.cap, frame, resolution=self.resolution, tolerance=self.tolerance,
                           consensus=consensus, refocus=self.refocus, masks=masks)
@@ -448,6 +460,31 @@ class FrameEstimator:
             self._silhouettes = ([scaled_camera(c, float(p["scale"])) for c in self.cap.cameras],
                                  [q > cut for q in foreground_maps(self.cap, frame)])
         return vol
+
+    def mask_factors(self):
+        """Per camera, the reduction of the masks that the fixed grid's silhouette test needs
+        (:func:`topopose.hull.hull.mask_factors` with :attr:`mask_resolution`), computed once
+        (it fits the capture volume); None: masks at full resolution (option off, refocused or
+        zone grids, soft fusion, a user volume grid keeps them too when it cannot be fitted)."""
+        if "_factors" not in self.__dict__:
+            from ..hull import uses_soft_fusion
+            from ..hull.hull import _person_grid, capture_box, grid_for_box, mask_factors
+
+            self._factors = None
+            cap = self.cap
+            if (self.mask_resolution is not None and not self.refocus
+                    and not uses_soft_fusion(cap) and not _person_grid(cap)):
+                try:
+                    if cap.volume is not None:
+                        grid = grid_for_box(*cap.volume, self.resolution, margin=False)
+                    else:
+                        grid = grid_for_box(*capture_box(cap, self.tolerance), self.resolution,
+                                            margin=True)
+                except InputError:        # reported by the frame that needs the volume
+                    return None
+                f = mask_factors(cap.cameras, *grid, self.mask_resolution)
+                self._factors = f if max(f) > 1 else None
+        return self._factors
 
     def estimate(self, frame, detail: bool = False):
         """Pose of one frame; never raises for a frame-level problem (status "failed").

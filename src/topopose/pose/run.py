@@ -354,7 +354,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
                 try:
                     est = FrameEstimator(cap, m, resolution, threshold, **options)
                     est.warmup = warm
-                    with prefetch(cap, todo):        # decoding + silhouettes run ahead in a thread
+                    # decoding + silhouettes run ahead in threads, the masks at the resolution
+                    # the grid needs
+                    with prefetch(cap, todo, factors=est.mask_factors()):
                         for f in todo:
                             finish(est.estimate(f))
                 finally:

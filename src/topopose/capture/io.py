@@ -379,7 +379,7 @@ def decode_pool() -> ThreadPoolExecutor:
                               thread_name_prefix="topopose-decode")
 
 
-def reduce_mask(mask, factor: int):
+def reduce_mask(mask, factor: int, rule: str = "majority"):
     """``mask`` read ``factor`` times smaller on each axis: a reduced pixel is set when its
     block of factor × factor pixels is mostly set (``cv2.INTER_AREA``, rounded). Returned as an
     :class:`~topopose.capture.background.UpsampledMask` (the reduced mask upsampled back, its
@@ -387,7 +387,9 @@ def reduce_mask(mask, factor: int):
     read). A voxel centre falling in a block is then inside the reduced silhouette only if the
     full one holds a pixel of that block, and outside only if it misses one: the hull lies
     between those of the full silhouettes eroded and dilated by a (2·factor − 1)² square.
-    ``factor`` 1 (or a mask already reduced by it): ``mask`` as it is."""
+    ``factor`` 1 (or a mask already reduced by it): ``mask`` as it is. ``rule="any"``: a
+    reduced pixel is set when any pixel of its block is (a hull that holds the full one, for
+    fitting boxes)."""
     from .background import UpsampledMask
 
     k = int(factor)
@@ -398,7 +400,11 @@ def reduce_mask(mask, factor: int):
     if small is not None and small.shape == (h // k, w // k):
         return mask
     m8 = np.ascontiguousarray(mask, dtype=bool).view(np.uint8)
-    small = cv2.resize(m8, (w // k, h // k), interpolation=cv2.INTER_AREA)
+    if rule == "any":            # the maximum over the block at its top-left pixel
+        small = np.ascontiguousarray(
+            cv2.dilate(m8, np.ones((k, k), np.uint8), anchor=(0, 0))[: h // k * k:k, : w // k * k:k])
+    else:
+        small = cv2.resize(m8, (w // k, h // k), interpolation=cv2.INTER_AREA)
     full = cv2.resize(small, (w, h), interpolation=cv2.INTER_NEAREST).view(bool).view(UpsampledMask)
     full.small = small
     return full
@@ -411,18 +417,19 @@ def reduce_masks(masks, factors) -> list:
     return [reduce_mask(m, k) for m, k in zip(masks, factors)]
 
 
-def _read_mask(cap: Capture, cam, p, factor: int = 1):
+def _read_mask(cap: Capture, cam, p, factor: int = 1, rule: str = "majority"):
     img = fit_size(cap, p, imread(p, cv2.IMREAD_UNCHANGED), cam)
     if img.ndim == 3:
         img = img[:, :, :3].max(axis=2)
     if img.dtype != np.uint8:   # 16-bit masks: same rule on the 8-bit scale
         img = (img.astype(np.float64) * (255.0 / np.iinfo(img.dtype).max)
                if np.issubdtype(img.dtype, np.integer) else img * 255.0)
-    return reduce_mask(img > 127, factor)
+    return reduce_mask(img > 127, factor, rule)
 
 
-def _read_masks(cap: Capture, frame: str, factors=None) -> list:
-    """The masks of one frame, decoded by :func:`decode_pool` (reduced by ``factors``)."""
+def _read_masks(cap: Capture, frame: str, factors=None, rule: str = "majority") -> list:
+    """The masks of one frame, decoded by :func:`decode_pool` (reduced by ``factors`` with
+    ``rule``, :func:`reduce_mask`)."""
     base = Path(cap.path) / "silhouettes"
     names = cap.options.get("names") or {}
     paths = []
@@ -433,7 +440,8 @@ def _read_masks(cap: Capture, frame: str, factors=None) -> list:
                              f"camera {cam.name!r} (other cameras have it)")
         paths.append(p)
     factors = factors or [1] * len(paths)
-    return list(decode_pool().map(lambda a: _read_mask(cap, *a), zip(cap.cameras, paths, factors)))
+    return list(decode_pool().map(lambda a: _read_mask(cap, *a, rule),
+                                  zip(cap.cameras, paths, factors)))
 
 
 def read_silhouettes(cap: Capture, frame: str) -> list:
@@ -462,13 +470,15 @@ def read_silhouettes(cap: Capture, frame: str) -> list:
     return _silhouettes_now(cap, frame)
 
 
-def read_direct(cap: Capture, frame) -> list:
+def read_direct(cap: Capture, frame, factors=None, rule: str = "majority") -> list:
     """The silhouettes of ``frame`` read now, never taken from a running :func:`prefetch` (which
     would drop the frames queued before it): for looking at a few frames out of order, e.g.
-    fitting the capture volume."""
-    if cap.masks is not None:
-        return cap.silhouettes(frame)
-    return _silhouettes_now(cap, cap.frame_name(frame))
+    fitting the capture volume. ``factors``, ``rule``: reduced as :func:`reduce_mask` says."""
+    frame = cap.frame_name(frame)
+    if cap.masks is None and cap.options.get("source", "silhouettes") == "silhouettes":
+        return _read_masks(cap, frame, factors, rule)      # reduced by the decoding threads
+    masks = cap.silhouettes(frame) if cap.masks is not None else _silhouettes_now(cap, frame)
+    return masks if factors is None else [reduce_mask(m, k, rule) for m, k in zip(masks, factors)]
 
 
 def _silhouettes_now(cap: Capture, frame: str, images=None, factors=None) -> list:

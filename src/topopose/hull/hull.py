@@ -10,8 +10,8 @@ Grid: ``resolution`` voxels along the longest side of the capture volume. The ca
    linear programs), then shrunk by conservative coarse passes (a 32³ grid over the box keeps
    every cell whose projected bounding rectangle meets the silhouette in enough cameras, so no
    part of the hull can be lost however thin). The capture's fitted volume is the union of the
-   cone boxes of a few frames sampled evenly across the whole sequence
-   (:class:`VolumeFit`), computed once and cached on the capture. A fitted grid keeps one empty
+   boxes (:func:`frame_box`) of a few frames sampled evenly across the whole sequence, with a
+   margin (:class:`VolumeFit`), computed once and cached on the capture. A fitted grid keeps one empty
    voxel all round (N − 2 voxels span the fitted box). A frame whose hull reaches the fitted
    grid's side (the subject jumped between two sampled frames) is carved again on a grid fitted
    to it with the same voxels on the same lattice (``diagnostics["grid"] = "beyond"``): a
@@ -170,19 +170,10 @@ def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None, s
     for q, m in enumerate(masks):
         K.block_rects(geo, intr, q, 1.0, shape[0], shape[1], shape[2], 1, float(1 << 24), r)
         sat, fx, fy = _integral(m) if sats is None else sats[q]
-        inv = r[..., 0] == K.INVALID
         h, w = m.shape
-        x0 = np.clip(r[..., 0], 0, w - 1)
-        x1 = np.clip(r[..., 2], 0, w - 1)
-        y0 = np.clip(r[..., 1], 0, h - 1)
-        y1 = np.clip(r[..., 3], 0, h - 1)
-        empty_rect = (r[..., 0] > w - 1) | (r[..., 2] < 0) | (r[..., 1] > h - 1) | (r[..., 3] < 0)
-        if fx > 1 or fy > 1:
-            # an upsampled mask: the pixels of a rectangle are those of the small mask's
-            # rectangle of the blocks it meets (a block is set or not as a whole)
-            x0, x1, y0, y1 = x0 // fx, x1 // fx, y0 // fy, y1 // fy
-        s = sat[y1 + 1, x1 + 1] - sat[y0, x1 + 1] - sat[y1 + 1, x0] + sat[y0, x0]
-        misses += ((s == 0) | empty_rect) & ~inv
+        # an upsampled mask: the pixels of a rectangle are those of the small mask's rectangle
+        # of the blocks it meets (a block is set or not as a whole)
+        K.rect_misses(r, sat, w, h, fx, fy, misses)
     keep = misses <= tolerance
     if not keep.any():
         return None
@@ -260,12 +251,16 @@ class VolumeFit:
     ----------
     samples : int
         Frames sampled evenly across the whole sequence, first and last included (all frames
-        when there are fewer). Each gives the box of its silhouettes' bounding-rectangle cones
-        (six linear programs); the volume is their union. A frame whose subject reaches beyond it (a jump between two
-        samples) is carved on a grid of its own, with the same voxels (:func:`visual_hull`).
+        when there are fewer). Each gives its hull's box (:func:`frame_box`); the volume is
+        their union grown by ``margin``. A frame whose subject reaches beyond it (it moved or
+        jumped between two samples) is carved on a grid of its own, with the same voxels
+        (:func:`visual_hull`).
+    margin : float
+        The union grown on each side by this fraction of its longest side.
     """
 
-    samples: int = 8
+    samples: int = 12
+    margin: float = 0.05
 
 
 #: the default fit (``docs/decisions.md``: first frame and frames beyond the volume on the
@@ -341,23 +336,26 @@ def _sampled_boxes(cap, tolerance, fit: VolumeFit = VOLUME_FIT) -> list:
 
         boxes = []
         frames = _sample_frames(cap.frames, fit.samples)
+        # masks read reduced by at most 4, a reduced pixel set when any of its block is: the
+        # boxes hold the full masks' hulls, for a sixteenth of the summing
+        factors = []
+        for cam in cap.cameras:
+            k = 4
+            while k > 1 and (cam.size[0] % k or cam.size[1] % k):
+                k -= 1
+            factors.append(k)
         # the next frame read (not through a prefetch: it would skip frames) during this one's box
         with ThreadPoolExecutor(max_workers=1) as reader:
-            nxt = reader.submit(read_direct, cap, frames[0]) if frames else None
+            nxt = reader.submit(read_direct, cap, frames[0], factors, "any") if frames else None
             for i in range(len(frames)):
                 fut = nxt
                 if i + 1 < len(frames):
-                    nxt = reader.submit(read_direct, cap, frames[i + 1])
+                    nxt = reader.submit(read_direct, cap, frames[i + 1], factors, "any")
                 try:
                     masks = fut.result()
                 except InputError:      # a broken frame is reported when it is processed
                     continue
-                # the box of the silhouettes' bounding-rectangle cones: it holds the frame's
-                # strict hull (the consensus hull keeps tolerant voxels within a voxel of it);
-                # a camera that misses the subject: the frame's own box at the tolerance
-                b = _cone_box(cap.cameras, masks, 0)
-                if b is None:
-                    b = frame_box(cap.cameras, masks, tolerance)
+                b = frame_box(cap.cameras, masks, tolerance)
                 if b is not None:
                     boxes.append(b)
         cap.cache[key] = boxes
@@ -488,7 +486,9 @@ def capture_box(cap, tolerance: int = 0, fit: VolumeFit = VOLUME_FIT) -> tuple:
     if not boxes:
         raise InputError(f"{cap.path or 'capture'}: cannot fit a capture volume: no sampled frame "
                          f"has a subject seen by the cameras (set [capture.volume] in capture.toml)")
-    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+    lo, hi = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+    grow = fit.margin * float((hi - lo).max())
+    return lo - grow, hi + grow
 
 
 def grid_for_box(lo, hi, resolution: int, margin: bool) -> tuple:

@@ -720,3 +720,31 @@ def keep_label(sub, lab, n):
                 if lab[i, j, k] != best:
                     sub[i, j, k] = False
     return sizes, best
+
+
+@njit(cache=True)
+def rect_misses(r, sat, w, h, fx, fy, misses):
+    """``misses`` += 1 for each cell whose rectangle ``r`` (n0, n1, n2, 4: x0, y0, x1, y1, or
+    ``x0 == INVALID``: unknown, never a miss) lies outside the image (w, h) or holds no set pixel
+    of the summed-area table ``sat`` (of the mask, or of its small mask when it is reduced by
+    (fx, fy): the rectangle's blocks)."""
+    n0, n1, n2 = misses.shape
+    for a in range(n0):
+        for b in range(n1):
+            for c in range(n2):
+                rx0 = r[a, b, c, 0]
+                if rx0 == INVALID:
+                    continue
+                ry0 = r[a, b, c, 1]
+                rx1 = r[a, b, c, 2]
+                ry1 = r[a, b, c, 3]
+                if rx0 > w - 1 or rx1 < 0 or ry0 > h - 1 or ry1 < 0:
+                    misses[a, b, c] += 1
+                    continue
+                x0 = min(max(rx0, 0), w - 1) // fx
+                x1 = min(max(rx1, 0), w - 1) // fx
+                y0 = min(max(ry0, 0), h - 1) // fy
+                y1 = min(max(ry1, 0), h - 1) // fy
+                s = sat[y1 + 1, x1 + 1] - sat[y0, x1 + 1] - sat[y1 + 1, x0] + sat[y0, x0]
+                if s == 0:
+                    misses[a, b, c] += 1

@@ -219,3 +219,21 @@ def test_applications_counts_on_the_frames_the_support_keeps():
     c = A.detection_counts(rows, "p", keep=lambda r, d: A.supported(r, 0.08))
     assert (c["tp"], c["fp"], c["fn"], c["tn"]) == (1, 1, 1, 0)
     assert c["precision"] == 0.5 and c["recall"] == 0.5
+
+
+def test_exact_edt_equals_scipy():
+    """Oracle: SciPy's exact Euclidean distance transform, bit for bit, on random blobs that
+    touch the image's sides, with holes and isolated pixels."""
+    from scipy.ndimage import distance_transform_edt
+
+    from topopose.pose.support import exact_edt
+
+    rng = np.random.default_rng(1)
+    yy, xx = np.ogrid[:120, :90]
+    for _ in range(20):
+        m = np.zeros((120, 90), bool)
+        for _ in range(6):
+            y, x, r = rng.integers(0, 120), rng.integers(0, 90), rng.integers(3, 40)
+            m |= (yy - y) ** 2 + (xx - x) ** 2 < r * r
+        m[rng.integers(0, 120, 10), rng.integers(0, 90, 10)] ^= True
+        assert np.array_equal(exact_edt(m), distance_transform_edt(m))

@@ -157,3 +157,19 @@ def test_hull_shoulders_place_hanging_and_unseen_arms_only(monkeypatch):
     for a, b in zip(arm, arm[1:]):
         assert np.isclose(np.linalg.norm(J[b] - J[a]), np.linalg.norm(J0[b] - J0[a]))
     assert np.allclose(J["wrist_1"], J0["wrist_1"], atol=1e-6)
+
+
+def test_unexplained_kernel_equals_numpy_distances():
+    """Oracle: the brute-force NumPy test (every point against every sample), same floats;
+    reaches set to distances that occur make ties, which must fall the same way."""
+    from topopose.pose.unseen_kernels import unexplained
+
+    rng = np.random.default_rng(8)
+    X = rng.uniform(-1, 1, (700, 3))
+    S = rng.uniform(-1, 1, (90, 3))
+    reach = rng.uniform(0.02, 0.12, 90)
+    S[:20] = X[:20] + rng.normal(0, 0.03, (20, 3))
+    reach[:20] = np.linalg.norm(X[:20] - S[:20], axis=1)       # exact ties
+    want = ~(np.linalg.norm(X[:, None, :] - S[None, :, :], axis=2) <= reach[None]).any(axis=1)
+    assert np.array_equal(unexplained(X, S, reach), want)
+    assert not want[:20].any() and want.any()

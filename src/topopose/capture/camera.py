@@ -50,8 +50,12 @@ class Camera:
 
     @property
     def R(self) -> np.ndarray:
-        """World → camera rotation matrix."""
-        return cv2.Rodrigues(self.rotation)[0]
+        """World → camera rotation matrix (a copy; computed once per ``rotation``)."""
+        key = self.rotation.tobytes()
+        got = self.__dict__.get("_R")
+        if got is None or got[0] != key:
+            got = self.__dict__["_R"] = (key, cv2.Rodrigues(self.rotation)[0])
+        return got[1].copy()
 
     @property
     def center(self) -> np.ndarray:

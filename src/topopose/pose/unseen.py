@@ -67,12 +67,10 @@ def hull_remainder(vol, curves: dict, edt=None, stride: int = STRIDE, grow: floa
     ijk = np.clip(np.rint((S - origin) / vs).astype(int) - np.asarray(lo) + 1, 0,
                   np.asarray(dt.shape) - 1)
     reach = grow * dt[tuple(ijk.T)] * vs + pad * vs
+    from .unseen_kernels import unexplained
+
     X = origin + idx * vs
-    keep = np.ones(len(X), dtype=bool)
-    for a in range(0, len(S), 256):
-        d = np.linalg.norm(X[:, None, :] - S[None, a:a + 256, :], axis=2)
-        keep &= ~(d <= reach[None, a:a + 256]).any(axis=1)
-    return X[keep]
+    return X[unexplained(X, np.ascontiguousarray(S), np.ascontiguousarray(reach, dtype=float))]
 
 
 def _seg_dist(X, A, B):

@@ -715,6 +715,8 @@ class FrameEstimator:
                 "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
                 "skeleton_voxels": int(data.diagnostics.get("n_voxels", -1)),
                 "data_vertices": data.n_vertices, "missing": missing, **extra}
+        if vol.diagnostics.get("grid") == "beyond":    # carved on a grid of its own
+            diag["hull_grid"] = "beyond"
         if arc_cost is not None:
             diag["thickness_cost"] = round(thick, 6)
         diag["missing_cost"] = round(mcost, 6)

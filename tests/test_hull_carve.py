@@ -395,3 +395,26 @@ def test_keep_largest_component_kernel_equals_bincount_path():
         many += len(want) > 0
     assert many > 20 and cc3d is not None
     assert tie.sum() == 16 and keep_largest_component(tie.copy()) == [8]
+
+
+def test_cropped_buffers_equal_brute_force_on_odd_masks():
+    """The carver keeps only each silhouette's bounding box: a mask touching the image's sides,
+    one set everywhere, one empty (tolerance 1), a single pixel, and scattered pixels give the
+    brute-force hull."""
+    cams = ring(n=5, f=500, size=(160, 120))
+    masks = capsule_masks(cams, (-0.3, 0.1, 0.5), (0.35, -0.1, 1.4), 0.5)
+    rng = np.random.default_rng(4)
+    masks[0] = masks[0] | (rng.random(masks[0].shape) < 0.02)
+    masks[1] = np.ones_like(masks[1])
+    masks[2] = np.zeros_like(masks[2])
+    masks[3] = masks[3].copy()
+    masks[3][:, :2] = True                       # the image's left side
+    masks[4] = masks[4].copy()
+    masks[4][119, 159] = True                    # the last pixel
+    origin, vs, shape = np.array([-0.9, -0.8, 0.05]), 0.05, (36, 32, 40)
+    carver = HullCarver(cams, origin, vs, shape)
+    seen, edge = brute_force(cams, masks, origin, vs, shape)
+    for tolerance in (1, 2):
+        got = carver.carve(masks, tolerance=tolerance)
+        want = seen >= len(cams) - tolerance
+        assert want.sum() > 100 and not np.any((got != want) & ~edge)

@@ -424,7 +424,10 @@ def _read_mask(cap: Capture, cam, p, factor: int = 1, rule: str = "majority"):
     if img.dtype != np.uint8:   # 16-bit masks: same rule on the 8-bit scale
         img = (img.astype(np.float64) * (255.0 / np.iinfo(img.dtype).max)
                if np.issubdtype(img.dtype, np.integer) else img * 255.0)
-    return reduce_mask(img > 127, factor, rule)
+    from .silhouettes import boxed
+
+    m = img > 127
+    return reduce_mask(m, factor, rule) if factor > 1 else boxed(m)
 
 
 def _read_masks(cap: Capture, frame: str, factors=None, rule: str = "majority") -> list:

@@ -36,6 +36,7 @@ import math
 import cv2
 import numpy as np
 
+from ..capture.silhouettes import mask_box
 from ..errors import InputError
 from . import hull_kernels as K
 
@@ -237,6 +238,7 @@ class HullCarver:
         self.soff = (np.arange(C) * ((H + 1) * (W + 1))).astype(np.int64)
         self.stats = np.zeros(12, dtype=np.int64)
         self.fac = np.ones((C, 2), dtype=np.int64)   # per camera: mask smaller by (fx, fy)
+        self.crop = np.zeros((C, 4), dtype=np.int64)  # per camera: the buffers' part of the mask
 
     @property
     def nbytes(self) -> int:
@@ -251,6 +253,7 @@ class HullCarver:
             raise InputError(f"visual hull: {len(masks)} silhouettes for {len(self.cameras)} cameras")
         for q, (cam, m) in enumerate(zip(self.cameras, masks)):
             small = getattr(m, "small", None)
+            box = mask_box(m) if small is None else None
             m = np.asarray(m)
             if m.shape != (cam.size[1], cam.size[0]):
                 raise InputError(f"visual hull: silhouette of camera {cam.name!r} has shape "
@@ -265,10 +268,17 @@ class HullCarver:
                 m = m.view(np.uint8)
             else:
                 m = (m != 0).view(np.uint8)
-            h, w = m.shape
+            # the silhouette's bounding box only (outside it the mask is empty): the copy and
+            # the summed-area table cost the subject's pixels, not the image's
+            x, y, w, h = box if box is not None and self.fac[q, 0] == 1 else mask_box(m)
+            if w == 0:
+                x = y = 0
+                w = h = 1                 # one empty pixel
+            self.crop[q] = x, y, w, h
+            m = m[y:y + h, x:x + w]
             np.copyto(self._masks[q, :h, :w], m)
             dst = self._sats[q, : h + 1, : w + 1]
-            r = cv2.integral(m, dst, cv2.CV_32S)
+            r = cv2.integral(np.ascontiguousarray(m), dst, cv2.CV_32S)
             if not np.shares_memory(r, dst):
                 dst[...] = r
 
@@ -295,7 +305,7 @@ class HullCarver:
         self.stats[:] = 0
         K.carve(self.shape[0], self.shape[1], self.shape[2], self.geo, self.intr, self._mflat,
                 self.moff, self._sflat, self.soff, self.rects, self.loff, self.ldims, self.lmin,
-                self.lmax, tolerance, bool(levels), out, self.stats, self.fac)
+                self.lmax, tolerance, bool(levels), out, self.stats, self.fac, self.crop)
         return out if levels else out.view(bool)
 
     def project_voxels(self, ijk) -> np.ndarray:

@@ -286,7 +286,8 @@ class MaskResolution:
     max_factor: int = 8
 
 
-#: the default (``docs/decisions.md``: hull time and accuracy, ``benchmarks/pipeline.py``)
+#: the reduction ``FrameEstimator(mask_resolution=True)`` uses (off by default:
+#: ``docs/decisions.md``)
 MASK_RESOLUTION = MaskResolution()
 
 

@@ -89,12 +89,16 @@ def project_voxels(geo, intr, ijk):
 
 
 @njit(cache=True)
-def _rect_state(rects, row, sflat, soff, w, h, W, fx=1, fy=1):
+def _rect_state(rects, row, sflat, soff, w, h, W, fx=1, fy=1, ox=0, oy=0, cw=1 << 30,
+                ch=1 << 30):
     """0: all outside the silhouette, 1: all inside, 2: undecided (mixed or unknown).
     ``fx``, ``fy`` > 1: the summed-area table is that of a mask ``fx`` × ``fy`` times smaller
     whose nearest-neighbour upsampling (pixel (u, v) → (u // fx, v // fy)) is the silhouette:
     the rectangle covers exactly the small pixels ``x0 // fx`` … ``x1 // fx`` (rows alike), so
-    the answer is the one the full-size table gives."""
+    the answer is the one the full-size table gives. The table covers the mask's crop
+    ``ox … ox + cw − 1`` × ``oy … oy + ch − 1`` (mask pixels), outside which no pixel is set:
+    the rectangle's count is that of its part in the crop, and it is all inside only when that
+    count fills the whole rectangle — the answers of the whole mask's table."""
     x0 = rects[row, 0]
     if x0 == INVALID:
         return 2
@@ -111,8 +115,14 @@ def _rect_state(rects, row, sflat, soff, w, h, W, fx=1, fy=1):
     sx1 = cx1 // fx
     sy0 = cy0 // fy
     sy1 = cy1 // fy
-    s = (sflat[soff + (sy1 + 1) * W + sx1 + 1] - sflat[soff + sy0 * W + sx1 + 1]
-         - sflat[soff + (sy1 + 1) * W + sx0] + sflat[soff + sy0 * W + sx0])
+    ix0 = max(sx0, ox) - ox
+    ix1 = min(sx1, ox + cw - 1) - ox
+    iy0 = max(sy0, oy) - oy
+    iy1 = min(sy1, oy + ch - 1) - oy
+    if ix0 > ix1 or iy0 > iy1:
+        return 0
+    s = (sflat[soff + (iy1 + 1) * W + ix1 + 1] - sflat[soff + iy0 * W + ix1 + 1]
+         - sflat[soff + (iy1 + 1) * W + ix0] + sflat[soff + iy0 * W + ix0])
     if s == 0:
         return 0
     if (s == (sx1 - sx0 + 1) * (sy1 - sy0 + 1) and cx0 == x0 and cy0 == y0
@@ -123,7 +133,7 @@ def _rect_state(rects, row, sflat, soff, w, h, W, fx=1, fy=1):
 
 @njit(cache=True)
 def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, lmin, lmax,
-          tolerance, levels, out, stats, fac):
+          tolerance, levels, out, stats, fac, crop):
     """Hierarchical carving of the volumetric visual hull (thesis §2.3.2.2).
 
     A voxel is set in ``out`` (uint8, zeroed by the caller) when its centre projects inside the
@@ -140,6 +150,11 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
     table are smaller than its image ((1, 1): full size); the silhouette is the mask's
     nearest-neighbour upsampling, pixel (u, v) reading mask pixel (u // fx, v // fy), so the
     hull is the one the upsampled mask gives, without building it (:func:`_rect_state`).
+
+    ``crop`` (int64, (C, 4)): per camera, the part of its mask (ox, oy, cw, ch, in the mask's
+    own pixels) that the buffers hold (at their top left), outside which the mask is empty:
+    the silhouette's bounding box, so that a frame's buffers and tables cost its subject's
+    pixels, not the image's.
 
     ``stats`` (int64, 12): block tests, voxel tests, projections, full blocks, empty blocks,
     set voxels, and the bounding box of set voxels is written to ``stats[6:12]`` (imin, jmin, kmin, imax,
@@ -202,7 +217,8 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
         for c in range(C):
             if (act >> c) & 1:
                 s = _rect_state(rects, base + c, sflat, soff[c], ws[c], hs[c], stride1,
-                                fac[c, 0], fac[c, 1])
+                                fac[c, 0], fac[c, 1], crop[c, 0], crop[c, 1], crop[c, 2],
+                                crop[c, 3])
                 if s == 0:
                     miss += 1
                     act &= ~(1 << c)
@@ -264,9 +280,14 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
                         if (act >> c) & 1:
                             nproj += 1
                             p = _pixel(geo, intr, c, float(i), float(j), float(k))
-                            if p >= 0 and (fac[c, 0] > 1 or fac[c, 1] > 1):
+                            if p >= 0:
                                 pv = p // (stride1 - 1)
-                                p = (pv // fac[c, 1]) * (stride1 - 1) + (p - pv * (stride1 - 1)) // fac[c, 0]
+                                pu = (p - pv * (stride1 - 1)) // fac[c, 0] - crop[c, 0]
+                                pv = pv // fac[c, 1] - crop[c, 1]
+                                if pu < 0 or pv < 0 or pu >= crop[c, 2] or pv >= crop[c, 3]:
+                                    p = -1              # outside the crop: not subject
+                                else:
+                                    p = pv * (stride1 - 1) + pu
                             if p < 0 or mflat[moff[c] + p] == 0:
                                 m += 1
                                 if m > tolerance:

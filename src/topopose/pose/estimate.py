@@ -255,9 +255,11 @@ class FrameEstimator:
         limbs' curve samples onto the silhouettes' centre lines (:mod:`.centre`; the kinematic
         fit applies them, nothing else changes). None (default): off.
     mask_resolution : MaskResolution, bool or None
-        Masks read at the resolution the fixed grid's silhouette test needs
-        (:class:`topopose.hull.hull.MaskResolution`, :func:`topopose.capture.io.reduce_mask`):
-        None or True: the default; False: full resolution.
+        Masks read reduced to the resolution the fixed grid's silhouette test needs
+        (:class:`topopose.hull.hull.MaskResolution`, :func:`topopose.capture.io.reduce_mask`;
+        True: its defaults). None (default) or False: full resolution — the hull is carved
+        from each silhouette's bounding box (:class:`topopose.hull.HullCarver`), as fast, and
+        the reduction moves a few boundary voxels (``docs/decisions.md``).
     """
 
     def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
@@ -276,7 +278,7 @@ class FrameEstimator:
 
         self.min_share = float(min_share)
         from ..hull.hull import MASK_RESOLUTION
-        self.mask_resolution = (MASK_RESOLUTION if mask_resolution is None or mask_resolution is True
+        self.mask_resolution = (MASK_RESOLUTION if mask_resolution is True
                                 else (mask_resolution or None))
         if support is not None:
             self.support = bool(support)
@@ -443,6 +445,12 @@ class FrameEstimator:
         if factors is not None:         # read at the resolution the grid needs
             from ..capture.io import reduce_masks
             masks = reduce_masks(self.cap.silhouettes(frame), factors)
+        elif not self.refocus:
+            # each silhouette's bounding box once, for the hull, the support and the trim
+            from ..capture.silhouettes import boxed
+            from ..hull import uses_soft_fusion
+            if not uses_soft_fusion(self.cap):
+                masks = [boxed(m) for m in self.cap.silhouettes(frame)]
         if self.support or self.trim or self.centre:   # the silhouettes the hull is carved from
             from ..hull import uses_soft_fusion
             from .support import compared_views

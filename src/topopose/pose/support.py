@@ -47,7 +47,9 @@ def compared_views(cameras, masks) -> tuple:
     for cam, m in zip(cameras, masks):
         small = getattr(m, "small", None)
         cams.append(cam if small is None else scaled_camera(cam, small.shape[1] / cam.size[0]))
-        sils.append(np.asarray(m if small is None else small, bool))
+        # a boolean mask kept as it is (its bounding box, when it carries one, goes with it)
+        sils.append(m if small is None and getattr(m, "dtype", None) == bool
+                    else np.asarray(m if small is None else small, bool))
     return cams, sils
 
 
@@ -105,6 +107,8 @@ def support_features(curves, parts, cams, masks, occ, origin, voxel_size, edt=No
     """
     import cv2
 
+    from ..capture.silhouettes import mask_box
+
     origin = np.asarray(origin, float)
     from .tips import inscribed_distances
 
@@ -122,7 +126,7 @@ def support_features(curves, parts, cams, masks, occ, origin, voxel_size, edt=No
     unexpl, outside, depth, beyond_in = [], [], {}, {}
     for cam, S in zip(cams, masks):
         S8 = np.asarray(S, bool).view(np.uint8)
-        bx, by, bw, bh = cv2.boundingRect(S8)
+        bx, by, bw, bh = mask_box(S)
         if not bw:
             continue
         m = max(2, (bh - 1) // 16)                          # margin around the silhouette

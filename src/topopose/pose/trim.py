@@ -78,8 +78,11 @@ def silhouette_depth(mask):
     """
     import cv2
 
-    m = np.asarray(mask, np.uint8)
-    x, y, w, h = cv2.boundingRect(m)
+    from ..capture.silhouettes import mask_box
+
+    x, y, w, h = mask_box(mask)
+    m = np.asarray(mask).view(np.uint8) if np.asarray(mask).dtype == bool else \
+        np.asarray(mask, np.uint8)
     if w == 0:
         return np.zeros((0, 0), np.float32), (0, 0)
     x0, y0 = max(x - 1, 0), max(y - 1, 0)

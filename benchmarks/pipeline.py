@@ -65,7 +65,23 @@ def main(argv=None):
     ap.add_argument("--subject", default="human")
     ap.add_argument("--noise", type=int, default=1)
     ap.add_argument("--out", default=str(results_dir()))
+    ap.add_argument("--child", help="the child_rope recording: compute alone on it (masks in "
+                                    "memory, one core, 100³) against --peer, in the same run "
+                                    "(benchmarks/real_child.py)")
+    ap.add_argument("--peer", default=str(Path(__file__).resolve().parents[2] / "peer-capture"
+                                          / "src"), help="src folder of the peer tree")
     a = ap.parse_args(argv)
+    if a.child:
+        import real_child
+        rec, peer = Path(a.child), Path(a.peer)
+        if not (rec / "cam00" / "cam_par.txt").is_file():
+            print(f"{rec}: child_rope recording not found (cam00/cam_par.txt …); pass its path")
+            return 2
+        if not (peer / "topopose" / "__init__.py").is_file():
+            print(f"{peer}: no peer tree (its src folder holding topopose/); pass --peer")
+            return 2
+        return real_child.memory_compare(rec, peer, 6 if a.quick else 40,
+                                         Path(a.out) / "pipeline_child")
     from topopose.capture import synthetic_capture
 
     load0 = os.getloadavg()[0]

@@ -1,6 +1,11 @@
 """A real recording: Pose2Sim's balancing trial, from its 4 videos and Calib.toml as shipped.
 
     python benchmarks/real.py [RECORDING] [--methods sequence,selfie,sequence+selfie,person] [--frames N]
+    python benchmarks/real.py [RECORDING] --child CHILD_ROPE [--peer-src PEER/src]
+
+``--child``: the 10-camera studio recording as it comes, against the current main in the same
+run, with this recording's ``person`` run and a synthetic accuracy check
+(:mod:`real_child`).
 
 RECORDING (default ``benchmarks/data/pose2sim_balancing/``): ``videos/cam01.mp4`` …,
 ``Calib.toml`` (tables ``cam_01`` …), ``reference/pose2sim_3d.trc`` (Pose2Sim's own 3D result,
@@ -559,7 +564,15 @@ def main(argv=None):
                     help="method the speed ratios and pose identity are measured against")
     ap.add_argument("--set", action="append", default=[],
                     help="extra [silhouettes] field, e.g. --set occupancy=0.9 (TOML value)")
+    ap.add_argument("--child", help="the child_rope studio recording: measured as it comes "
+                                    "against the current main instead (benchmarks/real_child.py;"
+                                    " RECORDING gives its Pose2Sim part)")
+    ap.add_argument("--peer-src", help="with --child: src folder of the peer tree")
     a = ap.parse_args(argv)
+    if a.child:
+        import real_child
+        return real_child.main([a.child, "--pose2sim", a.recording, "--synthetic", "40"]
+                               + (["--peer", a.peer_src] if a.peer_src else []))
     rec = Path(a.recording)
     if not (rec / "videos").is_dir() or not (rec / "Calib.toml").is_file():
         print(f"{rec}: recording not found (needs videos/ and Calib.toml); pass its path")

@@ -209,6 +209,37 @@ def child(rec: Path, peer: Path, frames, memory_frames: int, out: Path, tmp: Pat
     return doc
 
 
+def memory_compare(rec: Path, peer: Path, n: int, out: Path) -> int:
+    """``benchmarks/pipeline.py --child``: compute alone (masks in memory, one core, 100³) on
+    ``n`` frames spread over the recording, this branch against the peer; writes ``out``.md /
+    .json."""
+    from _machine import machine_line
+
+    with tempfile.TemporaryDirectory() as tmp:
+        cap = child_capture(rec, Path(tmp) / "child")
+        doc = {"machine": machine_now(), "peer": str(peer), "recording": str(rec), "sides": {}}
+        for name, src in (("peer", peer), ("ours", OURS)):
+            doc["sides"][name] = side(src, "memory", cap, "--frames", n, single_core=True)
+            print(name, json.dumps(doc["sides"][name]))
+    o, p = doc["sides"]["ours"], doc["sides"]["peer"]
+    m = doc["machine"]
+    text = ["# Compute alone on a real studio capture (child_rope, masks in memory, one core, "
+            "100³)", "", machine_line(m) + f"; nproc {m['nproc']}; {m['cpuinfo']}", "",
+            f"{o['frames']} frames spread over the recording; each side in its own process "
+            "(`benchmarks/_capture_run.py memory`), `NUMBA_NUM_THREADS=1`.", "",
+            "| figure | ours | peer | ours / peer |", "|---|---|---|---|",
+            _row("frames/s (median frame; target ≥ 25)", o["fps_median"], p["fps_median"]),
+            _row("frames/s (mean)", o["fps_mean"], p["fps_mean"]),
+            _row("median ms/frame", o["median_ms"], p["median_ms"]),
+            _row("first frame (s)", o["setup_s"], p["setup_s"]), "",
+            _stage_table([("child_rope in memory (ours)", o["stage_ms"]),
+                          ("child_rope in memory (peer)", p["stage_ms"])]), ""]
+    out.with_suffix(".json").write_text(json.dumps(doc, indent=1))
+    out.with_suffix(".md").write_text("\n".join(text))
+    print(f"wrote {out}.md / .json")
+    return 0
+
+
 def pose2sim(rec: Path, peer: Path, tmp: Path) -> dict:
     import real
 

@@ -223,7 +223,10 @@ def test_pmatrix_files_of_one_name_in_camera_folders(tmp_path, capsys, named):
     out = tmp_path / "cap" / "calibration.toml"
     assert main(["calib", "import", *map(str, files), "--size", "320x240", "--out", str(out)]) == 0
     want = [c.name for c in cams] if named else folders
-    assert f"{len(cams)} cameras ({', '.join(want)})" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert f"{len(cams)} cameras ({', '.join(want)})" in said
+    # a camera whose file lies in a folder of another name: said, with the folder
+    assert (f"{cams[0].name} ← {tmp_path / folders[0]}" in said) == named
     got = read_calibration(out)
     assert [c.name for c in got] == want
     for a, c in zip(got, cams):

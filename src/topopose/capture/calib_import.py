@@ -404,4 +404,12 @@ def calib_import_cli(a) -> int:
 
     read_calibration(out)                     # what load_capture will read
     print(f"wrote {out}: {len(cams)} cameras ({', '.join(c.name for c in cams)})")
+    if len(a.files) == len(cams):             # one file per camera: where each one lies
+        moved = [(c.name, Path(f).parent) for c, f in zip(cams, a.files)
+                 if Path(f).parent.name not in ("", ".") and Path(f).parent.name != c.name
+                 and Path(f).name.split(".")[0] != c.name]
+        if moved:
+            print("note: these cameras' files lie in folders of other names; their masks "
+                  "belong under silhouettes/<camera>: "
+                  + ", ".join(f"{n} ← {d}" for n, d in moved))
     return 0

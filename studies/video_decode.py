@@ -28,6 +28,7 @@ from pathlib import Path
 import cv2
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # the benchmarks a study builds on
 from _machine import machine  # noqa: E402
 
 from topopose.capture.sources import VIDEO_EXTENSIONS, Prefetcher, VideoSource  # noqa: E402

@@ -1,18 +1,22 @@
-"""The real recording's synthetic twin (``benchmarks/real_twin.py``, issue 15): its inverse
+"""The real recording's synthetic twin (``benchmarks/real_twin.py``): its inverse
 kinematics, its turned cameras and its scoring, each against an oracle — a pose the rig itself
 made, a point carried by the same turn, markers moved by a known offset."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from _benchmarks import BENCH, load_benchmark
+import real_twin
+
+BENCH = Path(__file__).resolve().parents[1]
 
 REC = BENCH / "data" / "pose2sim_balancing"
 
 
 @pytest.fixture(scope="module")
 def rt():
-    return load_benchmark("real_twin")
+    return real_twin
 
 
 def test_inverse_kinematics_recovers_a_pose_of_the_rig(rt):

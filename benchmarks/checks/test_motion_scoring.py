@@ -1,11 +1,12 @@
-"""The signed joint bias in the body's frame (issue 15, thesis §13.3.1: the kinematic skeleton's
+"""The signed joint bias in the body's frame (thesis §13.3.1: the kinematic skeleton's
 joints against the truth): ``benchmarks/tracking.py``'s :func:`joint_bias` on the synthetic
 body's rig joints and ``benchmarks/real_motion.py``'s :func:`signed_bias` against Pose2Sim's
 markers. Oracle: joints moved by known offsets in a hand-built body frame, the whole scene
 turned about the up axis (the bias must not change), mirror joints numbered the other way."""
 import numpy as np
 
-from _benchmarks import load_benchmark
+import real_motion
+import tracking
 
 
 def _rot(a):
@@ -38,7 +39,7 @@ def _moved(side, base):
 
 
 def test_joint_bias_recovers_known_offsets_in_any_heading():
-    tr = load_benchmark("tracking")
+    tr = tracking
     for turn in (0.0, 1.1, -2.5):
         R = _rot(turn)
         gj = {k: (R @ np.asarray(v, float)).tolist() for k, v in RIG.items()}
@@ -62,7 +63,7 @@ def test_joint_bias_recovers_known_offsets_in_any_heading():
 
 
 def test_real_signed_bias_recovers_known_offsets():
-    rm = load_benchmark("real_motion")
+    rm = real_motion
     ours_of = {"Arm_head": "Shoulder", "ForeArm_head": "Elbow", "Hand_head": "Wrist",
                "UpLeg_head": "Hip", "Leg_head": "Knee", "Foot_head": "Ankle"}
     R = _rot(0.7)
@@ -89,7 +90,7 @@ def test_real_toe_errors_pair_the_toes_with_the_big_toes_optimally():
     """Our toes 3 and 4 cm off Pose2Sim's big toes, named the wrong way round in one frame and
     missing in another: the median of the optimally paired distances, the missing frame left
     out."""
-    rm = load_benchmark("real_motion")
+    rm = real_motion
     L, R = np.array([[0.1, 0.2, 0.0]] * 3), np.array([[-0.1, 0.2, 0.0]] * 3)
     ref = {"LBigToe": L, "RBigToe": R}
     up, side = np.array([0.0, 0.0, 0.03]), np.array([0.0, 0.04, 0.0])

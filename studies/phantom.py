@@ -50,6 +50,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # the benchmarks a study builds on
 
 INTERIOR = 5.0      # px: a point this deep inside a silhouette is "inside its interior"
 BORDER = 3.0        # px: the true part this close to the border (or outside) is seen against

@@ -23,6 +23,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # the benchmarks a study builds on
 
 FIELDS = (("right per frame", lambda r: r["right_share"]),
           ("right as run writes it", lambda r: r["as_run"]["right_share"]),

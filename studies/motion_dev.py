@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # the benchmarks a study builds on
 import held_dev as H  # noqa: E402
 import tracking as T  # noqa: E402
 from _machine import machine, machine_line  # noqa: E402

@@ -25,6 +25,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # the benchmarks a study builds on
 import centre_dev as CD  # noqa: E402
 import tracking as T  # noqa: E402
 from _machine import apply_settings, machine  # noqa: E402

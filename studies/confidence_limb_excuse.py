@@ -38,6 +38,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # the benchmarks a study builds on
 from _machine import machine, results_dir  # noqa: E402
 
 from topopose.pose.confidence import (CONFIDENCE_MODEL, fitted_confidence,  # noqa: E402
@@ -92,7 +93,7 @@ def kind_of(r) -> str:
 
 
 def main():
-    d = json.load(gzip.open(HERE / "results" / "confidence.json.gz"))
+    d = json.load(gzip.open(HERE.parent / "benchmarks" / "results" / "confidence.json.gz"))
     assert d["model"]["base"] == CONFIDENCE_MODEL["base"], "rows scored by another model"
     m8 = min_confidence_for(8)
     m_drop = min_drop_for(m8)

@@ -30,6 +30,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(1, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # the benchmarks a study builds on
 from _machine import results_dir  # noqa: E402
 from pipeline import machine  # noqa: E402
 from quality import BODY_BUILDS, BODY_TOLERANCE, body_captures  # noqa: E402

@@ -416,7 +416,7 @@ BODY_PART_JOINTS = {"head": "Head_tail", "torso": "Spine1_head", "crotch": "Hips
 #: the capsule human's pelvis centre above its hip line (synth_subjects.human_build: the pelvis
 #: ellipsoid's centre 2 cm above the root, the crotch 2 cm below it), m
 PELVIS_CENTRE = 0.04
-#: issue 14 peers (points the descriptions could compare instead, measured on the same frames):
+#: peers (points the descriptions could compare instead, measured on the same frames):
 #: the capsule human's crown above gt.json's head (its centre), 7.8 cm, and gt.json's hand
 #: beyond the skeleton's branch end along the branch, 7.0 cm (pipeline_points' docstring,
 #: development seeds 3–4): the pipeline's head and hands moved onto gt.json's points
@@ -424,7 +424,7 @@ HEAD_CENTRE_DROP, HAND_REACH = 0.078, 0.070
 
 
 def peer_points(pose, parts):
-    """The peers' points (issue 14) from a pose's :func:`description_parts` ``parts`` and its
+    """The peers' points from a pose's :func:`description_parts` ``parts`` and its
     skeleton curves: ``crotch_curve`` — the crotch at the legs' junction of the skeleton curves
     (the crotch arc's end, where the legs' curves start) instead of ``detect_parts``;
     ``gt_points`` — the head moved :data:`HEAD_CENTRE_DROP` from the crown towards the torso
@@ -567,8 +567,8 @@ def error_blame(rows, name):
     corresponding truth point, makes the decision right (``"none"``: no single part; several
     parts counted each), and that part's offset pipeline − truth along the capture's up axis:
     mean and median (one gross mismatch — a hand on a foot's branch, a model flipped end for
-    end, offsets of 0.6–1.5 m — moves the mean of a few decisions by tens of cm; issue 14,
-    ``benchmarks/detection_inverted_dev.py``)."""
+    end, offsets of 0.6–1.5 m — moves the mean of a few decisions by tens of cm;
+    ``studies/detection_inverted_dev.py``)."""
     out = {}
     for r in rows:
         d = r["detect"][name]
@@ -810,7 +810,7 @@ def main(argv=None):
     support_cover = {label: {f"{x:g}": sum(supported(r, x) for r in rows)
                              for x in SUPPORT_LIMITS + (MAX_UNEXPLAINED,)}
                      for label, rows in sets}
-    # the acrobatic set's wrong decisions by the generator's tag (issue 14: inverted vs upright)
+    # the acrobatic set's wrong decisions by the generator's tag (inverted vs upright)
     blame_split = [(f"{label}, {t} frames", [r for r in rows if (r["tag"] == "inverted") == (t == "inverted")])
                    for label, rows in sets if label == "human acrobatic" for t in ("upright", "inverted")]
     offsets = {}
@@ -1020,7 +1020,7 @@ def main(argv=None):
           "parts instead gives, on all matched frames (P / R): " + "; ".join(
               f"{label} {n} {pr(det_summary[label][n]['truth_gt'])}" for label, _ in sets
               for n in pose_names if det_summary[label][n]["truth_gt"]["truth_true"]) + "."]
-    L += ["", "**Other points, measured (issue 14).** P / R, all matched frames. *Crotch at the "
+    L += ["", "**Other points, measured.** P / R, all matched frames. *Crotch at the "
           "curves' junction*: the crotch the legs' skeleton curves start from (the crotch arc's "
           "end) instead of `detect_parts`' junction, truth as above. *gt.json's points*: the "
           "truth on gt.json's parts (head centre, fingertips minus the hand's radius, neck base, "

@@ -4,14 +4,14 @@ per seed) and the capsule human, walking and random poses, 100³, and the body b
 kind of poses (``quality.py --only body``: separated limbs and all random poses) on seeds
 POSE_SEED0… (disjoint from its 21, 22), each in every camera set-up of SETUPS (8 cameras
 640×480 noise 1; 4 cameras 640×480 noise 1; 4 portrait phone-like cameras 544×960 noise 2).
-A frame is *right* when it is a TP of issue 11, as in the body benchmark: quality "good" or
+A frame is *right* when it is a true positive (TP) of the quality classes, as in the body benchmark: quality "good" or
 "missing limb" (every placed part within 0.08 × height of its ground-truth segment, junctions
 too). The first half of the seeds fits the confidence (``--kind``: boosted trees, TREES, the
 default, needing scikit-learn; or the logistic regression) and chooses its minimum
 (calibration), the second half checks them (held out). The fit sees the frames matched or
 rejected for their AHA distance alone (the fitted confidence replaces T_d), and each right
 frame with the head's and a hand's data vertices exchanged (wrong by ground truth, weighted
-SWAP_WEIGHT of the real frames), the failure issue 11 names, and a few right frames per capture
+SWAP_WEIGHT of the real frames), a named failure (a hand given the head), and a few right frames per capture
 re-run with a spurious limb (a rod) added to the hull (wrong by construction, :func:`rod_rows`).
 Features fitted: FIT_FEATURES.
 
@@ -31,7 +31,7 @@ cameras: a check, never fitted on); ``--real`` to the real recording of ``benchm
 (Pose2Sim's balancing trial, 4 phone cameras, person silhouettes: a check, never fitted on).
 ``--rows results/confidence.json.gz`` reuses the frames of an earlier run, its body-benchmark and
 real-recording frames too (no pipeline run: for trying features and models; the kinds of model
-are compared by ``benchmarks/confidence_models.py``).
+are compared by ``studies/confidence_models.py``).
 """
 from __future__ import annotations
 
@@ -57,7 +57,7 @@ SWAP_WEIGHT = 0.1
 # deliberate spurious limbs (:func:`rod_rows`): per capture, this many right matched frames get
 # a rod of ROD_LENGTH (m) added to the hull, each weighted ROD_WEIGHT × a real frame (they are
 # real pipeline runs, on a hull with a limb the subject does not have; at 1 the fit rejects
-# too many right frames: body benchmark separated TP 0.908 → 0.817, docs/body_accuracy.md)
+# too many right frames: body benchmark separated TP 0.908 → 0.817, docs/accuracy.md)
 RODS = 2
 ROD_WEIGHT = 0.5
 ROD_LENGTH = (0.25, 0.5)
@@ -70,12 +70,12 @@ BASE_FEATURES = ("distance", "missing", "shape", "shape_max", "spurious_share", 
                  "head_radius", "head_bend", "head_offset", "head_reach", "trunk", "limb_sym",
                  "spurious", "spurious_length", "arc_dev", "end_radius", "foot_high", "fat",
                  "matched_distance")
-# the trunk's junctions, thickness ratios and the placed head (issue 11, h11b), chosen on this
+# the trunk's junctions, thickness ratios and the placed head (h11b), chosen on this
 # benchmark's own frames (never quality.py's seeds 21, 22): held-out seeds, 8 cameras, recall of
 # the right frames at precision 0.95 0.908 → 0.922 with them (all poses 0.907 → 0.977); at the
 # minimum each fit chooses (0.87 → 0.75) precision / recall 0.962 / 0.815 → 0.947 / 0.912 (on
 # the pipeline after h11a's short-arm rules: 0.923 → 0.947; 0.72 → 0.64, 0.956 / 0.916 → 0.953
-# / 0.947). Alone each gave less (docs/tried.md).
+# / 0.947). Alone each gave less (docs/decisions.md).
 JUNCTION_FEATURES = ("crotch_radius", "torso_radius", "hip_flex", "crotch_room", "head_torso",
                      "head_placed_offset", "head_placed_bend")
 FIT_FEATURES = BASE_FEATURES + JUNCTION_FEATURES
@@ -842,7 +842,7 @@ def main(argv=None):
          f"seeds; {a.frames} frames each; and the body benchmark's poses, body/separated and "
          f"body/all as `quality.py --only body` but seeds {POSE_SEED0}–"
          f"{POSE_SEED0 + a.pose_seeds - 1}, each set-up, {a.pose_frames} frames each; "
-         f"100³). Right = quality \"good\" or \"missing limb\" (issue 11's TP) at {TOLERANCE} × "
+         f"100³). Right = quality \"good\" or \"missing limb\" (TP of the quality classes) at {TOLERANCE} × "
          f"height for every part. Calibration = the first half of the seeds (fits the "
          f"coefficients on the frames matched or rejected for their AHA distance alone — the "
          f"fitted confidence replaces T_d — and the minimum: the smallest whose out-of-fold "

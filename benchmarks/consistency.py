@@ -1,4 +1,4 @@
-"""``matched`` by the run's own consistency (issue 12 part 5): precision of ``matched`` and frames
+"""``matched`` by the run's own consistency: precision of ``matched`` and frames
 passing, ours (``topopose run --consistency``, :mod:`topopose.pose.consistency`) against the
 run's confidence gate, on synthetic sequences and the real recording.
 
@@ -13,7 +13,7 @@ run as ``topopose run`` does (:func:`topopose.pose.run.run`, the default gate: o
 than 6 cameras), then its sequence stages (:func:`topopose.pose.motion.process_sequence`: track,
 skeleton, sides) with ``matched`` decided either way.
 
-A frame is *right* when it is a TP of issue 11 as in ``benchmarks/confidence.py`` (quality
+A frame is *right* when it is a true positive (TP) of the quality classes as in ``benchmarks/confidence.py`` (quality
 "good" or "missing limb": every placed part within 0.08 × height of its ground-truth segment,
 at most one part unplaced), scored on the poses as the run writes them (numbered parts).
 
@@ -54,7 +54,7 @@ GRID = {"max_deviation": (0.04, 0.05, 0.06, 0.08, 0.1),
         "min_rank": (0.0, 0.25, 0.5),
         "max_length_ratio": (None,),
         "max_unexplained": (None, 0.06, 0.07, 0.08, 0.09, 0.1, 0.12)}
-#: the rule before the silhouette support (issue 12 part 5, previous defaults): the peer
+#: the rule before the silhouette support (previous defaults): the peer
 BEFORE = {"max_deviation": 0.05, "neighbours": 2, "min_rank": 0.5, "max_length_ratio": None,
           "max_unexplained": None}
 
@@ -89,7 +89,7 @@ def sequence(setup, seed, frames, work=None, motion="walk", make=None):
 
 
 def right_frames(poses, gt, model) -> list:
-    """Per pose (numbered parts), whether it is a TP of issue 11 (module docstring)."""
+    """Per pose (numbered parts), whether it is a true positive (TP) of the quality classes (module docstring)."""
     from topopose.pose.chirality import numbered
     from topopose.pose.quality import evaluate
 
@@ -276,12 +276,12 @@ def report(doc) -> str:
     from _machine import machine_line
 
     m = doc["machine"]
-    L = ["# `matched` by the run's own consistency (issue 12 part 5)", "",
+    L = ["# `matched` by the run's own consistency", "",
          f"{machine_line(m)}. "
          "Written by `benchmarks/consistency.py` (see its docstring). Synthetic: body subject "
          f"walking, {doc['frames']} frames per sequence, 100³; set-ups "
          + "; ".join(f"{k}: {v[0]} cameras {v[1]} noise {v[2]}" for k, v in doc["setups"].items())
-         + ". Right: TP of issue 11 (0.08 × height), on the poses as `run` writes them (the "
+         + ". Right: TP of the quality classes (0.08 × height), on the poses as `run` writes them (the "
          "hands' trim on). *Gate*: `topopose run --no-consistency` (the "
          "confidence gate on with fewer than 6 cameras, T_d alone with 8); *ours*: "
          "`topopose run --consistency` (the consistency instead of the gate); *union*: "

@@ -18,7 +18,7 @@ hand (4 poor cameras): T_d = 3.5 (unnormalized scale) gives 10–20 %.
 
     python benchmarks/quality.py [--quick] [--frames N] [--only human,dog,spider,body]
 
-- body (the MakeHuman mesh, issue 11): builds × seeds, separated and all poses, noise 0–2,
+- body (the MakeHuman mesh): builds × seeds, separated and all poses, noise 0–2,
   50/100/150³, the thickness term on and off, the pruning of skeleton bumps on and off, the
   head's body-axis check on and off, the head half way to its tip, the spine shift (pose/anatomy.py)
   on and off, the head's tip levelled, a lost head recovered on the body axis, the torso put
@@ -105,7 +105,7 @@ def study(cap, model, resolution, relation=None, constraints=True, tolerance=Non
 
 
 BODY_BUILDS = ("average", "heavy", "child", "lean", "random")
-BODY_TOLERANCE = 0.08          # × subject height, the same for every part (issue 11)
+BODY_TOLERANCE = 0.08          # × subject height, the same for every part
 BODY_MARGIN = 0.075            # separated: 3 voxels of the 100³ grid, as for the capsule human
 
 
@@ -168,7 +168,7 @@ def body_study(caps, resolution, two_pass=False, **options):
 
 
 def body_rows(quick, out, suffix):
-    """The ``body`` rows (issue 11): builds × seeds, separated / all frames, noise 0–2,
+    """The ``body`` rows: builds × seeds, separated / all frames, noise 0–2,
     50/100/150³, and the thickness term off (its peer)."""
     seeds = (21,) if quick else (21, 22)
     n = 6 if quick else 12
@@ -267,7 +267,7 @@ def body_rows(quick, out, suffix):
             c = body_captures(True, noise, seeds[:1], n, builds)
             row(f"body separated noise{noise}", *body_study(c, 100))
             row(f"body separated noise{noise} no-prune", *body_study(c, 100, prune=0))
-    L = ["", "## body (MakeHuman mesh, issue 11)", "",
+    L = ["", "## body (MakeHuman mesh)", "",
          f"Builds {', '.join(builds)} × seeds {', '.join(map(str, seeds))} × {n} frames per row "
          f"(noise rows: seed {seeds[0]}), 8 cameras 640×480, `run --model human`, the run's own "
          f"T_d (0.4). A part is right within {BODY_TOLERANCE} × the subject height of its gt "
@@ -325,7 +325,7 @@ def body_rows(quick, out, suffix):
          "`topopose.pose.estimate.MATCHED_DISTANCE`; without the gate only, with it the "
          "confidence decides). "
          "Diagnosis of "
-         "the failing parts: `benchmarks/diagnose_body.py` (diagnose_body*.md).", "",
+         "the failing parts: `studies/diagnose_body.py` (diagnose_body*.md).", "",
          "| configuration | res | frames | TP rate | FP/match | good | miss1 | partial | misplaced "
          "| bad | none | err good (cm) | err misplaced (cm) | ms/frame | alignment stage ms (median) |",
          "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]

@@ -1,5 +1,5 @@
 """From poses to motion on the real recording (Pose2Sim's balancing trial) against Pose2Sim's 3D
-result: the full skeleton's per-joint error, left and right, identities over time (issue 15).
+result: the full skeleton's per-joint error, left and right, identities over time.
 
     python benchmarks/real_motion.py [RECORDING] [--raw RAW.jsonl] [--out DIR] [--spread R,...] [--quick]
 
@@ -339,15 +339,15 @@ def grid_spread(rec: Path, work: Path, ref, resolutions) -> dict:
 
 # peers of the default motion stage, from the same per-frame poses: kinematic_fit constants
 PEERS = {"the neck and shoulders each on its own target (GIRDLE = False)": {"GIRDLE": False},
-         "the smoothing window 9 frames at 60 frames/s, as before session 33 "
+         "the smoothing window 9 frames at any rate "
          "(SMOOTH_RATE = None)": {"SMOOTH_RATE": None},
-         "temporal outliers kept as fitted, not bridged, as before session 34 (BRIDGE = False)":
+         "temporal outliers kept as fitted, not bridged (BRIDGE = False)":
              {"BRIDGE": False},
-         "one frame's swung bones smoothed with the others, as before session 35 "
+         "one frame's swung bones smoothed with the others "
          "(DESPIKE = None)": {"DESPIKE": None},
-         "hanging arms' elbows and wrists at their fractions only, as before session 35 "
+         "hanging arms' elbows and wrists at their fractions only "
          "(FROM_START = {})": {"FROM_START": set()},
-         "both, as session 34 (DESPIKE = None, FROM_START = {})":
+         "both (DESPIKE = None, FROM_START = {})":
              {"DESPIKE": None, "FROM_START": set()}}
 
 

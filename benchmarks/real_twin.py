@@ -1,5 +1,5 @@
 """The real recording's synthetic twin: how much of its error is ours, how much the reference's,
-and how much the four cameras' (issue 15).
+and how much the four cameras'.
 
     python benchmarks/real_twin.py [RECORDING] [--out DIR] [--work DIR] [--frames N]
                                    [--noise 2] [--setups 4,4d,6,8] [--seeds 0,1,2] [--quick]
@@ -403,7 +403,7 @@ def report(doc) -> str:
     by = {}
     for r in doc["setups"]:
         by.setdefault(r["setup"], []).append(r)
-    out = ["# The real recording's synthetic twin (issue 15)", "",
+    out = ["# The real recording's synthetic twin", "",
            machine_line(doc["machine"]) + " Written by `benchmarks/real_twin.py`.", "",
            "The anatomically real `body`, built to Pose2Sim's bone lengths (twin / Pose2Sim, "
            "m: " + ", ".join(f"{k} {a} / {b}" for k, (a, b) in doc["lengths"].items())

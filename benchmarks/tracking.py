@@ -71,10 +71,10 @@ hull as fat as the real recording's). **Bias** (``--bias --setups 8,4p,4pd [--re
 results/real_motion.json]``): the fitted skeleton's signed per-joint bias in the truth's body
 frame (outward / forward / up), widths and bone lengths against the rig, per set-up, on the
 frames whose per-frame pose is right, beside the real recording's against Pose2Sim
-(``real_motion.py``); written as ``tracking_bias*`` (issue 15: whether the 4-camera hull's
+(``real_motion.py``); written as ``tracking_bias*`` (whether the 4-camera hull's
 phantom volume explains the real recording's error; thesis §13.3.1).
 
-The per-frame matching on the body is being improved elsewhere (issue 11): figures are as the
+The per-frame matching on the body is being improved elsewhere: figures are as the
 per-frame result is, misses included. Writes ``tracking.md``, ``tracking.json``,
 ``tracking.png`` (a walking sequence: joints over time) and ``tracking_smooth.png`` (the first
 random-motion sequence), and the same with the gate off.
@@ -270,7 +270,7 @@ def arm_errors(names, P, gj, held, sides=None):
     return [(sides, arm_kind(gj, sd, f"wrist_{k}" in held), err(k, sd)) for sd, k in zip(sides, ks)]
 
 
-# The joint definitions and fit weight before issue 15's MPJPE work, measured beside the
+# Earlier joint definitions and fit weight, measured beside the
 # current ones in the same run: tips at the branch end (no ``beyond``), shoulders of the first
 # calibration, inner weight 0.3.
 PREVIOUS = {"fingertip": {"beyond": 0.0}, "toe": {"beyond": 0.0},
@@ -983,7 +983,7 @@ def report(rows, info, real=None):
          f"Machine: {info['cpu']}, {info['cores']} cores, load {info['load_average']}, {info['date']}."
          + "".join(f" Set (`--set`): `{k} = {v}`." for k, v in (info.get("settings") or {}).items()),
          "Produced by `benchmarks/tracking.py`; every figure beside its peer in the same run. The "
-         "per-frame matching on the body is being improved elsewhere (issue 11): matched frames "
+         "per-frame matching on the body is being improved elsewhere: matched frames "
          "include misplaced ones, and every figure counts them.", "",
          "| sequence | frames | matched | good | switches/500 raw → tracked (all matched) | "
          "same, good frames | held parts | chirality with time | chirality single frame | "
@@ -1060,7 +1060,7 @@ def report(rows, info, real=None):
               f"{sum(r['good'] for r in rs)} good", "", ident,
               f"- chirality on matched frames × pairs: with time {_rate(ct)}; single frame {_rate(cs)}"
               f" (target ≥ {95 if motion == 'walk' else 90} %); counting a pair right only with "
-              f"both parts found (a lost hand unsure, the count before issue 15's lone parts): "
+              f"both parts found (a lost hand unsure, the count without lone parts): "
               f"with time {_rate(cb)}",
               f"- MPJPE, median over all matched frames: fit {100 * np.median(pooled):.1f} cm "
               f"({len(pooled)} frames), initial placement {100 * np.median(pooled_init):.1f} cm "
@@ -1151,7 +1151,7 @@ def report(rows, info, real=None):
               f"{100 * np.median(pooled_before):.1f} cm ({len(pooled_before)} frames)",
               "- the same run with the fit before the trunk's joints moved back, the bone lengths "
               "at their 70th percentile, the hips from the legs' junction and the raised arms' "
-              "`at_raised` (issue 15; `main_fit`): MPJPE "
+              "`at_raised` (`main_fit`): MPJPE "
               f"{100 * np.median(pooled_main):.1f} cm ({len(pooled_main)} frames)",
               "- where the error comes from: MPJPE median over the frames "
               + ", ".join(f"{k} {100 * np.median(v):.1f} cm ({len(v)} frames)"

@@ -2,7 +2,7 @@
 
 Synthetic human captures (8 cameras 640×480, 100³ grid) of 40 frames (the issue's case) and of
 ``--long`` frames (default 200); for each, ``topopose.run`` in this process (``workers=1``, kernels
-already compiled: the second run of a session) and with ``workers=2`` (a Dask ``LocalCluster`` of
+already compiled: a second run in the same process) and with ``workers=2`` (a Dask ``LocalCluster`` of
 two worker processes, started by the call, each loading the kernels from the disk cache and
 building its estimator: what a user's ``--workers 2`` costs), interleaved over ``--rounds``
 rounds; minimum wall time per setting. The rate is frames / wall time of the whole call

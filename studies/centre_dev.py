@@ -1,8 +1,8 @@
-"""Issue 15, development only: the limbs' curves moved onto the silhouettes' centre lines
+"""Development study: the limbs' curves moved onto the silhouettes' centre lines
 (:mod:`topopose.pose.centre`) and the full skeleton's MPJPE, with it and without it, per
 camera set-up (``benchmarks/tracking.py``'s ``8``, ``4p``, ``4pd``) on development sequences.
 
-    python benchmarks/centre_dev.py --work DIR [--seeds 41,42,51,52] [--setups 8,4p,4pd]
+    python studies/centre_dev.py --work DIR [--seeds 41,42,51,52] [--setups 8,4p,4pd]
                                     [--frames 40] [--variants off,on] [--out benchmarks/results]
 
 One per-frame run per sequence (as ``tracking.py --bias``: AHA threshold and confidence gate
@@ -94,7 +94,7 @@ def measure(cap, poses, model, centred):
 
 
 def report(rows, setups, variants, info) -> str:
-    lines = ["# Limb curves on the silhouettes' centre lines (issue 15, development seeds)", "",
+    lines = ["# Limb curves on the silhouettes' centre lines (development seeds)", "",
              machine_line(info), "",
              "Per set-up: the full skeleton's MPJPE (cm; median over the good frames of the "
              "per-frame mean over the issue's joints, pooled over the sequences), per joint "

@@ -1,4 +1,4 @@
-"""Would a "missing-limb excuse" help the confidence gate? (issue 11; measured, not shipped)
+"""Would a "missing-limb excuse" help the confidence gate? (measured, not shipped)
 
 Idea: when the alignment leaves a hand (or foot) unmatched — a *missing limb* of §13.2.2, a
 right frame by the issue's count — the unmatched data branch that most plausibly is that limb
@@ -124,7 +124,7 @@ def main():
     rd = results_dir()
     (rd / "confidence_limb_excuse.json").write_text(json.dumps(res, indent=1))
     lines = ["# Missing-limb excuse: frames it would let through (offline, not shipped)", "",
-             "`python benchmarks/confidence_limb_excuse.py` (module docstring: the variants). "
+             "`python studies/confidence_limb_excuse.py` (module docstring: the variants). "
              f"Rows of `confidence.json.gz` (shipped model, 8 cameras, minimum {m8}); doubted "
              "candidates: " + ", ".join(f"{k} {v}" for k, v in res["doubted 8-camera candidates"]
                                         .items()) + ".", "",

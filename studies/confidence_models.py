@@ -1,4 +1,4 @@
-"""Compare kinds of per-frame confidence model (issues 11, 12) on the SAME frames: the rows
+"""Compare kinds of per-frame confidence model on the SAME frames: the rows
 ``benchmarks/confidence.py`` collected (its results .json: calibration/held-out captures of
 three camera set-ups, the body benchmark's own frames, the real recording's), no pipeline run.
 
@@ -12,7 +12,7 @@ matched, right among them). Variants: the logistic regression on the shipped fea
 ``matched_distance``, with a 4-camera intercept or with 4-camera interactions (the camera
 count as an input), and gradient-boosted shallow trees (scikit-learn, the bench extra).
 
-    python benchmarks/confidence_models.py benchmarks/results/confidence.json.gz
+    python studies/confidence_models.py benchmarks/results/confidence.json.gz
 """
 from __future__ import annotations
 
@@ -205,7 +205,7 @@ def main(argv=None):
     name = "confidence_models" + ("_setups_only" if a.setups_only else "")
     (dst / f"{name}.json").write_text(json.dumps(out, indent=1))
     f = lambda t: "—" if t[0] is None else f"P {t[0]}, R {t[1]} ({t[2]})"  # noqa: E731
-    L = ["# Kinds of confidence model on the same frames (`benchmarks/confidence_models.py`)", "",
+    L = ["# Kinds of confidence model on the same frames (`studies/confidence_models.py`)", "",
          f"Frames: `{a.rows}` (benchmarks/confidence.py: "
          f"{sum(not r.get('augmented') for r in rows)} "
          "synthetic frames of set-ups 8, 4, 4p; calibration = first half of the seeds, held out = "

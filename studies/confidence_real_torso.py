@@ -1,14 +1,14 @@
-"""Why the real recording's right frames lie outside the synthetic 4-camera calibration (issue 12
-part 5): per frame, where the *alignment's* trunk vertices are against the reference, and the
+"""Why the real recording's right frames lie outside the synthetic 4-camera calibration: per
+frame, where the *alignment's* trunk vertices are against the reference, and the
 hull's inscribed-ball radii in voxels, on the real recording and on synthetic 4-camera body
 captures (set-ups 4p and 4r of ``benchmarks/confidence.py``, their balancing poses too).
 
 Real: Pose2Sim's balancing trial (``benchmarks/real.py``, ``person`` silhouettes, 100³; never
 fitted on); reference torso = Pose2Sim's Neck, crotch = mid-hip, lean = angle of mid-hip → Neck
 from the vertical. Synthetic: the ground truth's torso and crotch. Right: real.py's (head, hands,
-feet within 0.15 m) on the recording, issue 11's TP on synthetic frames.
+feet within 0.15 m) on the recording, TP of the quality classes on synthetic frames.
 
-    PYTHONPATH=$PWD/src python benchmarks/confidence_real_torso.py --real PATH [--step 1]
+    PYTHONPATH=$PWD/src python studies/confidence_real_torso.py --real PATH [--step 1]
 
 Writes ``results/confidence_real_torso.{md,json}``.
 """
@@ -125,7 +125,7 @@ def main(argv=None):
     rows = real_rows(rec, a.step) + synthetic_rows(a.seeds, a.frames)
     med = lambda x: f"{np.median(x):.3f}" if len(x) else "–"  # noqa: E731
     L = ["# The real recording's right frames against synthetic 4-camera ones", "",
-         f"Machine: {machine()}. Written by `benchmarks/confidence_real_torso.py` "
+         f"Machine: {machine()}. Written by `studies/confidence_real_torso.py` "
          f"(step {a.step}, {a.seeds} synthetic seeds × {a.frames} frames per kind).", "",
          "Right frames only; medians. *off*: the alignment's torso data vertex more than 0.3 m "
          "from the reference torso (real: Pose2Sim's Neck).", "",

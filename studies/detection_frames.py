@@ -7,7 +7,7 @@ ground-truth points (``applications.pipeline_points``, circles), with the decisi
 truth in the title. Development seeds only (capsule human 3–4, body 1–2: ``applications.py
 --dev``); the frames are the wrong decisions that run lists.
 
-Usage: python benchmarks/detection_frames.py KIND SEED FRAME [FRAME ...] --pose NAME --out PNG
+Usage: python studies/detection_frames.py KIND SEED FRAME [FRAME ...] --pose NAME --out PNG
 (KIND: upright, acrobatic or body).
 """
 from __future__ import annotations

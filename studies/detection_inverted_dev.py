@@ -1,4 +1,4 @@
-"""Where the capsule human's hands are in inverted frames, on fresh development seeds (issue 14).
+"""Where the capsule human's hands are in inverted frames, on fresh development seeds.
 
 Thesis §13.3.2.1 (specific pose detection): `ask a question` and `hands up` compare a hand's
 height with the head's along the capture's up axis. Held out (``benchmarks/applications.py``,
@@ -11,7 +11,7 @@ counts the hands ≥ 10 cm below (or above) their truth points (``pipeline_point
 the hand's last bone) along up, per generator tag, and the parts each wrong decision hangs on
 (``applications.detection_row``'s blame). Writes ``results/detection_inverted_dev.{md,json}`` and
 pictures of the most telling frames (``results/detection_inverted_hands_dev_*.png``).
-Usage: ``python benchmarks/detection_inverted_dev.py [--seeds 20 21 ...] [--frames 100]``.
+Usage: ``python studies/detection_inverted_dev.py [--seeds 20 21 ...] [--frames 100]``.
 """
 from __future__ import annotations
 
@@ -167,10 +167,10 @@ def main(argv=None):
     (out / "detection_inverted_dev.json").write_text(json.dumps(
         {"machine": mach, "seeds": a.seeds, "summary": summary, "wrong": wrong,
          "figures": figs}, indent=1))
-    L = ["# Hands in inverted frames, fresh development seeds (issue 14, thesis §13.3.2.1)", "",
+    L = ["# Hands in inverted frames, fresh development seeds (thesis §13.3.2.1)", "",
          f"Machine: {mach['cpu']}, {mach['cores']} cores, load {mach['load_average']}, {mach['date']}; "
          f"wall time {mach['wall_s']} s. Produced by "
-         "`benchmarks/detection_inverted_dev.py`.", "",
+         "`studies/detection_inverted_dev.py`.", "",
          f"Capsule human, `detection_sampler(\"acrobatic\")`, seeds {a.seeds} × {a.frames} "
          "frames (none used by a reported set), no coordinate constraints. Offset = pipeline "
          "hand − its truth point (mid-hand) along the capture's up axis; hands paired optimally.",

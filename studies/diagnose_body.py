@@ -1,4 +1,4 @@
-"""Diagnosis of the wrong and missing-limb frames of the ``body`` subject (issue 11).
+"""Diagnosis of the wrong and missing-limb frames of the ``body`` subject.
 
 For every frame of a set of ``body`` captures (builds × seeds × frames, 8 cameras, noise 1,
 100³, the human model, the confidence gate off so that every frame the alignment accepts is
@@ -12,7 +12,7 @@ its offset from the ground-truth segment in the body's own frame (*up*: crotch �
 Writes benchmarks/results/diagnose_body.{md,json} (and, with ``--pictures``, typical failures as
 PNG). ``--seeds`` defaults to training seeds (41, 42), not the held-out 21, 22 of quality.py.
 
-    python benchmarks/diagnose_body.py [--seeds 41,42] [--frames 12] [--pictures N] [--tag T]
+    python studies/diagnose_body.py [--seeds 41,42] [--frames 12] [--pictures N] [--tag T]
                                         [--option key=value ...]
 """
 from __future__ import annotations
@@ -170,7 +170,7 @@ def main():
     (out / f"{name}.json").write_text(json.dumps(
         {"machine": machine(), "seeds": seeds, "options": options, **res},
         separators=(",", ":")))
-    L = [f"# Diagnosis of the body subject's failures (issue 11)", "",
+    L = [f"# Diagnosis of the body subject's failures", "",
          f"Seeds {', '.join(map(str, seeds))} × builds {', '.join(BODY_BUILDS)} × {a.frames} "
          f"frames, 8 cameras, noise 1, 100³, gate off, options {options or 'default'}; "
          "matched frames only. Ratio: error / (0.08 × height). Offsets: median, × height, in the "

@@ -1,11 +1,11 @@
-"""Issue 15, development only: the skeleton's smoothing at another frame rate. The same
+"""Development study: the skeleton's smoothing at another frame rate. The same
 development motions (``benchmarks/tracking.py``'s walks 41–43 and random motion 51–53, 1.6 s
 each) rendered at 25 frames/s (the rate every development figure was measured at) and at 60
 frames/s (the real recording's), and 30 unrelated random poses (seeds 21–24, 8 cameras, 25
 frames/s: no smoothing may touch them); the per-frame results cached, the sequence stage re-run
 per smoothing window (:func:`topopose.pose.kinematic_fit.fit_sequence`'s ``smooth``, frames).
 
-    python benchmarks/fps_dev.py [--work DIR] [--setups 8,4p] [--fps 25,60]
+    python studies/fps_dev.py [--work DIR] [--setups 8,4p] [--fps 25,60]
                                  [--windows 0,9,15,21,27] [--seconds 1.6] [--out DIR]
                                  [--name NAME] [--no-bridge] [--set NAME=VALUE ...]
 
@@ -15,7 +15,7 @@ the per-frame mean over the issue's joints) on the matched frames (8 cameras: th
 whose per-frame pose is right (``evaluate``: good), bridged temporal outliers
 (:func:`~topopose.pose.kinematic_fit.bridge_outliers`) counted; ``--no-bridge``: its peer,
 outliers kept as fitted; ``--set``: any other :mod:`~topopose.pose.kinematic_fit` constant
-(e.g. ``--set DESPIKE=None --set "FROM_START={}"``, the peer of session 35's defaults). Never
+(e.g. ``--set DESPIKE=None --set "FROM_START={}"``, the peer of the defaults). Never
 the held-out seeds. Writes ``fps_dev.md`` / ``.json``
 (``--name``).
 """
@@ -131,7 +131,7 @@ def main(argv=None):
                                                         "bridged")}),
                           flush=True)
     info = machine(resolution=100, subject="body", seconds=a.seconds, settings=settings)
-    lines = ["# The skeleton's smoothing window at 25 and 60 frames/s (issue 15, development "
+    lines = ["# The skeleton's smoothing window at 25 and 60 frames/s (development "
              "seeds)", "", machine_line(info), "",
              f"Walks 41–43 and random motion 51–53, {a.seconds} s each, rendered at each rate, "
              "and 30 unrelated random poses (seeds 21–24, 8 cameras, the first rate); MPJPE "

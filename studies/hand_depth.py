@@ -1,7 +1,7 @@
-"""A per-frame test against a hand in a phantom volume of the hull (issue 12 part 5), chosen on
+"""A per-frame test against a hand in a phantom volume of the hull, chosen on
 synthetic development seeds: is it possible?
 
-    python benchmarks/hand_depth.py [--setups 4,4p] [--dev-seeds 41,...] [--work DIR]
+    python studies/hand_depth.py [--setups 4,4p] [--dev-seeds 41,...] [--work DIR]
 
 The real recording's wrong frames that ``run --consistency`` passes (``benchmarks/
 real_hands.py``) hold a hand in a phantom volume in front of the chest: it projects inside the
@@ -9,7 +9,7 @@ silhouettes, deep inside two of the four (in front of the chest in one view, beh
 another). The candidate test: the deepest hand's depth in its second deepest view
 (:func:`real_hands.hand_depth`: distance to the contour over the silhouette's largest inscribed
 radius). Here its distribution over the frames ``run --consistency`` passes on the synthetic
-4-camera walks of ``benchmarks/consistency.py`` (development seeds; right = a TP of issue 11),
+4-camera walks of ``benchmarks/consistency.py`` (development seeds; right = a true positive (TP) of the quality classes),
 next to the real recording's (``results/real_hands.json``, only reported). A limit is usable
 only if it keeps the synthetic right frames while rejecting wrong ones.
 
@@ -85,7 +85,7 @@ def main(argv=None):
     def rng(x):
         return f"{min(x):.2f}–{max(x):.2f} (median {np.median(x):.2f})" if x else "–"
     L = ["# A hand in a phantom volume: its depth inside the silhouettes as a per-frame test", "",
-         f"{machine_line(mach)}. Written by `benchmarks/hand_depth.py`; synthetic "
+         f"{machine_line(mach)}. Written by `studies/hand_depth.py`; synthetic "
          f"development seeds {seeds[0]}–{seeds[-1]}"
          + (f" (per-frame poses from the cache {a.work}, as `benchmarks/consistency.py` wrote "
             "them)" if a.work else "") + ".", "",

@@ -1,9 +1,9 @@
-"""Issue 15, development only: the joints of a part not found over time (held from the last
+"""Development study: the joints of a part not found over time (held from the last
 fitted frame, interpolated between frames that saw them, hand hints) on the development
 sequences of ``benchmarks/tracking.py`` (walks 41–46, random motion 51–56, unrelated random
 poses 21–32), the per-frame results cached (``--work``), only the sequence stage re-run.
 
-    python benchmarks/held_dev.py --work DIR [--only walk|random-smooth|random] [--seeds 51,52]
+    python studies/held_dev.py --work DIR [--only walk|random-smooth|random] [--seeds 51,52]
                                   [--stage frames|variants] [--variants base,hold3,...]
                                   [--out benchmarks/results]
 
@@ -155,9 +155,9 @@ def main(argv=None):
          for v, rv in res.items()}))
     if a.stage == "variants" and a.only is None and a.seeds is None and a.variants is None:
         info = machine(resolution=100, cameras=8, noise=1, subject="body", confidence_gate=True)
-        md = ["# Held joints over time on the development sequences (issue 15)", "",
+        md = ["# Held joints over time on the development sequences", "",
               f"Machine: {info['cpu']}, {info['cores']} cores, load {info['load_average']}, "
-              f"{info['date']}. Produced by `benchmarks/held_dev.py` (development seeds of "
+              f"{info['date']}. Produced by `studies/held_dev.py` (development seeds of "
               "`tracking.py --dev`: walks 41–46, random motion 51–56, unrelated random poses "
               "21–32; gate on; per-frame results cached, the sequence stage re-run per variant).",
               "", "Variants (kinematic_fit's defaults otherwise): `base` the defaults "

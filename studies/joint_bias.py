@@ -1,8 +1,8 @@
-"""The full skeleton's systematic error per joint on the development sequences (issue 15): signed
+"""The full skeleton's systematic error per joint on the development sequences: signed
 bias in the truth's body frame and along the true bone, and the tips (fingertips, toes) taken
 apart, with and without :func:`~topopose.pose.kinematic_fit.tip_targets`.
 
-    python benchmarks/joint_bias.py [--work DIR] [--frames 40] [--out benchmarks/results]
+    python studies/joint_bias.py [--work DIR] [--frames 40] [--out benchmarks/results]
 
 Development sequences only (``tracking.py``'s ``DEV_SEQUENCES``: random poses seeds 21–32, walks
 41–46; ``body`` subject, 100³, 8 cameras, noise 1, confidence gate on): the per-frame result is
@@ -180,7 +180,7 @@ def _m(xs, scale=100.0, fmt="{:+.1f}"):
 
 def report(rows, tips, info, seqs) -> str:
     L = ["# The full skeleton's systematic error per joint (development sequences)", "",
-         machine_line(info) + ". Written by `benchmarks/joint_bias.py`; `body` subject, 100³, 8 "
+         machine_line(info) + ". Written by `studies/joint_bias.py`; `body` subject, 100³, 8 "
          "cameras, noise 1, confidence gate on; development sequences only: "
          + ", ".join(f"{m} {s}" for m, s, _ in seqs) + ".", "",
          "Per joint, median over joints × frames (cm): error; signed bias in the truth's body "

@@ -1,9 +1,9 @@
-"""Issue 15, development only: the knees placed by their distance from the leg curve's far end
+"""Development study: the knees placed by their distance from the leg curve's far end
 (:func:`topopose.pose.kinematic_fit.from_end`, :data:`~topopose.pose.kinematic_fit.FROM_END`)
 against their fraction ``at`` from the junction; the full skeleton's MPJPE per camera set-up
 (``benchmarks/tracking.py``'s ``8``, ``4p``, ``4pd``) on development sequences.
 
-    python benchmarks/knee_dev.py --work DIR [--seeds 41,42,43,44,51,52,53] [--setups 8,4p,4pd]
+    python studies/knee_dev.py --work DIR [--seeds 41,42,43,44,51,52,53] [--setups 8,4p,4pd]
                                   [--frames 40] [--variants off,knee40] [--out benchmarks/results]
                                   [--set NAME=VALUE ...]
 
@@ -90,8 +90,8 @@ def main(argv=None):
         {"machine": info, "rows": [{k: v for k, v in r.items() if k != "joint_errors"}
                                    for r in rows]}))
     text = CD.report(rows, setups, variants, info).replace(
-        "# Limb curves on the silhouettes' centre lines (issue 15, development seeds)",
-        "# Knees from the leg curve's far end (issue 15, development seeds)").replace(
+        "# Limb curves on the silhouettes' centre lines (development seeds)",
+        "# Knees from the leg curve's far end (development seeds)").replace(
         "`off`: the hull's curves; `on`: the limbs' curves centred (`pose/centre.py`).",
         "The limbs' curves centred. `off`: every joint at its fraction `at` of its curve; "
         "`knee40_w1`: the knees by their distance from the leg curve's far end, the reference "

@@ -1,11 +1,11 @@
-"""Issue 15, development only: where random motion's joint error comes from, per joint and per
+"""Development study: where random motion's joint error comes from, per joint and per
 situation (trunk bent, arm raised / bent / straight / lost), with signed biases in the truth's
 *trunk* frame, on the development sequences of ``benchmarks/tracking.py`` (walks 41–46, random
 motion 51–56, unrelated random poses 21–32) — the per-frame results cached by
-``benchmarks/held_dev.py`` (``--work``), the tracking cached beside them, only the skeleton's
+``studies/held_dev.py`` (``--work``), the tracking cached beside them, only the skeleton's
 fit re-run per variant (seconds per sequence).
 
-    python benchmarks/motion_dev.py --work DIR [--only random-smooth] [--variants base,...]
+    python studies/motion_dev.py --work DIR [--only random-smooth] [--variants base,...]
                                     [--out benchmarks/results]
 
 Per variant and motion: MPJPE median over the pooled matched frames (``tracking.py``'s figure)
@@ -17,7 +17,7 @@ neck), *fwd*, *up* along the true trunk (hip centre → neck), and along the tru
 held-out seeds. Writes ``motion_dev.md`` / ``.json`` when every motion and the base variant run
 (``results/motion_dev.md``: ``--variants before,age8,smooth9_ageNone,smooth9_None,base``).
 Variants: ``base`` kinematic_fit's defaults; ``before`` without ``HOLD_AGE`` and smoothing (the
-defaults before session 14); ``ageN`` ``HOLD_AGE`` N without smoothing; ``smoothW_M`` window W,
+earlier defaults); ``ageN`` ``HOLD_AGE`` N without smoothing; ``smoothW_M`` window W,
 ``SMOOTH_MOVE`` M (None: no move check); ``smooth9_ageN``; ``hold0``, ``noev``, ``noshoulder``,
 ``age8_nohint``; and ``held_dev.py``'s.
 """
@@ -43,7 +43,7 @@ ARM = (("shoulder", "Arm_head"), ("elbow", "ForeArm_head"), ("wrist", "Hand_head
        ("fingertip", None))
 LEG = (("hip", "UpLeg_head"), ("knee", "Leg_head"), ("ankle", "Foot_head"), ("toe", None))
 VARIANTS = dict(H.VARIANTS)
-# "before": the defaults before this session (no HOLD_AGE, no smoothing); the others on top of
+# "before": the earlier defaults (no HOLD_AGE, no smoothing); the others on top of
 # the current defaults unless they set these two themselves
 VARIANTS["before"] = H._with(HOLD_AGE=None, SMOOTH=0)
 VARIANTS["hold0"] = H._with(HOLD_FRAMES=0, HOLD_AGE=None, SMOOTH=0)
@@ -229,8 +229,8 @@ def main(argv=None):
             print("\n".join(tables(rows, motions)), flush=True)
     if "base" in out and a.only is None:
         info = machine(resolution=100, cameras=8, noise=1, subject="body", confidence_gate=True)
-        md = ["# Where random motion's joint error comes from (issue 15, development seeds)", "",
-              machine_line(info) + ". Written by `benchmarks/motion_dev.py` on the per-frame "
+        md = ["# Where random motion's joint error comes from (development seeds)", "",
+              machine_line(info) + ". Written by `studies/motion_dev.py` on the per-frame "
               "results `held_dev.py` caches (walks 41–46, random motion 51–56, unrelated random "
               "poses 21–32; gate on); the sequence stage re-run per variant: *base* "
               "kinematic_fit's defaults (`HOLD_AGE` 8, `SMOOTH` 9 frames over runs of "

@@ -1,7 +1,7 @@
-"""Why are the 4-camera synthetic walks wrong? A diagnostic of the phantom extension
-(issues 12 and 15).
+"""Why are the 4-camera synthetic walks wrong? A diagnostic of the phantom
+extension.
 
-    python benchmarks/phantom.py [--setups 4,4p] [--seeds 41,42,43,44] [--frames 40] [--work DIR]
+    python studies/phantom.py [--setups 4,4p] [--seeds 41,42,43,44] [--frames 40] [--work DIR]
                                  [--out PATH]
 
 On the real 4-camera recording the wrong frames hold a hand in a phantom volume of the hull: the
@@ -11,7 +11,7 @@ rays, the other two see the arm inside the trunk), so the hand ends at the far e
 (``results/real_hands.md``). This benchmark asks whether the synthetic 4-camera walks of
 ``benchmarks/consistency.py`` (the ``body`` subject, set-ups ``4`` and ``4p``, as the run
 writes them: :func:`consistency.sequence`, :func:`consistency.as_run`; its cache ``--work``)
-fail the same way. For every frame that is not right (a TP of issue 11, 0.08 × height), every
+fail the same way. For every frame that is not right (a true positive (TP) of the quality classes, 0.08 × height), every
 wrong part (placed, farther than the tolerance from its ground-truth segment after the optimal
 pairing of :func:`topopose.pose.quality.evaluate`) is tested for:
 
@@ -32,7 +32,7 @@ pairing of :func:`topopose.pose.quality.evaluate`) is tested for:
 
 Writes ``results/phantom.{md,json}``.
 
-    python benchmarks/phantom.py --effect [--setups 4,4p,4r,8] [--seeds ...] [--label NAME]
+    python studies/phantom.py --effect [--setups 4,4p,4r,8] [--seeds ...] [--label NAME]
 
 The effect of the hands' trim (:mod:`topopose.pose.trim`, the sequence stage ``topopose run``
 runs with the capture's silhouettes): per set-up, right frames (all, as the run writes them),
@@ -301,12 +301,12 @@ def effect_report(doc) -> str:
     def pr(d, a, b):
         return f"{d[a]}/{d[b]}" + (f" ({d[a] / d[b]:.1%})" if d[b] else "")
     L = [f"# The hands' trim out of the hull's phantom volume: {doc['label']} seeds", "",
-         f"{doc['machine_line']}. Written by `benchmarks/phantom.py --effect`; seeds "
+         f"{doc['machine_line']}. Written by `studies/phantom.py --effect`; seeds "
          f"{', '.join(map(str, doc['seeds']))}, {doc['frames']} frames each, the `body` walks of "
          "`benchmarks/consistency.py` (set-ups 4, 4p: even ring; 4r: the real recording's two "
          "facing pairs, `synth.camera_ring` layout \"pairs\"; 8: 8 cameras), poses as the run "
          "writes them (sequence stages on), without → with the trim (`topopose.pose.trim`).", "",
-         "| set-up | frames | frames trimmed | right (TP of issue 11) | matched: right / all | "
+         "| set-up | frames | frames trimmed | right (TP of the quality classes) | matched: right / all | "
          "`--consistency` passing: right / all |", "|---|---|---|---|---|---|"]
     for setup, d in doc["setups"].items():
         a, b = d["without"], d["with"]
@@ -360,7 +360,7 @@ def main(argv=None):
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".json").write_text(json.dumps(doc, separators=(",", ":")))   # compact rows
     L = ["# Why the 4-camera synthetic walks are wrong: the phantom extension", "",
-         f"{machine_line(doc['machine'])}. Written by `benchmarks/phantom.py`; development "
+         f"{machine_line(doc['machine'])}. Written by `studies/phantom.py`; development "
          f"seeds {', '.join(map(str, seeds))}, {a.frames} frames each, poses as the run writes "
          "them (sequence stages on, consistency off).", "",
          f"Tests (module docstring): beyond = the curve passes within the tolerance of the "

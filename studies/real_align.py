@@ -1,10 +1,10 @@
 """Why the alignment puts a part on the wrong leaf of the real recording, and the trunk rule.
 
-    python benchmarks/real_align.py [RECORDING] [--set key=value ...]
+    python studies/real_align.py [RECORDING] [--set key=value ...]
 
 For every frame of the recording (``person`` silhouettes, as ``benchmarks/real.py``) scored
 wrong while a data-tree leaf lies within 0.10 m of a wrong part's reference point (the
-*alignment/placement* stage of ``benchmarks/real_diagnose.py``), it compares the chosen
+*alignment/placement* stage of ``studies/real_diagnose.py``), it compares the chosen
 alignment with the *right mapping* built from Pose2Sim's 3D result: each leaf part on the data
 leaf nearest its reference point, the torso on the tree median of the head and hand leaves,
 the crotch on the median of the torso and the foot leaves; a part without a leaf within
@@ -204,7 +204,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(real.DEFAULT))
     ap.add_argument("--set", action="append", default=[],
-                    help="extra [silhouettes] setting, as benchmarks/real_diagnose.py")
+                    help="extra [silhouettes] setting, as studies/real_diagnose.py")
     ap.add_argument("--out", default=str(HERE / "results" / "real_align"))
     a = ap.parse_args(argv)
     opened = real.open_recording(a.recording)
@@ -223,7 +223,7 @@ def main(argv=None):
     doc = {"machine": machine(), "settings": a.set, "runs": runs}
     Path(a.out).with_suffix(".json").write_text(json.dumps(doc, indent=1))
     L = ["# Real recording: why the alignment chooses a wrong leaf, and the trunk rule", "",
-         "Written by `benchmarks/real_align.py` (the definitions are in its docstring; "
+         "Written by `studies/real_align.py` (the definitions are in its docstring; "
          f"settings {a.set or 'default'}; `person` silhouettes, 100³, gate off).", "",
          "| run | right frames | head median / p90 m | hands median / p90 m | feet median / p90 m "
          "| parts > 0.5 m |", "| --- | --- | --- | --- | --- | --- |"]

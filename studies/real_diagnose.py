@@ -1,6 +1,6 @@
 """Why the real recording's wrong frames are wrong (``person`` silhouettes): which part, which stage.
 
-    python benchmarks/real_diagnose.py [RECORDING] [--set person_track=true]
+    python studies/real_diagnose.py [RECORDING] [--set person_track=true]
 
 For each frame scored wrong by ``benchmarks/real.py`` (a head, hand or foot more than 0.15 m
 from Pose2Sim's 3D result), each wrong part's reference point (head marker; wrist + 0.05 m
@@ -175,7 +175,7 @@ def main(argv=None):
            "stages": dict(stages), "rows": rows, "picture": pic.name if pick else None}
     Path(a.out).with_suffix(".json").write_text(json.dumps(doc, indent=1))
     L = ["# Real recording: why the wrong frames are wrong (`person` silhouettes)", "",
-         f"Written by `benchmarks/real_diagnose.py` (settings {a.set or 'default'}). "
+         f"Written by `studies/real_diagnose.py` (settings {a.set or 'default'}). "
          f"{len(rows)} wrong frames of {len(cap.frames)}; the stages are defined in the script's "
          "docstring.", "", "| part | stage | wrong parts |", "| --- | --- | --- |"]
     L += [f"| {k} | {s} | {n} |" for (k, s), n in sorted(kinds.items())]

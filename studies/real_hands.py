@@ -1,6 +1,6 @@
-"""Is Pose2Sim's hand trustworthy where ``run --consistency`` passes a wrong frame? (issue 12)
+"""Is Pose2Sim's hand trustworthy where ``run --consistency`` passes a wrong frame?
 
-    python benchmarks/real_hands.py [RECORDING] [--work DIR]
+    python studies/real_hands.py [RECORDING] [--work DIR]
 
 RECORDING (default ``benchmarks/data/pose2sim_balancing/``, as ``benchmarks/real.py``) needs
 ``videos/``, ``Calib.toml``, ``reference/pose2sim_3d.trc`` (Pose2Sim's 3D result) and
@@ -8,7 +8,7 @@ RECORDING (default ``benchmarks/data/pose2sim_balancing/``, as ``benchmarks/real
 triangulated, with their scores); the script says so and stops when they are absent.
 
 The frames: the recording as ``topopose run --consistency`` writes it (``person``
-silhouettes, as ``benchmarks/trust_features.py`` computes them: the per-frame records are
+silhouettes, as ``studies/trust_features.py`` computes them: the per-frame records are
 cached in ``--work``), the *matched* frames that are wrong by ``benchmarks/real.py``'s rule
 (a hand more than 0.15 m from Pose2Sim's wrist → 0.1 m beyond it, or the head or a foot off).
 Nothing here chooses a threshold; it only looks.
@@ -385,7 +385,7 @@ def summary(detail) -> list:
 
 def report(doc) -> str:
     L = ["# Pose2Sim's hand on the real frames `run --consistency` passes wrongly", "",
-         f"{doc['machine_line']}. Written by `benchmarks/real_hands.py`.", "",
+         f"{doc['machine_line']}. Written by `studies/real_hands.py`.", "",
          "Frames: matched by `topopose run --consistency` (`person` silhouettes) but wrong by "
          "`benchmarks/real.py`'s rule (head, both hands, both feet within 0.15 m of Pose2Sim). "
          "Pixel figures at full image size (1088×1920). *outside*: distance (px) from the "
@@ -451,7 +451,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(real.DEFAULT))
     ap.add_argument("--work", default=None, help="cache of the per-frame records "
-                    "(benchmarks/trust_features.py's, reused)")
+                    "(studies/trust_features.py's, reused)")
     ap.add_argument("--finding", default=None, help="a sentence appended to the report")
     ap.add_argument("--out", default=str(HERE / "results" / "real_hands"))
     a = ap.parse_args(argv)

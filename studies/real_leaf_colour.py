@@ -1,6 +1,6 @@
-"""Photo-consistency of the hand branches on the real recording (issue 12; docs/tried.md).
+"""Photo-consistency of the hand branches on the real recording (docs/decisions.md).
 
-    PYTHONPATH=src:/path/to/mediapipe python benchmarks/real_leaf_colour.py [RECORDING] [--frames N]
+    PYTHONPATH=src:/path/to/mediapipe python studies/real_leaf_colour.py [RECORDING] [--frames N]
 
 Does a hand's skeleton branch whose colours disagree between the 4 cameras tell a misplaced
 hand (a phantom branch of the 4-camera hull: cones of different body parts intersecting)?
@@ -176,7 +176,7 @@ def main(argv=None):
     out.with_suffix(".json").write_text(json.dumps(doc, indent=1))
     m = doc["machine"]
     lines = [f"# Photo-consistency of the hand branches (real recording, `person`, "
-             f"{len(frames)} frames)", "", f"Machine: {m['cpu']}, {m['cores']} cores, {m['date']}. Written by `benchmarks/real_leaf_colour.py` "
+             f"{len(frames)} frames)", "", f"Machine: {m['cpu']}, {m['cores']} cores, {m['date']}. Written by `studies/real_leaf_colour.py` "
              f"(branch within {a.radius} m of the leaf). Hands matched to a leaf: {len(hands)}, "
              f"wrong (> {real.RIGHT} m from both true hands): {len(wrong)}. Default: right "
              f"{doc['default']['right']} per frame, {doc['default']['right_as_run']} as run.", "",

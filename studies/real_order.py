@@ -1,13 +1,13 @@
 """Does a frame's pose depend on which frames were processed before it? The real recording,
 ``person`` silhouettes, run three ways.
 
-    python benchmarks/real_order.py [RECORDING] [--out DIR] [--quick]
+    python studies/real_order.py [RECORDING] [--out DIR] [--quick]
 
 The per-frame stage of :func:`topopose.pose.run` (AHA threshold and gate off, no sequence
 stages) on every frame in order, with two workers (frames processed in another order, in two
 processes), and on the second half only (``frames="50:100"``); counts the frames whose status,
-parts (1e-8 m) and hull voxel count equal the serial run's. Until session 32 the ``person`` grid
-grew with the subject, so these runs disagreed; to measure an older version, run this script
+parts (1e-8 m) and hull voxel count equal the serial run's. A ``person`` grid that grows with the
+subject makes these runs disagree; to measure an older version, run this script
 with ``PYTHONPATH=<worktree of it>/src``. ``--quick``: frames 80–99 only.
 """
 from __future__ import annotations
@@ -76,7 +76,7 @@ def main(argv=None):
     m = machine()
     L = ["# A frame's pose and the frames processed before it (real recording, `person`)", "",
          f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
-         f"topopose from `{Path(topopose.__file__).parent}`. Written by `benchmarks/real_order.py`.",
+         f"topopose from `{Path(topopose.__file__).parent}`. Written by `studies/real_order.py`.",
          "", "| run | frames identical to the serial run's |", "|---|---|"]
     for k, ps in rows.items():
         L.append(f"| {k} | {sum(same(serial[f], p) for f, p in ps.items())} / {len(ps)} |")

@@ -1,7 +1,7 @@
 """The tracker's snap on the real recording: a snap gives way to the per-frame trajectory after
-``max_gap`` frames (session 32) against snaps that never give way (the rule before).
+``max_gap`` frames against snaps that never give way (the rule before).
 
-    python benchmarks/real_snap.py [RECORDING] [--methods person+track+every2,person]
+    python studies/real_snap.py [RECORDING] [--methods person+track+every2,person]
                                    [--resolutions 100,96] [--out DIR] [--quick]
 
 Per method and grid resolution, one end-to-end run (:func:`real.run_method`), then the poses as
@@ -108,7 +108,7 @@ def report(doc) -> str:
     m = doc["machine"]
     L = ["# The tracker's snap on the real recording", "",
          f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
-         "Written by `benchmarks/real_snap.py`: the same per-frame poses written as `topopose "
+         "Written by `studies/real_snap.py`: the same per-frame poses written as `topopose "
          "run` writes them with snaps that give way after `max_gap` frames (now) and with "
          "snaps that never do (before).", "",
          "| method @ resolution | right per frame | right as written, now / before | matched "

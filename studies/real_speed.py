@@ -1,7 +1,7 @@
 """Speed options of the ``person`` silhouettes on a real recording, against the previous default
-in the same run (issue 12: ≥ 20 frames/s end to end from the 4 videos, first frame ≤ 2 s).
+in the same run (≥ 20 frames/s end to end from the 4 videos, first frame ≤ 2 s).
 
-    python benchmarks/real_speed.py RECORDING [--variants person+oldreader,person,...] [--rounds 3]
+    python studies/real_speed.py RECORDING [--variants person+oldreader,person,...] [--rounds 3]
 
 RECORDING: Pose2Sim's balancing trial as :mod:`real` reads it (``videos/``, ``Calib.toml``,
 ``reference/pose2sim_3d.trc``). Each variant (``METHOD+VARIANT``, :data:`real.VARIANTS`) runs
@@ -104,12 +104,12 @@ def report(doc) -> str:
     import real
 
     m = doc["machine"]
-    L = ["# Speed of the `person` silhouettes on the real recording (issue 12)", "",
+    L = ["# Speed of the `person` silhouettes on the real recording", "",
          f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
          f"Resolution {doc['resolution']}³, end to end from the 4 videos (decoding included), one "
          f"process. Medians over {doc['rounds']} interleaved rounds; ratios against "
          f"`{doc['peer']}` in the same run. Written by "
-         "`benchmarks/real_speed.py`.", "",
+         "`studies/real_speed.py`.", "",
          "Variants: `+oldreader` = the reader as it was (FFmpeg's own threads per video, decoding "
          "in the silhouettes' thread); without it, the new default (`[silhouettes] "
          "decode_threads = 1`, `decode_ahead = 2`). `+fullmasks` = the hull carved from the "

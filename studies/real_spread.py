@@ -1,6 +1,6 @@
 """The real recording's figures over several voxel grids: how much the grid alone moves them.
 
-    python benchmarks/real_spread.py [RECORDING] [--methods person,person+track+every2]
+    python studies/real_spread.py [RECORDING] [--methods person,person+track+every2]
                                      [--resolutions 96,98,100,102,104] [--out DIR] [--quick]
 
 ``benchmarks/real.py``'s run (:func:`real.run_method`: end to end from the 4 videos, scored
@@ -46,7 +46,7 @@ def report(doc) -> str:
     m = doc["machine"]
     L = ["# The real recording over several voxel grids", "",
          f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
-         "Written by `benchmarks/real_spread.py` (`real.py`'s run at each resolution; 0.15 m "
+         "Written by `studies/real_spread.py` (`real.py`'s run at each resolution; 0.15 m "
          "for *right*, Pose2Sim's 3D result as reference).", ""]
     for meth, rows in doc["spread"].items():
         res = list(rows)

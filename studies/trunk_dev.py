@@ -1,9 +1,9 @@
-"""Issue 15, development only: the trunk joints (neck, shoulders, hips, pelvis) of the kinematic
+"""Development study: the trunk joints (neck, shoulders, hips, pelvis) of the kinematic
 skeleton on 8 cameras against 4 phone-like cameras (``tracking.py``'s set-ups ``8``, ``4p``,
 ``4pd``), with the hull radius the hips' ``width`` is scaled by beside the truth's half hip
 width.
 
-    python benchmarks/trunk_dev.py --work DIR [--setups 8,4p,4pd] [--seeds 41,...,56]
+    python studies/trunk_dev.py --work DIR [--setups 8,4p,4pd] [--seeds 41,...,56]
                                    [--walk-frames 40] [--frames 30] [--variants base,...]
                                    [--out benchmarks/results]
 
@@ -130,7 +130,7 @@ def main(argv=None):
         variants[v] = {} if v == "base" else {
             k: ast.literal_eval(x) for k, x in (kv.split("=", 1) for kv in v.split(";"))}
     lines = ["# The trunk joints on 8 and 4 cameras (development seeds)", "",
-             f"{machine_line(machine())}. Written by `benchmarks/trunk_dev.py --setups "
+             f"{machine_line(machine())}. Written by `studies/trunk_dev.py --setups "
              f"{a.setups} --seeds {a.seeds}` (frames per sequence as cached: below); AHA "
              "threshold and gate off. MPJPE median over frames (cm), per joint "
              "median; *good*: the frames whose per-frame pose is right; bias (out, fwd, up) "

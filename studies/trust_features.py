@@ -1,8 +1,8 @@
-"""Per-frame features that separate right from wrong frames with 4 cameras (issue 12 part 5):
+"""Per-frame features that separate right from wrong frames with 4 cameras:
 analysis by synthesis in 2D — the frame's placed result rendered into each camera and compared
 with that camera's silhouette.
 
-    python benchmarks/trust_features.py [RECORDING] [--work DIR] [--setups 4,4p,8]
+    python studies/trust_features.py [RECORDING] [--work DIR] [--setups 4,4p,8]
                                         [--dev-seeds 41,...] [--test-seeds 1,...] [--frames 40]
 
 (``person`` silhouettes need MediaPipe; ``--work``: cache of the per-frame records.)
@@ -11,7 +11,7 @@ Frames: (a) the synthetic walks of ``benchmarks/consistency.py`` (the ``body`` s
 ``4`` and ``4p``; development seeds to choose anything, held-out seeds to report) and ``8``;
 (b) the real recording (``benchmarks/real.py``, ``person`` silhouettes; only reported, never
 used to choose). Each frame is estimated without the gate (:class:`FrameEstimator`,
-``gate=False``) with its stages kept; right: synthetic a TP of issue 11
+``gate=False``) with its stages kept; right: synthetic a true positive (TP) of the quality classes
 (``benchmarks/consistency.py``), real: head, both hands and both feet within 0.15 m of
 Pose2Sim's 3D result (``benchmarks/real.py``).
 
@@ -296,12 +296,12 @@ def report(doc) -> str:
     from _machine import machine_line
 
     m = doc["machine"]
-    L = ["# Which per-frame feature tells right from wrong frames (issue 12 part 5)", "",
+    L = ["# Which per-frame feature tells right from wrong frames", "",
          f"{machine_line(m)}. "
-         "Written by `benchmarks/trust_features.py` (see its docstring). Synthetic: body subject "
+         "Written by `studies/trust_features.py` (see its docstring). Synthetic: body subject "
          f"walking, {doc['frames']} frames per sequence, development seeds {doc['dev_seeds']}, "
          f"held-out seeds {doc['test_seeds']}; real: Pose2Sim's balancing trial, `person` "
-         "silhouettes (reported only, never used to choose). Right: synthetic a TP of issue 11; "
+         "silhouettes (reported only, never used to choose). Right: synthetic a true positive (TP) of the quality classes; "
          "real: head, hands and feet within 0.15 m of Pose2Sim.", "",
          "AUC: the probability that a right frame scores better than a wrong one (0.5: chance); "
          "every support feature is expected lower on right frames, the confidence higher. "

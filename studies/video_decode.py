@@ -1,6 +1,6 @@
-"""Video decoding speed of the capture's frame source (issue 12, part 1).
+"""Video decoding speed of the capture's frame source (part 1).
 
-Usage: ``python benchmarks/video_decode.py VIDEOS_FOLDER [--quick]`` — a folder of videos, one per
+Usage: ``python studies/video_decode.py VIDEOS_FOLDER [--quick]`` — a folder of videos, one per
 camera (e.g. the Pose2Sim recording's ``videos/``: 4 × 100 frames, 1088×1920 mp4). Without the
 folder the benchmark says so and stops (the recording is not part of the repository).
 
@@ -53,7 +53,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     if not a.videos or not Path(a.videos).is_dir():
         print("video_decode: no videos folder given (or not found): nothing measured. "
-              "Usage: python benchmarks/video_decode.py VIDEOS_FOLDER")
+              "Usage: python studies/video_decode.py VIDEOS_FOLDER")
         return 0
     videos = {p.stem: p for p in sorted(Path(a.videos).iterdir())
               if p.suffix.lower() in VIDEO_EXTENSIONS}

@@ -1,4 +1,4 @@
-"""Every CLI path checked before any work or write (issue 13): bad arguments and output paths
+"""Every CLI path checked before any work or write: bad arguments and output paths
 give one line on stderr and exit 2, an existing output is left byte for byte as it was,
 --resume refuses a file made with another model / resolution / capture, synth refuses to mix
 captures, a closed stdout ends quietly."""

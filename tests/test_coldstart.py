@@ -1,4 +1,4 @@
-"""First run (issue 13): what the screen says while kernels compile, and the helper process that
+"""First run: what the screen says while kernels compile, and the helper process that
 builds the tables and compiles the tree/alignment kernels beside the first frame."""
 import subprocess
 import sys

@@ -1,4 +1,4 @@
-"""topopose.pose.consistency: matched by the run's own consistency (issue 12 part 5).
+"""topopose.pose.consistency: matched by the run's own consistency.
 
 Oracles: a synthetic walk of straight-line part trajectories (constant velocities: the
 neighbours' midpoint predicts every part exactly), one frame's hand moved onto the trunk;

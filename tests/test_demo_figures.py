@@ -1,4 +1,4 @@
-"""Demo pictures and figures (issue 13): a typical and the worst frame are drawn, failed frames
+"""Demo pictures and figures: a typical and the worst frame are drawn, failed frames
 sit in a band at the bottom (not at an arbitrary height), the threshold plot includes T_d,
 part labels are spread apart."""
 import numpy as np

@@ -1,4 +1,4 @@
-"""Ctrl-C during `topopose run --workers 2` (issue 13: ~60 lines of Dask tracebacks): one line,
+"""Ctrl-C during `topopose run --workers 2` (no wall of Dask tracebacks): one line,
 exit 130, no traceback, and the frames done so far are kept in the output."""
 import os
 import re

@@ -1,4 +1,4 @@
-"""The spine behind the medial axis (pose/anatomy.py, issue 11).
+"""The spine behind the medial axis (pose/anatomy.py).
 
 Oracles: synthetic skeletons whose feet point in a known direction, a ball whose inscribed
 radius is known, and the ground truth of a ``body`` frame (its front and its spine)."""

@@ -1,4 +1,4 @@
-"""The skeleton over time (issue 15): one frame's wrong limb is not smoothed into its
+"""The skeleton over time: one frame's wrong limb is not smoothed into its
 neighbours (:func:`~topopose.pose.kinematic_fit.despike`), and a hanging arm's elbow and wrist
 keep their bones' lengths from the shoulder when its curve ends short
 (:func:`~topopose.pose.kinematic_fit.from_start`) — on hand-made bodies whose truth is known."""

@@ -300,7 +300,7 @@ def test_frame_without_head_keeps_a_skeleton_with_held_joints(monkeypatch):
 @pytest.mark.parametrize("dt", [1, 3, 5, 6, 9])
 def test_an_unseen_arm_is_held_from_the_last_fitted_frame_up_to_hold_frames_back(dt):
     """The same body (translated) ``dt`` frames after a whole frame, the frames between not
-    matched, hand_2 not found: up to ``HOLD_FRAMES`` back (5: issue 15, random motion) the
+    matched, hand_2 not found: up to ``HOLD_FRAMES`` back (5: random motion) the
     unseen arm is the whole frame's arm, moved with the root (the truth: the same body, so
     every joint where the whole frame's fit put it, plus the translation); further back it
     takes the rest pose, its upper arm hanging along the trunk."""

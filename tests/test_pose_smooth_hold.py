@@ -1,4 +1,4 @@
-"""The skeleton over time (issue 15): a lost joint held only while recent (``HOLD_AGE``), and the
+"""The skeleton over time: a lost joint held only while recent (``HOLD_AGE``), and the
 default smoothing over runs of continuing motion (``SMOOTH`` at the capture's frame rate,
 :func:`motion_runs`), on hand-made bodies and chains whose truth is known."""
 import copy

@@ -1,4 +1,4 @@
-"""The subject's own lengths (two-pass matching, issue 11) on synthetic data trees."""
+"""The subject's own lengths (two-pass matching) on synthetic data trees."""
 import numpy as np
 import pytest
 

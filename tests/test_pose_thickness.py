@@ -1,4 +1,4 @@
-"""Thickness of the parts (issue 11): the arc-cost hook of the Matcher against a brute-force
+"""Thickness of the parts: the arc-cost hook of the Matcher against a brute-force
 assignment on star trees, the inscribed-ball radii of the data vertices, and one small end-to-end
 accuracy check on the anatomically real ``body`` subject."""
 import itertools

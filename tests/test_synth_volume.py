@@ -1,4 +1,4 @@
-"""Every synthetic subject stays inside its own capture volume (issue 13: the dog reared up to
+"""Every synthetic subject stays inside its own capture volume (the dog reared up to
 z = 1.14 in a volume that stops at 1.1, so its hull touched the grid border and frames failed).
 
 Oracle: the sampled surface of every primitive (Body.extent) and every ground-truth point lie

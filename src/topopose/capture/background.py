@@ -381,7 +381,7 @@ def _person_maps(cap, frame, images, p) -> list:
 
 
 #: False: :func:`masks_from_maps` returns plain full-size masks (the hull then sums every pixel
-#: of them; ``benchmarks/real_speed.py`` measures the difference)
+#: of them; ``studies/real_speed.py`` measures the difference)
 UPSAMPLED_MASKS = True
 
 

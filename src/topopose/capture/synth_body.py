@@ -192,7 +192,7 @@ def rig() -> Rig:
 
 def dominant_bones() -> tuple[np.ndarray, tuple]:
     """Each mesh vertex's dominant bone (largest skinning weight; the same in every pose) as an
-    index into the bone names, and the names (for the segmentation of issue 14)."""
+    index into the bone names, and the names (for the hull segmentation, thesis §13.3.1.1)."""
     r = rig()
     return r.dominant.copy(), r.names
 

@@ -775,7 +775,7 @@ def learn_model(capture, resolution: int = 100, frames=None, *, progress: bool =
 
 
 #: coherent intervals shorter than this give learned models whose parts may be mislabelled
-#: (issue 13: 6 random frames gave a model that swapped head and hand, yet frames "matched")
+#: (6 random frames can give a model that swaps head and hand, yet frames "match")
 MIN_COHERENT_FRAMES = 10
 
 

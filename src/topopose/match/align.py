@@ -59,10 +59,10 @@ _NO_POS = np.zeros((0, 3))
 # other, and a contracted arc puts both ends on one data vertex. Without it the human model's
 # trunk (torso above crotch, model weight 0.074 of 1) is contracted for that little cost, the
 # shoulders' and the hips' junctions become one, and the four limbs are told apart by their
-# lengths alone: on the real recording (benchmarks/real_align.py, 4 cameras) hands went onto
+# lengths alone: on the real recording (studies/real_align.py, 4 cameras) hands went onto
 # the toes and feet onto a wrist or the arm ends (errors ~1 m, frames 3, 6, 7, 89, 94, 95).
 # Leaf arcs are unaffected (a deleted leaf arc is a missing part, not a contraction). Measured
-# in benchmarks/real_align.py (results/real_align.md, docs/real_alignment.md). The default of
+# in studies/real_align.py (results/real_align.md, docs/accuracy.md). The default of
 # FrameEstimator(keep_junctions=None); Matcher and align() keep the thesis' AHA (False).
 KEEP_CONSTRAINED_JUNCTIONS = True
 

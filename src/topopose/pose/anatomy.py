@@ -1,4 +1,4 @@
-"""Anatomical placement of the body-axis parts: the spine lies behind the skeleton (issue 11).
+"""Anatomical placement of the body-axis parts: the spine lies behind the skeleton.
 
 A curve skeleton runs through the middle of each cross-section of the hull (thesis §4.3), so
 the junctions where the limbs meet (torso, crotch) and the head's branch lie on the body's
@@ -6,7 +6,7 @@ the junctions where the limbs meet (torso, crotch) and the head's branch lie on 
 the pelvis behind the belly, so the rig's joints — the ground truth of the ``body`` subject,
 and the markers of a motion-capture suit — lie a few centimetres behind the medial axis.
 Measured on ``body`` (training seeds 41, 42, 5 builds, 200 matched frames, 100³, noise 1;
-``benchmarks/diagnose_body.py``): the torso, the crotch and the head sit 0.027, 0.028 and
+``studies/diagnose_body.py``): the torso, the crotch and the head sit 0.027, 0.028 and
 0.016 × height *in front of* their ground-truth segments (medians; 0.32, 0.34 and 0.17 × the
 hull's largest inscribed-ball radius), the largest offset of any part; most misplaced frames
 have a single torso, crotch or head just beyond the tolerance.
@@ -80,7 +80,7 @@ TRUNK_BLEND = {"human": ("torso", "crotch", "head", 0.6, 0.5)}
 # legs' junction of the skeleton lies in the thick mass of pelvis and thighs; when the hips are
 # flexed (crouching, sitting, one knee up; the trunk bent forward) that mass fills the angle
 # between belly and thighs and the junction rises and comes forward: the crotch near misses of
-# ``benchmarks/diagnose_body.py`` (gate off, separated) lie +0.05–0.10 × height above and
+# ``studies/diagnose_body.py`` (gate off, separated) lie +0.05–0.10 × height above and
 # +0.03–0.08 in front of the pelvis segment. No per-frame cue of the tree separated those frames
 # (thigh descent, trunk–thigh angle: the failing frames sit among right ones), but the pelvis
 # segment is 0.11 × height long above and below the hip centre, so a constant drop costs the
@@ -109,7 +109,7 @@ TRUNK_BLEND = {"human": ("torso", "crotch", "head", 0.6, 0.5)}
 # per match, none → drop without → with the floor): separated 0.93 / 0.067 → 0.96 / 0.034 →
 # 0.96 / 0.034, all poses 0.79 / 0.050 → 0.78 / 0.060 → 0.79 / 0.050 (before SHORT_ARM and
 # TRUNK_BLEND: 0.73 / 0.111 → 0.72 / 0.121 → 0.73 / 0.111): on by default.
-# A smaller down share, 0.1 (issue 14), tried and not kept: before the drop the legs' junction
+# A smaller down share, 0.1, tried and not kept: before the drop the legs' junction
 # already lies at what the pose descriptions need of a crotch — the pelvis (capsule human: its
 # centre, −0.5 cm along up, sd 2.5, dev seed 3; ``body``: ``Hips_head``, +0.5 cm, sd 3.3, dev
 # seed 1) —, and 0.35 × radius puts it 4.1 cm (capsule) and 2.0 cm (body) below, out of the
@@ -125,7 +125,7 @@ TRUNK_BLEND = {"human": ("torso", "crotch", "head", 0.6, 0.5)}
 # alike). The peer *crotch-drop-0.1* (quality_body.md) keeps the trade measured. The pose
 # descriptions (§13.3.2.1) compare the junction before the drop instead, which the estimate
 # records in ``diagnostics["detect_parts"]`` (:func:`topopose.pose.detect.description_parts`;
-# applications.md, *before ← now*): the parts, and so issue 11's figures, are unchanged.
+# applications.md, *before ← now*): the parts, and so the quality figures, are unchanged.
 CROTCH_DROP = {"human": ("crotch", 0.35, 0.10, 0.5)}
 # A hand on the trunk left unplaced (:func:`hand_on_trunk`): model name → (hands, core, reach).
 # A forearm folded onto the chest or the belly fuses with the trunk in the hull; the arm's

@@ -1,165 +1,70 @@
-"""A per-frame confidence that says whether to trust a pose (issue 12 part 5, issue 11).
+"""A per-frame confidence that says whether to trust a pose (thesis §13.2.2: the AHA distance
+alone does not separate right from wrong poses).
 
-The AHA distance alone does not separate right from wrong poses (a wrong frame can align
-closely: a bent arm as short as the neck+head branch takes the head at a small distance). For
-the human model the confidence is **fitted** (:func:`fitted_confidence`): gradient-boosted
+For the human model the confidence is **fitted** (:func:`fitted_confidence`): gradient-boosted
 shallow regression trees on features of the frame (:func:`frame_features`), times two guards
 outside what the calibration frames showed:
 
     confidence = σ(b + Σ_t v_t(x)) × f_hull × f_size
 
 - the model is ``confidence_model.json`` beside this module (:data:`CONFIDENCE_MODEL`),
-  written by ``python benchmarks/confidence.py --fit`` — re-run it after any change of the
-  pipeline (it fits on calibration seeds and reports held-out ones, before/after, in
-  ``benchmarks/results/confidence.md``). ``"kind": "trees"`` (shipped): 100 trees of depth
-  ≤ 3 fitted by scikit-learn's GradientBoostingClassifier (log-loss), stored node by node —
-  feature, threshold, children, leaf value — and evaluated here with numpy
-  (:func:`tree_confidence`, equal to scikit-learn's ``predict_proba``; scikit-learn is needed
-  to fit, not to run); b, the log-odds before the first tree. Otherwise a logistic regression,
-  σ(b + Σ c_i (x_i − mean_i) / scale_i) (:func:`logistic_confidence`, :func:`fit_logistic`,
-  ``--kind logistic``). The features of :func:`frame_features` but ``thickness`` and ``lost``
-  (guarded apart) are fitted. All are ratios (lengths over the hull's height H or over tree
-  weights), so the same capture at another scale gets the same confidence;
-- **trees, not the logistic** (``benchmarks/results/confidence_models.md``: the same frames,
-  every variant fitted and its minimum chosen alike): the trees rank right frames above wrong
-  ones better with 8 cameras (held out, 8 cameras: precision / recall of the right frames
-  0.951 / 0.894 against 0.951 / 0.856 for the logistic model they replace; body benchmark,
-  seeds 21, 22: separated limbs TP rate 0.858, FP per match 0.037 against 0.85 / 0.010, all
-  poses 0.675 / 0.024 against 0.60 / 0.053); refitted on the same frames under the same rule
-  the logistic model, with or without a 4-camera intercept or interactions, kept 0.41–0.77 of
-  the right 8-camera frames;
+  written by ``python benchmarks/confidence.py --fit`` (it fits on calibration seeds and
+  reports held-out ones in ``benchmarks/results/confidence.md``). ``"kind": "trees"``: 100
+  trees of depth ≤ 3 fitted by scikit-learn's GradientBoostingClassifier (log-loss), stored
+  node by node and evaluated here with numpy (:func:`tree_confidence`, equal to scikit-learn's
+  ``predict_proba``; scikit-learn is needed to fit, not to run). Otherwise a logistic
+  regression (:func:`logistic_confidence`, :func:`fit_logistic`, ``--kind logistic``). All
+  features are ratios (lengths over the hull's height H or over tree weights), so the same
+  capture at another scale gets the same confidence; ``thickness`` and ``lost`` are guarded
+  apart. The features include the matched arcs' shape against the model's (``shape``,
+  ``shape_max``), the data tree's weight outside the matched arcs (``spurious_share``), the
+  limbs' symmetry (``limb_sym``), the trunk's junctions (``crotch_radius``, ``torso_radius``,
+  ``head_torso``, ``hip_flex``, ``crotch_room``, ``head_placed_offset``, ``head_placed_bend``)
+  and ``matched_distance`` (the distance without the unmatched leaf parts' deletion cost);
 - **camera set-ups**: the calibration captures have 8 cameras (640×480, silhouette noise 1),
-  4 cameras (640×480, noise 1) and 4 portrait phone-like cameras (544×960, noise 2, the
-  blobby borders and holes of a segmentation network's mask). Fitted on 8 cameras only, the
-  model did not transfer to the 4 phone cameras of the real recording (every frame of it got
-  0.0–0.17, right or wrong): with 4 cameras the phantom volume grows 5–20 spurious branches,
-  whose deletion cost puts the AHA distance of a *right* frame at 1.5–2.1 × T_d where the 8
-  camera fit had seen 0.4, and the head features (bend, offset) of that recording's leaning
-  subject are far outside the 8-camera range. Added so as not to depend on the camera count:
-  ``shape`` / ``shape_max`` (the matched arcs' lengths against the model's, relative to the
-  *matched* total — unmatched branches do not shorten them), ``spurious_share`` (the data
-  tree's weight outside the matched arcs) and ``limb_sym`` (arms' and legs' length ratios);
+  4 cameras (640×480, noise 1) and 4 portrait phone-like cameras (544×960, noise 2);
 - **T_d**: with ``"replaces_threshold"`` in the model (and the gate on) a frame rejected for its
-  AHA distance alone (above the model's own T_d, not one the caller chose) is decided by the
-  confidence instead: the distance is one of its features, and with 4 cameras it exceeds T_d
-  for nearly every frame, right or wrong;
-- a frame is *right* when it is a TP of issue 11 (every placed part within 0.08 × height of its
-  ground truth, at most one part unplaced: "good" or "missing limb"); the calibration frames
-  include the body benchmark's kind of poses (separated limbs, all random poses);
-- the minimum (:func:`min_confidence_for`) depends on the number of cameras: per camera count
-  the smallest whose precision of ``matched`` reaches 0.95 in every calibration set-up with
-  that many cameras and in every group of it (subject and motion or pose kind; each of at
-  least 10 matched frames), at it and every higher minimum, by *out-of-fold* confidences (two
-  folds by seed, each scored by a model fitted on the other) — per set-up only, the held-out
-  body benchmark's random poses got 0.90–0.93 precision (the harder groups pay for the easy);
-  so ``matched`` promises the same precision with 4 cameras as with 8, where the same
-  confidence is less often right (the curves are in ``benchmarks/results/confidence.md``);
-- the fit also sees, as wrong frames, the issue's failure made on purpose: each right frame
-  with the head's and a hand's data vertices exchanged (a hand given the head);
+  AHA distance alone is decided by the confidence instead;
+- a frame is *right* when it is a true positive of the quality classes (every placed part
+  within 0.08 × height of its ground truth, at most one part unplaced); the fit also sees, as
+  wrong frames, each right frame with the head's and a hand's data vertices exchanged;
+- the minimum (:func:`min_confidence_for`) depends on the number of cameras: the smallest whose
+  precision of ``matched`` reaches 0.95 in every calibration set-up with that many cameras and
+  in every group of it, by out-of-fold confidences;
 - **hull**: f_hull = clip((s − s_min) / (0.95 − s_min), 0, 1) where s is the share of the
-  hull's voxels in its largest component (what was dropped, part 4) and ``s_min`` =
-  ``min_share``;
-- **size**: r = hull volume / H³ (H: the hull's extent along the up axis); f_size = 1 for r in
-  [0.005, 0.11], 0 below 0.002 or above 0.13, linear between (a hull this slim lost its head
-  or legs; ``fat`` is a feature of the trees, which judge the fat hulls they saw). The upper
-  end was 0.06 / 0.08 until the calibration captures had heavy builds: right frames of
-  theirs reach r = 0.104 (calibration seeds), and the old guard zeroed 4 of the 115 right
-  separated frames of the body benchmark (heavy and random builds, r 0.079–0.093). Held out,
-  8 cameras (refit of 2026-11-24, with per-part trust): precision / recall of the right
-  frames 0.964 / 0.938 → 0.962 / 0.940 (``docs/body_accuracy.md``, "Per-part trust").
+  hull's voxels in its largest component and ``s_min`` = ``min_share``;
+- **size**: r = hull volume / H³; f_size = 1 for r in [0.005, 0.11], 0 below 0.002 or above
+  0.13, linear between.
 
-Other models get the earlier **product** confidence (:func:`frame_confidence`), reported
-without gating (nothing was calibrated for them; give ``FrameEstimator(min_confidence=…)`` to
-gate them): f_d = 2^(−d / T_d) × f_hull × 0.5^(unmatched parts) × a fat-hull factor (1 up to r =
-0.04, 0 from 0.06).
+**Per-part trust** (:func:`judge_frame` ``drop_parts``; ``FrameEstimator(part_trust=False)``
+off): a frame with every part placed that only the confidence rejects is matched without the
+one extremity (:data:`DROP_PARTS`) whose removal (:func:`drop_part_features`) makes the
+confidence reach the minimum + ``drop_margin`` (:func:`min_drop_for`); a tie names no part
+(:func:`untrusted_part`); the part is unplaced, its guess kept.
+
+**Head doubt** (:func:`head_doubt`, :func:`judge_frame` ``doubt_head``;
+``FrameEstimator(head_doubt=False)`` off): when no part's removal explains the doubt and the
+alignment left the head unmatched, the frame with its head features (:data:`HEAD_FEATURES`) at
+a right frame's typical values (``"typical_head"`` in the model) is scored; reaching
+:func:`min_drop_for`, the frame is matched without its head. ``head_doubt="any"`` (opt-in)
+also doubts a matched head, which lets through some frames with a spurious limb at the chest.
+
+Other models get the **product** confidence (:func:`frame_confidence`), reported without
+gating (give ``FrameEstimator(min_confidence=…)`` to gate them): f_d = 2^(−d / T_d) × f_hull ×
+0.5^(unmatched parts) × a fat-hull factor (1 up to r = 0.04, 0 from 0.06).
 
 **Time** (batch runs, :func:`temporal_confidence`): f_t = 2^(−(δ / (0.1 H))²) with δ the median
 displacement of the parts since the previous frame (numbered parts paired optimally); frames
 whose hull volume departs from the run's median by more than a factor 1.5 get ½; only when
-the run is a coherent sequence (median δ / H over consecutive frames ≤ 0.1). They multiply
-the product confidence; the fitted confidence only reports them in its factors (measured,
-held out, 8 cameras: precision / recall 0.936 / 0.799 → 0.949 / 0.781, body walking 0.908 /
-0.754 → 0.954 / 0.703: little precision for right frames, ``benchmarks/results/confidence.md``).
+the run is a coherent sequence (median δ / H over consecutive frames ≤ 0.1). They multiply the
+product confidence; the fitted confidence only reports them in its factors.
 
-**The trunk's junctions** (issue 11): ``crotch_radius``, ``torso_radius``, ``head_torso``,
-``hip_flex``, ``crotch_room`` and the placed head's ``head_placed_offset`` / ``head_placed_bend``
-are fitted too (``benchmarks/confidence.py`` ``JUNCTION_FEATURES``; held-out seeds of the
-calibration, 8 cameras: recall of the right frames at precision 0.95 0.908 → 0.922; body
-benchmark, seeds 21, 22, TP rate / FP per match: separated 0.908 / 0.009 against 0.758 / 0.000
-refitted without them; ``docs/body_accuracy.md``).
-
-**Missing limbs** (issue 11): ``matched_distance`` (the distance without the unmatched leaf
-parts' deletion cost) is a feature of the trees (a logistic refit gave it no weight,
-``benchmarks/results/confidence_refit_matched_distance.md``).
-
-**Per-part trust** (issue 11, :func:`judge_frame` ``drop_parts``; ``FrameEstimator(part_trust=
-False)`` off): a frame with every part placed that only the confidence rejects is matched without
-the one extremity (:data:`DROP_PARTS`) whose removal (:func:`drop_part_features`) makes the
-confidence reach the minimum + ``drop_margin`` (:func:`min_drop_for`, chosen out of fold by
-``benchmarks/confidence.py --fit``; a tie names no part, :func:`untrusted_part`); the part is
-unplaced, its guess kept. Refit of 2026-11-24 on the pipeline with short arm, trunk blend and
-placed missing, rods at weight 0.5, the size guard up to 0.11: held out, 8 cameras, precision /
-recall of the right frames 0.960 / 0.894 (model before) → 0.960 / 0.909 → **0.961 / 0.936** with
-per-part trust; body benchmark (seeds 21, 22, offline) separated 0.908 / 0.000 → 0.950 / 0.009,
-all poses 0.717 / 0.034 → 0.742 / 0.022 (``docs/body_accuracy.md``, "Per-part trust"). Refitted
-again on the merged pipeline (hand on the trunk, head ball, trunk kept; the shipped model,
-minima 0.72 with 8 cameras, 0.91 with 4): held out, 8 cameras, 0.975 / 0.912 (the model before,
-on the new frames) → 0.973 / 0.935; body benchmark (offline) separated 0.958 / 0.009 → 0.967 /
-0.009, all poses 0.725 / 0.022 → 0.767 / 0.021 (``benchmarks/results/confidence.md``).
-Refitted after the junction without its cluster's leaves (``estimate.JUNCTION_CORE``, issue 11
-session 10; the shipped model, minima 0.52 with 8 cameras, 0.92 with 4): held out, 8 cameras,
-with per-part trust 0.973 / 0.938 → 0.958 / 0.970; body benchmark (offline, seeds 21, 22)
-separated 0.983 / 0.017 → 0.975 / 0.008, all poses 0.783 / 0.021 → 0.817 / 0.020.
-
-**Head doubt** (issue 11, :func:`head_doubt`, :func:`judge_frame` ``doubt_head``;
-``FrameEstimator(head_doubt=False)`` off): when no part's removal explains the doubt and the
-alignment left the head unmatched (the head placed from the hull alone), the frame with its
-alignment's head features (:data:`HEAD_FEATURES`) at a right frame's typical values
-(``"typical_head"`` in the model, medians of the calibration's right frames) is scored; reaching
-:func:`min_drop_for`, the frame is matched without its head. For *any* head
-(``head_doubt="any"``, opt-in) it also rescues the right all-pose frames whose alignment put
-the torso on a shoulder junction (head offset 0.18–0.32, bend 0.76–1.2, the placed head and
-torso right; body benchmark, seeds 21, 22, ``quality.py --only body``: separated 0.975 / 0.017
-→ 0.983 / 0.017, all poses 0.775 / 0.021 → 0.800 / 0.020), but it cannot tell them from a torso
-on the junction of a spurious limb: of the deliberate rods the gate rejects it lets through 11
-of 157 held out, 15 of 169 calibration (``confidence.md``) and
-``test_spurious_limb_fails_the_gate``'s rod frame (confidence 0.26 → 0.74, head unplaced). By
-default (an unmatched head only) none of the 414 deliberate rods gets through; held out, 8
-cameras, 0.973 / 0.935 → 0.973 / 0.938; body benchmark separated 0.975 → 0.983, all poses
-0.775 → 0.783 (FP/match 0.017, 0.021 unchanged).
-
-**Not reached** (``confidence_models.md``): with 4 cameras no model reaches precision 0.95 for
-more than a few right frames (held out: 7 of 209 right frames with 4 cameras, none of 131 with
-the 4 portrait cameras; the real recording's 4 phone cameras: none of its ~67 right frames, the
-model replaced: 1): few 4-camera frames are right at all (15–33 %) and the wrong ones score as
-high. After the refits of 2026-11-24 (minimum 0.90, then 0.91 with 4 cameras): held out 15, then
-14 matched of 235–249 right frames (precision 0.93), 4 portrait cameras 1–2 of 151–158; the real
-recording none of its 66–67 right frames — their alignment head features and radius ratios lie outside the synthetic 4-camera
-right frames' (``confidence.md``, last table). Why (``benchmarks/confidence_real_torso.py``,
-``results/confidence_real_torso.md``): (1) the subject leans (trunk 27° from the vertical at
-the median, up to 49°) on one leg, and in half of the right frames (17 of 33) the *alignment's*
-torso vertex sits on another junction, 0.59 m from Pose2Sim's neck (the placed torso, moved back
-onto the spine, 0.14 m): those frames carry head_bend 1.55, head_offset 0.36, torso_radius 0.18,
-head_torso 1.67; the other half 0.37 / 0.15 / 1.0 / 0.36, near the synthetic right frames';
-(2) the radius features are relative to the hull's largest inscribed ball, which on the
-recording is 11 voxels (0.22 m, hull 0.12 m³) against 6 (0.15 m, 0.08–0.11 m³) on synthetic
-4-camera bodies, so a hand's 2 voxels give end_radius 0.18 instead of 0.33; (3) its smooth
-network masks grow fewer spurious branches (5–8 against 12–16 with noise level 2). The
-calibration set-up ``4r`` (``benchmarks/confidence.py``: the portrait phone cameras in two
-facing pairs as the recording's — ``synthetic_capture(layout="pairs")`` —, the volume fitted
-to the silhouettes, and balancing poses tilted up to 45° — ``lean``,
-:func:`topopose.capture.synth_body.body_balance`) reproduces (1) in part (a third of its right
-balancing frames, head_bend 1.1) but not (2): no set-up tried (facing pairs, fitted volume,
-lean, noise level 3) fattens the hull's trunk beyond 0.15 m. Refitted with it (not shipped,
-``results/confidence_refit_4r.md``) the recording still has no right frame at the 4-camera
-minimum (0.85), 8 right of 14 at 0.5, and the 8-camera held-out precision fell to 0.947.
-
-The confidence is reported for every frame. With the gate on (``FrameEstimator(gate=True)``,
-``topopose run --confidence-gate on``; the default, :func:`topopose.pose.estimate.default_gate`),
-``matched`` for the human model also needs confidence ≥ ``min_confidence``; rejected frames
-keep their best guess. Everything was fitted on synthetic captures only (capsule human and
-``body``, the three camera set-ups, walk and random motion, separated / all poses); the real
-recording is used to check, never to fit.
+With 4 cameras few frames are right at all and wrong ones score as high: the 4-camera minimum
+matches few frames (docs/accuracy.md). The confidence is reported for every frame. With the
+gate on (``FrameEstimator(gate=True)``, ``topopose run --confidence-gate on``; the default,
+:func:`topopose.pose.estimate.default_gate`), ``matched`` for the human model also needs
+confidence ≥ ``min_confidence``; rejected frames keep their best guess. The model is fitted on
+synthetic captures only; the real recording is used to check, never to fit.
 """
 from __future__ import annotations
 
@@ -588,7 +493,7 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     unplaces it and keeps its guess), its confidence is the reported one, the whole frame's in
     ``confidence_all_parts``.
 
-    **Head doubt** (``doubt_head``, with per-part trust; issue 11): when no part's removal
+    **Head doubt** (``doubt_head``, with per-part trust): when no part's removal
     explains the doubt but the frame with a typical head (:func:`head_doubt`) reaches
     :func:`min_drop_for`, the head is the untrusted part — True: only a head the alignment
     left unmatched (placed from the hull alone); ``"any"``: any head (a right frame with the

@@ -1,6 +1,6 @@
 """Run-relative consistency of a sequence: which frames to trust in a run of one subject
-(issue 12 part 5: ``matched`` right in ≥ 95 % of the frames it is given to, on real and
-synthetic data alike).
+(``matched`` meant to be right in ≥ 95 % of the frames it is given to, on real and synthetic
+data alike).
 
 The fitted confidence (:mod:`.confidence`) judges a frame against the calibration captures'
 frames in absolute terms; a recording outside them gets low values for its right frames and
@@ -59,10 +59,10 @@ of the right frames), 4 cameras 100 % (12) / 96 % (28) / 97 % (37), phone-like 4
 the gate passes none and the union is the consistency: ``person`` silhouettes 28 frames at
 96 %, ``person+track`` 31 at 94 %, ``person_every = 2`` 19 at 100 %. Parts held at their
 prediction, a snapped part, the deviation before the trim: no other frame on the
-development seeds (``docs/tried.md``). The issue's 95 % is reached everywhere but on
+development seeds (``docs/decisions.md``). The issue's 95 % is reached everywhere but on
 ``person+track`` (2 wrong of 31: frame 59, a left hand 0.157 m off; frame 80, the right hand
 0.20 m). The wrong frames are hands in a phantom volume of the hull in front of the chest,
-where Pose2Sim's wrist is right there (``benchmarks/real_hands.py``,
+where Pose2Sim's wrist is right there (``studies/real_hands.py``,
 ``results/real_hands.md``: OpenPose sees the hand in 3 views, scores 0.56–0.69, within 4–34
 px of Pose2Sim's wrist; the forearm crosses the trunk in cam01 and is hidden behind it in
 cam03), inside all 4 silhouettes — no silhouette test can see it. Run-relative arc lengths

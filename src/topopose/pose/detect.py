@@ -495,7 +495,7 @@ def description_parts(pose) -> dict:
     records the junction there: the pelvis (capsule human: its centre, −0.5 cm along up; ``body``:
     ``Hips_head``, +0.5 cm; development seeds), the point the thesis' "crotch between the two
     arms" needs — dropped, it leaves the hands' ball of R_b in wide-spread arms. A part the
-    pose leaves unplaced stays unplaced. Measured against it on the same frames (issue 14,
+    pose leaves unplaced stays unplaced. Measured against it on the same frames (
     ``benchmarks/applications.py`` ``peer_points``, development seeds), no better on every
     named pose: the crotch at the legs' skeleton-curve junction (closer to the pelvis on the
     capsule human, farther on ``body``) and gt.json's own points (head centre, hands one

@@ -218,7 +218,7 @@ class FrameEstimator:
         above crotch) — unless only the contracted alignment passes T_d (a data tree with one
         junction; flagged ``junctions_contracted`` in the alignment's diagnostics):
         :data:`topopose.match.align.KEEP_CONSTRAINED_JUNCTIONS` (on) when None. Measured in
-        ``benchmarks/real_align.py``, ``docs/real_alignment.md``.
+        ``studies/real_align.py``, ``docs/accuracy.md``.
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -234,7 +234,7 @@ class FrameEstimator:
     head_doubt : bool, str or None
         With per-part trust, a head the alignment left unmatched (placed from the hull alone)
         is the untrusted part when the frame with a typical head reaches the minimum
-        (:func:`topopose.pose.confidence.head_doubt`, issue 11). None (default) or True: on;
+        (:func:`topopose.pose.confidence.head_doubt`). None (default) or True: on;
         False: off; ``"any"``: a matched head too (opt-in: it also lets through frames with a
         spurious limb at the chest, ``benchmarks/results/confidence.md``).
     junction_core : bool or None
@@ -961,7 +961,7 @@ LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.0)}
 # fuses forearm and trunk, the arm's skeleton branch ends at the elbow and the alignment puts the
 # hand there (0.1–0.2 of the normalized tree against 0.18 for the model's arm; deleting the arm
 # would cost 0.18): "hand at the elbow" was the commonest misplaced all-pose frame
-# (benchmarks/diagnose_body.py). Only when every other part is placed (a second missing part
+# (studies/diagnose_body.py). Only when every other part is placed (a second missing part
 # would make the frame partial), the shorter hand. The ratio of the torso → hand path to the
 # longest crotch → foot path, `body` dev seeds 41, 42 (5 builds × 12 frames, 100³, noise 1, gate
 # off): right hands of separated frames 1 % / 5 % / median 0.39 / 0.49 / 0.69; 0.35 lies below.
@@ -1230,7 +1230,7 @@ def short_limb(data, mapping, limbs, base, leg_base, legs, min_ratio):
 # 0.25, 1.00 → 0.67 × the tolerance), TP rate / FP per match 0.811 / 0.070 → 0.817 / 0.064;
 # separated unchanged (0.978 / 0.022). Held out (benchmarks/quality.py, quality_body.md,
 # "no-junction-core" rows, the confidence refit with the rule): gate on, all poses 0.808 / 0.020
-# → 0.817 / 0.020, separated 0.975 / 0.008 either way; gate off unchanged (docs/body_accuracy.md).
+# → 0.817 / 0.020, separated 0.975 / 0.008 either way; gate off unchanged (docs/accuracy.md).
 # See FrameEstimator(junction_core=).
 JUNCTION_CORE = {"human": True}
 
@@ -1293,7 +1293,7 @@ def default_gate(cap) -> bool:
 
     With the fitted confidence (:mod:`.confidence`, ``benchmarks/results/confidence.md``:
     held-out seeds of ``body`` (walk, random, separated and all poses) and the capsule human,
-    noise 1, 100³, right = issue 11's TP, every placed part within 0.08 × height; matched
+    noise 1, 100³, right = a true positive, every placed part within 0.08 × height; matched
     frames, precision, recall of the right frames): 8 cameras 383, 0.859, 0.859 without the
     gate → 327, 0.936, 0.799 with it; 4 cameras 18, 0.67, 0.14 → 8, 0.88, 0.08. On the body
     benchmark's own frames (``quality.py --only body``, seeds 21, 22, 8 cameras; TP rate /

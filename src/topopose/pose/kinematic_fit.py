@@ -551,14 +551,14 @@ def bend_joints(out, used, curves, tree: KinematicTree, bend=None) -> np.ndarray
 FROM_END = {("foot", "knee"): 40}  # (limb end part's stem, joint base name) → percentile: that
     # middle joint placed by its distance from its curve's far end (the human's foot; not the
     # spider's legs, unmeasured), the reference length the percentile of the sequence's
-    # leg-curve lengths (see from_end); {}: off (the fraction ``at`` from the junction). Issue 15,
-    # development seeds (walks 41–44, random motion 51–53, 40 frames, the centred curves;
-    # benchmarks/knee_dev.py, MPJPE median over the good frames, 4p / 4pd / 8 cameras): off
+    # leg-curve lengths (see from_end); {}: off (the fraction ``at`` from the junction).
+    # Development seeds (walks 41–44, random motion 51–53, 40 frames, the centred curves;
+    # studies/knee_dev.py, MPJPE median over the good frames, 4p / 4pd / 8 cameras): off
     # 10.44 / 8.85 / 3.44 cm (knees 7.5 / 7.4 / 2.5); percentile 30: 10.38 / 8.92 / 3.45; 40:
     # 10.40 / 8.81 / 3.45 (knees 6.2 / 5.4 / 2.6); 50: 10.53 / 8.72 / 3.45 (knees 6.0 / 5.8 /
     # 2.6); 60: 10.52 / 8.75 / 3.41 — each from the end alone; half-way to the place at ``at``
     # (:data:`FROM_END_WEIGHT`), 40: 10.30 / 8.73 / 3.39 cm (knees 6.0 / 6.5 / 2.5), 50: 10.37 /
-    # 8.78 / 3.40. Elbows from the hand's end as well: mixed (docs/tried.md).
+    # 8.78 / 3.40. Elbows from the hand's end as well: mixed (docs/decisions.md).
 
 
 FROM_END_WEIGHT = 0.5   # the joint's arc length: this share of the one from the far end, the rest
@@ -653,14 +653,14 @@ def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
 FROM_START = {("hand", "elbow"), ("hand", "wrist")}  # (limb end part's stem, joint base
     # name): those joints of a hanging limb (its end part below its first along the trunk)
     # also placed by the sequence's bone lengths from their parent (see from_start); set():
-    # off. Issue 15, session 35: on the real recording the hanging left arm's curve ends 2–11
+    # off. On the real recording the hanging left arm's curve ends 2–11
     # cm past the wrist from frame to frame (the masks lose part of the hand) and its start,
     # the chest junction, slides, so the fraction ``at`` put the elbow 10.4 cm and the wrist
     # 9.4 cm off (median over the right frames; the fits either side of a short frame within
-    # 3 cm). Development seeds, with DESPIKE (benchmarks/knee_dev.py, good frames, 8 / 4p /
+    # 3 cm). Development seeds, with DESPIKE (studies/knee_dev.py, good frames, 8 / 4p /
     # 4pd): 3.50 / 8.90 / 8.34 → 3.40 / 8.72 / 8.21 cm (elbows 4.0 / 9.3 / 11.5 → 3.5 / 8.4 /
-    # 10.1); benchmarks/fps_dev.py (8 cameras 25 / 60 frames/s, 4p 25 / 60): 4.25 / 3.70 /
-    # 9.75 / 9.27 → 4.16 / 3.64 / 9.55 / 9.28 cm. Not kept (docs/tried.md): weight 1 (4pd
+    # 10.1); studies/fps_dev.py (8 cameras 25 / 60 frames/s, 4p 25 / 60): 4.25 / 3.70 /
+    # 9.75 / 9.27 → 4.16 / 3.64 / 9.55 / 9.28 cm. Not kept (docs/decisions.md): weight 1 (4pd
     # 8.49: the fat hulls' bone lengths are 1.2–1.3 × the truth's), raised arms too, the
     # fingertips too, the knees and ankles (by arc length: the real recording 6.6 → 7.6 cm)
 FROM_START_WEIGHT = 0.5  # the joint goes this share of the way from its place at ``at`` to its
@@ -820,7 +820,7 @@ LIMB_QUANTILE = {"foot": 80}  # percent, by the limb's end part (its stem): the 
 
 
 SLIDE = False  # the model's ``slide`` bones take each frame's length (False: every bone constant).
-               # Off by default: issue 15 asks for bone lengths constant over the sequence and a
+               # Off by default: bone lengths stay constant over the sequence and a
                # BVH (constant offsets, :func:`~.export.write_bvh`) whose re-read joints equal
                # the fit's. On, the neck's bone from the chest (the curves' junction, not a
                # joint: it slides along the spine, a raised arm pulls it up) takes each frame's
@@ -1089,12 +1089,12 @@ HELD_GAP = False  # an unseen (held) joint between two frames of the same motion
                  # to 5 / 10 / 15 / 30 / 60 frames: 6.12 → 6.12 / 6.12 / 6.12 / 6.16 / 6.16 cm
                  # (a lost arm stays lost 20–40 frames, across rejected ones); walks 4.29 →
                  # 4.30–4.31; unrelated random poses 21–32 5.60 → 5.81 (HOLD_MAX · (b − a) lets
-                 # one held frame between two similar poses through; benchmarks/held_dev.py)
+                 # one held frame between two similar poses through; studies/held_dev.py)
 
 
 def held_gaps(P, held, t, tree: KinematicTree, L, max_gap=5):
     """Fill the joints a frame did not see (``held``) from the frames either side that saw
-    them (issue 15: gap filling of short stretches, flagged, never silent).
+    them (gap filling of short stretches, flagged, never silent).
 
     A run of at most ``max_gap`` consecutive frames holding joint ``j``, between two fitted
     frames ``a`` and ``b`` seeing it, the same motion (consecutive frame numbers, and the
@@ -1306,7 +1306,7 @@ HULL_SHOULDER = True  # an unseen arm moved towards the shoulder from the hull's
                       # the way 5.67 / 4.45. The rest pose's upper arm tilted out or forward
                       # by 20° on top: 5.96–6.07 / 4.84–4.86 cm
 SHOULDER_BLEND = 0.5  # the fraction of the way to the hull's shoulder an unseen arm moves
-# (Issue 15, hips branch: the unseen random arms after these fills sit inside the truth's body
+# (The unseen random arms after these fills sit inside the truth's body
 # frame by 3.3 / 4.0 / 3.4 cm (shoulder / elbow / wrist; forward +2.8 / +1.4 / −0.3, up +1.8 /
 # +0.1 / +0.9; median over 256 arms, development seeds 21–32, 60 frames; their errors 8.7 /
 # 10.5 / 11.8 cm: scatter, not bias). Not kept: the unseen elbow and wrist moved out by 3 / 6
@@ -1468,7 +1468,7 @@ GIRDLE = True  # the joints a model declares as one girdle (``girdle = [pair, he
                # joint: the neck with the shoulders) placed as one symmetric rigid body
                # (:func:`girdle_targets`); False: each joint alone. Development seeds (walks
                # 41–46, random motion 51–56, unrelated random poses 21–32; gate off, cached
-               # per-frame results, benchmarks/trunk_dev.py's measure; MPJPE median over the
+               # per-frame results, studies/trunk_dev.py's measure; MPJPE median over the
                # good frames, 4p / 4pd / 8 cameras): off 8.90 / 7.47 / 3.67 cm, neck and
                # shoulders at height 0 / 0.1 / 0.15 × the shoulder width 8.63 / 8.59 / – ,
                # 7.16 / 7.13 / – , 3.71 / 3.61 / – (necks 8.8 → 8.2, 6.8 → 5.7, 4.2 → 3.6;
@@ -1540,7 +1540,7 @@ SMOOTH = 9          # frames: the default Savitzky–Golay window (order 2) over
                     # random poses 36.3 / 46.9 / 51.6 cm
 SMOOTH_RATE = 25.0  # frames/s SMOOTH was chosen at: at another rate the default window keeps
                     # its duration, 0.36 s (:func:`smooth_window`). Development motions at 60
-                    # frames/s (benchmarks/fps_dev.py, results/fps_dev.md: walks 41–43, random
+                    # frames/s (studies/fps_dev.py, results/fps_dev.md: walks 41–43, random
                     # motion 51–53, 1.6 s each, 8 cameras; MPJPE median over the matched frames):
                     # window 0 / 9 / 15 / 21 / 27 frames: 4.86 / 4.02 / 3.85 / 3.73 / 3.76 cm
                     # (at 25 frames/s: 4.97 / 4.20 / 4.31 / 4.68 / 4.93): 9 frames at 60 frames/s
@@ -1548,11 +1548,11 @@ SMOOTH_RATE = 25.0  # frames/s SMOOTH was chosen at: at another rate the default
 SMOOTH_MOVE = 0.15  # m: a frame whose joints (from the root) lie this far from its
                     # neighbourhood's median is an outlier, and a run breaks where successive
                     # neighbourhoods lie this far apart (mean over the joints; :func:`motion_runs`).
-                    # Until session 33 each frame was compared with the one before (window 9:
+                    # Compared with the one frame before instead (window 9:
                     # 0.1 / 0.15 / 0.25 m: random motion 5.31 / 5.07 / 5.11, walks 3.59 / 3.59 /
                     # 3.60 cm, unrelated random poses 5.60 at each): a 4-camera fit's per-frame
                     # jitter broke the runs, the real recording had 27 of 100 frames smoothed.
-                    # Against the neighbourhood (benchmarks/fps_dev.py, results/fps_dev_runs.md):
+                    # Against the neighbourhood (studies/fps_dev.py, results/fps_dev_runs.md):
                     # development 8 cameras 4.20 → 4.23 cm at 25 frames/s, 3.73 → 3.71 at 60;
                     # 4p 10.04 → 9.89 / 9.74 → 9.74 cm; unrelated random poses (seeds 21–24)
                     # 5.44 cm, no frame smoothed, either way
@@ -1654,7 +1654,7 @@ DESPIKE = (3.0, 15.0)  # (k, floor in degrees) of :func:`despike`, the bones' sp
     # its hand 0.6 m off) keeps the rest of its skeleton near its neighbours', so it stays in
     # its run, and the Savitzky–Golay window averaged the wrong arm into the 20 frames around
     # it (left elbow 7 cm off where the fits either side had it within 3 cm). Real recording
-    # (real_motion.py, session 34's poses): all / right frames 6.80 / 6.44 → 6.61 / 6.26 cm
+    # (real_motion.py): all / right frames 6.80 / 6.44 → 6.61 / 6.26 cm
     # (k 2 / 5 with floor 10 / 15°: 6.66 / 6.42, 6.75 / 6.33; floor 8 / 25°: 6.56 / 6.26,
     # 6.61 / 6.26). Development seeds: neutral (fps_dev.py, 8 cameras 25 / 60 frames/s, 4p 25
     # / 60: 4.23 / 3.71 / 9.75 / 9.27 → 4.25 / 3.70 / 9.75 / 9.27 cm; knee_dev.py, 8 / 4p /
@@ -1706,7 +1706,7 @@ def smooth_window(fps=None) -> int:
     """The default smoothing window (frames) at ``fps`` frames/s: the odd number of frames
     nearest :data:`SMOOTH` / :data:`SMOOTH_RATE` seconds (at least 3); :data:`SMOOTH` itself
     when the rate is unknown, :data:`SMOOTH` is off or :data:`SMOOTH_RATE` is None (the
-    window in frames at any rate, as before session 33).
+    window in frames at any rate).
 
     Examples
     --------
@@ -1731,7 +1731,7 @@ def _interpolate(P, t, L, tree: KinematicTree, a, b) -> None:
 
 BRIDGE = True  # a temporal outlier between two frames of the same motion is replaced by their
     # interpolation (:func:`bridge_outliers`); False: it keeps its own fit, flagged only.
-    # Development seeds (benchmarks/fps_dev.py, results/fps_dev_bridge.md; MPJPE median over
+    # Development seeds (studies/fps_dev.py, results/fps_dev_bridge.md; MPJPE median over
     # the good frames, the default window): 4p 9.89 → 9.75 cm at 25 frames/s (15 frames
     # bridged), 9.74 → 9.27 at 60 (37); 8 cameras 4.23 / 3.71 cm, no frame bridged; unrelated
     # random poses (seeds 21–24) none bridged. Without the majority rule 4p 9.37 / 8.90 cm,
@@ -1741,9 +1741,9 @@ BRIDGE = True  # a temporal outlier between two frames of the same motion is rep
 def bridge_outliers(P, t, tree: KinematicTree, L, dist, max_gap, max_move, M=None, reach=None):
     """``P`` with short stretches of *outlier* frames (a skeleton ``max_move`` or more from its
     neighbours' median, :func:`neighbourhood`) replaced by the interpolation of the frames
-    either side (root position and bone directions, as the gap filling) — the issue's "gap
-    filling of short rejected stretches" for frames the per-frame stage matched but the
-    motion around them rejects (issue 15). A stretch is bridged when
+    either side (root position and bone directions, as the gap filling) — gap filling of short
+    rejected stretches, for frames the per-frame stage matched but the
+    motion around them rejects. A stretch is bridged when
 
     * it has at most ``max_gap`` frames, consecutive frame numbers to the two frames either
       side, and those two were judged and are not outliers;

@@ -153,7 +153,7 @@ def _progress(total, enabled, desc):
 
 #: ``run``'s default for ``centre`` (:mod:`topopose.pose.centre`: the limbs' curves onto the
 #: silhouettes' centre lines, recorded per frame for the kinematic fit): on — development
-#: MPJPE 8 cameras 3.63 → 3.44 cm, 4 phones (4p / 4pd) unchanged (benchmarks/centre_dev.py)
+#: MPJPE 8 cameras 3.63 → 3.44 cm, 4 phones (4p / 4pd) unchanged (studies/centre_dev.py)
 CENTRE = True
 
 

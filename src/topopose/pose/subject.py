@@ -1,4 +1,4 @@
-"""The subject's own limb lengths, learned from its confident frames (issue 11).
+"""The subject's own limb lengths, learned from its confident frames.
 
 The model's relative lengths (§12.3) are a guess for every subject. A run sees one subject
 over many frames: a first pass with the generic model finds the frames it matches confidently

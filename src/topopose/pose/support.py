@@ -1,4 +1,4 @@
-"""Silhouette support of a placed frame: analysis by synthesis in 2D (issue 12 part 5).
+"""Silhouette support of a placed frame: analysis by synthesis in 2D.
 
 The frame's result — the skeleton curve of each matched model arc (``diagnostics["curves"]``,
 :mod:`.curves`), swept by the hull's inscribed ball along it (the hull is the union of its
@@ -17,7 +17,7 @@ depend on the image size):
 - *beyond*: the share of cameras in which the point 0.1 × height beyond each extremity (along
   its curve's last tenth) still lies in the silhouette, mean over the extremities.
 
-Measured (``benchmarks/trust_features.py``, ``results/trust_features.md``; AUC, the
+Measured (``studies/trust_features.py``, ``results/trust_features.md``; AUC, the
 probability that a right frame scores lower than a wrong one): *unexplained* 0.70–0.76 on
 synthetic 4-camera walks and 0.82 on the real recording (where the fitted confidence is at
 chance, 0.46); the others stay at 0.44–0.74 and not on both. It is one condition of
@@ -30,7 +30,7 @@ import numpy as np
 
 #: the model is dilated by this × the silhouette's largest inscribed radius before comparing
 #: (0.25, 0.5, 0.75, 1 compared by AUC on the development seeds of
-#: benchmarks/trust_features.py: 0.25 best on both 4-camera set-ups)
+#: studies/trust_features.py: 0.25 best on both 4-camera set-ups)
 DILATION = 0.25
 #: height (pixels) of the silhouette's bounding box when compared
 WORK_HEIGHT = 96

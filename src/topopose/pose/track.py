@@ -158,7 +158,7 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
         are consistent among themselves re-initialize the identity as outliers do
     snap : largest distance between a prediction and a candidate; default ``gate`` / 2
     snap_run : see ``candidates``; default ``max_gap`` (a large number: snaps never give way,
-        the rule before session 32, ``benchmarks/real_snap.py``'s peer)
+        ``studies/real_snap.py``'s peer)
 
     Returns
     -------

@@ -1,5 +1,5 @@
 """Limb ends in phantom volumes of the visual hull, trimmed back to where the silhouettes'
-evidence ends (a sequence stage; issues 12 and 15).
+evidence ends (a sequence stage).
 
 A visual hull is the largest volume consistent with the silhouettes (thesis §4.1): with few
 cameras it keeps *phantom* volume, and a limb's skeleton branch can run past the real hand
@@ -27,7 +27,7 @@ The silhouettes are at hand only while a frame is estimated: :class:`~.estimate.
 records the trimmed curves (``diagnostics["trim"]``, :func:`trimmed_curves`; the frame's parts
 and confidence are unchanged), and the sequence stage applies them after the identities
 (:func:`apply_trim`, :func:`topopose.pose.motion.process_sequence`), so a resumed or parallel
-run trims as well. Development seeds 41–50, ``benchmarks/phantom.py``.
+run trims as well. Development seeds 41–50, ``studies/phantom.py``.
 """
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ STEMS = ("hand",)      # limb ends whose branch is trimmed; the feet too: no bet
 SLACK = 1.5            # projected voxels: a disk inside another up to this is inside it
 GAP = 2.0              # voxels along the curve: a point is not explained by its own neighbours
 # SLACK / GAP: a stretch of curve within asin(SLACK / GAP) = 49° of a camera's rays adds no
-# disk in that view. Development seeds 41–50 (benchmarks/phantom.py --effect; right frames of
+# disk in that view. Development seeds 41–50 (studies/phantom.py --effect; right frames of
 # 400, set-ups 4 / 4p / 4r / 8): off 164 / 107 / 83 / 379; (SLACK, GAP) (0.75, 2) 165 / 108 / 84
 # / 379; (1.5, 2) 171 / 112 / 88 / 379; (1.75, 2) 173 / 112 / 91 / 379; (2.5, 2): every tube
 # trimmed, 128 / 72 / 62 / 359; (1.5, 3) 166 / 108 / 86; (2, 3) 170 / 110 / 89; (2.5, 4)

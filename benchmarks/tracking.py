@@ -868,7 +868,7 @@ def main(argv=None):
                     help="with --bias: real_motion.json, the real recording's bias beside")
     ap.add_argument("--set", action="append", metavar="NAME=VALUE",
                     help="a kinematic_fit constant for this run (a Python literal; repeatable): "
-                         "the peer of a default, e.g. results/tracking_before.md")
+                         "the peer of a default, e.g. results/tracking_peer.md")
     a = ap.parse_args(argv)
     from topopose.pose import kinematic_fit
 

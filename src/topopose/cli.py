@@ -450,7 +450,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--support", action="store_const", const=True, default=None,
                    help="per frame: reject a matched frame whose silhouettes the placed model "
                         "leaves unexplained (share above pose.consistency.MAX_UNEXPLAINED; "
-                        "default off: benchmarks/results/applications_detection.md)")
+                        "default off: benchmarks/results/applications.md)")
     s.add_argument("--support-replace", dest="support", action="store_const", const="replace",
                    help="as --support, instead of the confidence gate: a frame the gate alone "
                         "rejected is matched when its silhouettes are explained")

@@ -62,7 +62,7 @@ _NO_POS = np.zeros((0, 3))
 # lengths alone: on the real recording (studies/real_align.py, 4 cameras) hands went onto
 # the toes and feet onto a wrist or the arm ends (errors ~1 m, frames 3, 6, 7, 89, 94, 95).
 # Leaf arcs are unaffected (a deleted leaf arc is a missing part, not a contraction). Measured
-# in studies/real_align.py (results/real_align.md, docs/accuracy.md). The default of
+# in studies/real_align.py (docs/accuracy.md). The default of
 # FrameEstimator(keep_junctions=None); Matcher and align() keep the thesis' AHA (False).
 KEEP_CONSTRAINED_JUNCTIONS = True
 

@@ -62,7 +62,7 @@ TORSO_ON_TRUNK = {"human": ("torso", "crotch", "head", 0.35, 0.6)}
 # (part, lower end, upper end, fraction, weight). Arms folded on the chest or hanging against
 # it add volume in front of and beside the trunk, and the shoulder junction of the skeleton
 # moves with it: the torso near misses of the all-pose frames lie 0.05 × height in front of
-# the chest and 0.02–0.03 sideways and down (diagnose_body_heldout.md). The trunk line crotch →
+# the chest and 0.02–0.03 sideways and down (studies/diagnose_body.py). The trunk line crotch →
 # head (the head from the hull's crown) does not see the arms, but alone it is a coarser
 # estimate (the chest at 0.53–0.71 of it, see TORSO_ON_TRUNK): half way between the two. Dev
 # seeds 41, 42 (5 builds × 12 frames, 100³, noise 1, gate off; TP rate / FP per match), weight

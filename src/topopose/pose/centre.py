@@ -47,7 +47,7 @@ MIN_VIEWS = 2                # fewer views observing a sample: it stays (1: move
                              # direction its views constrain)
 STEP = 0.5                   # px along the scan
 PAD = 2.0                    # px of width tolerance (pixel rounding of the contour)
-# Development seeds (studies/centre_dev.py, results/centre_dev.md: walks 41–44, random
+# Development seeds (studies/centre_dev.py: walks 41–44, random
 # motion 51–53, 40 frames; MPJPE median over the good frames, off → on): 8 cameras 3.63 → 3.43
 # (ITERATIONS 2) / 3.44 (1, half the cost); 4p 10.53 → 10.55 / 10.44; 4pd 8.83 → 8.79 / 8.85.
 # LIMB_RADIUS 0.45: 3.43 / 10.55; HULL_WIDTH 2 with SCAN 5 (seeds 41, 42, 51, 52): 4p 11.22

@@ -63,7 +63,7 @@ development seeds (``docs/decisions.md``). The issue's 95 % is reached everywher
 ``person+track`` (2 wrong of 31: frame 59, a left hand 0.157 m off; frame 80, the right hand
 0.20 m). The wrong frames are hands in a phantom volume of the hull in front of the chest,
 where Pose2Sim's wrist is right there (``studies/real_hands.py``,
-``results/real_hands.md``: OpenPose sees the hand in 3 views, scores 0.56–0.69, within 4–34
+``studies/real_hands.py``: OpenPose sees the hand in 3 views, scores 0.56–0.69, within 4–34
 px of Pose2Sim's wrist; the forearm crosses the trunk in cam01 and is hidden behind it in
 cam03), inside all 4 silhouettes — no silhouette test can see it. Run-relative arc lengths
 (``max_length_ratio`` 1.5) only removed frames on the first development seeds: not used.

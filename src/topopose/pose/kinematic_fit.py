@@ -1540,7 +1540,7 @@ SMOOTH = 9          # frames: the default Savitzky–Golay window (order 2) over
                     # random poses 36.3 / 46.9 / 51.6 cm
 SMOOTH_RATE = 25.0  # frames/s SMOOTH was chosen at: at another rate the default window keeps
                     # its duration, 0.36 s (:func:`smooth_window`). Development motions at 60
-                    # frames/s (studies/fps_dev.py, results/fps_dev.md: walks 41–43, random
+                    # frames/s (studies/fps_dev.py: walks 41–43, random
                     # motion 51–53, 1.6 s each, 8 cameras; MPJPE median over the matched frames):
                     # window 0 / 9 / 15 / 21 / 27 frames: 4.86 / 4.02 / 3.85 / 3.73 / 3.76 cm
                     # (at 25 frames/s: 4.97 / 4.20 / 4.31 / 4.68 / 4.93): 9 frames at 60 frames/s
@@ -1552,7 +1552,7 @@ SMOOTH_MOVE = 0.15  # m: a frame whose joints (from the root) lie this far from 
                     # 0.1 / 0.15 / 0.25 m: random motion 5.31 / 5.07 / 5.11, walks 3.59 / 3.59 /
                     # 3.60 cm, unrelated random poses 5.60 at each): a 4-camera fit's per-frame
                     # jitter broke the runs, the real recording had 27 of 100 frames smoothed.
-                    # Against the neighbourhood (studies/fps_dev.py, results/fps_dev_runs.md):
+                    # Against the neighbourhood (studies/fps_dev.py):
                     # development 8 cameras 4.20 → 4.23 cm at 25 frames/s, 3.73 → 3.71 at 60;
                     # 4p 10.04 → 9.89 / 9.74 → 9.74 cm; unrelated random poses (seeds 21–24)
                     # 5.44 cm, no frame smoothed, either way
@@ -1731,7 +1731,7 @@ def _interpolate(P, t, L, tree: KinematicTree, a, b) -> None:
 
 BRIDGE = True  # a temporal outlier between two frames of the same motion is replaced by their
     # interpolation (:func:`bridge_outliers`); False: it keeps its own fit, flagged only.
-    # Development seeds (studies/fps_dev.py, results/fps_dev_bridge.md; MPJPE median over
+    # Development seeds (studies/fps_dev.py; MPJPE median over
     # the good frames, the default window): 4p 9.89 → 9.75 cm at 25 frames/s (15 frames
     # bridged), 9.74 → 9.27 at 60 (37); 8 cameras 4.23 / 3.71 cm, no frame bridged; unrelated
     # random poses (seeds 21–24) none bridged. Without the majority rule 4p 9.37 / 8.90 cm,

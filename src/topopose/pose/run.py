@@ -243,7 +243,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         :data:`topopose.pose.consistency.MAX_UNEXPLAINED` is rejected
         (:func:`topopose.pose.consistency.judge_support`, ``run --support``); ``"replace"``:
         the test replaces the confidence gate (frames the gate alone rejected are matched when
-        they pass). Off by default (``benchmarks/results/applications_detection.md``).
+        they pass). Off by default (``benchmarks/results/applications.md``).
 
     Returns
     -------

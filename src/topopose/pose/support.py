@@ -17,7 +17,7 @@ depend on the image size):
 - *beyond*: the share of cameras in which the point 0.1 × height beyond each extremity (along
   its curve's last tenth) still lies in the silhouette, mean over the extremities.
 
-Measured (``studies/trust_features.py``, ``results/trust_features.md``; AUC, the
+Measured (``studies/trust_features.py``; AUC, the
 probability that a right frame scores lower than a wrong one): *unexplained* 0.70–0.76 on
 synthetic 4-camera walks and 0.82 on the real recording (where the fitted confidence is at
 chance, 0.46); the others stay at 0.44–0.74 and not on both. It is one condition of

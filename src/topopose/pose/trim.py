@@ -5,9 +5,9 @@ A visual hull is the largest volume consistent with the silhouettes (thesis §4.
 cameras it keeps *phantom* volume, and a limb's skeleton branch can run past the real hand
 into it — on the real 4-camera recording the right arm's branch passes the hand and continues
 through a tube in front of the chest that the two cameras seeing the hand against the
-background look along, and that the other two see inside the trunk (``results/real_hands.md``);
+background look along, and that the other two see inside the trunk (``studies/real_hands.py``);
 on the synthetic 4-camera walks a hand's branch often continues down a thigh or along a ray
-(``results/phantom.md``). Such an extension is inside every silhouette but *explains nothing*:
+(``studies/phantom.py``). Such an extension is inside every silhouette but *explains nothing*:
 the skeleton without it covers the same silhouette pixels. Per frame and per limb end of
 :data:`STEMS`, in every camera the skeleton curves (``diagnostics["curves"]``) are projected
 with, at each curve point, the disk of its silhouette depth (the distance to the silhouette's

@@ -87,7 +87,7 @@ FIT_FEATURES = BASE_FEATURES + JUNCTION_FEATURES
 # nearly the same outline, so the hull keeps more phantom volume (the real frames' features)
 SETUPS = {"8": (8, (640, 480), 1), "4": (4, (640, 480), 1), "4p": (4, (544, 960), 2),
           "4r": (4, (544, 960), 2)}
-# Not in the default --setups: refitted with it (--rows … --add-setups 4r, 2026-11-24,
+# Not in the default --setups: refitted with it (--rows … --add-setups 4r,
 # results/confidence_refit_4r.md) the real recording still had none of its right frames at the
 # 4-camera minimum (0.85; at 0.5 8 right of 14) and the 8-camera minimum fell to 0.58 (held out
 # precision 0.947): its frames do not reproduce the recording's radius features (see

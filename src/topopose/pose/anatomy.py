@@ -18,16 +18,9 @@ the same frames: median cosine with the true front 0.975, within 45° in 91 %, b
 by their share of the hull's largest radius (the chest's: girth, not height, sets the
 offset).
 
-Training figures (seeds 41, 42, gate off,
-matched frames good / missing limb / misplaced): separated 84 / 16 / 14 without the shift →
-91 / 16 / 7 with it (head share 0: 89 / 16 / 9; shares × 1.4: 92 / 16 / 6); all poses
-45 / 26 / 14 → 47 / 27 / 11. Held-out seeds 21, 22 (``benchmarks/quality.py``, quality_body.md,
-*no-spine* rows, with the head from the hull and the logistic confidence of that run; TP rate
-/ FP per match): gate on, separated 0.83 / 0.029 → 0.85 / 0.010, all poses
-0.56 / 0.118 → 0.60 / 0.053; gate off 0.89 / 0.061 → 0.91 / 0.044 and 0.56 / 0.173 → 0.61 /
-0.099. The capsule human's ground truth lies on
-its capsules' axis: there the shift only adds 1.5–2.5 cm to the torso and crotch errors
-(classes unchanged, seed 0, 80 frames).
+The shift is measured by ``benchmarks/quality.py --only body`` (its *no-spine* rows; the
+figure that chose it: docs/decisions.md). The capsule human's ground truth lies on its
+capsules' axis: there the shift only adds 1.5–2.5 cm to the torso and crotch errors.
 """
 from __future__ import annotations
 
@@ -125,7 +118,7 @@ TRUNK_BLEND = {"human": ("torso", "crotch", "head", 0.6, 0.5)}
 # alike). The peer *crotch-drop-0.1* (quality_body.md) keeps the trade measured. The pose
 # descriptions (§13.3.2.1) compare the junction before the drop instead, which the estimate
 # records in ``diagnostics["detect_parts"]`` (:func:`topopose.pose.detect.description_parts`;
-# applications.md, *before ← now*): the parts, and so the quality figures, are unchanged.
+# applications.md): the parts, and so the quality figures, are unchanged.
 CROTCH_DROP = {"human": ("crotch", 0.35, 0.10, 0.5)}
 # A hand on the trunk left unplaced (:func:`hand_on_trunk`): model name → (hands, core, reach).
 # A forearm folded onto the chest or the belly fuses with the trunk in the hull; the arm's

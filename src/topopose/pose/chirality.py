@@ -23,11 +23,8 @@ side by side along the facing. Over a sequence, a frame whose own score is weak 
 ``strong``) takes the sum of the scores of its tracking segment (:mod:`.track`: the identities
 are the same), so time only steadies the per-frame decision. A segment whose frames disagree
 (coherence ``|Σ score| / Σ |score|`` below ``COH_WEAK``) holds no identity to use — the tracker
-joins unrelated poses of a random-pose capture — and its weak frames decide alone. Development
-seeds 21–33 (random poses, 1002 frames × pairs): wrong sides with time 39 → 16, right 960 →
-968 (single frame: 12 wrong, 964 right); walks 41–46: 370/370 right, unchanged; on the
-Pose2Sim balancing trial (``benchmarks/real_motion.py``) ``COH_WEAK`` above 0.7 leaves 19 more
-frames unsure (one long segment's coherence is 0.7–0.75): 0.3 keeps it unchanged. A frame
+joins unrelated poses of a random-pose capture — and its weak frames decide alone
+(``benchmarks/tracking.py`` and ``benchmarks/real_motion.py`` measure the sides). A frame
 whose confidence stays below ``min_confidence`` keeps the numbered names. A strong frame is
 overruled only by at least ``OVERRULE_MIN`` other frames of a segment of coherence
 ``COHERENT`` whose mean score is strong and opposite (legs crossing on a one-legged balancing

@@ -88,10 +88,7 @@ class FrameEstimator:
         ring of cameras stick out of the subject by up to ~20 cm and become skeleton branches
         matched as a head or a hand (the consensus hull: ``visual_hull(..., consensus=repair)``,
         both hulls from one carve). ``None`` (default): 1; a
-        negative value: off. Measured in ``benchmarks/quality.py`` (human, 100³, noise 1,
-        2 × 40 frames): FP/match 0.05 / 0.13 → 0 / 0.05, TP median distance 0.20 → 0.11; hand
-        (incomplete model, fingers a few mm apart, R_b, 100³, noise 1, 40 frames): TP rate
-        0.07 → 0.28, FP/match 0.82 → 0.45 (phantom volume between the fingers fused them).
+        negative value: off. Measured in ``benchmarks/quality.py`` (``hull-tol0`` rows).
     thickness : float or None
         Weight of the thickness term of the arc cost (:func:`thickness_arc_cost`, the model's
         :data:`THICKNESS` profile; models without one: off). None: ``DEFAULT_THICKNESS_WEIGHT``
@@ -109,11 +106,7 @@ class FrameEstimator:
         thin hands and feet are within 2 cm of their tips, and prolonging them to the hull's
         border lands 1–2 cm further on the real recording and on the ``body`` subject
         (``benchmarks/real.py``, ``benchmarks/quality.py``). ``()``: off. ``("head", "hand")``
-        on ``body`` (quality_body.md, "hand-tips" rows; TP rate / FP per match, gate on): held
-        out (seeds 21, 22) separated 0.85 / 0.010 either way, all poses 0.60 / 0.053 either way
-        (misplaced 24 → 23 over all frames; hands' median error 1.7 → 2.1 cm); dev seeds 41, 42
-        separated 0.892 / 0.027 → 0.883 / 0.036, all poses 0.658 / 0.060 → 0.675 / 0.036 (it
-        loses the separated frames it was meant for, cause not studied): not the default.
+        is measured by ``benchmarks/quality.py --only body`` ("hand-tips" rows).
     prune : float or None
         Remove the skeleton's bumps before the data tree (:func:`topopose.skeleton.prune.
         prune_bumps`, scale-axis ball containment): leaf branches whose inscribed balls stay
@@ -1243,9 +1236,8 @@ def junction_position(al, data, part, v, leaves: bool = True):
     can map the model junction to any of them at the same cost (its co-optimal
     ``alternatives``, §12.2.2). The chosen one is a tie-break; the cluster — the alternatives
     connected to ``v`` through alternatives in the data tree — is the junction, and its centroid
-    the estimate. Measured in ``benchmarks/quality.py`` (spider, 100³, noise 1, 40 frames): the
-    cephalothorax median error 0.053 → 0.020 (tolerance 0.082), misplaced frames 7 → 2; human
-    torso 0.030 → 0.023. ``leaves`` False: the cluster's leaves of the data tree left out
+    the estimate (measured in ``benchmarks/quality.py``: the spider's cephalothorax, the
+    human's torso). ``leaves`` False: the cluster's leaves of the data tree left out
     (unless it has nothing else) — the far end of a branch contracted into the junction
     (:data:`JUNCTION_CORE`).
     """
@@ -1291,15 +1283,9 @@ def default_tolerance(cap) -> int:
 def default_gate(cap) -> bool:
     """Confidence gate used by default: on, whatever the number of cameras.
 
-    With the fitted confidence (:mod:`.confidence`, ``benchmarks/results/confidence.md``:
-    held-out seeds of ``body`` (walk, random, separated and all poses) and the capsule human,
-    noise 1, 100³, right = a true positive, every placed part within 0.08 × height; matched
-    frames, precision, recall of the right frames): 8 cameras 383, 0.859, 0.859 without the
-    gate → 327, 0.936, 0.799 with it; 4 cameras 18, 0.67, 0.14 → 8, 0.88, 0.08. On the body
-    benchmark's own frames (``quality.py --only body``, seeds 21, 22, 8 cameras; TP rate /
-    FP per match) separated 0.86 / 0.096 → 0.79 / 0.031, all poses 0.55 / 0.185 → 0.46 /
-    0.083. (The earlier product confidence halved the right frames with 8 cameras, so the
-    gate was on with fewer than 6 cameras only.) ``cap`` is kept for callers.
+    The fitted confidence (:mod:`.confidence`) is calibrated per camera count, so one rule
+    serves every set-up (measured by ``benchmarks/confidence.py``,
+    ``benchmarks/results/confidence.md``). ``cap`` is kept for callers.
     """
     return True
 

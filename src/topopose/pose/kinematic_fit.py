@@ -1064,8 +1064,7 @@ HOLD_AGE = 8        # frames: a joint is held from the last fitted frame only wh
 def _continues(prev, start, dt):
     """Whether the last fitted frame ``prev``, ``dt`` frames before, is the same motion: the
     joints seen in both moved (relative to the first of them, the root when seen) less than
-    ``HOLD_MAX`` on average (unrelated random poses: the hands move 0.5–1.5 m; development
-    seeds 21–33 with ``HOLD_MAX · dt``: frames holding joints 8.6 → 8.9 cm)."""
+    ``HOLD_MAX`` on average (unrelated random poses: the hands move 0.5–1.5 m)."""
     if prev is None or not 1 <= dt <= HOLD_FRAMES:
         return False
     ok = np.flatnonzero(~np.isnan(start).any(axis=1))
@@ -1857,10 +1856,8 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         continuing motion (:func:`motion_runs`); None: :func:`smooth_window` of ``fps``
         (:data:`SMOOTH`, 9 frames at 25 frames/s: 0.36 s); 0: off
     inner_weight : weight of the initial placement of the joints inside an arc (elbows,
-        knees, ...) against the curve term. Calibration set of the model's joints (seeds
-        101–116, 8 walks and 6 random-pose sequences, gate off, MPJPE median): 0.3 → 1.0 →
-        2.0 gives walks 4.88 → 4.44 → 4.45 cm, random poses 6.76 → 6.29 → 6.17 cm (the
-        initial placement: 4.50 and 6.03 cm)
+        knees, ...) against the curve term (chosen on the calibration set of the model's
+        joints, docs/decisions.md)
     spine : the trunk's joints moved back by this × the spine shift (:func:`frame_curves`;
         default :data:`SPINE_BACK`, 0: off)
     quantile : percentile of the bone lengths (:func:`bone_lengths`; default

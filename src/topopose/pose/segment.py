@@ -101,23 +101,11 @@ def bone_segments(pose, model, names=None, start=None) -> list:
     (chest → neck, chest → shoulder, pelvis → hip) joined by one arc to another junction part
     (the trunk): its chain of joints belongs to the trunk up to the limb's start
     (``start``, default :data:`LIMB_START`: position along the chain in bones from the
-    junction, 1 at the first joint; a bone crossing it is split there). Chosen on seeds 1 and
-    11 of the ``body`` subject (26 good frames, voxel accuracy of :func:`segment`; from the
-    first joint everywhere: 0.893): head 0.5 (the skin of the neck bones begins at the neck's
-    base, below the neck joint of the model's kinematic tree: 0.35 / 0.5 / 0.65 / 1 → 0.906 /
-    0.906 / 0.904 / 0.894), hand 1.45 (1.3 / 1.45 / 1.6 → 0.905 / 0.906 / 0.904), foot 1
-    (0.9 / 1.1 → 0.903 / 0.903). Checked again with the head seed of :func:`hull_part_seeds`
-    (37 good frames, 0.900): hand 1.3 / 1.6 → 0.900 / 0.900, head 0.35 / 0.65 → 0.900 / 0.900.
-    Re-chosen with :func:`segment`'s ``bone_weight`` on the same seeds with the merged
-    pipeline's joints (38 good frames; hand × bone weight): hand 1 / 1.15 / 1.25 / 1.35 →
-    0.897 / 0.899 / 0.900 / 0.900 (weight 0.7), 0.896 / 0.898 / 0.899 / 0.900 (0.6); with
-    weight 0.8, hand 1 / 1.2 / 1.3 / 1.45 / 1.6 → 0.897 / 0.899 / 0.899 / 0.897 / 0.892:
-    a plateau (±0.002), hand 1.35 with weight 0.7 its top (0.9004). The hand's start trades
-    the arm's recall against the trunk's (1 → 1.45: arms 0.91 → 0.80, trunk 0.92 → 0.93). A
-    start per frame where the inscribed radius along the arm's skeleton branch falls to the
-    arm's own (the median past the shoulder joint, × 1 / 1.15 / 1.3 / 1.5) was no better:
-    0.896 / 0.895 / 0.898 / 0.900, its start scattering from 0.5 to 1.9 between frames (the
-    radius along a thinned branch is noisy near the junction).
+    junction, 1 at the first joint; a bone crossing it is split there): the head's from 0.5
+    (the skin of the neck bones begins at the neck's base, below the model's neck joint), the
+    hand's from 1.35 with :func:`segment`'s ``bone_weight`` 0.7, the foot's from 1 — chosen on
+    development seeds of the ``body`` subject by voxel accuracy (docs/decisions.md), measured
+    by ``benchmarks/applications.py``.
 
     Returns ``[(A, B, label), ...]``: the bone's end points (capture units) and its label
     (1-based index into ``names``, default :func:`arc_names`); bones with a joint not placed
@@ -308,9 +296,8 @@ def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", b
     to the part whose skeleton ball reaches it soonest: the thick trunk keeps its flanks
     against the thin limbs whose skeleton starts beside its spine, inside the trunk (plain
     flooding gives them much of the trunk). ``delay = 1.25`` (voxels per voxel of radius) was
-    chosen on seeds 1 and 11 of the ``body`` subject (28 good frames; voxel accuracy 0.873 /
-    0.875 / 0.866 for delay 1 / 1.25 / 1.5, with the bones below 0.895 / 0.898 / 0.897; the
-    former default 0.844, plain flooding 0.735); the benchmark measures on other seeds.
+    chosen on seeds 1 and 11 of the ``body`` subject (voxel accuracy, docs/decisions.md);
+    ``benchmarks/applications.py`` measures on other seeds.
 
     ``bones`` (with ``weighting="radius"``): ``[(A, B, label), ...]`` segments in voxel
     coordinates of ``mask`` (:func:`bone_segments`); each voxel then takes the label L
@@ -334,7 +321,7 @@ def flood_labels(mask, seeds, connectivity: int = 26, weighting: str = "none", b
     Subtracting each part's radius from its bone distance (the distance to a capsule's
     surface) lets the thick trunk win everywhere (hand 1): 0.876 (half the radius), 0.838 (all).
 
-    ``weighting="part"`` (the former default, kept for comparison): the same idea in
+    ``weighting="part"`` (part-weighted, kept for comparison): the same idea in
     breadth-first steps (``delay`` 1.5 steps per step of the border distance
     :func:`.segment_kernels.depth`).
 
@@ -455,9 +442,8 @@ def hull_part_seeds(hull, seeds, pose, names, origin, voxel_size, start=None,
     to it.
 
     Chosen on seeds 1 and 11 of the ``body`` subject (37 good frames, voxel accuracy of
-    :func:`segment` with pose and model; without these seeds 0.875, head recall 0.54):
-    ``start`` 0.2 / 0.35 / 0.5 / 0.65 / 0.8 → 0.893 / 0.894 / 0.895 / 0.894 / 0.891; with
-    the extension of short branches 0.900 (head recall 0.83). Held out:
+    :func:`segment` with pose and model; ``start`` 0.5 and the extension of short branches:
+    0.900, head recall 0.83 against 0.54 without these seeds). Held out:
     ``benchmarks/applications.py``.
 
     ``skeleton_index``: flat indices of the skeleton voxels (only they carry arc labels;
@@ -507,7 +493,7 @@ def segment(volume, skeleton, alignment, data=None, *, names=None, connectivity:
         vertex ids are deterministic, so they are the alignment's)
     names : label names (default ``"u-v"`` per pattern arc of the alignment)
     connectivity : 26 (default) or 6
-    weighting, delay : ``"radius"`` (default; delay 1.25), ``"part"`` (the former default;
+    weighting, delay : ``"radius"`` (default; delay 1.25), ``"part"`` (part-weighted;
         delay 1.5) or ``"none"`` (the thesis' plain flooding), see :func:`flood_labels`
     pose, model, bone_weight : with the frame's :class:`~topopose.pose.Pose` (its skeleton
         curves) and a model declaring joints (``human``), the radius weighting also follows

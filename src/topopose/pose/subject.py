@@ -5,10 +5,8 @@ over many frames: a first pass with the generic model finds the frames it matche
 (AHA distance low, every part placed); the median length of each model edge over them — the
 data-tree path between the images of its two parts, in normalized weights — is the subject's
 own; a second pass matches every frame with the model carrying those lengths
-(:func:`two_pass`). Measured on the ``body`` subject (``benchmarks/quality.py``, 120 held-out
-frames each, 100³, noise 1, 0.08 × height; TP rate / FP per match): separated 0.85 / 0.097 →
-0.87 / 0.088, all poses 0.47 / 0.240 → 0.48 / 0.227, for twice the time — a small gain, so it
-stays opt-in.
+(:func:`two_pass`). Opt-in: twice the time for a small gain (``benchmarks/quality.py --only
+body``, *two-pass* rows).
 """
 from __future__ import annotations
 

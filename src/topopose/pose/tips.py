@@ -293,8 +293,8 @@ def head_from_hull(vol, up, anchor=None, min_fraction: float = 0.4, max_radii: f
     raised beside a leaning head (and, with few cameras, the phantom volume between them) the
     head merges into the shoulder mass and the alignment puts the head part on the arm or on a
     phantom branch (real recording, frames 28–74: head errors 0.2–0.45 m, no data leaf within
-    0.23 m of the head marker). Measured in :data:`topopose.pose.estimate.HEAD_FROM_HULL`: right
-    frames of the real recording 32 → 71 of 100, the body subject's head error 5.6 → 2.1 cm.
+    0.23 m of the head marker). Measured by ``benchmarks/real.py`` and ``benchmarks/quality.py
+    --only body`` (*no-hull-head* rows).
     ``edt``: :func:`inscribed_distances` of the hull if already computed; ``ball``: ``(ball,
     reach, min_voxels)`` of :func:`thick_top` (:data:`HEAD_BALL`), None: off."""
     top = thick_top(vol.data, vol.origin, float(vol.voxel_size), up, min_fraction, edt=edt,

@@ -19,9 +19,8 @@ silently. An outlier of an established identity whose frame has a free skeleton 
 part was matched to, ``diagnostics["free_leaves"]``) within half the gate of its prediction is
 *snapped* to the nearest such leaf instead (``diagnostics["snapped"]``): with few cameras the
 per-frame result puts a hand on a phantom branch of the hull while the real hand's branch is
-left unmatched (the real recording, ``benchmarks/real.py``: hands 0.64 m off in 3 frames, right
-as ``run`` writes it 68 → 71 of 100; synthetic 8-camera walks, ``benchmarks/tracking.py``:
-nothing snapped, figures unchanged). A snap corrects a glitch: when the per-frame positions
+left unmatched (the real recording, ``benchmarks/real.py``: hands 0.64 m off in 3 frames;
+synthetic 8-camera walks, ``benchmarks/tracking.py``: nothing snapped). A snap corrects a glitch: when the per-frame positions
 behind ``max_gap`` + 1 snaps in a row follow a trajectory of their own, the identity is
 re-initialized there (the real recording: a raised foot was otherwise kept on a phantom leaf
 for 23 frames while the per-frame result had it right). Other outliers re-initialize their
@@ -128,8 +127,8 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
         prediction is no longer used); when every identity is stale, tracking is lost
     velocity : weight of the constant-velocity term of the prediction (1: constant velocity,
         0: constant position). The velocity of two noisy per-frame positions is noisy;
-        ``benchmarks/tracking.py`` walks (400 frames, identity switches on frames with both
-        parts right, gate 0.25): 1.0 → 5, 0.5 → 0, 0.0 → 0; crossing hands need some velocity.
+        ``benchmarks/tracking.py`` measures the identity switches; crossing hands need some
+        velocity.
     misplaced : None or a list of n (k,) bool arrays (or None): observations inconsistent with
         the other parts of their frame (:func:`implausible_reach`, :func:`on_other_parts`).
         An observation beyond the
@@ -379,8 +378,8 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
     snap_run : see :func:`assign_identities`
     use_rejected : frames only the confidence gate rejected (:func:`gated_only`) are
         observations too: the gate rejects many right frames, whose gaps would otherwise lose
-        the tracks (``benchmarks/tracking.py``, walks: identity switches on matched frames per
-        500 frames 13.8 → 2.5); frames the alignment itself rejected are not (with them: worse),
+        the tracks (``benchmarks/tracking.py``, identity switches); frames the alignment itself
+        rejected are not (with them: worse),
         unless fewer than ``few`` of the frames are usable (:data:`FEW_USABLE`; 0: never)
 
     Returns

@@ -24,7 +24,7 @@ Development seeds (random 21–28, walks 41–45, gate on; ``benchmarks/tracking
 with the true shoulder and bone lengths, elbow and wrist bent freely through the remainder
 are 9.6 cm off (mean of the two, median over 148 unseen random arms; the arm hanging straight
 25.3 cm), but from the fit's own shoulder (9 cm off) the freely bent wrist was worse than the
-rest pose's folded one (20.0 against 10.9 cm; MPJPE random 5.98 → 6.22 cm), and so was a
+rest pose's folded one (20.0 against 10.9 cm), and so was a
 shoulder searched in a 35° cone too (6.45): hence the elbow alone, on its circle.
 """
 from __future__ import annotations

@@ -216,7 +216,7 @@ def cmd_bench(a):
         if not scripts:
             raise InputError(f"topopose bench: no benchmark named {a.stage!r} in {bdir}")
     needs = [p for p in scripts if "required=True" in p.read_text(encoding="utf-8")]
-    for p in needs:                          # development studies and tools with arguments
+    for p in needs:                          # scripts that need a data path
         print(f"== {p.name}: needs arguments, skipped (python benchmarks/{p.name} --help)")
     scripts = [p for p in scripts if p not in needs]
     if a.quick:                              # a script without a quick mode would run in full

@@ -6,10 +6,10 @@
    against ground truth (body: each hull voxel's nearest mesh vertex's dominant skinning bone;
    human: the nearest primitive's link; grouped into the model's arcs; numbered limbs paired
    optimally) on the frames the quality study calls *good*,
-   for the plain flooding (the thesis'), the former part-weighted default, the radius-weighted
-   flooding, the earlier default (radius-weighted + the kinematic model's bones, limbs from
-   their first joint), the previous default (limb starts, arm 45 % down the upper arm, banded
-   floods, bone weight 0.8) and the default (arm 35 %, bone weight 0.7), on the held-out seeds and
+   for the plain flooding (the thesis'), the part-weighted flooding, the radius-weighted
+   flooding, radius-weighted + the kinematic model's bones with limbs from their first joint,
+   the same with limb starts (arm 45 % down the upper arm, banded floods, bone weight 0.8) and
+   the default (arm 35 %, bone weight 0.7), on the held-out seeds and
    on the development seeds the parameters were chosen on; time of the
    flooding call alone and of the whole segment step, beside the peer
    ``skimage.segmentation.watershed`` (constant image, markers, mask: the same multi-source
@@ -18,7 +18,7 @@
    poses (hands up, one hand up, arms spread, inverted bodies) among random ones; each named
    pose evaluated on the pipeline's matched frames and on the ground truth of the same frames
    (the truth: the points corresponding to the pipeline's, :func:`pipeline_points`; beside it
-   the former correspondence and gt.json's own parts); precision
+   the alternative correspondence and gt.json's own parts); precision
    and recall, with the class balance, on all matched frames, on the *good* ones (the
    per-frame matcher's errors apart) and on good frames whose truth is stable under 3 cm, and
    with the undecided band; the wrong decisions by cause; the truth on gt.json's own parts.
@@ -30,7 +30,7 @@
 
    Peers on the same frames: the head from the hull along the body's axis off (acrobatic:
    ``head_axis=False``), and every description evaluated on the pose's parts alone (the
-   crotch dropped below the legs' junction, ``pose/anatomy.py`` CROTCH_DROP: *before*) beside
+   crotch dropped below the legs' junction, ``pose/anatomy.py`` CROTCH_DROP: *dropped crotch*) beside
    the points the detection uses (``topopose.pose.detect.description_parts``: the junction).
 
 Writes benchmarks/results/applications.{md,json} and applications_*.png (``--detection-only``:
@@ -236,10 +236,10 @@ SEG_METHODS = {
                                      "bone_weight": 0.8},
     "default": lambda pose, model: {"weighting": "radius", "pose": pose, "model": model},
 }
-SEG_LABELS = {"none": "plain flooding (thesis)", "part": "part-weighted, BFS steps (former default)",
+SEG_LABELS = {"none": "plain flooding (thesis)", "part": "part-weighted, BFS steps",
               "radius": "radius-weighted, chamfer steps",
-              "first_joint": "radius + bones, limbs from their first joint (earlier default)",
-              "start145": "radius + bones, arm 45 % down the upper arm, bone weight 0.8 (previous default)",
+              "first_joint": "radius + bones, limbs from their first joint",
+              "start145": "radius + bones, arm 45 % down the upper arm, bone weight 0.8",
               "default": "radius + bones, arm 35 % down the upper arm, bone weight 0.7 (default)"}
 def girdle_bone_arc(bone):
     """The other grouping of the ``body`` rig's girdle bones: the clavicle (``*Shoulder``, neck
@@ -446,7 +446,7 @@ def peer_points(pose, parts):
     return cc, gp
 
 
-#: the former correspondence (``pipeline_points(frame, former=True)``), reported beside: hands and
+#: the alternative correspondence (``pipeline_points(frame, former=True)``), reported beside: hands and
 #: feet gt.json's axis ends, the crotch its hip line, the body's feet gt.json's
 FORMER_JOINTS = {k: v for k, v in BODY_PART_JOINTS.items() if not k.startswith("foot")}
 
@@ -462,7 +462,7 @@ def pipeline_points(frame, former=False):
     sd 3.7, across it 1.3 cm median; foot −7.2 cm; 564 good frames, seeds 3–4), the crotch
     the pelvis' centre :data:`PELVIS_CENTRE` up the body axis from gt.json's hip line (where
     the legs' and the trunk's branches meet: pipeline − gt.json +3.6 cm up the body, sd 4.4).
-    ``former``: the former correspondence (:data:`FORMER_JOINTS`)."""
+    ``former``: the alternative correspondence (:data:`FORMER_JOINTS`)."""
     gt, joints, seg = frame["parts"], frame.get("joints") or {}, frame.get("segments") or {}
     table = FORMER_JOINTS if former else BODY_PART_JOINTS
     if all(j in joints for j in BODY_PART_JOINTS.values()):
@@ -483,7 +483,7 @@ def pipeline_points(frame, former=False):
 def detection_row(pose, frame, up, rng=None):
     """Each named pose's detected value (per margin) and truth on one frame: ``truth`` on the gt
     points corresponding to the pipeline's parts (:func:`pipeline_points`), ``truth_former`` on
-    the former correspondence, ``truth_gt`` on gt.json's parts; whether the truth is stable
+    the alternative correspondence, ``truth_gt`` on gt.json's parts; whether the truth is stable
     (:func:`stable_truth`), and each part's offset estimate − corresponding point (numbered
     parts paired optimally)."""
     from topopose.pose.detect import description_parts, detect, evaluate, load_library, up_frame
@@ -855,15 +855,15 @@ def main(argv=None):
          "truth: the nearest primitive's link. Numbered limbs paired optimally. *Good*: the "
          "quality study's class (every part right). Labellings, all from the same skeleton "
          "labels: *plain* — the thesis' flooding (breadth first, 26-adjacency); *part* — the "
-         "former default (each part starts late by 1.5 × how much thinner it is than the "
+         "part-weighted flooding (each part starts late by 1.5 × how much thinner it is than the "
          "thickest, in BFS steps); *radius* — the same with chamfer step lengths (3, 4, 5 for "
          "face, edge, corner steps ≈ 1, √2, √3) and radii, delay 1.25; *radius + bones* — given the frame's "
          "pose, each part's own flood mixed (1 − w / w) with the distance to its bones, the "
-         "model's joints placed on the skeleton curves: in the earlier default (w = 0.8) a limb "
+         "model's joints placed on the skeleton curves: with limbs from their first joint (w = 0.8) a limb "
          "begins at its first joint (shoulder, hip, neck) and each part's flood covers the whole "
-         "hull; in the previous default (w = 0.8) and the default (w = 0.7, "
+         "hull; with limb starts (w = 0.8) and in the default (w = 0.7, "
          "`topopose.pose.segment.LIMB_START`) the head begins half-way "
-         "from the chest to the neck joint, the arm 45 % (previous) or 35 % (default) down the "
+         "from the chest to the neck joint, the arm 45 % or 35 % (default) down the "
          "upper arm, the leg at the "
          "hip, and each part's flood runs only where its bones are within 3 voxels of the "
          "nearest bone (`BAND`), all parts in one kernel. The default's arm start and bone "
@@ -896,11 +896,11 @@ def main(argv=None):
               "| step | ms |", "|---|---|",
               f"| whole segment step, default (`tp.segment` with pose and model: skeleton labels, "
               f"bones, each part's flood on its band, one kernel) | {speed['segment_ms']:.2f} |",
-              f"| whole segment step, earlier default (limbs from their first joint, each part's "
+              f"| whole segment step, limbs from their first joint (each part's "
               f"flood over the whole hull) | {speed['segment_first_joint_ms']:.2f} |",
               f"| whole segment step, radius-weighted without bones (no pose given) | "
               f"{speed['segment_radius_ms']:.2f} |",
-              f"| whole segment step, former default (part-weighted) | {speed['segment_part_ms']:.2f} |",
+              f"| whole segment step, part-weighted | {speed['segment_part_ms']:.2f} |",
               f"| flooding call alone (`flood_labels`, plain, 26-adjacency) | {speed['flood_ms']:.2f} |",
               f"| peer: `skimage.segmentation.watershed` (constant image, markers, mask) | "
               f"{speed['watershed_ms']:.2f} |",
@@ -940,7 +940,7 @@ def main(argv=None):
           "truth is borderline / good and stable. The headline is *P / R, all* (margin 0, "
           "every decided matched frame); *P / R, stable truth* scores the borderline frames "
           "apart (as PASCAL VOC leaves its *difficult* objects out), an extra view, not the "
-          "figure; *P / R, former truth*: all frames against the former correspondence "
+          "figure; *P / R, alternative truth*: all frames against the alternative correspondence "
           "(hands and feet gt.json's axis ends, the crotch its hip line, the body's feet "
           "gt.json's).", ""]
     for kind, d in det.items():
@@ -951,17 +951,17 @@ def main(argv=None):
     L.append("Peers (same frames): *human acrobatic no-head-axis* — the head not placed from the "
              "hull along the body's axis (`FrameEstimator(head_axis=False)`, "
              "`pose/tips.py` `HEAD_AXIS`, on by default without coordinate constraints); "
-             "*before* (column): the descriptions on the pose's parts alone, whose crotch "
+             "*dropped crotch* (column): the descriptions on the pose's parts alone, whose crotch "
              "`pose/anatomy.py` `CROTCH_DROP` drops 0.35 × the hull's radius below the legs' "
              "junction (for the matching quality of flexed hips) — 4 cm below the pelvis' "
              "centre on the development seeds, out of the hands' R_b ball in wide-spread arms; "
-             "*now*: the points `topopose.pose.detect.description_parts` gives, the junction "
+             "*junction*: the points `topopose.pose.detect.description_parts` gives, the junction "
              "before the drop (recorded in `diagnostics[\"detect_parts\"]`), the point the "
              "pelvis correspondence was measured on.")
     L += ["", "| subject | pose | truth true / matched | missing | precision / recall, all | "
           "good frames | P / R, good | good, stable frames | P / R, good and stable | "
           "wrong: not good / borderline / stable | stable-truth frames | P / R, stable truth "
-          "(extra) | P / R, former truth | P / R, all: before ← now |",
+          "(extra) | P / R, alternative truth | P / R, all: dropped crotch ← junction |",
           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for label, rows in sets:
         for n in pose_names:
@@ -1002,7 +1002,7 @@ def main(argv=None):
           "over those decisions, mean / median (one gross mismatch, a hand on a foot's branch "
           "or a model flipped end for end, moves the mean by tens of cm). *human acrobatic* is "
           "also split by the generator's tag (*inverted* / the *upright* random frames). Offset "
-          "row *crotch-dropped* below: the pose's own crotch (dropped, *before*) against the "
+          "row *crotch-dropped* below: the pose's own crotch (dropped) against the "
           "same truth point.", "",
           "| subject | pose | wrong decisions by part (n, vertical offset m: mean / median) |",
           "|---|---|---|"]

@@ -54,7 +54,7 @@ GRID = {"max_deviation": (0.04, 0.05, 0.06, 0.08, 0.1),
         "min_rank": (0.0, 0.25, 0.5),
         "max_length_ratio": (None,),
         "max_unexplained": (None, 0.06, 0.07, 0.08, 0.09, 0.1, 0.12)}
-#: the rule before the silhouette support (previous defaults): the peer
+#: the rule without the silhouette support: the peer
 BEFORE = {"max_deviation": 0.05, "neighbours": 2, "min_rank": 0.5, "max_length_ratio": None,
           "max_unexplained": None}
 

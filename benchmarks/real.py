@@ -55,7 +55,7 @@ RIGHT = 0.15            # metres
 VARIANTS = {"track": "person_track = true\n",              # MediaPipe's tracking mode
             # each camera segmented every 2nd (3rd) frame, staggered; the others keep theirs
             "every2": "person_every = 2\n", "every3": "person_every = 3\n",
-            # the reader as it was before: FFmpeg's own threads, decoding in the reader thread
+            # the reader without read-ahead: FFmpeg's own threads, decoding in the reader thread
             "oldreader": "decode_threads = 0\ndecode_ahead = 0\n",
             # the hull carved from the full-size masks (not from the network's small ones)
             "fullmasks": ""}
@@ -718,7 +718,7 @@ def report(doc) -> str:
     L += ["", "## Speed (one process)", ""]
     if doc.get("peer"):
         L += [f"Ratios and pose identity against `{doc['peer']}` in the same run (`+oldreader`: "
-              "the reader as it was before the read-ahead thread, FFmpeg's own threads per video; "
+              "the reader without the read-ahead thread, FFmpeg's own threads per video; "
               "same poses: status and part positions bit-identical).", ""]
     rows = []
     peer = bool(doc.get("peer"))

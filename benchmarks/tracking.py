@@ -287,7 +287,7 @@ def previous_definitions(model):
 
 
 def main_fit(tracked, model):
-    """The fit as before the joint placement of :data:`~topopose.pose.kinematic_fit.SPINE_BACK`,
+    """The fit without the joint placement of :data:`~topopose.pose.kinematic_fit.SPINE_BACK`,
     :data:`~topopose.pose.kinematic_fit.BONE_QUANTILE`, the hips' ``width`` and the raised
     arms' ``at_raised``: the trunk's joints on the medial curve, bone lengths the median, hips
     along the leg's curve, elbows and wrists at their ``at`` in every frame."""

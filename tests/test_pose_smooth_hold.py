@@ -62,7 +62,7 @@ def test_motion_runs_ride_over_jitter_and_leave_out_a_single_wrong_frame():
     Q[15, other] += [0.0, 0.0, 0.5]
     rel = Q - Q[:, tree.root:tree.root + 1]
     steps = np.linalg.norm(np.diff(rel, axis=0), axis=2).mean(axis=1)
-    assert np.mean(steps >= 0.15) > 0.4                    # the jitter the old rule broke at
+    assert np.mean(steps >= 0.15) > 0.4                    # the jitter a frame-to-frame rule breaks at
     assert kf.motion_runs(Q, np.arange(40.0), tree, 9, 0.15) == [(0, 15), (16, 40)]
 
 

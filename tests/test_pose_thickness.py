@@ -214,7 +214,7 @@ def test_taxicab_kernel_equals_scipy():
 
 
 def _vertex_radii_plain(vol, data, reach, radii):
-    """The per-vertex loop :func:`vertex_radii` was before its kernel (the oracle)."""
+    """The per-vertex loop of :func:`vertex_radii` (the oracle of its kernel)."""
     dt, lo = radii
     ref = float(dt.max()) or 1.0
     org, vs = np.asarray(vol.origin, float), float(vol.voxel_size)

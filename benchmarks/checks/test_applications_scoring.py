@@ -44,7 +44,7 @@ def test_detection_truth_points_of_a_built_capsule_human(flex):
     against its kinematics: each hand and foot the middle of its last bone (wrist → hand end,
     ankle → toe joints), the crotch the pelvis ellipsoid's centre (exact with a straight spine;
     within the chord 2 · 4 cm · sin(flex / 2) when the spine bends, the body axis then being the spine's), the
-    head the crown (the head ellipsoid's top), the former correspondence gt.json's own."""
+    head the crown (the head ellipsoid's top), the alternative correspondence gt.json's own."""
     from topopose.capture.synth_subjects import BUILD, HUMAN_DEFAULT
 
     A = applications
@@ -69,7 +69,7 @@ def test_detection_truth_points_of_a_built_capsule_human(flex):
 
 def test_detection_truth_points_of_the_body_rig():
     """``body`` frames (rig joints recorded) take the rig points of BODY_PART_JOINTS, feet the
-    foot bone's end (mid-foot) — the former correspondence keeps gt.json's feet."""
+    foot bone's end (mid-foot) — the alternative correspondence keeps gt.json's feet."""
     A = applications
     joints = {j: [float(i), 0.0, 0.0] for i, j in enumerate(A.BODY_PART_JOINTS.values())}
     parts = {k: [0.0, 0.0, -1.0] for k in ("head", "torso", "crotch", "hand_1", "hand_2",

@@ -7,8 +7,8 @@ import pytest
 from topopose.hull import Volume
 from topopose.match import Tree
 from topopose.pose import Pose, load_model
-from topopose.pose.estimate import FrameDetail
-from topopose.pose.quality import evaluate
+from topopose.frame.estimate import FrameDetail
+from topopose.batch.quality import evaluate
 from topopose.viz import plot_distances, plot_quality, render_frame
 from topopose.viz.view import _up_rotation, part_colours
 

@@ -66,7 +66,7 @@ def notices(callback):
 
 def tables_cold() -> bool:
     """True when the D6I1D look-up tables (bit planes, d6 byte table) are not on disk yet."""
-    from .topology.tables import cache_dir, table_key
+    from topopose.topology.tables import cache_dir, table_key
 
     key = table_key()
     return not all((cache_dir() / f"luts-{key}{s}.npy").exists() for s in ("", "-d6"))
@@ -76,7 +76,7 @@ def kernels_cold() -> bool:
     """True when the alignment kernel has no entry in the Numba disk cache (a fresh install or
     an empty ``NUMBA_CACHE_DIR``)."""
     try:
-        from .match.align_kernels import align_data
+        from topopose.match.align_kernels import align_data
 
         return not Path(align_data._cache._cache_file._index_path).exists()
     except Exception:       # noqa: BLE001  (a Numba without these internals: assume warm)
@@ -168,14 +168,14 @@ def _warm_main() -> int:
     """The helper: tables first (then say so), then the tree and alignment kernels."""
     import numpy as np
 
-    from .topology.tables import load_byte_table, load_tables
+    from topopose.topology.tables import load_byte_table, load_tables
 
     load_tables()
     load_byte_table("d6")
     print("tables", flush=True)
-    from .match import Matcher
-    from .pose import load_model
-    from .skeleton import data_tree
+    from topopose.match import Matcher
+    from topopose.pose import load_model
+    from topopose.skeleton import data_tree
 
     data = data_tree(_stick_figure(), origin=np.zeros(3), voxel_size=0.02, border=None)
     data = data.normalized()

@@ -75,8 +75,8 @@ from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 
-from ..errors import InputError
-from ..match.tree import Constraint, Tree
+from topopose.errors import InputError
+from topopose.match.tree import Constraint, Tree
 
 BUILTIN = ("human", "hand", "dog", "spider")
 COORDINATE_KINDS = ("above", "below")

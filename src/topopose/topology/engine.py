@@ -28,8 +28,8 @@ from itertools import product
 
 import numpy as np
 
-from ..errors import InputError
-from . import neighbourhood as nb
+from topopose.errors import InputError
+from topopose.topology import neighbourhood as nb
 
 METHODS = ("pkd6", "d6i1d", "d6u", "d6i2d", "ack3")
 
@@ -211,7 +211,7 @@ def _ack_bits():
 
 def _bbox(data):
     """(lo, hi, rows): bounds of the object and which (x, y) rows hold object voxels."""
-    from .thinning_kernels import bounding_box, bounding_box_flat
+    from topopose.topology.thinning_kernels import bounding_box, bounding_box_flat
 
     u = data.view(np.uint8)
     if u.flags.c_contiguous:
@@ -246,7 +246,7 @@ def thinning(volume, method: str = "d6i1d", keep=None, *, border_list: bool = Tr
     lo, hi, rows_any = _bbox(data)
     if lo[0] > hi[0]:  # no object voxel
         return Thinning(out, kout, method, 0, 0, {"total": (time.perf_counter() - t0) * 1e3})
-    from .thinning_kernels import extract, fill_state_rows
+    from topopose.topology.thinning_kernels import extract, fill_state_rows
 
     kin = keep.view(np.uint8) if keep is not None else np.zeros((0, 0, 0), dtype=np.uint8)
     size = int((hi[0] - lo[0] + 3) * (hi[1] - lo[1] + 3) * (hi[2] - lo[2] + 3))
@@ -300,7 +300,7 @@ def _kernel(kind, lut, mode, specialized=None):
 
 @lru_cache(maxsize=None)
 def _make_kernel(kind, lut, mode):
-    from . import thinning_kernels as tk
+    from topopose.topology import thinning_kernels as tk
 
     if kind == "ack3":
         return tk.make_ack3_thin(lut, mode)
@@ -308,19 +308,19 @@ def _make_kernel(kind, lut, mode):
 
 
 def _tables():
-    from .tables import load_tables
+    from topopose.topology.tables import load_tables
 
     return load_tables()
 
 
 def _byte_table(kind):
-    from .tables import load_byte_table
+    from topopose.topology.tables import load_byte_table
 
     return load_byte_table(kind)
 
 
 def _edge_table():
-    from .tables import load_ack3_edge_table
+    from topopose.topology.tables import load_ack3_edge_table
 
     return load_ack3_edge_table()
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from ..errors import InputError
+from topopose.errors import InputError
 
 
 def part_colours(parts) -> dict:
@@ -121,7 +121,7 @@ def render_frame(path, model, pose, detail=None, cap=None, silhouettes=False, up
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    from ..pose.chirality import numbered
+    from topopose.sequence.chirality import numbered
     pose = numbered(pose, model)           # left_hand → hand_1: the model's part names
     colours = part_colours(model.parts)
     R = _up_rotation(up)
@@ -239,7 +239,7 @@ def render_frame(path, model, pose, detail=None, cap=None, silhouettes=False, up
 
 def guess_model(pose, name=None):
     """The model a poses file was made with: ``name``, or the built-in with the same parts."""
-    from ..pose.model import BUILTIN, load_model
+    from topopose.pose.model import BUILTIN, load_model
 
     if name:
         return load_model(name)
@@ -256,9 +256,9 @@ def guess_model(pose, name=None):
 
 def view_cli(a) -> int:
     """``topopose view CAPTURE --poses POSES.jsonl --frame F --out PICTURE.png``."""
-    from ..capture import load_capture
-    from ..pose.estimate import FrameEstimator
-    from ..pose.pose import read_poses
+    from topopose.capture import load_capture
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.pose.pose import read_poses
 
     cap = load_capture(a.capture)
     frame = cap.frame_name(a.frame)
@@ -271,11 +271,11 @@ def view_cli(a) -> int:
     tol = pose.diagnostics.get("hull_tolerance")
     est = FrameEstimator(cap, model, res, tolerance=None if tol is None else int(tol))
     _, det = est.estimate(frame, detail=True)
-    from .._paths import atomic_output
+    from topopose._paths import atomic_output
 
     with atomic_output(a.out) as tmp:      # an existing picture is replaced only when done
         if getattr(a, "segmentation", False):
-            from ..pose.segment import segmentation_figure
+            from topopose.apps.segment import segmentation_figure
 
             segmentation_figure(tmp, cap, frame, model, det, up=cap.up_vector, pose=pose)
         else:

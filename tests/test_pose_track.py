@@ -357,7 +357,7 @@ def test_track_moves_a_snapped_part_to_its_leaf_and_flags_it():
 
 def test_free_leaves_are_the_unmatched_degree_one_vertices():
     from topopose.match.tree import Tree
-    from topopose.sequence.track import free_leaves
+    from topopose.frame.tips import free_leaves
 
     # a star 0 – {1, 2, 3} with a tail 3 – 4: leaves 1, 2, 4
     pos = {v: np.array([v, 0.5 * v, 0.0]) for v in range(5)}

@@ -52,7 +52,6 @@ SYNTH_LINK_ARCS = {
 }
 
 
-
 def body_bone_arc(bone: str) -> str:
     """The human model's arc of a bone of the ``body`` subject's rig (``cmu_mb``): head and neck →
     torso-head; the arm from the upper arm down (the clavicle ``*Shoulder`` stays in the trunk)
@@ -645,7 +644,7 @@ def segmentation_figure(path, cap, frame, model, detail, up=(0, 0, 1), max_point
     import matplotlib.pyplot as plt
     from scipy import ndimage
 
-    from topopose.viz.view import _up_rotation
+    from topopose.geometry.axes import up_rotation
 
     if detail is None or detail.alignment is None:
         raise InputError(f"segment: frame {frame!r} has no alignment to segment with")
@@ -658,7 +657,7 @@ def segmentation_figure(path, cap, frame, model, detail, up=(0, 0, 1), max_point
     ijk = np.argwhere(surf > 0)
     if len(ijk) > max_points:
         ijk = ijk[np.random.default_rng(0).choice(len(ijk), max_points, replace=False)]
-    w = vol.world(ijk) @ _up_rotation(up).T
+    w = vol.world(ijk) @ up_rotation(up).T
     lab = labels[tuple(ijk.T)]
     ncam = min(4, len(cap.cameras))
     fig = plt.figure(figsize=(4 + 2.4 * ncam, 4.4), dpi=80)
@@ -758,7 +757,7 @@ def segment_cli(a) -> int:
     from PIL import Image
 
     from topopose.capture import load_capture
-    from topopose.viz.view import guess_model
+    from topopose.pose.model import guess_model
     from topopose.apps.detect import read_poses_file
     from topopose.frame.estimate import FrameEstimator
 

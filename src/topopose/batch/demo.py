@@ -40,9 +40,9 @@ def run_demo(out="topopose-demo", frames=6, resolution=100, seed=0, subjects=Non
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
-    from topopose import _coldstart
+    from topopose.batch import warmup
 
-    if _coldstart.start_warmup().proc is not None:   # first run: built while the capture is made
+    if warmup.start_warmup().proc is not None:   # first run: built while the capture is made
         print_fn("first run: compiling kernels and building the thinning look-up tables "
                  "(once; cached on disk)…")
     print_fn(f"topopose demo: {len(subjects)} synthetic subjects ({', '.join(subjects)}) × {frames} "

@@ -340,16 +340,17 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         if bar is not None:
             bar.set_postfix_str(message)
 
-    from topopose import _coldstart
+    from topopose import _notices
+    from topopose.batch import warmup
 
     try:
-        with _coldstart.notices(note):
+        with _notices.notices(note):
             if todo and (workers > 1 or scheduler):
                 _run_dask(cap, m, resolution, threshold, options, todo, workers, scheduler, finish)
             elif todo:
                 from topopose.capture import prefetch
 
-                warm = _coldstart.start_warmup()     # first run: a helper process
+                warm = warmup.start_warmup()     # first run: a helper process
                 try:
                     est = FrameEstimator(cap, m, resolution, threshold, **options)
                     est.warmup = warm

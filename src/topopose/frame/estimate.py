@@ -322,7 +322,7 @@ class FrameEstimator:
         self.matcher = Matcher(self.pattern, method="aha", cut=False, up=self.up,
                                keep_junctions=(KEEP_CONSTRAINED_JUNCTIONS if keep_junctions is None
                                                else bool(keep_junctions)))
-        self.warmup = None      # first run: the helper process of topopose._coldstart.start_warmup
+        self.warmup = None      # first run: the helper process of topopose.batch.warmup.start_warmup
         self.thickness_profile = (THICKNESS.get(self.model.name) if thickness_profile is None
                                   else dict(thickness_profile))
         if thickness is None:
@@ -766,7 +766,7 @@ class FrameEstimator:
                 diag["unexplained"] = round(sup["unexplained"], 4)
                 timings["support"] = (time.perf_counter() - t1) * 1e3
         if self.leaves:      # candidates for a misplaced numbered part (pose.track)
-            from topopose.sequence.track import free_leaves
+            from topopose.frame.tips import free_leaves
             diag["free_leaves"] = free_leaves(data, al.mapping)
         timings["placement"] = (time.perf_counter() - t0) * 1e3
         timings["total"] = (time.perf_counter() - t_all) * 1e3

@@ -356,3 +356,16 @@ def head_along_axis(vol, parts: dict, rule, edt=None, ball=None):
             > max_shift * float(edt[0].max()) * float(vol.voxel_size)):
         return None
     return x
+
+
+def free_leaves(data, mapping) -> list:
+    """Positions (lists of 3 floats, rounded to 0.1 mm) of the data tree's leaves (degree-1
+    vertices) that no model part was matched to: where a misplaced numbered part may really be
+    (:func:`assign_identities`' ``candidates``)."""
+    deg = {}
+    for u, v, _ in data.edges:
+        deg[u] = deg.get(u, 0) + 1
+        deg[v] = deg.get(v, 0) + 1
+    used = {v for v in mapping.values() if v is not None}
+    return [[round(float(c), 4) for c in data.positions[v]] for v, d in sorted(deg.items())
+            if d == 1 and v not in used and data.positions.get(v) is not None]

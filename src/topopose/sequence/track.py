@@ -88,19 +88,6 @@ def gated_only(pose) -> bool:
     return pose.status == "rejected" and str(pose.error or "").startswith("confidence ")
 
 
-def free_leaves(data, mapping) -> list:
-    """Positions (lists of 3 floats, rounded to 0.1 mm) of the data tree's leaves (degree-1
-    vertices) that no model part was matched to: where a misplaced numbered part may really be
-    (:func:`assign_identities`' ``candidates``)."""
-    deg = {}
-    for u, v, _ in data.edges:
-        deg[u] = deg.get(u, 0) + 1
-        deg[v] = deg.get(v, 0) + 1
-    used = {v for v in mapping.values() if v is not None}
-    return [[round(float(c), 4) for c in data.positions[v]] for v, d in sorted(deg.items())
-            if d == 1 and v not in used and data.positions.get(v) is not None]
-
-
 def body_scale(poses) -> float:
     """Median extent (bounding-box diagonal of the parts) of the matched frames."""
     ext = []
@@ -150,7 +137,7 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
     detail : also return ``held`` and ``predicted`` (and ``snapped`` with ``candidates``)
     candidates : None or a list of n entries, None or (m, 3) positions where a part of the
         group may be instead of where the frame put it (the skeleton's unmatched leaves,
-        :func:`free_leaves`). An outlier of an established identity (beyond the gate, ``reinit``
+        :func:`topopose.frame.tips.free_leaves`). An outlier of an established identity (beyond the gate, ``reinit``
         inlier updates in a row) moves to the candidate nearest the identity's prediction when
         that one lies within ``snap`` of it and nearer than the observation: the observation
         then counts as an inlier at the candidate (*snapped*), each candidate used once; the
@@ -375,7 +362,7 @@ def track(poses, model, max_gap=5, gate=None, velocity=0.5, use_rejected=True, r
         (:func:`body_scale`), 45 cm for a standing adult
     velocity, reinit : see :func:`assign_identities`
     snap : move outliers to the frame's free skeleton leaves (``diagnostics["free_leaves"]``,
-        :func:`free_leaves`) as :func:`assign_identities` does with ``candidates``
+        :func:`topopose.frame.tips.free_leaves`) as :func:`assign_identities` does with ``candidates``
     snap_run : see :func:`assign_identities`
     use_rejected : frames only the confidence gate rejected (:func:`gated_only`) are
         observations too: the gate rejects many right frames, whose gaps would otherwise lose

@@ -87,7 +87,7 @@ def load_tables() -> np.ndarray:
                 return np.asarray(arr)  # plain read-only ndarray view of the map
         except (OSError, ValueError):
             pass
-    from topopose._coldstart import say
+    from topopose._notices import say
 
     say("building the thinning look-up tables (first run only, ~10 s)…")
     tab = generate_tables()
@@ -119,10 +119,9 @@ def load_ack3_edge_table() -> np.ndarray:
                 return np.asarray(arr)
         except (OSError, ValueError):
             pass
-    from topopose.topology.engine import _ack_bits
     from topopose.topology.tables_kernels import build_ack3_edge_table
 
-    _, _, _, e_f1, e_f2, e_ed, e_u, e_v = _ack_bits()[:8]
+    _, _, _, e_f1, e_f2, e_ed, e_u, e_v = nb.ack_bits()[:8]
     tab = build_ack3_edge_table(e_f1, e_f2, e_ed, e_u, e_v)
     _save(path, tab)
     tab.setflags(write=False)
@@ -163,10 +162,9 @@ def load_byte_table(kind: str) -> np.ndarray:
         except (OSError, ValueError):
             pass
     if kind == "ack3":
-        from topopose.topology.engine import _ack_bits
         from topopose.topology.tables_kernels import build_ack3_byte_table
 
-        c2_a, c2_b, ns2d = _ack_bits()[:3]
+        c2_a, c2_b, ns2d = nb.ack_bits()[:3]
         dir_bits = np.array([nb.bit_of(d) for d in nb.DIRECTIONS], dtype=np.int64)
         tab = build_ack3_byte_table(load_tables(), c2_a, c2_b, ns2d, dir_bits)
     else:

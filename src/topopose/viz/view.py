@@ -10,6 +10,8 @@ import numpy as np
 from scipy import ndimage
 
 from topopose.errors import InputError
+from topopose.geometry.axes import up_rotation
+from topopose.pose.model import guess_model
 
 
 def part_colours(parts) -> dict:
@@ -17,21 +19,6 @@ def part_colours(parts) -> dict:
 
     cmap = matplotlib.colormaps["tab10" if len(parts) <= 10 else "tab20"]
     return {p: cmap(i % cmap.N) for i, p in enumerate(parts)}
-
-
-def _up_rotation(up) -> np.ndarray:
-    """Rotation taking the capture's up vector to +z (matplotlib's vertical)."""
-    u = np.asarray(up, float)
-    u = u / np.linalg.norm(u)
-    z = np.array([0.0, 0.0, 1.0])
-    if np.allclose(u, z):
-        return np.eye(3)
-    if np.allclose(u, -z):
-        return np.diag([1.0, -1.0, -1.0])
-    v = np.cross(u, z)
-    s, c = np.linalg.norm(v), float(u @ z)
-    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + k + k @ k * ((1 - c) / s ** 2)
 
 
 def _surface(a: np.ndarray) -> np.ndarray:
@@ -124,7 +111,7 @@ def render_frame(path, model, pose, detail=None, cap=None, silhouettes=False, up
     from topopose.sequence.chirality import numbered
     pose = numbered(pose, model)           # left_hand → hand_1: the model's part names
     colours = part_colours(model.parts)
-    R = _up_rotation(up)
+    R = up_rotation(up)
     ncam = len(cap.cameras) if (silhouettes and cap is not None) else 0
     srows = math.ceil(ncam / 4) if ncam else 0
     fig = plt.figure(figsize=(13, 7 + 2.6 * srows), dpi=100)
@@ -235,23 +222,6 @@ def render_frame(path, model, pose, detail=None, cap=None, silhouettes=False, up
     fig.savefig(path)
     plt.close(fig)
     return Path(path)
-
-
-def guess_model(pose, name=None):
-    """The model a poses file was made with: ``name``, or the built-in with the same parts."""
-    from topopose.pose.model import BUILTIN, load_model
-
-    if name:
-        return load_model(name)
-    if pose.diagnostics.get("model") in BUILTIN:
-        return load_model(pose.diagnostics["model"])
-    keys = set(pose.parts)
-    for b in BUILTIN:
-        m = load_model(b)
-        mirror = {n for _, names in m.mirrors for n in names}
-        if set(m.parts) == keys or (keys & mirror and keys <= set(m.parts) | mirror):
-            return m
-    raise InputError("--model: the poses' parts match no built-in model; give --model FILE.toml")
 
 
 def view_cli(a) -> int:

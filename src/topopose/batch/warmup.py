@@ -4,9 +4,9 @@ On a fresh machine (empty Numba and table caches) the first frame compiles every
 builds the 2^26-entry look-up tables (thesis §5.1.2) before it can finish; both are cached on
 disk, so it happens once. Two things keep that first frame short and honest:
 
-* :func:`notices` says what is happening ("compiling kernels…", "building the thinning look-up
+* :func:`topopose._notices.notices` says what is happening ("compiling kernels…", "building the thinning look-up
   tables…") through a callback (the progress bar), from a Numba compile-event listener and
-  from the table builders (:func:`say`);
+  from the table builders (:func:`topopose._notices.say`);
 * :func:`start_warmup` starts, when the caches are cold, a helper process that builds the
   tables and compiles the tree and alignment kernels (filling the same disk caches) while this
   process compiles the hull and thinning kernels — the two cores work at once. The frame waits
@@ -15,53 +15,12 @@ disk, so it happens once. Two things keep that first frame short and honest:
 """
 from __future__ import annotations
 
-import contextlib
 import os
 import subprocess
 import sys
 from pathlib import Path
 
-_SAY = None          # callback(str) while a run shows progress; None: silent
-
-
-def say(message: str) -> None:
-    """Tell the user what the first run is doing (no-op outside :func:`notices`)."""
-    if _SAY is not None:
-        _SAY(message)
-
-
-@contextlib.contextmanager
-def notices(callback):
-    """While active, first-run work is reported through ``callback(message)``: the tables being
-    built (:func:`say`) and the first kernel compilation (a Numba ``numba:compile`` listener)."""
-    global _SAY
-    from numba.core import event
-
-    class _Compiling(event.Listener):
-        said = False
-
-        def on_start(self, ev):
-            if not self.said:
-                self.said = True
-                callback("compiling kernels (first run only)…")
-
-        def on_end(self, ev):
-            pass
-
-    listener = _Compiling()
-    old = _SAY
-
-    def said(message):              # a first-run message already on screen: keep it
-        listener.said = True
-        callback(message)
-
-    _SAY = said
-    event.register("numba:compile", listener)
-    try:
-        yield
-    finally:
-        event.unregister("numba:compile", listener)
-        _SAY = old
+from topopose._notices import say
 
 
 def tables_cold() -> bool:
@@ -132,14 +91,14 @@ def start_warmup(force: bool = False) -> Warmup:
         return Warmup(None)
     say("first run: compiling kernels, building look-up tables (once, ~30 s)…" if tcold else
         "first run: compiling kernels (once, ~20 s)…")
-    src = str(Path(__file__).resolve().parents[1])
+    src = str(Path(__file__).resolve().parents[2])
     env = dict(os.environ)
     env["PYTHONPATH"] = src + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     import signal
 
     old = signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C reaches this process only
     try:
-        proc = subprocess.Popen([sys.executable, "-m", "topopose._coldstart"], env=env,
+        proc = subprocess.Popen([sys.executable, "-m", "topopose.batch.warmup"], env=env,
                                 stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                                 stdin=subprocess.DEVNULL)
     except OSError:

@@ -31,7 +31,7 @@
    Peers on the same frames: the head from the hull along the body's axis off (acrobatic:
    ``head_axis=False``), and every description evaluated on the pose's parts alone (the
    crotch dropped below the legs' junction, ``pose/anatomy.py`` CROTCH_DROP: *dropped crotch*) beside
-   the points the detection uses (``topopose.pose.detect.description_parts``: the junction).
+   the points the detection uses (``topopose.apps.detect.description_parts``: the junction).
 
 Writes benchmarks/results/applications.{md,json} and applications_*.png (``--detection-only``:
 only part 2, to applications_detection.{md,json}; ``--dev``: part 2 on the development seeds,
@@ -52,7 +52,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 from _machine import machine  # noqa: E402
-from topopose.pose.consistency import MAX_UNEXPLAINED  # noqa: E402
+from topopose.sequence.consistency import MAX_UNEXPLAINED  # noqa: E402
 
 RES = 100
 MARGIN = 0.075            # 3 voxels of the human grid at 100³ (benchmarks/quality.py)
@@ -75,7 +75,7 @@ def _lower(p, s, rng):
 
 def detection_sampler(kind):
     """A human pose sampler mixing named poses with random ones (tagged ``_k``)."""
-    from topopose.capture.synth_subjects import human_random
+    from topopose.synth.subjects import human_random
 
     def sample(rng):
         p = human_random(rng)
@@ -114,14 +114,14 @@ BODY_TAGS = ("hands-up", "one-hand-up", "spread", "random")
 
 def body_detection_sampler():
     """A ``body`` pose sampler mixing the named poses with its own random ones
-    (:func:`~topopose.capture.synth_body.body_random`), tagged ``_k`` (index into
+    (:func:`~topopose.synth.body.body_random`), tagged ``_k`` (index into
     :data:`BODY_TAGS`): both hands up (arms abducted 145–175°, a V above the head: raised
     forward as the capsule human's they touch the head and fail the limb separation),
     one hand up and the other down, arms spread (abducted 80–100°), random. The draw's
     shares (0.12, 0.30, 0.03, 0.55) offset how often each kind passes the limb separation
     (arms spread nearly always, random poses seldom), so that the sequences hold the four
     kinds in about equal numbers."""
-    from topopose.capture.synth_body import body_random
+    from topopose.synth.body import body_random
 
     def up(p, s, rng):
         p.update({f"sh_flex_{s}": _u(rng, -10, 30), f"sh_abd_{s}": _u(rng, 145, 175),
@@ -155,8 +155,7 @@ def body_detection_sampler():
 @contextlib.contextmanager
 def body_poses(sample):
     """Let ``synthetic_capture(subject="body")`` draw its random poses from ``sample``."""
-    from topopose.capture import synth_subjects as SS
-
+    from topopose.synth import subjects as SS
     old = SS.RANDOM["body"]
     SS.RANDOM["body"] = sample
     try:
@@ -182,7 +181,7 @@ for _b in BASE_POSES:                   # legs apart: limbs 3 voxels apart in th
 
 def cluster_sampler(K, jitter=5.0):
     """Frames from the first K :data:`BASE_POSES`: every angle jittered by ±``jitter``°."""
-    from topopose.capture.synth_subjects import HUMAN_DEFAULT
+    from topopose.synth.subjects import HUMAN_DEFAULT
 
     base = [{**HUMAN_DEFAULT, **b} for b in BASE_POSES[:K]]
 
@@ -198,8 +197,7 @@ def cluster_sampler(K, jitter=5.0):
 def human_poses(sample):
     """Let ``synthetic_capture(subject="human")`` draw its random poses from ``sample`` and
     remember each body's tag (``body.extra["k"]``)."""
-    from topopose.capture import synth_subjects as SS
-
+    from topopose.synth import subjects as SS
     old_r, old_b = SS.RANDOM["human"], SS.BUILD["human"]
 
     def build(pose, thickness=1.0):
@@ -215,7 +213,7 @@ def human_poses(sample):
 
 
 def capture(sample, frames, seed, noise=1):
-    from topopose.capture.synth import synthetic_capture
+    from topopose.synth.capture import synthetic_capture
 
     with human_poses(sample):
         return synthetic_capture("human", frames=frames, seed=seed, noise=noise, separated=True,
@@ -245,7 +243,7 @@ def girdle_bone_arc(bone):
     """The other grouping of the ``body`` rig's girdle bones: the clavicle (``*Shoulder``, neck
     base → shoulder joint) and ``*HipJoint`` (hip centre → hip joint) lie on the model's
     torso→hand and crotch→foot arcs, so they go to the limbs."""
-    from topopose.pose.segment import body_bone_arc
+    from topopose.apps.segment import body_bone_arc
 
     k = "1" if bone.startswith("L") else "2"
     if bone.endswith("Shoulder"):
@@ -263,7 +261,7 @@ def error_figure(path, vol, lab, m, truth, names, up, title):
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    from topopose.pose.segment import label_colours
+    from topopose.apps.segment import label_colours
     from topopose.viz.view import _up_rotation
 
     cols = label_colours(len(names)).astype(float) / 255
@@ -297,16 +295,16 @@ def error_figure(path, vol, lab, m, truth, names, up, title):
 def bench_segmentation(n_frames, seeds, log, subject="human", figure=None):
     from skimage.segmentation import watershed
 
-    from topopose.capture.synth_subjects import human_random
-    from topopose.pose.estimate import FrameEstimator
-    from topopose.pose.quality import evaluate
-    from topopose.pose.segment import (_box, arc_names, flood_labels, renumbered_accuracy,
+    from topopose.synth.subjects import human_random
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.batch.quality import evaluate
+    from topopose.apps.segment import (_box, arc_names, flood_labels, renumbered_accuracy,
                                        segment, skeleton_labels, synthetic_truth)
 
     rows = []
     for seed in seeds:
         if subject == "body":
-            from topopose.capture.synth import synthetic_capture
+            from topopose.synth.capture import synthetic_capture
 
             cap = synthetic_capture("body", frames=n_frames, seed=seed, noise=1, separated=True,
                                     margin=MARGIN)
@@ -486,7 +484,7 @@ def detection_row(pose, frame, up, rng=None):
     the alternative correspondence, ``truth_gt`` on gt.json's parts; whether the truth is stable
     (:func:`stable_truth`), and each part's offset estimate − corresponding point (numbered
     parts paired optimally)."""
-    from topopose.pose.detect import description_parts, detect, evaluate, load_library, up_frame
+    from topopose.apps.detect import description_parts, detect, evaluate, load_library, up_frame
 
     gt, former = pipeline_points(frame), pipeline_points(frame, former=True)
     # the points the descriptions compare (the crotch: the legs' junction before the drop of
@@ -588,7 +586,7 @@ def stable_truth(expr, parts, up, aliases, value, rng):
     """Whether the truth keeps its value when every gt part moves by N(0, 3 cm) (20 draws):
     a frame near a decision boundary (a hand at head height) is not *stable* — a few cm of
     difference between the pipeline's part and gt.json's flips it."""
-    from topopose.pose.detect import evaluate
+    from topopose.apps.detect import evaluate
 
     for _ in range(STABLE_TRIALS):
         q = {k: None if v is None else np.asarray(v) + rng.normal(0, STABLE_SIGMA, 3)
@@ -600,7 +598,7 @@ def stable_truth(expr, parts, up, aliases, value, rng):
 
 def _detection_rows(cap, est, rng, tags=None):
     """Detection rows of a capture's matched frames, with the quality class and the tag."""
-    from topopose.pose.quality import evaluate as quality_of
+    from topopose.batch.quality import evaluate as quality_of
 
     poses = [est.estimate(f) for f in cap.frames]
     quality = {fs.frame: fs.quality for fs in quality_of(cap.gt, poses, est.model).frames}
@@ -620,7 +618,7 @@ def _detection_rows(cap, est, rng, tags=None):
 
 
 def bench_detection(n_frames, seeds, log):
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.frame.estimate import FrameEstimator
 
     out = {}
     # "acrobatic no-tip-anchor": the peer of the head tip prolonged from the torso
@@ -649,8 +647,8 @@ def bench_detection(n_frames, seeds, log):
 def bench_body_detection(n_frames, seeds, log, **opts):
     """The named poses on the ``body`` subject (random builds), sequences drawn to contain them
     (:func:`body_detection_sampler`); ``opts``: FrameEstimator options."""
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
 
     rows, frames, tags = [], 0, {}
     rng = np.random.default_rng(0)
@@ -668,8 +666,8 @@ def bench_body_detection(n_frames, seeds, log, **opts):
 
 # ----------------------------------------------------------------------------- 3. clustering
 def bench_clustering(K, n_frames, seeds, log, figure=None):
-    from topopose.pose.cluster import adjusted_rand_index, cluster_figure, cluster_poses
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.apps.cluster import adjusted_rand_index, cluster_figure, cluster_poses
+    from topopose.frame.estimate import FrameEstimator
     from topopose.pose.pose import Pose
 
     rows = []
@@ -707,9 +705,9 @@ def _mean(x):
 
 def segmentation_figure(path):
     """One segmented frame of the body subject (the README picture)."""
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
-    from topopose.pose.segment import segmentation_figure as fig
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.apps.segment import segmentation_figure as fig
 
     cap = synthetic_capture("body", frames=3, seed=5, noise=1, separated=True, margin=MARGIN)
     est = FrameEstimator(cap, "human", RES)
@@ -851,7 +849,7 @@ def main(argv=None):
          "mesh, seeds 2–4 (held out: the delays, the bone weight and the limb starts were "
          "chosen on seeds 1 and 11, *body-dev* below); truth: "
          "the dominant skinning bone of the nearest posed mesh vertex, grouped into the model's "
-         "arcs (`topopose.pose.segment.body_bone_arc`). `human`: the capsule subject (seeds 2–3); "
+         "arcs (`topopose.apps.segment.body_bone_arc`). `human`: the capsule subject (seeds 2–3); "
          "truth: the nearest primitive's link. Numbered limbs paired optimally. *Good*: the "
          "quality study's class (every part right). Labellings, all from the same skeleton "
          "labels: *plain* — the thesis' flooding (breadth first, 26-adjacency); *part* — the "
@@ -862,7 +860,7 @@ def main(argv=None):
          "model's joints placed on the skeleton curves: with limbs from their first joint (w = 0.8) a limb "
          "begins at its first joint (shoulder, hip, neck) and each part's flood covers the whole "
          "hull; with limb starts (w = 0.8) and in the default (w = 0.7, "
-         "`topopose.pose.segment.LIMB_START`) the head begins half-way "
+         "`topopose.apps.segment.LIMB_START`) the head begins half-way "
          "from the chest to the neck joint, the arm 45 % or 35 % (default) down the "
          "upper arm, the leg at the "
          "hip, and each part's flood runs only where its bones are within 3 voxels of the "
@@ -955,7 +953,7 @@ def main(argv=None):
              "`pose/anatomy.py` `CROTCH_DROP` drops 0.35 × the hull's radius below the legs' "
              "junction (for the matching quality of flexed hips) — 4 cm below the pelvis' "
              "centre on the development seeds, out of the hands' R_b ball in wide-spread arms; "
-             "*junction*: the points `topopose.pose.detect.description_parts` gives, the junction "
+             "*junction*: the points `topopose.apps.detect.description_parts` gives, the junction "
              "before the drop (recorded in `diagnostics[\"detect_parts\"]`), the point the "
              "pelvis correspondence was measured on.")
     L += ["", "| subject | pose | truth true / matched | missing | precision / recall, all | "

@@ -1,4 +1,4 @@
-"""Fit and check the per-frame confidence that decides ``matched`` (topopose.pose.confidence) on
+"""Fit and check the per-frame confidence that decides ``matched`` (topopose.frame.confidence) on
 synthetic captures only: the anatomical ``body`` (builds average/heavy/child/lean/random, one
 per seed) and the capsule human, walking and random poses, 100³, and the body benchmark's own
 kind of poses (``quality.py --only body``: separated limbs and all random poses) on seeds
@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from topopose.hull.volume import add_rod
-from topopose.pose.quality import TP_CLASSES
+from topopose.batch.quality import TP_CLASSES
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -111,7 +111,7 @@ def collect(a) -> list:
     """Run the pipeline (gate off) on every capture of every set-up (:data:`SETUPS`); one row
     per processed frame."""
     from quality import BODY_MARGIN
-    from topopose.capture.synth import synthetic_capture
+    from topopose.synth.capture import synthetic_capture
 
     rows = []
     for setup in a.setups.split(","):
@@ -148,7 +148,7 @@ def fitted(cap, setup):
 
 def minimum(r, model) -> float:
     """The minimum of ``model`` for the camera count of row ``r``'s set-up."""
-    from topopose.pose.confidence import min_confidence_for
+    from topopose.frame.confidence import min_confidence_for
 
     return min_confidence_for(SETUPS[r["cameras"]][0], model)
 
@@ -161,7 +161,7 @@ def fixed(model, t) -> dict:
 def candidate(r, model) -> bool:
     """Whether the frame of row ``r`` reaches the gate of ``model``: matched before the gate, or
     rejected for its AHA distance alone when the model replaces T_d."""
-    from topopose.pose.confidence import distance_only, replaces_threshold
+    from topopose.frame.confidence import distance_only, replaces_threshold
 
     return r["status"] == "matched" or (replaces_threshold(model) and distance_only(r.get("error")))
 
@@ -169,8 +169,8 @@ def candidate(r, model) -> bool:
 def capture_rows(cap, subject, build, setup, motion, seed) -> list:
     """Run the pipeline (gate off) on one capture; one row per processed frame, then the
     deliberate swaps."""
-    from topopose.pose.confidence import temporal_confidence
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.frame.confidence import temporal_confidence
+    from topopose.frame.estimate import FrameEstimator
 
     rows = []
     est = FrameEstimator(cap, "human", 100, gate=False)
@@ -201,12 +201,12 @@ def capture_rows(cap, subject, build, setup, motion, seed) -> list:
 
 
 def drop_variants(cap, est, p, det, score_with=None) -> dict:
-    """Per-part trust (:func:`topopose.pose.confidence.drop_part_features`): for a frame with
+    """Per-part trust (:func:`topopose.frame.confidence.drop_part_features`): for a frame with
     every part placed, per part of DROP_PARTS the features of the frame with that part left
     unplaced and the quality of the pose without it (a right "missing limb" when every other
     part is right)."""
-    from topopose.pose.confidence import DROP_PARTS, drop_part_features
-    from topopose.pose.estimate import vertex_radii
+    from topopose.frame.confidence import DROP_PARTS, drop_part_features
+    from topopose.frame.estimate import vertex_radii
     from topopose.pose.pose import Pose
 
     if p.status == "failed" or det.alignment is None or any(x is None for x in p.parts.values()):
@@ -229,7 +229,7 @@ def drop_variants(cap, est, p, det, score_with=None) -> dict:
 
 def score(cap, poses, model):
     """Scored as the body benchmark (quality.py body_study): 0.08 × height for every part."""
-    from topopose.pose.quality import evaluate
+    from topopose.batch.quality import evaluate
 
     return evaluate(cap.gt, poses, model=model, tolerance=TOLERANCE * float(cap.gt["height"]),
                     junction_factor=1.0)
@@ -241,8 +241,8 @@ def swapped_rows(cap, est, out, ev, like):
     their features and their own quality (``augmented``: the hand; not counted in the tables)."""
     from types import SimpleNamespace
 
-    from topopose.pose.confidence import frame_features
-    from topopose.pose.estimate import vertex_radii
+    from topopose.frame.confidence import frame_features
+    from topopose.frame.estimate import vertex_radii
     from topopose.pose.pose import Pose
     rows = []
     for (p, det), s in zip(out, ev.frames):
@@ -317,7 +317,7 @@ def gated_quality(r, model, cameras, part_trust=True, head_doubt=True):
     highest when the whole frame falls below the minimum, else (``head_doubt``) without the
     head when the frame with a typical head reaches it (confidence.head_doubt; True: a head
     the alignment left unmatched — no head reach —, "any": any head)."""
-    from topopose.pose.confidence import (fitted_confidence, head_doubt as _head_doubt,
+    from topopose.frame.confidence import (fitted_confidence, head_doubt as _head_doubt,
                                           min_confidence_for, min_drop_for)
 
     if r["status"] == "failed":
@@ -331,7 +331,7 @@ def gated_quality(r, model, cameras, part_trust=True, head_doubt=True):
     if fitted_confidence(f, 1.0 - f["lost"], model=model)["confidence"] >= t:
         return r["quality"]
     if part_trust and r.get("drops"):
-        from topopose.pose.confidence import untrusted_part
+        from topopose.frame.confidence import untrusted_part
 
         cs = {p: fitted_confidence(v["features"], 1.0 - f["lost"], model=model)["confidence"]
               for p, v in r["drops"].items()}
@@ -360,7 +360,7 @@ def _fit(rows, features, l2, kind="logistic"):
     many and easy: at full weight the model becomes a swap detector); the deliberate spurious
     limbs (rods, few) ROD_WEIGHT × a real frame each. ``kind``: "logistic"
     (L2 penalty ``l2``) or "trees" (:func:`_fit_trees`)."""
-    from topopose.pose.confidence import fit_logistic
+    from topopose.frame.confidence import fit_logistic
 
     X = np.array([[r["features"][f] for f in features] for r in rows], float)
     y = np.array([r["good"] for r in rows], float)
@@ -391,7 +391,7 @@ TREES = {"n_estimators": 100, "max_depth": 3, "learning_rate": 0.1}
 def _fit_trees(X, y, w, features, **params):
     from sklearn.ensemble import GradientBoostingClassifier
 
-    from topopose.pose.confidence import trees_from_sklearn
+    from topopose.frame.confidence import trees_from_sklearn
 
     gb = GradientBoostingClassifier(random_state=0, **{**TREES, **params})
     return trees_from_sklearn(gb.fit(X, y.astype(int), sample_weight=w), features)
@@ -408,7 +408,7 @@ def fit(rows, features, half, l2, kind="logistic"):
     judged on out-of-fold confidences (two folds by seed parity, each scored by a model fitted
     on the other), which behave like held-out ones: the in-sample confidences of the wrong
     frames are optimistic."""
-    from topopose.pose.confidence import model_confidence
+    from topopose.frame.confidence import model_confidence
 
     flag = {"replaces_threshold": True}
     cal = [r for r in rows if r["seed"] < half_of(r, half) and candidate(r, flag)]
@@ -435,7 +435,7 @@ def fit(rows, features, half, l2, kind="logistic"):
 def typical_head(rows) -> dict:
     """The head's features (confidence.HEAD_FEATURES) of a right frame: their medians over the
     right, real (not augmented) frames of ``rows`` (confidence.head_doubt)."""
-    from topopose.pose.confidence import HEAD_FEATURES
+    from topopose.frame.confidence import HEAD_FEATURES
 
     right = [r["features"] for r in rows if r["good"] and not r.get("augmented")]
     return {f: round(float(np.median([x[f] for x in right])), 5) for f in HEAD_FEATURES}
@@ -511,7 +511,7 @@ def kinds_of(subjects, pose_seeds) -> list:
 
 def report(rows, model, half, kinds, before=None):
     """Rows of the table: before (gate off; previous product ≥ 0.7) and after, per seed half."""
-    from topopose.pose.confidence import fitted_confidence, frame_confidence
+    from topopose.frame.confidence import fitted_confidence, frame_confidence
 
     for r in rows:
         f = r["features"]
@@ -584,7 +584,7 @@ def curve(rows, half, kinds, model, minima=MINIMA):
 
 
 def swap_summary(aug, model, half):
-    from topopose.pose.confidence import fitted_confidence, head_doubt, min_drop_for
+    from topopose.frame.confidence import fitted_confidence, head_doubt, min_drop_for
 
     out = {}
     for kind, part in itertools.product(("swaps", "rods"), ("calibration", "held out")):
@@ -631,8 +631,8 @@ def body_benchmark(models, frames=12, seeds=(21, 22), cached=None):
     gate) decides ``matched`` from the frames' features. Scored as quality.py (TP rate = TP /
     frames, FP/match = FP / (TP + FP)). Checks only: these seeds are never fitted on."""
     from quality import BODY_TOLERANCE, body_captures
-    from topopose.pose.estimate import FrameEstimator
-    from topopose.pose.quality import evaluate
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.batch.quality import evaluate
 
     out = {"rows": list(cached or [])}
     for kind in POSE_KINDS:
@@ -683,7 +683,7 @@ def real_check(recording, models, method="person", cached=None):
     import tempfile
 
     import real as R
-    from topopose.pose.confidence import fitted_confidence, min_confidence_for
+    from topopose.frame.confidence import fitted_confidence, min_confidence_for
 
     rec = Path(recording)
     if cached is None:
@@ -728,8 +728,7 @@ def fit_features(spec: str) -> tuple:
 def main(argv=None):
     global ROD_WEIGHT, DROP_WEIGHT
     from _machine import machine, read_rows, results_dir
-    from topopose.pose import confidence as C
-
+    from topopose.frame import confidence as C
     ap = argparse.ArgumentParser()
     ap.add_argument("--frames", type=int, default=15)
     ap.add_argument("--seeds", type=int, default=6, help="capsule human seeds")

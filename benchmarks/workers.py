@@ -7,7 +7,7 @@ two worker processes, started by the call, each loading the kernels from the dis
 building its estimator: what a user's ``--workers 2`` costs), interleaved over ``--rounds``
 rounds; minimum wall time per setting. The rate is frames / wall time of the whole call
 (cluster start included). The CLI runs captures with fewer than ``MIN_FRAMES_PER_WORKER``
-frames per worker in one process (``topopose.pose.run``), from these figures.
+frames per worker in one process (``topopose.batch.run``), from these figures.
 
 Usage: ``python benchmarks/workers.py [--quick] [--rounds 2] [--long 200]``.
 """
@@ -35,8 +35,9 @@ def main():
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--long", type=int, default=200)
     args = ap.parse_args()
-    from topopose.capture import load_capture, synthesize
-    from topopose.pose.run import MIN_FRAMES_PER_WORKER, run
+    from topopose.capture import load_capture
+    from topopose.synth import synthesize
+    from topopose.batch.run import MIN_FRAMES_PER_WORKER, run
 
     sizes = [40] if args.quick else [40, args.long]
     rounds = 1 if args.quick else args.rounds

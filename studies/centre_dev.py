@@ -1,5 +1,5 @@
 """Development study: the limbs' curves moved onto the silhouettes' centre lines
-(:mod:`topopose.pose.centre`) and the full skeleton's MPJPE, with it and without it, per
+(:mod:`topopose.frame.centre`) and the full skeleton's MPJPE, with it and without it, per
 camera set-up (``benchmarks/tracking.py``'s ``8``, ``4p``, ``4pd``) on development sequences.
 
     python studies/centre_dev.py --work DIR [--seeds 41,42,51,52] [--setups 8,4p,4pd]
@@ -8,8 +8,8 @@ camera set-up (``benchmarks/tracking.py``'s ``8``, ``4p``, ``4pd``) on developme
 One per-frame run per sequence (as ``tracking.py --bias``: AHA threshold and confidence gate
 off, ``centre=True``: the offsets recorded, nothing else changes), cached in ``--work``; the
 motion stage (tracking, trim, the kinematic fit) per variant: ``off`` the curves as the hull
-gives them (:data:`topopose.pose.kinematic_fit.CENTRED` False), ``on`` centred; other variants
-change :mod:`topopose.pose.centre`'s settings (``NAME=value`` joined by ``+``: they need the
+gives them (:data:`topopose.sequence.kinematic_fit.CENTRED` False), ``on`` centred; other variants
+change :mod:`topopose.frame.centre`'s settings (``NAME=value`` joined by ``+``: they need the
 per-frame run again, cached per variant). MPJPE (the issue's joints) median over the frames
 whose per-frame pose is right (``evaluate``: good), per joint the median error; ms per frame
 of the centring. Never the held-out seeds. Writes ``centre_dev.md`` / ``.json``.
@@ -28,12 +28,12 @@ import tracking as T  # noqa: E402
 from _machine import machine, machine_line  # noqa: E402
 
 from topopose.capture import load_capture  # noqa: E402
-from topopose.pose import centre as C  # noqa: E402
-from topopose.pose import kinematic_fit as kf  # noqa: E402
-from topopose.pose import run  # noqa: E402
+from topopose.frame import centre as C  # noqa: E402
+from topopose.sequence import kinematic_fit as kf  # noqa: E402
+from topopose.batch import run  # noqa: E402
 from topopose.pose.model import load_model  # noqa: E402
-from topopose.pose.quality import evaluate  # noqa: E402
-from topopose.pose.track import track  # noqa: E402
+from topopose.batch.quality import evaluate  # noqa: E402
+from topopose.sequence.track import track  # noqa: E402
 
 JOINTS = ("neck", "shoulder", "elbow", "wrist", "hip", "knee", "ankle")
 

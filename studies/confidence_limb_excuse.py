@@ -3,7 +3,7 @@
 Idea: when the alignment leaves a hand (or foot) unmatched — a *missing limb* of §13.2.2, a
 right frame by the issue's count — the unmatched data branch that most plausibly is that limb
 should not count as spurious; re-score a rejected frame with the spurious features of
-:func:`topopose.pose.confidence.frame_features` recomputed without it, at judgement time (as
+:func:`topopose.frame.confidence.frame_features` recomputed without it, at judgement time (as
 ``head_doubt`` does for the head), and match it when that reaches the minimum.
 
 Offline, from the frames ``benchmarks/confidence.py`` collected
@@ -41,7 +41,7 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(1, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # the benchmarks a study builds on
 from _machine import machine, results_dir  # noqa: E402
 
-from topopose.pose.confidence import (CONFIDENCE_MODEL, fitted_confidence,  # noqa: E402
+from topopose.frame.confidence import (CONFIDENCE_MODEL, fitted_confidence,  # noqa: E402
                                       min_confidence_for, min_drop_for)
 
 HALF = {"human": 3, "body": 10, "pose": 105}       # first held-out seed (benchmarks/confidence.py)

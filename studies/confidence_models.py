@@ -35,7 +35,7 @@ SHIPPED = tuple(f for f in B.FIT_FEATURES if f != "matched_distance")
 
 def guards(f) -> float:
     """The hull and size guards of fitted_confidence (the model's probability × these)."""
-    from topopose.pose.confidence import fitted_confidence
+    from topopose.frame.confidence import fitted_confidence
 
     c = fitted_confidence(f, 1.0 - f["lost"])
     return c["hull"] * c["size"]
@@ -64,7 +64,7 @@ class Logistic:
         self.feats, self.cams, self.l2 = feats, cams, l2
 
     def fit(self, rs):
-        from topopose.pose.confidence import fit_logistic
+        from topopose.frame.confidence import fit_logistic
 
         X = design(rs, self.feats, self.cams)
         aug = np.array([bool(r.get("augmented")) for r in rs])
@@ -86,7 +86,7 @@ class Trees:
         self.feats, self.params = feats, params
 
     def fit(self, rs):
-        from topopose.pose.confidence import trees_from_sklearn
+        from topopose.frame.confidence import trees_from_sklearn
         from sklearn.ensemble import GradientBoostingClassifier
 
         gb = GradientBoostingClassifier(random_state=0, **{**B.TREES, **self.params})
@@ -95,7 +95,7 @@ class Trees:
         return self
 
     def prob(self, rs):
-        from topopose.pose.confidence import tree_confidence
+        from topopose.frame.confidence import tree_confidence
 
         return np.array([tree_confidence(r["features"], self.model) for r in rs])
 

@@ -35,7 +35,7 @@ FEATURES = ("head_bend", "head_offset", "torso_radius", "head_torso", "end_radiu
 def frame_row(est, frame, trunk):
     """One frame: the alignment's torso / crotch data vertices and the placed ones against
     ``trunk`` (name → reference position), the hull's largest inscribed ball (voxels, metres)."""
-    from topopose.pose.estimate import taxicab_radii
+    from topopose.frame.estimate import taxicab_radii
 
     p, det = est.estimate(frame, detail=True)
     if p.status == "failed":
@@ -59,7 +59,7 @@ def frame_row(est, frame, trunk):
 def real_rows(rec, step):
     import real as R
     import topopose as tp
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.frame.estimate import FrameEstimator
 
     ref = R.read_trc(rec / "reference" / "pose2sim_3d.trc")
     rows = []
@@ -84,8 +84,8 @@ def real_rows(rec, step):
 
 def synthetic_rows(seeds, frames):
     import confidence as B
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
 
     rows = []
     for setup, kind, seed in [(s, k, x) for s in ("4p", "4r") for k in ("random", "balance")

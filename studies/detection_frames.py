@@ -1,7 +1,7 @@
 """Pictures of the frames a named pose (§13.3.2.1) decides wrongly, on the development seeds.
 
 For each frame given: the visual hull (max projections, front and side), the skeleton, the
-points the detection compares (``topopose.pose.detect.description_parts``, crosses; the pose's
+points the detection compares (``topopose.apps.detect.description_parts``, crosses; the pose's
 own crotch, dropped by ``pose/anatomy.py`` CROTCH_DROP, a small square) and the corresponding
 ground-truth points (``applications.pipeline_points``, circles), with the decision and the
 truth in the title. Development seeds only (capsule human 3–4, body 1–2: ``applications.py
@@ -32,9 +32,9 @@ def main(argv=None):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.detect import description_parts, evaluate, load_library, up_frame
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.synth.capture import synthetic_capture
+    from topopose.apps.detect import description_parts, evaluate, load_library, up_frame
+    from topopose.frame.estimate import FrameEstimator
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("kind", choices=("upright", "acrobatic", "body"))

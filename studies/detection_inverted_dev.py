@@ -87,7 +87,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.frame.estimate import FrameEstimator
 
     t0 = time.time()
     rows, caps = [], {}
@@ -196,7 +196,7 @@ def main(argv=None):
 
 
 def _up(up):
-    from topopose.pose.detect import up_frame
+    from topopose.apps.detect import up_frame
 
     return up_frame(up)[2]
 

@@ -56,8 +56,9 @@ def offset(p, seg):
 
 
 def run(caps, options, pictures=0, tag=""):
-    from topopose.pose import FrameEstimator, load_model
-    from topopose.pose.quality import evaluate
+    from topopose.frame import FrameEstimator
+    from topopose.pose import load_model
+    from topopose.batch.quality import evaluate
 
     model = load_model("human")
     recs, shown = [], Counter()

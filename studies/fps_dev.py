@@ -3,7 +3,7 @@ development motions (``benchmarks/tracking.py``'s walks 41–43 and random motio
 each) rendered at 25 frames/s (the rate every development figure was measured at) and at 60
 frames/s (the real recording's), and 30 unrelated random poses (seeds 21–24, 8 cameras, 25
 frames/s: no smoothing may touch them); the per-frame results cached, the sequence stage re-run
-per smoothing window (:func:`topopose.pose.kinematic_fit.fit_sequence`'s ``smooth``, frames).
+per smoothing window (:func:`topopose.sequence.kinematic_fit.fit_sequence`'s ``smooth``, frames).
 
     python studies/fps_dev.py [--work DIR] [--setups 8,4p] [--fps 25,60]
                                  [--windows 0,9,15,21,27] [--seconds 1.6] [--out DIR]
@@ -13,8 +13,8 @@ Per set-up, rate and window: the full skeleton's MPJPE (cm; median over the pool
 the per-frame mean over the issue's joints) on the matched frames (8 cameras: the gated run as
 ``tracking.py``) or, for 4 phones (threshold and gate off, as ``real_motion.py``), on the frames
 whose per-frame pose is right (``evaluate``: good), bridged temporal outliers
-(:func:`~topopose.pose.kinematic_fit.bridge_outliers`) counted; ``--no-bridge``: its peer,
-outliers kept as fitted; ``--set``: any other :mod:`~topopose.pose.kinematic_fit` constant
+(:func:`~topopose.sequence.kinematic_fit.bridge_outliers`) counted; ``--no-bridge``: its peer,
+outliers kept as fitted; ``--set``: any other :mod:`~topopose.sequence.kinematic_fit` constant
 (e.g. ``--set DESPIKE=None --set "FROM_START={}"``, the peer of the defaults). Never
 the held-out seeds. Writes ``fps_dev.md`` / ``.json``
 (``--name``).
@@ -33,12 +33,12 @@ import tracking as T  # noqa: E402
 from _machine import apply_settings, machine, machine_line, results_dir  # noqa: E402
 
 from topopose.capture import load_capture  # noqa: E402
-from topopose.capture.synth import synthetic_capture, write_capture  # noqa: E402
-from topopose.pose import kinematic_fit as kf  # noqa: E402
-from topopose.pose import run  # noqa: E402
+from topopose.synth.capture import synthetic_capture, write_capture  # noqa: E402
+from topopose.sequence import kinematic_fit as kf  # noqa: E402
+from topopose.batch import run  # noqa: E402
 from topopose.pose.model import load_model  # noqa: E402
-from topopose.pose.quality import evaluate  # noqa: E402
-from topopose.pose.track import track  # noqa: E402
+from topopose.batch.quality import evaluate  # noqa: E402
+from topopose.sequence.track import track  # noqa: E402
 
 SEQUENCES = [s for s in T.DEV_SEQUENCES if s[1] in (41, 42, 43, 51, 52, 53, 21, 22, 23, 24)]
 MOTIONS = ("walk", T.SMOOTH, "random")

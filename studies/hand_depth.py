@@ -33,7 +33,7 @@ def synthetic_depths(setups, seeds, frames, work) -> dict:
     """Per set-up: (depth, right) of each frame ``run --consistency`` passes."""
     import consistency as CB
     import real_hands as RH
-    from topopose.capture.synth import synthetic_capture
+    from topopose.synth.capture import synthetic_capture
     from topopose.pose.model import load_model
 
     model = load_model("human")

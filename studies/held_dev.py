@@ -25,10 +25,10 @@ import tracking as T  # noqa: E402
 from _machine import machine  # noqa: E402
 
 from topopose.capture import load_capture  # noqa: E402
-from topopose.pose import kinematic_fit as kf  # noqa: E402
-from topopose.pose import run  # noqa: E402
+from topopose.sequence import kinematic_fit as kf  # noqa: E402
+from topopose.batch import run  # noqa: E402
 from topopose.pose.model import load_model  # noqa: E402
-from topopose.pose.track import track  # noqa: E402
+from topopose.sequence.track import track  # noqa: E402
 
 
 def frames(work, motion, seed, build, n, model):
@@ -86,7 +86,7 @@ def _with(**consts):
 
 
 def _gaps(g, **consts):
-    """A variant: :func:`~topopose.pose.kinematic_fit.held_gaps` on, runs up to ``g`` frames."""
+    """A variant: :func:`~topopose.sequence.kinematic_fit.held_gaps` on, runs up to ``g`` frames."""
     def f(tracked, model):
         keep = {k: getattr(kf, k) for k in consts}
         try:

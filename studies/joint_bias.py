@@ -1,6 +1,6 @@
 """The full skeleton's systematic error per joint on the development sequences: signed
 bias in the truth's body frame and along the true bone, and the tips (fingertips, toes) taken
-apart, with and without :func:`~topopose.pose.kinematic_fit.tip_targets`.
+apart, with and without :func:`~topopose.sequence.kinematic_fit.tip_targets`.
 
     python studies/joint_bias.py [--work DIR] [--frames 40] [--out benchmarks/results]
 
@@ -19,7 +19,7 @@ limb (``held_joints``: an unseen limb's joints are guesses) and, for arms, the t
   it towards up and sideways; the tip bone's length ratio; its pitch and yaw against the true
   one; the bend at the parent joint (the angle between the bone above and the tip bone), ours
   minus the truth's — for the fit, the fit without the tips' correction and the initial
-  placement (:func:`~topopose.pose.kinematic_fit.initial_placement`, before the correction).
+  placement (:func:`~topopose.sequence.kinematic_fit.initial_placement`, before the correction).
 
 Writes ``joint_bias_dev.md`` and ``joint_bias_dev.json`` (the medians per group).
 """
@@ -37,11 +37,11 @@ from _machine import machine, machine_line  # noqa: E402
 from tracking import DEV_SEQUENCES, fit_without_tips, make_sequence  # noqa: E402
 
 from topopose.capture import load_capture  # noqa: E402
-from topopose.pose import run  # noqa: E402
-from topopose.pose.kinematic_fit import fit_sequence, initial_placement  # noqa: E402
+from topopose.batch import run  # noqa: E402
+from topopose.sequence.kinematic_fit import fit_sequence, initial_placement  # noqa: E402
 from topopose.pose.model import load_model  # noqa: E402
 from topopose.pose.pose import read_poses  # noqa: E402
-from topopose.pose.track import track  # noqa: E402
+from topopose.sequence.track import track  # noqa: E402
 
 # limb → (our joint base, the rig's name: side + this, or a tip vertex prefix + l/r)
 LIMBS = {"arm": (("shoulder", "Arm_head"), ("elbow", "ForeArm_head"), ("wrist", "Hand_head"),

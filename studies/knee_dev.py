@@ -1,5 +1,5 @@
 """Development study: the knees placed by their distance from the leg curve's far end
-(:func:`topopose.pose.kinematic_fit.from_end`, :data:`~topopose.pose.kinematic_fit.FROM_END`)
+(:func:`topopose.sequence.kinematic_fit.from_end`, :data:`~topopose.sequence.kinematic_fit.FROM_END`)
 against their fraction ``at`` from the junction; the full skeleton's MPJPE per camera set-up
 (``benchmarks/tracking.py``'s ``8``, ``4p``, ``4pd``) on development sequences.
 
@@ -14,7 +14,7 @@ e.g. ``knee40``, ``knee40_elbow50``: those joints from the end, the reference le
 percentile; ``_w1``: from the end alone, else half-way to the place at ``at``,
 ``FROM_END_WEIGHT``). MPJPE over the good
 frames (median), per joint the median error. ``--set``: any other
-:mod:`~topopose.pose.kinematic_fit` constant for the run (a Python literal, e.g. ``--set
+:mod:`~topopose.sequence.kinematic_fit` constant for the run (a Python literal, e.g. ``--set
 "FROM_START={}"``). Never the held-out seeds. Writes ``knee_dev.md``
 / ``.json``.
 """
@@ -30,7 +30,7 @@ import centre_dev as CD  # noqa: E402
 import tracking as T  # noqa: E402
 from _machine import apply_settings, machine  # noqa: E402
 
-from topopose.pose import kinematic_fit as kf  # noqa: E402
+from topopose.sequence import kinematic_fit as kf  # noqa: E402
 from topopose.pose.model import load_model  # noqa: E402
 
 

@@ -37,7 +37,7 @@ from _machine import machine, machine_line  # noqa: E402
 
 from topopose.capture import load_capture  # noqa: E402
 from topopose.pose.model import load_model  # noqa: E402
-from topopose.pose.track import track  # noqa: E402
+from topopose.sequence.track import track  # noqa: E402
 
 ARM = (("shoulder", "Arm_head"), ("elbow", "ForeArm_head"), ("wrist", "Hand_head"),
        ("fingertip", None))

@@ -13,7 +13,7 @@ rays, the other two see the arm inside the trunk), so the hand ends at the far e
 writes them: :func:`consistency.sequence`, :func:`consistency.as_run`; its cache ``--work``)
 fail the same way. For every frame that is not right (a true positive (TP) of the quality classes, 0.08 × height), every
 wrong part (placed, farther than the tolerance from its ground-truth segment after the optimal
-pairing of :func:`topopose.pose.quality.evaluate`) is tested for:
+pairing of :func:`topopose.batch.quality.evaluate`) is tested for:
 
 - **beyond**: the part's skeleton curve (``diagnostics["curves"]``, from the torso to the
   part) passes within the tolerance of the part's true segment before its end (the part lies
@@ -34,7 +34,7 @@ Writes ``results/phantom.{md,json}``.
 
     python studies/phantom.py --effect [--setups 4,4p,4r,8] [--seeds ...] [--label NAME]
 
-The effect of the hands' trim (:mod:`topopose.pose.trim`, the sequence stage ``topopose run``
+The effect of the hands' trim (:mod:`topopose.frame.trim`, the sequence stage ``topopose run``
 runs with the capture's silhouettes): per set-up, right frames (all, as the run writes them),
 precision of ``matched`` and of ``run --consistency``, without → with the trim. Writes
 ``results/phantom_trim_{label}.{md,json}``.
@@ -65,7 +65,7 @@ PAIRS = {"4r": ((4, (544, 960), 2), 0), "4rd": ((4, (544, 960), 2), 3)}
 def capture(setup, seed, frames):
     """The synthetic capture of one sequence of a set-up (consistency.py's, or :data:`PAIRS`)."""
     import consistency as CB
-    from topopose.capture.synth import synthetic_capture
+    from topopose.synth.capture import synthetic_capture
 
     if setup in PAIRS:
         (cams, size, noise), dil = PAIRS[setup]
@@ -174,8 +174,8 @@ def diagnose(setup, seed, frames, work, model, up) -> list:
     """Rows (one per wrong part of a wrong frame, or one per partial frame) of one sequence."""
     import consistency as CB
     from scipy.ndimage import distance_transform_edt
-    from topopose.pose.chirality import numbered
-    from topopose.pose.quality import evaluate
+    from topopose.sequence.chirality import numbered
+    from topopose.batch.quality import evaluate
 
     poses, gt = sequence(setup, seed, frames, work)
     ps = [numbered(p, model) for p in CB.as_run(poses, model, up)]
@@ -305,7 +305,7 @@ def effect_report(doc) -> str:
          f"{', '.join(map(str, doc['seeds']))}, {doc['frames']} frames each, the `body` walks of "
          "`benchmarks/consistency.py` (set-ups 4, 4p: even ring; 4r: the real recording's two "
          "facing pairs, `synth.camera_ring` layout \"pairs\"; 8: 8 cameras), poses as the run "
-         "writes them (sequence stages on), without → with the trim (`topopose.pose.trim`).", "",
+         "writes them (sequence stages on), without → with the trim (`topopose.frame.trim`).", "",
          "| set-up | frames | frames trimmed | right (TP of the quality classes) | matched: right / all | "
          "`--consistency` passing: right / all |", "|---|---|---|---|---|---|"]
     for setup, d in doc["setups"].items():

@@ -152,7 +152,7 @@ def cause(ch, rt) -> str:
 
 
 def run(est, cap, ref, volumes) -> dict:
-    from topopose.pose.estimate import matched_arc_cost
+    from topopose.frame.estimate import matched_arc_cost
 
     est.hull = lambda name: volumes[name]
     rows, right = [], 0
@@ -199,7 +199,7 @@ def run(est, cap, ref, volumes) -> dict:
 
 def main(argv=None):
     from _machine import machine
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.frame.estimate import FrameEstimator
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(real.DEFAULT))

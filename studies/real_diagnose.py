@@ -131,7 +131,7 @@ def picture(cap, est, ref, frames, side, path):
 def main(argv=None):
     from _machine import machine
     from topopose.capture.background import foreground_maps
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.frame.estimate import FrameEstimator
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(real.DEFAULT))

@@ -331,10 +331,10 @@ def geometric_tests(rows) -> dict:
     to the silhouette's contour over the silhouette's largest inscribed radius, the second
     deepest of the 4 views (a hand in a phantom volume in front of the trunk lies deep in two
     views); *arm* — the hand arc's skeleton-curve length over the run's own
-    (:func:`topopose.pose.consistency.length_ratios`), the farthest from 1. Ranges over the
+    (:func:`topopose.sequence.consistency.length_ratios`), the farthest from 1. Ranges over the
     right and the wrong frames."""
     import trust_features as T
-    from topopose.pose import consistency as C
+    from topopose.sequence import consistency as C
     from topopose.pose.model import load_model
 
     model = load_model("human")

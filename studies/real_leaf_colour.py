@@ -108,8 +108,8 @@ def auc(pos, neg):
 def main(argv=None):
     import topopose as tp
     from _machine import machine
-    from topopose.pose.confidence import temporal_confidence
-    from topopose.pose.estimate import FrameEstimator, default_gate
+    from topopose.frame.confidence import temporal_confidence
+    from topopose.frame.estimate import FrameEstimator, default_gate
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(real.DEFAULT))

@@ -3,7 +3,7 @@
 
     python studies/real_order.py [RECORDING] [--out DIR] [--quick]
 
-The per-frame stage of :func:`topopose.pose.run` (AHA threshold and gate off, no sequence
+The per-frame stage of :func:`topopose.batch.run` (AHA threshold and gate off, no sequence
 stages) on every frame in order, with two workers (frames processed in another order, in two
 processes), and on the second half only (``frames="50:100"``); counts the frames whose status,
 parts (1e-8 m) and hull voxel count equal the serial run's. A ``person`` grid that grows with the
@@ -29,8 +29,7 @@ sys.path.insert(1, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # t
 def poses(rec, work: Path, frames=None, workers=1) -> dict:
     from real import person_capture
 
-    from topopose.pose import run
-
+    from topopose.batch import run
     if work.exists():
         shutil.rmtree(work)
     with warnings.catch_warnings():

@@ -6,7 +6,7 @@
 
 Per method and grid resolution, one end-to-end run (:func:`real.run_method`), then the poses as
 ``topopose run`` writes them (:func:`real.as_run`) twice from the same per-frame poses: with
-:func:`topopose.pose.track.track`'s default ``snap_run`` (``max_gap``) and with
+:func:`topopose.sequence.track.track`'s default ``snap_run`` (``max_gap``) and with
 ``snap_run = 10**9`` (never). Scores as ``real.py``: frames right as written, ``matched`` and
 its precision, part-frames snapped. The picture (``real_snap.png``) shows, for the first method
 and resolution, each frame's worst hand or foot error against Pose2Sim: per frame, as written
@@ -32,8 +32,8 @@ def written(poses, model, up, mc, snap_run):
     """:func:`real.as_run` with the tracker's ``snap_run``."""
     import real
 
-    from topopose.pose import motion
-    from topopose.pose.track import track
+    from topopose.sequence import motion
+    from topopose.sequence.track import track
 
     keep = motion.track_identities
     motion.track_identities = functools.partial(track, snap_run=snap_run)

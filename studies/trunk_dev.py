@@ -31,10 +31,10 @@ import tracking as T  # noqa: E402
 from _machine import machine, machine_line  # noqa: E402
 
 from topopose.capture import load_capture  # noqa: E402
-from topopose.pose import kinematic_fit as kf  # noqa: E402
+from topopose.sequence import kinematic_fit as kf  # noqa: E402
 from topopose.pose.model import load_model  # noqa: E402
-from topopose.pose.quality import evaluate  # noqa: E402
-from topopose.pose.track import track  # noqa: E402
+from topopose.batch.quality import evaluate  # noqa: E402
+from topopose.sequence.track import track  # noqa: E402
 
 JOINTS = ("neck", "shoulder", "hip", "pelvis", "elbow", "wrist", "knee", "ankle")
 TRUNK = ("neck", "shoulder", "hip", "pelvis")

@@ -15,7 +15,7 @@ used to choose). Each frame is estimated without the gate (:class:`FrameEstimato
 (``benchmarks/consistency.py``), real: head, both hands and both feet within 0.15 m of
 Pose2Sim's 3D result (``benchmarks/real.py``).
 
-Features (:func:`topopose.pose.support.support_features`, computed from the frame's curves,
+Features (:func:`topopose.frame.support.support_features`, computed from the frame's curves,
 hull and silhouettes exactly as the estimator records ``diagnostics["unexplained"]``) are
 scored by their AUC (the probability that a random right frame scores better than a random
 wrong one), alone and with the run's confidence (mean of the ranks). Then ``matched`` of the
@@ -62,9 +62,9 @@ def unpack(a):
 def synthetic_records(setup, seed, frames, work):
     """Per frame of one synthetic walk: record, right flag; cached in ``work``."""
     import consistency as C
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.confidence import temporal_confidence
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.confidence import temporal_confidence
+    from topopose.frame.estimate import FrameEstimator
     from topopose.pose.model import load_model
 
     f = Path(work) / f"syn_{setup}_{seed}_{frames}.pkl"
@@ -91,8 +91,8 @@ def real_records(recording, work):
     """Per frame of the real recording (``person`` silhouettes): record, right flag."""
     import real
     from topopose.capture.background import foreground_maps, scaled_camera
-    from topopose.pose.confidence import temporal_confidence
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.frame.confidence import temporal_confidence
+    from topopose.frame.estimate import FrameEstimator
 
     f = Path(work) / "real_person.pkl"
     if f.exists():
@@ -123,8 +123,8 @@ def real_records(recording, work):
 def features_of(rec):
     """The frame's confidence, AHA distance and support features; ``ms``: the time of
     ``unexplained`` alone as the estimator computes it (its inscribed distances at hand)."""
-    from topopose.pose.support import support_features
-    from topopose.pose.tips import inscribed_distances
+    from topopose.frame.support import support_features
+    from topopose.frame.tips import inscribed_distances
 
     p = rec["pose"]
     out = {"confidence": p.diagnostics.get("confidence"), "distance": p.distance}
@@ -197,7 +197,7 @@ def as_run_consistency(recording, recs, feats, settings):
     ``unexplained`` as the estimator records it): the poses, each frame's record index and
     Pose2Sim's markers."""
     import real
-    from topopose.pose.confidence import min_confidence_for
+    from topopose.frame.confidence import min_confidence_for
     from topopose.pose.model import load_model
 
     _, ref = real.open_recording(recording)
@@ -237,8 +237,7 @@ def main(argv=None):
     from _machine import machine, write_results
     import real
     from consistency import BEFORE
-    from topopose.pose import consistency as C
-
+    from topopose.sequence import consistency as C
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(real.DEFAULT))
     ap.add_argument("--work", default=None, help="cache of the per-frame records")
@@ -263,7 +262,7 @@ def main(argv=None):
             print(f"{setup} {part}: {len(rows)} frames", file=sys.stderr, flush=True)
     doc = {"machine": machine(), "frames": a.frames, "dev_seeds": a.dev_seeds,
            "test_seeds": a.test_seeds, "dilation": None}
-    from topopose.pose.support import DILATION
+    from topopose.frame.support import DILATION
     doc["dilation"] = DILATION
     rr = real_records(a.recording, work)
     if rr is not None:

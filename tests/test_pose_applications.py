@@ -10,10 +10,10 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
 from topopose.errors import InputError
-from topopose.pose import cluster as C
-from topopose.pose import detect as D
-from topopose.pose import segment as S
-from topopose.pose.segment_kernels import depth, flood
+from topopose.apps import cluster as C
+from topopose.apps import detect as D
+from topopose.apps import segment as S
+from topopose.apps.segment_kernels import depth, flood
 
 
 # ============================================================================ flooding
@@ -112,7 +112,7 @@ def _brute_weighted(mask, seeds, start):
 
 @pytest.mark.parametrize("seed", range(4))
 def test_weighted_flood_equals_brute_force_dijkstra(seed):
-    from topopose.pose.segment_kernels import flood_weighted, neighbours
+    from topopose.apps.segment_kernels import flood_weighted, neighbours
 
     rng, mask, seeds = _random_seeds(seed)
     start = np.where(seeds > 0, rng.integers(0, 9, mask.shape), 0)
@@ -243,7 +243,7 @@ def test_bone_segments_split_the_chain_at_the_limb_start():
     """``start``: the trunk takes each limb's chain of joints up to the given position (in
     bones from the junction), the limb the rest: head 0.5 splits chest → neck at its middle,
     hand 1.45 gives the trunk chest → shoulder and 45 % of shoulder → elbow."""
-    from topopose.pose.kinematic_fit import initial_placement, kinematic_tree
+    from topopose.sequence.kinematic_fit import initial_placement, kinematic_tree
     from topopose.pose.model import load_model
 
     model = load_model("human")
@@ -362,8 +362,8 @@ def test_skeleton_labels_follow_the_matched_arcs():
 
 
 def test_segment_synthetic_human_against_ground_truth(tmp_path):
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
 
     cap = synthetic_capture("human", frames=2, seed=11, separated=True, margin=0.06)
     est = FrameEstimator(cap, "human", 64)
@@ -724,7 +724,7 @@ def test_body_truth_groups_the_nearest_vertex_bone():
     ``bone_arc`` replaces the grouping."""
     from scipy.spatial.distance import cdist
 
-    from topopose.capture.synth_body import BUILDS, dominant_bones, pose_body
+    from topopose.synth.body import BUILDS, dominant_bones, pose_body
     from topopose.hull.volume import Volume
     from topopose.pose.model import load_model
 

@@ -4,7 +4,7 @@ import pytest
 
 from topopose.match import Matcher, Tree
 from topopose.pose import load_model
-from topopose.pose.subject import edge_lengths, subject_model
+from topopose.sequence.subject import edge_lengths, subject_model
 
 
 def _body_tree(rng, lengths):

@@ -1,4 +1,4 @@
-"""topopose.pose.support: the silhouette the placed model leaves unexplained.
+"""topopose.frame.support: the silhouette the placed model leaves unexplained.
 
 Oracles: a hand-built scene (a vertical cylinder seen by one pinhole camera; its silhouette
 with and without an "arm" rectangle whose area share is computed by hand); a synthetic
@@ -9,9 +9,9 @@ above ``max_unexplained`` and ignoring frames without the value.
 import numpy as np
 import pytest
 
-from topopose.capture.camera import Camera
-from topopose.pose import consistency as C
-from topopose.pose.support import support_features
+from topopose.geometry.camera import Camera
+from topopose.sequence import consistency as C
+from topopose.frame.support import support_features
 
 F, W, H = 500.0, 200, 240
 
@@ -66,8 +66,8 @@ def test_cylinder_explained_and_an_arm_unexplained():
 
 @pytest.fixture(scope="module")
 def synthetic_frame():
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
 
     cap = synthetic_capture("human", frames=3, seed=5, cameras=4, size=(320, 240),
                             separated=True)
@@ -148,8 +148,7 @@ def test_per_frame_support_test_judges_each_frame_alone():
 def test_run_support_switch(synthetic_frame, tmp_path):
     """``run(support_test=True)``: every matched frame within the limit, the others rejected
     for it or left as without the switch; the same parts either way."""
-    from topopose.pose import run
-
+    from topopose.batch import run
     cap = synthetic_frame[0]
     off = run(cap, resolution=64, progress=False, gate=False, track=False, sides=False,
               skeleton=False, support=True)

@@ -18,7 +18,7 @@ def _snippet():
 
 
 def test_readme_snippet_distance_equals_cli(tmp_path, capsys):
-    from topopose.capture import synthesize
+    from topopose.synth import synthesize
 
     cap_dir = synthesize(tmp_path / "cap", subject="human", frames=2, seed=4, cameras=8,
                          size=(240, 180), separated=True)

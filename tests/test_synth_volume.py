@@ -9,8 +9,8 @@ points on it (elbow, the "arm" part on the border) are left out.
 import numpy as np
 import pytest
 
-from topopose.capture import synth
-from topopose.capture.synth_subjects import GAIT
+from topopose.synth import capture as synth
+from topopose.synth.subjects import GAIT
 
 HAND_OUT = {"elbow", "arm", "arm_border", "shoulder"}
 

@@ -45,7 +45,7 @@ def test_detection_truth_points_of_a_built_capsule_human(flex):
     ankle → toe joints), the crotch the pelvis ellipsoid's centre (exact with a straight spine;
     within the chord 2 · 4 cm · sin(flex / 2) when the spine bends, the body axis then being the spine's), the
     head the crown (the head ellipsoid's top), the alternative correspondence gt.json's own."""
-    from topopose.capture.synth_subjects import BUILD, HUMAN_DEFAULT
+    from topopose.synth.subjects import BUILD, HUMAN_DEFAULT
 
     A = applications
     body = BUILD["human"]({**HUMAN_DEFAULT, "spine_flex": flex, "pelvis_pitch": 20.0,

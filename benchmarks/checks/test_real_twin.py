@@ -20,7 +20,7 @@ def rt():
 
 
 def test_inverse_kinematics_recovers_a_pose_of_the_rig(rt):
-    from topopose.capture.synth_body import BUILDS
+    from topopose.synth.body import BUILDS
 
     poser = rt.Poser(BUILDS["average"])
     pose = {"spine_flex": 15.0, "spine_side": -8.0, "neck_flex": 10.0, "sh_flex_l": 40.0,
@@ -68,7 +68,7 @@ def test_truth_against_reference_is_the_markers_distance(rt):
 
 
 def test_twin_silhouettes_hold_the_body(rt):
-    from topopose.capture.synth_body import BUILDS, pose_body
+    from topopose.synth.body import BUILDS, pose_body
 
     body = pose_body({"sh_abd_l": 60.0, "elbow_r": 30.0}, BUILDS["average"]).transformed(
         np.eye(3), np.array([0.0, 0.0, 0.0]))

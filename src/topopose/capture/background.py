@@ -50,9 +50,9 @@ from concurrent.futures import ThreadPoolExecutor
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from .camera import Camera
-from .sources import SKIPPED
+from topopose.errors import InputError
+from topopose.geometry.camera import Camera
+from topopose.capture.sources import SKIPPED
 
 SEQUENCE_METHODS = ("sequence", "selfie", "sequence+selfie", "person")
 
@@ -109,7 +109,7 @@ def subject_region(cameras_small, motion, unit: float):
     -------
     (centres (n, 3), voxel_size) or None
     """
-    from ..hull.carver import HullCarver
+    from topopose.geometry.carver import HullCarver
 
     import cc3d
     from scipy import ndimage
@@ -217,7 +217,7 @@ def learn_backgrounds(samples, cameras, params, unit) -> tuple:
 
 def foreground_probability(img: np.ndarray, bg: SequenceBackground, params) -> np.ndarray:
     """uint8 (h, w) foreground probability (× 255) of a downscaled image (module docstring)."""
-    from .background_kernels import colour_probability
+    from topopose.capture.background_kernels import colour_probability
 
     q = np.empty(img.shape[:2], dtype=np.uint8)
     colour_probability(np.ascontiguousarray(img[:, :, :3]), bg.image, bg.known,
@@ -242,7 +242,7 @@ def capture_backgrounds(cap) -> list:
     key = ("sequence_backgrounds",)
     if key in cap.cache:
         return cap.cache[key]
-    from .io import _frame_source, fit_size
+    from topopose.capture.io import _frame_source, fit_size
 
     p = cap.options["silhouettes"]
     s = float(p["scale"])
@@ -273,7 +273,7 @@ def capture_backgrounds(cap) -> list:
     stacks = [[g[f] for f in ok] for g in got]
     if not ok:
         raise InputError(f"{cap.path}: no readable frame to learn the background from")
-    from .calibration import _UNITS
+    from topopose.capture.calibration import _UNITS
 
     unit = 1.0 / _UNITS.get(cap.units, 1.0)
     stacks = [np.stack(x) for x in stacks]
@@ -314,7 +314,7 @@ def foreground_maps(cap, frame, images=None) -> list:
     method = p["method"]
     s = float(p["scale"])
     if images is None:
-        from .io import read_images
+        from topopose.capture.io import read_images
         images = read_images(cap, frame)
     if method == "person":       # the network alone needs no background model
         out = _person_maps(cap, frame, images, p)
@@ -328,7 +328,7 @@ def foreground_maps(cap, frame, images=None) -> list:
         if method in ("sequence", "sequence+selfie"):
             q = foreground_probability(img, bg, p)
         if method in ("selfie", "sequence+selfie"):
-            from .segment import selfie_probability
+            from topopose.capture.segment import selfie_probability
             q2 = selfie_probability(img, bg.zone, stream=(id(cap), c))
             # the network misses limbs: its "background" is a weak vote (floor), so that the
             # other cameras decide there
@@ -355,7 +355,7 @@ def _person_maps(cap, frame, images, p) -> list:
     camera is segmented every n-th frame); the others keep their map of the frame before,
     at most n - 1 frames old. Otherwise (the first frame, a jump) every camera is segmented
     (and, with ``person_track``, starts a new tracking graph)."""
-    from .segment import person_probabilities
+    from topopose.capture.segment import person_probabilities
     i = cap.frames.index(frame)
     n = int(p.get("person_every", 1))
     last = cap.cache.get("person_last")          # (index, maps) of the frame segmented last
@@ -365,7 +365,7 @@ def _person_maps(cap, frame, images, p) -> list:
     images = list(images)
     for c in cams:
         if images[c] is SKIPPED:      # not converted by the reader (io._person_needed)
-            from .io import _frame_source, fit_size
+            from topopose.capture.io import _frame_source, fit_size
             cam = cap.cameras[c]
             src = _frame_source(cap)
             images[c] = fit_size(cap, src.path(cam.name, frame) or cam.name,
@@ -388,7 +388,7 @@ UPSAMPLED_MASKS = True
 class UpsampledMask(np.ndarray):
     """A boolean silhouette at the calibration size that is the nearest-neighbour upsampling of
     ``small`` (uint8 0/1, an integer factor smaller on each axis): the hull carver reads
-    ``small`` instead (:meth:`topopose.hull.carver.HullCarver.load_masks`). Arrays derived from
+    ``small`` instead (:meth:`topopose.geometry.carver.HullCarver.load_masks`). Arrays derived from
     it (slices, copies, results of operations) do not carry ``small``."""
 
     small = None

@@ -17,10 +17,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from .camera import Camera
-from .background import SEQUENCE_METHODS, check_params
-from .capture import axis_vector
+from topopose.errors import InputError
+from topopose.geometry.camera import Camera
+from topopose.capture.background import SEQUENCE_METHODS, check_params
+from topopose.capture.capture import axis_vector
 
 IGNORED_TABLES = {"metadata"}
 

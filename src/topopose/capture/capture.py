@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from .camera import Camera
+from topopose.errors import InputError
+from topopose.geometry.camera import Camera
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -83,7 +83,7 @@ class Capture:
                                      f"(h, w) = {(cam.size[1], cam.size[0])}")
                 out.append(m)
             return out
-        from .io import read_silhouettes
+        from topopose.capture.io import read_silhouettes
 
         return read_silhouettes(self, frame)
 

@@ -23,13 +23,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from .calibration import read_calibration, read_capture_options
-from .camera import Camera
-from .capture import Capture
-from .background import SEQUENCE_METHODS
-from .silhouettes import extract_silhouette
-from .sources import SKIPPED, VIDEO_EXTENSIONS, ImageSource, Prefetcher, VideoSource, imread
+from topopose.errors import InputError
+from topopose.capture.calibration import read_calibration, read_capture_options
+from topopose.geometry.camera import Camera
+from topopose.capture.capture import Capture
+from topopose.capture.background import SEQUENCE_METHODS
+from topopose.capture.silhouettes import extract_silhouette
+from topopose.capture.sources import SKIPPED, VIDEO_EXTENSIONS, ImageSource, Prefetcher, VideoSource, imread
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
 
@@ -366,7 +366,7 @@ def silhouettes_from_images(cap: Capture, frame: str, images) -> list:
     ``{camera: image or InputError}`` of a frame source), with the capture's method."""
     images = image_list(cap, frame, images)
     if _sequence_method(cap):
-        from .background import foreground_maps, masks_from_maps
+        from topopose.capture.background import foreground_maps, masks_from_maps
         return masks_from_maps(cap, foreground_maps(cap, frame, images))
     return [extract_silhouette(im, _background(cap, cam), cap.options.get("silhouettes"))
             for cam, im in zip(cap.cameras, images)]
@@ -411,7 +411,7 @@ def read_silhouettes(cap: Capture, frame: str) -> list:
         ok, masks = pf.take(frame)
         if ok:
             if _sequence_method(cap):        # the reader computed probability maps
-                from .background import masks_from_maps
+                from topopose.capture.background import masks_from_maps
                 return masks_from_maps(cap, masks)
             return masks
     return _silhouettes_now(cap, frame)
@@ -463,7 +463,7 @@ def prefetch(cap: Capture, frames, depth: int = 4):
     if _sequence_method(cap):
         # the reader computes the foreground probabilities (the soft hull's input); the
         # background model is learned first, here
-        from .background import capture_backgrounds, foreground_maps
+        from topopose.capture.background import capture_backgrounds, foreground_maps
         if cap.options["silhouettes"]["method"] != "person":
             capture_backgrounds(cap)
 

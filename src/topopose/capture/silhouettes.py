@@ -20,7 +20,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .calibration import SILHOUETTE_DEFAULTS
+from topopose.capture.calibration import SILHOUETTE_DEFAULTS
 
 
 def _kernel(size: int):

@@ -46,9 +46,9 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import InputError
-from . import align_kernels as K
-from .tree import Tree, as_tree
+from topopose.errors import InputError
+from topopose.match import align_kernels as K
+from topopose.match.tree import Tree, as_tree
 
 METHODS = {"alignment": K.ALPHA, "alpha": K.ALPHA, "ha": K.ETA, "eta": K.ETA, "aha": K.AHA}
 METHOD_NAMES = {K.ALPHA: "alignment", K.ETA: "ha", K.AHA: "aha"}
@@ -744,7 +744,7 @@ class Matcher:
         the upper and lower end of every pattern arc (``p_*``, length m) and of every data path
         (``d_*``, length n) — returning an (m, n) array of non-negative costs added to γ when
         that pattern arc is resized to that data path (e.g. a thickness term,
-        :func:`topopose.pose.estimate.thickness_arc_cost`); +inf forbids. The distance then
+        :func:`topopose.frame.estimate.thickness_arc_cost`); +inf forbids. The distance then
         includes it.
         """
         tree = data if isinstance(data, Tree) else as_tree(data, name="data")
@@ -848,7 +848,7 @@ def align(pattern, data, method: str = "aha", pattern_root=None, data_root=None,
     m = _cached_matcher(pattern, method, cut, gamma, pattern_root, up, rtol)
     al = m.align(data, data_root=data_root)
     for c in m.betweenness:
-        from .betweenness import apply_betweenness
+        from topopose.match.betweenness import apply_betweenness
 
         al = apply_betweenness(al, m.pattern, as_tree(data, name="data"), c)
     return al

@@ -243,7 +243,7 @@ def girdle_bone_arc(bone):
     """The other grouping of the ``body`` rig's girdle bones: the clavicle (``*Shoulder``, neck
     base → shoulder joint) and ``*HipJoint`` (hip centre → hip joint) lie on the model's
     torso→hand and crotch→foot arcs, so they go to the limbs."""
-    from topopose.apps.segment import body_bone_arc
+    from topopose.synth.labels import body_bone_arc
 
     k = "1" if bone.startswith("L") else "2"
     if bone.endswith("Shoulder"):
@@ -299,7 +299,8 @@ def bench_segmentation(n_frames, seeds, log, subject="human", figure=None):
     from topopose.frame.estimate import FrameEstimator
     from topopose.batch.quality import evaluate
     from topopose.apps.segment import (_box, arc_names, flood_labels, renumbered_accuracy,
-                                       segment, skeleton_labels, synthetic_truth)
+                                       segment, skeleton_labels)
+    from topopose.synth.labels import synthetic_truth
 
     rows = []
     for seed in seeds:
@@ -849,7 +850,7 @@ def main(argv=None):
          "mesh, seeds 2–4 (held out: the delays, the bone weight and the limb starts were "
          "chosen on seeds 1 and 11, *body-dev* below); truth: "
          "the dominant skinning bone of the nearest posed mesh vertex, grouped into the model's "
-         "arcs (`topopose.apps.segment.body_bone_arc`). `human`: the capsule subject (seeds 2–3); "
+         "arcs (`topopose.synth.labels.body_bone_arc`). `human`: the capsule subject (seeds 2–3); "
          "truth: the nearest primitive's link. Numbered limbs paired optimally. *Good*: the "
          "quality study's class (every part right). Labellings, all from the same skeleton "
          "labels: *plain* — the thesis' flooding (breadth first, 26-adjacency); *part* — the "

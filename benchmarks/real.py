@@ -407,7 +407,7 @@ def time_breakdown(rec: Path, n: int = 20) -> dict:
     import cv2
 
     from topopose.capture.background import SequenceBackground, foreground_probability
-    from topopose.capture.calibration import SILHOUETTE_DEFAULTS
+    from topopose.capture.options import SILHOUETTE_DEFAULTS
 
     vids = sorted((rec / "videos").glob("*.mp4"))
     frames = [[] for _ in vids]

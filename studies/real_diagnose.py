@@ -89,7 +89,7 @@ def picture(cap, est, ref, frames, side, path):
     import matplotlib.pyplot as plt
 
     from topopose.capture.background import foreground_maps
-    from topopose.capture.io import read_images
+    from topopose.capture.images import read_images
 
     fig, ax = plt.subplots(len(frames), len(cap.cameras), figsize=(14, 3.6 * len(frames)),
                            squeeze=False)

@@ -39,7 +39,7 @@ import real  # noqa: E402
 
 def leaf_colours(cap, frame, det, ref_i, radius, scale=0.25):
     """Per hand-matched leaf: error of the leaf (m), voxel spread, view spread."""
-    from topopose.capture.io import read_images
+    from topopose.capture.images import read_images
 
     vol, data, al = det.volume, det.data, det.alignment
     sk = np.asarray(det.skeleton, dtype=bool)

@@ -11,7 +11,8 @@ import pytest
 from topopose.capture import Camera
 from topopose.capture.background import (foreground_probability, learn_backgrounds,
                                          scaled_camera)
-from topopose.capture.calibration import SILHOUETTE_DEFAULTS, read_calibration
+from topopose.capture.calibration import read_calibration
+from topopose.capture.options import SILHOUETTE_DEFAULTS
 from topopose.hull.soft import posterior, soft_carve, voxel_pixels
 
 DATA = Path(__file__).parent / "data" / "pose2sim_small"

@@ -13,6 +13,7 @@ from topopose.errors import InputError
 from topopose.apps import cluster as C
 from topopose.apps import detect as D
 from topopose.apps import segment as S
+from topopose.synth import labels
 from topopose.apps.segment_kernels import depth, flood
 
 
@@ -380,9 +381,9 @@ def test_segment_synthetic_human_against_ground_truth(tmp_path):
         bl, _ = S.segment(det.volume, det.skeleton, det.alignment, det.data, names=names,
                           pose=pose, model=est.model)                      # with the bones
         assert not bl[~hull].any() and (bl[hull] > 0).mean() > 0.99
-        accs.append(S.renumbered_accuracy(bl, S.synthetic_truth(det.volume, cap.options["bodies"][fi],
+        accs.append(S.renumbered_accuracy(bl, labels.synthetic_truth(det.volume, cap.options["bodies"][fi],
                                                                 names), names))
-        truth = S.synthetic_truth(det.volume, cap.options["bodies"][fi], names)
+        truth = labels.synthetic_truth(det.volume, cap.options["bodies"][fi], names)
         accs.append(S.renumbered_accuracy(lab, truth, names))
         masks = S.camera_masks(cap, lab, det.volume.origin, det.volume.voxel_size, cap.silhouettes(f))
         sil = np.asarray(cap.silhouettes(f)[0], bool)
@@ -664,7 +665,7 @@ def test_body_bones_group_into_the_human_arcs():
             "crotch-foot_2": {"RightUpLeg", "RightLeg", "RightFoot", "RightToeBase"}}
     got = {}
     for b in bones:
-        got.setdefault(S.body_bone_arc(b), set()).add(b)
+        got.setdefault(labels.body_bone_arc(b), set()).add(b)
     assert got == want
     from topopose.pose.model import load_model
 
@@ -736,14 +737,14 @@ def test_body_truth_groups_the_nearest_vertex_bone():
     grid = np.zeros(ijk.max(0) + 2, bool)
     grid[tuple(ijk.T)] = True
     vol = Volume(grid, lo, vs)
-    truth = S.synthetic_truth(vol, body, names)
+    truth = labels.synthetic_truth(vol, body, names)
     dom, bones = dominant_bones()
     X = lo + np.argwhere(grid) * vs
     near = np.argmin(cdist(X, body.vertices), 1)                                # brute force
-    want = [names.index(S.body_bone_arc(bones[dom[i]])) + 1 for i in near]
+    want = [names.index(labels.body_bone_arc(bones[dom[i]])) + 1 for i in near]
     assert truth[grid].tolist() == want
     assert set(np.unique(truth[grid])) == set(range(1, 7))
-    alt = S.synthetic_truth(vol, body, names, bone_arc=lambda b: "torso-head")
+    alt = labels.synthetic_truth(vol, body, names, bone_arc=lambda b: "torso-head")
     assert np.all(alt[grid] == 1) and np.all(alt[~grid] == 0)
 
 

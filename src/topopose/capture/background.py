@@ -43,7 +43,6 @@ caps), lowered where it is sure of the background (p < 0.05).
 """
 from __future__ import annotations
 
-import math
 import time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -52,9 +51,9 @@ import numpy as np
 
 from topopose.errors import InputError
 from topopose.geometry.camera import Camera
+from topopose.capture.options import UNITS
 from topopose.capture.sources import SKIPPED
 
-SEQUENCE_METHODS = ("sequence", "selfie", "sequence+selfie", "person")
 
 
 def scaled_camera(cam: Camera, scale: float) -> Camera:
@@ -242,7 +241,7 @@ def capture_backgrounds(cap) -> list:
     key = ("sequence_backgrounds",)
     if key in cap.cache:
         return cap.cache[key]
-    from topopose.capture.io import _frame_source, fit_size
+    from topopose.capture.images import _frame_source, fit_size
 
     p = cap.options["silhouettes"]
     s = float(p["scale"])
@@ -273,9 +272,7 @@ def capture_backgrounds(cap) -> list:
     stacks = [[g[f] for f in ok] for g in got]
     if not ok:
         raise InputError(f"{cap.path}: no readable frame to learn the background from")
-    from topopose.capture.calibration import _UNITS
-
-    unit = 1.0 / _UNITS.get(cap.units, 1.0)
+    unit = 1.0 / UNITS.get(cap.units, 1.0)
     stacks = [np.stack(x) for x in stacks]
     times = {"decode": time.perf_counter() - t0}
     models, region = learn_backgrounds(stacks, cams, p, unit)
@@ -314,7 +311,7 @@ def foreground_maps(cap, frame, images=None) -> list:
     method = p["method"]
     s = float(p["scale"])
     if images is None:
-        from topopose.capture.io import read_images
+        from topopose.capture.images import read_images
         images = read_images(cap, frame)
     if method == "person":       # the network alone needs no background model
         out = _person_maps(cap, frame, images, p)
@@ -365,7 +362,7 @@ def _person_maps(cap, frame, images, p) -> list:
     images = list(images)
     for c in cams:
         if images[c] is SKIPPED:      # not converted by the reader (io._person_needed)
-            from topopose.capture.io import _frame_source, fit_size
+            from topopose.capture.images import _frame_source, fit_size
             cam = cap.cameras[c]
             src = _frame_source(cap)
             images[c] = fit_size(cap, src.path(cam.name, frame) or cam.name,
@@ -418,20 +415,3 @@ def masks_from_maps(cap, maps) -> list:
         out.append(m)
     cap.cache["masks_last"] = [(q, (cut, UPSAMPLED_MASKS), m) for q, m in zip(maps, out)]
     return out
-
-
-def check_params(path, p) -> None:
-    """Validate the sequence-method fields of ``[silhouettes]``."""
-    if not 0.05 <= float(p["scale"]) <= 1.0:
-        raise InputError(f"{path}: [silhouettes] field 'scale' must be in [0.05, 1], got {p['scale']!r}")
-    if int(p["samples"]) < 3:
-        raise InputError(f"{path}: [silhouettes] field 'samples' must be ≥ 3, got {p['samples']!r}")
-    if not 0.0 < float(p.get("cut", 0.5)) < 1.0:
-        raise InputError(f"{path}: [silhouettes] field 'cut' must be in (0, 1), got {p['cut']!r}")
-    for k in ("p_detect", "p_false"):
-        if not 0.0 < float(p[k]) < 1.0:
-            raise InputError(f"{path}: [silhouettes] field {k!r} must be in (0, 1), got {p[k]!r}")
-    if not float(p["p_false"]) < float(p["p_detect"]):
-        raise InputError(f"{path}: [silhouettes] field 'p_false' must be below 'p_detect'")
-    if not 0.0 < float(p["occupancy"]) < 1.0 or not math.isfinite(float(p["occupancy"])):
-        raise InputError(f"{path}: [silhouettes] field 'occupancy' must be in (0, 1), got {p['occupancy']!r}")

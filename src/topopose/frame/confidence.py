@@ -507,7 +507,7 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     ``components_dropped`` (the five largest), ``data_leaves``, ``height`` (hull extent along
     the up axis), ``confidence``, ``confidence_factors`` and ``confidence_features``.
     """
-    from topopose.capture.calibration import _UNITS
+    from topopose.capture.options import UNITS
 
     vd = vol.diagnostics or {}
     share = float(vd.get("largest_share", 1.0))
@@ -572,7 +572,7 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
         if untrusted is not None:
             status, error = "matched", None
             conf = {**cps[untrusted], "all_parts": conf["confidence"]}
-    metre = _UNITS.get(units, 1.0)
+    metre = UNITS.get(units, 1.0)
     diag = {"hull_litres": round(n_vox * (vol.voxel_size * metre) ** 3 * 1000.0, 2),
             "largest_share": round(share, 4), "components_dropped": dropped[:5],
             "data_leaves": leaves, "height": height,

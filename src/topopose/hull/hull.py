@@ -274,7 +274,7 @@ def _sampled_boxes(cap, tolerance) -> list:
 def uses_soft_fusion(cap) -> bool:
     """Whether the capture's silhouettes are probabilities fused by the soft hull (:mod:`.soft`,
     Franco & Boyer's occupancy grid) rather than hard masks carved by :func:`visual_hull`."""
-    from topopose.capture.background import SEQUENCE_METHODS
+    from topopose.capture.options import SEQUENCE_METHODS
 
     p = cap.options.get("silhouettes") or {}
     return (cap.masks is None and cap.options.get("source") in ("images", "videos")
@@ -347,11 +347,11 @@ def _person_zone(cap, resolution, tolerance, name=None, masks=None) -> tuple:
     Pose2Sim recording 8–44 s; none more when the frame processed, ``name`` with its
     silhouettes ``masks``, is that frame), and the same whatever frames are processed, in
     whatever order."""
-    from topopose.capture.calibration import _UNITS
+    from topopose.capture.options import UNITS
 
     key = ("person_zone", resolution, tolerance)
     if key not in cap.cache:
-        unit = _UNITS.get(cap.units, 1.0)
+        unit = UNITS.get(cap.units, 1.0)
         m = float(cap.options["silhouettes"]["zone_margin"]) / unit * 2 / 3
         for f in cap.frames:
             try:

@@ -5,8 +5,8 @@ topopose ``PYTHONPATH`` points at (this branch or the peer's tree), print one JS
     python benchmarks/_capture_run.py run CAPTURE OUT.jsonl [--frames A:B]
     python benchmarks/_capture_run.py memory CAPTURE --frames N
 
-Only the API both trees share is used (``load_capture``, ``topopose.pose.run.run``,
-``FrameEstimator``).
+Only the API both trees share is used (``load_capture``, ``run``, ``FrameEstimator``; found
+where either layout keeps them).
 """
 from __future__ import annotations
 
@@ -50,7 +50,10 @@ def decode(capture) -> dict:
 
 def run_capture(capture, out, frames=None) -> dict:
     import topopose
-    from topopose.pose.run import run
+    try:
+        from topopose.batch.run import run
+    except ImportError:                      # a tree of the earlier layout
+        from topopose.pose.run import run
 
     t_import = time.perf_counter() - T0
     first = []
@@ -75,7 +78,10 @@ def memory(capture, n) -> dict:
     import numpy as np
 
     from topopose.capture import Capture, load_capture
-    from topopose.pose.estimate import FrameEstimator
+    try:
+        from topopose.frame.estimate import FrameEstimator
+    except ImportError:                      # a tree of the earlier layout
+        from topopose.pose.estimate import FrameEstimator
 
     cap0 = load_capture(capture)
     idx = np.unique(np.round(np.linspace(0, len(cap0.frames) - 1, n)).astype(int))

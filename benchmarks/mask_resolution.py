@@ -4,7 +4,7 @@ against the full masks, on synthetic captures with ground truth at two image siz
     python benchmarks/mask_resolution.py [--frames N] [--out PREFIX]
 
 Per setting: the reduction factors per camera, the frames' quality classes
-(:func:`topopose.pose.quality.evaluate`, gate off), the mean and median part error and the time
+(:func:`topopose.batch.quality.evaluate`, gate off), the mean and median part error and the time
 per frame (the estimator alone, masks in memory). Writes ``PREFIX.md`` / ``.json`` (default
 ``benchmarks/results/mask_resolution``).
 """
@@ -25,10 +25,10 @@ sys.path.insert(0, str(HERE))
 def main(argv=None) -> int:
     from _machine import machine, machine_line, results_dir
 
-    from topopose.capture import synthetic_capture
+    from topopose.synth import synthetic_capture
     from topopose.hull.hull import MaskResolution
-    from topopose.pose.estimate import FrameEstimator
-    from topopose.pose.quality import evaluate
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.batch.quality import evaluate
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--frames", type=int, default=24)

@@ -33,7 +33,7 @@ THESIS_FPS = {"reference": "thesis Fig. 13.2: 25 frames/s reached below 100^3 (C
 
 def measure(cap, subject, resolution, repeats):
     """Per frame: the minimum over ``repeats`` of each stage time (ms)."""
-    from topopose.pose import FrameEstimator
+    from topopose.frame import FrameEstimator
 
     est = FrameEstimator(cap, subject, resolution, threshold=2.0)
     t0 = time.perf_counter()
@@ -82,7 +82,7 @@ def main(argv=None):
             return 2
         return real_child.memory_compare(rec, peer, 6 if a.quick else 40,
                                          Path(a.out) / "pipeline_child")
-    from topopose.capture import synthetic_capture
+    from topopose.synth import synthetic_capture
 
     load0 = os.getloadavg()[0]
     resolutions = [50, 100, 200] if a.quick else [50, 75, 100, 125, 150, 175, 200]

@@ -35,7 +35,7 @@ the two sides' poses compared field by field (``benchmarks/same_poses.py``).
 
 With ``--synthetic N``: a synthetic capture (human, N frames, smooth random motion, noise 1,
 8 cameras 640×480) run by both sides and scored against its ground truth
-(:func:`topopose.pose.quality.evaluate`): the accuracy the mask resolution keeps.
+(:func:`topopose.batch.quality.evaluate`): the accuracy the mask resolution keeps.
 
 Writes ``PREFIX.md`` / ``.json`` and ``PREFIX_sheet.png`` (default
 ``benchmarks/results/real_child``).
@@ -265,9 +265,9 @@ def pose2sim(rec: Path, peer: Path, tmp: Path) -> dict:
 
 
 def synthetic(n: int, peer: Path, tmp: Path) -> dict:
-    from topopose.capture.io import load_capture
+    from topopose.capture import load_capture
     from topopose.pose.pose import read_poses
-    from topopose.pose.quality import evaluate
+    from topopose.batch.quality import evaluate
 
     cap = tmp / "synth"
     env = dict(os.environ, PYTHONPATH=str(OURS))

@@ -8,12 +8,13 @@ import cv2
 import numpy as np
 import pytest
 
-from topopose.capture import Capture, synthetic_capture
+from topopose.capture import Capture
 from topopose.capture.io import reduce_mask, reduce_masks
-from topopose.capture.synth_geometry import ray_table, render
+from topopose.frame import FrameEstimator
 from topopose.hull import HullCarver, capture_box, visual_hull
 from topopose.hull.hull import MaskResolution, _sample_frames, grid_for_box, mask_factors
-from topopose.pose import FrameEstimator
+from topopose.synth import synthetic_capture
+from topopose.synth.geometry import ray_table, render
 
 LIFT = 0.25      # metres
 

@@ -36,8 +36,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from .camera import Camera
+from topopose.errors import InputError
+from topopose.geometry.camera import Camera
 
 FORMATS = ("qualisys", "easymocap", "opencv", "pmatrix")
 
@@ -400,7 +400,7 @@ def calib_import_cli(a) -> int:
         size = (img.shape[1], img.shape[0])
     cams = import_calibration(a.files, a.format, size)
     out = write_calibration(cams, a.out)
-    from .calibration import read_calibration
+    from topopose.capture.calibration import read_calibration
 
     read_calibration(out)                     # what load_capture will read
     print(f"wrote {out}: {len(cams)} cameras ({', '.join(c.name for c in cams)})")

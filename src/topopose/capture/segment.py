@@ -47,7 +47,7 @@ import threading
 import cv2
 import numpy as np
 
-from ..errors import InputError
+from topopose.errors import InputError
 
 _MODEL = {}
 _LOCKS = {}                  # one camera's network is fed by one thread at a time

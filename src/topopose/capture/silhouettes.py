@@ -20,7 +20,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .calibration import SILHOUETTE_DEFAULTS
+from topopose.capture.options import SILHOUETTE_DEFAULTS
 
 
 def _kernel(size: int):
@@ -72,7 +72,7 @@ def extract_silhouette(image: np.ndarray, background: np.ndarray, params: dict |
     """Boolean silhouette of ``image`` (h, w[, 3] uint8) against ``background`` (same size).
 
     Parameters are those of the ``[silhouettes]`` table (see the module docstring);
-    missing ones take :data:`~topopose.capture.calibration.SILHOUETTE_DEFAULTS`.
+    missing ones take :data:`~topopose.capture.options.SILHOUETTE_DEFAULTS`.
     """
     p = dict(SILHOUETTE_DEFAULTS, **(params or {}))
     img, bg = _as_bgr(np.asarray(image)), _as_bgr(np.asarray(background))
@@ -111,34 +111,3 @@ def extract_silhouette(image: np.ndarray, background: np.ndarray, params: dict |
         raw = sub.apply(a, learningRate=0.0) > 127
     return clean_mask(raw, p)
 
-
-class BoxedMask(np.ndarray):
-    """A boolean silhouette that carries its bounding box ``box`` = ``cv2.boundingRect`` (x, y,
-    w, h; w = 0 when empty), computed once — by the thread that decoded it — for the hull
-    carver, the silhouette support and the trim, which look at the box only. Arrays derived
-    from it (slices, copies, results of operations) do not carry ``box``."""
-
-    box = None
-
-
-def boxed(mask) -> np.ndarray:
-    """``mask`` (boolean, 2-D) as a :class:`BoxedMask` with its bounding box; a mask that
-    already has one, or carries a reduced ``small`` mask, is returned as it is."""
-    if getattr(mask, "box", None) is not None or getattr(mask, "small", None) is not None:
-        return mask
-    m = np.ascontiguousarray(mask, dtype=bool)
-    out = m.view(BoxedMask)
-    out.box = tuple(int(v) for v in cv2.boundingRect(m.view(np.uint8)))
-    return out
-
-
-def mask_box(mask) -> tuple:
-    """The bounding box (x, y, w, h) of a silhouette's set pixels (``w`` 0: none): its
-    :class:`BoxedMask` box, else ``cv2.boundingRect``."""
-    box = getattr(mask, "box", None)
-    if box is not None:
-        return box
-    m = np.asarray(mask)
-    m8 = (m.view(np.uint8) if m.dtype == bool and m.flags.c_contiguous
-          else np.ascontiguousarray(m != 0, dtype=np.uint8))
-    return tuple(int(v) for v in cv2.boundingRect(m8))

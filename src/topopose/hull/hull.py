@@ -48,10 +48,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from . import hull_kernels as K
-from .carver import HullCarver, camera_geometry, camera_intrinsics
-from .volume import Volume
+from topopose.errors import InputError
+from topopose.geometry import carver_kernels as CK
+from topopose.hull import hull_kernels as K
+from topopose.geometry.carver import HullCarver, camera_geometry, camera_intrinsics
+from topopose.hull.volume import Volume
 
 _FIT_RES = 32
 _SAMPLE = 32
@@ -168,12 +169,12 @@ def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None, s
     misses = np.zeros(shape, dtype=np.int32)
     r = np.empty(tuple(shape) + (4,), dtype=np.int64)
     for q, m in enumerate(masks):
-        K.block_rects(geo, intr, q, 1.0, shape[0], shape[1], shape[2], 1, float(1 << 24), r)
+        CK.block_rects(geo, intr, q, 1.0, shape[0], shape[1], shape[2], 1, float(1 << 24), r)
         sat, fx, fy = _integral(m) if sats is None else sats[q]
         h, w = m.shape
         # an upsampled mask: the pixels of a rectangle are those of the small mask's rectangle
         # of the blocks it meets (a block is set or not as a whole)
-        K.rect_misses(r, sat, w, h, fx, fy, misses)
+        CK.rect_misses(r, sat, w, h, fx, fy, misses)
     keep = misses <= tolerance
     if not keep.any():
         return None
@@ -333,7 +334,7 @@ def frame_box(cameras, masks, tolerance: int = 0) -> tuple | None:
 def _sampled_boxes(cap, tolerance, fit: VolumeFit = VOLUME_FIT) -> list:
     key = ("fitted_boxes", tolerance, fit)
     if key not in cap.cache:
-        from ..capture.io import read_direct
+        from topopose.capture.io import read_direct
 
         boxes = []
         frames = _sample_frames(cap.frames, fit.samples)
@@ -366,7 +367,7 @@ def _sampled_boxes(cap, tolerance, fit: VolumeFit = VOLUME_FIT) -> list:
 def uses_soft_fusion(cap) -> bool:
     """Whether the capture's silhouettes are probabilities fused by the soft hull (:mod:`.soft`,
     Franco & Boyer's occupancy grid) rather than hard masks carved by :func:`visual_hull`."""
-    from ..capture.background import SEQUENCE_METHODS
+    from topopose.capture.options import SEQUENCE_METHODS
 
     p = cap.options.get("silhouettes") or {}
     return (cap.masks is None and cap.options.get("source") in ("images", "videos")
@@ -375,8 +376,8 @@ def uses_soft_fusion(cap) -> bool:
 
 
 def _soft_table(cap, origin, vs, shape):
-    from ..capture.background import scaled_camera
-    from .soft import voxel_pixels
+    from topopose.capture.background import scaled_camera
+    from topopose.hull.soft import voxel_pixels
 
     key = ("soft_pix", tuple(np.round(np.asarray(origin) / vs, 6)), round(vs, 12), tuple(shape))
     if key not in cap.cache:
@@ -402,7 +403,7 @@ def _soft_carve(cap, pix, maps, shape):
     """Soft hull of one frame (:mod:`.soft`), opened by ``open3d``, and its bounding box."""
     from scipy import ndimage
 
-    from .soft import soft_carve
+    from topopose.hull.soft import soft_carve
 
     p = cap.options["silhouettes"]
     occ, n = soft_carve(pix, maps, shape, float(p["p_detect"]), float(p["p_false"]),
@@ -439,11 +440,11 @@ def _person_zone(cap, resolution, tolerance, name=None, masks=None) -> tuple:
     Pose2Sim recording 8–44 s; none more when the frame processed, ``name`` with its
     silhouettes ``masks``, is that frame), and the same whatever frames are processed, in
     whatever order."""
-    from ..capture.calibration import _UNITS
+    from topopose.capture.options import UNITS
 
     key = ("person_zone", resolution, tolerance)
     if key not in cap.cache:
-        unit = _UNITS.get(cap.units, 1.0)
+        unit = UNITS.get(cap.units, 1.0)
         m = float(cap.options["silhouettes"]["zone_margin"]) / unit * 2 / 3
         for f in cap.frames:
             try:
@@ -478,7 +479,7 @@ def capture_box(cap, tolerance: int = 0, fit: VolumeFit = VOLUME_FIT) -> tuple:
         return lo, hi
     if (cap.options.get("silhouettes") or {}).get("method") in (
             "sequence", "selfie", "sequence+selfie"):
-        from ..capture.background import subject_box
+        from topopose.capture.background import subject_box
 
         box = subject_box(cap)
         if box is not None:
@@ -610,7 +611,7 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
     soft = masks is None and uses_soft_fusion(cap)
     maps = None
     if soft:
-        from ..capture.background import foreground_maps
+        from topopose.capture.background import foreground_maps
         maps = foreground_maps(cap, name)
         if refocus:
             masks = cap.silhouettes(name)

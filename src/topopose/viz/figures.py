@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..frames import sort_poses
+from topopose.frames import sort_poses
 
 CLASS_COLOURS = {"good": "#2ca02c", "missing limb": "#98df8a", "partial": "#ffbb78",
                  "misplaced": "#ff7f0e", "bad": "#d62728", "none": "#7f7f7f"}

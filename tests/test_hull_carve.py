@@ -6,6 +6,8 @@ silhouette cones, per voxel centre); (3) the true shape itself.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -13,6 +15,7 @@ from _capture_testutils import analytic_hull, capsule_masks, in_capsule, ring
 from topopose.capture import Capture
 from topopose.errors import InputError
 from topopose.hull import HullCarver, Volume, fit_box, visual_hull
+from topopose.hull.hull import VOLUME_FIT
 
 
 def brute_force(cams, masks, origin, vs, shape):
@@ -112,7 +115,8 @@ def test_hull_matches_analytic_visual_hull_128(shape, sphere_case):
         A, B, r = np.array([-0.35, -0.2, 0.6]), np.array([0.3, 0.25, 1.3]), 0.14
         masks = capsule_masks(cams, A, B, r)
     vol = visual_hull(_capture(cams, masks), 0, resolution=128)
-    assert max(vol.data.shape) == 128
+    # 128 voxels along the fitted volume's longest side, the grid a margin beyond it
+    assert max(vol.data.shape) == 128 + 2 * math.ceil(VOLUME_FIT.margin * 126 - 1e-9)
     ijk = np.indices(vol.data.shape).reshape(3, -1).T
     pts = vol.world(ijk)
     ana = analytic_hull(cams, pts, A, B, r).reshape(vol.data.shape)

@@ -1,6 +1,8 @@
 """`topopose hull` on a capture folder, and the synth → folder → load → hull round trip."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -8,6 +10,7 @@ from _capture_testutils import capsule_masks, ring, write_capture
 from topopose.capture import load_capture
 from topopose.cli import main
 from topopose.hull import Volume, visual_hull
+from topopose.hull.hull import VOLUME_FIT
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +30,8 @@ def test_cli_hull_writes_volume(folder, tmp_path, capsys):
     vol = Volume.load(out)
     ref = visual_hull(load_capture(folder), "000001", resolution=40)
     assert np.array_equal(vol.data, ref.data) and np.allclose(vol.origin, ref.origin)
-    assert max(vol.data.shape) == 40
+    # 40 voxels along the fitted volume's longest side, the grid a margin beyond it
+    assert max(vol.data.shape) == 40 + 2 * math.ceil(VOLUME_FIT.margin * 38 - 1e-9)
     # frame by index, tolerance and refocus options
     assert main(["hull", str(folder), "--frame", "0", "--resolution", "32", "--tolerance", "1",
                  "--refocus", "--out", str(out)]) == 0

@@ -465,11 +465,11 @@ class FrameEstimator:
     def mask_factors(self):
         """Per camera, the reduction of the masks that the fixed grid's silhouette test needs
         (:func:`topopose.hull.hull.mask_factors` with :attr:`mask_resolution`), computed once
-        (it fits the capture volume); None: masks at full resolution (option off, refocused or
-        zone grids, soft fusion, a user volume grid keeps them too when it cannot be fitted)."""
+        (it fits the capture volume); None: masks at full resolution (the option off — the
+        default —, refocused or zone grids, soft fusion, or no volume to fit)."""
         if "_factors" not in self.__dict__:
             from topopose.hull import uses_soft_fusion
-            from topopose.hull.hull import _person_grid, capture_box, grid_for_box, mask_factors
+            from topopose.hull.hull import _person_grid, fitted_grid, grid_for_box, mask_factors
 
             self._factors = None
             cap = self.cap
@@ -479,8 +479,7 @@ class FrameEstimator:
                     if cap.volume is not None:
                         grid = grid_for_box(*cap.volume, self.resolution, margin=False)
                     else:
-                        grid = grid_for_box(*capture_box(cap, self.tolerance), self.resolution,
-                                            margin=True)
+                        grid = fitted_grid(cap, self.tolerance, self.resolution)
                 except InputError:        # reported by the frame that needs the volume
                     return None
                 f = mask_factors(cap.cameras, *grid, self.mask_resolution)

@@ -10,9 +10,10 @@ Grid: ``resolution`` voxels along the longest side of the capture volume. The ca
    linear programs), then shrunk by conservative coarse passes (a 32³ grid over the box keeps
    every cell whose projected bounding rectangle meets the silhouette in enough cameras, so no
    part of the hull can be lost however thin). The capture's fitted volume is the union of the
-   boxes (:func:`frame_box`) of a few frames sampled evenly across the whole sequence, with a
-   margin (:class:`VolumeFit`), computed once and cached on the capture. A fitted grid keeps one empty
-   voxel all round (N − 2 voxels span the fitted box). A frame whose hull reaches the fitted
+   boxes (:func:`frame_box`) of a few frames sampled evenly across the whole sequence
+   (:class:`VolumeFit`), computed once and cached on the capture. A fitted grid keeps one empty
+   voxel all round (N − 2 voxels span the fitted box) and reaches a margin further with voxels of
+   the same size (:func:`fitted_grid`). A frame whose hull reaches the fitted
    grid's side (the subject jumped between two sampled frames) is carved again on a grid fitted
    to it with the same voxels on the same lattice (``diagnostics["grid"] = "beyond"``): a
    subject inside the cameras' common view never crosses the border.
@@ -257,7 +258,9 @@ class VolumeFit:
         jumped between two samples) is carved on a grid of its own, with the same voxels
         (:func:`visual_hull`).
     margin : float
-        The union grown on each side by this fraction of its longest side.
+        The grid reaches beyond the union on each side by this fraction of its longest side,
+        with the voxels the union alone gives (``resolution`` voxels along its longest side,
+        :func:`fitted_grid`): room for the subject between samples at no loss of resolution.
     """
 
     samples: int = 12
@@ -474,23 +477,37 @@ def capture_box(cap, tolerance: int = 0, fit: VolumeFit = VOLUME_FIT) -> tuple:
     Silhouette method ``"person"`` does not use it: its grid follows the subject
     (:func:`visual_hull`).
     """
+    return _capture_volume(cap, tolerance, fit)[:2]
+
+
+def _capture_volume(cap, tolerance, fit) -> tuple:
+    """(lo, hi, sampled): :func:`capture_box`, and whether it was fitted to sampled frames."""
     if cap.volume is not None:
         lo, hi = (np.asarray(v, dtype=float) for v in cap.volume)
-        return lo, hi
+        return lo, hi, False
     if (cap.options.get("silhouettes") or {}).get("method") in (
             "sequence", "selfie", "sequence+selfie"):
         from topopose.capture.background import subject_box
 
         box = subject_box(cap)
         if box is not None:
-            return box
+            return box[0], box[1], False
     boxes = _sampled_boxes(cap, tolerance, fit)
     if not boxes:
         raise InputError(f"{cap.path or 'capture'}: cannot fit a capture volume: no sampled frame "
                          f"has a subject seen by the cameras (set [capture.volume] in capture.toml)")
-    lo, hi = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
-    grow = fit.margin * float((hi - lo).max())
-    return lo - grow, hi + grow
+    return np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0), True
+
+
+def fitted_grid(cap, tolerance: int, resolution: int, fit: VolumeFit = VOLUME_FIT) -> tuple:
+    """(origin, voxel_size, shape) of the grid on the capture volume (:func:`capture_box`, no
+    ``[capture.volume]``): :func:`grid_for_box` with its one-voxel margin, and, when fitted to
+    sampled frames, grown on each side by ``fit.margin`` × the volume's longest side in voxels
+    of the same size."""
+    lo, hi, sampled = _capture_volume(cap, tolerance, fit)
+    origin, vs, shape = grid_for_box(lo, hi, resolution, margin=True)
+    k = int(math.ceil(fit.margin * (max(shape) - 2) - 1e-9)) if sampled else 0
+    return origin - k * vs, vs, tuple(int(s) + 2 * k for s in shape)
 
 
 def grid_for_box(lo, hi, resolution: int, margin: bool) -> tuple:
@@ -668,8 +685,7 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
         if user_box is not None:
             origin, vs, shape = grid_for_box(*user_box, resolution, margin=False)
         else:
-            origin, vs, shape = grid_for_box(*capture_box(cap, tolerance), resolution,
-                                             margin=True)
+            origin, vs, shape = fitted_grid(cap, tolerance, resolution)
             fitted = not soft
     t["fit"] = (time.perf_counter() - t0) * 1e3
     t0 = time.perf_counter()

@@ -97,10 +97,11 @@ def peer_calib_import(peer: Path, rec: Path) -> str:
     return (r.stdout + r.stderr).strip().splitlines()[-1] if (r.stdout + r.stderr).strip() else ""
 
 
-def contact_sheet(capture: Path, poses_file: Path, out: Path, cams=(0, 5), scale=0.125,
-                  columns=8) -> int:
-    """Every matched frame: the masks of two cameras, the parts projected on them (a dot each,
-    the model's edges as lines), the frame's name. Returns the number of frames drawn."""
+def contact_sheet(capture: Path, poses_file: Path, out: Path, cams=(0, 5), height=150,
+                  columns=10) -> int:
+    """Every matched frame: the masks of two cameras around the subject (its box and a quarter
+    more, ``height`` px high), the parts projected on them (a dot each, the model's edges as
+    lines), the frame's name. Returns the number of frames drawn."""
     import cv2
 
     from topopose.capture import load_capture
@@ -117,14 +118,20 @@ def contact_sheet(capture: Path, poses_file: Path, out: Path, cams=(0, 5), scale
         views = []
         for c in cams:
             cam, m = cap.cameras[c], masks[c]
-            h, w = m.shape
-            img = cv2.resize(np.where(m, 200, 40).astype(np.uint8), (int(w * scale), int(h * scale)),
-                             interpolation=cv2.INTER_AREA)
-            img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+            x, y, w, h = cv2.boundingRect(np.ascontiguousarray(m, dtype=np.uint8))
+            side = int(1.25 * max(w, h, 8))
+            x0, y0 = x + w // 2 - side // 2, y + h // 2 - side // 2
+            crop = np.full((side, side), 40, np.uint8)
+            sx0, sy0 = max(x0, 0), max(y0, 0)
+            sx1, sy1 = min(x0 + side, m.shape[1]), min(y0 + side, m.shape[0])
+            crop[sy0 - y0:sy1 - y0, sx0 - x0:sx1 - x0] = np.where(m[sy0:sy1, sx0:sx1], 200, 40)
+            scale = height / side
+            img = cv2.cvtColor(cv2.resize(crop, (height, height), interpolation=cv2.INTER_AREA),
+                               cv2.COLOR_GRAY2BGR)
             pts = {}
-            for name, x in p.parts.items():
-                if x is not None:
-                    uv = cam.project(np.asarray(x, float)[None])[0] * scale
+            for name, X in p.parts.items():
+                if X is not None:
+                    uv = (cam.project(np.asarray(X, float)[None])[0] - [x0, y0]) * scale
                     if np.all(np.isfinite(uv)):
                         pts[name] = tuple(int(round(t)) for t in uv)
             for a, ua in pts.items():         # the model's edges, by part stems

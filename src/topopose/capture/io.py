@@ -29,7 +29,8 @@ from .camera import Camera
 from .capture import Capture
 from .background import SEQUENCE_METHODS
 from .silhouettes import extract_silhouette
-from .sources import SKIPPED, VIDEO_EXTENSIONS, ImageSource, Prefetcher, VideoSource, imread
+from .sources import (MAX_IMAGE_PIXELS, SKIPPED, VIDEO_EXTENSIONS, ImageSource, Prefetcher,
+                      VideoSource, imread, png_size)
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
 
@@ -125,14 +126,20 @@ def _scaled_camera(cam: Camera, size) -> Camera:
 
 
 def _first_size(src, camera, frames) -> tuple | None:
-    """(w, h) of the camera's first readable frame (None when there is none)."""
+    """(w, h) of the camera's first readable frame (None when there is none): a PNG's header,
+    else the decoded image."""
     for f in frames:
         p = src.path(camera, f)
         if p is None:
             continue
-        img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
-        if img is not None:
-            return img.shape[1], img.shape[0]
+        size = png_size(p)
+        if size is not None and 0 < size[0] * size[1] <= MAX_IMAGE_PIXELS:
+            return size
+        try:
+            img = imread(p, cv2.IMREAD_UNCHANGED, camera)
+        except InputError:                   # that frame fails on its own, with its reason
+            continue
+        return img.shape[1], img.shape[0]
     return None
 
 
@@ -242,13 +249,13 @@ def load_capture(path) -> Capture:
                "original_sizes": {c.name: c.size for c in cameras}}
     cap = Capture(cameras=cameras, frames=frames, path=root, up=opts["up"], units=opts["units"],
                   fps=fps, volume=opts["volume"], options=options, files=files or None)
-    # sizes known now (videos; first image of each folder): "scale" rescales the cameras,
-    # "pad" warns once, "error" stops a video capture at once (every frame would fail)
+    # sizes known now (videos; first image of each folder, a PNG's header): "scale" rescales
+    # the cameras, "pad" warns once, "error" stops at once (every frame would fail)
     for k, cam in enumerate(cameras):
         if source == "videos":
             size = src.sizes.get(cam.name)
         else:
-            size = _first_size(src, cam.name, frames) if size_policy(cap, cam.name) != "error" else None
+            size = _first_size(src, cam.name, frames)
         if size is None or tuple(size) == tuple(cam.size):
             continue
         pol = size_policy(cap, cam.name)
@@ -381,7 +388,7 @@ def _read_masks(cap: Capture, frame: str) -> list:
         if p is None:
             raise InputError(f"{base / names.get(cam.name, cam.name)}: frame {frame!r} missing for "
                              f"camera {cam.name!r} (other cameras have it)")
-        img = fit_size(cap, p, imread(p, cv2.IMREAD_UNCHANGED), cam)
+        img = fit_size(cap, p, imread(p, cv2.IMREAD_UNCHANGED, cam.name), cam)
         if img.ndim == 3:
             img = img[:, :, :3].max(axis=2)
         if img.dtype != np.uint8:   # 16-bit masks: same rule on the 8-bit scale

@@ -812,14 +812,17 @@ def learn_model_cli(args) -> int:
     if res.model is None:
         print(f"topopose: error: {res.message or 'no structure found'}; nothing written", file=sys.stderr)
         return 1
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if res.model is not None:
-        res.model.save(out)
-        fm = res.full_model()
-        if fm is not None:
-            fm.save(out.with_suffix(".joints.toml"))
+    from .._paths import atomic_output
+
+    with atomic_output(out, "--out") as tmp:
+        res.model.save(tmp)
+    fm = res.full_model()
+    if fm is not None:
+        with atomic_output(out.with_suffix(".joints.toml"), "--out") as tmp:
+            fm.save(tmp)
     if getattr(args, "joints", None):
-        res.write_jsonl(args.joints)
+        with atomic_output(args.joints, "--joints") as tmp:
+            res.write_jsonl(tmp)
     print(f"{res.diagnostics.get('builtin') or 'learned'} structure: "
           f"{len(res.full.vertices) if res.full else 0} joints, model parts "
           f"{res.model.parts if res.model else []}; coherent frames {sum(res.coherent)}/{len(res.frames)}; "

@@ -228,6 +228,10 @@ def cluster_poses(poses, *, clusters=None, threshold=None, auto="silhouette", re
     from scipy.cluster.hierarchy import fcluster, linkage
     from scipy.spatial.distance import squareform
 
+    from .._paths import check_number
+
+    clusters = check_number(clusters, "clusters", low=1, integer=True)
+    threshold = check_number(threshold, "threshold", low=0)
     frames, plist, status = [], [], []
     for p in poses:
         frames.append(p.frame if hasattr(p, "frame") else p["frame"])
@@ -347,17 +351,23 @@ def cluster_figure(poses, result: Clustering, out, up="+z") -> None:
 
 def cluster_cli(a) -> int:
     """``topopose cluster POSES.jsonl [--output F.jsonl] [--clusters K | --threshold T]``."""
+    from .. import _paths
     from .detect import header_up, read_poses_file
 
     if a.clusters is not None and a.threshold is not None:
         raise InputError("cluster: give --clusters or --threshold, not both")
+    _paths.check_number(a.clusters, "--clusters", low=1, integer=True)
+    _paths.check_number(a.threshold, "--threshold", low=0)
+    outs = _paths.check_outputs({"--output": a.output, "--figure": a.figure},
+                                [("POSES", a.poses)], suffixes={"--figure": ".png"})
     poses, header = read_poses_file(a.poses)
     if not poses:
         raise InputError(f"{a.poses}: no pose in the file")
     res = cluster_poses(poses, clusters=a.clusters, threshold=a.threshold, auto=a.auto)
     lines = "".join(json.dumps({"frame": f, "cluster": c}) + "\n" for f, c in zip(res.frames, res.labels))
     if a.output:
-        Path(a.output).write_text(lines)
+        with _paths.atomic_output(outs["--output"], "--output") as tmp:
+            tmp.write_text(lines)
     else:
         print(lines, end="")
     import sys
@@ -367,5 +377,6 @@ def cluster_cli(a) -> int:
     for c, m in enumerate(res.medoids):
         print(f"  cluster {c}: {sum(v == c for v in res.labels)} frames, medoid {m}", file=out)
     if a.figure:
-        cluster_figure(poses, res, a.figure, up=a.up or header_up(header) or "+z")
+        with _paths.atomic_output(outs["--figure"], "--figure") as tmp:
+            cluster_figure(poses, res, tmp, up=a.up or header_up(header) or "+z")
     return 0

@@ -61,6 +61,8 @@ def _frame_bound(cap, text: str, whole: str):
         if not cap.fps:
             raise InputError(f"--frames: {whole!r} gives times but the capture has no frame rate "
                              f"(videos give it; else set [capture] fps in capture.toml)")
+        if not math.isfinite(sec):
+            raise InputError(f"--frames: {whole!r}: {t!r} is not a finite time")
         return max(0, math.ceil(sec * cap.fps - 1e-9))
     return int(t)
 
@@ -87,6 +89,9 @@ def select_frames(cap, frames) -> list:
                 raise InputError(f"--frames: {frames!r} must be START:STOP[:STEP] (indices, or "
                                  "times like 0.5s:1.2s) or a comma-separated list of frame "
                                  "names") from None
+            if sl.step is not None and sl.step <= 0:
+                raise InputError(f"--frames: {frames!r}: the step must be a positive number of "
+                                 "frames")
             out = list(cap.frames)[sl]
             if not out:
                 raise InputError(f"--frames: {frames!r} selects no frame ({len(cap.frames)} frames)")
@@ -162,7 +167,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
         tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None, track=True,
         sides=True, skeleton=True, smooth=None, bvh=None, consistency=None,
-        support=None, support_test=False, trim=None, centre=None) -> RunResult:
+        support=None, support_test=False, trim=None, centre=None, inputs=(),
+        others=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -245,6 +251,16 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         the test replaces the confidence gate (frames the gate alone rejected are matched when
         they pass). Off by default (``benchmarks/results/applications_detection.md``).
 
+    inputs : ``(name, path)`` pairs, optional
+        More files the caller reads, which no output may replace (the capture's files and the
+        model file are protected anyway).
+    others : dict option -> path, optional
+        More outputs the caller will write (checked with the run's own).
+
+    Every output is checked before any work (:func:`topopose._paths.check_outputs`); the
+    output replaces an existing file only when the run completes, and not at all when every
+    frame failed (exit status 1, the old file kept).
+
     Returns
     -------
     RunResult
@@ -291,9 +307,14 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     if bvh is not None and not (skeleton and m.joints):
         raise InputError(f"--bvh: model {m.name!r} has no [[joint]] (or --no-skeleton): no "
                          "skeleton to export")
-    exports = {k: _paths.writable_output(v, f"--{k}") for k, v in
-               (("trc", trc), ("csv", csv), ("c3d", c3d), ("bvh", bvh)) if v is not None}
-    out = _paths.writable_output(output, "--output") if output is not None else None
+    inputs = list(inputs) + ([("--model", model)] if isinstance(model, (str, Path))
+                             and Path(model).is_file() else [])
+    if cap.path is not None:
+        inputs += _paths.capture_inputs(cap.path)
+    checked = _paths.check_outputs({"--output": output, "--trc": trc, "--csv": csv, "--c3d": c3d,
+                                    "--bvh": bvh, **(others or {})}, inputs)
+    exports = {k[2:]: checked[k] for k in ("--trc", "--csv", "--c3d", "--bvh") if k in checked}
+    out = checked.get("--output")
     header = run_header(cap, m, resolution, threshold, options)
     done = {}
     partial = out.with_name(out.name + ".partial") if out is not None else None
@@ -307,13 +328,19 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     todo = [f for f in todo if f not in done]
 
     # ---- the run: frames appended (and flushed) to a temporary file beside the output, which
-    # replaces the output at the end — also on Ctrl-C or an error, so nothing computed is lost;
+    # replaces the output when the run completes. Interrupted (Ctrl-C, an error), it replaces
+    # only a missing output or a resumed one (which it extends): an existing file of another run
+    # is left as it was and the frames computed stay in the partial file, which --resume reads;
     # a killed process leaves the existing output as it was (and the partial file beside it)
     results = dict(done)
+    existed = out is not None and out.exists()
     t0 = time.perf_counter()
     fh = None
     if partial is not None:
-        fh = open(partial, "w")
+        try:
+            fh = open(partial, "w")
+        except OSError as exc:
+            raise InputError(f"--output: cannot write beside {out} ({exc.strerror or exc})") from None
         fh.write(json.dumps(header, separators=(",", ":")) + "\n")
         for p in sorted(done.values(), key=lambda p: p.frame):
             fh.write(p.to_json() + "\n")
@@ -332,7 +359,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
                 first[0] = False          # the first run's compilation and tables
                 bar.start_t = bar.last_print_t = bar._time()
                 bar.initial = bar.n
-            bar.set_postfix(status=pose.status[:7], refresh=False)
+            bar.set_postfix(status=f"{pose.status:8}", refresh=False)   # whole, fixed width
         if on_pose is not None:
             on_pose(pose)
 
@@ -342,48 +369,70 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
 
     from .. import _coldstart
 
-    try:
-        with _coldstart.notices(note):
-            if todo and (workers > 1 or scheduler):
-                _run_dask(cap, m, resolution, threshold, options, todo, workers, scheduler, finish)
-            elif todo:
-                from ..capture import prefetch
-
-                warm = _coldstart.start_warmup()     # first run: a helper process
-                try:
-                    est = FrameEstimator(cap, m, resolution, threshold, **options)
-                    est.warmup = warm
-                    with prefetch(cap, todo):        # decoding + silhouettes run ahead in a thread
-                        for f in todo:
-                            finish(est.estimate(f))
-                finally:
-                    warm.close()
-    finally:
-        if bar is not None:
-            bar.close()
-        from .confidence import temporal_confidence      # time factors need the whole run
-        temporal_confidence(list(results.values()), {f: i for i, f in enumerate(cap.frames)},
-                            gate=gate and m.name == "human")
-        if support_test:                  # per frame, on the statuses the gate gave
-            from .consistency import judge_support
-            judge_support(results.values(), gate=support_test != "replace")
-        if fh is not None:
-            fh.close()
-            if len(results) > len(done) or not out.exists() or resume:
-                write_poses(out, results.values(), header)   # sorted, atomic replace
-            partial.unlink(missing_ok=True)
-    seconds = time.perf_counter() - t0
-    poses = [results[k] for k in sorted(results)]
+    complete = False
     motion = None
-    # a resume with nothing to do keeps the file
-    if (track or sides or skeleton or judged) and todo:
-        from .motion import process_sequence
-        motion = process_sequence(poses, m, cap.up_vector, track=track, sides=sides,
-                                  skeleton=skeleton, smooth=smooth, consistency=consistency,
-                                  trim=trim, fps=cap.fps)
-        poses = motion.poses
-        if out is not None:
-            write_poses(out, poses, header)
+    poses = []
+    try:
+        try:
+            with _coldstart.notices(note):
+                if todo and (workers > 1 or scheduler):
+                    _run_dask(cap, m, resolution, threshold, options, todo, workers, scheduler,
+                              finish)
+                elif todo:
+                    from ..capture import prefetch
+
+                    warm = _coldstart.start_warmup()     # first run: a helper process
+                    try:
+                        est = FrameEstimator(cap, m, resolution, threshold, **options)
+                        est.warmup = warm
+                        with prefetch(cap, todo):        # decoding + silhouettes run ahead in a thread
+                            for f in todo:
+                                finish(est.estimate(f))
+                    finally:
+                        warm.close()
+        finally:
+            if bar is not None:
+                bar.close()
+            from .confidence import temporal_confidence      # time factors need the whole run
+            temporal_confidence(list(results.values()), {f: i for i, f in enumerate(cap.frames)},
+                                gate=gate and m.name == "human")
+            if support_test:                  # per frame, on the statuses the gate gave
+                from .consistency import judge_support
+                judge_support(results.values(), gate=support_test != "replace")
+            if fh is not None:
+                fh.close()
+        seconds = time.perf_counter() - t0
+        poses = [results[k] for k in sorted(results)]
+        if todo and existed and not resume and all(results[f].status == "failed" for f in todo):
+            # nothing worth keeping: the complete result already there stays
+            partial.unlink(missing_ok=True)
+            print(f"topopose: note: every frame failed; {out} left as it was", file=sys.stderr)
+            out, exports = None, {}
+        else:
+            # a resume with nothing to do keeps the file
+            if (track or sides or skeleton or judged) and todo:
+                from .motion import process_sequence
+                motion = process_sequence(poses, m, cap.up_vector, track=track, sides=sides,
+                                          skeleton=skeleton, smooth=smooth,
+                                          consistency=consistency, trim=trim, fps=cap.fps)
+                poses = motion.poses
+            if out is not None and (todo or not existed or resume):
+                write_poses(out, poses, header)                   # sorted, atomic replace
+            if partial is not None:
+                partial.unlink(missing_ok=True)
+        complete = True
+    except BaseException as exc:
+        if not complete and partial is not None and partial.exists():
+            if existed and not resume:        # another run's file: never replaced by a part
+                if len(results) > len(done) and isinstance(exc, KeyboardInterrupt):
+                    exc.add_note(f"{out} left as it was; the {len(results) - len(done)} frames "
+                                 f"computed are in {partial} (--resume continues from them)")
+                elif len(results) == len(done):
+                    partial.unlink(missing_ok=True)
+            else:                              # nothing computed is lost
+                write_poses(out, results.values(), header)
+                partial.unlink(missing_ok=True)
+        raise
     counts = {s: sum(p.status == s for p in poses) for s in ("matched", "rejected", "failed")}
     res = RunResult(poses, out, computed=len(todo), skipped=len(skipped), seconds=seconds,
                     counts=counts)
@@ -392,14 +441,14 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     from .export import OPENSIM_LABELS, marker_names, write_c3d, write_csv, write_trc
     markers = marker_names(poses, m.parts)
     writers = {"trc": lambda t: write_trc(t, poses, markers, fps=fps, units=units, up=cap.up,
-                                          labels=OPENSIM_LABELS),
+                                          labels=OPENSIM_LABELS, name=exports["trc"].name),
                "csv": lambda t: write_csv(t, poses, markers),
                "c3d": lambda t: write_c3d(t, poses, markers, fps=fps, units=units,
                                           labels=OPENSIM_LABELS),
                "bvh": lambda t: write_motion_bvh(t, poses, motion, m, fps=fps, units=units,
                                                  up=cap.up)}
     for k, path in exports.items():
-        with _paths.atomic_output(path) as t:
+        with _paths.atomic_output(path, f"--{k}") as t:
             writers[k](t)
     return res
 
@@ -481,14 +530,48 @@ def write_motion_bvh(path, poses, motion, model, fps=25.0, units="m", up="+z"):
     return write_bvh(path, names, tree.parents, P, fps=fps, units=units, up=up)
 
 
+#: seconds a Dask scheduler has to answer (connection and first reply) before ``--scheduler``
+#: is refused: a cluster on a network answers in well under a second
+SCHEDULER_TIMEOUT = 20.0
+
+
+def probe_scheduler(address, timeout: float = SCHEDULER_TIMEOUT) -> None:
+    """Ask ``address`` who it is, within ``timeout`` seconds, before a ``Client`` connects:
+    an address that does not parse, a server that accepts and never replies, or one that
+    speaks another protocol (an HTTP server) raises InputError naming ``--scheduler``."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def ask():
+        comm = await connect(address, timeout=timeout)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        reply = asyncio.run(asyncio.wait_for(ask(), timeout))
+    except (TimeoutError, asyncio.TimeoutError):
+        raise InputError(f"--scheduler: {address!r} did not answer within {timeout:g} s "
+                         "(not a Dask scheduler, or unreachable)") from None
+    except Exception as exc:            # noqa: BLE001  bad address, refused, another protocol
+        raise InputError(f"--scheduler: no Dask scheduler at {address!r} "
+                         f"({type(exc).__name__}: {str(exc)[:200]})") from None
+    if not isinstance(reply, dict) or reply.get("type") != "Scheduler":
+        raise InputError(f"--scheduler: {address!r} answered, but is not a Dask scheduler")
+
+
 def _run_dask(cap, model, resolution, threshold, options, todo, workers, scheduler, finish):
     from dask.distributed import Client, LocalCluster, as_completed
 
     spec = _spec(cap, model, resolution, threshold, options)
     key = _key(spec)
     if scheduler:
+        probe_scheduler(scheduler)
         try:
-            client = Client(scheduler, timeout="20s")
+            client = Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT}s")
         except (OSError, TimeoutError) as exc:
             raise InputError(f"--scheduler: cannot reach Dask scheduler {scheduler!r} ({exc})") from None
         cluster = None
@@ -553,10 +636,8 @@ def run_cli(a) -> int:
                   f"{MIN_FRAMES_PER_WORKER * workers} frames)", file=sys.stderr)
             workers = 1
     if getattr(a, "rerun", None):
-        from .._paths import writable_output
         from ..viz.rerun import require_rerun
         require_rerun()                      # fail before the run, not after
-        writable_output(a.rerun, "--rerun")
     res = run(a.capture, model=a.model, resolution=a.resolution, threshold=a.threshold,
               output=a.output, frames=getattr(a, "frames", None), workers=workers,
               scheduler=a.scheduler, resume=a.resume, progress=True, trc=a.trc, csv=a.csv,
@@ -570,11 +651,13 @@ def run_cli(a) -> int:
               smooth=getattr(a, "smooth", None), bvh=getattr(a, "bvh", None),
               consistency=getattr(a, "consistency", None),
               support_test=getattr(a, "support", None) or False, trim=getattr(a, "trim", None),
-              centre=getattr(a, "centre", None))
+              centre=getattr(a, "centre", None), others={"--rerun": getattr(a, "rerun", None)})
     if getattr(a, "rerun", None):
+        from .._paths import atomic_output
         from ..viz.rerun import record_run
-        record_run(a.rerun, a.capture, res.poses, model=a.model, resolution=a.resolution,
-                   tolerance=getattr(a, "tolerance", None))
+        with atomic_output(a.rerun, "--rerun") as tmp:
+            record_run(tmp, a.capture, res.poses, model=a.model, resolution=a.resolution,
+                       tolerance=getattr(a, "tolerance", None))
         print(f"recorded {a.rerun} (open it with `rerun {a.rerun}`)")
     print(summary_text(res))
     for p in res.failed[:10]:

@@ -757,11 +757,15 @@ def segment_cli(a) -> int:
     """``topopose segment CAPTURE --poses P.jsonl --out DIR [--frames ...]``."""
     from PIL import Image
 
+    from .. import _paths
     from ..capture import load_capture
     from ..viz.view import guess_model
     from .detect import read_poses_file
     from .estimate import FrameEstimator
 
+    inputs = [*_paths.capture_inputs(a.capture), ("--poses", a.poses),
+              ("--model", a.model if a.model and Path(a.model).is_file() else None)]
+    out = _paths.writable_folder(a.out, "--out", inputs=inputs)
     cap = load_capture(a.capture)
     poses, _ = read_poses_file(a.poses)
     if not poses:
@@ -773,8 +777,19 @@ def segment_cli(a) -> int:
     res = a.resolution or int(poses[0].diagnostics.get("resolution", 100))
     tol = poses[0].diagnostics.get("hull_tolerance")
     est = FrameEstimator(cap, model, res, tolerance=None if tol is None else int(tol))
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
+    files = {"segmentation.jsonl": out / "segmentation.jsonl"}    # every file, checked first
+    for p in poses:
+        if p.status == "matched":
+            files.update({f"{p.frame} labels": out / f"{p.frame}_labels.npz",
+                          f"{p.frame} mesh": out / f"{p.frame}.ply",
+                          **{f"{p.frame} {c.name}": out / f"{p.frame}_{c.name}.png"
+                             for c in cap.cameras}})
+    _paths.check_outputs({f"--out ({k})": v for k, v in files.items()}, inputs)
+
+    def write(path, how):
+        with _paths.atomic_output(path, "--out") as tmp:
+            how(tmp)
+
     names_all = arc_names(model)
     cols = label_colours(len(names_all))
     n_done, summary = 0, []
@@ -790,17 +805,20 @@ def segment_cli(a) -> int:
                                 pose=pose, model=model)
         ms = (time.perf_counter() - t0) * 1e3
         vol = det.volume
-        np.savez_compressed(out / f"{p.frame}_labels.npz", labels=labels.astype(np.uint8),
-                            names=np.array(names), origin=vol.origin, voxel_size=vol.voxel_size)
-        write_label_mesh(out / f"{p.frame}.ply", labels, names, vol.origin, vol.voxel_size)
+        write(out / f"{p.frame}_labels.npz", lambda t: np.savez_compressed(
+            t, labels=labels.astype(np.uint8), names=np.array(names), origin=vol.origin,
+            voxel_size=vol.voxel_size))
+        write(out / f"{p.frame}.ply",
+              lambda t: write_label_mesh(t, labels, names, vol.origin, vol.voxel_size))
         sils = cap.silhouettes(p.frame)
         for cam, img in zip(cap.cameras, camera_masks(cap, labels, vol.origin, vol.voxel_size, sils)):
-            Image.fromarray(cols[img]).save(out / f"{p.frame}_{cam.name}.png")
+            write(out / f"{p.frame}_{cam.name}.png", lambda t: Image.fromarray(cols[img]).save(t))
         counts = np.bincount(labels.ravel(), minlength=len(names) + 1)[1:]
         summary.append({"frame": p.frame, "status": "segmented", "segment_ms": round(ms, 3),
                         "voxels": {n: int(c) for n, c in zip(names, counts)}})
         n_done += 1
-    (out / "segmentation.jsonl").write_text("".join(json.dumps(s) + "\n" for s in summary))
+    write(out / "segmentation.jsonl",
+          lambda t: t.write_text("".join(json.dumps(s) + "\n" for s in summary)))
     print(f"segmented {n_done} matched frames into {out} (labels: "
           + ", ".join(f"{i + 1}={n}" for i, n in enumerate(names_all)) + ")")
     return 0

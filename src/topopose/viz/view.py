@@ -273,7 +273,7 @@ def view_cli(a) -> int:
     _, det = est.estimate(frame, detail=True)
     from .._paths import atomic_output
 
-    with atomic_output(a.out) as tmp:      # an existing picture is replaced only when done
+    with atomic_output(a.out, "--out") as tmp:   # an existing picture is replaced only when done
         if getattr(a, "segmentation", False):
             from ..pose.segment import segmentation_figure
 

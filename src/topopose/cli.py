@@ -607,8 +607,11 @@ def _quiet_broken_pipe() -> int:
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    from ._quiet import one_line_warnings
+
     try:
-        return int(args.func(args) or 0)
+        with one_line_warnings():        # ours one line each; other packages' dropped
+            return int(args.func(args) or 0)
     except InputError as exc:
         print(f"topopose: error: {exc}".replace("\n", " "), file=sys.stderr)
         return 2

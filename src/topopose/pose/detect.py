@@ -246,6 +246,8 @@ class _Parser:
             if n.kind != "num":
                 self.error(n, f"expected a distance (a number) after the parts of {t.text!r}, got "
                               f"{n.text or 'the end'!r}")
+            if not np.isfinite(float(n.text)):
+                self.error(n, f"the distance of {t.text!r} must be a finite number, got {n.text}")
             return Rel(w, parts, value=float(n.text))
         if w in KEYWORDS or w in ("greatest", "least"):
             self.error(t, f"{t.text!r} cannot start a relation")

@@ -773,10 +773,6 @@ def segment_cli(a) -> int:
     if a.frames:
         want = {cap.frame_name(f) for f in a.frames.split(",")}
         poses = [p for p in poses if p.frame in want]
-    model = guess_model(poses[0], a.model)
-    res = a.resolution or int(poses[0].diagnostics.get("resolution", 100))
-    tol = poses[0].diagnostics.get("hull_tolerance")
-    est = FrameEstimator(cap, model, res, tolerance=None if tol is None else int(tol))
     files = {"segmentation.jsonl": out / "segmentation.jsonl"}    # every file, checked first
     for p in poses:
         if p.status == "matched":
@@ -785,6 +781,10 @@ def segment_cli(a) -> int:
                           **{f"{p.frame} {c.name}": out / f"{p.frame}_{c.name}.png"
                              for c in cap.cameras}})
     _paths.check_outputs({f"--out ({k})": v for k, v in files.items()}, inputs)
+    model = guess_model(poses[0], a.model)
+    res = a.resolution or int(poses[0].diagnostics.get("resolution", 100))
+    tol = poses[0].diagnostics.get("hull_tolerance")
+    est = FrameEstimator(cap, model, res, tolerance=None if tol is None else int(tol))
 
     def write(path, how):
         with _paths.atomic_output(path, "--out") as tmp:

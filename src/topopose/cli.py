@@ -262,6 +262,8 @@ def cmd_bench(a):
     # results go to the tracked benchmarks/results/ only with --save; else to an untracked
     # folder (benchmarks/results/quick/ is ignored by git)
     out = bdir / "results" if a.save else bdir / "results" / "quick"
+    if bdir.is_dir() and os.access(bdir, os.W_OK):
+        (bdir / "results").mkdir(exist_ok=True)      # the checkout's own folder
     _paths.writable_folder(out, "benchmarks/results")
     env = dict(os.environ, TOPOPOSE_BENCH_RESULTS=str(out))
     src = str(here.parents[1])               # the package the scripts import: this one

@@ -125,22 +125,22 @@ def _scaled_camera(cam: Camera, size) -> Camera:
     return Camera(cam.name, size, K, cam.distortions, cam.rotation, cam.translation, cam.fisheye)
 
 
-def _first_size(src, camera, frames) -> tuple | None:
-    """(w, h) of the camera's first readable frame (None when there is none): a PNG's header,
-    else the decoded image."""
+def _first_size(src, camera, frames) -> tuple:
+    """((w, h), path) of the camera's first readable frame ((None, None) when there is none):
+    a PNG's header, else the decoded image."""
     for f in frames:
         p = src.path(camera, f)
         if p is None:
             continue
         size = png_size(p)
         if size is not None and 0 < size[0] * size[1] <= MAX_IMAGE_PIXELS:
-            return size
+            return size, p
         try:
             img = imread(p, cv2.IMREAD_UNCHANGED, camera)
         except InputError:                   # that frame fails on its own, with its reason
             continue
-        return img.shape[1], img.shape[0]
-    return None
+        return (img.shape[1], img.shape[0]), p
+    return None, None
 
 
 def load_capture(path) -> Capture:
@@ -253,13 +253,12 @@ def load_capture(path) -> Capture:
     # the cameras, "pad" warns once, "error" stops at once (every frame would fail)
     for k, cam in enumerate(cameras):
         if source == "videos":
-            size = src.sizes.get(cam.name)
+            size, where = src.sizes.get(cam.name), src.videos[cam.name]
         else:
-            size = _first_size(src, cam.name, frames)
+            size, where = _first_size(src, cam.name, frames)
         if size is None or tuple(size) == tuple(cam.size):
             continue
         pol = size_policy(cap, cam.name)
-        where = src.videos[cam.name] if source == "videos" else Path(base / names[cam.name])
         if pol == "error":
             raise InputError(_size_message(where, size, cam))
         _warn_size(cap, cam, size, where, pol)

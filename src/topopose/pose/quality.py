@@ -278,10 +278,11 @@ def evaluation_tolerance(gt: dict, relative=None, absolute=None, junction_factor
     if relative is not None and absolute is not None:
         raise InputError("evaluate: give --tolerance (fraction of the height) or --tolerance-m, "
                          "not both")
+    from .._paths import check_number
+
     for name, x in (("--tolerance", relative), ("--tolerance-m", absolute),
                     ("--junction-factor", junction_factor)):
-        if x is not None and not x > 0:
-            raise InputError(f"evaluate: {name} must be > 0 (got {x})")
+        check_number(x, name, above=0)
     if absolute is not None:
         return float(absolute), 1.0 if junction_factor is None else float(junction_factor)
     h = gt.get("height")

@@ -274,6 +274,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         raise InputError(f"--workers: must be at least 1, got {workers}")
     resolution = _paths.check_resolution(resolution)
     threshold = _paths.check_threshold(threshold)
+    thickness = _paths.check_number(thickness, "--thickness", low=0)
+    smooth = _paths.check_number(smooth, "--smooth", low=0, integer=True)
     m = load_model(model, constraints=constraints)
     cap = capture if isinstance(capture, Capture) else load_capture(capture)
     tolerance = _paths.check_tolerance(tolerance, len(cap.cameras))

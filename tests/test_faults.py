@@ -135,12 +135,18 @@ def test_run_output_onto_the_capture_is_refused(cap, capsys, target):
 
 def test_outputs_on_devices_fifos_and_each_other_are_refused(cap, poses, tmp_path, capsys):
     base = ["run", cap, "--resolution", "32"]
-    refused(capsys, base + ["--output", "/dev/full"], "--output", "/dev/full")
-    assert stat.S_ISCHR(os.stat("/dev/full").st_mode)
     fifo = tmp_path / "fifo"
     os.mkfifo(fifo)
     refused(capsys, base + ["--output", fifo], "--output", "FIFO")
     assert stat.S_ISFIFO(os.stat(fifo).st_mode)
+    full = tmp_path / "full"          # a copy of /dev/full's node (root), never the system's own
+    try:
+        os.mknod(full, stat.S_IFCHR | 0o666, os.makedev(1, 7))
+    except PermissionError:
+        full = None                   # not root: only the FIFO can be made here
+    if full is not None:
+        refused(capsys, base + ["--output", full], "--output", "device")
+        assert stat.S_ISCHR(os.stat(full).st_mode)
     refused(capsys, base + ["--output", poses, "--trc", tmp_path / "m.trc", "--bvh", fifo], "--bvh")
     for opt in ("--csv", "--trc"):
         refused(capsys, base + ["--output", poses, opt, poses], opt, "--output", keep=[poses])

@@ -452,6 +452,12 @@ def test_exports_carry_their_final_name_and_help_names_no_internals(cap, tmp_pat
         assert internal not in text, internal
 
 
+def test_progress_bar_shows_the_whole_status(cap, tmp_path, capsys):
+    assert main(["run", str(cap), "--resolution", "32", "--output", str(tmp_path / "p.jsonl")]) == 0
+    shown = set(re.findall(r"status=(\w+)", capsys.readouterr().err))
+    assert shown and shown <= {"matched", "rejected", "failed"}, shown
+
+
 def test_third_party_warnings_silent_ours_one_line(cap, tmp_path, capsys):
     import warnings
 

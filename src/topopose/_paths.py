@@ -55,6 +55,12 @@ def capture_inputs(root) -> list:
     return [(f"capture {root}", root / n) for n in names if (root / n).exists()]
 
 
+def file_input(path):
+    """``path`` when it names an existing file (an input no output may replace; e.g. a
+    ``--model`` that is a TOML file, not a built-in name), else None."""
+    return path if isinstance(path, (str, Path)) and str(path) and Path(path).is_file() else None
+
+
 def _clash(p: Path, inputs) -> str | None:
     """Why writing ``p`` would damage one of ``inputs`` (``(name, path)``), or None."""
     for name, q in inputs:

@@ -169,11 +169,6 @@ def cmd_match(a):
     return 0
 
 
-def _model_file(model):
-    """A ``--model`` that names a file (an input to protect), else None (a built-in name)."""
-    return model if model and Path(model).is_file() else None
-
-
 def cmd_run(a):
     from .pose.run import run_cli
 
@@ -185,7 +180,7 @@ def cmd_view(a):
 
     _paths.writable_output(a.out, "--out", suffix=(".png", ".pdf", ".svg", ".jpg", ".jpeg"),
                            inputs=[*_paths.capture_inputs(a.capture), ("--poses", a.poses),
-                                   ("--model", _model_file(a.model))])
+                                   ("--model", _paths.file_input(a.model))])
 
     return view_cli(a)
 
@@ -320,7 +315,8 @@ HELP = {
     ("run", "--threshold"): "AHA distance threshold T_d above which a frame is rejected "
                             "(default: the model's)",
     ("run", "--output"): "poses file (JSON Lines, one header line then one line per frame; "
-                         "written to OUTPUT.partial and renamed at the end) (default %(default)s)",
+                         "an existing file is replaced only when the run completes) (default "
+                         "%(default)s)",
     ("run", "--trc"): "also export the matched frames as TRC (OpenSim, metres, Y up)",
     ("run", "--csv"): "also export the matched frames as a wide CSV (<part>_x, _y, _z)",
     ("run", "--c3d"): "also export the matched frames as C3D (pip install topopose[c3d])",
@@ -445,7 +441,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="drop the model's coordinate constraints (acrobatics)")
     s.add_argument("--confidence-gate", choices=["auto", "on", "off"], default="auto",
                    help="human model: 'matched' also needs the fitted confidence >= its minimum "
-                        "(the confidence model shipped with topopose); auto (default): on, off with "
+                        "(the shipped confidence model); auto (default): on, off with "
                         "--no-constraints (the fit knows upright subjects only); measured on "
                         "held-out synthetic frames, 8 cameras: precision of 'matched' 0.86 -> "
                         "0.94, keeping 80 %% of the right frames")

@@ -167,8 +167,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
         tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None, track=True,
         sides=True, skeleton=True, smooth=None, bvh=None, consistency=None,
-        support=None, support_test=False, trim=None, centre=None, inputs=(),
-        others=None) -> RunResult:
+        support=None, support_test=False, trim=None, centre=None, others=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -251,15 +250,13 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         the test replaces the confidence gate (frames the gate alone rejected are matched when
         they pass). Off by default (``benchmarks/results/applications_detection.md``).
 
-    inputs : ``(name, path)`` pairs, optional
-        More files the caller reads, which no output may replace (the capture's files and the
-        model file are protected anyway).
     others : dict option -> path, optional
         More outputs the caller will write (checked with the run's own).
 
-    Every output is checked before any work (:func:`topopose._paths.check_outputs`); the
-    output replaces an existing file only when the run completes, and not at all when every
-    frame failed (exit status 1, the old file kept).
+    Every output is checked before any work (:func:`topopose._paths.check_outputs`) against
+    the capture's files, the model file and the other outputs; the output replaces an existing
+    file only when the run completes, and not at all when every frame failed (exit status 1,
+    the old file kept).
 
     Returns
     -------
@@ -309,14 +306,15 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     if bvh is not None and not (skeleton and m.joints):
         raise InputError(f"--bvh: model {m.name!r} has no [[joint]] (or --no-skeleton): no "
                          "skeleton to export")
-    inputs = list(inputs) + ([("--model", model)] if isinstance(model, (str, Path))
-                             and Path(model).is_file() else [])
+    inputs = [("--model", _paths.file_input(model))]
     if cap.path is not None:
         inputs += _paths.capture_inputs(cap.path)
     checked = _paths.check_outputs({"--output": output, "--trc": trc, "--csv": csv, "--c3d": c3d,
                                     "--bvh": bvh, **(others or {})}, inputs)
     exports = {k[2:]: checked[k] for k in ("--trc", "--csv", "--c3d", "--bvh") if k in checked}
     out = checked.get("--output")
+    if scheduler and todo:
+        probe_scheduler(scheduler)
     header = run_header(cap, m, resolution, threshold, options)
     done = {}
     partial = out.with_name(out.name + ".partial") if out is not None else None
@@ -571,7 +569,6 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
     spec = _spec(cap, model, resolution, threshold, options)
     key = _key(spec)
     if scheduler:
-        probe_scheduler(scheduler)
         try:
             client = Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT}s")
         except (OSError, TimeoutError) as exc:

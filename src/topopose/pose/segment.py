@@ -764,7 +764,7 @@ def segment_cli(a) -> int:
     from .estimate import FrameEstimator
 
     inputs = [*_paths.capture_inputs(a.capture), ("--poses", a.poses),
-              ("--model", a.model if a.model and Path(a.model).is_file() else None)]
+              ("--model", _paths.file_input(a.model))]
     out = _paths.writable_folder(a.out, "--out", inputs=inputs)
     cap = load_capture(a.capture)
     poses, _ = read_poses_file(a.poses)

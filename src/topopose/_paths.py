@@ -68,9 +68,9 @@ def _clash(p: Path, inputs) -> str | None:
             continue
         q = Path(q)
         if _same(p, q):
-            return f"{p} is the input {name}" + ("" if name.endswith(str(q)) else f" ({q})")
+            return f"{p} is an input ({name})"
         if q.is_dir() and _inside(p, q):
-            return f"{p} is inside {q}, which {name} reads"
+            return f"{p} is inside {q}, an input ({name})"
     return None
 
 
@@ -107,7 +107,7 @@ def writable_output(path, what: str = "--out", *, suffix=None, inputs=()) -> Pat
         raise InputError(f"{what}: {p} is not writable")
     why = _clash(p, inputs)
     if why:
-        raise InputError(f"{what}: {why}; writing it would destroy it (give another path)")
+        raise InputError(f"{what}: {why}; give another path")
     return p
 
 
@@ -148,7 +148,7 @@ def writable_folder(path, what: str = "--out", *, inputs=()) -> Path:
         raise InputError(f"{what}: {p} exists and is not a folder")
     why = _clash(p, inputs)
     if why:
-        raise InputError(f"{what}: {why}; writing into it would change it (give another folder)")
+        raise InputError(f"{what}: {why}; give another folder")
     parent = p.parent if str(p.parent) else Path(".")
     if not p.exists() and not parent.is_dir():
         raise InputError(f"{what}: folder {parent} does not exist (create it first)")

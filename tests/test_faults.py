@@ -12,12 +12,9 @@ import math
 import os
 import re
 import shutil
-import signal
 import socket
 import stat
 import struct
-import subprocess
-import sys
 import threading
 import time
 import zlib
@@ -33,7 +30,7 @@ from topopose.cli import main
 from topopose.pose import detect as D
 from topopose.pose.pose import Pose, read_poses
 
-SRC = str(Path(__file__).resolve().parents[1] / "src")
+import _sigint
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -193,30 +190,12 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
-def interrupt(argv, n, after=2):
-    """Run ``topopose argv`` in a child, SIGINT it once ``after`` of ``n`` frames are done:
+def interrupt(argv, n):
+    """SIGINT to ``topopose argv`` (frames slowed by :data:`DRIVER`) after 2 of ``n`` frames:
     (exit status, stderr lines without the progress bar)."""
-    env = dict(os.environ, PYTHONPATH=SRC)
-    p = subprocess.Popen([sys.executable, "-c", DRIVER, *map(str, argv)], env=env,
-                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    chunks = []
-    reader = threading.Thread(target=lambda: [chunks.append(b) for b in
-                                              iter(lambda: os.read(p.stderr.fileno(), 4096), b"")],
-                              daemon=True)
-    reader.start()
-    t0 = time.time()
-    while time.time() - t0 < 120 and p.poll() is None:
-        done = re.findall(rf"(\d+)/{n} \[", b"".join(chunks).decode(errors="replace"))
-        if done and max(map(int, done)) >= after:
-            break
-        time.sleep(0.05)
-    assert p.poll() is None, b"".join(chunks).decode()[-2000:]
-    p.send_signal(signal.SIGINT)
-    p.wait(timeout=60)
-    reader.join(timeout=10)
-    err = b"".join(chunks).decode().replace("\r", "\n")
+    code, err = _sigint.interrupt(DRIVER, argv, n)
     assert "Traceback" not in err, err[-3000:]
-    return p.returncode, [x for x in err.splitlines() if x.strip() and f"/{n} [" not in x]
+    return code, [x for x in err.splitlines() if x.strip() and f"/{n} [" not in x]
 
 
 def test_every_frame_failed_keeps_the_old_file(copy, poses, tmp_path, capsys):

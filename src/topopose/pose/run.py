@@ -29,7 +29,9 @@ from .pose import Pose, read_poses, write_poses
 
 @dataclass
 class RunResult:
-    """What a run produced (all frames of the output file, including resumed ones)."""
+    """What a run produced (all frames of the output file, including resumed ones).
+    ``written``: the output and exports were written (False when every frame failed and an
+    existing output was kept)."""
 
     poses: list
     output: Path | None
@@ -37,6 +39,7 @@ class RunResult:
     skipped: int = 0
     seconds: float = 0.0
     counts: dict = field(default_factory=dict)
+    written: bool = True
 
     @property
     def failed(self) -> list:
@@ -370,6 +373,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     from .. import _coldstart
 
     complete = False
+    written = True
     motion = None
     poses = []
     try:
@@ -407,7 +411,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
             # nothing worth keeping: the complete result already there stays
             partial.unlink(missing_ok=True)
             print(f"topopose: note: every frame failed; {out} left as it was", file=sys.stderr)
-            out, exports = None, {}
+            written, exports = False, {}
         else:
             # a resume with nothing to do keeps the file
             if (track or sides or skeleton or judged) and todo:
@@ -435,7 +439,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         raise
     counts = {s: sum(p.status == s for p in poses) for s in ("matched", "rejected", "failed")}
     res = RunResult(poses, out, computed=len(todo), skipped=len(skipped), seconds=seconds,
-                    counts=counts)
+                    counts=counts, written=written)
     units = cap.units
     fps = cap.fps or 25.0
     from .export import OPENSIM_LABELS, marker_names, write_c3d, write_csv, write_trc
@@ -662,9 +666,10 @@ def run_cli(a) -> int:
     for p in res.failed[:10]:
         print(f"  failed {p.frame}: {p.error}")
     if len(res.failed) > 10:
-        print(f"  ... {len(res.failed) - 10} more failed frames (see {a.output})")
+        print(f"  ... {len(res.failed) - 10} more failed frames"
+              + (f" (see {a.output})" if res.written else ""))
     extra = [x for x in (a.trc, a.csv, getattr(a, "c3d", None), getattr(a, "bvh", None)) if x]
-    if extra:
+    if extra and res.written:
         print("exports: " + ", ".join(str(x) for x in extra))
     return res.exit_status
 
@@ -683,7 +688,7 @@ def summary_text(res: RunResult) -> str:
             t = float(np.median([p.timings_ms["total"] for p in comp]))
             fps += f"; median {t:.1f} ms/frame in the estimator"
         fps += ")"
-    where = f" → {res.output}" if res.output else ""
+    where = f" → {res.output}" if res.output and res.written else ""
     skipped = f" ({res.skipped} resumed)" if res.skipped else ""
     out = [p for p in res.poses if p.diagnostics.get("temporal_outlier")]
     off = ""

@@ -202,11 +202,13 @@ def test_every_frame_failed_keeps_the_old_file(copy, poses, tmp_path, capsys):
     c = copy()
     out = tmp_path / "p.jsonl"
     shutil.copy(poses, out)
-    before = out.read_bytes()
+    trc = tmp_path / "m.trc"
+    trc.write_text("an export of the complete run\n")
+    before = snapshot(tmp_path)
     for f in (c / "silhouettes" / "cam_01").iterdir():       # every frame of a camera unreadable
         f.write_bytes(b"not a picture")
-    code, err, stdout = cli(capsys, ["run", c, "--resolution", "32", "--output", out])
-    assert code == 1 and out.read_bytes() == before
+    code, err, stdout = cli(capsys, ["run", c, "--resolution", "32", "--output", out, "--trc", trc])
+    assert code == 1 and snapshot(tmp_path) == {**before, **snapshot(c)}
     assert len(err) == 1 and "every frame failed" in err[0] and str(out) in err[0], err
     assert "failed 000000" in stdout and "cam_01" in stdout and str(out) not in stdout
 

@@ -125,9 +125,10 @@ def cmd_tree(a):
         except ValueError:
             raise InputError("--resolutions: expected integers separated by commas, "
                              f"got {a.resolutions!r}") from None
-        if a.out is not None:
-            _paths.check_outputs({"--out": a.out, "--out (.md)": Path(a.out).with_suffix(".md"),
-                                  "--out (.json)": Path(a.out).with_suffix(".json")},
+        if a.out is not None:                # the figure, and the table and numbers beside it
+            png = Path(a.out).with_suffix(".png")
+            _paths.check_outputs({"--out": png, "--out (.md)": png.with_suffix(".md"),
+                                  "--out (.json)": png.with_suffix(".json")},
                                  _paths.capture_inputs(a.stats))
         return tree_stats_cli(a.stats, out=a.out, resolutions=res, incomplete=a.border)
     if a.skeleton is None or a.out is None:

@@ -331,7 +331,10 @@ def evaluate_cli(a) -> int:
     out.mkdir(parents=True, exist_ok=True)
     from ..viz.figures import plot_quality
 
+    from .._paths import atomic_output
+
     fig = out / (Path(a.poses).stem + "_quality.png")
-    plot_quality([(f"{gt.get('subject', 'capture')}", ev)], fig)
+    with atomic_output(fig, "--out") as tmp:
+        plot_quality([(f"{gt.get('subject', 'capture')}", ev)], tmp)
     print(f"wrote {fig}")
     return 0

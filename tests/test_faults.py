@@ -87,7 +87,7 @@ def poses(cap, tmp_path_factory):
 
 @pytest.fixture
 def copy(cap, tmp_path):
-    """A fresh copy of the capture and of the finished poses (for tests that change them)."""
+    """A fresh copy of the capture (for tests that change it)."""
     def make(name="c"):
         shutil.copytree(cap, tmp_path / name)
         return tmp_path / name
@@ -149,7 +149,7 @@ def test_outputs_on_devices_fifos_and_each_other_are_refused(cap, poses, tmp_pat
         refused(capsys, base + ["--output", poses, opt, poses], opt, "--output", keep=[poses])
 
 
-def test_ctrl_c_of_a_rerun_keeps_the_complete_file(copy, tmp_path, capsys):
+def test_ctrl_c_of_a_rerun_keeps_the_complete_file(tmp_path, capsys):
     """SIGINT to a child rerunning over a complete poses file: the file is unchanged, the
     frames computed are kept beside it, and --resume continues from them."""
     from topopose.capture import synthesize

@@ -6,10 +6,10 @@
    against ground truth (body: each hull voxel's nearest mesh vertex's dominant skinning bone;
    human: the nearest primitive's link; grouped into the model's arcs; numbered limbs paired
    optimally) on the frames the quality study calls *good*,
-   for the plain flooding (the thesis'), the former part-weighted default, the radius-weighted
-   flooding, the earlier default (radius-weighted + the kinematic model's bones, limbs from
-   their first joint), the previous default (limb starts, arm 45 % down the upper arm, banded
-   floods, bone weight 0.8) and the default (arm 35 %, bone weight 0.7), on the held-out seeds and
+   for the plain flooding (the thesis'), the part-weighted flooding, the radius-weighted
+   flooding, radius-weighted + the kinematic model's bones with limbs from their first joint,
+   the same with limb starts (arm 45 % down the upper arm, banded floods, bone weight 0.8) and
+   the default (arm 35 %, bone weight 0.7), on the held-out seeds and
    on the development seeds the parameters were chosen on; time of the
    flooding call alone and of the whole segment step, beside the peer
    ``skimage.segmentation.watershed`` (constant image, markers, mask: the same multi-source
@@ -18,7 +18,7 @@
    poses (hands up, one hand up, arms spread, inverted bodies) among random ones; each named
    pose evaluated on the pipeline's matched frames and on the ground truth of the same frames
    (the truth: the points corresponding to the pipeline's, :func:`pipeline_points`; beside it
-   the former correspondence and gt.json's own parts); precision
+   the alternative correspondence and gt.json's own parts); precision
    and recall, with the class balance, on all matched frames, on the *good* ones (the
    per-frame matcher's errors apart) and on good frames whose truth is stable under 3 cm, and
    with the undecided band; the wrong decisions by cause; the truth on gt.json's own parts.
@@ -30,8 +30,8 @@
 
    Peers on the same frames: the head from the hull along the body's axis off (acrobatic:
    ``head_axis=False``), and every description evaluated on the pose's parts alone (the
-   crotch dropped below the legs' junction, ``pose/anatomy.py`` CROTCH_DROP: *before*) beside
-   the points the detection uses (``topopose.pose.detect.description_parts``: the junction).
+   crotch dropped below the legs' junction, ``pose/anatomy.py`` CROTCH_DROP: *dropped crotch*) beside
+   the points the detection uses (``topopose.apps.detect.description_parts``: the junction).
 
 Writes benchmarks/results/applications.{md,json} and applications_*.png (``--detection-only``:
 only part 2, to applications_detection.{md,json}; ``--dev``: part 2 on the development seeds,
@@ -52,7 +52,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 from _machine import machine  # noqa: E402
-from topopose.pose.consistency import MAX_UNEXPLAINED  # noqa: E402
+from topopose.sequence.consistency import MAX_UNEXPLAINED  # noqa: E402
 
 RES = 100
 MARGIN = 0.075            # 3 voxels of the human grid at 100³ (benchmarks/quality.py)
@@ -75,7 +75,7 @@ def _lower(p, s, rng):
 
 def detection_sampler(kind):
     """A human pose sampler mixing named poses with random ones (tagged ``_k``)."""
-    from topopose.capture.synth_subjects import human_random
+    from topopose.synth.subjects import human_random
 
     def sample(rng):
         p = human_random(rng)
@@ -114,14 +114,14 @@ BODY_TAGS = ("hands-up", "one-hand-up", "spread", "random")
 
 def body_detection_sampler():
     """A ``body`` pose sampler mixing the named poses with its own random ones
-    (:func:`~topopose.capture.synth_body.body_random`), tagged ``_k`` (index into
+    (:func:`~topopose.synth.body.body_random`), tagged ``_k`` (index into
     :data:`BODY_TAGS`): both hands up (arms abducted 145–175°, a V above the head: raised
     forward as the capsule human's they touch the head and fail the limb separation),
     one hand up and the other down, arms spread (abducted 80–100°), random. The draw's
     shares (0.12, 0.30, 0.03, 0.55) offset how often each kind passes the limb separation
     (arms spread nearly always, random poses seldom), so that the sequences hold the four
     kinds in about equal numbers."""
-    from topopose.capture.synth_body import body_random
+    from topopose.synth.body import body_random
 
     def up(p, s, rng):
         p.update({f"sh_flex_{s}": _u(rng, -10, 30), f"sh_abd_{s}": _u(rng, 145, 175),
@@ -155,8 +155,7 @@ def body_detection_sampler():
 @contextlib.contextmanager
 def body_poses(sample):
     """Let ``synthetic_capture(subject="body")`` draw its random poses from ``sample``."""
-    from topopose.capture import synth_subjects as SS
-
+    from topopose.synth import subjects as SS
     old = SS.RANDOM["body"]
     SS.RANDOM["body"] = sample
     try:
@@ -182,7 +181,7 @@ for _b in BASE_POSES:                   # legs apart: limbs 3 voxels apart in th
 
 def cluster_sampler(K, jitter=5.0):
     """Frames from the first K :data:`BASE_POSES`: every angle jittered by ±``jitter``°."""
-    from topopose.capture.synth_subjects import HUMAN_DEFAULT
+    from topopose.synth.subjects import HUMAN_DEFAULT
 
     base = [{**HUMAN_DEFAULT, **b} for b in BASE_POSES[:K]]
 
@@ -198,8 +197,7 @@ def cluster_sampler(K, jitter=5.0):
 def human_poses(sample):
     """Let ``synthetic_capture(subject="human")`` draw its random poses from ``sample`` and
     remember each body's tag (``body.extra["k"]``)."""
-    from topopose.capture import synth_subjects as SS
-
+    from topopose.synth import subjects as SS
     old_r, old_b = SS.RANDOM["human"], SS.BUILD["human"]
 
     def build(pose, thickness=1.0):
@@ -215,7 +213,7 @@ def human_poses(sample):
 
 
 def capture(sample, frames, seed, noise=1):
-    from topopose.capture.synth import synthetic_capture
+    from topopose.synth.capture import synthetic_capture
 
     with human_poses(sample):
         return synthetic_capture("human", frames=frames, seed=seed, noise=noise, separated=True,
@@ -236,16 +234,16 @@ SEG_METHODS = {
                                      "bone_weight": 0.8},
     "default": lambda pose, model: {"weighting": "radius", "pose": pose, "model": model},
 }
-SEG_LABELS = {"none": "plain flooding (thesis)", "part": "part-weighted, BFS steps (former default)",
+SEG_LABELS = {"none": "plain flooding (thesis)", "part": "part-weighted, BFS steps",
               "radius": "radius-weighted, chamfer steps",
-              "first_joint": "radius + bones, limbs from their first joint (earlier default)",
-              "start145": "radius + bones, arm 45 % down the upper arm, bone weight 0.8 (previous default)",
+              "first_joint": "radius + bones, limbs from their first joint",
+              "start145": "radius + bones, arm 45 % down the upper arm, bone weight 0.8",
               "default": "radius + bones, arm 35 % down the upper arm, bone weight 0.7 (default)"}
 def girdle_bone_arc(bone):
     """The other grouping of the ``body`` rig's girdle bones: the clavicle (``*Shoulder``, neck
     base → shoulder joint) and ``*HipJoint`` (hip centre → hip joint) lie on the model's
     torso→hand and crotch→foot arcs, so they go to the limbs."""
-    from topopose.pose.segment import body_bone_arc
+    from topopose.synth.labels import body_bone_arc
 
     k = "1" if bone.startswith("L") else "2"
     if bone.endswith("Shoulder"):
@@ -263,7 +261,7 @@ def error_figure(path, vol, lab, m, truth, names, up, title):
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    from topopose.pose.segment import label_colours
+    from topopose.apps.segment import label_colours
     from topopose.viz.view import _up_rotation
 
     cols = label_colours(len(names)).astype(float) / 255
@@ -297,16 +295,17 @@ def error_figure(path, vol, lab, m, truth, names, up, title):
 def bench_segmentation(n_frames, seeds, log, subject="human", figure=None):
     from skimage.segmentation import watershed
 
-    from topopose.capture.synth_subjects import human_random
-    from topopose.pose.estimate import FrameEstimator
-    from topopose.pose.quality import evaluate
-    from topopose.pose.segment import (_box, arc_names, flood_labels, renumbered_accuracy,
-                                       segment, skeleton_labels, synthetic_truth)
+    from topopose.synth.subjects import human_random
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.batch.quality import evaluate
+    from topopose.apps.segment import (_box, arc_names, flood_labels, renumbered_accuracy,
+                                       segment, skeleton_labels)
+    from topopose.synth.labels import synthetic_truth
 
     rows = []
     for seed in seeds:
         if subject == "body":
-            from topopose.capture.synth import synthetic_capture
+            from topopose.synth.capture import synthetic_capture
 
             cap = synthetic_capture("body", frames=n_frames, seed=seed, noise=1, separated=True,
                                     margin=MARGIN)
@@ -416,7 +415,7 @@ BODY_PART_JOINTS = {"head": "Head_tail", "torso": "Spine1_head", "crotch": "Hips
 #: the capsule human's pelvis centre above its hip line (synth_subjects.human_build: the pelvis
 #: ellipsoid's centre 2 cm above the root, the crotch 2 cm below it), m
 PELVIS_CENTRE = 0.04
-#: issue 14 peers (points the descriptions could compare instead, measured on the same frames):
+#: peers (points the descriptions could compare instead, measured on the same frames):
 #: the capsule human's crown above gt.json's head (its centre), 7.8 cm, and gt.json's hand
 #: beyond the skeleton's branch end along the branch, 7.0 cm (pipeline_points' docstring,
 #: development seeds 3–4): the pipeline's head and hands moved onto gt.json's points
@@ -424,7 +423,7 @@ HEAD_CENTRE_DROP, HAND_REACH = 0.078, 0.070
 
 
 def peer_points(pose, parts):
-    """The peers' points (issue 14) from a pose's :func:`description_parts` ``parts`` and its
+    """The peers' points from a pose's :func:`description_parts` ``parts`` and its
     skeleton curves: ``crotch_curve`` — the crotch at the legs' junction of the skeleton curves
     (the crotch arc's end, where the legs' curves start) instead of ``detect_parts``;
     ``gt_points`` — the head moved :data:`HEAD_CENTRE_DROP` from the crown towards the torso
@@ -446,7 +445,7 @@ def peer_points(pose, parts):
     return cc, gp
 
 
-#: the former correspondence (``pipeline_points(frame, former=True)``), reported beside: hands and
+#: the alternative correspondence (``pipeline_points(frame, former=True)``), reported beside: hands and
 #: feet gt.json's axis ends, the crotch its hip line, the body's feet gt.json's
 FORMER_JOINTS = {k: v for k, v in BODY_PART_JOINTS.items() if not k.startswith("foot")}
 
@@ -462,7 +461,7 @@ def pipeline_points(frame, former=False):
     sd 3.7, across it 1.3 cm median; foot −7.2 cm; 564 good frames, seeds 3–4), the crotch
     the pelvis' centre :data:`PELVIS_CENTRE` up the body axis from gt.json's hip line (where
     the legs' and the trunk's branches meet: pipeline − gt.json +3.6 cm up the body, sd 4.4).
-    ``former``: the former correspondence (:data:`FORMER_JOINTS`)."""
+    ``former``: the alternative correspondence (:data:`FORMER_JOINTS`)."""
     gt, joints, seg = frame["parts"], frame.get("joints") or {}, frame.get("segments") or {}
     table = FORMER_JOINTS if former else BODY_PART_JOINTS
     if all(j in joints for j in BODY_PART_JOINTS.values()):
@@ -483,10 +482,10 @@ def pipeline_points(frame, former=False):
 def detection_row(pose, frame, up, rng=None):
     """Each named pose's detected value (per margin) and truth on one frame: ``truth`` on the gt
     points corresponding to the pipeline's parts (:func:`pipeline_points`), ``truth_former`` on
-    the former correspondence, ``truth_gt`` on gt.json's parts; whether the truth is stable
+    the alternative correspondence, ``truth_gt`` on gt.json's parts; whether the truth is stable
     (:func:`stable_truth`), and each part's offset estimate − corresponding point (numbered
     parts paired optimally)."""
-    from topopose.pose.detect import description_parts, detect, evaluate, load_library, up_frame
+    from topopose.apps.detect import description_parts, detect, evaluate, load_library, up_frame
 
     gt, former = pipeline_points(frame), pipeline_points(frame, former=True)
     # the points the descriptions compare (the crotch: the legs' junction before the drop of
@@ -567,8 +566,8 @@ def error_blame(rows, name):
     corresponding truth point, makes the decision right (``"none"``: no single part; several
     parts counted each), and that part's offset pipeline − truth along the capture's up axis:
     mean and median (one gross mismatch — a hand on a foot's branch, a model flipped end for
-    end, offsets of 0.6–1.5 m — moves the mean of a few decisions by tens of cm; issue 14,
-    ``benchmarks/detection_inverted_dev.py``)."""
+    end, offsets of 0.6–1.5 m — moves the mean of a few decisions by tens of cm;
+    ``studies/detection_inverted_dev.py``)."""
     out = {}
     for r in rows:
         d = r["detect"][name]
@@ -588,7 +587,7 @@ def stable_truth(expr, parts, up, aliases, value, rng):
     """Whether the truth keeps its value when every gt part moves by N(0, 3 cm) (20 draws):
     a frame near a decision boundary (a hand at head height) is not *stable* — a few cm of
     difference between the pipeline's part and gt.json's flips it."""
-    from topopose.pose.detect import evaluate
+    from topopose.apps.detect import evaluate
 
     for _ in range(STABLE_TRIALS):
         q = {k: None if v is None else np.asarray(v) + rng.normal(0, STABLE_SIGMA, 3)
@@ -600,7 +599,7 @@ def stable_truth(expr, parts, up, aliases, value, rng):
 
 def _detection_rows(cap, est, rng, tags=None):
     """Detection rows of a capture's matched frames, with the quality class and the tag."""
-    from topopose.pose.quality import evaluate as quality_of
+    from topopose.batch.quality import evaluate as quality_of
 
     poses = [est.estimate(f) for f in cap.frames]
     quality = {fs.frame: fs.quality for fs in quality_of(cap.gt, poses, est.model).frames}
@@ -620,7 +619,7 @@ def _detection_rows(cap, est, rng, tags=None):
 
 
 def bench_detection(n_frames, seeds, log):
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.frame.estimate import FrameEstimator
 
     out = {}
     # "acrobatic no-tip-anchor": the peer of the head tip prolonged from the torso
@@ -649,8 +648,8 @@ def bench_detection(n_frames, seeds, log):
 def bench_body_detection(n_frames, seeds, log, **opts):
     """The named poses on the ``body`` subject (random builds), sequences drawn to contain them
     (:func:`body_detection_sampler`); ``opts``: FrameEstimator options."""
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
 
     rows, frames, tags = [], 0, {}
     rng = np.random.default_rng(0)
@@ -668,8 +667,8 @@ def bench_body_detection(n_frames, seeds, log, **opts):
 
 # ----------------------------------------------------------------------------- 3. clustering
 def bench_clustering(K, n_frames, seeds, log, figure=None):
-    from topopose.pose.cluster import adjusted_rand_index, cluster_figure, cluster_poses
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.apps.cluster import adjusted_rand_index, cluster_figure, cluster_poses
+    from topopose.frame.estimate import FrameEstimator
     from topopose.pose.pose import Pose
 
     rows = []
@@ -707,9 +706,9 @@ def _mean(x):
 
 def segmentation_figure(path):
     """One segmented frame of the body subject (the README picture)."""
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
-    from topopose.pose.segment import segmentation_figure as fig
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.apps.segment import segmentation_figure as fig
 
     cap = synthetic_capture("body", frames=3, seed=5, noise=1, separated=True, margin=MARGIN)
     est = FrameEstimator(cap, "human", RES)
@@ -810,7 +809,7 @@ def main(argv=None):
     support_cover = {label: {f"{x:g}": sum(supported(r, x) for r in rows)
                              for x in SUPPORT_LIMITS + (MAX_UNEXPLAINED,)}
                      for label, rows in sets}
-    # the acrobatic set's wrong decisions by the generator's tag (issue 14: inverted vs upright)
+    # the acrobatic set's wrong decisions by the generator's tag (inverted vs upright)
     blame_split = [(f"{label}, {t} frames", [r for r in rows if (r["tag"] == "inverted") == (t == "inverted")])
                    for label, rows in sets if label == "human acrobatic" for t in ("upright", "inverted")]
     offsets = {}
@@ -851,19 +850,19 @@ def main(argv=None):
          "mesh, seeds 2–4 (held out: the delays, the bone weight and the limb starts were "
          "chosen on seeds 1 and 11, *body-dev* below); truth: "
          "the dominant skinning bone of the nearest posed mesh vertex, grouped into the model's "
-         "arcs (`topopose.pose.segment.body_bone_arc`). `human`: the capsule subject (seeds 2–3); "
+         "arcs (`topopose.synth.labels.body_bone_arc`). `human`: the capsule subject (seeds 2–3); "
          "truth: the nearest primitive's link. Numbered limbs paired optimally. *Good*: the "
          "quality study's class (every part right). Labellings, all from the same skeleton "
          "labels: *plain* — the thesis' flooding (breadth first, 26-adjacency); *part* — the "
-         "former default (each part starts late by 1.5 × how much thinner it is than the "
+         "part-weighted flooding (each part starts late by 1.5 × how much thinner it is than the "
          "thickest, in BFS steps); *radius* — the same with chamfer step lengths (3, 4, 5 for "
          "face, edge, corner steps ≈ 1, √2, √3) and radii, delay 1.25; *radius + bones* — given the frame's "
          "pose, each part's own flood mixed (1 − w / w) with the distance to its bones, the "
-         "model's joints placed on the skeleton curves: in the earlier default (w = 0.8) a limb "
+         "model's joints placed on the skeleton curves: with limbs from their first joint (w = 0.8) a limb "
          "begins at its first joint (shoulder, hip, neck) and each part's flood covers the whole "
-         "hull; in the previous default (w = 0.8) and the default (w = 0.7, "
-         "`topopose.pose.segment.LIMB_START`) the head begins half-way "
-         "from the chest to the neck joint, the arm 45 % (previous) or 35 % (default) down the "
+         "hull; with limb starts (w = 0.8) and in the default (w = 0.7, "
+         "`topopose.apps.segment.LIMB_START`) the head begins half-way "
+         "from the chest to the neck joint, the arm 45 % or 35 % (default) down the "
          "upper arm, the leg at the "
          "hip, and each part's flood runs only where its bones are within 3 voxels of the "
          "nearest bone (`BAND`), all parts in one kernel. The default's arm start and bone "
@@ -896,11 +895,11 @@ def main(argv=None):
               "| step | ms |", "|---|---|",
               f"| whole segment step, default (`tp.segment` with pose and model: skeleton labels, "
               f"bones, each part's flood on its band, one kernel) | {speed['segment_ms']:.2f} |",
-              f"| whole segment step, earlier default (limbs from their first joint, each part's "
+              f"| whole segment step, limbs from their first joint (each part's "
               f"flood over the whole hull) | {speed['segment_first_joint_ms']:.2f} |",
               f"| whole segment step, radius-weighted without bones (no pose given) | "
               f"{speed['segment_radius_ms']:.2f} |",
-              f"| whole segment step, former default (part-weighted) | {speed['segment_part_ms']:.2f} |",
+              f"| whole segment step, part-weighted | {speed['segment_part_ms']:.2f} |",
               f"| flooding call alone (`flood_labels`, plain, 26-adjacency) | {speed['flood_ms']:.2f} |",
               f"| peer: `skimage.segmentation.watershed` (constant image, markers, mask) | "
               f"{speed['watershed_ms']:.2f} |",
@@ -940,7 +939,7 @@ def main(argv=None):
           "truth is borderline / good and stable. The headline is *P / R, all* (margin 0, "
           "every decided matched frame); *P / R, stable truth* scores the borderline frames "
           "apart (as PASCAL VOC leaves its *difficult* objects out), an extra view, not the "
-          "figure; *P / R, former truth*: all frames against the former correspondence "
+          "figure; *P / R, alternative truth*: all frames against the alternative correspondence "
           "(hands and feet gt.json's axis ends, the crotch its hip line, the body's feet "
           "gt.json's).", ""]
     for kind, d in det.items():
@@ -951,17 +950,17 @@ def main(argv=None):
     L.append("Peers (same frames): *human acrobatic no-head-axis* — the head not placed from the "
              "hull along the body's axis (`FrameEstimator(head_axis=False)`, "
              "`pose/tips.py` `HEAD_AXIS`, on by default without coordinate constraints); "
-             "*before* (column): the descriptions on the pose's parts alone, whose crotch "
+             "*dropped crotch* (column): the descriptions on the pose's parts alone, whose crotch "
              "`pose/anatomy.py` `CROTCH_DROP` drops 0.35 × the hull's radius below the legs' "
              "junction (for the matching quality of flexed hips) — 4 cm below the pelvis' "
              "centre on the development seeds, out of the hands' R_b ball in wide-spread arms; "
-             "*now*: the points `topopose.pose.detect.description_parts` gives, the junction "
+             "*junction*: the points `topopose.apps.detect.description_parts` gives, the junction "
              "before the drop (recorded in `diagnostics[\"detect_parts\"]`), the point the "
              "pelvis correspondence was measured on.")
     L += ["", "| subject | pose | truth true / matched | missing | precision / recall, all | "
           "good frames | P / R, good | good, stable frames | P / R, good and stable | "
           "wrong: not good / borderline / stable | stable-truth frames | P / R, stable truth "
-          "(extra) | P / R, former truth | P / R, all: before ← now |",
+          "(extra) | P / R, alternative truth | P / R, all: dropped crotch ← junction |",
           "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for label, rows in sets:
         for n in pose_names:
@@ -1002,7 +1001,7 @@ def main(argv=None):
           "over those decisions, mean / median (one gross mismatch, a hand on a foot's branch "
           "or a model flipped end for end, moves the mean by tens of cm). *human acrobatic* is "
           "also split by the generator's tag (*inverted* / the *upright* random frames). Offset "
-          "row *crotch-dropped* below: the pose's own crotch (dropped, *before*) against the "
+          "row *crotch-dropped* below: the pose's own crotch (dropped) against the "
           "same truth point.", "",
           "| subject | pose | wrong decisions by part (n, vertical offset m: mean / median) |",
           "|---|---|---|"]
@@ -1020,7 +1019,7 @@ def main(argv=None):
           "parts instead gives, on all matched frames (P / R): " + "; ".join(
               f"{label} {n} {pr(det_summary[label][n]['truth_gt'])}" for label, _ in sets
               for n in pose_names if det_summary[label][n]["truth_gt"]["truth_true"]) + "."]
-    L += ["", "**Other points, measured (issue 14).** P / R, all matched frames. *Crotch at the "
+    L += ["", "**Other points, measured.** P / R, all matched frames. *Crotch at the "
           "curves' junction*: the crotch the legs' skeleton curves start from (the crotch arc's "
           "end) instead of `detect_parts`' junction, truth as above. *gt.json's points*: the "
           "truth on gt.json's parts (head centre, fingertips minus the hand's radius, neck base, "

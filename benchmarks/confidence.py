@@ -1,17 +1,17 @@
-"""Fit and check the per-frame confidence that decides ``matched`` (topopose.pose.confidence) on
+"""Fit and check the per-frame confidence that decides ``matched`` (topopose.frame.confidence) on
 synthetic captures only: the anatomical ``body`` (builds average/heavy/child/lean/random, one
 per seed) and the capsule human, walking and random poses, 100³, and the body benchmark's own
 kind of poses (``quality.py --only body``: separated limbs and all random poses) on seeds
 POSE_SEED0… (disjoint from its 21, 22), each in every camera set-up of SETUPS (8 cameras
 640×480 noise 1; 4 cameras 640×480 noise 1; 4 portrait phone-like cameras 544×960 noise 2).
-A frame is *right* when it is a TP of issue 11, as in the body benchmark: quality "good" or
+A frame is *right* when it is a true positive (TP) of the quality classes, as in the body benchmark: quality "good" or
 "missing limb" (every placed part within 0.08 × height of its ground-truth segment, junctions
 too). The first half of the seeds fits the confidence (``--kind``: boosted trees, TREES, the
 default, needing scikit-learn; or the logistic regression) and chooses its minimum
 (calibration), the second half checks them (held out). The fit sees the frames matched or
 rejected for their AHA distance alone (the fitted confidence replaces T_d), and each right
 frame with the head's and a hand's data vertices exchanged (wrong by ground truth, weighted
-SWAP_WEIGHT of the real frames), the failure issue 11 names, and a few right frames per capture
+SWAP_WEIGHT of the real frames), a named failure (a hand given the head), and a few right frames per capture
 re-run with a spurious limb (a rod) added to the hull (wrong by construction, :func:`rod_rows`).
 Features fitted: FIT_FEATURES.
 
@@ -31,7 +31,7 @@ cameras: a check, never fitted on); ``--real`` to the real recording of ``benchm
 (Pose2Sim's balancing trial, 4 phone cameras, person silhouettes: a check, never fitted on).
 ``--rows results/confidence.json.gz`` reuses the frames of an earlier run, its body-benchmark and
 real-recording frames too (no pipeline run: for trying features and models; the kinds of model
-are compared by ``benchmarks/confidence_models.py``).
+are compared by ``studies/confidence_models.py``).
 """
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from topopose.hull.volume import add_rod
-from topopose.pose.quality import TP_CLASSES
+from topopose.batch.quality import TP_CLASSES
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -57,7 +57,7 @@ SWAP_WEIGHT = 0.1
 # deliberate spurious limbs (:func:`rod_rows`): per capture, this many right matched frames get
 # a rod of ROD_LENGTH (m) added to the hull, each weighted ROD_WEIGHT × a real frame (they are
 # real pipeline runs, on a hull with a limb the subject does not have; at 1 the fit rejects
-# too many right frames: body benchmark separated TP 0.908 → 0.817, docs/body_accuracy.md)
+# too many right frames: body benchmark separated TP 0.908 → 0.817, docs/accuracy.md)
 RODS = 2
 ROD_WEIGHT = 0.5
 ROD_LENGTH = (0.25, 0.5)
@@ -70,12 +70,12 @@ BASE_FEATURES = ("distance", "missing", "shape", "shape_max", "spurious_share", 
                  "head_radius", "head_bend", "head_offset", "head_reach", "trunk", "limb_sym",
                  "spurious", "spurious_length", "arc_dev", "end_radius", "foot_high", "fat",
                  "matched_distance")
-# the trunk's junctions, thickness ratios and the placed head (issue 11, h11b), chosen on this
+# the trunk's junctions, thickness ratios and the placed head (h11b), chosen on this
 # benchmark's own frames (never quality.py's seeds 21, 22): held-out seeds, 8 cameras, recall of
 # the right frames at precision 0.95 0.908 → 0.922 with them (all poses 0.907 → 0.977); at the
 # minimum each fit chooses (0.87 → 0.75) precision / recall 0.962 / 0.815 → 0.947 / 0.912 (on
 # the pipeline after h11a's short-arm rules: 0.923 → 0.947; 0.72 → 0.64, 0.956 / 0.916 → 0.953
-# / 0.947). Alone each gave less (docs/tried.md).
+# / 0.947). Alone each gave less (docs/decisions.md).
 JUNCTION_FEATURES = ("crotch_radius", "torso_radius", "hip_flex", "crotch_room", "head_torso",
                      "head_placed_offset", "head_placed_bend")
 FIT_FEATURES = BASE_FEATURES + JUNCTION_FEATURES
@@ -87,7 +87,7 @@ FIT_FEATURES = BASE_FEATURES + JUNCTION_FEATURES
 # nearly the same outline, so the hull keeps more phantom volume (the real frames' features)
 SETUPS = {"8": (8, (640, 480), 1), "4": (4, (640, 480), 1), "4p": (4, (544, 960), 2),
           "4r": (4, (544, 960), 2)}
-# Not in the default --setups: refitted with it (--rows … --add-setups 4r, 2026-11-24,
+# Not in the default --setups: refitted with it (--rows … --add-setups 4r,
 # results/confidence_refit_4r.md) the real recording still had none of its right frames at the
 # 4-camera minimum (0.85; at 0.5 8 right of 14) and the 8-camera minimum fell to 0.58 (held out
 # precision 0.947): its frames do not reproduce the recording's radius features (see
@@ -111,7 +111,7 @@ def collect(a) -> list:
     """Run the pipeline (gate off) on every capture of every set-up (:data:`SETUPS`); one row
     per processed frame."""
     from quality import BODY_MARGIN
-    from topopose.capture.synth import synthetic_capture
+    from topopose.synth.capture import synthetic_capture
 
     rows = []
     for setup in a.setups.split(","):
@@ -148,7 +148,7 @@ def fitted(cap, setup):
 
 def minimum(r, model) -> float:
     """The minimum of ``model`` for the camera count of row ``r``'s set-up."""
-    from topopose.pose.confidence import min_confidence_for
+    from topopose.frame.confidence import min_confidence_for
 
     return min_confidence_for(SETUPS[r["cameras"]][0], model)
 
@@ -161,7 +161,7 @@ def fixed(model, t) -> dict:
 def candidate(r, model) -> bool:
     """Whether the frame of row ``r`` reaches the gate of ``model``: matched before the gate, or
     rejected for its AHA distance alone when the model replaces T_d."""
-    from topopose.pose.confidence import distance_only, replaces_threshold
+    from topopose.frame.confidence import distance_only, replaces_threshold
 
     return r["status"] == "matched" or (replaces_threshold(model) and distance_only(r.get("error")))
 
@@ -169,8 +169,8 @@ def candidate(r, model) -> bool:
 def capture_rows(cap, subject, build, setup, motion, seed) -> list:
     """Run the pipeline (gate off) on one capture; one row per processed frame, then the
     deliberate swaps."""
-    from topopose.pose.confidence import temporal_confidence
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.frame.confidence import temporal_confidence
+    from topopose.frame.estimate import FrameEstimator
 
     rows = []
     est = FrameEstimator(cap, "human", 100, gate=False)
@@ -201,12 +201,12 @@ def capture_rows(cap, subject, build, setup, motion, seed) -> list:
 
 
 def drop_variants(cap, est, p, det, score_with=None) -> dict:
-    """Per-part trust (:func:`topopose.pose.confidence.drop_part_features`): for a frame with
+    """Per-part trust (:func:`topopose.frame.confidence.drop_part_features`): for a frame with
     every part placed, per part of DROP_PARTS the features of the frame with that part left
     unplaced and the quality of the pose without it (a right "missing limb" when every other
     part is right)."""
-    from topopose.pose.confidence import DROP_PARTS, drop_part_features
-    from topopose.pose.estimate import vertex_radii
+    from topopose.frame.confidence import DROP_PARTS, drop_part_features
+    from topopose.frame.estimate import vertex_radii
     from topopose.pose.pose import Pose
 
     if p.status == "failed" or det.alignment is None or any(x is None for x in p.parts.values()):
@@ -229,7 +229,7 @@ def drop_variants(cap, est, p, det, score_with=None) -> dict:
 
 def score(cap, poses, model):
     """Scored as the body benchmark (quality.py body_study): 0.08 × height for every part."""
-    from topopose.pose.quality import evaluate
+    from topopose.batch.quality import evaluate
 
     return evaluate(cap.gt, poses, model=model, tolerance=TOLERANCE * float(cap.gt["height"]),
                     junction_factor=1.0)
@@ -241,8 +241,8 @@ def swapped_rows(cap, est, out, ev, like):
     their features and their own quality (``augmented``: the hand; not counted in the tables)."""
     from types import SimpleNamespace
 
-    from topopose.pose.confidence import frame_features
-    from topopose.pose.estimate import vertex_radii
+    from topopose.frame.confidence import frame_features
+    from topopose.frame.estimate import vertex_radii
     from topopose.pose.pose import Pose
     rows = []
     for (p, det), s in zip(out, ev.frames):
@@ -317,7 +317,7 @@ def gated_quality(r, model, cameras, part_trust=True, head_doubt=True):
     highest when the whole frame falls below the minimum, else (``head_doubt``) without the
     head when the frame with a typical head reaches it (confidence.head_doubt; True: a head
     the alignment left unmatched — no head reach —, "any": any head)."""
-    from topopose.pose.confidence import (fitted_confidence, head_doubt as _head_doubt,
+    from topopose.frame.confidence import (fitted_confidence, head_doubt as _head_doubt,
                                           min_confidence_for, min_drop_for)
 
     if r["status"] == "failed":
@@ -331,7 +331,7 @@ def gated_quality(r, model, cameras, part_trust=True, head_doubt=True):
     if fitted_confidence(f, 1.0 - f["lost"], model=model)["confidence"] >= t:
         return r["quality"]
     if part_trust and r.get("drops"):
-        from topopose.pose.confidence import untrusted_part
+        from topopose.frame.confidence import untrusted_part
 
         cs = {p: fitted_confidence(v["features"], 1.0 - f["lost"], model=model)["confidence"]
               for p, v in r["drops"].items()}
@@ -360,7 +360,7 @@ def _fit(rows, features, l2, kind="logistic"):
     many and easy: at full weight the model becomes a swap detector); the deliberate spurious
     limbs (rods, few) ROD_WEIGHT × a real frame each. ``kind``: "logistic"
     (L2 penalty ``l2``) or "trees" (:func:`_fit_trees`)."""
-    from topopose.pose.confidence import fit_logistic
+    from topopose.frame.confidence import fit_logistic
 
     X = np.array([[r["features"][f] for f in features] for r in rows], float)
     y = np.array([r["good"] for r in rows], float)
@@ -391,7 +391,7 @@ TREES = {"n_estimators": 100, "max_depth": 3, "learning_rate": 0.1}
 def _fit_trees(X, y, w, features, **params):
     from sklearn.ensemble import GradientBoostingClassifier
 
-    from topopose.pose.confidence import trees_from_sklearn
+    from topopose.frame.confidence import trees_from_sklearn
 
     gb = GradientBoostingClassifier(random_state=0, **{**TREES, **params})
     return trees_from_sklearn(gb.fit(X, y.astype(int), sample_weight=w), features)
@@ -408,7 +408,7 @@ def fit(rows, features, half, l2, kind="logistic"):
     judged on out-of-fold confidences (two folds by seed parity, each scored by a model fitted
     on the other), which behave like held-out ones: the in-sample confidences of the wrong
     frames are optimistic."""
-    from topopose.pose.confidence import model_confidence
+    from topopose.frame.confidence import model_confidence
 
     flag = {"replaces_threshold": True}
     cal = [r for r in rows if r["seed"] < half_of(r, half) and candidate(r, flag)]
@@ -435,7 +435,7 @@ def fit(rows, features, half, l2, kind="logistic"):
 def typical_head(rows) -> dict:
     """The head's features (confidence.HEAD_FEATURES) of a right frame: their medians over the
     right, real (not augmented) frames of ``rows`` (confidence.head_doubt)."""
-    from topopose.pose.confidence import HEAD_FEATURES
+    from topopose.frame.confidence import HEAD_FEATURES
 
     right = [r["features"] for r in rows if r["good"] and not r.get("augmented")]
     return {f: round(float(np.median([x[f] for x in right])), 5) for f in HEAD_FEATURES}
@@ -511,7 +511,7 @@ def kinds_of(subjects, pose_seeds) -> list:
 
 def report(rows, model, half, kinds, before=None):
     """Rows of the table: before (gate off; previous product ≥ 0.7) and after, per seed half."""
-    from topopose.pose.confidence import fitted_confidence, frame_confidence
+    from topopose.frame.confidence import fitted_confidence, frame_confidence
 
     for r in rows:
         f = r["features"]
@@ -584,7 +584,7 @@ def curve(rows, half, kinds, model, minima=MINIMA):
 
 
 def swap_summary(aug, model, half):
-    from topopose.pose.confidence import fitted_confidence, head_doubt, min_drop_for
+    from topopose.frame.confidence import fitted_confidence, head_doubt, min_drop_for
 
     out = {}
     for kind, part in itertools.product(("swaps", "rods"), ("calibration", "held out")):
@@ -631,8 +631,8 @@ def body_benchmark(models, frames=12, seeds=(21, 22), cached=None):
     gate) decides ``matched`` from the frames' features. Scored as quality.py (TP rate = TP /
     frames, FP/match = FP / (TP + FP)). Checks only: these seeds are never fitted on."""
     from quality import BODY_TOLERANCE, body_captures
-    from topopose.pose.estimate import FrameEstimator
-    from topopose.pose.quality import evaluate
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.batch.quality import evaluate
 
     out = {"rows": list(cached or [])}
     for kind in POSE_KINDS:
@@ -683,7 +683,7 @@ def real_check(recording, models, method="person", cached=None):
     import tempfile
 
     import real as R
-    from topopose.pose.confidence import fitted_confidence, min_confidence_for
+    from topopose.frame.confidence import fitted_confidence, min_confidence_for
 
     rec = Path(recording)
     if cached is None:
@@ -728,8 +728,7 @@ def fit_features(spec: str) -> tuple:
 def main(argv=None):
     global ROD_WEIGHT, DROP_WEIGHT
     from _machine import machine, read_rows, results_dir
-    from topopose.pose import confidence as C
-
+    from topopose.frame import confidence as C
     ap = argparse.ArgumentParser()
     ap.add_argument("--frames", type=int, default=15)
     ap.add_argument("--seeds", type=int, default=6, help="capsule human seeds")
@@ -842,7 +841,7 @@ def main(argv=None):
          f"seeds; {a.frames} frames each; and the body benchmark's poses, body/separated and "
          f"body/all as `quality.py --only body` but seeds {POSE_SEED0}–"
          f"{POSE_SEED0 + a.pose_seeds - 1}, each set-up, {a.pose_frames} frames each; "
-         f"100³). Right = quality \"good\" or \"missing limb\" (issue 11's TP) at {TOLERANCE} × "
+         f"100³). Right = quality \"good\" or \"missing limb\" (TP of the quality classes) at {TOLERANCE} × "
          f"height for every part. Calibration = the first half of the seeds (fits the "
          f"coefficients on the frames matched or rejected for their AHA distance alone — the "
          f"fitted confidence replaces T_d — and the minimum: the smallest whose out-of-fold "

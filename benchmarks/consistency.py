@@ -1,5 +1,5 @@
-"""``matched`` by the run's own consistency (issue 12 part 5): precision of ``matched`` and frames
-passing, ours (``topopose run --consistency``, :mod:`topopose.pose.consistency`) against the
+"""``matched`` by the run's own consistency: precision of ``matched`` and frames
+passing, ours (``topopose run --consistency``, :mod:`topopose.sequence.consistency`) against the
 run's confidence gate, on synthetic sequences and the real recording.
 
     python benchmarks/consistency.py [--setups 8,4,4p] [--dev-seeds 41,...] [--test-seeds 1,...]
@@ -9,11 +9,11 @@ Sequences: the anatomically real ``body`` subject walking (``motion="walk"``, bu
 ``benchmarks/confidence.py``), 40 frames at 25 frames/s, 100³, in the camera set-ups of
 ``benchmarks/confidence.py``: ``8`` (8 cameras 640×480, silhouette noise 1), ``4`` (4 cameras
 640×480, noise 1), ``4p`` (4 portrait phone-like cameras 544×960, noise 2). Each sequence is
-run as ``topopose run`` does (:func:`topopose.pose.run.run`, the default gate: on with fewer
-than 6 cameras), then its sequence stages (:func:`topopose.pose.motion.process_sequence`: track,
+run as ``topopose run`` does (:func:`topopose.batch.run.run`, the default gate: on with fewer
+than 6 cameras), then its sequence stages (:func:`topopose.sequence.motion.process_sequence`: track,
 skeleton, sides) with ``matched`` decided either way.
 
-A frame is *right* when it is a TP of issue 11 as in ``benchmarks/confidence.py`` (quality
+A frame is *right* when it is a true positive (TP) of the quality classes as in ``benchmarks/confidence.py`` (quality
 "good" or "missing limb": every placed part within 0.08 × height of its ground-truth segment,
 at most one part unplaced), scored on the poses as the run writes them (numbered parts).
 
@@ -54,7 +54,7 @@ GRID = {"max_deviation": (0.04, 0.05, 0.06, 0.08, 0.1),
         "min_rank": (0.0, 0.25, 0.5),
         "max_length_ratio": (None,),
         "max_unexplained": (None, 0.06, 0.07, 0.08, 0.09, 0.1, 0.12)}
-#: the rule before the silhouette support (issue 12 part 5, previous defaults): the peer
+#: the rule without the silhouette support: the peer
 BEFORE = {"max_deviation": 0.05, "neighbours": 2, "min_rank": 0.5, "max_length_ratio": None,
           "max_unexplained": None}
 
@@ -64,8 +64,8 @@ def sequence(setup, seed, frames, work=None, motion="walk", make=None):
     gate, sequence stages off, the silhouette support recorded: ``run(support=True)``) and its
     ground truth; cached in ``work`` when given. ``make``: a function returning the capture
     (another set-up than :data:`SETUPS`)."""
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose import run
+    from topopose.synth.capture import synthetic_capture
+    from topopose.batch import run
     from topopose.pose.pose import read_poses, write_poses
 
     if work is not None:
@@ -89,9 +89,9 @@ def sequence(setup, seed, frames, work=None, motion="walk", make=None):
 
 
 def right_frames(poses, gt, model) -> list:
-    """Per pose (numbered parts), whether it is a TP of issue 11 (module docstring)."""
-    from topopose.pose.chirality import numbered
-    from topopose.pose.quality import evaluate
+    """Per pose (numbered parts), whether it is a true positive (TP) of the quality classes (module docstring)."""
+    from topopose.sequence.chirality import numbered
+    from topopose.batch.quality import evaluate
 
     ps = [numbered(p, model) for p in poses]
     ev = evaluate(gt, ps, model=model, tolerance=TOLERANCE * float(gt["height"]),
@@ -104,7 +104,7 @@ def as_run(poses, model, up, trim=None):
     """The sequence stages of ``topopose run`` (track, the hands' trim, skeleton, sides),
     consistency off (the confidence gate's ``matched``: ``run --no-consistency``);
     ``trim=False``: without the trim."""
-    from topopose.pose.motion import process_sequence
+    from topopose.sequence.motion import process_sequence
 
     return process_sequence(copy.deepcopy(poses), model, up, trim=trim,
                             consistency=False).poses
@@ -113,8 +113,8 @@ def as_run(poses, model, up, trim=None):
 def judged(poses, model, settings):
     """``poses`` (as the run writes them) with ``matched`` decided by the run's consistency
     (as ``process_sequence(consistency=settings)`` does last); (poses, coherent)."""
-    from topopose.pose.consistency import judge_sequence, mirror_groups
-    from topopose.pose.track import frame_index
+    from topopose.sequence.consistency import judge_sequence, mirror_groups
+    from topopose.sequence.track import frame_index
 
     # judge_sequence sets status, error and diagnostics["consistency"]: those are copied
     ps = [replace(p, diagnostics=dict(p.diagnostics)) for p in poses]
@@ -215,7 +215,7 @@ def unrelated(model, up, frames, work) -> dict:
 
 def main(argv=None):
     from _machine import machine, write_results
-    from topopose.pose import consistency as C
+    from topopose.sequence import consistency as C
     from topopose.pose.model import load_model
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -276,12 +276,12 @@ def report(doc) -> str:
     from _machine import machine_line
 
     m = doc["machine"]
-    L = ["# `matched` by the run's own consistency (issue 12 part 5)", "",
+    L = ["# `matched` by the run's own consistency", "",
          f"{machine_line(m)}. "
          "Written by `benchmarks/consistency.py` (see its docstring). Synthetic: body subject "
          f"walking, {doc['frames']} frames per sequence, 100³; set-ups "
          + "; ".join(f"{k}: {v[0]} cameras {v[1]} noise {v[2]}" for k, v in doc["setups"].items())
-         + ". Right: TP of issue 11 (0.08 × height), on the poses as `run` writes them (the "
+         + ". Right: TP of the quality classes (0.08 × height), on the poses as `run` writes them (the "
          "hands' trim on). *Gate*: `topopose run --no-consistency` (the "
          "confidence gate on with fewer than 6 cameras, T_d alone with 8); *ours*: "
          "`topopose run --consistency` (the consistency instead of the gate); *union*: "

@@ -1,6 +1,6 @@
 """Visual hull benchmark: topopose's hierarchical carver against a vectorized NumPy visual hull.
 
-Scene: the synthetic human of ``topopose.capture.synth.synthetic_capture`` (8 cameras, 640×480,
+Scene: the synthetic human of ``topopose.synth.capture.synthetic_capture`` (8 cameras, 640×480,
 lens distortion, random poses, capture volume 2.5 × 2.5 × 2.35 m), or — if synth is missing — a
 human-like union of capsules rendered here. Single core (NUMBA_NUM_THREADS=1, OpenCV 1 thread,
 BLAS 1 thread).
@@ -98,7 +98,7 @@ def capsule_scene(frames: int, seed: int = 0) -> Capture:
 
 def scene(frames: int) -> tuple:
     try:
-        from topopose.capture.synth import synthetic_capture
+        from topopose.synth.capture import synthetic_capture
 
         return synthetic_capture("human", frames=frames, seed=0), "synthetic_capture('human')"
     except ImportError:

@@ -68,9 +68,10 @@ def main(argv=None):
     res_all = {"machine": machine(), "frames": T, "resolution": 100}
     lines = []
 
-    from topopose.capture import synthetic_capture
+    from topopose.synth import synthetic_capture
     from topopose.hull import visual_hull
-    from topopose.kinematics import learn_structure, walker_sequence
+    from topopose.kinematics import learn_structure
+    from topopose.synth.walker import walker_sequence
     from topopose.kinematics.reeb import integral_geodesic, perg, surface_mesh
 
     # ---------------------------------------------------------------- data
@@ -219,8 +220,9 @@ def main(argv=None):
     loop = None
     if not a.no_run:
         try:
-            from topopose.pose import load_model, run
-            from topopose.pose.quality import evaluate
+            from topopose.pose import load_model
+            from topopose.batch import run
+            from topopose.batch.quality import evaluate
         except ImportError as exc:  # pose stage absent
             loop = {"pending": str(exc)}
         else:

@@ -10,12 +10,12 @@ Subjects: the anatomically real ``body`` walking, seen by 8 cameras (640×480, n
 off, every frame fitted, as ``real_motion.py``), ``--frames`` frames each; and, when its path
 exists and MediaPipe is installed, the real recording (``real_motion.py``'s per-frame run, 100
 frames). Per subject: the per-frame stage's time per frame (``run`` with the sequence stages
-off, for scale), then :func:`topopose.pose.motion.process_sequence` timed three times with each
+off, for scale), then :func:`topopose.sequence.motion.process_sequence` timed three times with each
 Jacobian (the best of three, per frame), and the largest difference between the joints the two
 give (they minimize the same residuals: the fit is unchanged).
 
 The peer is the same fit with ``least_squares``' own finite differences (what
-:func:`topopose.pose.kinematic_fit.fit_frame` did before): ``kinematic_fit.least_squares`` is
+:func:`topopose.sequence.kinematic_fit.fit_frame` did before): ``kinematic_fit.least_squares`` is
 wrapped to drop the ``jac`` argument. Writes ``motion_speed.md`` and ``.json``.
 """
 from __future__ import annotations
@@ -38,8 +38,7 @@ def finite_differences():
     """A context in which the skeleton fit uses least_squares' finite differences (the peer)."""
     from contextlib import contextmanager
 
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     @contextmanager
     def ctx():
         orig = kf.least_squares
@@ -56,7 +55,7 @@ def finite_differences():
 
 def timed_sequence(poses, model, up, repeats=3):
     """(best seconds of ``repeats`` runs of process_sequence, its poses)."""
-    from topopose.pose.motion import process_sequence
+    from topopose.sequence.motion import process_sequence
 
     best, out = np.inf, None
     for _ in range(repeats):
@@ -91,8 +90,7 @@ def synthetic(work, setup, frames, model):
     import tracking as T
 
     from topopose.capture import load_capture
-    from topopose.pose import run
-
+    from topopose.batch import run
     cap = load_capture(T.make_sequence(work, "walk", 3, "average", frames, setup))
     loose = {} if setup == "8" else {"threshold": 1e9, "gate": False}
     t0 = time.perf_counter()
@@ -115,8 +113,7 @@ def real(path, work, model):
     from real import make_capture
 
     import topopose as tp
-    from topopose.pose import run
-
+    from topopose.batch import run
     cdir = Path(work) / "real"
     make_capture(rec, cdir, "person", RM.SILHOUETTES)
     with warnings.catch_warnings():

@@ -33,7 +33,7 @@ THESIS_FPS = {"reference": "thesis Fig. 13.2: 25 frames/s reached below 100^3 (C
 
 def measure(cap, subject, resolution, repeats):
     """Per frame: the minimum over ``repeats`` of each stage time (ms)."""
-    from topopose.pose import FrameEstimator
+    from topopose.frame import FrameEstimator
 
     est = FrameEstimator(cap, subject, resolution, threshold=2.0)
     t0 = time.perf_counter()
@@ -66,7 +66,7 @@ def main(argv=None):
     ap.add_argument("--noise", type=int, default=1)
     ap.add_argument("--out", default=str(results_dir()))
     a = ap.parse_args(argv)
-    from topopose.capture import synthetic_capture
+    from topopose.synth import synthetic_capture
 
     load0 = os.getloadavg()[0]
     resolutions = [50, 100, 200] if a.quick else [50, 75, 100, 125, 150, 175, 200]

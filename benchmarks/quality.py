@@ -18,7 +18,7 @@ hand (4 poor cameras): T_d = 3.5 (unnormalized scale) gives 10–20 %.
 
     python benchmarks/quality.py [--quick] [--frames N] [--only human,dog,spider,body]
 
-- body (the MakeHuman mesh, issue 11): builds × seeds, separated and all poses, noise 0–2,
+- body (the MakeHuman mesh): builds × seeds, separated and all poses, noise 0–2,
   50/100/150³, the thickness term on and off, the pruning of skeleton bumps on and off, the
   head's body-axis check on and off, the head half way to its tip, the spine shift (pose/anatomy.py)
   on and off, the head's tip levelled, a lost head recovered on the body axis, the torso put
@@ -59,15 +59,16 @@ MARGIN_VOXELS = 3          # separated limbs: clearance in voxels of the 100³ g
 def limb_margin(subject, resolution=100, voxels=MARGIN_VOXELS):
     """Clearance (m) between distinct limbs for ``separated`` captures: ``voxels`` voxels of
     the subject's default capture volume at ``resolution``."""
-    from topopose.capture.synth import VOLUMES
+    from topopose.synth.capture import VOLUMES
 
     lo, hi = (np.asarray(v, float) for v in VOLUMES[subject][:2])
     return round(voxels * float(np.max(hi - lo)) / resolution, 4)
 
 
 def study(cap, model, resolution, relation=None, constraints=True, tolerance=None):
-    from topopose.pose import FrameEstimator, load_model
-    from topopose.pose.quality import evaluate
+    from topopose.frame import FrameEstimator
+    from topopose.pose import load_model
+    from topopose.batch.quality import evaluate
 
     m = load_model(model, constraints=constraints)
     est = FrameEstimator(cap, m, resolution, threshold=2.0, relation=relation, tolerance=tolerance)
@@ -80,7 +81,7 @@ def study(cap, model, resolution, relation=None, constraints=True, tolerance=Non
     voxel = float(np.max(np.subtract(cap.volume[1], cap.volume[0]))) / resolution
     gaps = {f: cap.gt["frames"][f].get("gap") for f in cap.frames}
     wide = [fs for fs in ev.frames if gaps.get(fs.frame) is not None and gaps[fs.frame] >= 2 * voxel]
-    from topopose.pose.quality import Evaluation
+    from topopose.batch.quality import Evaluation
     ev_wide = Evaluation(wide, ev.parts, ev.tolerance, ev.max_missing) if wide else None
     best = ev.best_threshold(TARGET_FP_PER_MATCH)
     return ev, {
@@ -105,13 +106,13 @@ def study(cap, model, resolution, relation=None, constraints=True, tolerance=Non
 
 
 BODY_BUILDS = ("average", "heavy", "child", "lean", "random")
-BODY_TOLERANCE = 0.08          # × subject height, the same for every part (issue 11)
+BODY_TOLERANCE = 0.08          # × subject height, the same for every part
 BODY_MARGIN = 0.075            # separated: 3 voxels of the 100³ grid, as for the capsule human
 
 
 def body_captures(separated, noise, seeds, frames, builds=BODY_BUILDS):
     """The ``body`` captures of one configuration: every build × seed (MakeHuman mesh)."""
-    from topopose.capture import synthetic_capture
+    from topopose.synth import synthetic_capture
 
     caps = []
     for b in builds:
@@ -125,8 +126,9 @@ def body_captures(separated, noise, seeds, frames, builds=BODY_BUILDS):
 def body_study(caps, resolution, two_pass=False, **options):
     """Run every body capture with the human model and score at ``BODY_TOLERANCE`` × height,
     the same for every part: the run's own T_d decides (status), FP/match = FP / (TP + FP)."""
-    from topopose.pose import FrameEstimator, load_model
-    from topopose.pose.quality import Evaluation, evaluate
+    from topopose.frame import FrameEstimator
+    from topopose.pose import load_model
+    from topopose.batch.quality import Evaluation, evaluate
 
     model = load_model("human")
     frames, secs, n, thick, align_ms = [], 0.0, 0, [], []
@@ -135,7 +137,7 @@ def body_study(caps, resolution, two_pass=False, **options):
         est.estimate(cap.frames[0])         # the capture's projection tables, built once
         t0 = time.perf_counter()
         if two_pass:       # the subject's own lengths from its confident frames (pose.subject)
-            from topopose.pose.subject import two_pass as run_two_pass
+            from topopose.sequence.subject import two_pass as run_two_pass
 
             poses, _ = run_two_pass(cap, cap.frames, "human", resolution, **options)
         else:
@@ -168,7 +170,7 @@ def body_study(caps, resolution, two_pass=False, **options):
 
 
 def body_rows(quick, out, suffix):
-    """The ``body`` rows (issue 11): builds × seeds, separated / all frames, noise 0–2,
+    """The ``body`` rows: builds × seeds, separated / all frames, noise 0–2,
     50/100/150³, and the thickness term off (its peer)."""
     seeds = (21,) if quick else (21, 22)
     n = 6 if quick else 12
@@ -267,7 +269,7 @@ def body_rows(quick, out, suffix):
             c = body_captures(True, noise, seeds[:1], n, builds)
             row(f"body separated noise{noise}", *body_study(c, 100))
             row(f"body separated noise{noise} no-prune", *body_study(c, 100, prune=0))
-    L = ["", "## body (MakeHuman mesh, issue 11)", "",
+    L = ["", "## body (MakeHuman mesh)", "",
          f"Builds {', '.join(builds)} × seeds {', '.join(map(str, seeds))} × {n} frames per row "
          f"(noise rows: seed {seeds[0]}), 8 cameras 640×480, `run --model human`, the run's own "
          f"T_d (0.4). A part is right within {BODY_TOLERANCE} × the subject height of its gt "
@@ -282,50 +284,50 @@ def body_rows(quick, out, suffix):
          "`FrameEstimator(prune=0)`, the peer of the scale-axis pruning of skeleton bumps "
          "(`topopose.skeleton.prune`, default 2.0 for the human model); *leaf-axis*: "
          "`FrameEstimator(leaf_axis=0.7)`, a head off the body axis left unplaced "
-         "(`topopose.pose.estimate.LEAF_AXIS`; off by default: it halves the real recording's "
+         "(`topopose.frame.estimate.LEAF_AXIS`; off by default: it halves the real recording's "
          "right frames); *tip-half*: "
          "`FrameEstimator(tip_fraction=0.5)`, the head only half way to its tip (`pose/tips.py`); "
          "*gate-off*: `FrameEstimator(gate=False)`, without the confidence gate (`pose/confidence.py`); "
          "*two-pass*: "
-         "`topopose.pose.subject.two_pass` per capture (one subject), the subject's own lengths "
+         "`topopose.sequence.subject.two_pass` per capture (one subject), the subject's own lengths "
          "from its confident frames; *no-spine*: `FrameEstimator(spine=False)`, the peer of the "
          "spine shift (torso, crotch and head moved back from the hull's medial axis onto the "
-         "spine, against the front the feet give: `topopose.pose.anatomy`, on by default for the "
+         "spine, against the front the feet give: `topopose.frame.anatomy`, on by default for the "
          "human model); *no-crotch-drop*: `FrameEstimator(crotch_drop=False)`, the peer of the "
          "crotch lowered and moved back into the flexed hips, no lower than 0.5 × the hull's "
-         "radius above the gap between the legs (`topopose.pose.anatomy.crotch_drop`, on by "
+         "radius above the gap between the legs (`topopose.frame.anatomy.crotch_drop`, on by "
          "default); *crotch-drop-no-floor*: the same drop without that floor "
          "(`crotch_drop=('crotch', 0.35, 0.1)`); *crotch-drop-0.1*: a smaller drop, 0.1 × "
          "the radius down rather than 0.35 (`crotch_drop=('crotch', 0.1, 0.1, 0.5)`); *hand-tips*: `FrameEstimator(tips=('head', 'hand'))`, the hands prolonged "
-         "to the hull's border like the head (`topopose.pose.tips`, head only by default); "
+         "to the hull's border like the head (`topopose.frame.tips`, head only by default); "
          "*no-trunk*: `FrameEstimator(trunk=False)`, the peer of the torso put "
          "back on the trunk line crotch → head when the alignment slid it down to the crotch "
-         "(an arm along the trunk; `topopose.pose.anatomy.torso_on_trunk`); *no-short-arm*: "
+         "(an arm along the trunk; `topopose.frame.anatomy.torso_on_trunk`); *no-short-arm*: "
          "`FrameEstimator(short_arm=0)`, the peer of a hand on an arm branch shorter than 0.35 × "
          "the leg's left unplaced (a forearm folded onto the body: the branch ends at the elbow; "
-         "`topopose.pose.estimate.SHORT_ARM`); *no-trunk-blend*: `FrameEstimator(trunk_blend=0)`, "
+         "`topopose.frame.estimate.SHORT_ARM`); *no-trunk-blend*: `FrameEstimator(trunk_blend=0)`, "
          "the peer of the torso drawn half way towards 0.6 of crotch → head (arms on the chest "
-         "pull the shoulder junction forward; `topopose.pose.anatomy.TRUNK_BLEND`); "
+         "pull the shoulder junction forward; `topopose.frame.anatomy.TRUNK_BLEND`); "
          "*no-placed-missing*: `FrameEstimator(placed_missing=False)`, the peer of the missing "
          "parts counted once placed (a head the alignment left unmatched but placed from the hull "
-         "is placed; `topopose.pose.estimate.PLACED_MISSING`); *no-hand-trunk*: "
+         "is placed; `topopose.frame.estimate.PLACED_MISSING`); *no-hand-trunk*: "
          "`FrameEstimator(hand_trunk=0)`, the peer of a hand within 1.3 hull radii of the "
          "trunk's thick core left unplaced (a forearm folded onto the body, its branch ending at "
          "the elbow or running on inside the trunk's surface; "
-         "`topopose.pose.anatomy.HAND_ON_TRUNK`); *no-head-ball*: `FrameEstimator(head_ball=0)`, "
+         "`topopose.frame.anatomy.HAND_ON_TRUNK`); *no-head-ball*: `FrameEstimator(head_ball=0)`, "
          "the peer of the head from the hull's top holding a ball of 0.46 × the hull's largest "
-         "radius within 1.5 of them (a raised fist is set aside; `topopose.pose.tips.HEAD_BALL`); "
+         "radius within 1.5 of them (a raised fist is set aside; `topopose.frame.tips.HEAD_BALL`); "
          "*no-junction-core*: `FrameEstimator(junction_core=False)`, the peer of a junction "
          "(torso, crotch) placed at its co-optimal cluster's centroid without the cluster's data "
          "leaves (a branch the alignment contracted into the junction, e.g. a forearm on the "
-         "belly; `topopose.pose.estimate.JUNCTION_CORE`); "
+         "belly; `topopose.frame.estimate.JUNCTION_CORE`); "
          "*whole-distance*: "
          "`FrameEstimator(matched_distance=False)`, T_d on the whole AHA distance, the peer of "
          "T_d on the matched parts' distance (a missing limb's deleted arm not counted; "
-         "`topopose.pose.estimate.MATCHED_DISTANCE`; without the gate only, with it the "
+         "`topopose.frame.estimate.MATCHED_DISTANCE`; without the gate only, with it the "
          "confidence decides). "
          "Diagnosis of "
-         "the failing parts: `benchmarks/diagnose_body.py` (diagnose_body*.md).", "",
+         "the failing parts: `studies/diagnose_body.py` (diagnose_body*.md).", "",
          "| configuration | res | frames | TP rate | FP/match | good | miss1 | partial | misplaced "
          "| bad | none | err good (cm) | err misplaced (cm) | ms/frame | alignment stage ms (median) |",
          "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
@@ -371,7 +373,7 @@ def main(argv=None):
     known = {"human", "hand", "dog", "spider", "body"}
     if only is not None and not only <= known:
         ap.error(f"--only: unknown subject(s) {sorted(only - known)}")
-    from topopose.capture import synthetic_capture
+    from topopose.synth import synthetic_capture
     from topopose.viz.figures import plot_quality
 
     n = 8 if a.quick else a.frames

@@ -20,13 +20,13 @@ Scores (all frames, best guesses of rejected frames included; a failed frame cou
 Two columns of the same run: *per frame* (each frame's :class:`FrameEstimator` result, the
 confidence gate off so both decisions are scored) and *as ``run`` writes it* (:func:`as_run`:
 the run's default gate decision, then the sequence stages ``topopose run`` applies,
-:func:`topopose.pose.motion.process_sequence`: identities over time with misplaced parts held
+:func:`topopose.sequence.motion.process_sequence`: identities over time with misplaced parts held
 at their prediction or snapped to the free skeleton leaf nearest it, the kinematic skeleton,
 left/right, and ``matched`` decided with the run's own consistency: by default the union of
 the confidence gate and the consistency). *Precision of matched against recall*:
 :func:`confidence_curve`. *Matched by the run's own consistency*: the same poses with the gate
 alone (``run --no-consistency``), the consistency instead of the gate (``--consistency``)
-and their union (the default) side by side (:mod:`topopose.pose.consistency`, whose settings
+and their union (the default) side by side (:mod:`topopose.sequence.consistency`, whose settings
 were chosen on synthetic walks by ``benchmarks/consistency.py``, never on this recording).
 
 Speed: end to end from the videos, one process as ``topopose run`` (a reader thread decodes
@@ -55,7 +55,7 @@ RIGHT = 0.15            # metres
 VARIANTS = {"track": "person_track = true\n",              # MediaPipe's tracking mode
             # each camera segmented every 2nd (3rd) frame, staggered; the others keep theirs
             "every2": "person_every = 2\n", "every3": "person_every = 3\n",
-            # the reader as it was before: FFmpeg's own threads, decoding in the reader thread
+            # the reader without read-ahead: FFmpeg's own threads, decoding in the reader thread
             "oldreader": "decode_threads = 0\ndecode_ahead = 0\n",
             # the hull carved from the full-size masks (not from the network's small ones)
             "fullmasks": ""}
@@ -159,10 +159,10 @@ def person_capture(rec: Path, out: Path, settings=()):
 
 def summarize(poses, ref, frames_index, min_confidence) -> dict:
     """Scores of ``poses`` judged without the gate; *gated*: matched with the confidence gate at
-    ``min_confidence`` (:func:`topopose.pose.confidence.passes_gate`, as ``run`` decides)."""
+    ``min_confidence`` (:func:`topopose.frame.confidence.passes_gate`, as ``run`` decides)."""
     errs, right, matched_right, matched = [], 0, 0, 0
     per = {k: [] for k in ("head", "hand", "foot")}
-    from topopose.pose.confidence import passes_gate
+    from topopose.frame.confidence import passes_gate
 
     rows, gated, gated_right = [], 0, 0
     for p in poses:
@@ -203,10 +203,10 @@ def summarize(poses, ref, frames_index, min_confidence) -> dict:
 
 def confidence_curve(rows, precisions=(1.0, 0.95, 0.9, 0.8, 0.75, 0.7, 0.0)) -> list:
     """How many right frames the confidence gate lets through, at which precision: for each
-    target precision, the lowest gate threshold (:func:`~topopose.pose.confidence.passes_gate`
+    target precision, the lowest gate threshold (:func:`~topopose.frame.confidence.passes_gate`
     at a frame's confidence) whose passing frames are right in at least that share, the frames
     passing and the right ones among them (None, 0, 0: no threshold reaches it)."""
-    from topopose.pose.confidence import passes_gate
+    from topopose.frame.confidence import passes_gate
 
     levels = sorted({r["confidence"] for r in rows if r["confidence"] is not None}, reverse=True)
     out = []
@@ -223,21 +223,21 @@ def confidence_curve(rows, precisions=(1.0, 0.95, 0.9, 0.8, 0.75, 0.7, 0.0)) -> 
 
 
 def as_run(poses, model, up, min_confidence, consistency=None, trim=None) -> list:
-    """The poses as ``topopose run`` writes them (:func:`topopose.pose.run.run`): the confidence
+    """The poses as ``topopose run`` writes them (:func:`topopose.batch.run.run`): the confidence
     gate's decision at ``min_confidence`` unless None (the run's default gate,
-    :func:`~topopose.pose.estimate.default_gate`, at its minimum for the camera count; a frame
+    :func:`~topopose.frame.estimate.default_gate`, at its minimum for the camera count; a frame
     rejected for its AHA distance that the gate judged too gets the gate's reason after it,
     as ``confidence.judge_frame`` writes it), then
-    :func:`~topopose.pose.motion.process_sequence` (track, skeleton, sides; ``consistency``:
+    :func:`~topopose.sequence.motion.process_sequence` (track, skeleton, sides; ``consistency``:
     None, the run's default, the union of the gate and the consistency; False:
     ``topopose run --no-consistency``; True: ``--consistency``; ``trim=False``: without the
     hands' trim), the mirror names
     turned back into numbered parts for scoring. ``poses`` are left as they are."""
     import copy
 
-    from topopose.pose.chirality import numbered
-    from topopose.pose.confidence import distance_only, passes_gate
-    from topopose.pose.motion import process_sequence
+    from topopose.sequence.chirality import numbered
+    from topopose.frame.confidence import distance_only, passes_gate
+    from topopose.sequence.motion import process_sequence
 
     ps = copy.deepcopy(poses)
     if min_confidence is not None:
@@ -295,9 +295,9 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
 
     import topopose as tp
     from topopose.capture import prefetch
-    from topopose.pose.confidence import temporal_confidence
-    from topopose.pose.estimate import FrameEstimator, default_gate
-    from topopose.pose.run import CENTRE as RUN_CENTRE     # the limbs' centring, on by default
+    from topopose.frame.confidence import temporal_confidence
+    from topopose.frame.estimate import FrameEstimator, default_gate
+    from topopose.batch.run import CENTRE as RUN_CENTRE     # the limbs' centring, on by default
 
     cdir = work / method.replace("+", "_")
     if cdir.exists():
@@ -312,7 +312,7 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     bg.UPSAMPLED_MASKS = "fullmasks" not in opts
     def one_pass(support):
         """The run end to end, timed; ``support``: record the silhouette the model leaves
-        unexplained (:mod:`topopose.pose.support`, which the run's consistency reads: on by
+        unexplained (:mod:`topopose.frame.support`, which the run's consistency reads: on by
         default)."""
         t0 = time.perf_counter()
         with warnings.catch_warnings():
@@ -353,13 +353,13 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     res["as_run"]["predicted"] = sum(bool(p.diagnostics.get("predicted")) for p in run_poses)
     res["as_run"]["snapped"] = sum(bool(p.diagnostics.get("snapped")) for p in run_poses)
     # `topopose run --no-consistency` (the gate alone) and `--consistency`
-    # (topopose.pose.consistency: the run's own consistency instead of the confidence's absolute
+    # (topopose.sequence.consistency: the run's own consistency instead of the confidence's absolute
     # minimum); the run's default (as_run) is their union
     for key, mode in (("as_run_gate", False), ("as_run_consistency", True)):
         ps = as_run(poses, est.model, cap.up_vector, mc if default_gate(cap) else None,
                     consistency=mode)
         res[key] = summarize(ps, ref, idx, mc)
-    # the same without the hands' trim (topopose.pose.trim), its peer in this run
+    # the same without the hands' trim (topopose.frame.trim), its peer in this run
     for key, mode in (("as_run_no_trim", None), ("as_run_consistency_no_trim", True)):
         ps = as_run(poses, est.model, cap.up_vector, mc if default_gate(cap) else None,
                     consistency=mode, trim=False)
@@ -407,7 +407,7 @@ def time_breakdown(rec: Path, n: int = 20) -> dict:
     import cv2
 
     from topopose.capture.background import SequenceBackground, foreground_probability
-    from topopose.capture.calibration import SILHOUETTE_DEFAULTS
+    from topopose.capture.options import SILHOUETTE_DEFAULTS
 
     vids = sorted((rec / "videos").glob("*.mp4"))
     frames = [[] for _ in vids]
@@ -661,10 +661,10 @@ def report(doc) -> str:
                  "head med / p90", "hands med / p90", "feet med / p90"], rows)
     L += ["", "## `matched` by the run's own consistency: gate, consistency, union", "",
           "The same poses as `run` writes them, with `matched` decided by the confidence gate "
-          "alone (`run --no-consistency`), by `topopose.pose.consistency` instead of it "
+          "alone (`run --no-consistency`), by `topopose.sequence.consistency` instead of it "
           "(`--consistency`: agreement with the neighbouring frames, no part held at its "
           "tracked prediction, and the share of the silhouettes the placed model leaves "
-          "unexplained, `topopose.pose.support`, recorded by the run; thresholds chosen on "
+          "unexplained, `topopose.frame.support`, recorded by the run; thresholds chosen on "
           "synthetic walks, never on this recording: `benchmarks/consistency.py`), and by "
           "their union (the run's default: the gate's frames, and those the gate alone "
           "rejected that are consistent).",
@@ -681,7 +681,7 @@ def report(doc) -> str:
     L += _table(["silhouettes", "right as `run` writes it", "matched (gate)",
                  "precision (gate)", "matched (consistency)", "precision (consistency)",
                  "matched (union, the default)", "precision (union; target ≥ 95 %)"], rows)
-    L += ["", "## The hands' trim (`topopose.pose.trim`, on by default) against its peer", "",
+    L += ["", "## The hands' trim (`topopose.frame.trim`, on by default) against its peer", "",
           "The same run's poses as `run` writes them, without the trim (`run --no-trim`) → with it "
           "(hands moved back out of the hull's phantom volume: frames trimmed).", ""]
     # (as_run: the run's default, the union; as_run_consistency: --consistency)
@@ -718,7 +718,7 @@ def report(doc) -> str:
     L += ["", "## Speed (one process)", ""]
     if doc.get("peer"):
         L += [f"Ratios and pose identity against `{doc['peer']}` in the same run (`+oldreader`: "
-              "the reader as it was before the read-ahead thread, FFmpeg's own threads per video; "
+              "the reader without the read-ahead thread, FFmpeg's own threads per video; "
               "same poses: status and part positions bit-identical).", ""]
     rows = []
     peer = bool(doc.get("peer"))

@@ -1,5 +1,5 @@
 """From poses to motion on the real recording (Pose2Sim's balancing trial) against Pose2Sim's 3D
-result: the full skeleton's per-joint error, left and right, identities over time (issue 15).
+result: the full skeleton's per-joint error, left and right, identities over time.
 
     python benchmarks/real_motion.py [RECORDING] [--raw RAW.jsonl] [--out DIR] [--spread R,...] [--quick]
 
@@ -15,7 +15,7 @@ gated run matches (almost) nothing; the figures are those of the per-frame *best
 the frames the AHA distance would have kept are counted beside them (the confidence gate's
 decision is ``benchmarks/real.py``'s: with the threshold off the confidence's distance feature,
 the distance / T_d, is not the run's). The motion stage then runs as
-``topopose run`` runs it (:func:`topopose.pose.motion.process_sequence`: track, skeleton,
+``topopose run`` runs it (:func:`topopose.sequence.motion.process_sequence`: track, skeleton,
 sides, the defaults), the TRC is exported as ``run --trc`` writes it and read back, and:
 
 * **MPJPE** per joint, median over frames, of the exported markers against Pose2Sim's: head
@@ -27,7 +27,7 @@ sides, the defaults), the TRC is exported as ``run --trc`` writes it and read ba
 * **toes** (not in the MPJPE): our ``left_toe`` / ``right_toe`` against Pose2Sim's
   ``LBigToe`` / ``RBigToe``, paired optimally, median over frames × feet (the big toe's tip is
   not quite our toe, the foot's tip; the figure follows the toe's placement, e.g.
-  :func:`~topopose.pose.kinematic_fit.tip_targets`).
+  :func:`~topopose.sequence.kinematic_fit.tip_targets`).
 * **PA-MPJPE** (:func:`procrustes_mpjpe`): the same 14 joints after a per-frame rigid
   alignment to Pose2Sim's — how much of the error is the skeleton's shape, not its place.
 * **chirality**: per frame and mirror pair (hands, feet), right when ``left_X`` + ``right_X``
@@ -169,7 +169,7 @@ def tracked_parts(pose) -> dict:
 
 
 def nearest_side(x, segs, kind):
-    from topopose.pose.quality import point_segment_distance
+    from topopose.batch.quality import point_segment_distance
 
     d = [point_segment_distance(np.asarray(x, float), *segs[(kind, s)]) for s in "LR"]
     return "LR"[int(np.argmin(d))]
@@ -187,7 +187,7 @@ def identity_switches(part_dicts, ref, rows):
 
 
 def chirality(poses, ref, rows):
-    from topopose.pose.quality import point_segment_distance as psd
+    from topopose.batch.quality import point_segment_distance as psd
 
     c = {"right": 0, "wrong": 0, "unsure": 0}
     for i in rows:
@@ -246,8 +246,8 @@ def score(raw, final, trc_path, ref, model):
 
 def temporal_outliers(final, markers, ref, right) -> dict:
     """The frames the fit flags ``temporal_outlier`` (joints off their neighbours' median,
-    :func:`topopose.pose.kinematic_fit.neighbourhood`): which, how many of them are wrong per
-    frame, which were bridged (:func:`~topopose.pose.kinematic_fit.bridge_outliers`), and the
+    :func:`topopose.sequence.kinematic_fit.neighbourhood`): which, how many of them are wrong per
+    frame, which were bridged (:func:`~topopose.sequence.kinematic_fit.bridge_outliers`), and the
     MPJPE (side names, median over frames, m) of the flagged frames and of the others with a
     skeleton."""
     flagged = [i for i, p in enumerate(final) if p.diagnostics.get("temporal_outlier")]
@@ -293,10 +293,10 @@ def run_recording(rec: Path, work: Path, raw_path=None, resolution=100):
 
 def run_capture(cap, work: Path, raw_path=None, resolution=100):
     """:func:`run_recording` on a loaded (or in-memory) capture."""
-    from topopose.pose import run
+    from topopose.batch import run
     from topopose.pose.export import OPENSIM_LABELS, marker_names, write_trc
     from topopose.pose.model import load_model
-    from topopose.pose.motion import process_sequence
+    from topopose.sequence.motion import process_sequence
     from topopose.pose.pose import read_poses
 
     model = load_model("human")
@@ -339,24 +339,24 @@ def grid_spread(rec: Path, work: Path, ref, resolutions) -> dict:
 
 # peers of the default motion stage, from the same per-frame poses: kinematic_fit constants
 PEERS = {"the neck and shoulders each on its own target (GIRDLE = False)": {"GIRDLE": False},
-         "the smoothing window 9 frames at 60 frames/s, as before session 33 "
+         "the smoothing window 9 frames at any rate "
          "(SMOOTH_RATE = None)": {"SMOOTH_RATE": None},
-         "temporal outliers kept as fitted, not bridged, as before session 34 (BRIDGE = False)":
+         "temporal outliers kept as fitted, not bridged (BRIDGE = False)":
              {"BRIDGE": False},
-         "one frame's swung bones smoothed with the others, as before session 35 "
+         "one frame's swung bones smoothed with the others "
          "(DESPIKE = None)": {"DESPIKE": None},
-         "hanging arms' elbows and wrists at their fractions only, as before session 35 "
+         "hanging arms' elbows and wrists at their fractions only "
          "(FROM_START = {})": {"FROM_START": set()},
-         "both, as session 34 (DESPIKE = None, FROM_START = {})":
+         "both (DESPIKE = None, FROM_START = {})":
              {"DESPIKE": None, "FROM_START": set()}}
 
 
 def peer_scores(raw, cap, model, ref, work) -> dict:
     """The motion stage again from the same per-frame poses with each of :data:`PEERS`'
     settings: MPJPE (side names) on all and on the right frames, as :func:`score` gives it."""
-    from topopose.pose import kinematic_fit as kf
+    from topopose.sequence import kinematic_fit as kf
     from topopose.pose.export import OPENSIM_LABELS, marker_names, write_trc
-    from topopose.pose.motion import process_sequence
+    from topopose.sequence.motion import process_sequence
 
     out = {}
     for k, (label, consts) in enumerate(PEERS.items()):
@@ -493,7 +493,8 @@ def widths(markers, ref):
     landmark convention (Pose2Sim's shoulders at the outer shoulder) or our placement. The
     MakeHuman rig's ratio (shoulder ``Arm_head`` / hip ``UpLeg_head`` widths of the synthetic
     ``body`` subject, average build, first frame of a walk) beside them."""
-    from topopose.capture import load_capture, synthesize
+    from topopose.capture import load_capture
+    from topopose.synth import synthesize
 
     def med(get):
         v = [np.linalg.norm(a - b) for a, b in map(get, range(len(markers)))
@@ -538,7 +539,7 @@ def markers_in_hull(cap, markers, ref, rows, up) -> dict:
     the hull's front and back along Pose2Sim's forward (cm). The hull holds the body when the
     silhouettes and the calibration are right, so a joint centre lies inside it, away from its
     surface; a surface landmark lies near it."""
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.frame.estimate import FrameEstimator
 
     est = FrameEstimator(cap, "human", resolution=100, threshold=1e9, gate=False)
     up = np.asarray(up, float) / np.linalg.norm(up)
@@ -687,7 +688,7 @@ def report(doc) -> str:
               f"{_fmt(pr['right']['mpjpe'])} cm; per joint (all / right): "
               + ", ".join(f"{j} {_fmt(v)} / {_fmt(pr['right']['per_joint'].get(j))}"
                           for j, v in pr["all"]["per_joint"].items()), ""]
-    from topopose.pose.kinematic_fit import BONE_QUANTILE
+    from topopose.sequence.kinematic_fit import BONE_QUANTILE
 
     L += ["Bone lengths (ours: constant over the sequence, the "
           f"{BONE_QUANTILE}th percentile over its frames' initial "
@@ -754,13 +755,12 @@ def main(argv=None):
                     help="a kinematic_fit constant for this run (a Python literal; repeatable): "
                          "a development variant, never a published figure")
     a = ap.parse_args(argv)
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     settings = apply_settings(kf, a.set)
     if a.quick:
         a.spread = ""
     if a.no_hand_hints:
-        from topopose.pose import kinematic_fit
+        from topopose.sequence import kinematic_fit
         kinematic_fit.HAND_HINTS = False
     from real import person_recording
 

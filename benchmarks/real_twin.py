@@ -1,5 +1,5 @@
 """The real recording's synthetic twin: how much of its error is ours, how much the reference's,
-and how much the four cameras' (issue 15).
+and how much the four cameras'.
 
     python benchmarks/real_twin.py [RECORDING] [--out DIR] [--work DIR] [--frames N]
                                    [--noise 2] [--setups 4,4d,6,8] [--seeds 0,1,2] [--quick]
@@ -11,12 +11,12 @@ Against Pose2Sim's 3D result the real recording mixes three errors: ours, the re
 (triangulated OpenPose keypoints: their noise, and a marker convention that is not the
 anatomical joints'), and the four cameras' (a 4-view hull's phantom volume). The twin takes
 them apart. The anatomically real ``body`` subject (the MakeHuman rig of
-:mod:`topopose.capture.synth_body`) is built to Pose2Sim's bone lengths (:func:`fit_build`) and
+:mod:`topopose.synth.body`) is built to Pose2Sim's bone lengths (:func:`fit_build`) and
 posed, frame by frame, to Pose2Sim's markers (:func:`fit_pose`: inverse kinematics over the
 capsule human's joint angles and the body's placement, least squares, warm-started from the
 previous frame); its silhouettes are rendered exactly through the recording's own four
 cameras (the calibration at the ``person`` masks' half size, 544×960; ``--noise`` as
-:func:`topopose.capture.synth.add_noise`, over ``--seeds``), and the pipeline runs on them as
+:func:`topopose.synth.capture.add_noise`, over ``--seeds``), and the pipeline runs on them as
 ``benchmarks/real_motion.py`` runs the recording (:func:`real_motion.run_capture`: 100³, AHA
 threshold and confidence gate off, then the motion stage of ``topopose run``). Set-ups
 (:data:`SETUPS`): ``4`` the recording's cameras; ``4d`` the same with silhouettes dilated 3 px
@@ -95,15 +95,14 @@ class Poser:
     whole mesh; the build's height scale computed once)."""
 
     def __init__(self, build):
-        from topopose.capture import synth_body as sb
-
+        from topopose.synth import body as sb
         self.sb, self.r, self.build = sb, sb.rig(), build
         self.S = sb._scales(self.r, build)
         self.scale = sb.bone_transforms(None, build)[2]
         self.names = [m[0] for m in IK_MARKERS]
 
     def points(self, pose, R=np.eye(3), t=np.zeros(3), names=None):
-        from topopose.capture.synth_subjects import HUMAN_DEFAULT
+        from topopose.synth.subjects import HUMAN_DEFAULT
 
         sb, r = self.sb, self.r
         F = sb._frames({**HUMAN_DEFAULT, **pose})
@@ -145,7 +144,7 @@ def fit_build(ref) -> tuple[dict, dict]:
     """The body's build (height, leg, arm, torso factors; average girths) whose rest bone
     lengths are Pose2Sim's (least squares over upper arm, forearm, thigh, shank, trunk);
     returns (build, {bone: (twin, Pose2Sim)})."""
-    from topopose.capture.synth_body import BUILDS
+    from topopose.synth.body import BUILDS
 
     target = reference_lengths(ref)
     keys = ("upper_arm", "forearm", "thigh", "shank", "trunk")
@@ -203,7 +202,7 @@ def fit_pose(poser, g, start=None):
 def twin_bodies(ref, frames: int):
     """The twin: build fitted to Pose2Sim's bone lengths, each frame posed to its markers.
     Returns (build, {bone: (twin, Pose2Sim)}, posed :class:`MeshBody` list, rms residuals m)."""
-    from topopose.capture.synth_body import pose_body
+    from topopose.synth.body import pose_body
 
     build, lengths = fit_build(ref)
     poser, x, bodies, rms = Poser(build), None, [], []
@@ -226,7 +225,7 @@ def twin_cameras(rec: Path, setup: str, centre) -> list:
     (the same lenses, distances and heights)."""
     from topopose.capture.background import scaled_camera
     from topopose.capture.calibration import read_calibration
-    from topopose.capture.camera import Camera
+    from topopose.geometry.camera import Camera
 
     cams = [scaled_camera(c, 0.5) for c in read_calibration(rec / "Calib.toml")]
     Rz = Rotation.from_euler("z", 45, degrees=True).as_matrix()
@@ -251,13 +250,13 @@ SETUPS = {"4": (0, (), "the recording's 4 cameras"),
 
 def twin_capture(bodies, cams, noise: int, dilate: int, fps: float, seed: int = 0):
     """The in-memory capture of the twin's exact silhouettes (:func:`~topopose.capture.
-    synth_body.MeshBody.render`), ``noise`` as :func:`~topopose.capture.synth.add_noise`
+    synth_body.MeshBody.render`), ``noise`` as :func:`~topopose.synth.capture.add_noise`
     (its random state from ``seed``), dilated by ``dilate`` px."""
     import cv2
 
     from topopose.capture.capture import Capture
-    from topopose.capture.synth import add_noise
-    from topopose.capture.synth_geometry import ray_table
+    from topopose.synth.capture import add_noise
+    from topopose.synth.geometry import ray_table
 
     tables = [ray_table(c) for c in cams]
     ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * dilate + 1,) * 2) if dilate else None
@@ -403,7 +402,7 @@ def report(doc) -> str:
     by = {}
     for r in doc["setups"]:
         by.setdefault(r["setup"], []).append(r)
-    out = ["# The real recording's synthetic twin (issue 15)", "",
+    out = ["# The real recording's synthetic twin", "",
            machine_line(doc["machine"]) + " Written by `benchmarks/real_twin.py`.", "",
            "The anatomically real `body`, built to Pose2Sim's bone lengths (twin / Pose2Sim, "
            "m: " + ", ".join(f"{k} {a} / {b}" for k, (a, b) in doc["lengths"].items())

@@ -17,9 +17,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine  # noqa: E402
 
-from topopose.capture.synth import synthetic_capture  # noqa: E402
-from topopose.capture.synth_body import body_random, make_build, pose_body  # noqa: E402
-from topopose.capture.synth_geometry import ray_table, render  # noqa: E402
+from topopose.synth.capture import synthetic_capture  # noqa: E402
+from topopose.synth.body import body_random, make_build, pose_body  # noqa: E402
+from topopose.synth.geometry import ray_table, render  # noqa: E402
 
 
 def frame_times(cap, fn, repeats=3):

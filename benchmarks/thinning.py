@@ -1,7 +1,7 @@
 """Thinning benchmark: PKD6, D6I1D, D6U, D6I2D, ACK3 against scikit-image and kimimaro.
 
 Volumes: the real body volumes ``tests/data/body_tpose_N.npz`` (4k–800k voxels), visual
-hulls of the synthetic human (``topopose.capture.synth.synthetic_capture`` +
+hulls of the synthetic human (``topopose.synth.capture.synthetic_capture`` +
 ``topopose.visual_hull``) at 64, 128 and 256 voxels along the capture volume, and "noisy"
 bodies (random bumps and pits on the surface) for the skeleton-quality comparison.
 
@@ -81,13 +81,13 @@ def synthetic_hulls(resolutions):
     """Visual hulls of the synthetic human, or voxelized capsules when that stage is absent."""
     out = {}
     try:
-        from topopose.capture.synth import synthetic_capture
+        from topopose.synth.capture import synthetic_capture
         from topopose import visual_hull
 
         cap = synthetic_capture(subject="human", frames=1, seed=3)
         for n in resolutions:
             out[f"synth_hull_{n}"] = np.ascontiguousarray(visual_hull(cap, 0, resolution=n).data)
-        return out, "topopose.capture.synth.synthetic_capture + topopose.visual_hull"
+        return out, "topopose.synth.capture.synthetic_capture + topopose.visual_hull"
     except Exception as exc:  # noqa: BLE001 - fall back, and say so in the report
         reason = f"capsules (synth/hull unavailable: {exc})"
     for n in resolutions:

@@ -21,7 +21,7 @@ is measured beside its peer in the same run:
 
 * **identity switches** of the numbered parts (hand_1/hand_2, foot_1/foot_2) per 500 frames:
   consecutive matched frames in which a numbered part changes the gt limb it is nearest to;
-  ``track`` (:mod:`topopose.pose.track`) against the raw per-frame numbering. Counted on all
+  ``track`` (:mod:`topopose.sequence.track`) against the raw per-frame numbering. Counted on all
   matched frames (a misplaced part counts too) and on the frames where both parts are placed
   right (``evaluate``: within the tolerance); and the parts the tracker *held* (misplaced by the
   per-frame result: placed at their prediction, flagged ``predicted``). Walks and random motion
@@ -45,22 +45,22 @@ is measured beside its peer in the same run:
   fingertip ``fingertip_l/r``, hip ``UpLeg_head``, knee ``Leg_head``, ankle ``Foot_head``,
   toe ``toe_l/r``; chest (the curve's shoulder-centre junction) has no rig joint. Also the fit
   with the neck's bone sliding (``slide=True``: its length from the chest junction per frame).
-* **hand hints** (``diagnostics["hand_hints"]``, :func:`~topopose.pose.kinematic_fit.hint_fill`):
+* **hand hints** (``diagnostics["hand_hints"]``, :func:`~topopose.sequence.kinematic_fit.hint_fill`):
   each hint's end against the nearest true elbow and wrist, and the fit against the same fit
   without them (``hints=False``): MPJPE, per joint, and the hinted unseen arms' error.
-* **arm evidence** (``diagnostics["arm_evidence"]``, :func:`topopose.pose.unseen.evidence_fill`):
+* **arm evidence** (``diagnostics["arm_evidence"]``, :func:`topopose.frame.unseen.evidence_fill`):
   the fit against the same fit without it (``evidence=False``): MPJPE, frames holding joints,
   per joint, and the unseen arms' error.
-* **bent limbs** (:func:`~topopose.pose.kinematic_fit.bend_joints`, ``BEND``, off by default):
+* **bent limbs** (:func:`~topopose.sequence.kinematic_fit.bend_joints`, ``BEND``, off by default):
   the fit against the same fit with the middle joints at their curve's bend (:func:`fit_with_bend`).
-* **girdle** (:func:`~topopose.pose.kinematic_fit.girdle_targets`: the neck and the
+* **girdle** (:func:`~topopose.sequence.kinematic_fit.girdle_targets`: the neck and the
   shoulders as one symmetric rigid body): the fit against the same fit with each on its own
   target (:func:`fit_without_girdle`).
-* **tips** (:func:`~topopose.pose.kinematic_fit.tip_targets`: the toe turned from the shank,
+* **tips** (:func:`~topopose.sequence.kinematic_fit.tip_targets`: the toe turned from the shank,
   the fingertip moved out along the hand): the fit against the same fit with the tips' targets
   as the curves give them (:func:`fit_without_tips`).
 * **shoulders from the hull** (``diagnostics["hull_shoulders"]``,
-  :func:`topopose.pose.unseen.hull_shoulders`): the fit against the same fit without them
+  :func:`topopose.frame.unseen.hull_shoulders`): the fit against the same fit without them
   (``shoulders=False``): MPJPE, frames holding joints, per joint, and the unseen arms' error.
 
 **Four phones** (``--setup 4p``: 4 portrait cameras 544×960 in two facing pairs, noise 2, as
@@ -71,10 +71,10 @@ hull as fat as the real recording's). **Bias** (``--bias --setups 8,4p,4pd [--re
 results/real_motion.json]``): the fitted skeleton's signed per-joint bias in the truth's body
 frame (outward / forward / up), widths and bone lengths against the rig, per set-up, on the
 frames whose per-frame pose is right, beside the real recording's against Pose2Sim
-(``real_motion.py``); written as ``tracking_bias*`` (issue 15: whether the 4-camera hull's
+(``real_motion.py``); written as ``tracking_bias*`` (whether the 4-camera hull's
 phantom volume explains the real recording's error; thesis §13.3.1).
 
-The per-frame matching on the body is being improved elsewhere (issue 11): figures are as the
+The per-frame matching on the body is being improved elsewhere: figures are as the
 per-frame result is, misses included. Writes ``tracking.md``, ``tracking.json``,
 ``tracking.png`` (a walking sequence: joints over time) and ``tracking_smooth.png`` (the first
 random-motion sequence), and the same with the gate off.
@@ -92,14 +92,14 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _machine import apply_settings, machine  # noqa: E402
 
 from topopose.capture import load_capture  # noqa: E402
-from topopose.capture.synth import SMOOTH, synthetic_capture, write_capture  # noqa: E402
-from topopose.pose import run  # noqa: E402
-from topopose.pose.chirality import assign_sides  # noqa: E402
-from topopose.pose.kinematic_fit import (BONE_QUANTILE, fit_sequence,  # noqa: E402
+from topopose.synth.capture import SMOOTH, synthetic_capture, write_capture  # noqa: E402
+from topopose.batch import run  # noqa: E402
+from topopose.sequence.chirality import assign_sides  # noqa: E402
+from topopose.sequence.kinematic_fit import (BONE_QUANTILE, fit_sequence,  # noqa: E402
                                          initial_placement)
 from topopose.pose.model import load_model  # noqa: E402
-from topopose.pose.quality import evaluate, point_segment_distance  # noqa: E402
-from topopose.pose.track import gated_only, track  # noqa: E402
+from topopose.batch.quality import evaluate, point_segment_distance  # noqa: E402
+from topopose.sequence.track import gated_only, track  # noqa: E402
 
 # Walking sequences are short: the synthetic walk goes straight (≈ 1.3 m/s) and the capture
 # volume holds the whole path, so a 200-frame walk (≈ 10 m) would get 10 cm voxels at 100³;
@@ -270,7 +270,7 @@ def arm_errors(names, P, gj, held, sides=None):
     return [(sides, arm_kind(gj, sd, f"wrist_{k}" in held), err(k, sd)) for sd, k in zip(sides, ks)]
 
 
-# The joint definitions and fit weight before issue 15's MPJPE work, measured beside the
+# Earlier joint definitions and fit weight, measured beside the
 # current ones in the same run: tips at the branch end (no ``beyond``), shoulders of the first
 # calibration, inner weight 0.3.
 PREVIOUS = {"fingertip": {"beyond": 0.0}, "toe": {"beyond": 0.0},
@@ -287,8 +287,8 @@ def previous_definitions(model):
 
 
 def main_fit(tracked, model):
-    """The fit as before the joint placement of :data:`~topopose.pose.kinematic_fit.SPINE_BACK`,
-    :data:`~topopose.pose.kinematic_fit.BONE_QUANTILE`, the hips' ``width`` and the raised
+    """The fit without the joint placement of :data:`~topopose.sequence.kinematic_fit.SPINE_BACK`,
+    :data:`~topopose.sequence.kinematic_fit.BONE_QUANTILE`, the hips' ``width`` and the raised
     arms' ``at_raised``: the trunk's joints on the medial curve, bone lengths the median, hips
     along the leg's curve, elbows and wrists at their ``at`` in every frame."""
     from dataclasses import replace
@@ -298,13 +298,12 @@ def main_fit(tracked, model):
 
 
 def fit_before_rest(tracked, model):
-    """The fit before the unseen arm's shoulder was raised :data:`~topopose.pose.kinematic_fit.
+    """The fit before the unseen arm's shoulder was raised :data:`~topopose.sequence.kinematic_fit.
     HELD_SHOULDER` from the plane across the trunk (the mate's half turn instead), the
-    neck's bone took its median length (:data:`~topopose.pose.kinematic_fit.SLIDE_QUANTILE`)
-    and a raised arm's shoulder moved down (:data:`~topopose.pose.kinematic_fit.
+    neck's bone took its median length (:data:`~topopose.sequence.kinematic_fit.SLIDE_QUANTILE`)
+    and a raised arm's shoulder moved down (:data:`~topopose.sequence.kinematic_fit.
     RAISED_SHOULDER`)."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     keep = kf.HELD_SHOULDER, kf.SLIDE_QUANTILE, kf.RAISED_SHOULDER
     kf.HELD_SHOULDER, kf.SLIDE_QUANTILE, kf.RAISED_SHOULDER = None, None, None
     try:
@@ -480,10 +479,9 @@ def bias_report(rows, setups, info, real=None) -> str:
 
 def fit_with_bend(tracked, model):
     """The fit with the bent limbs' middle joints at their curve's bend
-    (:data:`~topopose.pose.kinematic_fit.BEND` = ``BEND_DEPTH``; off by default since it hurts
+    (:data:`~topopose.sequence.kinematic_fit.BEND` = ``BEND_DEPTH``; off by default since it hurts
     the real 4-camera recording)."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     keep = kf.BEND
     kf.BEND = kf.BEND_DEPTH
     try:
@@ -494,10 +492,9 @@ def fit_with_bend(tracked, model):
 
 def fit_without_tips(tracked, model):
     """The fit with the tips' targets as the curves give them (no
-    :func:`~topopose.pose.kinematic_fit.tip_targets` correction: ``TIP_TURN``, ``TIP_STRETCH``
+    :func:`~topopose.sequence.kinematic_fit.tip_targets` correction: ``TIP_TURN``, ``TIP_STRETCH``
     empty), the peer of the toe turned from the shank and the fingertip moved out."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     keep = kf.TIP_TURN, kf.TIP_STRETCH
     kf.TIP_TURN, kf.TIP_STRETCH = {}, {}
     try:
@@ -509,8 +506,7 @@ def fit_without_tips(tracked, model):
 def fit_without_girdle(tracked, model):
     """The fit with each joint of a girdle on its own target (``kinematic_fit.GIRDLE`` off), the
     peer of the neck and shoulders placed as one symmetric rigid body."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     keep = kf.GIRDLE
     kf.GIRDLE = False
     try:
@@ -868,10 +864,9 @@ def main(argv=None):
                     help="with --bias: real_motion.json, the real recording's bias beside")
     ap.add_argument("--set", action="append", metavar="NAME=VALUE",
                     help="a kinematic_fit constant for this run (a Python literal; repeatable): "
-                         "the peer of a default, e.g. results/tracking_before.md")
+                         "the peer of a default, e.g. results/tracking_peer.md")
     a = ap.parse_args(argv)
-    from topopose.pose import kinematic_fit
-
+    from topopose.sequence import kinematic_fit
     settings = apply_settings(kinematic_fit, a.set)
     model = load_model("human")
     work = a.work or tempfile.mkdtemp(prefix="topopose_tracking_")
@@ -983,7 +978,7 @@ def report(rows, info, real=None):
          f"Machine: {info['cpu']}, {info['cores']} cores, load {info['load_average']}, {info['date']}."
          + "".join(f" Set (`--set`): `{k} = {v}`." for k, v in (info.get("settings") or {}).items()),
          "Produced by `benchmarks/tracking.py`; every figure beside its peer in the same run. The "
-         "per-frame matching on the body is being improved elsewhere (issue 11): matched frames "
+         "per-frame matching on the body is being improved elsewhere: matched frames "
          "include misplaced ones, and every figure counts them.", "",
          "| sequence | frames | matched | good | switches/500 raw → tracked (all matched) | "
          "same, good frames | held parts | chirality with time | chirality single frame | "
@@ -1060,7 +1055,7 @@ def report(rows, info, real=None):
               f"{sum(r['good'] for r in rs)} good", "", ident,
               f"- chirality on matched frames × pairs: with time {_rate(ct)}; single frame {_rate(cs)}"
               f" (target ≥ {95 if motion == 'walk' else 90} %); counting a pair right only with "
-              f"both parts found (a lost hand unsure, the count before issue 15's lone parts): "
+              f"both parts found (a lost hand unsure, the count without lone parts): "
               f"with time {_rate(cb)}",
               f"- MPJPE, median over all matched frames: fit {100 * np.median(pooled):.1f} cm "
               f"({len(pooled)} frames), initial placement {100 * np.median(pooled_init):.1f} cm "
@@ -1103,11 +1098,11 @@ def report(rows, info, real=None):
               peer_bullet(rs, pj, pooled, "arm evidence (`arm_evidence`: the hull's voxels the "
                           "matched curves' inscribed balls leave unexplained, recorded when a "
                           "limb is unplaced; the unseen arm's elbow bent towards it, shoulder "
-                          "and wrist kept, `topopose.pose.unseen.evidence_fill`), now ← "
+                          "and wrist kept, `topopose.frame.unseen.evidence_fill`), now ← "
                           "without (`evidence=False`)", "noevid", "evid_holding", "evid_arms"),
               peer_bullet(rs, pj, pooled, "shoulders from the hull (`hull_shoulders`: the "
                           "trunk's cross-section below the chest junction, its lateral "
-                          "extremes and the column above them, `topopose.pose.unseen."
+                          "extremes and the column above them, `topopose.frame.unseen."
                           "hull_shoulders`; a hanging seen arm's shoulder placed there, an "
                           "unseen arm moved half-way to it, within 0.2 m, "
                           "`kinematic_fit.SEEN_HULL_SHOULDER`, `HULL_SHOULDER`), now ← without "
@@ -1151,7 +1146,7 @@ def report(rows, info, real=None):
               f"{100 * np.median(pooled_before):.1f} cm ({len(pooled_before)} frames)",
               "- the same run with the fit before the trunk's joints moved back, the bone lengths "
               "at their 70th percentile, the hips from the legs' junction and the raised arms' "
-              "`at_raised` (issue 15; `main_fit`): MPJPE "
+              "`at_raised` (`main_fit`): MPJPE "
               f"{100 * np.median(pooled_main):.1f} cm ({len(pooled_main)} frames)",
               "- where the error comes from: MPJPE median over the frames "
               + ", ".join(f"{k} {100 * np.median(v):.1f} cm ({len(v)} frames)"

@@ -52,7 +52,7 @@ import numpy as np  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
 import topopose as tp  # noqa: E402
-from topopose.capture.synth import synthetic_capture  # noqa: E402
+from topopose.synth.capture import synthetic_capture  # noqa: E402
 from _machine import machine, results_dir  # noqa: E402  (benchmarks/_machine.py)
 
 HERE = Path(__file__).resolve().parent

@@ -2,12 +2,12 @@
 
 Synthetic human captures (8 cameras 640×480, 100³ grid) of 40 frames (the issue's case) and of
 ``--long`` frames (default 200); for each, ``topopose.run`` in this process (``workers=1``, kernels
-already compiled: the second run of a session) and with ``workers=2`` (a Dask ``LocalCluster`` of
+already compiled: a second run in the same process) and with ``workers=2`` (a Dask ``LocalCluster`` of
 two worker processes, started by the call, each loading the kernels from the disk cache and
 building its estimator: what a user's ``--workers 2`` costs), interleaved over ``--rounds``
 rounds; minimum wall time per setting. The rate is frames / wall time of the whole call
 (cluster start included). The CLI runs captures with fewer than ``MIN_FRAMES_PER_WORKER``
-frames per worker in one process (``topopose.pose.run``), from these figures.
+frames per worker in one process (``topopose.batch.run``), from these figures.
 
 Usage: ``python benchmarks/workers.py [--quick] [--rounds 2] [--long 200]``.
 """
@@ -35,8 +35,9 @@ def main():
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--long", type=int, default=200)
     args = ap.parse_args()
-    from topopose.capture import load_capture, synthesize
-    from topopose.pose.run import MIN_FRAMES_PER_WORKER, run
+    from topopose.capture import load_capture
+    from topopose.synth import synthesize
+    from topopose.batch.run import MIN_FRAMES_PER_WORKER, run
 
     sizes = [40] if args.quick else [40, args.long]
     rounds = 1 if args.quick else args.rounds

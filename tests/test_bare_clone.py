@@ -1,4 +1,4 @@
-"""The tests run on a bare clone (issue 13): nothing reads outside the repository.
+"""The tests run on a bare clone: nothing reads outside the repository.
 
 The committed HEAD is cloned into an empty temporary folder (no ``../shared`` beside it) and one
 thinning test on the shipped body volumes runs there, with ``PYTHONPATH`` on the clone's

@@ -11,7 +11,8 @@ import pytest
 from topopose.capture import Camera
 from topopose.capture.background import (foreground_probability, learn_backgrounds,
                                          scaled_camera)
-from topopose.capture.calibration import SILHOUETTE_DEFAULTS, read_calibration
+from topopose.capture.calibration import read_calibration
+from topopose.capture.options import SILHOUETTE_DEFAULTS
 from topopose.hull.soft import posterior, soft_carve, voxel_pixels
 
 DATA = Path(__file__).parent / "data" / "pose2sim_small"
@@ -133,7 +134,7 @@ def test_two_piece_hull_is_flagged():
     share, and a frame whose largest piece holds < 80 % is rejected, with the reason."""
     import topopose as tp
     from topopose.capture.capture import Capture
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.frame.estimate import FrameEstimator
 
     cams = _cams(4)
     big = [np.zeros((c.size[1], c.size[0]), bool) for c in cams]
@@ -186,7 +187,7 @@ def test_colour_probability_kernel_matches_the_formula():
 def test_confidence_factors_and_time_only_on_coherent_sequences():
     """Hand-computed factors; the time factor applies to a coherent sequence and not to
     independent poses, and gates 'matched'."""
-    from topopose.pose.confidence import frame_confidence, temporal_confidence
+    from topopose.frame.confidence import frame_confidence, temporal_confidence
     from topopose.pose.pose import Pose
 
     c = frame_confidence(0.4, 0.4, 0.9, 1, 0.8, fatness=0.05)

@@ -340,7 +340,7 @@ def test_person_every_from_videos_skips_the_conversion_not_the_maps(tmp_path, fa
     segmentation wants after all (here: every camera of a run's first frame) is read again."""
     from topopose.capture import prefetch
     from topopose.capture import sources
-    from topopose.capture.io import image_list
+    from topopose.capture.images import image_list
 
     cams = ring(n=4, size=(160, 120), f=200)
     rng = np.random.default_rng(5)

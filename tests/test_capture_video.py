@@ -18,7 +18,7 @@ from _capture_testutils import calibration_toml, capsule_masks, ring, write_capt
 from topopose.capture import load_capture, prefetch, read_images
 from topopose.errors import InputError
 from topopose.hull import visual_hull
-from topopose.pose.run import select_frames
+from topopose.batch.run import select_frames
 
 N_FRAMES, FPS = 8, 25.0
 
@@ -172,7 +172,7 @@ def test_shorter_and_corrupt_videos_fail_only_their_frames(tmp_path, cams, scene
 
 
 def test_run_reports_the_missing_frames(tmp_path, cams, scene):
-    from topopose.pose.run import run
+    from topopose.batch.run import run
 
     root = video_capture(tmp_path / "vid", cams, scene, "FFV1", ".avi")
     frames, _ = scene
@@ -314,7 +314,7 @@ def test_size_policy_scale_rescales_intrinsics(tmp_path, cams, scene):
 
 
 def test_refocus_reaches_the_estimator(tmp_path, cams, scene):
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.frame.estimate import FrameEstimator
     from topopose.cli import build_parser
 
     cap = load_capture(video_capture(tmp_path / "vid", cams, scene))

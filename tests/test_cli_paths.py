@@ -1,4 +1,4 @@
-"""Every CLI path checked before any work or write (issue 13): bad arguments and output paths
+"""Every CLI path checked before any work or write: bad arguments and output paths
 give one line on stderr and exit 2, an existing output is left byte for byte as it was,
 --resume refuses a file made with another model / resolution / capture, synth refuses to mix
 captures, a closed stdout ends quietly."""
@@ -18,7 +18,7 @@ SRC = str(Path(__file__).resolve().parents[1] / "src")
 
 @pytest.fixture(scope="module")
 def cap(tmp_path_factory):
-    from topopose.capture import synthesize
+    from topopose.synth import synthesize
 
     out = tmp_path_factory.mktemp("cap") / "human"
     synthesize(out, subject="human", frames=3, seed=1, cameras=6, size=(200, 150), separated=True)
@@ -250,7 +250,7 @@ def test_learn_model_refuses_random_poses_and_warns_on_short_sequences(cap, tmp_
 def test_few_frames_with_workers_run_in_one_process(cap, tmp_path, capsys, monkeypatch):
     import importlib
 
-    R = importlib.import_module("topopose.pose.run")
+    R = importlib.import_module("topopose.batch.run")
 
     monkeypatch.setattr(R, "_run_dask", lambda *a, **k: (_ for _ in ()).throw(AssertionError("dask")))
     out = tmp_path / "p.jsonl"

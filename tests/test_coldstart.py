@@ -1,17 +1,18 @@
-"""First run (issue 13): what the screen says while kernels compile, and the helper process that
+"""First run: what the screen says while kernels compile, and the helper process that
 builds the tables and compiles the tree/alignment kernels beside the first frame."""
 import subprocess
 import sys
 import time
 
-from topopose import _coldstart
+from topopose import _notices
+from topopose.batch import warmup
 
 
 def test_notices_say_compiling_once():
     from numba import njit
 
     said = []
-    with _coldstart.notices(said.append):
+    with _notices.notices(said.append):
         @njit
         def f(x):
             return x + 1
@@ -21,7 +22,7 @@ def test_notices_say_compiling_once():
     assert said == ["compiling kernels (first run only)…"]
     f(2j)                                   # outside: silent
     assert len(said) == 1
-    _coldstart.say("x")                     # no-op outside
+    _notices.say("x")                     # no-op outside
     assert len(said) == 1
 
 
@@ -29,8 +30,8 @@ def test_a_message_already_shown_is_kept():
     from numba import njit
 
     said = []
-    with _coldstart.notices(said.append):
-        _coldstart.say("building the thinning look-up tables")
+    with _notices.notices(said.append):
+        _notices.say("building the thinning look-up tables")
 
         @njit
         def g(x):
@@ -44,24 +45,24 @@ def test_warmup_waits_for_tables_then_for_the_end():
     p = subprocess.Popen([sys.executable, "-c",
                           "import time; time.sleep(0.3); print('tables', flush=True); time.sleep(0.7)"],
                          stdout=subprocess.PIPE)
-    w = _coldstart.Warmup(p)
+    w = warmup.Warmup(p)
     t0 = time.perf_counter()
     w.wait_tables()
     assert p.poll() is None and time.perf_counter() - t0 >= 0.25       # tables done, still running
     w.wait_all()
     assert w.proc is None and p.returncode == 0
     w.wait_all()                                                        # idempotent
-    _coldstart.Warmup(None).wait_all()
+    warmup.Warmup(None).wait_all()
 
 
 def test_cold_detection(tmp_path, monkeypatch):
     monkeypatch.setenv("TOPOPOSE_CACHE_DIR", str(tmp_path))
-    assert _coldstart.tables_cold()
+    assert warmup.tables_cold()
     monkeypatch.setenv("TOPOPOSE_NO_WARMUP", "1")
-    assert _coldstart.start_warmup(force=True).proc is None
+    assert warmup.start_warmup(force=True).proc is None
 
 
 def test_helper_runs_the_pipeline_kernels(capsys):
     """The helper's own work (tables, tree, alignment) on warm caches: it reports the tables."""
-    assert _coldstart._warm_main() == 0
+    assert warmup._warm_main() == 0
     assert capsys.readouterr().out.strip() == "tables"

@@ -1,4 +1,4 @@
-"""topopose.pose.consistency: matched by the run's own consistency (issue 12 part 5).
+"""topopose.sequence.consistency: matched by the run's own consistency.
 
 Oracles: a synthetic walk of straight-line part trajectories (constant velocities: the
 neighbours' midpoint predicts every part exactly), one frame's hand moved onto the trunk;
@@ -7,9 +7,9 @@ arc lengths of hand-made curves against medians computed by hand; a run of unrel
 import numpy as np
 import pytest
 
-from topopose.pose import consistency as C
+from topopose.sequence import consistency as C
 from topopose.pose.model import load_model
-from topopose.pose.motion import process_sequence
+from topopose.sequence.motion import process_sequence
 from topopose.pose.pose import Pose
 
 H = 1.7
@@ -171,8 +171,8 @@ def test_process_sequence_switch(model):
 def test_run_switch_keeps_the_best_guesses(tmp_path):
     """``run(consistency=True)`` on a synthetic 4-camera walk: the same parts as without it,
     statuses changed only for frames the gate judged, the values written to the file."""
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose import run
+    from topopose.synth.capture import synthetic_capture
+    from topopose.batch import run
     from topopose.pose.pose import read_poses
 
     cap = synthetic_capture("human", frames=8, seed=1, cameras=4, size=(240, 180),
@@ -254,7 +254,7 @@ def test_union_keeps_the_gate_and_adds_consistent_frames(model):
 def test_union_is_the_default_and_leaves_unrelated_poses_alone(model):
     """``process_sequence`` (and so ``run``) decides ``matched`` by the union by default; a run
     of unrelated poses keeps the gate's statuses in every mode."""
-    from topopose.pose.motion import consistency_settings
+    from topopose.sequence.motion import consistency_settings
 
     up = np.array([0.0, 0.0, 1.0])
     assert consistency_settings(None) == consistency_settings("union") == {"union": True}
@@ -293,10 +293,9 @@ def test_run_default_is_the_union(tmp_path):
     frame the gate matched still matched unless a part was held, the others changed only
     when the gate alone rejected them; the silhouette support recorded; a wrong option
     refused."""
-    from topopose.capture.synth import synthetic_capture
+    from topopose.synth.capture import synthetic_capture
     from topopose.errors import InputError
-    from topopose.pose import run
-
+    from topopose.batch import run
     cap = synthetic_capture("human", frames=8, seed=1, cameras=4, size=(240, 180),
                             motion="walk")
     gate = run(cap, resolution=48, progress=False, consistency=False)

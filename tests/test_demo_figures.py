@@ -1,11 +1,11 @@
-"""Demo pictures and figures (issue 13): a typical and the worst frame are drawn, failed frames
+"""Demo pictures and figures: a typical and the worst frame are drawn, failed frames
 sit in a band at the bottom (not at an arbitrary height), the threshold plot includes T_d,
 part labels are spread apart."""
 import numpy as np
 
-from topopose.pose.demo import _pictured
+from topopose.batch.demo import _pictured
 from topopose.pose.pose import Pose
-from topopose.pose.quality import Evaluation, FrameScore
+from topopose.batch.quality import Evaluation, FrameScore
 from topopose.viz.figures import _history, _mpl, plot_quality
 from topopose.viz.view import _label_positions
 

@@ -27,7 +27,7 @@ from hypothesis import strategies as st
 
 from topopose import InputError
 from topopose.cli import main
-from topopose.pose import detect as D
+from topopose.apps import detect as D
 from topopose.pose.pose import Pose, read_poses
 
 import _sigint
@@ -70,7 +70,7 @@ def refused(capsys, argv, *must, keep=()):
 
 @pytest.fixture(scope="module")
 def cap(tmp_path_factory):
-    from topopose.capture import synthesize
+    from topopose.synth import synthesize
 
     out = tmp_path_factory.mktemp("faults") / "cap"
     synthesize(out, subject="human", frames=3, seed=1, cameras=4, size=(120, 90), separated=True)
@@ -152,7 +152,7 @@ def test_outputs_on_devices_fifos_and_each_other_are_refused(cap, poses, tmp_pat
 def test_ctrl_c_of_a_rerun_keeps_the_complete_file(tmp_path, capsys):
     """SIGINT to a child rerunning over a complete poses file: the file is unchanged, the
     frames computed are kept beside it, and --resume continues from them."""
-    from topopose.capture import synthesize
+    from topopose.synth import synthesize
 
     capt = tmp_path / "long"
     synthesize(capt, subject="human", frames=12, seed=3, cameras=4, size=(120, 90), separated=True)
@@ -179,7 +179,7 @@ def test_ctrl_c_of_a_rerun_keeps_the_complete_file(tmp_path, capsys):
 DRIVER = r"""
 import signal, sys, time
 signal.signal(signal.SIGINT, signal.default_int_handler)   # as a terminal's Ctrl-C
-from topopose.pose.estimate import FrameEstimator
+from topopose.frame.estimate import FrameEstimator
 estimate = FrameEstimator.estimate
 def slow(self, *a, **k):                 # frames slow enough to be interrupted mid-run
     time.sleep(0.4)
@@ -329,7 +329,7 @@ def _server(reply: bytes | None):
 
 
 def test_scheduler_addresses_that_are_not_schedulers(cap, poses, capsys):
-    from topopose.pose.run import probe_scheduler
+    from topopose.batch.run import probe_scheduler
 
     base = ["run", cap, "--resolution", "32", "--output", poses]
     refused(capsys, base + ["--scheduler", "garbage:::"], "--scheduler", "garbage:::", keep=[poses])
@@ -429,7 +429,7 @@ def test_exports_carry_their_final_name_and_help_names_no_internals(cap, tmp_pat
     from topopose.cli import build_parser
 
     text = [a for a in build_parser()._actions if a.dest == "command"][0].choices["run"].format_help()
-    for internal in ("topopose.pose", ".py", "benchmarks/", "MAX_UNEXPLAINED", "CENTRE"):
+    for internal in ("topopose.", ".py", "benchmarks/", "MAX_UNEXPLAINED", "CENTRE"):
         assert internal not in text, internal
 
 

@@ -40,7 +40,7 @@ def test_cli_hull_bad_frame_exit_2(folder, tmp_path, capsys):
 
 
 def test_synth_folder_round_trip(tmp_path):
-    synth = pytest.importorskip("topopose.capture.synth")
+    synth = pytest.importorskip("topopose.synth.capture")
     mem = synth.synthetic_capture("human", frames=2, seed=3, size=(320, 240))
     root = synth.synthesize(tmp_path / "s", "human", frames=2, seed=3, size=(320, 240))
     cap = load_capture(root)

@@ -63,7 +63,7 @@ def _same(got, want):
 
 @pytest.fixture(scope="module")
 def human():
-    from topopose.capture import synthetic_capture
+    from topopose.synth import synthetic_capture
 
     return synthetic_capture(subject="human", frames=4, seed=3, noise=1, separated=True, cameras=8)
 

@@ -61,9 +61,9 @@ def test_hull_cavities_and_loose_box():
 def test_noisy_hulls_with_their_bbox():
     """Visual hulls of noisy synthetic frames, filled on the hull's own bounding box
     (``diagnostics["bbox"]``, as the pose pipeline does)."""
-    from topopose.capture import synthetic_capture
+    from topopose.synth import synthetic_capture
     from topopose.hull import visual_hull
-    from topopose.pose.estimate import fill_cavities as fill_volume
+    from topopose.frame.estimate import fill_cavities as fill_volume
 
     cap = synthetic_capture(subject="human", frames=3, seed=5, noise=2, separated=True, cameras=8)
     filled = 0

@@ -1,4 +1,4 @@
-"""Ctrl-C during `topopose run --workers 2` (issue 13: ~60 lines of Dask tracebacks): one line,
+"""Ctrl-C during `topopose run --workers 2` (no wall of Dask tracebacks): one line,
 exit 130, no traceback, and the frames done so far are kept in the output."""
 import pytest
 
@@ -9,7 +9,7 @@ import importlib, signal, sys
 # a test started in the background by a non-interactive shell inherits SIGINT ignored (POSIX);
 # a terminal's Ctrl-C reaches a foreground process whose Python turns it into KeyboardInterrupt
 signal.signal(signal.SIGINT, signal.default_int_handler)
-R = importlib.import_module("topopose.pose.run")
+R = importlib.import_module("topopose.batch.run")
 R.MIN_FRAMES_PER_WORKER = 0            # use the workers even for this small capture
 from topopose.cli import main
 sys.exit(main(sys.argv[1:]))
@@ -18,7 +18,7 @@ sys.exit(main(sys.argv[1:]))
 
 @pytest.mark.slow
 def test_ctrl_c_with_workers_is_one_line(tmp_path):
-    from topopose.capture import synthesize
+    from topopose.synth import synthesize
 
     N = 160      # long enough that the run is still going when Ctrl-C comes (7–20 frames/s)
 

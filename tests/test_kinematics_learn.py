@@ -7,8 +7,9 @@ import pytest
 
 from topopose.errors import InputError
 from topopose.hull import Volume
-from topopose.kinematics import joint_metrics, learn_structure, walker_sequence
-from topopose.kinematics.walker import voxelize_capsules, walker_pose
+from topopose.kinematics import joint_metrics, learn_structure
+from topopose.synth.walker import walker_sequence
+from topopose.synth.walker import voxelize_capsules, walker_pose
 from topopose.pose import load_model
 
 
@@ -110,7 +111,7 @@ def test_bad_input():
 
 
 def test_cli_on_a_synthetic_capture(tmp_path, capsys):
-    synth = pytest.importorskip("topopose.capture.synth")
+    synth = pytest.importorskip("topopose.synth.capture")
     from topopose.cli import main
 
     cap = tmp_path / "walk"

@@ -5,7 +5,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from topopose.kinematics.reeb import (PERG, integral_geodesic, perg, prune_branches, reeb_levels,
                                       surface_mesh)
-from topopose.kinematics.walker import voxelize_capsules
+from topopose.synth.walker import voxelize_capsules
 
 
 def capsules_volume(caps, lo=(-1, -1, -1), hi=(1, 1, 1), n=48):

@@ -1,11 +1,11 @@
-"""The spine behind the medial axis (pose/anatomy.py, issue 11).
+"""The spine behind the medial axis (pose/anatomy.py).
 
 Oracles: synthetic skeletons whose feet point in a known direction, a ball whose inscribed
 radius is known, and the ground truth of a ``body`` frame (its front and its spine)."""
 import numpy as np
 
 from topopose.match.tree import Tree
-from topopose.pose.anatomy import (crotch_drop, front_direction, hand_on_trunk, hull_radius,
+from topopose.frame.anatomy import (crotch_drop, front_direction, hand_on_trunk, hull_radius,
                                    room_below, spine_shift, torso_on_trunk)
 
 
@@ -85,9 +85,9 @@ def test_spine_shift_moves_back_by_the_share():
 def test_body_frame_the_shift_points_to_the_back():
     """On `body` frames (MakeHuman mesh, toes forward) the shift points against the body's
     true front (gt: left hip × up) and brings the torso nearer its gt segment on average."""
-    from topopose.capture import synthetic_capture
-    from topopose.pose import FrameEstimator
-    from topopose.pose.quality import point_segment_distance
+    from topopose.synth import synthetic_capture
+    from topopose.frame import FrameEstimator
+    from topopose.batch.quality import point_segment_distance
 
     cap = synthetic_capture(subject="body", frames=4, seed=7, noise=0, separated=True, cameras=8,
                             build="average", margin=0.075)
@@ -177,7 +177,7 @@ def test_crotch_drop_floor_fires_on_flexed_hips_not_on_an_upright_stance():
     """The rule's floor (:data:`CROTCH_DROP`'s fourth entry): with the hips flexed (a slab of
     thigh beneath the junction) the crotch drops the whole down share; upright, the gap between
     the legs right beneath it, it drops only to ``floor`` × radius above the gap."""
-    from topopose.pose.anatomy import CROTCH_DROP
+    from topopose.frame.anatomy import CROTCH_DROP
 
     up, front = np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])
     c = np.array([20.0, 15.0, 25.0])
@@ -201,9 +201,9 @@ def test_body_crouch_the_crotch_reaches_the_pelvis():
     """Oracle: the gt pelvis segment of a `body` frame with flexed hips (heavy build, seed 43,
     frame 2: hips flexed 92–96°, trunk bent 34°) — the legs' junction, spine-shifted, lies
     beyond 0.08 × height above it; lowered by the crotch drop it lies within."""
-    from topopose.capture import synthetic_capture
-    from topopose.pose import FrameEstimator
-    from topopose.pose.quality import point_segment_distance
+    from topopose.synth import synthetic_capture
+    from topopose.frame import FrameEstimator
+    from topopose.batch.quality import point_segment_distance
 
     cap = synthetic_capture(subject="body", frames=12, seed=43, noise=1, separated=True,
                             cameras=8, build="heavy", margin=0.075)
@@ -224,7 +224,7 @@ def test_body_crouch_the_crotch_reaches_the_pelvis():
 
 
 def test_trunk_blend_draws_the_torso_towards_the_trunk_line():
-    from topopose.pose.anatomy import trunk_blend
+    from topopose.frame.anatomy import trunk_blend
 
     base = {"crotch": np.array([0.0, 0.0, 1.0]), "head": np.array([0.0, 0.2, 2.0])}
     line = np.array([0.0, 0.12, 1.6])               # 0.6 of crotch → head
@@ -242,7 +242,7 @@ def test_hand_on_trunk_is_the_hand_next_to_the_core():
     """A box trunk (half-width 8: core radius ≈ 9 voxels) with a thin arm (radius 2) out to
     the side: a hand at the arm's far end is free, a hand on the trunk's side next to the
     core. Oracle: the brute-force distance to the voxels of radius ≥ 0.6 × the largest."""
-    from topopose.pose.tips import inscribed_distances
+    from topopose.frame.tips import inscribed_distances
 
     n = 60
     z, y, x = np.indices((n, n, n))

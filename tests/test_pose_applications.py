@@ -9,12 +9,12 @@ import pytest
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
-from _benchmarks import load_benchmark
 from topopose.errors import InputError
-from topopose.pose import cluster as C
-from topopose.pose import detect as D
-from topopose.pose import segment as S
-from topopose.pose.segment_kernels import depth, flood
+from topopose.apps import cluster as C
+from topopose.apps import detect as D
+from topopose.apps import segment as S
+from topopose.synth import labels
+from topopose.apps.segment_kernels import depth, flood
 
 
 # ============================================================================ flooding
@@ -113,7 +113,7 @@ def _brute_weighted(mask, seeds, start):
 
 @pytest.mark.parametrize("seed", range(4))
 def test_weighted_flood_equals_brute_force_dijkstra(seed):
-    from topopose.pose.segment_kernels import flood_weighted, neighbours
+    from topopose.apps.segment_kernels import flood_weighted, neighbours
 
     rng, mask, seeds = _random_seeds(seed)
     start = np.where(seeds > 0, rng.integers(0, 9, mask.shape), 0)
@@ -244,7 +244,7 @@ def test_bone_segments_split_the_chain_at_the_limb_start():
     """``start``: the trunk takes each limb's chain of joints up to the given position (in
     bones from the junction), the limb the rest: head 0.5 splits chest → neck at its middle,
     hand 1.45 gives the trunk chest → shoulder and 45 % of shoulder → elbow."""
-    from topopose.pose.kinematic_fit import initial_placement, kinematic_tree
+    from topopose.sequence.kinematic_fit import initial_placement, kinematic_tree
     from topopose.pose.model import load_model
 
     model = load_model("human")
@@ -363,8 +363,8 @@ def test_skeleton_labels_follow_the_matched_arcs():
 
 
 def test_segment_synthetic_human_against_ground_truth(tmp_path):
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
 
     cap = synthetic_capture("human", frames=2, seed=11, separated=True, margin=0.06)
     est = FrameEstimator(cap, "human", 64)
@@ -381,9 +381,9 @@ def test_segment_synthetic_human_against_ground_truth(tmp_path):
         bl, _ = S.segment(det.volume, det.skeleton, det.alignment, det.data, names=names,
                           pose=pose, model=est.model)                      # with the bones
         assert not bl[~hull].any() and (bl[hull] > 0).mean() > 0.99
-        accs.append(S.renumbered_accuracy(bl, S.synthetic_truth(det.volume, cap.options["bodies"][fi],
+        accs.append(S.renumbered_accuracy(bl, labels.synthetic_truth(det.volume, cap.options["bodies"][fi],
                                                                 names), names))
-        truth = S.synthetic_truth(det.volume, cap.options["bodies"][fi], names)
+        truth = labels.synthetic_truth(det.volume, cap.options["bodies"][fi], names)
         accs.append(S.renumbered_accuracy(lab, truth, names))
         masks = S.camera_masks(cap, lab, det.volume.origin, det.volume.voxel_size, cap.silhouettes(f))
         sil = np.asarray(cap.silhouettes(f)[0], bool)
@@ -665,7 +665,7 @@ def test_body_bones_group_into_the_human_arcs():
             "crotch-foot_2": {"RightUpLeg", "RightLeg", "RightFoot", "RightToeBase"}}
     got = {}
     for b in bones:
-        got.setdefault(S.body_bone_arc(b), set()).add(b)
+        got.setdefault(labels.body_bone_arc(b), set()).add(b)
     assert got == want
     from topopose.pose.model import load_model
 
@@ -725,7 +725,7 @@ def test_body_truth_groups_the_nearest_vertex_bone():
     ``bone_arc`` replaces the grouping."""
     from scipy.spatial.distance import cdist
 
-    from topopose.capture.synth_body import BUILDS, dominant_bones, pose_body
+    from topopose.synth.body import BUILDS, dominant_bones, pose_body
     from topopose.hull.volume import Volume
     from topopose.pose.model import load_model
 
@@ -737,14 +737,14 @@ def test_body_truth_groups_the_nearest_vertex_bone():
     grid = np.zeros(ijk.max(0) + 2, bool)
     grid[tuple(ijk.T)] = True
     vol = Volume(grid, lo, vs)
-    truth = S.synthetic_truth(vol, body, names)
+    truth = labels.synthetic_truth(vol, body, names)
     dom, bones = dominant_bones()
     X = lo + np.argwhere(grid) * vs
     near = np.argmin(cdist(X, body.vertices), 1)                                # brute force
-    want = [names.index(S.body_bone_arc(bones[dom[i]])) + 1 for i in near]
+    want = [names.index(labels.body_bone_arc(bones[dom[i]])) + 1 for i in near]
     assert truth[grid].tolist() == want
     assert set(np.unique(truth[grid])) == set(range(1, 7))
-    alt = S.synthetic_truth(vol, body, names, bone_arc=lambda b: "torso-head")
+    alt = labels.synthetic_truth(vol, body, names, bone_arc=lambda b: "torso-head")
     assert np.all(alt[grid] == 1) and np.all(alt[~grid] == 0)
 
 
@@ -810,85 +810,3 @@ def test_segment_labels_a_head_without_a_skeleton_branch():
     assert np.mean(lab[head] == 1) > 0.95
     trunk = vol.data & (z <= 20)
     assert np.mean(lab[trunk] == 2) > 0.99 and not lab[~vol.data].any()
-
-
-def _gt_frame(body):
-    """A gt.json frame of a built body, as capture/synth.py writes it."""
-    return {"parts": {k: list(v) for k, v in body.parts.items()},
-            "segments": {k: [list(s[0]), list(s[1])] for k, s in body.segments.items()},
-            "joints": {k: list(v) for k, v in body.joints.items()}}
-
-
-@pytest.mark.parametrize("flex", [0.0, 30.0])
-def test_detection_truth_points_of_a_built_capsule_human(flex):
-    """The detection benchmark's truth points (``pipeline_points``) on a built capsule human,
-    against its kinematics: each hand and foot the middle of its last bone (wrist → hand end,
-    ankle → toe joints), the crotch the pelvis ellipsoid's centre (exact with a straight spine;
-    within the chord 2 · 4 cm · sin(flex / 2) when the spine bends, the body axis then being the spine's), the
-    head the crown (the head ellipsoid's top), the former correspondence gt.json's own."""
-    from topopose.capture.synth_subjects import BUILD, HUMAN_DEFAULT
-
-    A = load_benchmark("applications")
-    body = BUILD["human"]({**HUMAN_DEFAULT, "spine_flex": flex, "pelvis_pitch": 20.0,
-                           "sh_abd_l": 90.0, "elbow_r": 60.0})
-    frame = _gt_frame(body)
-    P = {k: np.asarray(v) for k, v in A.pipeline_points(frame).items()}
-    J = body.joints
-    for part, a, b in (("hand_1", "wrist_l", "hand_l"), ("hand_2", "wrist_r", "hand_r"),
-                       ("foot_1", "ankle_l", "foot_l"), ("foot_2", "ankle_r", "foot_r")):
-        assert np.allclose(P[part], (J[a] + J[b]) / 2)
-        assert np.linalg.norm(P[part] - body.parts[part]) > 0.07      # not gt.json's point
-    pelvis = next(p for p in body.prims if p.link == "pelvis" and p.kind == "ellipsoid")
-    head = next(p for p in body.prims if p.link == "head" and p.kind == "ellipsoid")
-    tol = 1e-9 + 2 * A.PELVIS_CENTRE * np.sin(np.radians(flex) / 2)   # the chord
-    assert np.linalg.norm(P["crotch"] - pelvis.c) <= tol
-    assert np.allclose(P["head"], head.c + head.axes[:, 2] * head.semi[2])
-    F = A.pipeline_points(frame, former=True)
-    for part in ("hand_1", "hand_2", "foot_1", "foot_2", "crotch"):
-        assert np.allclose(F[part], body.parts[part])
-
-
-def test_detection_truth_points_of_the_body_rig():
-    """``body`` frames (rig joints recorded) take the rig points of BODY_PART_JOINTS, feet the
-    foot bone's end (mid-foot) — the former correspondence keeps gt.json's feet."""
-    A = load_benchmark("applications")
-    joints = {j: [float(i), 0.0, 0.0] for i, j in enumerate(A.BODY_PART_JOINTS.values())}
-    parts = {k: [0.0, 0.0, -1.0] for k in ("head", "torso", "crotch", "hand_1", "hand_2",
-                                           "foot_1", "foot_2")}
-    P = A.pipeline_points({"parts": parts, "joints": joints})
-    for part, j in A.BODY_PART_JOINTS.items():
-        assert P[part] == joints[j]
-    assert A.BODY_PART_JOINTS["foot_1"] == "LeftFoot_tail"
-    F = A.pipeline_points({"parts": parts, "joints": joints}, former=True)
-    assert F["foot_1"] == parts["foot_1"] and F["hand_1"] == joints["LeftHand_tail"]
-    # a rig point missing: not a body frame, gt.json's parts
-    del joints["LeftFoot_tail"]
-    assert A.pipeline_points({"parts": parts, "joints": joints})["hand_1"] == parts["hand_1"]
-
-
-
-def test_error_blame_mean_and_median_of_the_blamed_offsets():
-    """The detection benchmark's blame table (issue 14, thesis §13.3.2.1): each wrong decision
-    counts for every part it is blamed on (``none`` when no single part fixes it), right
-    decisions for nothing; per part the mean and the median of the blamed parts' offsets along
-    up — the median stays with the typical offset where one gross mismatch (a hand on a foot's
-    branch, −1.2 m) drags the mean. Oracle: numpy on the hand-listed offsets."""
-    A = load_benchmark("applications")
-
-    def row(value, truth, blame=None, **dz):
-        d = {"m0": value, "truth": truth}
-        if blame is not None:
-            d["blame"] = blame
-        return {"detect": {"q": d}, "part_offsets": {k: [v, abs(v)] for k, v in dz.items()}}
-
-    rows = [row(True, False, ["hand_1"], hand_1=-0.02, head=0.01),
-            row(False, True, ["hand_2", "head"], hand_2=-0.03, head=0.04),
-            row(True, False, ["hand_1"], hand_1=-1.2),
-            row(False, True, [], hand_1=0.5),               # no single part: "none"
-            row(True, True, None, hand_1=-2.0)]             # right: not counted
-    b = A.error_blame(rows, "q")
-    assert set(b) == {"hand", "head", "none"}
-    assert b["hand"]["n"] == 3 and b["head"]["n"] == 1 and b["none"]["n"] == 1
-    assert np.isclose(b["hand"]["dz_mean"], np.mean([-0.02, -0.03, -1.2]))
-    assert np.isclose(b["hand"]["dz_median"], -0.03)
-    assert np.isclose(b["head"]["dz_median"], 0.04) and b["none"]["dz_median"] is None

@@ -1,12 +1,12 @@
-"""The limbs' curves onto the silhouettes' centre lines (:mod:`topopose.pose.centre`), on
+"""The limbs' curves onto the silhouettes' centre lines (:mod:`topopose.frame.centre`), on
 hand-made geometry: a cylinder limb (radius 5 cm, along x) seen by pinhole cameras around it,
 its silhouettes exact (a pixel is in when its ray passes within the radius of the axis), a
 skeleton curve displaced off the axis."""
 import numpy as np
 
 from _capture_testutils import camera_at
-from topopose.pose.centre import centre_offsets, scan_widths
-from topopose.pose.kinematic_fit import centred_curves
+from topopose.frame.centre import centre_offsets, scan_widths
+from topopose.sequence.kinematic_fit import centred_curves
 
 A, B = np.array([-0.4, 0.0, 0.0]), np.array([0.4, 0.0, 0.0])     # the limb's axis
 RADIUS = 0.05
@@ -121,8 +121,8 @@ def test_scan_widths_on_a_hand_made_band():
 def test_the_estimator_records_the_offsets_and_keeps_the_frame():
     """``FrameEstimator(centre=True)`` records ``diagnostics["centred"]``; the frame's status,
     parts, confidence and curves are those of ``centre=False``."""
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
 
     cap = synthetic_capture("body", frames=3, seed=41, cameras=4, size=(320, 240), noise=1,
                             motion="walk")
@@ -147,11 +147,11 @@ def test_the_estimator_records_the_offsets_and_keeps_the_frame():
 def test_trim_and_relabel_carry_the_offsets_with_their_curves():
     """The sequence stage: a trimmed hand takes its trimmed curve's offsets (none recorded:
     none), a relabelled part its own, and the fit's curves add them to the limbs only."""
-    from topopose.pose.kinematic_fit import frame_curves, kinematic_tree
+    from topopose.sequence.kinematic_fit import frame_curves, kinematic_tree
     from topopose.pose.model import load_model
     from topopose.pose.pose import Pose
-    from topopose.pose.track import relabel
-    from topopose.pose.trim import apply_trim
+    from topopose.sequence.track import relabel
+    from topopose.frame.trim import apply_trim
 
     model = load_model("human")
     tree = kinematic_tree(model)

@@ -1,4 +1,4 @@
-"""The fitted per-frame confidence (topopose.pose.confidence): its features on a hand-built
+"""The fitted per-frame confidence (topopose.frame.confidence): its features on a hand-built
 frame, the logistic fit against known coefficients, and the gate against ground truth — a clean
 frame passes, the same frame with a swapped part assignment or an added spurious limb does not."""
 import json
@@ -12,7 +12,7 @@ from topopose.hull import Volume
 from topopose.hull.volume import add_rod
 from topopose.match.tree import Tree
 from topopose.pose import Pose
-from topopose.pose import confidence as C
+from topopose.frame import confidence as C
 from topopose.pose.model import load_model
 
 
@@ -160,9 +160,9 @@ def test_shipped_model_is_complete():
 def clean():
     """Three frames of the capsule human, limbs apart, 8 cameras, noise 1, 100³: every part
     right by ground truth (the oracle)."""
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
-    from topopose.pose.quality import evaluate
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.batch.quality import evaluate
 
     cap = synthetic_capture("human", frames=3, seed=4, cameras=8, noise=1, separated=True,
                             margin=0.06)
@@ -189,7 +189,7 @@ def test_clean_frames_pass_the_gate(clean):
 def test_swapped_head_and_hand_fail_the_gate(clean):
     """The same frames with the head's and a hand's data vertices exchanged (a wrong pose whose
     AHA distance is unchanged) fall below the gate."""
-    from topopose.pose.estimate import vertex_radii
+    from topopose.frame.estimate import vertex_radii
 
     cap, est, out = clean
     for pose, det in out:
@@ -317,7 +317,7 @@ def test_the_fitted_confidence_decides_instead_of_the_distance_threshold():
     assert (st, e) == ("matched", None) and C.replaces_threshold()
     st, e, d = C.judge_frame(*args, "rejected", err, min_confidence=1.0, al=al)
     assert st == "rejected" and e == f"{err}; confidence 0.00 below 1"   # both reasons
-    from topopose.pose.track import gated_only
+    from topopose.sequence.track import gated_only
 
     assert not gated_only(Pose("f", st, 0.9, {}, e))   # not a frame only the gate rejected
     assert C.judge_frame(*args, "rejected", err, min_confidence=None, al=al)[:2] == ("rejected", err)
@@ -376,7 +376,7 @@ def test_part_trust_unplaces_the_part_that_explains_the_doubt(clean, monkeypatch
     frame's own value far below its minimum, the next-thickest end's far above), the frame is
     matched without exactly that part — found by the radii themselves, the oracle — whose
     guess is kept; without per-part trust the same frame is rejected with every part."""
-    from topopose.pose.estimate import FrameEstimator, vertex_radii
+    from topopose.frame.estimate import FrameEstimator, vertex_radii
 
     cap, est, out = clean
     pose, det = out[0]
@@ -441,7 +441,7 @@ def test_head_doubt_unplaces_the_head_only_when_a_typical_head_is_trusted(clean,
     ``head_doubt="any"`` the frame is matched without its head, whose guess is kept; by
     default (the alignment matched this head), with the typical bend equal to the frame's own,
     or with head_doubt=False, it is rejected with every part."""
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.frame.estimate import FrameEstimator
 
     cap, est, out = clean
     assert out[0][1].alignment.mapping.get("head") is not None

@@ -1,12 +1,12 @@
-"""The skeleton over time (issue 15): one frame's wrong limb is not smoothed into its
-neighbours (:func:`~topopose.pose.kinematic_fit.despike`), and a hanging arm's elbow and wrist
+"""The skeleton over time: one frame's wrong limb is not smoothed into its
+neighbours (:func:`~topopose.sequence.kinematic_fit.despike`), and a hanging arm's elbow and wrist
 keep their bones' lengths from the shoulder when its curve ends short
-(:func:`~topopose.pose.kinematic_fit.from_start`) — on hand-made bodies whose truth is known."""
+(:func:`~topopose.sequence.kinematic_fit.from_start`) — on hand-made bodies whose truth is known."""
 import numpy as np
 
-from topopose.pose import kinematic_fit as kf
-from topopose.pose.curves import resample
-from topopose.pose.kinematic_fit import fit_sequence, kinematic_tree
+from topopose.sequence import kinematic_fit as kf
+from topopose.frame.curves import resample
+from topopose.sequence.kinematic_fit import fit_sequence, kinematic_tree
 
 from test_pose_sides_skeleton import HUMAN, _rotz, _true_joints, _walking_arm
 from test_pose_smooth_hold import _still_body
@@ -70,7 +70,7 @@ def test_one_frames_wrong_arm_is_not_smoothed_into_its_neighbours(monkeypatch):
     assert [i for i, p in enumerate(out) if p.diagnostics.get("despiked_joints")] == [10]
     assert set(out[10].diagnostics["despiked_joints"]) <= {tree.names[j] for j in arm}
     assert near_on < clean + 0.005 and at_on < clean + 0.01, (clean, near_on, at_on)
-    from topopose.pose.run import RunResult, summary_text
+    from topopose.batch.run import RunResult, summary_text
     text = summary_text(RunResult(out, None, counts={"matched": 21}))
     assert "1 frame with a bone far off the frames around, replaced by theirs " \
         "(diagnostics.despiked_joints)" in text

@@ -4,7 +4,7 @@ import numpy as np
 from scipy import ndimage
 
 from topopose.hull import Volume
-from topopose.pose.estimate import fill_cavities
+from topopose.frame.estimate import fill_cavities
 
 
 def _cavities(a):
@@ -39,10 +39,10 @@ def test_confidence_gate_default_is_on():
     from types import SimpleNamespace
 
     from topopose.cli import build_parser
-    from topopose.pose.estimate import FrameEstimator, default_gate
+    from topopose.frame.estimate import FrameEstimator, default_gate
 
     assert default_gate(SimpleNamespace(cameras=[0] * 4)) and default_gate(SimpleNamespace(cameras=[0] * 8))
-    from topopose.capture import synthetic_capture
+    from topopose.synth import synthetic_capture
 
     for n in (4, 8):
         cap = synthetic_capture("human", frames=1, cameras=n, size=(160, 120))
@@ -62,7 +62,7 @@ def test_off_axis_leaf_against_the_angle():
     import math
 
     from topopose.match import Tree
-    from topopose.pose.estimate import off_axis_leaf
+    from topopose.frame.estimate import off_axis_leaf
 
     mapping = {"crotch": 0, "torso": 1, "head": 2}
     for deg in (0, 20, 44, 46, 60, 90, 135, 180):
@@ -81,9 +81,9 @@ def test_leaf_axis_and_tip_fraction_in_the_estimator():
     """Capsule human, limbs apart: the default keeps every upright head; an impossible cosine
     drops it (missing, diagnostics "off_axis"); tip_fraction 0 leaves the head at its data
     vertex, 0.5 half way to the full tip."""
-    from topopose.capture import synthetic_capture
-    from topopose.pose import FrameEstimator
-    from topopose.pose.quality import evaluate
+    from topopose.synth import synthetic_capture
+    from topopose.frame import FrameEstimator
+    from topopose.batch.quality import evaluate
 
     cap = synthetic_capture("human", frames=2, seed=3, noise=0, separated=True)
     poses = {}
@@ -112,7 +112,7 @@ def test_missing_cost_is_the_deleted_leaf_arcs_weight():
     arc (γ(w, 0) = w), and the distance without it is Σ |w − w'| of the matched arcs."""
     from topopose.match import align
     from topopose.match.tree import Tree
-    from topopose.pose.estimate import missing_cost
+    from topopose.frame.estimate import missing_cost
 
     pattern = Tree([("c", "a", 0.4), ("c", "b", 0.35), ("c", "d", 0.25)])
     al = align(pattern, Tree([("x", "p", 0.42), ("x", "q", 0.33)]), method="aha",
@@ -132,7 +132,7 @@ def test_short_limb_drops_a_hand_shorter_than_the_ratio_of_the_leg():
     path is named (the shorter of two); otherwise, or with the torso or the legs unmatched,
     None. Oracle: the path lengths the test built."""
     from topopose.match import Tree
-    from topopose.pose.estimate import short_limb
+    from topopose.frame.estimate import short_limb
 
     def tree(arm1, arm2, leg=1.0):
         # torso 0, crotch 1, feet 2, 3 (legs leg and 0.8 leg), hands 4, 5 (via a shoulder 6)
@@ -155,8 +155,8 @@ def test_short_arm_and_trunk_blend_in_the_estimator():
     """Capsule human, limbs apart: the default short-arm ratio drops no hand (its arms are
     longer than the legs' half); an impossible ratio drops one (missing, diagnostics
     "short_arm", a "missing limb" frame); trunk_blend=1 puts the torso at 0.6 of crotch → head."""
-    from topopose.capture import synthetic_capture
-    from topopose.pose import FrameEstimator
+    from topopose.synth import synthetic_capture
+    from topopose.frame import FrameEstimator
 
     cap = synthetic_capture("human", frames=2, seed=3, noise=0, separated=True)
     default = FrameEstimator(cap, "human", 60)
@@ -183,9 +183,10 @@ def test_placed_missing_counts_a_head_from_the_hull_as_placed():
     placed parts (default) the frame is matched, one hand missing — right by its ground truth
     (the oracle: ``evaluate`` at 0.08 × height); counted on the alignment's, or without the head
     from the hull, two parts are missing and the frame is rejected."""
-    from topopose.capture import synthetic_capture
-    from topopose.pose import FrameEstimator, load_model
-    from topopose.pose.quality import evaluate
+    from topopose.synth import synthetic_capture
+    from topopose.frame import FrameEstimator
+    from topopose.pose import load_model
+    from topopose.batch.quality import evaluate
 
     cap = synthetic_capture(subject="body", frames=12, seed=41, noise=1, separated=False,
                             cameras=8, build="heavy")
@@ -206,9 +207,9 @@ def test_placed_missing_counts_a_head_from_the_hull_as_placed():
 def test_head_ball_needs_enough_cameras():
     """The head-ball check of the head from the hull (tips.HEAD_BALL) applies from its minimum
     number of cameras on (few cameras inflate the trunk); an explicit value always applies."""
-    from topopose.capture import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
-    from topopose.pose.tips import HEAD_BALL
+    from topopose.synth import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.frame.tips import HEAD_BALL
 
     ball, reach, voxels, cams = HEAD_BALL["human"]
     for n in (cams - 2, cams, 8):

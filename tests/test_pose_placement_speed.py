@@ -8,7 +8,7 @@ capsule and body frames."""
 import numpy as np
 import pytest
 
-from topopose.pose.tips import (hull_box, inscribed_distances, skeleton_voxels,
+from topopose.frame.tips import (hull_box, inscribed_distances, skeleton_voxels,
                                  squared_distances)
 from topopose.skeleton.prune import ball_radius, prune_bumps
 
@@ -70,7 +70,8 @@ def test_prune_with_distances_equals_search():
 def _plain(est, frame, monkeypatch):
     """The estimator's pose through the plain functions: every shared voxel list, box and
     distance transform switched off."""
-    from topopose.pose import confidence, tips
+    from topopose.frame import confidence
+    from topopose.frame import tips
     from topopose.skeleton import prune
 
     with monkeypatch.context() as m:
@@ -97,8 +98,8 @@ def _same(a, b):
 
 @pytest.mark.parametrize("subject,seed", [("human", 0), ("body", 41)])
 def test_estimator_equals_plain_path(subject, seed, monkeypatch):
-    from topopose.capture import synthetic_capture
-    from topopose.pose import FrameEstimator
+    from topopose.synth import synthetic_capture
+    from topopose.frame import FrameEstimator
 
     cap = synthetic_capture(subject=subject, frames=2, seed=seed, noise=1, separated=True)
     est = FrameEstimator(cap, "human", 60, threshold=2.0)

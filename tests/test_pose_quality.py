@@ -5,7 +5,7 @@ import pytest
 from topopose.errors import InputError
 from topopose.pose import Pose, load_model, read_poses, write_poses
 from topopose.pose.export import read_trc, write_csv, write_trc, y_up_rotation
-from topopose.pose.quality import classify, evaluate, point_segment_distance
+from topopose.batch.quality import classify, evaluate, point_segment_distance
 
 PARTS = ["head", "torso", "crotch", "hand_1", "hand_2", "foot_1", "foot_2"]
 # a T-pose-ish ground truth, segments of length 0.2 along the limbs
@@ -168,7 +168,7 @@ def test_model_interchangeable_groups_used_for_dog():
 def test_evaluate_tolerance_relative_absolute_and_junctions(tmp_path, capsys):
     """--tolerance is a fraction of gt height, the same for every part; --tolerance-m is
     absolute; the thesis default (0.1 × height, junctions 1.5×) stays without either."""
-    from topopose.pose.quality import evaluation_tolerance
+    from topopose.batch.quality import evaluation_tolerance
 
     gt = _gt(1)                                  # height 1.75
     assert evaluation_tolerance(gt, 0.08) == pytest.approx((0.14, 1.0))

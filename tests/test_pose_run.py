@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from topopose.cli import main
-from topopose.pose import read_poses, run
+from topopose.pose import read_poses
+from topopose.batch import run
 from topopose.pose.export import read_trc
 
 FRAMES = 6
@@ -38,7 +39,7 @@ def _volume_cutting_one_frame(gt, lo, hi):
 
 @pytest.fixture(scope="module")
 def capture_dir(tmp_path_factory):
-    from topopose.capture import synthesize
+    from topopose.synth import synthesize
 
     out = tmp_path_factory.mktemp("cap") / "human"
     synthesize(out, subject="human", frames=FRAMES, seed=3, cameras=8, size=(320, 240),
@@ -228,7 +229,7 @@ def test_rerun_recording_or_clear_message(capture_dir, tmp_path, capsys):
 
 
 def test_demo_writes_what_it_says(tmp_path):
-    from topopose.pose.demo import run_demo
+    from topopose.batch.demo import run_demo
 
     lines = []
     code = run_demo(tmp_path / "demo", frames=2, resolution=64, subjects=["human"],

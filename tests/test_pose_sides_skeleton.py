@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 
 from topopose.errors import InputError
-from topopose.pose.chirality import assign_sides, frame_scores, numbered
-from topopose.pose.curves import resample
-from topopose.pose.kinematic_fit import fit_sequence, kinematic_tree
+from topopose.sequence.chirality import assign_sides, frame_scores, numbered
+from topopose.frame.curves import resample
+from topopose.sequence.kinematic_fit import fit_sequence, kinematic_tree
 from topopose.pose.model import load_model, model_from_dict
-from topopose.pose.motion import process_sequence
+from topopose.sequence.motion import process_sequence
 from topopose.pose.pose import Pose
 
 UP = np.array([0.0, 0.0, 1.0])
@@ -65,7 +65,7 @@ def _hand_2_unseen(yaw, seed):
     ``HOLD_FRAMES + 1``: too far to hold the first's arm) with hand_2 not found (no part, no
     curve). Returns (whole, cut, the second frame's true parts, the second frame's numbering
     map)."""
-    from topopose.pose.kinematic_fit import HOLD_FRAMES
+    from topopose.sequence.kinematic_fit import HOLD_FRAMES
 
     rng = np.random.default_rng(seed)
     parts, curves = _body(yaw, rng)
@@ -171,7 +171,7 @@ def _true_joints(pose, tree):
     """Joints of the hand-made rigid body where the model declares them: at their fractions of
     the noise-free curves (exact: the curves are polylines), shoulders and hips moved by their
     offsets. The body is rigid, so these bone lengths are constant over the frames."""
-    from topopose.pose.kinematic_fit import initial_placement
+    from topopose.sequence.kinematic_fit import initial_placement
     P = initial_placement(pose, tree)
     return {n: P[j] for j, n in enumerate(tree.names)}
 
@@ -193,8 +193,7 @@ def test_kinematic_tree_of_the_models():
 
 
 def test_fit_constant_bone_lengths_recovers_joints_and_fills_gaps(monkeypatch):
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
     # girdle puts it (the rig's 0.1): each joint on its own target here
     monkeypatch.setattr(kf, "GIRDLE", False)
@@ -254,7 +253,7 @@ def test_process_sequence_names_joints_by_side():
 
 
 def test_tip_joint_lies_beyond_the_branch_end_along_its_last_direction():
-    from topopose.pose.kinematic_fit import TIP_DIRECTION, _along, kinematic_tree
+    from topopose.sequence.kinematic_fit import TIP_DIRECTION, _along, kinematic_tree
     from topopose.pose.model import load_model as _load
 
     # an L-shaped curve: 1 m along x, then 0.2 m along z (the last 10 % points up)
@@ -272,8 +271,7 @@ def test_frame_without_head_keeps_a_skeleton_with_held_joints(monkeypatch):
     """A frame whose head (part and curve) is missing: the root (chest, at the torso part) is
     still placed, the head's chain keeps the previous frame's directions (flagged), and every
     other joint is fitted as in the complete frame."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
     # girdle puts it (the rig's 0.1): each joint on its own target here
     monkeypatch.setattr(kf, "GIRDLE", False)
@@ -300,11 +298,11 @@ def test_frame_without_head_keeps_a_skeleton_with_held_joints(monkeypatch):
 @pytest.mark.parametrize("dt", [1, 3, 5, 6, 9])
 def test_an_unseen_arm_is_held_from_the_last_fitted_frame_up_to_hold_frames_back(dt):
     """The same body (translated) ``dt`` frames after a whole frame, the frames between not
-    matched, hand_2 not found: up to ``HOLD_FRAMES`` back (5: issue 15, random motion) the
+    matched, hand_2 not found: up to ``HOLD_FRAMES`` back (5: random motion) the
     unseen arm is the whole frame's arm, moved with the root (the truth: the same body, so
     every joint where the whole frame's fit put it, plus the translation); further back it
     takes the rest pose, its upper arm hanging along the trunk."""
-    from topopose.pose.kinematic_fit import HOLD_FRAMES
+    from topopose.sequence.kinematic_fit import HOLD_FRAMES
 
     assert HOLD_FRAMES == 5
     rng = np.random.default_rng(3)
@@ -341,12 +339,11 @@ def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_fo
     across the trunk; the toes of _body point 0.2 m forward, the ankle is 5 cm above them, so
     within 20°; across: towards the other shoulder); the frame right after a frame of the
     same body holds that frame's arm instead."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
     # girdle puts it (the rig's 0.1): each joint on its own target here
     monkeypatch.setattr(kf, "GIRDLE", False)
-    from topopose.pose.kinematic_fit import ACROSS, FOLD, HELD_SHOULDER
+    from topopose.sequence.kinematic_fit import ACROSS, FOLD, HELD_SHOULDER
 
     full, cut, parts2, m = _hand_2_unseen(0.9, 8)          # the right hand: not found
     out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
@@ -402,7 +399,7 @@ def _crossed_legs_sequence(n, rng):
 
 
 def test_a_long_tracked_segment_overrules_one_frame_with_crossed_legs():
-    from topopose.pose.chirality import COHERENT, OVERRULE_MIN
+    from topopose.sequence.chirality import COHERENT, OVERRULE_MIN
     rng = np.random.default_rng(2)
     n = max(OVERRULE_MIN + 1, int(np.ceil(2 / (1 - COHERENT))) + 1)   # coherent despite one
     poses, truth = _crossed_legs_sequence(n, rng)
@@ -424,8 +421,8 @@ def test_chain_fit_finds_the_elbow_at_the_corner_of_a_bent_arm_curve(monkeypatch
     """Oracle: an arm curve bent 90° at a known elbow, true bone lengths, no placement target
     for the elbow and wrist: the chain's elbow lands on the curve's corner (the relative arc
     length alone, the initial placement without ``BEND``, misses it by several cm)."""
-    from topopose.pose import kinematic_fit as kf
-    from topopose.pose.kinematic_fit import bone_lengths, fit_frame, initial_placement
+    from topopose.sequence import kinematic_fit as kf
+    from topopose.sequence.kinematic_fit import bone_lengths, fit_frame, initial_placement
 
     monkeypatch.setattr(kf, "BEND", None)
     tree = kinematic_tree(HUMAN)
@@ -458,7 +455,7 @@ def test_chain_fit_finds_the_elbow_at_the_corner_of_a_bent_arm_curve(monkeypatch
 def test_bone_lengths_quantile_recovers_a_chain_shortened_in_some_frames():
     """A chain of known lengths whose placement shortens some frames' bones (a curve cut short
     at a junction): the 70th percentile gives the true lengths, the median does not."""
-    from topopose.pose.kinematic_fit import bone_lengths
+    from topopose.sequence.kinematic_fit import bone_lengths
 
     rng = np.random.default_rng(3)
     tree = kinematic_tree(HUMAN)
@@ -495,7 +492,7 @@ def test_hips_from_the_junction_by_hull_radius_and_spine_shift():
     the hull radius (the spine shift's length), then back with the trunk; the trunk's curves
     move back by SPINE_BACK × the spine shift, the limbs' curves do not. A hanging leg (this
     standing body's) takes HANGING_WIDTH, a raised one the model's ``width``."""
-    from topopose.pose.kinematic_fit import (HANGING_WIDTH, SPINE_BACK, frame_curves,
+    from topopose.sequence.kinematic_fit import (HANGING_WIDTH, SPINE_BACK, frame_curves,
                                              initial_placement)
 
     rng = np.random.default_rng(4)
@@ -534,8 +531,7 @@ def test_a_raised_leg_hip_takes_the_model_width_a_hanging_one_the_hanging_width(
     """One leg raised forward to the horizontal (its curve 90° from straight down), the other
     hanging: the raised leg's hip sits by the model's ``width``, the hanging one's by
     HANGING_WIDTH; with HANGING_WIDTH off (None) both take the model's."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     rng = np.random.default_rng(5)
     tree = kinematic_tree(HUMAN)
     parts, curves = _body(0.0, rng)
@@ -584,7 +580,7 @@ def test_joint_width_field_round_trips_and_is_checked():
 def test_raised_arm_joints_at_their_raised_fraction():
     """A hand above the chest junction (along the trunk): the elbow and wrist at their
     ``at_raised`` of the arm's curve; a hand below it: at their ``at``."""
-    from topopose.pose.kinematic_fit import _along, initial_placement
+    from topopose.sequence.kinematic_fit import _along, initial_placement
 
     rng = np.random.default_rng(5)
     tree = kinematic_tree(HUMAN)
@@ -616,12 +612,11 @@ def test_neck_slides_with_the_chest_junction(monkeypatch):
     fitted neck is its placement on the curve; with every bone constant (``slide=False``) the
     neck keeps a fixed distance from the moving junction and leaves it (the truth: the neck's
     placement on the frame's curve, which runs through the true neck)."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
     # girdle puts it (the rig's 0.1): each joint on its own target here
     monkeypatch.setattr(kf, "GIRDLE", False)
-    from topopose.pose.kinematic_fit import frame_lengths, initial_placement
+    from topopose.sequence.kinematic_fit import frame_lengths, initial_placement
 
     rng = np.random.default_rng(5)
     tree = kinematic_tree(HUMAN)
@@ -642,7 +637,7 @@ def test_neck_slides_with_the_chest_junction(monkeypatch):
     k = tree.names.index("neck")
     out, _, L = fit_sequence(poses, HUMAN, max_gap=0, slide=True)
     median, _, _ = fit_sequence(poses, HUMAN, max_gap=0)     # constant, at its median length
-    from topopose.pose import kinematic_fit as kf
+    from topopose.sequence import kinematic_fit as kf
     monkeypatch.setattr(kf, "SLIDE_QUANTILE", None)              # at the limbs' 70th percentile
     fixed, _, L = fit_sequence(poses, HUMAN, max_gap=0)
     err_median = [np.linalg.norm(q.joints["neck"] - initial_placement(q, tree)[k])
@@ -717,8 +712,7 @@ def test_neck_bone_at_its_median_follows_a_junction_sliding_both_ways(monkeypatc
     scatters symmetrically about the true length, and no curve cuts it short. The neck's bone
     at its median length (``SLIDE_QUANTILE``) is the true length and the fitted neck stays
     nearer the true neck than with the limbs' 70th percentile, which is too long."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
     # girdle puts it (the rig's 0.1): each joint on its own target here
     monkeypatch.setattr(kf, "GIRDLE", False)
@@ -759,8 +753,7 @@ def test_an_unseen_shoulder_is_not_raised_with_its_raised_mate(monkeypatch):
     the plane across the trunk — near the body's hanging shoulder (the same body with both arms
     hanging, fitted) — where the mate's half turn (``HELD_SHOULDER = None``) copies the raised
     shoulder's height."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     def frames(raise_left):
         parts, curves = _body(1.2, np.random.default_rng(4))
         torso = parts["torso"]
@@ -808,8 +801,7 @@ def test_a_raised_arms_shoulder_moves_down_the_trunk(monkeypatch):
     """``RAISED_SHOULDER``: the shoulder of an arm whose hand lies above the chest junction
     (along the trunk crotch → torso) moves down the trunk by that many trunk lengths, exactly;
     a hanging arm's shoulder, the hips and every other joint stay where they were."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     tree = kinematic_tree(HUMAN)
     pose, m, (torso, crotch, ax) = _raised_left_frame()
     P, drop = kf.initial_placement(pose, tree), kf.RAISED_SHOULDER
@@ -848,8 +840,7 @@ def test_a_bent_limbs_middle_joint_is_placed_at_its_curves_bend(monkeypatch):
     foot turns forward); at their relative arc lengths alone they are off. The knees, bent by
     0.08 m over a 0.8 m chord (depth 0.1 < ``BEND``), the wrists and the straight right arm
     keep their ``at``; a deeper knee bend takes the knee nearer its corner."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     tree = kinematic_tree(HUMAN)
     pose, E, _ = _bent_arm_pose()
     el = tree.names.index("elbow_1")
@@ -887,8 +878,7 @@ def test_shoulder_bone_at_its_median_as_the_junction_slides(monkeypatch):
     scatters about the true length and no corner cuts it short. At ``SHOULDER_QUANTILE`` (the
     median) the shoulder's bone is nearer the true length than at the limbs' 70th
     percentile, the other bones keep theirs."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     tree = kinematic_tree(HUMAN)
     rng = np.random.default_rng(5)
     parts, curves = _body(0.0, np.random.default_rng(7))
@@ -912,8 +902,7 @@ def test_leg_bones_at_the_limb_quantile_arm_bones_at_the_bone_quantile(monkeypat
     """Every bone cut short (×0.6–0.9) in 75 % of the frames: the leg's bones along its arc
     (knee, ankle, toe: ``LIMB_QUANTILE["foot"]`` = 80) recover their true length, the arm's
     (at ``BONE_QUANTILE`` = 70) come out short; an explicit quantile applies to every bone."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     monkeypatch.setattr(kf, "BONE_QUANTILE", 70)
     monkeypatch.setattr(kf, "LIMB_QUANTILE", {"foot": 80})
     rng = np.random.default_rng(8)
@@ -950,8 +939,7 @@ def _walking_arm(n=7, step=0.02, turn=0.15):
     """A skeleton moving forward by ``step`` per frame, its arm hand_1's bones turning (the
     truth: each frame's directions the normalized blend of the first and last frame's, so
     interpolation between them is exact); returns (tree, lengths, P (n, joints, 3), arm)."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     tree = kinematic_tree(HUMAN)
     parts, curves = _body(0.3, np.random.default_rng(2))
     pose, _ = _numbered_frame("000000", parts, curves, False, False)
@@ -976,8 +964,7 @@ def test_an_arm_unseen_for_three_frames_is_interpolated_and_flagged():
     joints come back at the true interpolated positions, flagged; the other joints and frames
     are untouched. Unrelated poses (a 1 m jump) or a gap longer than ``max_gap`` are not
     filled."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     tree, L, truth, arm = _walking_arm()
     P = truth.copy()
     held = np.zeros(P.shape[:2], dtype=bool)
@@ -1006,8 +993,7 @@ def test_fit_sequence_flags_the_interpolated_joints(monkeypatch):
     """Through ``fit_sequence``: a body whose hand_2 is unseen in the middle frame of three of
     one still pose gets that arm back from its neighbours (``interpolated_joints``, a subset
     of ``held_joints``); with ``gaps=False`` it is not flagged."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     rng = np.random.default_rng(11)
     parts, curves = _body(0.2, rng)
     frames = [_numbered_frame(f"{i:06d}", parts, curves, False, False)[0] for i in range(3)]
@@ -1039,7 +1025,7 @@ def test_tip_targets_turn_the_toe_from_the_shank_and_stretch_the_fingertip(yaw):
     its distance from the ankle kept; the fingertip moves out along wrist → fingertip by the
     factor, its direction kept; a toe along the shank (no plane) and a frame without the knee
     stay; the joints that are not tips never move."""
-    from topopose.pose.kinematic_fit import tip_targets
+    from topopose.sequence.kinematic_fit import tip_targets
 
     tree = kinematic_tree(HUMAN)
     ix = {n: i for i, n in enumerate(tree.names)}
@@ -1081,8 +1067,7 @@ def test_tip_targets_turn_the_toe_from_the_shank_and_stretch_the_fingertip(yaw):
 def test_fit_sequence_places_the_toe_on_its_turned_target(monkeypatch):
     """The fit follows the corrected tip targets: with ``TIP_TURN`` the fitted toe lies at the
     turned target (the bend at the ankle grows by the turn, as measured on the fitted joints)."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     monkeypatch.setattr(kf, "TIP_STRETCH", {})
     rng = np.random.default_rng(1)
     poses = [_numbered_frame(f"{i:06d}", *_body(0.3 * i, rng, toe=0.1), False, False)[0]
@@ -1104,8 +1089,7 @@ def test_knee_from_the_far_end_when_the_legs_junction_drops(monkeypatch):
     voxel (2 cm) from the far end alone (``weight`` 1); at the fraction ``at`` of the short
     curve it is 6 cm low (0.415 m), and with the default half weight half-way between (0.445
     m). Frames with the full curve keep their knee."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     monkeypatch.setattr(kf, "FROM_END", {("foot", "knee"): 40})
     tree = kinematic_tree(HUMAN)
     rng = np.random.default_rng(7)
@@ -1140,7 +1124,7 @@ def test_chain_residuals_jacobian_matches_finite_differences(seed):
     differences at random chains, targets, weights and curves."""
     from scipy.optimize._numdiff import approx_derivative
 
-    from topopose.pose.kinematic_fit import chain_residuals
+    from topopose.sequence.kinematic_fit import chain_residuals
 
     rng = np.random.default_rng(seed)
     m = 1 + seed
@@ -1164,8 +1148,7 @@ def test_girdle_places_neck_and_shoulders_as_one_symmetric_rigid_body():
     their targets; the model field round-trips and is checked."""
     from scipy.spatial.transform import Rotation
 
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     tree = kinematic_tree(HUMAN)
     rng = np.random.default_rng(5)
     init = []

@@ -1,4 +1,4 @@
-"""The skeleton over time (issue 15): a lost joint held only while recent (``HOLD_AGE``), and the
+"""The skeleton over time: a lost joint held only while recent (``HOLD_AGE``), and the
 default smoothing over runs of continuing motion (``SMOOTH`` at the capture's frame rate,
 :func:`motion_runs`), on hand-made bodies and chains whose truth is known."""
 import copy
@@ -6,8 +6,8 @@ import copy
 import numpy as np
 import pytest
 
-from topopose.pose import kinematic_fit as kf
-from topopose.pose.kinematic_fit import fit_sequence, kinematic_tree
+from topopose.sequence import kinematic_fit as kf
+from topopose.sequence.kinematic_fit import fit_sequence, kinematic_tree
 
 from test_pose_sides_skeleton import HUMAN, _body, _numbered_frame, _true_joints, _walking_arm
 
@@ -62,7 +62,7 @@ def test_motion_runs_ride_over_jitter_and_leave_out_a_single_wrong_frame():
     Q[15, other] += [0.0, 0.0, 0.5]
     rel = Q - Q[:, tree.root:tree.root + 1]
     steps = np.linalg.norm(np.diff(rel, axis=0), axis=2).mean(axis=1)
-    assert np.mean(steps >= 0.15) > 0.4                    # the jitter the old rule broke at
+    assert np.mean(steps >= 0.15) > 0.4                    # the jitter a frame-to-frame rule breaks at
     assert kf.motion_runs(Q, np.arange(40.0), tree, 9, 0.15) == [(0, 15), (16, 40)]
 
 
@@ -103,7 +103,7 @@ def test_the_default_window_keeps_its_duration_at_the_capture_frame_rate(monkeyp
     with it. The same noisy turning body filmed at 60 frames/s (its motion per frame scaled by
     25 / 60) comes nearer its noise-free fit with the 21-frame window than with 9 frames
     (0.15 s)."""
-    from topopose.pose.motion import process_sequence
+    from topopose.sequence.motion import process_sequence
 
     assert (kf.smooth_window(25), kf.smooth_window(60), kf.smooth_window(None)) == (9, 21, 9)
     assert kf.smooth_window(1) == 3
@@ -175,7 +175,7 @@ def test_a_frame_off_the_motion_around_it_is_flagged_and_bridged(monkeypatch):
     assert "interpolated_parts" not in out[6].diagnostics and out[6].parts is poses[6].parts
     assert all(p.diagnostics.get("smoothed") for p in out)
     assert not any("neighbour_distance" in p.diagnostics for p in raw)   # smoothing off
-    from topopose.pose.run import RunResult, summary_text
+    from topopose.batch.run import RunResult, summary_text
     text = summary_text(RunResult(out, None, counts={"matched": 21}))
     assert ("1 skeleton off the motion around it (diagnostics.temporal_outlier, 1 interpolated "
             "from the frames either side)") in text

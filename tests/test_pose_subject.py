@@ -1,10 +1,10 @@
-"""The subject's own lengths (two-pass matching, issue 11) on synthetic data trees."""
+"""The subject's own lengths (two-pass matching) on synthetic data trees."""
 import numpy as np
 import pytest
 
 from topopose.match import Matcher, Tree
 from topopose.pose import load_model
-from topopose.pose.subject import edge_lengths, subject_model
+from topopose.sequence.subject import edge_lengths, subject_model
 
 
 def _body_tree(rng, lengths):

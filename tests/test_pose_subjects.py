@@ -2,8 +2,10 @@
 data tree → AHA → parts, scored against the synthetic ground truth with the classes of thesis
 §13.2.2 (not just "it runs")."""
 
-from topopose.pose import FrameEstimator, load_model
-from topopose.pose.quality import FP_CLASSES, TP_CLASSES, evaluate
+from topopose.frame import FrameEstimator
+
+from topopose.pose import load_model
+from topopose.batch.quality import FP_CLASSES, TP_CLASSES, evaluate
 
 FRAMES = 4
 
@@ -15,7 +17,7 @@ MARGIN = {"human": 0.075, "dog": 0.054, "spider": 0.027}
 
 def _run(subject, noise, tolerance=None, resolution=100, seed=11, threshold=None, margin=None,
          gate=False):
-    from topopose.capture import synthetic_capture
+    from topopose.synth import synthetic_capture
 
     cap = synthetic_capture(subject=subject, frames=FRAMES, seed=seed, noise=noise,
                             separated=True, cameras=8, margin=margin)
@@ -62,7 +64,7 @@ def test_consensus_hull_removes_phantom_volume_only():
     surface (the synthetic primitives' signed distance is the oracle)."""
     import numpy as np
 
-    from topopose.capture.synth_geometry import sdf
+    from topopose.synth.geometry import sdf
     from topopose.hull import visual_hull
 
     cap, est, _ = _run("human", noise=1, margin=MARGIN["human"])
@@ -135,7 +137,7 @@ def test_junction_position_is_the_connected_cooptimal_cluster():
     import numpy as np
 
     from topopose.match import Tree
-    from topopose.pose.estimate import junction_position
+    from topopose.frame.estimate import junction_position
 
     # 0 - 1 - 2 - 3 - 5, with 4 hanging off 1; co-optimal images of "J": 1, 2, 4 (connected to
     # the chosen 1 through co-optimal vertices) and 5 (reached only through 3, not co-optimal)
@@ -212,7 +214,7 @@ def test_arm_keep_on_the_boundary_when_the_limb_leaves_across_a_grid_edge():
     import numpy as np
 
     from topopose.hull import Volume
-    from topopose.pose.estimate import arm_keep
+    from topopose.frame.estimate import arm_keep
     from topopose.skeleton import data_tree
     from topopose.topology import thin
 

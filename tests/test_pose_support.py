@@ -1,4 +1,4 @@
-"""topopose.pose.support: the silhouette the placed model leaves unexplained (issue 12 part 5).
+"""topopose.frame.support: the silhouette the placed model leaves unexplained.
 
 Oracles: a hand-built scene (a vertical cylinder seen by one pinhole camera; its silhouette
 with and without an "arm" rectangle whose area share is computed by hand); a synthetic
@@ -9,10 +9,9 @@ above ``max_unexplained`` and ignoring frames without the value.
 import numpy as np
 import pytest
 
-from _benchmarks import load_benchmark
-from topopose.capture.camera import Camera
-from topopose.pose import consistency as C
-from topopose.pose.support import support_features
+from topopose.geometry.camera import Camera
+from topopose.sequence import consistency as C
+from topopose.frame.support import support_features
 
 F, W, H = 500.0, 200, 240
 
@@ -67,8 +66,8 @@ def test_cylinder_explained_and_an_arm_unexplained():
 
 @pytest.fixture(scope="module")
 def synthetic_frame():
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
 
     cap = synthetic_capture("human", frames=3, seed=5, cameras=4, size=(320, 240),
                             separated=True)
@@ -149,8 +148,7 @@ def test_per_frame_support_test_judges_each_frame_alone():
 def test_run_support_switch(synthetic_frame, tmp_path):
     """``run(support_test=True)``: every matched frame within the limit, the others rejected
     for it or left as without the switch; the same parts either way."""
-    from topopose.pose import run
-
+    from topopose.batch import run
     cap = synthetic_frame[0]
     off = run(cap, resolution=64, progress=False, gate=False, track=False, sides=False,
               skeleton=False, support=True)
@@ -172,50 +170,3 @@ def test_cli_support_flags():
     assert p.parse_args(["run", "CAP"]).support is None
     assert p.parse_args(["run", "--support", "CAP"]).support is True
     assert p.parse_args(["run", "CAP", "--support-replace"]).support == "replace"
-
-
-def _ring_cameras(n=4):
-    """``n`` cameras on a 3 m ring looking at the origin (z up)."""
-    cams = []
-    for k in range(n):
-        a = 2 * np.pi * k / n
-        c = np.array([3 * np.cos(a), 3 * np.sin(a), 1.0])
-        f = -c / np.linalg.norm(c)
-        r = np.cross(f, [0, 0, 1.0])
-        r /= np.linalg.norm(r)
-        R = np.stack([r, np.cross(f, r), f])
-        import cv2
-        cams.append(Camera(f"c{k}", (640, 480), np.array([[500.0, 0, 320], [0, 500.0, 240],
-                                                           [0, 0, 1]]), np.zeros(4),
-                           cv2.Rodrigues(R)[0].ravel(), -R @ c))
-    return cams
-
-
-def test_real_hands_robust_triangulation_drops_the_wrong_view():
-    """benchmarks/real_hands.py: a point seen exactly in 3 views and 200 px off in the 4th is
-    recovered (to 1e-6 m) with the 4th view left out; the plain DLT is pulled off by it."""
-    RH = load_benchmark("real_hands")
-    cams = _ring_cameras()
-    X = np.array([0.1, -0.2, 1.2])
-    uv = np.array([c.project(X[None])[0] for c in cams])
-    assert np.allclose(RH.triangulate(cams, uv, np.ones(4)), X, atol=1e-6)
-    uv[2] += [200.0, 0.0]
-    assert np.linalg.norm(RH.triangulate(cams, uv, np.ones(4)) - X) > 0.01
-    Y, keep, err = RH.triangulate_robust(cams, uv, np.ones(4))
-    assert keep == [0, 1, 3] and err < 1e-3 and np.allclose(Y, X, atol=1e-6)
-
-
-def test_applications_counts_on_the_frames_the_support_keeps():
-    """benchmarks/applications.py: ``supported`` keeps a frame within the limit or without the
-    value (as ``judge_support``); the counts on the kept frames by hand."""
-    A = load_benchmark("applications")
-
-    def row(u, v, t):
-        return {"unexplained": u, "detect": {"p": {"truth": t, "m0": v}}}
-
-    rows = [row(0.02, True, True), row(0.2, True, False), row(None, False, True),
-            row(0.08, True, False), row(0.09, False, False)]
-    assert [A.supported(r, 0.08) for r in rows] == [True, False, True, True, False]
-    c = A.detection_counts(rows, "p", keep=lambda r, d: A.supported(r, 0.08))
-    assert (c["tp"], c["fp"], c["fn"], c["tn"]) == (1, 1, 1, 0)
-    assert c["precision"] == 0.5 and c["recall"] == 0.5

@@ -1,4 +1,4 @@
-"""Thickness of the parts (issue 11): the arc-cost hook of the Matcher against a brute-force
+"""Thickness of the parts: the arc-cost hook of the Matcher against a brute-force
 assignment on star trees, the inscribed-ball radii of the data vertices, and one small end-to-end
 accuracy check on the anatomically real ``body`` subject."""
 import itertools
@@ -55,7 +55,7 @@ def test_arc_cost_equals_brute_force_on_stars(seed):
 
 def test_thickness_moves_the_head_to_the_thick_branch():
     """Two torso branches of equal length: lengths cannot tell head from hand, radii can."""
-    from topopose.pose.estimate import thickness_arc_cost
+    from topopose.frame.estimate import thickness_arc_cost
 
     P = Tree([("torso", "head", 0.2), ("torso", "hand", 0.2)], root="torso")
     D = Tree([(0, 1, 0.2), (0, 2, 0.2)])
@@ -74,7 +74,7 @@ def test_vertex_radii_of_a_ball_and_a_rod():
     """A ball of radius 10 voxels with a rod of radius 2 voxels: the ball's centre has the
     largest radius (1), the rod's axis 2/10 of it (± the EDT's voxel rounding)."""
     from topopose.hull import Volume
-    from topopose.pose.estimate import vertex_radii
+    from topopose.frame.estimate import vertex_radii
 
     g = np.indices((40, 30, 30)).astype(float)
     ball = ((g[0] - 12) ** 2 + (g[1] - 15) ** 2 + (g[2] - 15) ** 2) <= 10 ** 2
@@ -93,9 +93,10 @@ def test_body_separated_accuracy_end_to_end():
     (the same for every part): at least 7 true positives and no more than 1 false positive
     (measured: 8 TP, 0 FP; over 5 seeds 36 TP / 3 FP). Fails if the body accuracy regresses
     badly."""
-    from topopose.capture import synthetic_capture
-    from topopose.pose import FrameEstimator, load_model
-    from topopose.pose.quality import evaluate
+    from topopose.synth import synthetic_capture
+    from topopose.frame import FrameEstimator
+    from topopose.pose import load_model
+    from topopose.batch.quality import evaluate
 
     cap = synthetic_capture(subject="body", frames=8, seed=SEED, noise=1, separated=True,
                             cameras=8, margin=0.075, build="random")
@@ -111,7 +112,7 @@ SEED = 5
 
 
 def test_matched_arc_cost_is_the_distance_part_paid():
-    from topopose.pose.estimate import matched_arc_cost
+    from topopose.frame.estimate import matched_arc_cost
 
     rng = np.random.default_rng(3)
     P = Tree([("r", "a", 0.3), ("r", "b", 0.5), ("b", "c", 0.2)], root="r")
@@ -134,9 +135,8 @@ def test_matched_arc_cost_is_the_distance_part_paid():
 def test_run_thickness_switch():
     """``run(thickness=0)`` (``topopose run --thickness 0``) turns the term off; by default the
     human model pays it (``diagnostics["thickness_cost"]``) and T_d judges the length part."""
-    from topopose.capture import synthetic_capture
-    from topopose.pose import run
-
+    from topopose.synth import synthetic_capture
+    from topopose.batch import run
     cap = synthetic_capture(subject="body", frames=2, seed=2, noise=0, cameras=8, build="average")
     on = run(cap, "human", 48, progress=False).poses
     off = run(cap, "human", 48, progress=False, thickness=0).poses
@@ -151,7 +151,7 @@ def test_arc_cost_by_index_equals_the_formula(seed):
     formula computed element by element (unknown radius → no cost), for integer ids (some
     without a radius, some out of the table), for other ids (the dict path) and for the root
     arc's extra term."""
-    from topopose.pose.estimate import thickness_arc_cost
+    from topopose.frame.estimate import thickness_arc_cost
 
     rng = np.random.default_rng(seed)
     profile = {"head": (0.55, 1.2), "hand": (0.0, 0.35), "torso": (0.8, 1.0)}
@@ -190,13 +190,13 @@ def test_arc_cost_by_index_equals_the_formula(seed):
 
 
 def test_taxicab_kernel_equals_scipy():
-    """:func:`topopose.pose.estimate_kernels.taxicab_distances` (the separable L1 distance behind
+    """:func:`topopose.frame.estimate_kernels.taxicab_distances` (the separable L1 distance behind
     :func:`taxicab_radii`) equals scipy's chamfer ``distance_transform_cdt(…, "taxicab")``
     exactly, on random volumes of every small shape, strided views, and volumes without any
     background voxel (-1) or without any object voxel."""
     from scipy import ndimage
 
-    from topopose.pose.estimate_kernels import taxicab_distances
+    from topopose.frame.estimate_kernels import taxicab_distances
 
     rng = np.random.default_rng(0)
     cases = [np.ones((3, 4, 5), bool), np.zeros((2, 3, 2), bool), np.ones((1, 1, 1), bool),
@@ -214,7 +214,7 @@ def test_taxicab_kernel_equals_scipy():
 
 
 def _vertex_radii_plain(vol, data, reach, radii):
-    """The per-vertex loop :func:`vertex_radii` was before its kernel (the oracle)."""
+    """The per-vertex loop of :func:`vertex_radii` (the oracle of its kernel)."""
     dt, lo = radii
     ref = float(dt.max()) or 1.0
     org, vs = np.asarray(vol.origin, float), float(vol.voxel_size)
@@ -242,7 +242,7 @@ def test_vertex_radii_equal_the_plain_loop(seed):
     from types import SimpleNamespace
 
     from topopose.hull import Volume
-    from topopose.pose.estimate import taxicab_radii, vertex_radii
+    from topopose.frame.estimate import taxicab_radii, vertex_radii
 
     rng = np.random.default_rng(seed)
     occ = np.zeros((30, 28, 40), bool)

@@ -4,7 +4,7 @@ Oracle: analytic shapes whose surface point on the branch's axis is known."""
 import numpy as np
 
 from topopose.match.tree import Tree
-from topopose.pose.tips import (end_direction, exit_point, extremity_tips, head_along_axis,
+from topopose.frame.tips import (end_direction, exit_point, extremity_tips, head_along_axis,
                                  head_from_hull, inscribed_radius, thick_top)
 from topopose.topology import thin
 
@@ -162,9 +162,9 @@ def test_inverted_capsule_human_head_is_its_crown():
     pitched 180°). Oracle: the crown, the end of gt.json's head segment — the lowest point of
     the body here. The head from the hull along the body's axis (HEAD_AXIS, the default) lands
     on it; the peer (head_axis=False: the head branch's tip) lands farther."""
-    from topopose.capture import synth_subjects as SS
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.synth import subjects as SS
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
 
     old = SS.RANDOM["human"]
     SS.RANDOM["human"] = lambda rng: {**SS.HUMAN_DEFAULT, "pelvis_pitch": 180.0, "hip_abd_l": 20,

@@ -3,7 +3,7 @@ import numpy as np
 
 from topopose.pose.model import load_model
 from topopose.pose.pose import Pose
-from topopose.pose.track import assign_identities, track
+from topopose.sequence.track import assign_identities, track
 
 
 def _crossing(n=40, seed=0, gap=(), rejected=()):
@@ -215,7 +215,7 @@ def test_relink_of_feet_compares_the_lateral_side_only():
 
 
 def test_a_part_on_another_groups_previous_position_is_flagged():
-    from topopose.pose.track import on_other_parts
+    from topopose.sequence.track import on_other_parts
 
     def pose(i, h1, f1):
         return Pose(f"{i:06d}", "matched", 0.1, {"hand_1": np.array(h1, float),
@@ -357,7 +357,7 @@ def test_track_moves_a_snapped_part_to_its_leaf_and_flags_it():
 
 def test_free_leaves_are_the_unmatched_degree_one_vertices():
     from topopose.match.tree import Tree
-    from topopose.pose.track import free_leaves
+    from topopose.frame.tips import free_leaves
 
     # a star 0 – {1, 2, 3} with a tail 3 – 4: leaves 1, 2, 4
     pos = {v: np.array([v, 0.5 * v, 0.0]) for v in range(5)}
@@ -370,8 +370,8 @@ def test_estimator_records_free_leaves_and_nothing_else_changes():
     """A synthetic capsule human: the frame's ``free_leaves`` are the data tree's degree-1
     vertices the alignment left unmatched (brute force over the edges); switched off
     (``FrameEstimator.leaves = False``) the pose is the same, without them."""
-    from topopose.capture import synthetic_capture
-    from topopose.pose import FrameEstimator
+    from topopose.synth import synthetic_capture
+    from topopose.frame import FrameEstimator
 
     cap = synthetic_capture("human", frames=1, seed=5, noise=1)
     est = FrameEstimator(cap, "human", resolution=60)

@@ -1,4 +1,4 @@
-"""The hands' trim out of the hull's phantom volume (:mod:`topopose.pose.trim`), on hand-made
+"""The hands' trim out of the hull's phantom volume (:mod:`topopose.frame.trim`), on hand-made
 geometry: a box trunk and a cylinder arm rendered into four cameras (two facing pairs), the
 arm's skeleton curve continued past the hand along one pair's rays in front of the trunk (inside
 every silhouette: phantom volume), or a real forearm that is rendered."""
@@ -7,7 +7,7 @@ import numpy as np
 
 from _capture_testutils import camera_at
 from topopose.pose.pose import Pose
-from topopose.pose.trim import apply_trim, evidence_end, trim_pose, trimmed_curves
+from topopose.frame.trim import apply_trim, evidence_end, trim_pose, trimmed_curves
 
 J = np.array([0.0, 0.0, 0.2])          # the curves' junction (chest)
 A = np.array([0.1, 0.25, 0.6])         # the arm's top, above the trunk, in front of it
@@ -47,7 +47,7 @@ def _render(extra=()):
 
 
 def _polyline(*pts, n=16):
-    from topopose.pose.curves import resample
+    from topopose.frame.curves import resample
     dense = np.vstack([np.linspace(a, b, 50) for a, b in zip(pts, pts[1:])])
     return resample(dense, n)
 
@@ -128,7 +128,7 @@ def test_compared_views_take_the_small_maps_of_upsampled_masks():
     """A silhouette upsampled from a small map (``person``): trimmed on the small map with the
     camera scaled to it, the same way as at full size."""
     from topopose.capture.background import UpsampledMask
-    from topopose.pose.support import compared_views
+    from topopose.frame.support import compared_views
 
     masks = []
     for s in _render():
@@ -146,7 +146,7 @@ def test_compared_views_take_the_small_maps_of_upsampled_masks():
 
 def test_process_sequence_applies_the_recorded_trim_unless_off():
     from topopose.pose.model import load_model
-    from topopose.pose.motion import process_sequence
+    from topopose.sequence.motion import process_sequence
 
     m = load_model("human")
     up = np.array([0.0, 0.0, 1.0])
@@ -167,8 +167,8 @@ def test_process_sequence_applies_the_recorded_trim_unless_off():
 def test_the_estimator_records_the_trim_and_keeps_the_frame():
     """``FrameEstimator`` records ``diagnostics["trim"]`` from the silhouettes it carved the hull
     from; the frame's parts and confidence are those of ``trim=False``."""
-    from topopose.capture.synth import synthetic_capture
-    from topopose.pose.estimate import FrameEstimator
+    from topopose.synth.capture import synthetic_capture
+    from topopose.frame.estimate import FrameEstimator
 
     cap = synthetic_capture("body", frames=4, seed=41, cameras=4, size=(320, 240), noise=1,
                             motion="walk")         # its last frame's hand_2 runs on: trimmed
@@ -197,7 +197,7 @@ def test_silhouette_depth_equals_the_whole_images_transform():
     distance transform (SciPy) there, for blobs inside the image and touching its edges."""
     from scipy.ndimage import distance_transform_edt
 
-    from topopose.pose.trim import disks, silhouette_depth
+    from topopose.frame.trim import disks, silhouette_depth
 
     rng = np.random.default_rng(3)
     for k in range(12):

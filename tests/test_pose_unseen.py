@@ -1,11 +1,11 @@
-"""Evidence for an unseen arm from the frame's hull (topopose.pose.unseen)."""
+"""Evidence for an unseen arm from the frame's hull (topopose.frame.unseen)."""
 import numpy as np
 import pytest
 
 from topopose import Volume
-from topopose.pose.curves import resample
-from topopose.pose.kinematic_fit import fit_sequence
-from topopose.pose.unseen import _seg_dist, hull_remainder
+from topopose.frame.curves import resample
+from topopose.sequence.kinematic_fit import fit_sequence
+from topopose.frame.unseen import _seg_dist, hull_remainder
 from test_pose_sides_skeleton import HUMAN, _hand_2_unseen, _raised_left_frame
 
 
@@ -103,7 +103,7 @@ def test_hull_shoulders_from_the_trunks_cross_section(yaw, across):
     true shoulder, on the side of axis × front first; the rest pose's guess for an unseen arm
     (the mate's mirror, ``HELD_SHOULDER`` up) is not the point: this is the trunk's own
     geometry."""
-    from topopose.pose.unseen import hull_shoulders
+    from topopose.frame.unseen import hull_shoulders
 
     vol, S, R, shift = _upper_body(yaw, np.array([0.3, -0.2, 0.0]), across)
     H = hull_shoulders(vol, R @ [0.0, 0.0, 1.35] + shift, R @ [0, 0, 1.0], R @ [1.0, 0, 0], 0.11)
@@ -120,8 +120,7 @@ def test_hull_shoulders_place_hanging_and_unseen_arms_only(monkeypatch):
     placed there (initial placement, within ``HULL_GATE``); a raised arm's keeps its
     place on its curve; an unseen arm moves whole by ``SHOULDER_BLEND`` of the way to the nearer
     one (within ``HULL_GATE``), bone lengths kept; ``shoulders=False``: as without."""
-    from topopose.pose import kinematic_fit as kf
-
+    from topopose.sequence import kinematic_fit as kf
     tree = kf.kinematic_tree(HUMAN)
     pose, m, _ = _raised_left_frame()
     P0 = kf.initial_placement(pose, tree)

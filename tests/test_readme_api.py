@@ -1,6 +1,5 @@
-"""The README's Python snippet gives the distance the CLI gives for the same frame (issue 13:
-it gave 0.515 where `topopose match` gave 0.062 — unnormalized trees), and the plain
-``align(model, tree)`` reuses the model's Matcher."""
+"""The README's Python snippet gives the distance the CLI gives for the same frame (the data
+tree normalized alike), and the plain ``align(model, tree)`` reuses the model's Matcher."""
 import re
 from pathlib import Path
 
@@ -19,7 +18,7 @@ def _snippet():
 
 
 def test_readme_snippet_distance_equals_cli(tmp_path, capsys):
-    from topopose.capture import synthesize
+    from topopose.synth import synthesize
 
     cap_dir = synthesize(tmp_path / "cap", subject="human", frames=2, seed=4, cameras=8,
                          size=(240, 180), separated=True)

@@ -52,7 +52,7 @@ def test_tree_command_bad_input(tmp_path, capsys):
 
 
 def test_tree_stats_command(tmp_path, capsys):
-    synth = pytest.importorskip("topopose.capture.synth")
+    synth = pytest.importorskip("topopose.synth.capture")
     cap = synth.synthesize(tmp_path / "cap", subject="human", frames=3, seed=1)
     out = tmp_path / "stats.png"
     assert main(["tree", "--stats", str(cap), "--out", str(out), "--resolutions", "40,60"]) == 0

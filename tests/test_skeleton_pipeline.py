@@ -176,7 +176,7 @@ def seg_dist(P, a, b):
 
 @pytest.fixture(scope="module")
 def human():
-    synth = pytest.importorskip("topopose.capture.synth")
+    synth = pytest.importorskip("topopose.synth.capture")
     return synth.synthetic_capture(subject="human", frames=20, seed=0, separated=True)
 
 

@@ -5,12 +5,12 @@ import json
 import numpy as np
 import pytest
 
-from topopose.capture.camera import Camera
-from topopose.capture.synth import camera_ring, synthetic_capture
-from topopose.capture.synth_body import (BUILDS, HEIGHT_RANGE, body_mesh, body_random,
+from topopose.geometry.camera import Camera
+from topopose.synth.capture import camera_ring, synthetic_capture
+from topopose.synth.body import (BUILDS, HEIGHT_RANGE, body_mesh, body_random,
                                          bone_transforms, dominant_bones, make_build, pose_body,
                                          rig, skin)
-from topopose.capture.synth_geometry import ray_table
+from topopose.synth.geometry import ray_table
 
 
 def brute_force_silhouette(cam, vertices, faces):

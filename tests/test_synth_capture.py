@@ -7,8 +7,10 @@ import tomllib
 import numpy as np
 import pytest
 
-from topopose.capture import Camera, load_capture, synthesize, synthetic_capture
-from topopose.capture.synth_subjects import PARTS, dog, hand, human
+from topopose.capture import Camera, load_capture
+
+from topopose.synth import synthesize, synthetic_capture
+from topopose.synth.subjects import PARTS, dog, hand, human
 from topopose.errors import InputError
 
 SUBJECTS = ["human", "hand", "dog", "spider"]
@@ -223,9 +225,9 @@ def test_noise_levels_are_monotonic():
 
 
 def test_thickness_and_dress():
-    from topopose.capture.synth import camera_ring
-    from topopose.capture.synth_geometry import ray_table, render
-    from topopose.capture.synth_subjects import human_random
+    from topopose.synth.capture import camera_ring
+    from topopose.synth.geometry import ray_table, render
+    from topopose.synth.subjects import human_random
 
     pose = human_random(np.random.default_rng(0))
     thin, thick = human(pose), human(pose, thickness=1.25)

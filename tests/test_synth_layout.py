@@ -2,7 +2,7 @@
 balancing subjects (capture/synth.py ``layout``, ``lean``; benchmarks/confidence.py set-up 4r)."""
 import numpy as np
 
-from topopose.capture.synth import camera_ring, synthetic_capture
+from topopose.synth.capture import camera_ring, synthetic_capture
 
 VOL = (np.array([-1.25, -1.25, -0.05]), np.array([1.25, 1.25, 2.45]))
 

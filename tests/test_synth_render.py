@@ -9,10 +9,10 @@ import pytest
 from scipy.spatial import cKDTree
 
 from topopose.capture import Camera
-from topopose.capture.synth import camera_ring
-from topopose.capture.synth_geometry import (Prim, clearance, ray_hits_cone, ray_hits_ellipsoid,
+from topopose.synth.capture import camera_ring
+from topopose.synth.geometry import (Prim, clearance, ray_hits_cone, ray_hits_ellipsoid,
                                              ray_table, render, render_numpy)
-from topopose.capture.synth_subjects import rz, rx
+from topopose.synth.subjects import rz, rx
 
 
 def _random_rotation(rng):
@@ -136,7 +136,7 @@ def _brute_gap(p, q, step=0.006):
     pp = _dense_samples(p, step)
     qq = _dense_samples(q, step)
     # keep the outer surface points only: drop points strictly inside their own primitive
-    from topopose.capture.synth_geometry import sdf
+    from topopose.synth.geometry import sdf
     pp = pp[sdf(p, pp) > -step]
     qq = qq[sdf(q, qq) > -step]
     d, _ = cKDTree(qq).query(pp)

@@ -5,10 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from topopose.capture.synth import (KEY_DRIFT, KEY_INTERVAL, KEY_TURN, POSE_STREAM,
+from topopose.synth.capture import (KEY_DRIFT, KEY_INTERVAL, KEY_TURN, POSE_STREAM,
                                     ease_keyframes, min_jerk, synthetic_capture)
-from topopose.capture.synth_body import body_random, rig
-from topopose.capture.synth_subjects import HUMAN_DEFAULT
+from topopose.synth.body import body_random, rig
+from topopose.synth.subjects import HUMAN_DEFAULT
 from topopose.errors import InputError
 
 FPS = 25.0

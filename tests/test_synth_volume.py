@@ -1,4 +1,4 @@
-"""Every synthetic subject stays inside its own capture volume (issue 13: the dog reared up to
+"""Every synthetic subject stays inside its own capture volume (the dog reared up to
 z = 1.14 in a volume that stops at 1.1, so its hull touched the grid border and frames failed).
 
 Oracle: the sampled surface of every primitive (Body.extent) and every ground-truth point lie
@@ -9,8 +9,8 @@ points on it (elbow, the "arm" part on the border) are left out.
 import numpy as np
 import pytest
 
-from topopose.capture import synth
-from topopose.capture.synth_subjects import GAIT
+from topopose.synth import capture as synth
+from topopose.synth.subjects import GAIT
 
 HAND_OUT = {"elbow", "arm", "arm_border", "shoulder"}
 

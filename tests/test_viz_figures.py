@@ -7,10 +7,11 @@ import pytest
 from topopose.hull import Volume
 from topopose.match import Tree
 from topopose.pose import Pose, load_model
-from topopose.pose.estimate import FrameDetail
-from topopose.pose.quality import evaluate
+from topopose.frame.estimate import FrameDetail
+from topopose.batch.quality import evaluate
 from topopose.viz import plot_distances, plot_quality, render_frame
-from topopose.viz.view import _up_rotation, part_colours
+from topopose.geometry.axes import up_rotation
+from topopose.viz.view import part_colours
 
 
 def _stick_figure():
@@ -47,7 +48,7 @@ def test_render_frame_png_readable(tmp_path):
 
 def test_up_rotation():
     for up in ([0, 0, 1], [0, 1, 0], [1, 0, 0], [0, 0, -1], [0, -1, 0]):
-        R = _up_rotation(up)
+        R = up_rotation(up)
         assert np.allclose(R @ up, [0, 0, 1]) and np.isclose(np.linalg.det(R), 1)
 
 

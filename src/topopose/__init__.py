@@ -15,7 +15,7 @@ Examples
 """
 from importlib import import_module
 
-from .errors import InputError
+from topopose.errors import InputError
 
 __version__ = "0.1.0"
 
@@ -24,7 +24,7 @@ _LAZY = {
     "Camera": "topopose.capture",
     "Capture": "topopose.capture",
     "load_capture": "topopose.capture",
-    "synthesize": "topopose.capture",
+    "synthesize": "topopose.synth",
     # hull
     "Volume": "topopose.hull",
     "visual_hull": "topopose.hull",
@@ -39,13 +39,13 @@ _LAZY = {
     # pose
     "Model": "topopose.pose",
     "load_model": "topopose.pose",
-    "estimate_pose": "topopose.pose",
+    "estimate_pose": "topopose.frame",
     "Pose": "topopose.pose",
-    "run": "topopose.pose",
+    "run": "topopose.batch",
     # applications (thesis §13.3)
-    "segment": "topopose.pose.segment",
-    "detect": "topopose.pose.detect",
-    "cluster_poses": "topopose.pose.cluster",
+    "segment": "topopose.apps.segment",
+    "detect": "topopose.apps.detect",
+    "cluster_poses": "topopose.apps.cluster",
     # kinematics
     "learn_model": "topopose.kinematics",
 }

@@ -18,7 +18,7 @@ import sys
 from contextlib import contextmanager
 from pathlib import Path
 
-from .errors import InputError
+from topopose.errors import InputError
 
 #: bytes of memory per voxel of the grid that one frame of the pipeline needs at its peak
 #: (hull labels and masks, filled copy, thinning work arrays, skeleton), measured at 200³.

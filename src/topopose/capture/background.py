@@ -43,18 +43,17 @@ caps), lowered where it is sure of the background (p < 0.05).
 """
 from __future__ import annotations
 
-import math
 import time
 from concurrent.futures import ThreadPoolExecutor
 
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from .camera import Camera
-from .sources import SKIPPED
+from topopose.errors import InputError
+from topopose.geometry.camera import Camera
+from topopose.capture.options import UNITS
+from topopose.capture.sources import SKIPPED
 
-SEQUENCE_METHODS = ("sequence", "selfie", "sequence+selfie", "person")
 
 
 def scaled_camera(cam: Camera, scale: float) -> Camera:
@@ -109,7 +108,7 @@ def subject_region(cameras_small, motion, unit: float):
     -------
     (centres (n, 3), voxel_size) or None
     """
-    from ..hull.carver import HullCarver
+    from topopose.geometry.carver import HullCarver
 
     import cc3d
     from scipy import ndimage
@@ -217,7 +216,7 @@ def learn_backgrounds(samples, cameras, params, unit) -> tuple:
 
 def foreground_probability(img: np.ndarray, bg: SequenceBackground, params) -> np.ndarray:
     """uint8 (h, w) foreground probability (× 255) of a downscaled image (module docstring)."""
-    from .background_kernels import colour_probability
+    from topopose.capture.background_kernels import colour_probability
 
     q = np.empty(img.shape[:2], dtype=np.uint8)
     colour_probability(np.ascontiguousarray(img[:, :, :3]), bg.image, bg.known,
@@ -242,7 +241,7 @@ def capture_backgrounds(cap) -> list:
     key = ("sequence_backgrounds",)
     if key in cap.cache:
         return cap.cache[key]
-    from .io import _frame_source, fit_size
+    from topopose.capture.images import _frame_source, fit_size
 
     p = cap.options["silhouettes"]
     s = float(p["scale"])
@@ -273,9 +272,7 @@ def capture_backgrounds(cap) -> list:
     stacks = [[g[f] for f in ok] for g in got]
     if not ok:
         raise InputError(f"{cap.path}: no readable frame to learn the background from")
-    from .calibration import _UNITS
-
-    unit = 1.0 / _UNITS.get(cap.units, 1.0)
+    unit = 1.0 / UNITS.get(cap.units, 1.0)
     stacks = [np.stack(x) for x in stacks]
     times = {"decode": time.perf_counter() - t0}
     models, region = learn_backgrounds(stacks, cams, p, unit)
@@ -314,7 +311,7 @@ def foreground_maps(cap, frame, images=None) -> list:
     method = p["method"]
     s = float(p["scale"])
     if images is None:
-        from .io import read_images
+        from topopose.capture.images import read_images
         images = read_images(cap, frame)
     if method == "person":       # the network alone needs no background model
         out = _person_maps(cap, frame, images, p)
@@ -328,7 +325,7 @@ def foreground_maps(cap, frame, images=None) -> list:
         if method in ("sequence", "sequence+selfie"):
             q = foreground_probability(img, bg, p)
         if method in ("selfie", "sequence+selfie"):
-            from .segment import selfie_probability
+            from topopose.capture.segment import selfie_probability
             q2 = selfie_probability(img, bg.zone, stream=(id(cap), c))
             # the network misses limbs: its "background" is a weak vote (floor), so that the
             # other cameras decide there
@@ -355,7 +352,7 @@ def _person_maps(cap, frame, images, p) -> list:
     camera is segmented every n-th frame); the others keep their map of the frame before,
     at most n - 1 frames old. Otherwise (the first frame, a jump) every camera is segmented
     (and, with ``person_track``, starts a new tracking graph)."""
-    from .segment import person_probabilities
+    from topopose.capture.segment import person_probabilities
     i = cap.frames.index(frame)
     n = int(p.get("person_every", 1))
     last = cap.cache.get("person_last")          # (index, maps) of the frame segmented last
@@ -365,7 +362,7 @@ def _person_maps(cap, frame, images, p) -> list:
     images = list(images)
     for c in cams:
         if images[c] is SKIPPED:      # not converted by the reader (io._person_needed)
-            from .io import _frame_source, fit_size
+            from topopose.capture.images import _frame_source, fit_size
             cam = cap.cameras[c]
             src = _frame_source(cap)
             images[c] = fit_size(cap, src.path(cam.name, frame) or cam.name,
@@ -381,14 +378,14 @@ def _person_maps(cap, frame, images, p) -> list:
 
 
 #: False: :func:`masks_from_maps` returns plain full-size masks (the hull then sums every pixel
-#: of them; ``benchmarks/real_speed.py`` measures the difference)
+#: of them; ``studies/real_speed.py`` measures the difference)
 UPSAMPLED_MASKS = True
 
 
 class UpsampledMask(np.ndarray):
     """A boolean silhouette at the calibration size that is the nearest-neighbour upsampling of
     ``small`` (uint8 0/1, an integer factor smaller on each axis): the hull carver reads
-    ``small`` instead (:meth:`topopose.hull.carver.HullCarver.load_masks`). Arrays derived from
+    ``small`` instead (:meth:`topopose.geometry.carver.HullCarver.load_masks`). Arrays derived from
     it (slices, copies, results of operations) do not carry ``small``."""
 
     small = None
@@ -418,20 +415,3 @@ def masks_from_maps(cap, maps) -> list:
         out.append(m)
     cap.cache["masks_last"] = [(q, (cut, UPSAMPLED_MASKS), m) for q, m in zip(maps, out)]
     return out
-
-
-def check_params(path, p) -> None:
-    """Validate the sequence-method fields of ``[silhouettes]``."""
-    if not 0.05 <= float(p["scale"]) <= 1.0:
-        raise InputError(f"{path}: [silhouettes] field 'scale' must be in [0.05, 1], got {p['scale']!r}")
-    if int(p["samples"]) < 3:
-        raise InputError(f"{path}: [silhouettes] field 'samples' must be ≥ 3, got {p['samples']!r}")
-    if not 0.0 < float(p.get("cut", 0.5)) < 1.0:
-        raise InputError(f"{path}: [silhouettes] field 'cut' must be in (0, 1), got {p['cut']!r}")
-    for k in ("p_detect", "p_false"):
-        if not 0.0 < float(p[k]) < 1.0:
-            raise InputError(f"{path}: [silhouettes] field {k!r} must be in (0, 1), got {p[k]!r}")
-    if not float(p["p_false"]) < float(p["p_detect"]):
-        raise InputError(f"{path}: [silhouettes] field 'p_false' must be below 'p_detect'")
-    if not 0.0 < float(p["occupancy"]) < 1.0 or not math.isfinite(float(p["occupancy"])):
-        raise InputError(f"{path}: [silhouettes] field 'occupancy' must be in (0, 1), got {p['occupancy']!r}")

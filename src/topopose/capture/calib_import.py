@@ -33,8 +33,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from .camera import Camera
+from topopose.errors import InputError
+from topopose.geometry.camera import Camera
 
 FORMATS = ("qualisys", "easymocap", "opencv", "pmatrix")
 
@@ -356,8 +356,8 @@ def import_calibration(files, format: str | None = None, size=None) -> list:
 
 def calib_import_cli(a) -> int:
     """``topopose calib import FILE... [--format F] [--size WxH | --image IMG] --out FILE``."""
-    from .. import _paths
-    from .calibration import read_calibration
+    from topopose import _paths
+    from topopose.capture.calibration import read_calibration
 
     out = _paths.writable_output(a.out, "--out", inputs=[*(("FILE", f) for f in a.files),
                                                          ("--image", getattr(a, "image", None))])

@@ -17,55 +17,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from .camera import Camera
-from .background import SEQUENCE_METHODS, check_params
-from .capture import axis_vector
+from topopose.errors import InputError
+from topopose.geometry.camera import Camera
+from topopose.capture.options import (_CAPTURE_KEYS, _SIL_TYPES, SEQUENCE_METHODS, SILHOUETTE_DEFAULTS,
+                                      SIZE_POLICIES, UNITS, check_params)
+from topopose.capture.capture import axis_vector
 
 IGNORED_TABLES = {"metadata"}
-
-#: Defaults of the ``[silhouettes]`` table of ``capture.toml`` (background subtraction).
-SILHOUETTE_DEFAULTS = {
-    "method": "diff",      # "diff" (colour difference), "mog2" or "knn" (OpenCV subtractors)
-    "threshold": 30.0,     # diff: max channel difference (0-255); mog2/knn: their varThreshold/dist2Threshold
-    "median": 3,           # median filter size (odd, pixels; 0 = none) on image and background: noise
-    "blur": 0.0,           # optional Gaussian sigma (pixels) after the median filter (0 = none)
-    "open": 3,             # opening kernel size (pixels, 0 = none): removes specks
-    "close": 7,            # closing kernel size (pixels, 0 = none): fills small holes and cracks
-    "min_area": 100,       # connected blobs smaller than this (pixels) are dropped
-    "fill_holes": 0,       # holes smaller than this many pixels are filled (0 = none)
-    # methods "sequence", "selfie", "sequence+selfie": no empty scene (capture/background.py)
-    "scale": 0.25,         # probabilities computed on images resized by this factor
-    "samples": 25,         # frames spread over the sequence that the background is learned from
-    "reveal": 40.0,        # a sample within this colour distance of the inpainted guess shows the background
-    "shadow": 0.6,         # brightness ratio down to which a darker pixel of the same colour is shadow
-    "uncertain": 0.5,      # weight of the vote of pixels whose background was never revealed
-    "zone_margin": 0.15,   # growth (metres) of the 3D box the subject sweeps
-    "fusion": "auto",      # "soft": Franco & Boyer occupancy grid from probabilities; "hard": p > 0.5 masks;
-                           # "auto": hard for method "person" (sharp masks), soft for the others
-    "p_detect": 0.99,      # soft fusion: P(pixel foreground | voxel occupied)
-    "p_false": 0.4,        # soft fusion: P(pixel foreground | voxel empty)
-    "occupancy": 0.5,      # soft fusion: posterior occupancy above which a voxel is in the hull
-    "open3d": 1,           # soft fusion: 3D opening of the hull by a (2k + 1)³ cube (0: none)
-    "selfie_floor": 0.0,   # selfie: the network's probability is raised to at least this (a weak "no")
-    "person_track": False,  # person: MediaPipe's tracking mode (detector skipped between frames)
-    "person_every": 1,     # person: each camera segmented every N-th frame, cameras staggered
-    "cut": 0.5,            # hard fusion: a pixel is subject when its probability exceeds this
-    # reading videos (any method; capture/sources.py)
-    "decode_threads": 1,   # FFmpeg threads per video (0: FFmpeg's own choice, one per core)
-    "decode_ahead": 2,     # frames decoded ahead of the silhouettes by a thread of their own (0: none)
-}
-_SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (int, float), "open": int,
-              "close": int, "min_area": int, "fill_holes": int, "scale": (int, float),
-              "samples": int, "reveal": (int, float), "shadow": (int, float), "uncertain": (int, float),
-              "zone_margin": (int, float), "fusion": str, "p_detect": (int, float),
-              "p_false": (int, float), "occupancy": (int, float), "open3d": int,
-              "selfie_floor": (int, float), "person_track": bool, "person_every": int, "cut": (int, float),
-              "decode_threads": int, "decode_ahead": int}
-_CAPTURE_KEYS = {"up", "units", "fps", "volume", "size_policy"}
-#: What to do with an image whose size differs from its camera's calibration size
-SIZE_POLICIES = ("error", "scale", "pad")
-_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "dm": 0.1, "km": 1000.0, "in": 0.0254, "ft": 0.3048}
 
 
 def _read_toml(path: Path) -> dict:
@@ -194,8 +152,8 @@ def read_capture_options(path, cameras=()) -> dict:
         out["up"] = c["up"].strip()
     if "units" in c:
         u = c["units"]
-        if not isinstance(u, str) or u.strip().lower() not in _UNITS:
-            raise InputError(f"{path}: [capture] field 'units' must be one of {sorted(_UNITS)}, got {u!r}")
+        if not isinstance(u, str) or u.strip().lower() not in UNITS:
+            raise InputError(f"{path}: [capture] field 'units' must be one of {sorted(UNITS)}, got {u!r}")
         out["units"] = u.strip().lower()
     if "fps" in c:
         f = c["fps"]

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from .camera import Camera
+from topopose.errors import InputError
+from topopose.geometry.camera import Camera
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -53,6 +53,9 @@ class Capture:
     files: dict | None = field(default=None, repr=False)
     #: per-capture caches (hull carvers per grid, backgrounds, fitted volumes); never saved
     cache: dict = field(default_factory=dict, repr=False, compare=False)
+    #: ``reader(capture, frame) -> masks`` for captures read from files (set by
+    #: :func:`topopose.load_capture`); unused when ``masks`` is given
+    reader: object = field(default=None, repr=False, compare=False)
 
     @property
     def up_vector(self) -> np.ndarray:
@@ -83,9 +86,9 @@ class Capture:
                                      f"(h, w) = {(cam.size[1], cam.size[0])}")
                 out.append(m)
             return out
-        from .io import read_silhouettes
-
-        return read_silhouettes(self, frame)
+        if self.reader is None:
+            raise InputError(f"{self.path or 'capture'}: frame {frame!r}: no masks and no files to read them from")
+        return self.reader(self, frame)
 
     def frame_name(self, frame) -> str:
         """Accept a frame name or an index into :attr:`frames` (also as digits, e.g. ``"3"``,

@@ -23,14 +23,16 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from .calibration import read_calibration, read_capture_options
-from .camera import Camera
-from .capture import Capture
-from .background import SEQUENCE_METHODS
-from .silhouettes import extract_silhouette
-from .sources import (MAX_IMAGE_PIXELS, SKIPPED, VIDEO_EXTENSIONS, ImageSource, Prefetcher,
-                      VideoSource, imread, png_size)
+from topopose.errors import InputError
+from topopose.capture.calibration import read_calibration, read_capture_options
+from topopose.geometry.camera import Camera
+from topopose.capture.capture import Capture
+from topopose.capture.options import SEQUENCE_METHODS
+from topopose.capture.silhouettes import extract_silhouette
+from topopose.capture.images import (_background, _frame_source, _sequence_method, _size_message,
+                                     _warn_size, fit_size, image_list, read_images, size_policy)
+from topopose.capture.sources import (MAX_IMAGE_PIXELS, VIDEO_EXTENSIONS, ImageSource, Prefetcher,
+                                      VideoSource, imread, png_size)
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
 
@@ -107,12 +109,6 @@ def _missing_entry(where: Path, cam, table, what: str) -> InputError:
 
 def _list_videos(folder: Path) -> dict:
     return _list_files(folder, VIDEO_EXTENSIONS, "videos for camera")
-
-
-def size_policy(cap: Capture, camera: str) -> str:
-    """The size policy of ``camera``: ``[cameras.<name>] size_policy``, else ``[capture]``'s."""
-    per = (cap.options.get("cameras") or {}).get(camera) or {}
-    return per.get("size_policy") or cap.options.get("size_policy") or "error"
 
 
 def _scaled_camera(cam: Camera, size) -> Camera:
@@ -248,7 +244,8 @@ def load_capture(path) -> Capture:
                "names": names, "frame_source": src if source != "silhouettes" else None,
                "original_sizes": {c.name: c.size for c in cameras}}
     cap = Capture(cameras=cameras, frames=frames, path=root, up=opts["up"], units=opts["units"],
-                  fps=fps, volume=opts["volume"], options=options, files=files or None)
+                  fps=fps, volume=opts["volume"], options=options, files=files or None,
+                  reader=read_silhouettes)
     # sizes known now (videos; first image of each folder, a PNG's header): "scale" rescales
     # the cameras, "pad" warns once, "error" stops at once (every frame would fail)
     for k, cam in enumerate(cameras):
@@ -271,108 +268,12 @@ def load_capture(path) -> Capture:
     return cap
 
 
-def _size_message(where, size, cam) -> str:
-    return (f"{where}: image size {size[0]}x{size[1]} differs from the calibration size of camera "
-            f"{cam.name!r} (field 'size' = [{cam.size[0]}, {cam.size[1]}]); set size_policy = "
-            f"\"pad\" or \"scale\" in [capture] (or [cameras.{cam.name}]) of capture.toml")
-
-
-def _warn_size(cap, cam, size, where, pol):
-    key = ("size_warned", cam.name)
-    if key in cap.cache:
-        return
-    cap.cache[key] = True
-    what = ("padded or cropped at the right/bottom to" if pol == "pad"
-            else "used with the intrinsics rescaled from")
-    ow, oh = cap.options.get("original_sizes", {}).get(cam.name, cam.size)
-    warnings.warn(f"{where}: images of camera {cam.name!r} are {size[0]}x{size[1]}, the "
-                  f"calibration says {ow}x{oh}: {what} the calibration size "
-                  f"(size_policy = \"{pol}\")", stacklevel=3)
-
-
-def fit_size(cap: Capture, path, img: np.ndarray, cam: Camera) -> np.ndarray:
-    """Apply the camera's size policy to an image (or mask) read from ``path``.
-
-    "error": :class:`InputError` naming the file, the sizes and the option; "pad": zero-padded
-    or cropped at the right/bottom to the calibration size; "scale": the cameras were rescaled
-    at loading, so the size must match the rescaled one.
-    """
-    h, w = img.shape[:2]
-    if (w, h) == tuple(cam.size):
-        return img
-    pol = size_policy(cap, cam.name)
-    if pol != "pad":
-        raise InputError(_size_message(path, (w, h), cam))
-    _warn_size(cap, cam, (w, h), path, pol)
-    W, H = cam.size
-    out = np.empty((H, W) + img.shape[2:], dtype=img.dtype)
-    out[:min(h, H), :min(w, W)] = img[:min(h, H), :min(w, W)]
-    out[h:] = 0                           # the padding only (each byte written once)
-    out[:h, w:] = 0
-    return out
-
-
-def _background(cap: Capture, cam: Camera) -> np.ndarray:
-    bg = cap.cache.get(("background", cam.name))
-    if bg is None:
-        bp = cap.options["backgrounds"][cam.name]
-        bg = fit_size(cap, bp, imread(bp, cv2.IMREAD_COLOR), cam)
-        cap.cache[("background", cam.name)] = bg
-    return bg
-
-
-def _frame_source(cap: Capture):
-    src = cap.options.get("frame_source")
-    if src is None and cap.options.get("source") == "images" and cap.files is not None:
-        src = ImageSource(cap.files, {c: Path(cap.path) / "images" / c for c in cap.files})
-    return src
-
-
-def read_images(cap: Capture, frame: str) -> list:
-    """Colour images (BGR, calibration size after the size policy) of one frame, one per camera.
-
-    Raises
-    ------
-    InputError
-        The frame is missing for a camera (or a video is shorter / corrupt there), an image is
-        unreadable, or its size differs from the calibration (``size_policy = "error"``).
-    """
-    src = _frame_source(cap)
-    if src is None:
-        raise InputError(f"{cap.path or 'capture'}: no colour frames (images/ or videos/)")
-    out = []
-    for cam in cap.cameras:
-        out.append(fit_size(cap, src.path(cam.name, frame) or cam.name,
-                            src.read(cam.name, frame), cam))
-    return out
-
-
-def _sequence_method(cap: Capture) -> bool:
-    return (cap.options.get("silhouettes") or {}).get("method") in SEQUENCE_METHODS
-
-
-def image_list(cap: Capture, frame: str, images) -> list:
-    """``images`` in camera order, from a list or the ``{camera: image or InputError}`` of a
-    frame source (the size policy applied)."""
-    if isinstance(images, dict):
-        src = _frame_source(cap)
-        imgs = []
-        for cam in cap.cameras:
-            im = images[cam.name]
-            if isinstance(im, Exception):
-                raise im
-            imgs.append(im if im is SKIPPED else      # decoded, not converted: read if wanted
-                        fit_size(cap, src.path(cam.name, frame) or cam.name, im, cam))
-        images = imgs
-    return images
-
-
 def silhouettes_from_images(cap: Capture, frame: str, images) -> list:
     """Silhouettes of one frame from its colour ``images`` (a list in camera order, or the
     ``{camera: image or InputError}`` of a frame source), with the capture's method."""
     images = image_list(cap, frame, images)
     if _sequence_method(cap):
-        from .background import foreground_maps, masks_from_maps
+        from topopose.capture.background import foreground_maps, masks_from_maps
         return masks_from_maps(cap, foreground_maps(cap, frame, images))
     return [extract_silhouette(im, _background(cap, cam), cap.options.get("silhouettes"))
             for cam, im in zip(cap.cameras, images)]
@@ -417,7 +318,7 @@ def read_silhouettes(cap: Capture, frame: str) -> list:
         ok, masks = pf.take(frame)
         if ok:
             if _sequence_method(cap):        # the reader computed probability maps
-                from .background import masks_from_maps
+                from topopose.capture.background import masks_from_maps
                 return masks_from_maps(cap, masks)
             return masks
     return _silhouettes_now(cap, frame)
@@ -469,7 +370,7 @@ def prefetch(cap: Capture, frames, depth: int = 4):
     if _sequence_method(cap):
         # the reader computes the foreground probabilities (the soft hull's input); the
         # background model is learned first, here
-        from .background import capture_backgrounds, foreground_maps
+        from topopose.capture.background import capture_backgrounds, foreground_maps
         if cap.options["silhouettes"]["method"] != "person":
             capture_backgrounds(cap)
 

@@ -47,8 +47,8 @@ import threading
 import cv2
 import numpy as np
 
-from .._quiet import native_stderr_silenced
-from ..errors import InputError
+from topopose._quiet import native_stderr_silenced
+from topopose.errors import InputError
 
 _MODEL = {}
 _LOCKS = {}                  # one camera's network is fed by one thread at a time

@@ -20,7 +20,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .calibration import SILHOUETTE_DEFAULTS
+from topopose.capture.options import SILHOUETTE_DEFAULTS
 
 
 def _kernel(size: int):
@@ -72,7 +72,7 @@ def extract_silhouette(image: np.ndarray, background: np.ndarray, params: dict |
     """Boolean silhouette of ``image`` (h, w[, 3] uint8) against ``background`` (same size).
 
     Parameters are those of the ``[silhouettes]`` table (see the module docstring);
-    missing ones take :data:`~topopose.capture.calibration.SILHOUETTE_DEFAULTS`.
+    missing ones take :data:`~topopose.capture.options.SILHOUETTE_DEFAULTS`.
     """
     p = dict(SILHOUETTE_DEFAULTS, **(params or {}))
     img, bg = _as_bgr(np.asarray(image)), _as_bgr(np.asarray(background))

@@ -5,7 +5,7 @@ the business of :mod:`~topopose.capture.silhouettes` (``[silhouettes]`` of ``cap
 
 - :class:`ImageSource`: ``images/<camera>/<frame>.png`` (frame names = file stems).
 - :class:`VideoSource`: ``videos/<camera>.<mp4|avi|mov|mkv>`` decoded with OpenCV. Frame ``i``
-  is named ``f"{i:06d}"`` (as :func:`~topopose.capture.synth.synthesize` names its frames);
+  is named ``f"{i:06d}"`` (as :func:`~topopose.synth.capture.synthesize` names its frames);
   the frame rate and the frame count come from the files. The capture has as many frames as
   its **longest** video: frames beyond a shorter video's end, or that cannot be decoded (corrupt
   file), fail with the reason, the others are read normally.
@@ -25,7 +25,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..errors import InputError
+from topopose.errors import InputError
 
 VIDEO_EXTENSIONS = (".mp4", ".avi", ".mov", ".mkv")
 #: decode forward (grab) rather than seek when the wanted frame is at most this far ahead

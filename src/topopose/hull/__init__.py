@@ -1,7 +1,7 @@
 """Volumetric visual hull (thesis §2.3.2.2)."""
-from .volume import Volume
-from .carver import HullCarver
-from .hull import (visual_hull, fit_box, capture_box, grid_for_box, keep_largest_component,
+from topopose.hull.volume import Volume
+from topopose.geometry.carver import HullCarver
+from topopose.hull.hull import (visual_hull, fit_box, capture_box, grid_for_box, keep_largest_component,
                    fill_cavities, uses_soft_fusion)
 
 __all__ = ["Volume", "HullCarver", "visual_hull", "fit_box", "capture_box", "grid_for_box",

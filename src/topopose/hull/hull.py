@@ -43,10 +43,11 @@ import time
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from . import hull_kernels as K
-from .carver import HullCarver, camera_geometry, camera_intrinsics
-from .volume import Volume
+from topopose.errors import InputError
+from topopose.geometry import carver_kernels as CK
+from topopose.hull import hull_kernels as K
+from topopose.geometry.carver import HullCarver, camera_geometry, camera_intrinsics
+from topopose.hull.volume import Volume
 
 _FIT_RES = 32
 _SAMPLE = 32
@@ -163,9 +164,9 @@ def _coarse_shrink(cameras, masks, lo, hi, tolerance, res=_FIT_RES, intr=None, s
     misses = np.zeros(shape, dtype=np.int32)
     r = np.empty(tuple(shape) + (4,), dtype=np.int64)
     for q, m in enumerate(masks):
-        K.block_rects(geo, intr, q, 1.0, shape[0], shape[1], shape[2], 1, float(1 << 24), r)
+        CK.block_rects(geo, intr, q, 1.0, shape[0], shape[1], shape[2], 1, float(1 << 24), r)
         sat, fx, fy = _integral(m) if sats is None else sats[q]
-        inv = r[..., 0] == K.INVALID
+        inv = r[..., 0] == CK.INVALID
         h, w = m.shape
         x0 = np.clip(r[..., 0], 0, w - 1)
         x1 = np.clip(r[..., 2], 0, w - 1)
@@ -273,7 +274,7 @@ def _sampled_boxes(cap, tolerance) -> list:
 def uses_soft_fusion(cap) -> bool:
     """Whether the capture's silhouettes are probabilities fused by the soft hull (:mod:`.soft`,
     Franco & Boyer's occupancy grid) rather than hard masks carved by :func:`visual_hull`."""
-    from ..capture.background import SEQUENCE_METHODS
+    from topopose.capture.options import SEQUENCE_METHODS
 
     p = cap.options.get("silhouettes") or {}
     return (cap.masks is None and cap.options.get("source") in ("images", "videos")
@@ -282,8 +283,8 @@ def uses_soft_fusion(cap) -> bool:
 
 
 def _soft_table(cap, origin, vs, shape):
-    from ..capture.background import scaled_camera
-    from .soft import voxel_pixels
+    from topopose.capture.background import scaled_camera
+    from topopose.hull.soft import voxel_pixels
 
     key = ("soft_pix", tuple(np.round(np.asarray(origin) / vs, 6)), round(vs, 12), tuple(shape))
     if key not in cap.cache:
@@ -309,7 +310,7 @@ def _soft_carve(cap, pix, maps, shape):
     """Soft hull of one frame (:mod:`.soft`), opened by ``open3d``, and its bounding box."""
     from scipy import ndimage
 
-    from .soft import soft_carve
+    from topopose.hull.soft import soft_carve
 
     p = cap.options["silhouettes"]
     occ, n = soft_carve(pix, maps, shape, float(p["p_detect"]), float(p["p_false"]),
@@ -346,11 +347,11 @@ def _person_zone(cap, resolution, tolerance, name=None, masks=None) -> tuple:
     Pose2Sim recording 8–44 s; none more when the frame processed, ``name`` with its
     silhouettes ``masks``, is that frame), and the same whatever frames are processed, in
     whatever order."""
-    from ..capture.calibration import _UNITS
+    from topopose.capture.options import UNITS
 
     key = ("person_zone", resolution, tolerance)
     if key not in cap.cache:
-        unit = _UNITS.get(cap.units, 1.0)
+        unit = UNITS.get(cap.units, 1.0)
         m = float(cap.options["silhouettes"]["zone_margin"]) / unit * 2 / 3
         for f in cap.frames:
             try:
@@ -385,7 +386,7 @@ def capture_box(cap, tolerance: int = 0) -> tuple:
         return lo, hi
     if (cap.options.get("silhouettes") or {}).get("method") in (
             "sequence", "selfie", "sequence+selfie"):
-        from ..capture.background import subject_box
+        from topopose.capture.background import subject_box
 
         box = subject_box(cap)
         if box is not None:
@@ -515,7 +516,7 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
     soft = masks is None and uses_soft_fusion(cap)
     maps = None
     if soft:
-        from ..capture.background import foreground_maps
+        from topopose.capture.background import foreground_maps
         maps = foreground_maps(cap, name)
         if refocus:
             masks = cap.silhouettes(name)

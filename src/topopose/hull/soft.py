@@ -29,8 +29,8 @@ import math
 
 import numpy as np
 
-from . import soft_kernels as K
-from .carver import camera_geometry, camera_intrinsics
+from topopose.hull import soft_kernels as K
+from topopose.geometry.carver import camera_geometry, camera_intrinsics
 
 
 def log_ratios(p_detect: float, p_false: float) -> np.ndarray:
@@ -44,7 +44,7 @@ def log_ratios(p_detect: float, p_false: float) -> np.ndarray:
 def voxel_pixels(cameras_small, origin, voxel_size, shape) -> np.ndarray:
     """(n, C) int32 flat index (row · w + column) of every voxel centre (C order) in each
     downscaled camera's map, -1 when outside the image or not validly in front of the lens
-    (the carver's projection, :func:`.hull_kernels._pixel`, in one kernel pass: 30× faster
+    (the carver's projection, :func:`topopose.geometry.carver_kernels._pixel`, in one kernel pass: 30× faster
     than projecting the voxel centres with NumPy, which took 3.7 s at 100³ on the Pose2Sim
     recording's first frame)."""
     geo = camera_geometry(cameras_small, origin, voxel_size)

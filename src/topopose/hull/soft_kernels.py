@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .hull_kernels import _pixel
+from topopose.geometry.carver_kernels import _pixel
 
 
 @njit(cache=True)
@@ -38,8 +38,8 @@ def fuse(pix, maps, offsets, llr, llr_out, bias, out, stats):
 @njit(cache=True)
 def grid_pixels(geo, intr, nx, ny, nz, out):
     """``out`` (nx·ny·nz, C) int32: flat pixel index of every voxel centre (C order) in each
-    camera (``geo``, ``intr`` packed as for :mod:`.hull_kernels`, row stride ``intr[c, 14]``),
-    -1 when not in the image (:func:`.hull_kernels._pixel`)."""
+    camera (``geo``, ``intr`` packed as for :mod:`topopose.geometry.carver_kernels`, row stride ``intr[c, 14]``),
+    -1 when not in the image (:func:`topopose.geometry.carver_kernels._pixel`)."""
     C = geo.shape[0]
     n = 0
     for i in range(nx):

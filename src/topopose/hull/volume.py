@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from topopose.errors import InputError
 
 
 @dataclass

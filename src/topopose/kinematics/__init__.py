@@ -4,18 +4,16 @@
 time-invariant connectivity of a moving articulated subject with no model given, and
 writes them as a model tree usable by ``topopose run``.
 """
-from .deform import Deformer
-from .learn import (LearnedStructure, joint_metrics, joint_positions, learn_model, learn_model_cli,
+from topopose.kinematics.deform import Deformer
+from topopose.kinematics.learn import (LearnedStructure, joint_metrics, joint_positions, learn_model, learn_model_cli,
                     learn_structure)
-from .reeb import (PERG, Atoms, Mesh, integral_geodesic, perg, prune_branches, reeb_levels,
+from topopose.kinematics.reeb import (PERG, Atoms, Mesh, integral_geodesic, perg, prune_branches, reeb_levels,
                    surface_mesh, tset_atoms, vertex_atoms)
-from .structure import (HUMAN_RULE, chains, coherence_rule, intervals, is_coherent, segment_chain,
+from topopose.kinematics.structure import (HUMAN_RULE, chains, coherence_rule, intervals, is_coherent, segment_chain,
                         velocity_correlation)
-from .walker import JOINTS, WalkerSequence, voxelize_capsules, walker_pose, walker_sequence
 
 __all__ = ["Deformer", "LearnedStructure", "joint_metrics", "joint_positions", "learn_model",
            "learn_model_cli", "learn_structure", "PERG", "Atoms", "Mesh", "integral_geodesic", "perg",
            "prune_branches", "reeb_levels", "surface_mesh", "tset_atoms", "vertex_atoms", "HUMAN_RULE",
            "chains", "coherence_rule", "intervals", "is_coherent", "segment_chain",
-           "velocity_correlation", "JOINTS", "WalkerSequence", "voxelize_capsules", "walker_pose",
-           "walker_sequence"]
+           "velocity_correlation"]

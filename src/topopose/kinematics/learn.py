@@ -43,11 +43,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..match.tree import Tree
-from .deform import Deformer, densify
-from .reeb import PERG, perg
-from .structure import (chains, coherence_rule, intervals, is_coherent, segment_chain,
+from topopose.errors import InputError
+from topopose.match.tree import Tree
+from topopose.kinematics.deform import Deformer, densify
+from topopose.kinematics.reeb import PERG, perg
+from topopose.kinematics.structure import (chains, coherence_rule, intervals, is_coherent, segment_chain,
                         chamfer, velocity_correlation)
 
 
@@ -117,7 +117,7 @@ class LearnedStructure:
         """The joint tree as a :class:`topopose.pose.Model` (every joint a part)."""
         if self.full is None:
             return None
-        from ..pose.model import Model
+        from topopose.pose.model import Model
 
         root = self.model.root if self.model is not None else None
         return Model(name=(self.model.name + "_joints") if self.model is not None else "joints",
@@ -187,7 +187,7 @@ def _name_parts(keys, key_edges, lengths, heights, up_ok):
     for (a, b), L in zip(key_edges, lengths):
         G.add_edge(a, b, length=L)
     try:
-        from ..pose.model import load_model
+        from topopose.pose.model import load_model
     except Exception:  # pose stage absent
         load_model = None
     best = None
@@ -529,7 +529,7 @@ def learn_structure(volumes, frames=None, *, up=(0.0, 0.0, 1.0), coherence="freq
     segments = [(u, v) for u, v, _ in full_edges]
 
     # the reduced model (homeomorphic reduction of the joint tree)
-    from ..pose.model import Model
+    from topopose.pose.model import Model
 
     red_edges = [(names[a], names[b], max(L, 1e-6)) for (a, b), L in zip(key_edges, seg_len)]
     cons = []
@@ -747,10 +747,10 @@ def learn_model(capture, resolution: int = 100, frames=None, *, progress: bool =
     if isinstance(capture, (list, tuple)):
         return learn_structure(capture, frames=frames, progress=progress, **kwargs)
     if isinstance(capture, (str, Path)):
-        from ..capture import load_capture
+        from topopose.capture import load_capture
 
         capture = load_capture(capture)
-    from ..hull import visual_hull
+    from topopose.hull import visual_hull
 
     names = [capture.frame_name(f) for f in (frames if frames is not None else capture.frames)]
     if len(names) < 3:
@@ -762,7 +762,7 @@ def learn_model(capture, resolution: int = 100, frames=None, *, progress: bool =
 
         it = tqdm(names, desc="visual hull", unit="frame")
     t = time.perf_counter()
-    from ..capture import prefetch
+    from topopose.capture import prefetch
 
     with prefetch(capture, names):           # decoding + silhouettes run ahead in a thread
         vols = [visual_hull(capture, f, resolution=resolution) for f in it]
@@ -775,7 +775,7 @@ def learn_model(capture, resolution: int = 100, frames=None, *, progress: bool =
 
 
 #: coherent intervals shorter than this give learned models whose parts may be mislabelled
-#: (issue 13: 6 random frames gave a model that swapped head and hand, yet frames "matched")
+#: (6 random frames can give a model that swaps head and hand, yet frames "match")
 MIN_COHERENT_FRAMES = 10
 
 
@@ -793,7 +793,7 @@ def learn_model_cli(args) -> int:
     out = Path(args.out)
     if out.suffix.lower() != ".toml":
         raise InputError(f"--out {out}: the model file must end in .toml")
-    from ..capture import load_capture
+    from topopose.capture import load_capture
 
     cap = load_capture(args.capture)
     synth = (cap.gt or {}).get("synth") or {} if isinstance(cap.gt, dict) else {}
@@ -803,7 +803,7 @@ def learn_model_cli(args) -> int:
                          "no motion to learn the rigid parts from; try `topopose synth DIR --motion walk`")
     frames = None
     if getattr(args, "frames", None):
-        from ..pose.run import select_frames
+        from topopose.batch.run import select_frames
 
         frames = select_frames(cap, args.frames)
     res = learn_model(cap, resolution=args.resolution, frames=frames, progress=sys.stderr.isatty(),
@@ -812,7 +812,7 @@ def learn_model_cli(args) -> int:
     if res.model is None:
         print(f"topopose: error: {res.message or 'no structure found'}; nothing written", file=sys.stderr)
         return 1
-    from .._paths import atomic_output
+    from topopose._paths import atomic_output
 
     with atomic_output(out, "--out") as tmp:
         res.model.save(tmp)

@@ -29,7 +29,7 @@ import scipy.ndimage as ndi
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 
-from ..errors import InputError
+from topopose.errors import InputError
 
 
 # --------------------------------------------------------------------------- mesh

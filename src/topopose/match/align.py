@@ -46,9 +46,9 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import InputError
-from . import align_kernels as K
-from .tree import Tree, as_tree
+from topopose.errors import InputError
+from topopose.match import align_kernels as K
+from topopose.match.tree import Tree, as_tree
 
 METHODS = {"alignment": K.ALPHA, "alpha": K.ALPHA, "ha": K.ETA, "eta": K.ETA, "aha": K.AHA}
 METHOD_NAMES = {K.ALPHA: "alignment", K.ETA: "ha", K.AHA: "aha"}
@@ -59,10 +59,10 @@ _NO_POS = np.zeros((0, 3))
 # other, and a contracted arc puts both ends on one data vertex. Without it the human model's
 # trunk (torso above crotch, model weight 0.074 of 1) is contracted for that little cost, the
 # shoulders' and the hips' junctions become one, and the four limbs are told apart by their
-# lengths alone: on the real recording (benchmarks/real_align.py, 4 cameras) hands went onto
+# lengths alone: on the real recording (studies/real_align.py, 4 cameras) hands went onto
 # the toes and feet onto a wrist or the arm ends (errors ~1 m, frames 3, 6, 7, 89, 94, 95).
 # Leaf arcs are unaffected (a deleted leaf arc is a missing part, not a contraction). Measured
-# in benchmarks/real_align.py (results/real_align.md, docs/real_alignment.md). The default of
+# in studies/real_align.py (docs/accuracy.md). The default of
 # FrameEstimator(keep_junctions=None); Matcher and align() keep the thesis' AHA (False).
 KEEP_CONSTRAINED_JUNCTIONS = True
 
@@ -744,7 +744,7 @@ class Matcher:
         the upper and lower end of every pattern arc (``p_*``, length m) and of every data path
         (``d_*``, length n) — returning an (m, n) array of non-negative costs added to γ when
         that pattern arc is resized to that data path (e.g. a thickness term,
-        :func:`topopose.pose.estimate.thickness_arc_cost`); +inf forbids. The distance then
+        :func:`topopose.frame.estimate.thickness_arc_cost`); +inf forbids. The distance then
         includes it.
         """
         tree = data if isinstance(data, Tree) else as_tree(data, name="data")
@@ -848,7 +848,7 @@ def align(pattern, data, method: str = "aha", pattern_root=None, data_root=None,
     m = _cached_matcher(pattern, method, cut, gamma, pattern_root, up, rtol)
     al = m.align(data, data_root=data_root)
     for c in m.betweenness:
-        from .betweenness import apply_betweenness
+        from topopose.match.betweenness import apply_betweenness
 
         al = apply_betweenness(al, m.pattern, as_tree(data, name="data"), c)
     return al

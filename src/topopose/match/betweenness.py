@@ -26,9 +26,9 @@ import math
 
 import numpy as np
 
-from ..errors import InputError
-from . import align_kernels as K
-from .tree import as_tree
+from topopose.errors import InputError
+from topopose.match import align_kernels as K
+from topopose.match.tree import as_tree
 
 RELATIONS = ("c", "p", "b", "u", "i")
 

@@ -14,7 +14,7 @@ from typing import Hashable, Iterable
 
 import numpy as np
 
-from ..errors import InputError
+from topopose.errors import InputError
 
 INF = math.inf
 

@@ -75,8 +75,8 @@ from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 
-from ..errors import InputError
-from ..match.tree import Constraint, Tree
+from topopose.errors import InputError
+from topopose.match.tree import Constraint, Tree
 
 BUILTIN = ("human", "hand", "dog", "spider")
 COORDINATE_KINDS = ("above", "below")
@@ -552,3 +552,18 @@ def load_model(name_or_path, constraints: bool = True) -> Model:
     if not constraints:
         m = m.without_constraints()
     return m
+
+
+def guess_model(pose, name=None):
+    """The model a poses file was made with: ``name``, or the built-in with the same parts."""
+    if name:
+        return load_model(name)
+    if pose.diagnostics.get("model") in BUILTIN:
+        return load_model(pose.diagnostics["model"])
+    keys = set(pose.parts)
+    for b in BUILTIN:
+        m = load_model(b)
+        mirror = {n for _, names in m.mirrors for n in names}
+        if set(m.parts) == keys or (keys & mirror and keys <= set(m.parts) | mirror):
+            return m
+    raise InputError("--model: the poses' parts match no built-in model; give --model FILE.toml")

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..match.tree import _jsonable
+from topopose.match.tree import _jsonable
 
-from ..errors import InputError
+from topopose.errors import InputError
 
 STATUSES = ("matched", "rejected", "failed")
 
@@ -196,7 +196,7 @@ def read_poses(path, strict: bool = True) -> list:
 def write_poses(path, poses, header: dict | None = None) -> None:
     """Write poses as JSON Lines, sorted by frame, after the optional ``header`` line
     (written to a temporary file renamed over ``path``: an existing file is never half-written)."""
-    from .._paths import atomic_output
+    from topopose._paths import atomic_output
 
     with atomic_output(path) as tmp, open(tmp, "w") as fh:
         if header is not None:

@@ -19,8 +19,8 @@ import math
 
 import numpy as np
 
-from ..errors import InputError
-from .tree import data_tree
+from topopose.errors import InputError
+from topopose.skeleton.tree import data_tree
 
 
 def ball_radius(hull: np.ndarray, voxel, start: int = 8) -> float:
@@ -74,7 +74,7 @@ def prune_bumps(skeleton: np.ndarray, hull: np.ndarray, ratio: float, origin=(0.
         Each round prunes at most one branch per junction (the shortest candidate), then the
         tree is rebuilt.
     squared : (ndarray, lo), optional
-        :func:`topopose.pose.tips.squared_distances` of ``hull`` if already computed: the
+        :func:`topopose.frame.tips.squared_distances` of ``hull`` if already computed: the
         radii are read there (equal to :func:`ball_radius`) instead of searched.
 
     Returns

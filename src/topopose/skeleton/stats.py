@@ -14,8 +14,8 @@ from time import perf_counter
 
 import numpy as np
 
-from ..errors import InputError
-from .tree import data_tree
+from topopose.errors import InputError
+from topopose.skeleton.tree import data_tree
 
 
 def tree_stats(capture, resolutions=(50, 100, 150), method="d6i1d", frames=None,
@@ -45,12 +45,12 @@ def tree_stats(capture, resolutions=(50, 100, 150), method="d6i1d", frames=None,
         "cycles": [...], "time_ms": {"hull": [...], "thin": [...], "tree": [...]},
         "failed": {frame: reason}}}``.
     """
-    from ..capture import Capture
-    from ..hull import visual_hull
-    from ..topology import border_constraint, thin
+    from topopose.capture import Capture
+    from topopose.hull import visual_hull
+    from topopose.topology import border_constraint, thin
 
     if not isinstance(capture, Capture):
-        from ..capture import load_capture
+        from topopose.capture import load_capture
 
         capture = load_capture(capture)
     frames = list(capture.frames if frames is None else frames)
@@ -164,7 +164,7 @@ def tree_stats_cli(capture_path, out=None, resolutions=(50, 100, 150), incomplet
         png = png.with_suffix(".png")
     table = stats_table(stats)
     print(table)
-    from .._paths import atomic_output
+    from topopose._paths import atomic_output
 
     with atomic_output(png, "--out") as tmp:
         stats_figure(stats, tmp, title=f"data trees of {path.name}")

@@ -81,9 +81,9 @@ from time import perf_counter
 
 import numpy as np
 
-from ..errors import InputError
-from ..match.tree import Tree
-from .tree_kernels import (B_CLASS, E_CLASS, I_CLASS, branch_contacts, find_voxels,
+from topopose.errors import InputError
+from topopose.match.tree import Tree
+from topopose.skeleton.tree_kernels import (B_CLASS, E_CLASS, I_CLASS, branch_contacts, find_voxels,
                            label_voxels, thick_blocks, voxel_graph)
 
 _CLASS_NAME = {E_CLASS: "E", B_CLASS: "B", I_CLASS: "I"}

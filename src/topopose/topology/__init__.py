@@ -7,9 +7,9 @@
 * :mod:`.neighbourhood`: the 26-bit neighbourhood order and the masks;
   :mod:`.tables`: the 2^26 look-up tables and their disk cache.
 """
-from .connectivity import config_of, is_isthmus_1d, is_isthmus_2d, is_simple, t6bar, t26
-from .neighbourhood import DIRECTION_NAMES, DIRECTIONS, OFFSETS, config_cube, config_index
-from .engine import METHODS, Thinning, border_constraint, thin, thinning
+from topopose.topology.connectivity import config_of, is_isthmus_1d, is_isthmus_2d, is_simple, t6bar, t26
+from topopose.topology.neighbourhood import DIRECTION_NAMES, DIRECTIONS, OFFSETS, config_cube, config_index
+from topopose.topology.engine import METHODS, Thinning, border_constraint, thin, thinning
 
 __all__ = [
     "thin", "thinning", "Thinning", "border_constraint", "METHODS",

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InputError
-from .neighbourhood import config_index
+from topopose.errors import InputError
+from topopose.topology.neighbourhood import config_index
 
 
 def config_of(volume, point=None) -> int:
@@ -42,14 +42,14 @@ def config_of(volume, point=None) -> int:
 
 def t26(volume, point=None) -> int:
     """T26(p, X): number of 26-components of X ∩ N26*(p) (thesis §4.1.1.3)."""
-    from .tables_kernels import expand26, t26_word
+    from topopose.topology.tables_kernels import expand26, t26_word
 
     return int(t26_word(expand26(np.int64(config_of(volume, point)))))
 
 
 def t6bar(volume, point=None) -> int:
     """T6(p, X̄): number of 6-components of G6(p, X̄) = N6²(p, X̄) (thesis §4.1.1.3)."""
-    from .tables_kernels import expand26, t6bar_word
+    from topopose.topology.tables_kernels import expand26, t6bar_word
 
     return int(t6bar_word(expand26(np.int64(config_of(volume, point)))))
 

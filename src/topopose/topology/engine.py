@@ -28,8 +28,8 @@ from itertools import product
 
 import numpy as np
 
-from ..errors import InputError
-from . import neighbourhood as nb
+from topopose.errors import InputError
+from topopose.topology import neighbourhood as nb
 
 METHODS = ("pkd6", "d6i1d", "d6u", "d6i2d", "ack3")
 
@@ -114,7 +114,7 @@ def _shape_offsets(shape):
     z-rows, the 6 face neighbours, and ACK3's edge and cube voxels (cached per shape:
     repeated calls on one grid skip this setup; the kernels only read them)."""
     rows = [(dx, dy, 0) for dx in (-1, 0, 1) for dy in (-1, 0, 1)]
-    ack = _ack_bits()
+    ack = nb.ack_bits()
     out = (_flat_offsets(np.concatenate([nb.OFFSETS, rows]), shape),
            _flat_offsets(nb.DIRECTIONS, shape), _flat_offsets(ack[9], shape),
            _flat_offsets(ack[12], shape))
@@ -136,82 +136,9 @@ def _bits():
     return opp, {"pkd6": (0, pk, pkn), "d6": (6, d6, d6n)}
 
 
-def _nonsimple2d() -> np.ndarray:
-    """R non-simple in 2D (8-adjacency object, 4-adjacency background) for the 256 sections."""
-    pos = [(u, v) for u in (-1, 0, 1) for v in (-1, 0, 1) if (u, v) != (0, 0)]
-    out = np.zeros(256, dtype=np.uint8)
-
-    def ncomp(cells, adj):
-        cells = set(cells)
-        comps = []
-        while cells:
-            stack = [cells.pop()]
-            comp = set(stack)
-            while stack:
-                a = stack.pop()
-                for b in list(cells):
-                    if adj(a, b):
-                        cells.discard(b)
-                        comp.add(b)
-                        stack.append(b)
-            comps.append(comp)
-        return comps
-
-    a8 = lambda a, b: max(abs(a[0] - b[0]), abs(a[1] - b[1])) == 1  # noqa: E731
-    a4 = lambda a, b: abs(a[0] - b[0]) + abs(a[1] - b[1]) == 1  # noqa: E731
-    for s in range(256):
-        obj = [pos[k] for k in range(8) if (s >> k) & 1]
-        bg = [pos[k] for k in range(8) if not (s >> k) & 1]
-        t8 = len(ncomp(obj, a8))
-        t4 = sum(1 for c in ncomp(bg, a4) if any(abs(u) + abs(v) == 1 for u, v in c))
-        out[s] = not (t8 == 1 and t4 == 1)
-    return out
-
-
-@lru_cache(maxsize=1)
-def _ack_bits():
-    """Clique geometry of ACK3 as neighbour bits (thesis §5.2.1, Def. 3; ALGORITHMS.md §4)."""
-    axes = np.eye(3, dtype=np.int64)
-    pos2d = [(u, v) for u in (-1, 0, 1) for v in (-1, 0, 1) if (u, v) != (0, 0)]
-    c2_a = np.zeros((6, 8), dtype=np.int64)
-    c2_b = np.zeros((6, 8), dtype=np.int64)
-    for d, a in enumerate(nb.DIRECTIONS):
-        ax = int(np.flatnonzero(a)[0])
-        e1, e2 = (axes[i] for i in range(3) if i != ax)
-        for k, (u, v) in enumerate(pos2d):
-            c2_a[d, k] = nb.bit_of(u * e1 + v * e2)
-            c2_b[d, k] = nb.bit_of(a + u * e1 + v * e2)
-    # 1-cliques: the 12 edges of p's cube
-    e_f1, e_f2, e_ed, e_u, e_v, e_oth, e_ooff = [], [], [], [], [], [], []
-    for ax in range(3):
-        b, c = (i for i in range(3) if i != ax)
-        for s1, s2 in product((1, -1), repeat=2):
-            f1, f2 = s1 * axes[b], s2 * axes[c]
-            ring = [np.zeros(3, np.int64), f1, f2, f1 + f2]
-            e_f1.append(nb.bit_of(f1))
-            e_f2.append(nb.bit_of(f2))
-            e_ed.append(nb.bit_of(f1 + f2))
-            e_u.append(sum(1 << nb.bit_of(r + axes[ax]) for r in ring))
-            e_v.append(sum(1 << nb.bit_of(r - axes[ax]) for r in ring))
-            e_oth.append([nb.bit_of(r) for r in ring[1:]])
-            e_ooff.append([r for r in ring[1:]])
-    # 0-cliques: the 8 unit cubes having p as a corner
-    k_bits, k_pairs, k_off = [], [], []
-    for sx, sy, sz in product((1, -1), repeat=3):
-        ex, ey, ez = sx * axes[0], sy * axes[1], sz * axes[2]
-        others = [ex, ey, ez, ex + ey, ex + ez, ey + ez, ex + ey + ez]
-        k_bits.append([nb.bit_of(o) for o in others])
-        k_off.append(others)
-        # voxels of the cube beyond the vertex along each axis
-        k_pairs.append([sum(1 << nb.bit_of(o) for o in others if o[ax] != 0) for ax in range(3)])
-    i64 = lambda x: np.array(x, dtype=np.int64)  # noqa: E731
-    return (c2_a, c2_b, _nonsimple2d(), i64(e_f1), i64(e_f2), i64(e_ed), i64(e_u), i64(e_v),
-            i64(e_oth), i64(e_ooff), i64(k_bits), i64(k_pairs), i64(k_off))
-
-
 def _bbox(data):
     """(lo, hi, rows): bounds of the object and which (x, y) rows hold object voxels."""
-    from .thinning_kernels import bounding_box, bounding_box_flat
+    from topopose.topology.thinning_kernels import bounding_box, bounding_box_flat
 
     u = data.view(np.uint8)
     if u.flags.c_contiguous:
@@ -246,7 +173,7 @@ def thinning(volume, method: str = "d6i1d", keep=None, *, border_list: bool = Tr
     lo, hi, rows_any = _bbox(data)
     if lo[0] > hi[0]:  # no object voxel
         return Thinning(out, kout, method, 0, 0, {"total": (time.perf_counter() - t0) * 1e3})
-    from .thinning_kernels import extract, fill_state_rows
+    from topopose.topology.thinning_kernels import extract, fill_state_rows
 
     kin = keep.view(np.uint8) if keep is not None else np.zeros((0, 0, 0), dtype=np.uint8)
     size = int((hi[0] - lo[0] + 3) * (hi[1] - lo[1] + 3) * (hi[2] - lo[2] + 3))
@@ -275,7 +202,7 @@ def thinning(volume, method: str = "d6i1d", keep=None, *, border_list: bool = Tr
         ack3_thin = _kernel("ack3", bool(lut), mode, specialized)
         counters = {}
         (c2_a, c2_b, ns2d, e_f1, e_f2, e_ed, e_u, e_v, e_oth, e_ooff, k_bits, k_pairs,
-         k_off) = _ack_bits()
+         k_off) = nb.ack_bits()
         btab = _byte_table("ack3") if lut else _no_tables().ravel()
         etab = _edge_table() if lut else _no_edge_table()
         iters, deleted = ack3_thin(vf, offs, opp, off6, tables, btab, etab, 1, bool(border_list), c2_a, c2_b,
@@ -300,7 +227,7 @@ def _kernel(kind, lut, mode, specialized=None):
 
 @lru_cache(maxsize=None)
 def _make_kernel(kind, lut, mode):
-    from . import thinning_kernels as tk
+    from topopose.topology import thinning_kernels as tk
 
     if kind == "ack3":
         return tk.make_ack3_thin(lut, mode)
@@ -308,19 +235,19 @@ def _make_kernel(kind, lut, mode):
 
 
 def _tables():
-    from .tables import load_tables
+    from topopose.topology.tables import load_tables
 
     return load_tables()
 
 
 def _byte_table(kind):
-    from .tables import load_byte_table
+    from topopose.topology.tables import load_byte_table
 
     return load_byte_table(kind)
 
 
 def _edge_table():
-    from .tables import load_ack3_edge_table
+    from topopose.topology.tables import load_ack3_edge_table
 
     return load_ack3_edge_table()
 

@@ -33,6 +33,9 @@ choice of that map does not matter — checked in the tests).
 """
 from __future__ import annotations
 
+from functools import lru_cache
+from itertools import product
+
 import numpy as np
 
 CENTRE = 13
@@ -213,3 +216,76 @@ def matches(index: int, templates) -> bool:
         if index & ones == ones and index & zeros == 0 and (xs == 0 or index & xs):
             return True
     return False
+
+
+def _nonsimple2d() -> np.ndarray:
+    """R non-simple in 2D (8-adjacency object, 4-adjacency background) for the 256 sections."""
+    pos = [(u, v) for u in (-1, 0, 1) for v in (-1, 0, 1) if (u, v) != (0, 0)]
+    out = np.zeros(256, dtype=np.uint8)
+
+    def ncomp(cells, adj):
+        cells = set(cells)
+        comps = []
+        while cells:
+            stack = [cells.pop()]
+            comp = set(stack)
+            while stack:
+                a = stack.pop()
+                for b in list(cells):
+                    if adj(a, b):
+                        cells.discard(b)
+                        comp.add(b)
+                        stack.append(b)
+            comps.append(comp)
+        return comps
+
+    a8 = lambda a, b: max(abs(a[0] - b[0]), abs(a[1] - b[1])) == 1  # noqa: E731
+    a4 = lambda a, b: abs(a[0] - b[0]) + abs(a[1] - b[1]) == 1  # noqa: E731
+    for s in range(256):
+        obj = [pos[k] for k in range(8) if (s >> k) & 1]
+        bg = [pos[k] for k in range(8) if not (s >> k) & 1]
+        t8 = len(ncomp(obj, a8))
+        t4 = sum(1 for c in ncomp(bg, a4) if any(abs(u) + abs(v) == 1 for u, v in c))
+        out[s] = not (t8 == 1 and t4 == 1)
+    return out
+
+
+@lru_cache(maxsize=1)
+def ack_bits():
+    """Clique geometry of ACK3 as neighbour bits (thesis §5.2.1, Def. 3; ALGORITHMS.md §4)."""
+    axes = np.eye(3, dtype=np.int64)
+    pos2d = [(u, v) for u in (-1, 0, 1) for v in (-1, 0, 1) if (u, v) != (0, 0)]
+    c2_a = np.zeros((6, 8), dtype=np.int64)
+    c2_b = np.zeros((6, 8), dtype=np.int64)
+    for d, a in enumerate(DIRECTIONS):
+        ax = int(np.flatnonzero(a)[0])
+        e1, e2 = (axes[i] for i in range(3) if i != ax)
+        for k, (u, v) in enumerate(pos2d):
+            c2_a[d, k] = bit_of(u * e1 + v * e2)
+            c2_b[d, k] = bit_of(a + u * e1 + v * e2)
+    # 1-cliques: the 12 edges of p's cube
+    e_f1, e_f2, e_ed, e_u, e_v, e_oth, e_ooff = [], [], [], [], [], [], []
+    for ax in range(3):
+        b, c = (i for i in range(3) if i != ax)
+        for s1, s2 in product((1, -1), repeat=2):
+            f1, f2 = s1 * axes[b], s2 * axes[c]
+            ring = [np.zeros(3, np.int64), f1, f2, f1 + f2]
+            e_f1.append(bit_of(f1))
+            e_f2.append(bit_of(f2))
+            e_ed.append(bit_of(f1 + f2))
+            e_u.append(sum(1 << bit_of(r + axes[ax]) for r in ring))
+            e_v.append(sum(1 << bit_of(r - axes[ax]) for r in ring))
+            e_oth.append([bit_of(r) for r in ring[1:]])
+            e_ooff.append([r for r in ring[1:]])
+    # 0-cliques: the 8 unit cubes having p as a corner
+    k_bits, k_pairs, k_off = [], [], []
+    for sx, sy, sz in product((1, -1), repeat=3):
+        ex, ey, ez = sx * axes[0], sy * axes[1], sz * axes[2]
+        others = [ex, ey, ez, ex + ey, ex + ez, ey + ez, ex + ey + ez]
+        k_bits.append([bit_of(o) for o in others])
+        k_off.append(others)
+        # voxels of the cube beyond the vertex along each axis
+        k_pairs.append([sum(1 << bit_of(o) for o in others if o[ax] != 0) for ax in range(3)])
+    i64 = lambda x: np.array(x, dtype=np.int64)  # noqa: E731
+    return (c2_a, c2_b, _nonsimple2d(), i64(e_f1), i64(e_f2), i64(e_ed), i64(e_u), i64(e_v),
+            i64(e_oth), i64(e_ooff), i64(k_bits), i64(k_pairs), i64(k_off))

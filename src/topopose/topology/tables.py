@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import neighbourhood as nb
+from topopose.topology import neighbourhood as nb
 
 TABLE_VERSION = 1  # bump when the encoding, the masks or the byte tables' layout change
 TABLE_SHAPE = (15, 1 << 23)
@@ -69,7 +69,7 @@ def cache_dir() -> Path:
 
 def generate_tables() -> np.ndarray:
     """Compute the 15 bit planes for all 2^26 configurations (no cache)."""
-    from .tables_kernels import build_tables
+    from topopose.topology.tables_kernels import build_tables
 
     pk, pkn, d6, d6n = _templates()
     dir_bits = np.array([nb.bit_of(d) for d in nb.DIRECTIONS], dtype=np.int64)
@@ -87,7 +87,7 @@ def load_tables() -> np.ndarray:
                 return np.asarray(arr)  # plain read-only ndarray view of the map
         except (OSError, ValueError):
             pass
-    from .._coldstart import say
+    from topopose._notices import say
 
     say("building the thinning look-up tables (first run only, ~10 s)…")
     tab = generate_tables()
@@ -119,10 +119,9 @@ def load_ack3_edge_table() -> np.ndarray:
                 return np.asarray(arr)
         except (OSError, ValueError):
             pass
-    from .engine import _ack_bits
-    from .tables_kernels import build_ack3_edge_table
+    from topopose.topology.tables_kernels import build_ack3_edge_table
 
-    _, _, _, e_f1, e_f2, e_ed, e_u, e_v = _ack_bits()[:8]
+    _, _, _, e_f1, e_f2, e_ed, e_u, e_v = nb.ack_bits()[:8]
     tab = build_ack3_edge_table(e_f1, e_f2, e_ed, e_u, e_v)
     _save(path, tab)
     tab.setflags(write=False)
@@ -163,14 +162,13 @@ def load_byte_table(kind: str) -> np.ndarray:
         except (OSError, ValueError):
             pass
     if kind == "ack3":
-        from .engine import _ack_bits
-        from .tables_kernels import build_ack3_byte_table
+        from topopose.topology.tables_kernels import build_ack3_byte_table
 
-        c2_a, c2_b, ns2d = _ack_bits()[:3]
+        c2_a, c2_b, ns2d = nb.ack_bits()[:3]
         dir_bits = np.array([nb.bit_of(d) for d in nb.DIRECTIONS], dtype=np.int64)
         tab = build_ack3_byte_table(load_tables(), c2_a, c2_b, ns2d, dir_bits)
     else:
-        from .tables_kernels import pack_byte_table
+        from topopose.topology.tables_kernels import pack_byte_table
 
         tab = pack_byte_table(load_tables(), np.array(BYTE_PLANES[kind], dtype=np.int64))
     _save(path, tab)

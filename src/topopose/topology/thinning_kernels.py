@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit
 from numba.cpython.unsafe.numbers import trailing_zeros
 
-from .tables_kernels import (
+from topopose.topology.tables_kernels import (
     PLANE_ISTHMUS1D,
     PLANE_ISTHMUS2D,
     PLANE_SIMPLE,

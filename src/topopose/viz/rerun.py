@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from topopose.errors import InputError
 
 
 def require_rerun():
@@ -28,9 +28,9 @@ def record_run(path, capture, poses, model="human", resolution=100, tolerance=No
     rr = require_rerun()
     from scipy import ndimage
 
-    from ..capture import Capture, load_capture
-    from ..pose.estimate import FrameEstimator
-    from .view import part_colours
+    from topopose.capture import Capture, load_capture
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.viz.view import part_colours
 
     cap = capture if isinstance(capture, Capture) else load_capture(capture)
     est = FrameEstimator(cap, model, resolution, tolerance=tolerance)
@@ -59,7 +59,7 @@ def record_run(path, capture, poses, model="human", resolution=100, tolerance=No
                     if t.positions.get(u) is not None and t.positions.get(w) is not None]
             if segs:
                 rec.log("data_tree", rr.LineStrips3D(segs, colors=[117, 107, 177]))
-        from ..pose.chirality import numbered
+        from topopose.sequence.chirality import numbered
         placed = {p: x for p, x in numbered(pose, m).parts.items() if x is not None}
         if placed:
             names = list(placed)

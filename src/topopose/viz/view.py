@@ -9,7 +9,9 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from ..errors import InputError
+from topopose.errors import InputError
+from topopose.geometry.axes import up_rotation
+from topopose.pose.model import guess_model
 
 
 def part_colours(parts) -> dict:
@@ -17,21 +19,6 @@ def part_colours(parts) -> dict:
 
     cmap = matplotlib.colormaps["tab10" if len(parts) <= 10 else "tab20"]
     return {p: cmap(i % cmap.N) for i, p in enumerate(parts)}
-
-
-def _up_rotation(up) -> np.ndarray:
-    """Rotation taking the capture's up vector to +z (matplotlib's vertical)."""
-    u = np.asarray(up, float)
-    u = u / np.linalg.norm(u)
-    z = np.array([0.0, 0.0, 1.0])
-    if np.allclose(u, z):
-        return np.eye(3)
-    if np.allclose(u, -z):
-        return np.diag([1.0, -1.0, -1.0])
-    v = np.cross(u, z)
-    s, c = np.linalg.norm(v), float(u @ z)
-    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + k + k @ k * ((1 - c) / s ** 2)
 
 
 def _surface(a: np.ndarray) -> np.ndarray:
@@ -121,10 +108,10 @@ def render_frame(path, model, pose, detail=None, cap=None, silhouettes=False, up
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    from ..pose.chirality import numbered
+    from topopose.sequence.chirality import numbered
     pose = numbered(pose, model)           # left_hand → hand_1: the model's part names
     colours = part_colours(model.parts)
-    R = _up_rotation(up)
+    R = up_rotation(up)
     ncam = len(cap.cameras) if (silhouettes and cap is not None) else 0
     srows = math.ceil(ncam / 4) if ncam else 0
     fig = plt.figure(figsize=(13, 7 + 2.6 * srows), dpi=100)
@@ -237,28 +224,11 @@ def render_frame(path, model, pose, detail=None, cap=None, silhouettes=False, up
     return Path(path)
 
 
-def guess_model(pose, name=None):
-    """The model a poses file was made with: ``name``, or the built-in with the same parts."""
-    from ..pose.model import BUILTIN, load_model
-
-    if name:
-        return load_model(name)
-    if pose.diagnostics.get("model") in BUILTIN:
-        return load_model(pose.diagnostics["model"])
-    keys = set(pose.parts)
-    for b in BUILTIN:
-        m = load_model(b)
-        mirror = {n for _, names in m.mirrors for n in names}
-        if set(m.parts) == keys or (keys & mirror and keys <= set(m.parts) | mirror):
-            return m
-    raise InputError("--model: the poses' parts match no built-in model; give --model FILE.toml")
-
-
 def view_cli(a) -> int:
     """``topopose view CAPTURE --poses POSES.jsonl --frame F --out PICTURE.png``."""
-    from ..capture import load_capture
-    from ..pose.estimate import FrameEstimator
-    from ..pose.pose import read_poses
+    from topopose.capture import load_capture
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.pose.pose import read_poses
 
     cap = load_capture(a.capture)
     frame = cap.frame_name(a.frame)
@@ -271,11 +241,11 @@ def view_cli(a) -> int:
     tol = pose.diagnostics.get("hull_tolerance")
     est = FrameEstimator(cap, model, res, tolerance=None if tol is None else int(tol))
     _, det = est.estimate(frame, detail=True)
-    from .._paths import atomic_output
+    from topopose._paths import atomic_output
 
     with atomic_output(a.out, "--out") as tmp:   # an existing picture is replaced only when done
         if getattr(a, "segmentation", False):
-            from ..pose.segment import segmentation_figure
+            from topopose.apps.segment import segmentation_figure
 
             segmentation_figure(tmp, cap, frame, model, det, up=cap.up_vector, pose=pose)
         else:

@@ -1,0 +1,3 @@
+from topopose.cli.main import main
+
+raise SystemExit(main())

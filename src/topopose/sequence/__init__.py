@@ -1,0 +1,1 @@
+"""What reads a run of frames: identities, left/right, consistency, the joint skeleton over time."""

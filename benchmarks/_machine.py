@@ -79,3 +79,21 @@ def apply_settings(module, pairs) -> dict:
         setattr(module, name.strip(), v)
         out[name.strip()] = value.strip()
     return out
+
+
+def option_settings(pairs) -> dict:
+    """``{name: value}`` from the ``name=value`` strings among ``pairs`` whose name is lower
+    case (an option of :class:`topopose.sequence.options.SequenceOptions`, a Python literal
+    each, e.g. ``despike=None``): a development study's peer of a default, passed as options."""
+    import ast
+
+    out = {}
+    for pair in pairs or ():
+        name, sep, value = pair.partition("=")
+        if not sep or not name.strip().islower():
+            continue
+        try:
+            out[name.strip()] = ast.literal_eval(value.strip())
+        except (ValueError, SyntaxError):
+            raise SystemExit(f"--set {pair!r}: {value.strip()!r} is not a Python literal") from None
+    return out

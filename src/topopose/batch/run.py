@@ -18,11 +18,13 @@ import json
 import math
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from topopose.batch.options import RunOptions
 from topopose.errors import InputError
 from topopose.frame.estimate import FrameEstimator
+from topopose.frame.options import EstimatorOptions
 from topopose.pose.model import load_model
 from topopose.pose.pose import Pose, read_poses, write_poses
 
@@ -122,7 +124,7 @@ def _build(spec) -> FrameEstimator:
 
     cap = spec["capture"] if "capture" in spec else load_capture(spec["capture_path"])
     model = model_from_dict(spec["model"], source="model")
-    return FrameEstimator(cap, model, spec["resolution"], spec["threshold"], **spec["options"])
+    return FrameEstimator(cap, model, spec["resolution"], spec["threshold"], spec["options"])
 
 
 def _worker_estimate(spec_key, spec, frame) -> dict:
@@ -151,18 +153,8 @@ def _progress(total, enabled, desc):
                 smoothing=0)
 
 
-#: ``run``'s default for ``centre`` (:mod:`topopose.frame.centre`: the limbs' curves onto the
-#: silhouettes' centre lines, recorded per frame for the kinematic fit): on — development
-#: MPJPE 8 cameras 3.63 → 3.44 cm, 4 phones (4p / 4pd) unchanged (benchmarks/centre_dev.py)
-CENTRE = True
-
-
-def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
-        workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
-        constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
-        tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None, track=True,
-        sides=True, skeleton=True, smooth=None, bvh=None, consistency=None,
-        support=None, support_test=False, trim=None, centre=None) -> RunResult:
+def run(capture, model="human", resolution=100, threshold=None, output=None,
+        options: RunOptions | None = None, **flat) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -172,6 +164,11 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     resolution, threshold : see :class:`FrameEstimator`
     output : path, optional
         JSON Lines output; each frame is appended and flushed as soon as it is done.
+    options : RunOptions, optional
+        Every option below, grouped (:mod:`topopose.batch.options`); ``**flat`` changes
+        options by the names below (:meth:`~topopose.batch.options.RunOptions.with_`; also
+        any :class:`~topopose.frame.options.EstimatorOptions` or
+        :class:`~topopose.sequence.options.SequenceOptions` field).
     frames : None, list or "a:b" / "f1,f2"
     workers : int
         > 1: run frames in that many worker processes (Dask ``LocalCluster``).
@@ -214,12 +211,12 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     trim : bool, optional
         Hands trimmed back out of the hull's phantom volume where the silhouettes' evidence
         ends (:mod:`topopose.frame.trim`, recorded per frame, applied after the identities;
-        default :data:`topopose.sequence.motion.TRIM`, on).
+        default on).
     centre : bool, optional
         Record per frame the limbs' curves moved onto the silhouettes' centre lines
         (:mod:`topopose.frame.centre`, ``diagnostics["centred"]``; the kinematic fit uses them,
-        :data:`topopose.sequence.kinematic_fit.CENTRED`); None (default): :data:`CENTRE`. Recorded
-        in the run's per-frame options (the poses file's header).
+        ``SkeletonFitOptions.centred``); default on. Recorded in the run's per-frame options
+        (the poses file's header).
     bvh : path, optional
         BVH export of the fitted skeleton (Blender).
     consistency : bool, "union", dict or None
@@ -253,6 +250,16 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     from topopose import _paths
     from topopose.capture import Capture, load_capture
 
+    o = (options or RunOptions()).with_(**flat)
+    frames, resume, progress, on_pose = o.frames, o.resume, o.progress, o.on_pose
+    support, support_test = o.support, o.support_test
+    workers, scheduler = o.parallel.workers, o.parallel.scheduler
+    trc, csv, c3d, bvh = o.exports.trc, o.exports.csv, o.exports.c3d, o.exports.bvh
+    eo = o.estimator
+    constraints, tolerance, gate = (eo.alignment.constraints, eo.hull.tolerance,
+                                    eo.confidence.gate)
+    seq = o.sequence
+    track, sides, skeleton, consistency = seq.track, seq.sides, seq.skeleton, seq.consistency
     # ---- every argument and output checked before any work or any write
     if workers is None or isinstance(workers, bool) or int(workers) < 1:
         raise InputError(f"--workers: must be at least 1, got {workers}")
@@ -264,12 +271,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     if gate is None:
         from topopose.frame.estimate import default_gate
         gate = default_gate(cap)
-    options = {"betweenness": betweenness, "relation": relation, "max_missing": max_missing,
-               "thinning": thinning, "tolerance": tolerance, "gate": gate}
-    if refocus:
-        options["refocus"] = True
-    if thickness is not None:
-        options["thickness"] = float(thickness)
+    eo = eo.with_(tolerance=tolerance, gate=gate)
     from topopose.sequence.motion import consistency_settings
     if consistency is None and not (track or sides or skeleton):
         consistency = False               # no sequence stage asked for: per-frame results
@@ -278,9 +280,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     except ValueError as e:
         raise InputError(str(e)) from None
     if support or (support is None and (judged or support_test)):   # read by them
-        options["support"] = True
-    if CENTRE if centre is None else centre:
-        options["centre"] = True
+        eo = eo.with_(support=True)
+    eo = eo.with_(centre=bool(o.centre))
     todo = select_frames(cap, frames)
     if c3d is not None:
         from topopose.pose.export import require_c3d
@@ -294,7 +295,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     exports = {k: _paths.writable_output(v, f"--{k}") for k, v in
                (("trc", trc), ("csv", csv), ("c3d", c3d), ("bvh", bvh)) if v is not None}
     out = _paths.writable_output(output, "--output") if output is not None else None
-    header = run_header(cap, m, resolution, threshold, options)
+    header = run_header(cap, m, resolution, threshold, run_settings(eo))
     done = {}
     partial = out.with_name(out.name + ".partial") if out is not None else None
     if out is not None and resume:
@@ -346,13 +347,13 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     try:
         with _notices.notices(note):
             if todo and (workers > 1 or scheduler):
-                _run_dask(cap, m, resolution, threshold, options, todo, workers, scheduler, finish)
+                _run_dask(cap, m, resolution, threshold, eo, todo, workers, scheduler, finish)
             elif todo:
                 from topopose.capture import prefetch
 
                 warm = warmup.start_warmup()     # first run: a helper process
                 try:
-                    est = FrameEstimator(cap, m, resolution, threshold, **options)
+                    est = FrameEstimator(cap, m, resolution, threshold, eo)
                     est.warmup = warm
                     with prefetch(cap, todo):        # decoding + silhouettes run ahead in a thread
                         for f in todo:
@@ -379,9 +380,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     # a resume with nothing to do keeps the file
     if (track or sides or skeleton or judged) and todo:
         from topopose.sequence.motion import process_sequence
-        motion = process_sequence(poses, m, cap.up_vector, track=track, sides=sides,
-                                  skeleton=skeleton, smooth=smooth, consistency=consistency,
-                                  trim=trim, fps=cap.fps)
+        motion = process_sequence(poses, m, cap.up_vector, replace(seq, consistency=consistency),
+                                  fps=cap.fps)
         poses = motion.poses
         if out is not None:
             write_poses(out, poses, header)
@@ -409,6 +409,31 @@ def _hash(obj) -> str:
     import hashlib
 
     return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def run_settings(options: EstimatorOptions) -> dict:
+    """The per-frame options a poses file's header records (``--resume`` refuses others):
+    alignment, thinning, hull tolerance and gate always; refocus, the thickness weight and
+    the support and centre records when on; any other option that is not its default (but
+    ``constraints``, which the model's hash records)."""
+    a, r = options.alignment, options.records
+    out = {"betweenness": a.betweenness, "relation": a.relation, "max_missing": a.max_missing,
+           "thinning": options.thinning.method, "tolerance": options.hull.tolerance,
+           "gate": options.confidence.gate}
+    if options.hull.refocus:
+        out["refocus"] = True
+    if a.thickness is not None:
+        out["thickness"] = float(a.thickness)
+    if r.support:
+        out["support"] = True
+    if r.centre:
+        out["centre"] = True
+    default = EstimatorOptions().flat()
+    for k, v in options.flat().items():
+        if k not in out and k not in ("refocus", "thickness", "support", "centre", "constraints") \
+                and v != default[k]:
+            out[k] = v
+    return out
 
 
 def run_header(cap, model, resolution, threshold, options) -> dict:

@@ -438,8 +438,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "silhouettes' evidence ends (default on: pose/trim.py)")
     s.add_argument("--centre", action=argparse.BooleanOptionalAction, default=None,
                    help="the limbs' skeleton curves moved onto the silhouettes' centre lines "
-                        "for the skeleton's fit, recorded per frame (pose/centre.py; default: "
-                        "topopose.batch.run.CENTRE)")
+                        "for the skeleton's fit, recorded per frame (default on)")
     s.add_argument("--consistency", action=argparse.BooleanOptionalAction, default=None,
                    help="sequences of one subject: 'matched' decided by agreement with the "
                         "neighbouring frames and the silhouettes the placed model explains "

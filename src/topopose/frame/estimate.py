@@ -18,6 +18,8 @@ from types import SimpleNamespace
 import numpy as np
 
 from topopose.errors import InputError
+from topopose.frame.options import DEFAULT as DEFAULT_OPTIONS
+from topopose.frame.options import EstimatorOptions
 from topopose.pose.model import Model, load_model
 from topopose.pose.pose import Pose
 
@@ -58,6 +60,10 @@ class FrameEstimator:
         A :class:`Model`, a built-in name or a TOML path.
     resolution : int
         Voxels along the longest side of the capture volume (thesis: 100 is the compromise).
+    options : EstimatorOptions, optional
+        Every option below, grouped by stage (:mod:`topopose.frame.options`; default: the
+        defaults below). ``**flat`` changes options by the names below
+        (:meth:`~topopose.frame.options.EstimatorOptions.with_`).
     threshold : float, optional
         T_d; default the model's own (None in the model: 2, i.e. reject nothing).
     constraints : bool
@@ -217,7 +223,7 @@ class FrameEstimator:
         Never contract a constrained model arc between two junctions (the human trunk, torso
         above crotch) — unless only the contracted alignment passes T_d (a data tree with one
         junction; flagged ``junctions_contracted`` in the alignment's diagnostics):
-        :data:`topopose.match.align.KEEP_CONSTRAINED_JUNCTIONS` (on) when None. Measured in
+        on when None or True. Measured in
         ``benchmarks/real_align.py``, ``docs/real_alignment.md``.
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
@@ -256,27 +262,18 @@ class FrameEstimator:
         fit applies them, nothing else changes). None (default): off.
     """
 
-    def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
-                 betweenness=True, max_missing=1, thinning="d6i1d", tolerance=None,
-                 relation=None, fill=True, repair=None, junction_centroid=None, refocus=False,
-                 min_share=0.8, gate=None, min_confidence=None, thickness=None,
-                 thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
-                 tip_fraction=1.0, spine=None, tip_anchor=None,
-                 head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
-                 short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
-                 hand_trunk=None, head_ball=None, keep_junctions=None, head_doubt=None,
-                 head_axis=None, junction_core=None, support=None, trim=None,
-                 centre=None):
+    def __init__(self, cap, model="human", resolution=100, threshold=None,
+                 options: EstimatorOptions | None = None, **flat):
         from topopose.match import Matcher
         from topopose.frame.confidence import min_confidence_for
 
-        self.min_share = float(min_share)
-        if support is not None:
-            self.support = bool(support)
-        if trim is not None:
-            self.trim = bool(trim)
-        if centre is not None:
-            self.centre = bool(centre)
+        self.options = o = (options or DEFAULT_OPTIONS).with_(**flat)
+        hu, th, a, pl, co, rec = (o.hull, o.thinning, o.alignment, o.placement, o.confidence,
+                                  o.records)
+        self.curves, self.leaves, self.arm_evidence = rec.curves, rec.leaves, rec.arm_evidence
+        self.support, self.trim, self.centre = bool(rec.support), bool(rec.trim), bool(rec.centre)
+        constraints, gate, min_confidence = a.constraints, co.gate, co.min_confidence
+        self.min_share = float(co.min_share)
         # the fitted confidence knows upright subjects only (its head features look up): without
         # the coordinate constraints (acrobatic poses) the default gate is off — on, it rejected
         # 105 of the 198 frames of benchmarks/applications.py's acrobatic sequence, every
@@ -284,10 +281,10 @@ class FrameEstimator:
         self.gate = ((default_gate(cap) and constraints) if gate is None else bool(gate))
         self.min_confidence = None if min_confidence is None else float(min_confidence)
         # per-part trust (pose/confidence.py judge_frame, DROP_PARTS): None/True on, False off
-        self.part_trust = part_trust is not False
+        self.part_trust = co.part_trust is not False
         # head doubt (pose/confidence.py head_doubt): None/True an unmatched head, "any" any
         # head, False off
-        self.head_doubt = True if head_doubt is None else head_doubt
+        self.head_doubt = True if co.head_doubt is None else co.head_doubt
 
         self.cap = cap
         self.model: Model = load_model(model, constraints=constraints)
@@ -299,32 +296,30 @@ class FrameEstimator:
             raise InputError(f"--resolution: {resolution} is too small (at least 8 voxels)")
         self.threshold = (float(threshold) if threshold is not None
                           else (self.model.threshold if self.model.threshold is not None else 2.0))
-        self.betweenness = betweenness
-        self.relation = relation
-        self.max_missing = int(max_missing)
-        self.thinning = thinning
-        self.tolerance = default_tolerance(cap) if tolerance is None else int(tolerance)
-        self.fill = bool(fill)
-        self.refocus = bool(refocus)
-        if repair is None:
-            repair = 1
-        self.repair = int(repair)
+        self.betweenness = a.betweenness
+        self.relation = a.relation
+        self.max_missing = int(a.max_missing)
+        self.thinning = th.method
+        self.tolerance = default_tolerance(cap) if hu.tolerance is None else int(hu.tolerance)
+        self.fill = bool(hu.fill)
+        self.refocus = bool(hu.refocus)
+        self.repair = 1 if hu.repair is None else int(hu.repair)
         self.pattern = self.model.pattern()
+        junction_centroid = pl.junction_centroid
         if junction_centroid is None:
             junction_centroid = self.model.complete
         adj = self.model.tree.adjacency()
         self.junctions = ({p for p in self.model.parts if len(adj[p]) > 1}
                           if junction_centroid else set())
-        self.junction_core = (JUNCTION_CORE.get(self.model.name, False) if junction_core is None
-                              else bool(junction_core))
+        self.junction_core = (JUNCTION_CORE.get(self.model.name, False)
+                              if pl.junction_core is None else bool(pl.junction_core))
         self.up = np.asarray(cap.up_vector, dtype=float)
-        from topopose.match.align import KEEP_CONSTRAINED_JUNCTIONS
         self.matcher = Matcher(self.pattern, method="aha", cut=False, up=self.up,
-                               keep_junctions=(KEEP_CONSTRAINED_JUNCTIONS if keep_junctions is None
-                                               else bool(keep_junctions)))
+                               keep_junctions=a.keep_junctions is not False)
         self.warmup = None      # first run: the helper process of topopose.batch.warmup.start_warmup
-        self.thickness_profile = (THICKNESS.get(self.model.name) if thickness_profile is None
-                                  else dict(thickness_profile))
+        self.thickness_profile = (THICKNESS.get(self.model.name) if a.thickness_profile is None
+                                  else dict(a.thickness_profile))
+        thickness, prune = a.thickness, th.prune
         if thickness is None:
             thickness = DEFAULT_THICKNESS_WEIGHT
         self.thickness = float(thickness) if self.thickness_profile else 0.0
@@ -337,21 +332,22 @@ class FrameEstimator:
         self._root_arc = nb[0] if nb else None
         # a leaf that must continue the body axis (LEAF_AXIS): (leaf, junction, axis end, cos)
         rule = LEAF_AXIS.get(self.model.name)
-        cos = (rule[3] if rule else 0.0) if leaf_axis is None else float(leaf_axis)
+        cos = (rule[3] if rule else 0.0) if pl.leaf_axis is None else float(pl.leaf_axis)
         self.leaf_axis = (*rule[:3], cos) if rule and cos else None
-        self.tip_fraction = float(tip_fraction)
+        self.tip_fraction = float(pl.tip_fraction)
         # the head from the hull's highest thick point (pose/tips.py), for upright subjects
         rule = HEAD_FROM_HULL.get(self.model.name)
         frac = ((rule[2] if rule and any(c.kind == "above" and rule[0] in c.parts
                                           for c in self.model.constraints) else 0.0)
-                if head_from_hull is None else float(head_from_hull))
+                if pl.head_from_hull is None else float(pl.head_from_hull))
         self.head_from_hull = (rule[0], rule[1], frac) if rule and frac > 0 else None
         # leaf parts placed where their branch leaves the hull (pose/tips.py)
-        stems = set(tips or ())
+        stems = set(pl.tips or ())
         self.tips = [p for p in self.model.parts if len(adj[p]) == 1 and self.model.complete
                      and p.rstrip("_0123456789") in stems]
         # tips prolonged away from an anchor part (TIP_ANCHOR), where the hull does not place them
         from topopose.frame.tips import TIP_ANCHOR
+        tip_anchor = pl.tip_anchor
         if isinstance(tip_anchor, dict):
             self.tip_anchor = dict(tip_anchor)
         elif tip_anchor is None or tip_anchor is True:
@@ -360,40 +356,41 @@ class FrameEstimator:
                                if p not in placed}
         else:
             self.tip_anchor = {}
-        self.spine = _spine_option(self.model, spine)
+        self.spine = _spine_option(self.model, pl.spine)
         self.matched_distance = (MATCHED_DISTANCE.get(self.model.name, False)
-                                 if matched_distance is None else bool(matched_distance))
+                                 if a.matched_distance is None else bool(a.matched_distance))
         from topopose.frame.anatomy import CROTCH_DROP, TORSO_ON_TRUNK, TRUNK_BLEND
-        self.trunk = _rule_option(self.model, TORSO_ON_TRUNK, trunk, default=True)
+        self.trunk = _rule_option(self.model, TORSO_ON_TRUNK, pl.trunk, default=True)
+        trunk_blend = pl.trunk_blend
         if isinstance(trunk_blend, (int, float)) and not isinstance(trunk_blend, bool):
             rule = TRUNK_BLEND.get(self.model.name) if self.model.complete else None
             self.trunk_blend = (*rule[:4], float(trunk_blend)) if rule and trunk_blend else None
         else:
             self.trunk_blend = _rule_option(self.model, TRUNK_BLEND, trunk_blend, default=True)
-        self.crotch_drop = _rule_option(self.model, CROTCH_DROP, crotch_drop, default=True)
+        self.crotch_drop = _rule_option(self.model, CROTCH_DROP, pl.crotch_drop, default=True)
         self.placed_missing = (PLACED_MISSING.get(self.model.name, False)
-                               if placed_missing is None else bool(placed_missing))
+                               if a.placed_missing is None else bool(a.placed_missing))
         # a hand whose branch ends at the elbow (SHORT_ARM): (hands, torso, crotch, feet, ratio)
         rule = SHORT_ARM.get(self.model.name) if self.model.complete else None
-        ratio = (rule[4] if rule else 0.0) if short_arm is None else float(short_arm)
+        ratio = (rule[4] if rule else 0.0) if pl.short_arm is None else float(pl.short_arm)
         self.short_arm = (*rule[:4], ratio) if rule and ratio > 0 else None
         # a hand next to the trunk's core (HAND_ON_TRUNK): (hands, core, reach)
         from topopose.frame.anatomy import HAND_ON_TRUNK
         rule = HAND_ON_TRUNK.get(self.model.name) if self.model.complete else None
-        reach = (rule[2] if rule else 0.0) if hand_trunk is None else float(hand_trunk)
+        reach = (rule[2] if rule else 0.0) if pl.hand_trunk is None else float(pl.hand_trunk)
         self.hand_trunk = (*rule[:2], reach) if rule and reach > 0 else None
         # the head from the hull holds a head-sized ball (tips.HEAD_BALL): (ball, reach)
         from topopose.frame.tips import HEAD_BALL
         rule = HEAD_BALL.get(self.model.name)
-        ball = ((rule[0] if rule and len(cap.cameras) >= rule[3] else 0.0) if head_ball is None
-                else float(head_ball))
+        ball = ((rule[0] if rule and len(cap.cameras) >= rule[3] else 0.0)
+                if pl.head_ball is None else float(pl.head_ball))
         self.head_ball = ((ball, *(rule[1:3] if rule else (1.5, 1.5))) if ball > 0 else None)
         # without coordinate constraints: the head from the hull along the body's own axis
         # (tips.HEAD_AXIS): (head, anchor, lower end, min_fraction, max_shift)
         from topopose.frame.tips import HEAD_AXIS
         rule = HEAD_AXIS.get(self.model.name) if self.model.complete else None
         on = (not any(c.kind == "above" and rule[0] in c.parts for c in self.model.constraints)
-              if head_axis is None and rule else bool(head_axis))
+              if pl.head_axis is None and rule else bool(pl.head_axis))
         self.head_axis = tuple(rule) if rule and on else None
 
     def arc_cost(self, vol, data, radii=None):
@@ -404,19 +401,6 @@ class FrameEstimator:
         return thickness_arc_cost(vertex_radii(vol, data, self.thickness_reach, radii),
                                   self.thickness_profile, self.thickness,
                                   root=self.model.root, root_arc=self._root_arc)
-
-    curves = True    # record the skeleton curve of each matched arc (pose.curves)
-    leaves = True    # record the data tree's unmatched leaves (pose.track: snapping)
-    arm_evidence = True   # record the hull's remainder when a limb is unplaced (pose.unseen)
-    # record the silhouette the placed model leaves unexplained (pose.support; used by
-    # ``run --consistency``, which turns it on)
-    support = False
-    # record the hands' curves trimmed out of the hull's phantom volume (pose.trim; applied by
-    # the sequence stage, nothing else changes)
-    trim = True
-    # record the limbs' curves moved onto the silhouettes' centre lines (pose.centre; applied
-    # by the kinematic fit, nothing else changes)
-    centre = False
 
     # ------------------------------------------------------------------ stages
     def hull(self, frame):
@@ -535,7 +519,7 @@ class FrameEstimator:
             al = self.matcher.align(data, data_root=data_root, arc_cost=arc_cost)
             thick = matched_arc_cost(al, arc_cost)
             if self.matcher.contractible is not None:
-                # KEEP_CONSTRAINED_JUNCTIONS: the trunk contracted only when that alone passes T_d
+                # keep_junctions: the trunk contracted only when that alone passes T_d
                 def judged(a, t):
                     return a.distance - t - (missing_cost(self.pattern, a)
                                              if self.matched_distance else 0.0)
@@ -1334,10 +1318,12 @@ def _touches_border(a: np.ndarray) -> bool:
                 or a[:, :, 0].any() or a[:, :, -1].any())
 
 
-def estimate_pose(cap, frame, model="human", resolution=100, threshold=None, *,
-                  constraints=True, betweenness=True, max_missing=1, thinning="d6i1d",
-                  tolerance=None) -> Pose:
+def estimate_pose(cap, frame, model="human", resolution=100, threshold=None,
+                  options: EstimatorOptions | None = None, **flat) -> Pose:
     """Estimate the pose of one frame (thesis §12.1, Fig. 12.8).
+
+    ``options`` (:class:`~topopose.frame.options.EstimatorOptions`) and ``**flat`` (options
+    by :class:`FrameEstimator` parameter name, e.g. ``constraints=False``) as there.
 
     For many frames build one :class:`FrameEstimator` (or use :func:`topopose.run`): it
     reuses the model precomputation and the hull's projection tables.
@@ -1349,7 +1335,4 @@ def estimate_pose(cap, frame, model="human", resolution=100, threshold=None, *,
     >>> pose = tp.estimate_pose(cap, "000012", "human")              # doctest: +SKIP
     >>> pose.status, pose.parts["head"]                              # doctest: +SKIP
     """
-    est = FrameEstimator(cap, model, resolution, threshold, constraints=constraints,
-                         betweenness=betweenness, max_missing=max_missing, thinning=thinning,
-                         tolerance=tolerance)
-    return est.estimate(frame)
+    return FrameEstimator(cap, model, resolution, threshold, options, **flat).estimate(frame)

@@ -12,31 +12,31 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    along the trunk and away from its mirror partner by the declared fractions of the trunk.
    A joint at a part (``at = 0``, or ``at = 1`` without ``beyond``) whose arc has no curve in
    the frame (the far part missing, e.g. no head) is at that part. The trunk's curves and the
-   joints beside them move back by :data:`SPINE_BACK` × the frame's spine shift (the spine
+   joints beside them move back by ``SkeletonFitOptions.spine`` × the frame's spine shift (the spine
    lies behind the medial axis, :func:`frame_curves`); a joint with a ``width`` (hips) sits
    beside its arc's junction by ``width`` × the hull radius (the sequence's median); a joint
    with an ``at_raised`` (elbows, wrists) is there when its limb is raised, a raised arm's
-   shoulder lower by :data:`RAISED_SHOULDER`; a hanging arm's shoulder is the hull's
+   shoulder lower by ``SkeletonFitOptions.raised_shoulder``; a hanging arm's shoulder is the hull's
    (``diagnostics["hull_shoulders"]``: the trunk's cross-section below the neck,
-   :func:`topopose.frame.unseen.hull_shoulders`; :data:`SEEN_HULL_SHOULDER`). A bent limb's
+   :func:`topopose.frame.unseen.hull_shoulders`; ``SkeletonFitOptions.seen_hull_shoulder``). A bent limb's
    middle joint (elbow, wrist, knee, ankle) is at its curve's bend (:func:`bend_joints`,
-   :data:`BEND`). The knees are then placed by their distance from the leg curve's far end
-   (sequence stage, :func:`from_end`, :data:`FROM_END`): a 4-camera hull's leg junction
+   ``SkeletonFitOptions.bend``). The knees are then placed by their distance from the leg curve's far end
+   (sequence stage, :func:`from_end`, ``SkeletonFitOptions.from_end``): a 4-camera hull's leg junction
    wanders, the foot end does not. A hanging arm's elbow and wrist then move half-way to
    their places by the sequence's bone lengths from the shoulder along the curve
-   (:func:`from_start`, :data:`FROM_START`): the arm's curve ends short where the masks lose
+   (:func:`from_start`, ``SkeletonFitOptions.from_start``): the arm's curve ends short where the masks lose
    the hand, and its start slides with the chest junction. The tips' targets are corrected
    for the thinned branch end (sequence stage, :func:`tip_targets`): the toe turned away from
-   the shank (:data:`TIP_TURN`), the fingertip moved out along the hand (:data:`TIP_STRETCH`).
+   the shank (``SkeletonFitOptions.tip_turn``), the fingertip moved out along the hand (``SkeletonFitOptions.tip_stretch``).
    A joint declared with a ``girdle`` (the neck with the shoulders) and that mirror pair are
    then placed as one symmetric rigid body (sequence stage, :func:`girdle_targets`,
-   :data:`GIRDLE`).
-2. **Bone lengths** — each bone's :data:`BONE_QUANTILE` percentile over the matched frames of
+   ``SkeletonFitOptions.girdle``).
+2. **Bone lengths** — each bone's ``SkeletonFitOptions.quantile`` percentile over the matched frames of
    the initial placement, a mirror pair's bones (``elbow_1``, ``elbow_2``) sharing one length;
    constant over the sequence; a ``slide`` bone (the neck's) at its median
-   (:data:`SLIDE_QUANTILE`: its length varies with the junction, no curve cuts it short), a
-   shoulder's bone from the junction at :data:`SHOULDER_QUANTILE` (with
-   :data:`SLIDE` on, off by default, a joint declared
+   (``SkeletonFitOptions.slide_quantile``: its length varies with the junction, no curve cuts it short), a
+   shoulder's bone from the junction at ``SkeletonFitOptions.shoulder_quantile`` (with
+   ``SkeletonFitOptions.slide`` on, off by default, a joint declared
    ``slide`` — the neck: its parent, the chest, is the skeleton curves' junction, which slides
    along the spine — takes each frame's initial-placement length, :func:`frame_lengths`).
 3. **Fit** — per matched frame, the root at its initial placement (the model root part) and one
@@ -49,9 +49,9 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    placements and the chains fitted again (``ROOT_STEPS``). An arc with neither a curve nor a
    placed joint in the frame keeps the bone directions of the last fitted frame when that is
    at most ``HOLD_FRAMES`` (5) before and the same motion (``_continues``) and a frame placed
-   the joint at most ``HOLD_AGE`` (8) frames before, else takes a rest pose
+   the joint at most ``GapOptions.hold_age`` (8) frames before, else takes a rest pose
    (:func:`rest_fill`: a limb merged with the body hangs along the trunk, an arm's shoulder
-   opposite its mate raised :data:`HELD_SHOULDER`, its forearm folded up and across the
+   opposite its mate raised ``GapOptions.held_shoulder``, its forearm folded up and across the
    trunk's front); its joints are
    listed in ``diagnostics["held_joints"]``, so a frame that lost one part still has a
    skeleton. On unrelated random poses the last frame's arm was 11.6 cm off (median MPJPE of
@@ -59,12 +59,12 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    whose hand the per-frame stage left unplaced while its branch was matched (a short arm,
    a hand on the trunk's core, an untrusted hand: ``diagnostics["hand_hints"]``, the branch's
    curve) is then bent to reach the hint's end with its wrist (:func:`hint_fill`,
-   :data:`HAND_HINTS`; ``fit_sequence(hints=False)``: off).
+   ``GapOptions.hints``; ``fit_sequence(hints=False)``: off).
    Before the hints, an unseen arm's elbow is turned about its shoulder → wrist line towards
    the hull the matched curves leave unexplained (``diagnostics["arm_evidence"]``,
-   :mod:`topopose.frame.unseen`, :data:`ARM_EVIDENCE`; ``fit_sequence(evidence=False)``: off).
+   :mod:`topopose.frame.unseen`, ``GapOptions.evidence``; ``fit_sequence(evidence=False)``: off).
    Last, an unseen arm moves half-way towards the nearer shoulder from the hull
-   (:func:`shoulder_fill`, :data:`HULL_SHOULDER`; ``fit_sequence(shoulders=False)``: off, for
+   (:func:`shoulder_fill`, ``GapOptions.shoulders``; ``fit_sequence(shoulders=False)``: off, for
    the seen arms too).
 4. **Gaps** — stretches of at most ``max_gap`` unfitted frames between fitted ones are filled
    by interpolating the root position and the bone directions (normalized linear), flagged
@@ -72,18 +72,18 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    (:func:`scipy.signal.savgol_filter`, window :data:`SMOOTH`: 9 frames at 25 frames/s, the
    same 0.36 s at the capture's rate, :func:`smooth_window`; 0: off) of the root and bone
    directions over runs of fitted frames of one continuing motion (:func:`motion_runs`:
-   consecutive frame numbers, each frame within :data:`SMOOTH_MOVE` of its neighbours' median,
+   consecutive frame numbers, each frame within ``SmoothingOptions.move`` of its neighbours' median,
    broken where the motion jumps and stays — a capture of unrelated poses makes no run),
    flagged ``diagnostics["smoothed"]``; the bones keep their constant lengths. Before the
    filter a bone direction far off its window's median (one frame's limb on a wrong branch)
-   is replaced by that median (:func:`despike`, a Hampel filter, :data:`DESPIKE`), listed in
+   is replaced by that median (:func:`despike`, a Hampel filter, ``SmoothingOptions.despike``), listed in
    ``diagnostics["despiked_joints"]``. Each frame
    records its distance from its neighbours' median (``diagnostics["neighbour_distance"]``,
-   :func:`neighbourhood`), ``diagnostics["temporal_outlier"]`` when it is :data:`SMOOTH_MOVE`
+   :func:`neighbourhood`), ``diagnostics["temporal_outlier"]`` when it is ``SmoothingOptions.move``
    or more: a skeleton off the motion around it, most likely wrong. A stretch of at most
    ``max_gap`` such frames between two frames of one motion is *bridged*: its joints and
    parts interpolated from them as a gap, flagged ``interpolated`` too
-   (:func:`bridge_outliers`, :func:`bridged_parts`, :data:`BRIDGE`).
+   (:func:`bridge_outliers`, :func:`bridged_parts`, ``SmoothingOptions.bridge``).
 """
 from __future__ import annotations
 
@@ -96,7 +96,10 @@ from scipy.optimize import least_squares
 from topopose.errors import InputError
 from topopose.frame.curves import arc_lengths, model_arcs
 from topopose.pose.model import part_stem
+from topopose.sequence.options import DEFAULT, SequenceOptions, SkeletonFitOptions
 from topopose.sequence.track import frame_index
+
+FIT, GAPS, SMOOTHING = DEFAULT.skeleton_fit, DEFAULT.gaps, DEFAULT.smoothing
 
 
 @dataclass
@@ -253,13 +256,13 @@ def _end_direction(c, s):
     return d / n if n > 0 else None
 
 
-SPINE_BACK = 0.15   # the trunk's joints moved back by this × the frame's spine shift (see
+# SkeletonFitOptions.spine = 0.15: the trunk's joints moved back by this × the frame's spine shift (see
                     # :func:`frame_curves`; development seeds 41–43 walks, 21–24 random, MPJPE
                     # median with the shoulders and hips moved too: 0 → 0.15 → 0.25 → 0.35:
                     # walks 5.47 → 5.31 → 5.31 → 5.41, random 7.34 → 7.12 → 7.22 → 7.13 cm)
 
 
-CENTRED = True     # the limbs' curves moved onto the silhouettes' centre lines when the frame
+# SkeletonFitOptions.centred = True: the limbs' curves moved onto the silhouettes' centre lines when the frame
                    # recorded them (``diagnostics["centred"]``, :mod:`.centre`)
 
 
@@ -278,7 +281,7 @@ def centred_curves(curves, offsets, limbs) -> dict:
     return out
 
 
-def frame_curves(pose, tree: KinematicTree, spine=None) -> dict:
+def frame_curves(pose, tree: KinematicTree, spine=None, fit: SkeletonFitOptions = FIT) -> dict:
     """The frame's skeleton curves, those of the trunk's arcs (arcs not ending at a limb, a
     ``[[mirror]]`` part: head, crotch) moved back by ``spine`` × ``diagnostics["spine_shift"]``
     (:mod:`topopose.frame.anatomy`: the hull's largest inscribed radius against the front the
@@ -286,13 +289,13 @@ def frame_curves(pose, tree: KinematicTree, spine=None) -> dict:
     hull's middle, the rig's spine, neck, pelvis, shoulder and hip joints lie behind it: after
     the fit they sat 2–4 cm in front of the truth (development seeds, medians: neck 2.5–3.7,
     pelvis 2.7–4.4, hips 3.5–3.7 cm). The joints with an ``offset`` (shoulders, hips) move
-    back by the same amount (:func:`initial_placement`). With :data:`CENTRED`, the limbs'
+    back by the same amount (:func:`initial_placement`). With ``SkeletonFitOptions.centred``, the limbs'
     curves first moved onto the silhouettes' centre lines the frame recorded
     (``diagnostics["centred"]``, :func:`centred_curves`)."""
     curves = pose.diagnostics.get("curves") or {}
-    if CENTRED and pose.diagnostics.get("centred"):
+    if fit.centred and pose.diagnostics.get("centred"):
         curves = centred_curves(curves, pose.diagnostics["centred"], tree.limbs)
-    spine = SPINE_BACK if spine is None else spine
+    spine = fit.spine if spine is None else spine
     s = pose.diagnostics.get("spine_shift")
     if not spine or s is None or not tree.limbs:
         return curves
@@ -305,7 +308,7 @@ def _beside(tree, j) -> bool:
     return any(tree.offset[j]) or bool(tree.width and any(tree.width[j]))
 
 
-RAISED_SHOULDER = 0.08  # trunk lengths: a raised arm's shoulder (its hand past the chest junction
+# SkeletonFitOptions.raised_shoulder = 0.08: trunk lengths: a raised arm's shoulder (its hand past the chest junction
                         # along the trunk, as ``at_raised``) moved down the trunk by this; None
                         # or 0: off. Its curve rises with the arm, and the offsets calibrated on
                         # all arms left it high: after the fit the seen shoulders of raised arms
@@ -316,7 +319,7 @@ RAISED_SHOULDER = 0.08  # trunk lengths: a raised arm's shoulder (its hand past 
                         # 4.85 cm either way
 
 
-SEEN_HULL_SHOULDER = True  # a hanging seen arm's shoulder (its hand below the chest junction
+# SkeletonFitOptions.seen_hull_shoulder = True: a hanging seen arm's shoulder (its hand below the chest junction
                            # along the trunk) at the nearer of the frame's shoulders from the
                            # hull (``diagnostics["hull_shoulders"]``: the trunk's cross-section
                            # below the neck, :func:`topopose.frame.unseen.hull_shoulders`) when
@@ -339,7 +342,7 @@ SEEN_HULL_SHOULDER = True  # a hanging seen arm's shoulder (its hand below the c
                            # (``real_motion.py``) 10.6 → 10.3 cm, shoulders 15.6 → 13.2 cm
 HANG_COS = 0.9     # a limb hangs when its curve (junction → end) lies within arccos(0.9) = 26°
                    # of straight down the trunk (see HANGING_WIDTH)
-HANGING_WIDTH = (-0.15, 0.7)  # hull radii (along the trunk, outward): the ``width`` of a joint
+# SkeletonFitOptions.hanging_width = (-0.15, 0.7): hull radii (along the trunk, outward): the ``width`` of a joint
                    # whose limb hangs (:func:`_hangs`; a standing leg) instead of the model's
                    # (``human``: [-0.3, 0.7], a raised or spread leg); None: the model's always.
                    # The hips sat 2.6 cm low and 2.4 cm inside on walks, 0.7 cm high and 3.0 cm
@@ -383,23 +386,23 @@ def _hangs(c, ax) -> bool:
 
 
 def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
-                      hull=None) -> np.ndarray:
+                      hull=None, fit: SkeletonFitOptions = FIT) -> np.ndarray:
     """(n_joints, 3) joints at their relative arc length on the frame's curves (NaN: no curve);
     the trunk's curves and the offset joints moved back by ``spine`` (default
-    :data:`SPINE_BACK`) × the frame's spine shift (:func:`frame_curves`). A joint with a
+    ``SkeletonFitOptions.spine``) × the frame's spine shift (:func:`frame_curves`). A joint with a
     ``width`` (hips), when the hull radius is known (``radius``, else the length of the frame's
     spine shift) and its mirror mate placed: at its arc's start (the junction) moved along the
     trunk and outward (the direction from its mate's curve point to its own, across the trunk)
-    by ``width`` (:data:`HANGING_WIDTH` when its limb hangs) × the radius — the hull's largest inscribed radius scales with girth, the
+    by ``width`` (``SkeletonFitOptions.hanging_width`` when its limb hangs) × the radius — the hull's largest inscribed radius scales with girth, the
     trunk's length does not (development seeds: half shoulder width / radius 1.16–1.46 over
     four builds, / trunk length 0.39–0.76); otherwise as its ``offset`` says. A joint with an
     ``at_raised`` (elbows, wrists) is there instead of ``at`` when its arc's end part lies past
     its first part along the trunk (a hand above the chest junction: the arm's curve runs
     up through the shoulder's mass before the arm leaves it); such a raised arm's joint with
-    an offset (its shoulder) moves down the trunk by :data:`RAISED_SHOULDER` trunk lengths.
+    an offset (its shoulder) moves down the trunk by ``SkeletonFitOptions.raised_shoulder`` trunk lengths.
     A hanging arm's shoulder (hand below the chest junction) is the nearer of the frame's
     ``diagnostics["hull_shoulders"]`` when within :data:`HULL_GATE` (``hull``, default
-    :data:`SEEN_HULL_SHOULDER`)."""
+    ``SkeletonFitOptions.seen_hull_shoulder``)."""
     curves = frame_curves(pose, tree, spine)
     out = np.full((len(tree.names), 3), np.nan)
     used = np.full(len(tree.names), np.nan)      # the relative arc length each joint took
@@ -415,7 +418,7 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
             x = pose.parts.get(u if t == 0.0 else v)  # when the arc's far part is missing)
             if x is not None:
                 out[j] = np.asarray(x, dtype=float)
-    out = bend_joints(out, used, curves, tree)     # a bent limb's middle joints at the bend
+    out = bend_joints(out, used, curves, tree, fit.bend)     # a bent limb's middle joints at the bend
     if tree.trunk and any(_beside(tree, j) for j in range(len(tree.names))):
         a, b = (pose.parts.get(x) for x in tree.trunk)
         if a is None or b is None:
@@ -441,27 +444,27 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
                 n = np.linalg.norm(lat)
                 if n > 0:
                     w_al, w_out = tree.width[j]
-                    if HANGING_WIDTH is not None and _hangs(c, ax):
-                        w_al, w_out = HANGING_WIDTH
+                    if fit.hanging_width is not None and _hangs(c, ax):
+                        w_al, w_out = fit.hanging_width
                     moved[j] = (np.asarray(c, float)[0] + w_al * radius * ax
                                 + w_out * radius * lat / n)
                     continue
             moved[j] = out[j] + along * S * ax
-            if RAISED_SHOULDER and tree.arc[j][1] in tree.limbs and \
+            if fit.raised_shoulder and tree.arc[j][1] in tree.limbs and \
                     tree.arc[j][0] == tree.trunk[1] and _raised(pose, tree, j):
-                moved[j] -= RAISED_SHOULDER * S * ax              # a raised arm's shoulder
+                moved[j] -= fit.raised_shoulder * S * ax              # a raised arm's shoulder
             if outward and len(mates) == 1 and not np.isnan(out[mates[0]]).any():
                 lat = out[j] - out[mates[0]]
                 lat -= np.dot(lat, ax) * ax
                 n = np.linalg.norm(lat)
                 if n > 0:
                     moved[j] += outward * S * lat / n
-        spine = SPINE_BACK if spine is None else spine
+        spine = fit.spine if spine is None else spine
         if spine and pose.diagnostics.get("spine_shift") is not None and tree.limbs:
             moved[[_beside(tree, j) for j in range(len(tree.names))]] += spine * np.asarray(
                 pose.diagnostics["spine_shift"], float)
         H = pose.diagnostics.get("hull_shoulders")
-        if (SEEN_HULL_SHOULDER if hull is None else hull) and H is not None:
+        if (fit.seen_hull_shoulder if hull is None else hull) and H is not None:
             H = np.asarray(H, float).reshape(-1, 3)
             for j in range(len(tree.names)):          # a hanging arm's shoulder from the hull
                 u, v = tree.arc[j]
@@ -489,7 +492,7 @@ BEND_DEPTH = 0.2   # a limb's middle joint (elbow, wrist, knee, ankle) at its cu
              # farthest point wanders along it and drags the bone lengths and knees off); with
              # the bone lengths from the placement without it 5.50 / 4.36 (not kept: the same);
              # the joint pushed out of the corner by 1.5 / 3 cm: 5.52 / 5.61
-BEND = None  # off by default (set BEND = BEND_DEPTH to switch it on). Held out with 8 cameras it
+# SkeletonFitOptions.bend = None: off by default (``bend=BEND_DEPTH`` switches it on). Held out with 8 cameras it
              # adds nothing to the median (random poses 5.3 cm either way; elbows 5.5 → 5.2, ankles
              # 3.4 → 3.1 cm), and on the real 4-camera recording (benchmarks/real_motion.py) it
              # hurts: all frames 8.4 → 8.9 cm, the right frames 7.7 either way — a noisy 4-camera
@@ -504,7 +507,7 @@ def bend_joints(out, used, curves, tree: KinematicTree, bend=None) -> np.ndarray
     its one child on the same arc (elbow between shoulder and wrist, wrist between elbow and
     fingertip, knee between hip and ankle, ankle between knee and toe). Between the curve points of its parent and child (their relative arc lengths in
     ``used``), the curve's point farthest from the chord joining those two points is the bend;
-    when it lies farther than ``bend`` (default :data:`BEND`) × the chord's length from the
+    when it lies farther than ``bend`` (default ``SkeletonFitOptions.bend``) × the chord's length from the
     chord, the joint is placed there — a bent limb's curve turns at the joint, and the fixed
     relative arc length ``at`` falls short of or past the turn.
 
@@ -514,14 +517,13 @@ def bend_joints(out, used, curves, tree: KinematicTree, bend=None) -> np.ndarray
     used : (n,) the relative arc length each joint took (NaN: none)
     curves : part → (k, 3) curve of the arc ending at the part
     tree : KinematicTree
-    bend : the least depth of the bend over the chord (None: :data:`BEND`, off by default;
+    bend : the least depth of the bend over the chord (None: ``SkeletonFitOptions.bend``, off by default;
         :data:`BEND_DEPTH` when on)
 
     Returns
     -------
     (n, 3) array, a copy of ``out``.
     """
-    bend = BEND if bend is None else bend
     out = out.copy()
     if not bend:
         return out
@@ -548,7 +550,7 @@ def bend_joints(out, used, curves, tree: KinematicTree, bend=None) -> np.ndarray
     return out
 
 
-FROM_END = {("foot", "knee"): 40}  # (limb end part's stem, joint base name) → percentile: that
+# SkeletonFitOptions.from_end = {("foot", "knee"): 40}: (limb end part's stem, joint base name) → percentile: that
     # middle joint placed by its distance from its curve's far end (the human's foot; not the
     # spider's legs, unmeasured), the reference length the percentile of the sequence's
     # leg-curve lengths (see from_end); {}: off (the fraction ``at`` from the junction). Issue 15,
@@ -557,11 +559,11 @@ FROM_END = {("foot", "knee"): 40}  # (limb end part's stem, joint base name) →
     # 10.44 / 8.85 / 3.44 cm (knees 7.5 / 7.4 / 2.5); percentile 30: 10.38 / 8.92 / 3.45; 40:
     # 10.40 / 8.81 / 3.45 (knees 6.2 / 5.4 / 2.6); 50: 10.53 / 8.72 / 3.45 (knees 6.0 / 5.8 /
     # 2.6); 60: 10.52 / 8.75 / 3.41 — each from the end alone; half-way to the place at ``at``
-    # (:data:`FROM_END_WEIGHT`), 40: 10.30 / 8.73 / 3.39 cm (knees 6.0 / 6.5 / 2.5), 50: 10.37 /
+    # (``SkeletonFitOptions.from_end_weight``), 40: 10.30 / 8.73 / 3.39 cm (knees 6.0 / 6.5 / 2.5), 50: 10.37 /
     # 8.78 / 3.40. Elbows from the hand's end as well: mixed (docs/tried.md).
 
 
-FROM_END_WEIGHT = 0.5   # the joint's arc length: this share of the one from the far end, the rest
+# SkeletonFitOptions.from_end_weight = 0.5: the joint's arc length: this share of the one from the far end, the rest
     # of the one at its fraction ``at`` (1: from the end alone). From the end alone the knees
     # improve where the junction drops and worsen where it does not (development seeds,
     # percentile 40, knees per sequence 4p 4.7 → 5.6, 9.1 → 5.5, 5.1 → 7.0 ...); MPJPE 4p / 4pd
@@ -587,9 +589,9 @@ def _limb_joints(tree: KinematicTree, keys) -> list:
 
 
 def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
-             weight=None) -> np.ndarray:
+             weight=None, fit: SkeletonFitOptions = FIT) -> np.ndarray:
     """``init`` with each ``ends`` joint ((its limb end part's stem, its base name) →
-    percentile, default :data:`FROM_END`) placed by its distance from its curve's far end, not
+    percentile, default ``SkeletonFitOptions.from_end``) placed by its distance from its curve's far end, not
     only at its fraction from the start.
 
     A limb's curve starts at the hull's junction, which wanders (a 4-camera hull's phantom
@@ -610,15 +612,15 @@ def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
     poses : the frames' poses (their curves)
     tree : KinematicTree
     spine : as :func:`frame_curves`
-    ends : (limb end part's stem, joint base name) → percentile (None: :data:`FROM_END`)
-    weight : the share of the place from the far end (None: :data:`FROM_END_WEIGHT`)
+    ends : (limb end part's stem, joint base name) → percentile (None: ``SkeletonFitOptions.from_end``)
+    weight : the share of the place from the far end (None: ``SkeletonFitOptions.from_end_weight``)
 
     Returns
     -------
     (n_frames, n_joints, 3) array, a copy of ``init``.
     """
-    ends = FROM_END if ends is None else ends
-    w = FROM_END_WEIGHT if weight is None else weight
+    ends = fit.from_end if ends is None else ends
+    w = fit.from_end_weight if weight is None else weight
     init = np.array(init, dtype=float, copy=True)
     key = [(part_stem(tree.arc[j][1]), b) for j, b in enumerate(tree.base)]
     js = _limb_joints(tree, ends)
@@ -650,7 +652,7 @@ def from_end(init, poses, tree: KinematicTree, spine=None, ends=None,
     return init
 
 
-FROM_START = {("hand", "elbow"), ("hand", "wrist")}  # (limb end part's stem, joint base
+# SkeletonFitOptions.from_start = {("hand", "elbow"), ("hand", "wrist")}: (limb end part's stem, joint base
     # name): those joints of a hanging limb (its end part below its first along the trunk)
     # also placed by the sequence's bone lengths from their parent (see from_start); set():
     # off. Issue 15, session 35: on the real recording the hanging left arm's curve ends 2–11
@@ -663,7 +665,7 @@ FROM_START = {("hand", "elbow"), ("hand", "wrist")}  # (limb end part's stem, jo
     # 9.75 / 9.27 → 4.16 / 3.64 / 9.55 / 9.28 cm. Not kept (docs/tried.md): weight 1 (4pd
     # 8.49: the fat hulls' bone lengths are 1.2–1.3 × the truth's), raised arms too, the
     # fingertips too, the knees and ankles (by arc length: the real recording 6.6 → 7.6 cm)
-FROM_START_WEIGHT = 0.5  # the joint goes this share of the way from its place at ``at`` to its
+# SkeletonFitOptions.from_start_weight = 0.5: the joint goes this share of the way from its place at ``at`` to its
     # place by the bone length (as FROM_END_WEIGHT; 0.7: 8 / 4p / 4pd 3.44 / 8.63 / 8.39 cm)
 REACH_PAST = 0.1   # m: a joint placed by its bone's length at most this far past its curve's
     # end (a hand lost in the masks shortens the arm's curve by a few cm; a curve much shorter
@@ -711,7 +713,7 @@ def _reach(c, s, x0, origin, length):
 
 
 def from_start(init, poses, tree: KinematicTree, L, joints=None, weight=None,
-               spine=None) -> np.ndarray:
+               spine=None, fit: SkeletonFitOptions = FIT) -> np.ndarray:
     """``init`` with each ``joints`` joint of a hanging limb (its end part below its first part
     along the trunk, :func:`_raised`) moved towards the point of its curve at its bone's
     length ``L`` from its parent (the parent placed first; the first such point past the
@@ -720,7 +722,7 @@ def from_start(init, poses, tree: KinematicTree, L, joints=None, weight=None,
     The fraction ``at`` reads a joint's place against the frame's curve, whose two ends wander
     (the chest junction slides; a hand lost in the masks cuts the arm's curve short); the
     bones' lengths are the sequence's (:func:`bone_lengths`). The joint goes ``weight``
-    (default :data:`FROM_START_WEIGHT`) of the way; a curve that ends short is continued along
+    (default ``SkeletonFitOptions.from_start_weight``) of the way; a curve that ends short is continued along
     its last direction by at most :data:`REACH_PAST`. Thesis §13.3.1 (the kinematic model
     initialized from the skeleton curves).
 
@@ -730,7 +732,7 @@ def from_start(init, poses, tree: KinematicTree, L, joints=None, weight=None,
     poses : the frames' poses (their curves and parts)
     tree : KinematicTree
     L : (n_joints,) the sequence's bone lengths
-    joints : (limb end part's stem, joint base name) pairs (None: :data:`FROM_START`)
+    joints : (limb end part's stem, joint base name) pairs (None: ``SkeletonFitOptions.from_start``)
     weight : the share of the way to the place by the bone length
     spine : as :func:`frame_curves`
 
@@ -738,8 +740,8 @@ def from_start(init, poses, tree: KinematicTree, L, joints=None, weight=None,
     -------
     (n_frames, n_joints, 3) array, a copy of ``init``.
     """
-    joints = FROM_START if joints is None else joints
-    w = FROM_START_WEIGHT if weight is None else weight
+    joints = fit.from_start if joints is None else joints
+    w = fit.from_start_weight if weight is None else weight
     init = np.array(init, dtype=float, copy=True)
     js = _limb_joints(tree, joints)
     if not js:
@@ -764,23 +766,24 @@ def from_start(init, poses, tree: KinematicTree, L, joints=None, weight=None,
     return init
 
 
-WIDTH_RADIUS = "sequence"   # the hull radius of the joints' ``width``: the sequence's median
+# SkeletonFitOptions.width_radius = "sequence": the hull radius of the joints' ``width``: the sequence's median
                             # (a subject's girth is constant) or "frame" (each frame's own)
-BONE_QUANTILE = 70   # percent; see bone_lengths (development seeds as SPINE_BACK, with it:
+# SkeletonFitOptions.quantile = 70: percent; see bone_lengths (development seeds as SPINE_BACK, with it
                      # 50 → 70 walks 5.31 → 5.12, random 7.12 → 7.00 cm)
 
 
-def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None) -> np.ndarray:
+def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None,
+                 fit: SkeletonFitOptions = FIT) -> np.ndarray:
     """Length of each bone (child joint index): the ``quantile`` (default
-    :data:`BONE_QUANTILE`) % of its lengths over the frames, mirror bones pooled. The joints
+    ``SkeletonFitOptions.quantile``) % of its lengths over the frames, mirror bones pooled. The joints
     at fixed relative arc lengths shorten a bone when its curve is cut short (the junction of
     a raised arm, a bent limb's curve cutting the corner): the median upper arm was 10 % short
     on walks, 20–25 % on random poses (development seeds). A ``slide`` bone (the neck's) takes
-    :data:`SLIDE_QUANTILE`, a bone from the root to a joint beside the curve (a shoulder's)
-    :data:`SHOULDER_QUANTILE`: neither has a corner to make up for; the bones along a limb
-    named in :data:`LIMB_QUANTILE` (the legs') take its percentile."""
-    limb = LIMB_QUANTILE if quantile is None else {}     # a quantile given: every bone's
-    quantile = BONE_QUANTILE if quantile is None else quantile
+    ``SkeletonFitOptions.slide_quantile``, a bone from the root to a joint beside the curve (a shoulder's)
+    ``SkeletonFitOptions.shoulder_quantile``: neither has a corner to make up for; the bones along a limb
+    named in ``SkeletonFitOptions.limb_quantile`` (the legs') take its percentile."""
+    limb = fit.limb_quantile if quantile is None else {}     # a quantile given: every bone's
+    quantile = fit.quantile if quantile is None else quantile
     L = np.full(len(tree.names), np.nan)
     pooled = {}
     for j, p in enumerate(tree.parents):
@@ -791,18 +794,19 @@ def bone_lengths(init: np.ndarray, tree: KinematicTree, quantile=None) -> np.nda
     for j, p in enumerate(tree.parents):
         if p >= 0:
             v = pooled[(tree.base[j], tree.base[p])]
-            q = SLIDE_QUANTILE if tree.slide and tree.slide[j] and SLIDE_QUANTILE else quantile
-            if SHOULDER_QUANTILE and p == tree.root and _beside(tree, j):
-                q = SHOULDER_QUANTILE             # from the junction to a joint beside it
+            q = (fit.slide_quantile if tree.slide and tree.slide[j] and fit.slide_quantile
+                 else quantile)
+            if fit.shoulder_quantile and p == tree.root and _beside(tree, j):
+                q = fit.shoulder_quantile            # from the junction to a joint beside it
             if tree.arc[p] == tree.arc[j] and part_stem(tree.arc[j][1]) in limb:
                 q = limb[part_stem(tree.arc[j][1])]   # along a limb ending at that part
             L[j] = float(np.percentile(v, q)) if v else np.nan
     return L
 
 
-LIMB_QUANTILE = {"foot": 80}  # percent, by the limb's end part (its stem): the constant length
+# SkeletonFitOptions.limb_quantile = {"foot": 80}: percent, by the limb's end part (its stem): the constant length
                              # of the bones along a limb's arc (thigh, shank, foot; not the bone
-                             # from the junction) instead of :data:`BONE_QUANTILE` (only when no
+                             # from the junction) instead of ``SkeletonFitOptions.quantile`` (only when no
                              # quantile is given). A leg's curve is cut short and cuts the bent
                              # knee's corner as an arm's does: at the 70th percentile the legs sat
                              # short. Development seeds (random 21–32, 60 frames, walks 41–46, 40
@@ -819,7 +823,7 @@ LIMB_QUANTILE = {"foot": 80}  # percent, by the limb's end part (its stem): the 
                              # them; already 0.225 m against Pose2Sim's 0.209)
 
 
-SLIDE = False  # the model's ``slide`` bones take each frame's length (False: every bone constant).
+# SkeletonFitOptions.slide = False: the model's ``slide`` bones take each frame's length (False: every bone constant).
                # Off by default: issue 15 asks for bone lengths constant over the sequence and a
                # BVH (constant offsets, :func:`~.export.write_bvh`) whose re-read joints equal
                # the fit's. On, the neck's bone from the chest (the curves' junction, not a
@@ -831,8 +835,8 @@ SLIDE = False  # the model's ``slide`` bones take each frame's length (False: ev
                # pelvis sliding: hips 6.0 → 5.7, pelvis 5.9 → 6.6 cm
 
 
-SLIDE_QUANTILE = 50  # percent: the constant length of a ``slide`` bone (the neck's, from the chest
-                     # junction) when SLIDE is off; None: :data:`BONE_QUANTILE` as the others.
+# SkeletonFitOptions.slide_quantile = 50: percent: the constant length of a ``slide`` bone (the neck's, from the chest
+                     # junction) when SLIDE is off; None: ``SkeletonFitOptions.quantile`` as the others.
                      # The 70th percentile makes up for a limb's curve cutting corners; the
                      # neck's curve cuts none — its length from the junction only varies as the
                      # junction slides: at the 70th percentile the neck bone was 16.0 cm long
@@ -844,24 +848,25 @@ SLIDE_QUANTILE = 50  # percent: the constant length of a ``slide`` bone (the nec
                      # 3.9; every trunk bone at the median: random pelvis 5.3 → 5.9 cm)
 
 
-SHOULDER_QUANTILE = 50  # percent: the constant length of a bone from the root (the curves' chest
+# SkeletonFitOptions.shoulder_quantile = 50: percent: the constant length of a bone from the root (the curves' chest
                         # junction) to a joint beside the curve (a shoulder; ``offset``); None:
-                        # :data:`BONE_QUANTILE`. As the neck's (:data:`SLIDE_QUANTILE`) its length
+                        # ``SkeletonFitOptions.quantile``. As the neck's (``SkeletonFitOptions.slide_quantile``) its length
                         # only varies as the junction slides, and a hanging arm's shoulder is the
                         # hull's, not the curve's: no corner to make up for. At the 70th
                         # percentile the fit lifted the seen hanging arms' shoulders off their
                         # placement (bent arms 5.8 → 7.2 cm, 3.0 cm too high; straight 3.4 →
                         # 5.2 cm; development seeds 21–32 random, gate on). Development seeds
-                        # (as :data:`BEND`'s, with it), 70 → 40 / 50: MPJPE random
+                        # (as ``SkeletonFitOptions.bend``'s, with it), 70 → 40 / 50: MPJPE random
                         # 5.49 → 5.56 / 5.51 (mean over frames 6.27 → 6.20 / 6.21), walks 4.37
                         # → 4.33 / 4.31 cm; shoulders random 6.5 → 6.1, walks 4.1 → 3.6 cm
 
 
-def frame_lengths(target, L, tree: KinematicTree, slide=None) -> np.ndarray:
+def frame_lengths(target, L, tree: KinematicTree, slide=None,
+                  fit: SkeletonFitOptions = FIT) -> np.ndarray:
     """The frame's bone lengths: ``L``, except the bones of the joints declared ``slide``
-    (when ``slide``, default :data:`SLIDE`): the distance of the joint's initial placement
+    (when ``slide``, default ``SkeletonFitOptions.slide``): the distance of the joint's initial placement
     ``target`` from its parent's, when both are placed."""
-    slide = SLIDE if slide is None else slide
+    slide = fit.slide if slide is None else slide
     out = L.copy()
     if not slide or not tree.slide:
         return out
@@ -1045,7 +1050,7 @@ HOLD_FRAMES = 5     # the last fitted frame at most this many frames before (3 �
                     # random poses 21–32 unchanged: they fail the motion check)
 
 
-HOLD_AGE = 8        # frames: a joint is held from the last fitted frame only when a frame placed
+# GapOptions.hold_age = 8: frames: a joint is held from the last fitted frame only when a frame placed
                     # it at most this many frames before; older, it takes the rest pose and the
                     # fills (evidence, hints, hull shoulders) afresh. None: no limit. In random
                     # motion a lost arm stays lost 20–40 frames, and held from frame to frame it
@@ -1075,7 +1080,7 @@ def _continues(prev, start, dt):
     return float(np.linalg.norm(d, axis=1).mean()) < HOLD_MAX
 
 
-HELD_GAP = False  # an unseen (held) joint between two frames of the same motion that saw it:
+# GapOptions.gaps = False: an unseen (held) joint between two frames of the same motion that saw it
                  # interpolated (:func:`held_gaps`, ``fit_sequence(gaps=True)``); off: the rest
                  # pose / last frame's arm of the frame loop. Off by default: no gain measured.
                  # Random-motion captures are unrelated poses (the pelvis moves ~1 m between
@@ -1182,7 +1187,7 @@ ACROSS = np.radians(30.0)  # by this angle about the trunk axis: a hand merged w
                           # the upper arm tilted forward and out: no gain, 6.11–6.29 cm)
 
 
-HELD_SHOULDER = np.radians(30.0)  # an unseen arm's shoulder: from the chest, opposite its mate
+# GapOptions.held_shoulder = np.radians(30.0): an unseen arm's shoulder: from the chest, opposite its mate
                           # across the trunk axis, raised by this angle from the plane across the
                           # trunk (None: the mate's position turned half about the trunk axis).
                           # The half turn copied the mate's height, and a seen arm is often a
@@ -1213,11 +1218,12 @@ def _outward(P, tree, j, ax):
     return v / n if n > 0 else np.zeros(3)
 
 
-def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
+def rest_fill(start, pose, tree: KinematicTree, L, limbs, held_shoulder=GAPS.held_shoulder
+              ) -> np.ndarray:
     """Unseen joints placed in a rest pose (an unseen limb is mostly one merged with the body):
     a joint whose mirror mate hangs from the same parent joint mirrored about the trunk axis
     (a half turn: hips; an arm's shoulder, with a forward known: opposite its mate across
-    the trunk axis, raised :data:`HELD_SHOULDER` from the plane across it), the other bones
+    the trunk axis, raised ``GapOptions.held_shoulder`` from the plane across it), the other bones
     along the trunk axis — down for the limbs (arcs ending at a ``[[mirror]]`` part), up for
     the others (the head) — except an arm's (a limb from the trunk's upper part) bones below
     its first one: folded forward by ``FOLD`` and turned ``ACROSS`` the body (a hand merged
@@ -1250,11 +1256,11 @@ def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
                  and tree.parents[k] == p and not np.isnan(start[k]).any()]
         pp = tree.parents[p]
         arm = fwd is not None and tree.arc[j][1] in limbs and tree.arc[j][0] == tree.trunk[1]
-        if mates and arm and HELD_SHOULDER is not None:
+        if mates and arm and held_shoulder is not None:
             v = start[mates[0]] - out[p]
             lat = v - np.dot(v, ax) * ax
             lat /= max(np.linalg.norm(lat), 1e-12)
-            d = np.sin(HELD_SHOULDER) * ax - np.cos(HELD_SHOULDER) * lat
+            d = np.sin(held_shoulder) * ax - np.cos(held_shoulder) * lat
         elif mates:
             v = start[mates[0]] - out[p]
             d = 2 * np.dot(v, ax) * ax - v
@@ -1267,7 +1273,7 @@ def rest_fill(start, pose, tree: KinematicTree, L, limbs) -> np.ndarray:
     return out
 
 
-HAND_HINTS = True   # an unseen arm bent to reach its hand hint's end (:func:`hint_fill`)
+# GapOptions.hints = True: an unseen arm bent to reach its hand hint's end (:func:`hint_fill`)
 HINT_END = "wrist"  # the hint's end taken as the wrist ("wrist") or the elbow's direction
                     # ("elbow": the upper arm towards it, the forearm as it was). Development
                     # seeds 21–28 random, 41–43 walks (gate on, 80 hints): the end lies 18–29 cm
@@ -1283,7 +1289,7 @@ HINT_END = "wrist"  # the hint's end taken as the wrist ("wrist") or the elbow's
                     # reach (end beyond 1.0 / 1.2 × the arm, or within 0.3 / 0.5 of it): no gain
 
 
-ARM_EVIDENCE = True  # an unseen arm's elbow turned towards the hull's remainder
+# GapOptions.evidence = True: an unseen arm's elbow turned towards the hull's remainder
                      # (topopose.frame.unseen.evidence_fill). Development seeds 21–28 random,
                      # 41–45 walks (gate on), without → with: MPJPE random 5.98 → 5.83, walks
                      # 4.86 → 4.86 cm; frames holding joints 6.85 → 6.40 / 6.22 → 6.15 cm;
@@ -1291,7 +1297,7 @@ ARM_EVIDENCE = True  # an unseen arm's elbow turned towards the hull's remainder
                      # (140 arms) / 7.9 → 7.2 cm (63 arms)
 
 
-HULL_SHOULDER = True  # an unseen arm moved towards the shoulder from the hull's cross-section
+# GapOptions.shoulders = True: an unseen arm moved towards the shoulder from the hull's cross-section
                       # below the neck (``diagnostics["hull_shoulders"]``, :func:`topopose.pose.
                       # unseen.hull_shoulders`; :func:`shoulder_fill`), after the evidence and
                       # the hints. Development seeds 21–28 random, 41–45 walks (gate on, 181
@@ -1381,7 +1387,7 @@ def hint_fill(start, pose, tree: KinematicTree, L, unseen) -> np.ndarray:
     return out
 
 
-TIP_TURN = {"toe": 15.0}  # degrees, by tip joint: its target turned away from the bone above its
+# SkeletonFitOptions.tip_turn = {"toe": 15.0}: degrees, by tip joint: its target turned away from the bone above its
                     # parent (the toe from the shank, knee → ankle), in the plane of the two
                     # (:func:`tip_targets`).
                     # The foot's skeleton curve cuts the heel's corner and its last 10 % still
@@ -1398,7 +1404,7 @@ TIP_TURN = {"toe": 15.0}  # degrees, by tip joint: its target turned away from t
                     # recording (real_motion.py, same per-frame poses) 8.37 → 8.37 cm, its right
                     # frames 7.50 → 7.54 cm; its toes against Pose2Sim's big toes 9.9 → 7.5 cm
                     # (right frames 9.1 → 7.0)
-TIP_STRETCH = {"fingertip": 1.08}  # by tip joint: its target moved away from its parent by this
+# SkeletonFitOptions.tip_stretch = {"fingertip": 1.08}: by tip joint: its target moved away from its parent by this
                     # factor (:func:`tip_targets`). The fingertips sat short along the true
                     # hand (wrist → fingertip 0.88 / 0.92 of the rig's after the fit, 3.1 / 2.4
                     # cm short; random / walks, development seeds as TIP_TURN; their direction
@@ -1411,7 +1417,8 @@ TIP_STRETCH = {"fingertip": 1.08}  # by tip joint: its target moved away from it
                     # walks 5.6 → 5.6 cm (with TIP_TURN, see there)
 
 
-def tip_targets(init, tree: KinematicTree, turn=None, stretch=None) -> np.ndarray:
+def tip_targets(init, tree: KinematicTree, turn=None, stretch=None,
+                fit: SkeletonFitOptions = FIT) -> np.ndarray:
     """The tip joints' targets (a joint past its arc's end part, ``beyond``: fingertips, toes)
     corrected for the skeleton curve's end (thesis §13.3.1: the kinematic model initialized
     from the skeleton curves). Thinning stops a branch short of the limb's tip and rounds the
@@ -1427,15 +1434,15 @@ def tip_targets(init, tree: KinematicTree, turn=None, stretch=None) -> np.ndarra
     ----------
     init : (n_frames, n_joints, 3) initial placements (NaN: not placed)
     tree : KinematicTree
-    turn : {base name: degrees} (default :data:`TIP_TURN`)
-    stretch : {base name: factor} (default :data:`TIP_STRETCH`)
+    turn : {base name: degrees} (default ``SkeletonFitOptions.tip_turn``)
+    stretch : {base name: factor} (default ``SkeletonFitOptions.tip_stretch``)
 
     Returns
     -------
     (n_frames, n_joints, 3) array, a copy of ``init``.
     """
-    turn = TIP_TURN if turn is None else turn
-    stretch = TIP_STRETCH if stretch is None else stretch
+    turn = fit.tip_turn if turn is None else turn
+    stretch = fit.tip_stretch if stretch is None else stretch
     out = np.array(init, dtype=float, copy=True)
     for j, p in enumerate(tree.parents):
         if p < 0 or not (tree.beyond and tree.beyond[j] > 0):
@@ -1464,7 +1471,7 @@ def tip_targets(init, tree: KinematicTree, turn=None, stretch=None) -> np.ndarra
     return out
 
 
-GIRDLE = True  # the joints a model declares as one girdle (``girdle = [pair, height]`` on a
+# SkeletonFitOptions.girdle = True: the joints a model declares as one girdle (``girdle = [pair, height]`` on a
                # joint: the neck with the shoulders) placed as one symmetric rigid body
                # (:func:`girdle_targets`); False: each joint alone. Development seeds (walks
                # 41–46, random motion 51–56, unrelated random poses 21–32; gate off, cached
@@ -1481,7 +1488,8 @@ GIRDLE = True  # the joints a model declares as one girdle (``girdle = [pair, he
                # 1 cm up (development seeds)
 
 
-def girdle_targets(init, tree: KinematicTree, on=None) -> np.ndarray:
+def girdle_targets(init, tree: KinematicTree, on=None,
+                   fit: SkeletonFitOptions = FIT) -> np.ndarray:
     """The targets of each declared girdle as one symmetric rigid body (sequence stage).
 
     A joint declared with ``girdle = [pair, h]`` (the neck with ``shoulder``) and the two
@@ -1497,7 +1505,7 @@ def girdle_targets(init, tree: KinematicTree, on=None) -> np.ndarray:
     ----------
     init : (n_frames, n_joints, 3) targets (NaN: not placed)
     tree : KinematicTree
-    on : bool (default :data:`GIRDLE`)
+    on : bool (default ``SkeletonFitOptions.girdle``)
 
     Returns
     -------
@@ -1506,7 +1514,7 @@ def girdle_targets(init, tree: KinematicTree, on=None) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
     out = np.array(init, dtype=float, copy=True)
-    if not (GIRDLE if on is None else on) or not tree.girdle:
+    if not (fit.girdle if on is None else on) or not tree.girdle:
         return out
     for c, g in enumerate(tree.girdle):
         if g is None:
@@ -1545,7 +1553,7 @@ SMOOTH_RATE = 25.0  # frames/s SMOOTH was chosen at: at another rate the default
                     # window 0 / 9 / 15 / 21 / 27 frames: 4.86 / 4.02 / 3.85 / 3.73 / 3.76 cm
                     # (at 25 frames/s: 4.97 / 4.20 / 4.31 / 4.68 / 4.93): 9 frames at 60 frames/s
                     # (0.15 s) was too short, 21 (0.35 s) is 9 at 25
-SMOOTH_MOVE = 0.15  # m: a frame whose joints (from the root) lie this far from its
+# SmoothingOptions.move = 0.15: m: a frame whose joints (from the root) lie this far from its
                     # neighbourhood's median is an outlier, and a run breaks where successive
                     # neighbourhoods lie this far apart (mean over the joints; :func:`motion_runs`).
                     # Until session 33 each frame was compared with the one before (window 9:
@@ -1595,7 +1603,7 @@ def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None, near=N
     the frames and the medians jump.
     Per-frame jitter does not break a run, as it did when each frame was compared with the
     one before (the real recording's 4-camera fits: 27 of 100 frames smoothed, now 59; see
-    :data:`SMOOTH_MOVE`).
+    ``SmoothingOptions.move``).
 
     Parameters
     ----------
@@ -1648,7 +1656,7 @@ def motion_runs(P, t, tree: KinematicTree, win, max_move=None, seen=None, near=N
     return runs
 
 
-DESPIKE = (3.0, 15.0)  # (k, floor in degrees) of :func:`despike`, the bones' spikes replaced
+# SmoothingOptions.despike = (3.0, 15.0): (k, floor in degrees) of :func:`despike`, the bones' spikes replaced
     # before the smoothing; None: off. A frame whose matched curves put one limb on a wrong
     # branch (the real recording's frames 36 and 42: the left arm's curve on another branch,
     # its hand 0.6 m off) keeps the rest of its skeleton near its neighbours', so it stays in
@@ -1729,7 +1737,7 @@ def _interpolate(P, t, L, tree: KinematicTree, a, b) -> None:
         P[k] = forward(root, (1 - s) * Da + s * Db, (1 - s) * L[a] + s * L[b], tree)
 
 
-BRIDGE = True  # a temporal outlier between two frames of the same motion is replaced by their
+# SmoothingOptions.bridge = True: a temporal outlier between two frames of the same motion is replaced by their
     # interpolation (:func:`bridge_outliers`); False: it keeps its own fit, flagged only.
     # Development seeds (benchmarks/fps_dev.py, results/fps_dev_bridge.md; MPJPE median over
     # the good frames, the default window): 4p 9.89 → 9.75 cm at 25 frames/s (15 frames
@@ -1843,41 +1851,21 @@ def bridged_parts(poses, t, bridged, i) -> tuple:
     return parts, done
 
 
-def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=None,
-                 quantile=None, slide=None, hints=None, evidence=None, shoulders=None,
-                 gaps=None, fps=None):
+def fit_sequence(poses, model, options: SequenceOptions | None = None, fps=None, **flat):
     """Fit the full skeleton to every matched frame of a sequence (see the module docstring).
 
     Parameters
     ----------
     poses : list of Pose (curves in their diagnostics)
     model : Model with ``[[joint]]`` declarations
-    max_gap : longest run of unfitted frames filled by interpolation (0: none)
-    smooth : an odd Savitzky–Golay window (frames, polynomial order 2) over the runs of
-        continuing motion (:func:`motion_runs`); None: :func:`smooth_window` of ``fps``
-        (:data:`SMOOTH`, 9 frames at 25 frames/s: 0.36 s); 0: off
-    inner_weight : weight of the initial placement of the joints inside an arc (elbows,
-        knees, ...) against the curve term. Calibration set of the model's joints (seeds
-        101–116, 8 walks and 6 random-pose sequences, gate off, MPJPE median): 0.3 → 1.0 →
-        2.0 gives walks 4.88 → 4.44 → 4.45 cm, random poses 6.76 → 6.29 → 6.17 cm (the
-        initial placement: 4.50 and 6.03 cm)
-    spine : the trunk's joints moved back by this × the spine shift (:func:`frame_curves`;
-        default :data:`SPINE_BACK`, 0: off)
-    quantile : percentile of the bone lengths (:func:`bone_lengths`; default
-        :data:`BONE_QUANTILE`, 50: the median)
-    slide : the ``slide`` bones at each frame's length (:func:`frame_lengths`; default
-        :data:`SLIDE`, False: every bone constant)
-    hints : an unseen arm bent to reach its hand hint (:func:`hint_fill`; default
-        :data:`HAND_HINTS`, False: the rest pose or the last frame's arm only)
-    evidence : an unseen arm bent through the hull the matched curves leave unexplained
-        (:func:`topopose.frame.unseen.evidence_fill`; default :data:`ARM_EVIDENCE`)
-    shoulders : the shoulders from the hull's cross-section (a hanging arm's placed there, an
-        unseen arm moved towards it: :data:`SEEN_HULL_SHOULDER`, :func:`shoulder_fill`;
-        default :data:`HULL_SHOULDER`; False: neither)
-    gaps : the joints a frame did not see, between two frames of the same motion that saw
-        them at most ``max_gap`` frames apart, interpolated (:func:`held_gaps`; default
-        :data:`HELD_GAP`)
+    options : SequenceOptions, optional
+        Its ``skeleton_fit``, ``gaps`` and ``smoothing`` (default :data:`.options.DEFAULT`).
     fps : the capture's frame rate (frames/s) the default window is scaled to (None: 25)
+    **flat : options changed by field name (:meth:`.SequenceOptions.with_`): ``max_gap``,
+        ``smooth`` (an odd Savitzky–Golay window over the runs of continuing motion,
+        :func:`motion_runs`; None: :func:`smooth_window` of ``fps``; 0: off), ``inner_weight``,
+        ``spine``, ``quantile``, ``slide``, ``hints``, ``evidence``, ``shoulders`` (False: the
+        seen arms' hull shoulders off too), ``gaps``, ... (:mod:`.options`)
 
     Returns
     -------
@@ -1886,7 +1874,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         ``["interpolated"]``, ``["smoothed"]``, ``["despiked_joints"]`` (the joints whose
         bone direction :func:`despike` replaced), ``["neighbour_distance"]`` (m: the frame's
         joints from its neighbours' median, :func:`neighbourhood`, when smoothing) and
-        ``["temporal_outlier"]`` (that distance ≥ :data:`SMOOTH_MOVE`: a frame off the motion
+        ``["temporal_outlier"]`` (that distance ≥ ``SmoothingOptions.move``: a frame off the motion
         around it, most likely wrong; ``["interpolated"]`` too when bridged,
         :func:`bridge_outliers`, and ``["interpolated_parts"]``, the parts it took from the
         frames either side, :func:`bridged_parts`), ``["held_joints"]`` (not seen by the frame),
@@ -1895,19 +1883,25 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
     lengths : ndarray, the bone length of each joint's bone (NaN for the root); a ``slide``
         bone's is its sequence length, used where the frame has none
     """
+    o = (options or DEFAULT).with_(**flat)
+    fit, gap, sm = o.skeleton_fit, o.gaps, o.smoothing
+    max_gap, smooth, spine = gap.max_gap, sm.smooth, fit.spine
+    hull = None if gap.shoulders else False     # off: the seen arms' hull shoulders too
+    move = sm.move
     poses = sorted(poses, key=lambda p: p.frame)
     tree = kinematic_tree(model)
     radius = [np.linalg.norm(p.diagnostics["spine_shift"]) for p in poses
               if p.matched and p.diagnostics.get("spine_shift") is not None]
-    radius = float(np.median(radius)) if radius and WIDTH_RADIUS == "sequence" else None
-    init = np.stack([initial_placement(p, tree, spine, radius, shoulders) if p.matched
+    radius = float(np.median(radius)) if radius and fit.width_radius == "sequence" else None
+    init = np.stack([initial_placement(p, tree, spine, radius, hull, fit)
+                     if p.matched
                      else np.full((len(tree.names), 3), np.nan) for p in poses]) \
         if poses else np.zeros((0, len(tree.names), 3))
-    init = from_end(init, poses, tree, spine)     # limb middle joints from the far end
-    init = tip_targets(init, tree)
-    init = girdle_targets(init, tree)
-    L = bone_lengths(init, tree, quantile)
-    init = from_start(init, poses, tree, L, spine=spine)   # hanging arms by the bones' lengths
+    init = from_end(init, poses, tree, spine, fit=fit)     # limb middle joints from the far end
+    init = tip_targets(init, tree, fit=fit)
+    init = girdle_targets(init, tree, fit=fit)
+    L = bone_lengths(init, tree, fit=fit)
+    init = from_start(init, poses, tree, L, spine=spine, fit=fit)   # hanging arms by the bones' lengths
     n_f = len(poses)
     Lf = np.tile(L, (n_f, 1))              # per frame: a sliding bone's length varies
     P = np.full_like(init, np.nan)
@@ -1924,27 +1918,27 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
             seen_at[~miss] = t[i]
             if miss.any() and _continues(prev, start, t[i] - t_prev if prev is not None else 0):
                 hold = miss.copy()
-                if HOLD_AGE is not None:          # only joints seen at most HOLD_AGE frames ago
-                    hold &= t[i] - seen_at <= HOLD_AGE
+                if gap.hold_age is not None:      # only joints seen at most hold_age frames ago
+                    hold &= t[i] - seen_at <= gap.hold_age
                 start[hold] = prev[hold] - prev[tree.root] + np.nan_to_num(start[tree.root])
             if miss.any() and np.isnan(start).any():   # an unrelated pose before: the rest pose
-                start = rest_fill(start, p, tree, L, limbs)
-            if miss.any() and (ARM_EVIDENCE if evidence is None else evidence):
+                start = rest_fill(start, p, tree, L, limbs, gap.held_shoulder)
+            if miss.any() and gap.evidence:
                 from topopose.frame.unseen import evidence_fill
                 start = evidence_fill(start, p, tree, L, miss, limbs)
-            if miss.any() and (HAND_HINTS if hints is None else hints):
+            if miss.any() and gap.hints:
                 start = hint_fill(start, p, tree, L, miss)
-            if miss.any() and (HULL_SHOULDER if shoulders is None else shoulders):
+            if miss.any() and gap.shoulders:
                 start = shoulder_fill(start, p, tree, miss)
-            Lf[i] = frame_lengths(init[i], L, tree, slide)
-            Pi, r = fit_frame(init[i], frame_curves(p, tree, spine), Lf[i], tree,
+            Lf[i] = frame_lengths(init[i], L, tree, fit=fit)
+            Pi, r = fit_frame(init[i], frame_curves(p, tree, spine, fit), Lf[i], tree,
                               start=None if np.isnan(start).any() else start,
-                              inner_weight=inner_weight)
+                              inner_weight=fit.inner_weight)
             if Pi is not None:
                 P[i], rms[i], prev, t_prev = Pi, r, Pi, t[i]
     held = np.isnan(init).any(axis=2)
     filled = np.zeros_like(held)
-    if max_gap and (HELD_GAP if gaps is None else gaps):
+    if max_gap and gap.gaps:
         P, filled = held_gaps(P, held, t, tree, Lf, max_gap)
     fitted = ~np.isnan(P).any(axis=(1, 2))
     interp = np.zeros(n_f, dtype=bool)
@@ -1965,18 +1959,18 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
         win = int(smooth) | 1
         near = neighbourhood(P, t, tree, win // 2, fitted & ~interp)
         apart = near[1]
-        if BRIDGE and max_gap and SMOOTH_MOVE is not None:
-            P, bridged = bridge_outliers(P, t, tree, Lf, apart, max_gap, SMOOTH_MOVE, near[0],
+        if sm.bridge and max_gap and move is not None:
+            P, bridged = bridge_outliers(P, t, tree, Lf, apart, max_gap, move, near[0],
                                          win // 2)
             if bridged.any():           # the runs go on through them (not judged again)
                 interp |= bridged
                 near = neighbourhood(P, t, tree, win // 2, fitted & ~interp)
-        runs = motion_runs(P, t, tree, win, SMOOTH_MOVE, seen=~interp, near=near)
+        runs = motion_runs(P, t, tree, win, move, seen=~interp, near=near)
         for a, b in runs:
             D = np.stack([_directions(P[i], tree) for i in range(a, b)])
             R = P[a:b, tree.root]
-            if DESPIKE:
-                D, spiked[a:b] = despike(D, win // 2, *DESPIKE)
+            if sm.despike:
+                D, spiked[a:b] = despike(D, win // 2, *sm.despike)
             D = savgol_filter(D, win, 2, axis=0)
             R = savgol_filter(R, win, 2, axis=0)
             for k, i in enumerate(range(a, b)):
@@ -2006,7 +2000,7 @@ def fit_sequence(poses, model, max_gap=5, smooth=None, inner_weight=1.0, spine=N
             diag["despiked_joints"] = [nm for j, nm in enumerate(tree.names) if spiked[i, j]]
         if np.isfinite(apart[i]):
             diag["neighbour_distance"] = round(float(apart[i]), 4)
-            if SMOOTH_MOVE is not None and apart[i] >= SMOOTH_MOVE:
+            if move is not None and apart[i] >= move:
                 diag["temporal_outlier"] = True
         q = type(p)(**{**p.__dict__, "diagnostics": diag, "parts": parts,
                        "joints": {nm: P[i, j].copy() for j, nm in enumerate(tree.names)}})

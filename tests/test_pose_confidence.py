@@ -189,7 +189,7 @@ def test_clean_frames_pass_the_gate(clean):
 def test_swapped_head_and_hand_fail_the_gate(clean):
     """The same frames with the head's and a hand's data vertices exchanged (a wrong pose whose
     AHA distance is unchanged) fall below the gate."""
-    from topopose.frame.estimate import vertex_radii
+    from topopose.frame.thickness import vertex_radii
 
     cap, est, out = clean
     for pose, det in out:

@@ -193,7 +193,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None,
     gate : bool or None
         ``matched`` also needs the frame's confidence (:mod:`.confidence`, with the time
         factors computed over the run at the end) above its minimum; False: the confidence is
-        reported only; None: :func:`~topopose.frame.estimate.default_gate` (on with fewer than
+        reported only; None: :func:`~topopose.frame.rules.default_gate` (on with fewer than
         6 cameras).
     thickness : float or None
         Weight of the thickness term of the arc cost (see :class:`FrameEstimator`); 0: off.
@@ -269,7 +269,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None,
     cap = capture if isinstance(capture, Capture) else load_capture(capture)
     tolerance = _paths.check_tolerance(tolerance, len(cap.cameras))
     if gate is None:
-        from topopose.frame.estimate import default_gate
+        from topopose.frame.rules import default_gate
         gate = default_gate(cap)
     eo = eo.with_(tolerance=tolerance, gate=gate)
     from topopose.sequence.motion import consistency_settings

@@ -155,7 +155,7 @@ lean, noise level 3) fattens the hull's trunk beyond 0.15 m. Refitted with it (n
 minimum (0.85), 8 right of 14 at 0.5, and the 8-camera held-out precision fell to 0.947.
 
 The confidence is reported for every frame. With the gate on (``FrameEstimator(gate=True)``,
-``topopose run --confidence-gate on``; the default, :func:`topopose.frame.estimate.default_gate`),
+``topopose run --confidence-gate on``; the default, :func:`topopose.frame.rules.default_gate`),
 ``matched`` for the human model also needs confidence ≥ ``min_confidence``; rejected frames
 keep their best guess. Everything was fitted on synthetic captures only (capsule human and
 ``body``, the three camera set-ups, walk and random motion, separated / all poses); the real
@@ -615,7 +615,7 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     if al is not None:
         from types import SimpleNamespace
 
-        from topopose.frame.estimate import vertex_radii
+        from topopose.frame.thickness import vertex_radii
         mapped = [v for v in (al.mapping or {}).values() if v is not None]
         radii = vertex_radii(vol, SimpleNamespace(vertices=mapped, positions=data.positions), reach,
                              radius_map)

@@ -25,7 +25,7 @@ class HullOptions:
 @dataclass(frozen=True)
 class ThinningOptions:
     """Curve skeleton: the thinning ``method`` and ``prune`` (bump removal scale; None: the
-    model's entry of :data:`topopose.frame.estimate.PRUNE`; 0: off)."""
+    model's entry of :data:`topopose.frame.rules.PRUNE`; 0: off)."""
 
     method: str = "d6i1d"
     prune: float | None = None

@@ -41,7 +41,8 @@ class RunOptions:
     Attributes
     ----------
     frames : None, list or str
-        The frames (:func:`~topopose.batch.run.select_frames`; None: all).
+        The frames: None (all), a list, ``"a:b"`` / ``"0.5s:1.2s"`` / ``"f1,f2"``
+        (:func:`~topopose.batch.run.select_frames`).
     resume : bool
         Skip the frames already in the output (an interrupted run continues).
     progress : bool
@@ -49,16 +50,29 @@ class RunOptions:
     on_pose : callable or None
         Called with each :class:`~topopose.pose.pose.Pose` as it finishes (e.g. a live viewer).
     support : bool or None
-        Record each frame's unexplained silhouette; None: with the consistency or
+        Record each frame's ``diagnostics["unexplained"]`` (:mod:`topopose.frame.support`),
+        which the consistency reads; None (default): with the consistency (on by default) or
         ``support_test``.
     support_test : bool or "replace"
-        Per frame: reject a matched frame whose silhouettes the placed model leaves
-        unexplained (``run --support``); ``"replace"``: instead of the confidence gate.
+        Per frame (also runs of unrelated poses): a matched frame whose silhouette is left
+        unexplained by the placed model above
+        :data:`topopose.sequence.consistency.MAX_UNEXPLAINED` is rejected
+        (:func:`topopose.sequence.consistency.judge_support`, ``run --support``); ``"replace"``:
+        the test replaces the confidence gate (frames the gate alone rejected are matched when
+        they pass). Off by default.
     centre : bool
         Record per frame the limbs' curves moved onto the silhouettes' centre lines
-        (:mod:`topopose.frame.centre`).
-    exports, parallel, estimator, sequence
-        The groups.
+        (:mod:`topopose.frame.centre`, ``diagnostics["centred"]``; the kinematic fit uses
+        them, ``SkeletonFitOptions.centred``); default on. Recorded in the poses file's header.
+    exports : ExportOptions
+    parallel : ParallelOptions
+    estimator : EstimatorOptions
+        The per-frame options (:class:`~topopose.frame.estimate.FrameEstimator`); ``gate``
+        None: :func:`~topopose.frame.rules.default_gate`, with the confidence's time factors
+        computed over the run at the end.
+    sequence : SequenceOptions
+        The sequence stage's options; for a sequence (more than one frame) ``track`` rewrites
+        the output file with stable identities.
     """
 
     frames: object = None

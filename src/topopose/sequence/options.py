@@ -169,8 +169,14 @@ class SequenceOptions:
     trim : bool
         The hands' trim each frame recorded applied (:func:`topopose.frame.trim.apply_trim`).
     consistency : bool, "union", dict or None
-        ``matched`` decided with the run's own consistency
-        (:func:`topopose.sequence.motion.consistency_settings`; None: ``"union"``).
+        Sequences of one subject (a run of unrelated poses is left as it is): ``matched``
+        decided with the run's own consistency (:mod:`topopose.sequence.consistency`,
+        :func:`topopose.sequence.motion.consistency_settings`). None (default): ``"union"`` — a
+        frame the confidence gate matched stays matched (unless a part of it was held at its
+        tracked prediction) and a frame the gate alone rejected is matched when consistent
+        with the run; True (``run --consistency``): the consistency instead of the gate; False
+        (``--no-consistency``): the gate alone; a dict gives
+        :func:`~topopose.sequence.consistency.judge_sequence`'s settings.
     skeleton_fit, gaps, smoothing
         The kinematic fit's options.
     """

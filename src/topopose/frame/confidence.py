@@ -166,6 +166,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -564,21 +565,45 @@ def passes_gate(status, error, confidence, min_confidence) -> bool:
     return status == "matched" or (replaces_threshold() and distance_only(error))
 
 
+@dataclass(frozen=True)
+class Gate:
+    """How :func:`judge_frame` judges a frame: ``min_share`` of the hull in its largest
+    component, ``min_confidence`` (None: no gate), per-part trust (``drop_parts``, e.g.
+    :data:`DROP_PARTS`; empty: off) and the head doubt (``doubt_head``)."""
+
+    min_share: float = 0.8
+    min_confidence: float | None = MIN_CONFIDENCE
+    drop_parts: tuple = ()
+    doubt_head: object = False
+
+
+@dataclass(frozen=True)
+class Aligned:
+    """What the alignment of a frame tells :func:`judge_frame`: ``al`` (its mapping and
+    matched arcs give the features), ``thickness_cost`` (the part of its distance paid to the
+    thickness term), ``missing_cost``, ``parts`` (the placed positions: features
+    ``head_placed_*``), ``reach`` and ``radius_map`` (its ``radii``, if already computed) of
+    :func:`topopose.frame.thickness.vertex_radii`."""
+
+    al: object = None
+    thickness_cost: float = 0.0
+    missing_cost: float = 0.0
+    parts: dict | None = None
+    reach: int = 0
+    radius_map: object = None
+
+
 def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
-                min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m", al=None,
-                thickness_cost=0.0, reach=0, radius_map=None, missing_cost=0.0,
-                parts=None, drop_parts=(), doubt_head=False) -> tuple:
+                gate: Gate | None = None, units="m", aligned: Aligned | None = None) -> tuple:
     """Status, reason and diagnostics of one frame from what the stages know.
 
     A ``matched`` frame becomes ``rejected`` when the hull's largest component holds less than
     ``min_share`` of its voxels (the dropped components are named with their sizes and shares),
-    or when its confidence is below ``min_confidence`` (None: no gate). The confidence is the
-    fitted one (:func:`fitted_confidence`) for the models of :data:`CONFIDENCE_MODEL`, else
-    the product (:func:`frame_confidence`). ``al``: the alignment (its mapping and matched
-    arcs give the features), ``thickness_cost``: the part of its distance paid to the
-    thickness term, ``reach`` and ``radius_map`` (its ``radii``, if already computed): of
-    :func:`topopose.frame.estimate.vertex_radii`; ``parts``: the placed positions (features
-    ``head_placed_*``).
+    or when its confidence is below ``min_confidence`` (None: no gate; both of ``gate``,
+    :class:`Gate`). The confidence is the fitted one (:func:`fitted_confidence`) for the
+    models of :data:`CONFIDENCE_MODEL`, else the product (:func:`frame_confidence`), from the
+    features of the hull, the data tree and what the alignment tells (``aligned``,
+    :class:`Aligned`).
 
     **Per-part trust** (``drop_parts``, e.g. :data:`DROP_PARTS`; empty: off): a frame with every
     part placed that only the fitted confidence rejects is matched without one part when the
@@ -604,6 +629,11 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     """
     from topopose.capture.calibration import _UNITS
 
+    g, a = gate or Gate(), aligned or Aligned()
+    min_share, min_confidence, drop_parts, doubt_head = (g.min_share, g.min_confidence,
+                                                         g.drop_parts, g.doubt_head)
+    al, thickness_cost, missing_cost, parts, reach, radius_map = (
+        a.al, a.thickness_cost, a.missing_cost, a.parts, a.reach, a.radius_map)
     vd = vol.diagnostics or {}
     share = float(vd.get("largest_share", 1.0))
     dropped = vd.get("components_dropped") or []

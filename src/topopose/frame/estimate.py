@@ -727,14 +727,14 @@ class FrameEstimator:
             if unordered:
                 error += "; no co-optimal alignment satisfies the betweenness constraint"
         # what the hull lost and how far to trust the frame (topopose.frame.confidence)
-        from topopose.frame.confidence import DROP_PARTS, judge_frame
+        from topopose.frame.confidence import DROP_PARTS, Aligned, Gate, judge_frame
 
         status, error, extra = judge_frame(
             vol, n_vox, data, self.model, self.up, dist, self.threshold, len(missing), status,
-            error, self.min_share, self.min_confidence if self.gate else None, self.cap.units,
-            al=al, thickness_cost=thick, reach=self.thickness_reach,
-            radius_map=radii, missing_cost=mcost, parts=parts,
-            drop_parts=DROP_PARTS if self.part_trust else (), doubt_head=self.head_doubt)
+            error, Gate(self.min_share, self.min_confidence if self.gate else None,
+                        DROP_PARTS if self.part_trust else (), self.head_doubt), self.cap.units,
+            aligned=Aligned(al, thickness_cost=thick, reach=self.thickness_reach,
+                            radius_map=radii, missing_cost=mcost, parts=parts))
         if extra.get("untrusted"):     # per-part trust: unplaced, its best guess kept
             extra["untrusted_guess"] = np.round(parts[extra["untrusted"]], 6).tolist()
             parts = {**parts, extra["untrusted"]: None}

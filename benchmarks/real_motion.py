@@ -731,7 +731,7 @@ def report(doc) -> str:
 
 
 def main(argv=None):
-    from _machine import apply_settings, machine, option_settings, results_dir, write_results
+    from _machine import machine, results_dir, sequence_settings, write_results
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
@@ -745,16 +745,13 @@ def main(argv=None):
                          "'' to skip)")
     ap.add_argument("--quick", action="store_true", help="without the other grids (--spread '')")
     ap.add_argument("--set", action="append", metavar="NAME=VALUE",
-                    help="a kinematic_fit constant (NAME=VALUE) or a sequence option (name=value) "
-                         "for this run (a Python literal; repeatable): "
+                    help="a sequence option (name=value, a SequenceOptions field) for this run "
+                         "(a Python literal; repeatable): "
                          "a development variant, never a published figure")
     a = ap.parse_args(argv)
-    from topopose.sequence import kinematic_fit as kf
     from topopose.sequence.options import SequenceOptions
-    settings = apply_settings(kf, [x for x in a.set or () if x.split("=")[0].isupper()])
-    sequence = SequenceOptions.of(**{k.strip(): v for k, v in option_settings(a.set).items()},
-                                  **({"hints": False} if a.no_hand_hints else {}))
-    settings.update(option_settings(a.set))
+    settings = sequence_settings(a.set)
+    sequence = SequenceOptions.of(**settings, **({"hints": False} if a.no_hand_hints else {}))
     if a.quick:
         a.spread = ""
     from real import person_recording

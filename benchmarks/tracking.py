@@ -89,13 +89,14 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import apply_settings, machine  # noqa: E402
+from _machine import machine, sequence_settings  # noqa: E402
 
 from topopose.capture import load_capture  # noqa: E402
 from topopose.synth.capture import SMOOTH, synthetic_capture, write_capture  # noqa: E402
 from topopose.batch import run  # noqa: E402
 from topopose.sequence.chirality import assign_sides  # noqa: E402
-from topopose.sequence.kinematic_fit import fit_sequence, initial_placement  # noqa: E402
+from topopose.sequence.kinematic_fit import fit_sequence as _fit_sequence  # noqa: E402
+from topopose.sequence.kinematic_fit import initial_placement  # noqa: E402
 from topopose.sequence.options import SkeletonFitOptions  # noqa: E402
 from topopose.pose.model import load_model  # noqa: E402
 from topopose.batch.quality import evaluate, point_segment_distance  # noqa: E402
@@ -140,6 +141,15 @@ DILATE = {"4pd": 3}
 PAIRS = (("hand_1", "hand_2"), ("foot_1", "foot_2"))
 # the joints the issue names (MPJPE); the others are reported per joint only
 MPJPE_JOINTS = ("neck", "shoulder", "elbow", "wrist", "hip", "knee", "ankle")
+
+
+SETTINGS = {}     # the sequence options of --set, for every fit of the run
+
+
+def fit_sequence(poses, model, **options):
+    """:func:`topopose.sequence.kinematic_fit.fit_sequence` with the run's ``--set`` options
+    (those given here win)."""
+    return _fit_sequence(poses, model, **{**SETTINGS, **options})
 
 
 BONE_QUANTILE = SkeletonFitOptions().quantile
@@ -843,11 +853,12 @@ def main(argv=None):
     ap.add_argument("--real-json", default=None,
                     help="with --bias: real_motion.json, the real recording's bias beside")
     ap.add_argument("--set", action="append", metavar="NAME=VALUE",
-                    help="a kinematic_fit constant for this run (a Python literal; repeatable): "
+                    help="a sequence option (name=value, a SequenceOptions field) for this run "
+                         "(a Python literal; repeatable): "
                          "the peer of a default, e.g. results/tracking_before.md")
     a = ap.parse_args(argv)
-    from topopose.sequence import kinematic_fit
-    settings = apply_settings(kinematic_fit, a.set)
+    settings = sequence_settings(a.set)
+    SETTINGS.update(settings)
     model = load_model("human")
     work = a.work or tempfile.mkdtemp(prefix="topopose_tracking_")
     seqs = DEV_SEQUENCES if a.dev else SEQUENCES

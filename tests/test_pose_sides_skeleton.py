@@ -66,7 +66,7 @@ def _hand_2_unseen(yaw, seed):
     ``HOLD_FRAMES + 1``: too far to hold the first's arm) with hand_2 not found (no part, no
     curve). Returns (whole, cut, the second frame's true parts, the second frame's numbering
     map)."""
-    from topopose.sequence.kinematic_fit import HOLD_FRAMES
+    HOLD_FRAMES = SequenceOptions().gaps.hold_frames
 
     rng = np.random.default_rng(seed)
     parts, curves = _body(yaw, rng)
@@ -300,7 +300,7 @@ def test_an_unseen_arm_is_held_from_the_last_fitted_frame_up_to_hold_frames_back
     unseen arm is the whole frame's arm, moved with the root (the truth: the same body, so
     every joint where the whole frame's fit put it, plus the translation); further back it
     takes the rest pose, its upper arm hanging along the trunk."""
-    from topopose.sequence.kinematic_fit import HOLD_FRAMES
+    HOLD_FRAMES = SequenceOptions().gaps.hold_frames
 
     assert HOLD_FRAMES == 5
     rng = np.random.default_rng(3)

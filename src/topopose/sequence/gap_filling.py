@@ -7,42 +7,41 @@ from __future__ import annotations
 import numpy as np
 
 from topopose.sequence.joint_placement import HULL_GATE
-from topopose.sequence.options import DEFAULT
+from topopose.sequence.options import DEFAULT, GapOptions
 from topopose.sequence.skeleton_fit import KinematicTree, _directions, forward
 
 GAPS = DEFAULT.gaps
 
-HOLD_MAX = 0.15     # m: mean move of the seen joints from the last fitted frame
+# GapOptions.hold_max = 0.15: m, mean move of the seen joints from the last fitted frame
+# GapOptions.hold_frames = 5: the last fitted frame at most this many frames before (3 → 5:
+#                     random motion, development seeds 51–56, MPJPE median 6.21 → 6.12 cm, frames
+#                     holding joints 7.28 → 7.22; 10 / 15 the same as 5: a part lost across 4–5
+#                     unmatched frames took the rest pose; walks 41–46 4.29 → 4.29, unrelated
+#                     random poses 21–32 unchanged: they fail the motion check)
 
 
-HOLD_FRAMES = 5     # the last fitted frame at most this many frames before (3 → 5: random
-                    # motion, development seeds 51–56, MPJPE median 6.21 → 6.12 cm, frames
-                    # holding joints 7.28 → 7.22; 10 / 15 the same as 5: a part lost across 4–5
-                    # unmatched frames took the rest pose; walks 41–46 4.29 → 4.29, unrelated
-                    # random poses 21–32 unchanged: they fail the motion check)
-
-
-def _continues(prev, start, dt):
-    """Whether the last fitted frame ``prev``, ``dt`` frames before, is the same motion: the
-    joints seen in both moved (relative to the first of them, the root when seen) less than
-    ``HOLD_MAX`` on average (unrelated random poses: the hands move 0.5–1.5 m; development
-    seeds 21–33 with ``HOLD_MAX · dt``: frames holding joints 8.6 → 8.9 cm)."""
-    if prev is None or not 1 <= dt <= HOLD_FRAMES:
+def _continues(prev, start, dt, gap: GapOptions = GAPS):
+    """Whether the last fitted frame ``prev``, ``dt`` frames before, is the same motion:
+    ``dt`` at most ``gap.hold_frames`` and the joints seen in both moved (relative to the first
+    of them, the root when seen) less than ``gap.hold_max`` on average (unrelated random
+    poses: the hands move 0.5–1.5 m; development seeds 21–33 with ``hold_max · dt``: frames
+    holding joints 8.6 → 8.9 cm)."""
+    if prev is None or not 1 <= dt <= gap.hold_frames:
         return False
     ok = np.flatnonzero(~np.isnan(start).any(axis=1))
     if len(ok) == 0:
         return False
     d = (start[ok] - start[ok[0]]) - (prev[ok] - prev[ok[0]])
-    return float(np.linalg.norm(d, axis=1).mean()) < HOLD_MAX
+    return float(np.linalg.norm(d, axis=1).mean()) < gap.hold_max
 
 
-def held_gaps(P, held, t, tree: KinematicTree, L, max_gap=5):
+def held_gaps(P, held, t, tree: KinematicTree, L, max_gap=5, hold_max=GAPS.hold_max):
     """Fill the joints a frame did not see (``held``) from the frames either side that saw
     them (issue 15: gap filling of short stretches, flagged, never silent).
 
     A run of at most ``max_gap`` consecutive frames holding joint ``j``, between two fitted
     frames ``a`` and ``b`` seeing it, the same motion (consecutive frame numbers, and the
-    joints both see moved less than :data:`HOLD_MAX` per frame relative to the root, as
+    joints both see moved less than ``hold_max`` per frame relative to the root, as
     :func:`_continues`): the bone directions of ``j``'s chain held there are interpolated
     linearly between ``a``'s and ``b``'s, the joints below re-placed with the frame's bone
     lengths ``L`` (n_frames, n_joints). Unrelated poses (random-motion captures) fail the
@@ -84,7 +83,7 @@ def held_gaps(P, held, t, tree: KinematicTree, L, max_gap=5):
                 continue
             move = np.linalg.norm((P[b, both] - P[b, tree.root]) - (P[a, both] - P[a, tree.root]),
                                   axis=1).mean()
-            if move >= HOLD_MAX * (b - a):
+            if move >= hold_max * (b - a):
                 continue
             # the held joints of j's chain from j down (those the frames a and b both saw)
             sub = [j] + [c for c in order if c != j and _below(tree, c, j)]

@@ -48,7 +48,7 @@ they form a kinematic tree (:func:`kinematic_tree`). Per sequence:
    term ``|d| - 1``; then the root is moved by the mean offset of the other joints from their
    placements and the chains fitted again (``ROOT_STEPS``). An arc with neither a curve nor a
    placed joint in the frame keeps the bone directions of the last fitted frame when that is
-   at most ``HOLD_FRAMES`` (5) before and the same motion (``_continues``) and a frame placed
+   at most ``hold_frames`` (5) before and the same motion (``_continues``) and a frame placed
    the joint at most ``GapOptions.hold_age`` (8) frames before, else takes a rest pose
    (:func:`rest_fill`: a limb merged with the body hangs along the trunk, an arm's shoulder
    opposite its mate raised ``GapOptions.held_shoulder``, its forearm folded up and across the
@@ -89,8 +89,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from topopose.sequence.gap_filling import (ACROSS, FOLD, HINT_END, HOLD_FRAMES,  # noqa: F401
-                                           HOLD_MAX, SHOULDER_BLEND, _below, _continues,
+from topopose.sequence.gap_filling import (ACROSS, FOLD, HINT_END,  # noqa: F401
+                                           SHOULDER_BLEND, _below, _continues,
                                            _interpolate, _outward, held_gaps, hint_fill,
                                            rest_fill, shoulder_fill)
 from topopose.sequence.joint_placement import (BEND_DEPTH, HANG_COS, HULL_GATE,  # noqa: F401
@@ -514,7 +514,7 @@ def fit_sequence(poses, model, options: SequenceOptions | None = None, fps=None,
     held = np.isnan(init).any(axis=2)
     filled = np.zeros_like(held)
     if max_gap and gap.gaps:
-        P, filled = held_gaps(P, held, t, tree, Lf, max_gap)
+        P, filled = held_gaps(P, held, t, tree, Lf, max_gap, gap.hold_max)
     fitted = ~np.isnan(P).any(axis=(1, 2))
     interp = np.zeros(n_f, dtype=bool)
     idx = np.flatnonzero(fitted)
@@ -577,7 +577,8 @@ def _fit_frames(poses, init, tree: KinematicTree, L, fit, gap):
             start = init[i].copy()
             miss = np.isnan(start).any(axis=1)
             seen_at[~miss] = t[i]
-            if miss.any() and _continues(prev, start, t[i] - t_prev if prev is not None else 0):
+            if miss.any() and _continues(prev, start, t[i] - t_prev if prev is not None else 0,
+                                         gap):
                 hold = miss.copy()
                 if gap.hold_age is not None:      # only joints seen at most hold_age frames ago
                     hold &= t[i] - seen_at <= gap.hold_age

@@ -101,6 +101,12 @@ class GapOptions:
     ----------
     max_gap : int
         Longest run of unfitted frames filled by interpolation (0: none).
+    hold_frames : int
+        A joint a frame does not see is held from the last fitted frame at most this many
+        frames before, when that frame is the same motion (:func:`._continues`).
+    hold_max : float
+        Metres: the same motion moved the joints seen in both frames less than this on
+        average (per frame between held gaps' ends, :func:`.held_gaps`).
     hold_age : int or None
         Frames: a joint is held from the last fitted frame only when a frame placed it at most
         this many frames before (None: always).
@@ -121,6 +127,8 @@ class GapOptions:
     """
 
     max_gap: int = 5
+    hold_frames: int = 5
+    hold_max: float = 0.15
     hold_age: int | None = 8
     gaps: bool = False
     held_shoulder: float | None = float(np.radians(30.0))

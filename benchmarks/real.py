@@ -225,7 +225,7 @@ def confidence_curve(rows, precisions=(1.0, 0.95, 0.9, 0.8, 0.75, 0.7, 0.0)) -> 
 def as_run(poses, model, up, min_confidence, consistency=None, trim=None) -> list:
     """The poses as ``topopose run`` writes them (:func:`topopose.batch.run.run`): the confidence
     gate's decision at ``min_confidence`` unless None (the run's default gate,
-    :func:`~topopose.frame.estimate.default_gate`, at its minimum for the camera count; a frame
+    :func:`~topopose.frame.rules.default_gate`, at its minimum for the camera count; a frame
     rejected for its AHA distance that the gate judged too gets the gate's reason after it,
     as ``confidence.judge_frame`` writes it), then
     :func:`~topopose.sequence.motion.process_sequence` (track, skeleton, sides; ``consistency``:

@@ -73,7 +73,7 @@ def bone_segments(pose, model, names=None, start=None) -> list:
     (1-based index into ``names``, default :func:`arc_names`); bones with a joint not placed
     are left out. Empty when the model declares no joints or the pose has no curves.
     """
-    from topopose.sequence.kinematic_fit import initial_placement
+    from topopose.sequence.joint_placement import initial_placement
 
     if not getattr(model, "joints", None) or not (pose.diagnostics or {}).get("curves"):
         return []
@@ -99,7 +99,7 @@ def _bone_table(model, names, start):
     """The kinematic tree of ``model`` and its bones ``(child, parent, f, trunk label, label)``
     for :func:`bone_segments`: the trunk takes the fraction f of the bone from its parent
     joint; cached per model, names and start."""
-    from topopose.sequence.kinematic_fit import kinematic_tree
+    from topopose.sequence.skeleton_fit import kinematic_tree
     from topopose.pose.model import part_stem
 
     key = (id(model), names, start)

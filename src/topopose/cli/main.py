@@ -360,6 +360,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"topopose {__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
+    _add_stage_commands(sub)
+    _add_run_command(sub)
+    _add_other_commands(sub)
+    _fill_help(p)
+    return p
+
+
+def _add_stage_commands(sub):
+    """``demo``, ``synth`` and one command per pipeline stage: ``hull``, ``skeleton``, ``tree``,
+    ``match``."""
     s = sub.add_parser("demo", help="synthesize captures, run them, write poses and pictures")
     s.add_argument("dir", nargs="?", default="topopose-demo")
     s.add_argument("--frames", type=int, default=6)
@@ -425,6 +435,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--cut", action="store_true")
     s.set_defaults(func=cmd_match)
 
+
+def _add_run_command(sub):
+    """``run``: every frame of a capture."""
     s = sub.add_parser("run", help="estimate the pose in every frame of a capture")
     s.add_argument("capture")
     s.add_argument("--model", default="human")
@@ -488,6 +501,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "rejected is matched when its silhouettes are explained")
     s.set_defaults(func=cmd_run)
 
+
+def _add_other_commands(sub):
+    """``view``, ``evaluate``, ``learn-model``, ``calib``, the applications and ``bench``."""
     s = sub.add_parser("view", help="render one frame as a PNG")
     s.add_argument("capture")
     s.add_argument("--poses", required=True)
@@ -588,8 +604,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write to the tracked benchmarks/results/ (default: benchmarks/results/quick/, "
                         "ignored by git)")
     s.set_defaults(func=cmd_bench)
-    _fill_help(p)
-    return p
 
 
 def _quiet_broken_pipe() -> int:

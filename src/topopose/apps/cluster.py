@@ -24,7 +24,6 @@ cardinality of their union)."
 from __future__ import annotations
 
 import itertools
-import json
 import math
 import re
 from dataclasses import dataclass, field
@@ -346,36 +345,3 @@ def cluster_figure(poses, result: Clustering, out, up="+z") -> None:
     fig.tight_layout()
     fig.savefig(out)
     plt.close(fig)
-
-
-def cluster_cli(a) -> int:
-    """``topopose cluster POSES.jsonl [--output F.jsonl] [--clusters K | --threshold T]``."""
-    from topopose import _paths
-    from topopose.apps.detect import header_up, read_poses_file
-
-    if a.clusters is not None and a.threshold is not None:
-        raise InputError("cluster: give --clusters or --threshold, not both")
-    _paths.check_number(a.clusters, "--clusters", low=1, integer=True)
-    _paths.check_number(a.threshold, "--threshold", low=0)
-    outs = _paths.check_outputs({"--output": a.output, "--figure": a.figure},
-                                [("POSES", a.poses)], suffixes={"--figure": ".png"})
-    poses, header = read_poses_file(a.poses)
-    if not poses:
-        raise InputError(f"{a.poses}: no pose in the file")
-    res = cluster_poses(poses, clusters=a.clusters, threshold=a.threshold, auto=a.auto)
-    lines = "".join(json.dumps({"frame": f, "cluster": c}) + "\n" for f, c in zip(res.frames, res.labels))
-    if a.output:
-        with _paths.atomic_output(outs["--output"], "--output") as tmp:
-            tmp.write_text(lines)
-    else:
-        print(lines, end="")
-    import sys
-
-    out = sys.stdout if a.output else sys.stderr
-    print(f"{res.k} clusters over {len(res.used)} matched frames ({res.method})", file=out)
-    for c, m in enumerate(res.medoids):
-        print(f"  cluster {c}: {sum(v == c for v in res.labels)} frames, medoid {m}", file=out)
-    if a.figure:
-        with _paths.atomic_output(outs["--figure"], "--figure") as tmp:
-            cluster_figure(poses, res, tmp, up=a.up or header_up(header) or "+z")
-    return 0

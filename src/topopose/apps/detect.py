@@ -38,7 +38,6 @@ case-insensitively; numbered and sided names resolve to each other (``hand_1`` â
 """
 from __future__ import annotations
 
-import json
 import re
 import tomllib
 from dataclasses import dataclass
@@ -612,57 +611,3 @@ def intervals(results) -> list:
     if cur is not None:
         runs.append(tuple(cur))
     return runs
-
-
-def detect_cli(a) -> int:
-    """``topopose detect POSES.jsonl "EXPR" | --pose NAME [--output F.jsonl] [--csv F.csv]``."""
-    import csv
-    import sys
-
-    from topopose import _paths
-
-    outs = _paths.check_outputs({"--output": a.output, "--csv": a.csv},
-                                [("POSES", a.poses), ("--library", a.library)])
-    margin = _margin(getattr(a, "margin", 0.0))
-    library, aliases = load_library(a.library)
-    if a.list:
-        for p in library.values():
-            print(f"{p.name}: {p.expr}" + (f"   # {p.description}" if p.description else ""))
-        return 0
-    if (a.expr is None) == (a.pose is None):
-        raise InputError("detect: give an expression or --pose NAME (one of them)")
-    if a.pose is not None:
-        if a.pose.lower() not in library:
-            raise InputError(f"--pose: unknown pose {a.pose!r}; the library has "
-                             f"{', '.join(p.name for p in library.values())}")
-        expr = library[a.pose.lower()].expr
-    else:
-        expr = a.expr
-    try:
-        node = parse(expr)
-    except ExpressionError as exc:
-        print(f"topopose: error: {exc}", file=sys.stderr)       # keep the caret's line
-        return 2
-    poses, header = read_poses_file(a.poses)
-    up = a.up or header_up(header) or "+z"
-    res = detect(poses, node, up=up, aliases=aliases, margin=margin)
-    if a.output:
-        with _paths.atomic_output(outs["--output"], "--output") as tmp:
-            tmp.write_text("".join(json.dumps(r) + "\n" for r in res))
-    else:
-        for r in res:
-            print(json.dumps(r))
-    if a.csv:
-        with _paths.atomic_output(outs["--csv"], "--csv") as tmp, open(tmp, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["frame", "value"])
-            for r in res:
-                w.writerow([r["frame"], "" if r["value"] is None else int(r["value"])])
-    n_true = sum(r["value"] is True for r in res)
-    n_none = sum(r["value"] is None for r in res)
-    runs = intervals(res)
-    out = sys.stdout if a.output else sys.stderr
-    print(f"{n_true} of {len(res)} frames true ({n_none} undecided), up {up}: {expr}", file=out)
-    for first, last, n in runs:
-        print(f"  {first} .. {last}  ({n} frames)", file=out)
-    return 0

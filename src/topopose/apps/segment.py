@@ -31,9 +31,7 @@ Labels are 1..E in the order of the model's edges, named ``"u-v"`` (e.g. ``"tors
 from __future__ import annotations
 
 import itertools
-import json
 import math
-import time
 
 import numpy as np
 
@@ -663,74 +661,3 @@ def renumbered_accuracy(pred, truth, names, return_mapping=False):
         if acc > best:
             best, best_m = acc, m
     return (best, best_m) if return_mapping else best
-
-
-def segment_cli(a) -> int:
-    """``topopose segment CAPTURE --poses P.jsonl --out DIR [--frames ...]``."""
-    from PIL import Image
-
-    from topopose import _paths
-    from topopose.capture import load_capture
-    from topopose.pose.model import guess_model
-    from topopose.apps.detect import read_poses_file
-    from topopose.frame.estimate import FrameEstimator
-
-    inputs = [*_paths.capture_inputs(a.capture), ("--poses", a.poses),
-              ("--model", _paths.file_input(a.model))]
-    out = _paths.writable_folder(a.out, "--out", inputs=inputs)
-    cap = load_capture(a.capture)
-    poses, _ = read_poses_file(a.poses)
-    if not poses:
-        raise InputError(f"{a.poses}: no pose in the file")
-    if a.frames:
-        want = {cap.frame_name(f) for f in a.frames.split(",")}
-        poses = [p for p in poses if p.frame in want]
-    files = {"segmentation.jsonl": out / "segmentation.jsonl"}    # every file, checked first
-    for p in poses:
-        if p.status == "matched":
-            files.update({f"{p.frame} labels": out / f"{p.frame}_labels.npz",
-                          f"{p.frame} mesh": out / f"{p.frame}.ply",
-                          **{f"{p.frame} {c.name}": out / f"{p.frame}_{c.name}.png"
-                             for c in cap.cameras}})
-    _paths.check_outputs({f"--out ({k})": v for k, v in files.items()}, inputs)
-    model = guess_model(poses[0], a.model)
-    res = a.resolution or int(poses[0].diagnostics.get("resolution", 100))
-    tol = poses[0].diagnostics.get("hull_tolerance")
-    est = FrameEstimator(cap, model, res, tolerance=None if tol is None else int(tol))
-
-    def write(path, how):
-        with _paths.atomic_output(path, "--out") as tmp:
-            how(tmp)
-
-    names_all = arc_names(model)
-    cols = label_colours(len(names_all))
-    n_done, summary = 0, []
-    for p in poses:
-        if p.status != "matched":
-            continue
-        pose, det = est.estimate(p.frame, detail=True)
-        if pose.status != "matched" or det.alignment is None:
-            summary.append({"frame": p.frame, "status": pose.status, "error": pose.error})
-            continue
-        t0 = time.perf_counter()
-        labels, names = segment(det.volume, det.skeleton, det.alignment, det.data, names=names_all,
-                                pose=pose, model=model)
-        ms = (time.perf_counter() - t0) * 1e3
-        vol = det.volume
-        write(out / f"{p.frame}_labels.npz", lambda t: np.savez_compressed(
-            t, labels=labels.astype(np.uint8), names=np.array(names), origin=vol.origin,
-            voxel_size=vol.voxel_size))
-        write(out / f"{p.frame}.ply",
-              lambda t: write_label_mesh(t, labels, names, vol.origin, vol.voxel_size))
-        sils = cap.silhouettes(p.frame)
-        for cam, img in zip(cap.cameras, camera_masks(cap, labels, vol.origin, vol.voxel_size, sils)):
-            write(out / f"{p.frame}_{cam.name}.png", lambda t: Image.fromarray(cols[img]).save(t))
-        counts = np.bincount(labels.ravel(), minlength=len(names) + 1)[1:]
-        summary.append({"frame": p.frame, "status": "segmented", "segment_ms": round(ms, 3),
-                        "voxels": {n: int(c) for n, c in zip(names, counts)}})
-        n_done += 1
-    write(out / "segmentation.jsonl",
-          lambda t: t.write_text("".join(json.dumps(s) + "\n" for s in summary)))
-    print(f"segmented {n_done} matched frames into {out} (labels: "
-          + ", ".join(f"{i + 1}={n}" for i, n in enumerate(names_all)) + ")")
-    return 0

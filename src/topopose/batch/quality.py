@@ -22,7 +22,6 @@ to frames, of false positives to frames, and of false positives to matchings (TP
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -306,35 +305,3 @@ def summary_table(ev: Evaluation, thresholds=(0.1, 0.2, 0.3, 0.4, 0.6, 2.0)) -> 
         r = ev.rates(t)
         lines.append(f"{t:9.2f}  {r['tp_rate']:7.2f}  {r['fp_rate']:7.2f}  {r['fp_per_match']:8.3f}")
     return "\n".join(lines)
-
-
-def evaluate_cli(a) -> int:
-    """``topopose evaluate CAPTURE --poses POSES.jsonl [--out DIR] [--tolerance T | --tolerance-m D]
-    [--junction-factor F]``."""
-    from topopose.capture import load_capture
-    from topopose.pose.pose import read_poses
-
-    cap = load_capture(a.capture)
-    gt = cap.gt
-    if gt is None:
-        raise InputError(f"{a.capture}: no gt.json; evaluation needs ground truth "
-                         "(synthetic captures from `topopose synth` have it)")
-    poses = read_poses(a.poses)
-    tol, jf = evaluation_tolerance(gt, getattr(a, "tolerance", None), getattr(a, "tolerance_m", None),
-                                   getattr(a, "junction_factor", None))
-    ev = evaluate(gt, poses, tolerance=tol, junction_factor=jf)
-    h = gt.get("height")
-    print(f"tolerance {tol:.4g} capture units" + (f" = {tol / float(h):.3g} x height" if h else "")
-          + f", junctions x {jf:g}")
-    print(summary_table(ev))
-    out = Path(a.out) if a.out else Path(a.poses).resolve().parent
-    out.mkdir(parents=True, exist_ok=True)
-    from topopose.viz.figures import plot_quality
-
-    from topopose._paths import atomic_output
-
-    fig = out / (Path(a.poses).stem + "_quality.png")
-    with atomic_output(fig, "--out") as tmp:
-        plot_quality([(f"{gt.get('subject', 'capture')}", ev)], tmp)
-    print(f"wrote {fig}")
-    return 0

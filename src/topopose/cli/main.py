@@ -171,13 +171,13 @@ def cmd_match(a):
 
 
 def cmd_run(a):
-    from topopose.batch.run import run_cli
+    from topopose.cli.run import run_cli
 
     return run_cli(a)
 
 
 def cmd_view(a):
-    from topopose.viz import view_cli
+    from topopose.cli.view import view_cli
 
     _paths.writable_output(a.out, "--out", suffix=(".png", ".pdf", ".svg", ".jpg", ".jpeg"),
                            inputs=[*_paths.capture_inputs(a.capture), ("--poses", a.poses),
@@ -187,7 +187,7 @@ def cmd_view(a):
 
 
 def cmd_evaluate(a):
-    from topopose.batch.quality import evaluate_cli
+    from topopose.cli.run import evaluate_cli
 
     if a.out:
         _paths.writable_folder(a.out, "--out", inputs=_paths.capture_inputs(a.capture))
@@ -196,25 +196,25 @@ def cmd_evaluate(a):
 
 
 def cmd_segment(a):
-    from topopose.apps.segment import segment_cli
+    from topopose.cli.apps import segment_cli
 
     return segment_cli(a)
 
 
 def cmd_detect(a):
-    from topopose.apps.detect import detect_cli
+    from topopose.cli.apps import detect_cli
 
     return detect_cli(a)
 
 
 def cmd_cluster(a):
-    from topopose.apps.cluster import cluster_cli
+    from topopose.cli.apps import cluster_cli
 
     return cluster_cli(a)
 
 
 def cmd_learn_model(a):
-    from topopose.kinematics import learn_model_cli
+    from topopose.cli.learn import learn_model_cli
 
     _paths.check_resolution(a.resolution)
     out = Path(a.out)
@@ -225,7 +225,7 @@ def cmd_learn_model(a):
 
 
 def cmd_calib(a):
-    from topopose.capture.calib_import import calib_import_cli
+    from topopose.cli.calib import calib_import_cli
 
     return calib_import_cli(a)
 

@@ -1,0 +1,31 @@
+"""`topopose calib import`: other calibration formats to calibration.toml."""
+from __future__ import annotations
+
+import cv2
+
+from topopose.capture.calib_import import import_calibration, write_calibration
+from topopose.errors import InputError
+
+
+def calib_import_cli(a) -> int:
+    """``topopose calib import FILE... [--format F] [--size WxH | --image IMG] --out FILE``."""
+    from topopose import _paths
+    from topopose.capture.calibration import read_calibration
+
+    out = _paths.writable_output(a.out, "--out", inputs=[*(("FILE", f) for f in a.files),
+                                                         ("--image", getattr(a, "image", None))])
+    size = a.size
+    if getattr(a, "image", None):
+        img = cv2.imread(str(a.image), cv2.IMREAD_UNCHANGED)
+        if img is None:
+            raise InputError(f"--image {a.image}: unreadable image")
+        size = (img.shape[1], img.shape[0])
+    cams = import_calibration(a.files, a.format, size)
+    with _paths.atomic_output(out, "--out") as tmp:
+        write_calibration(cams, tmp)
+        try:
+            read_calibration(tmp)             # what load_capture will read
+        except InputError as exc:             # the message names the file the user asked for
+            raise InputError(str(exc).replace(str(tmp), str(out))) from None
+    print(f"wrote {out}: {len(cams)} cameras ({', '.join(c.name for c in cams)})")
+    return 0

@@ -58,7 +58,7 @@ VARIANTS = {"track": "person_track = true\n",              # MediaPipe's trackin
             # the reader without read-ahead: FFmpeg's own threads, decoding in the reader thread
             "oldreader": "decode_threads = 0\ndecode_ahead = 0\n",
             # the hull carved from the full-size masks (not from the network's small ones)
-            "fullmasks": ""}
+            "fullmasks": "upsampled = false\n"}
 HAND_EXT = 0.10         # metres beyond the wrist
 
 
@@ -308,8 +308,6 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     for o in opts:
         extra += VARIANTS[o]
     make_capture(rec, cdir, base, extra)
-    import topopose.capture.background as bg
-    bg.UPSAMPLED_MASKS = "fullmasks" not in opts
     def one_pass(support):
         """The run end to end, timed; ``support``: record the silhouette the model leaves
         unexplained (:mod:`topopose.frame.support`, which the run's consistency reads: on by

@@ -60,22 +60,29 @@ def write_results(out, doc: dict, report) -> None:
     print(f"wrote {out}.md / .json")
 
 
-def apply_settings(module, pairs) -> dict:
-    """Set ``module``'s constants from ``NAME=VALUE`` strings (a Python literal each, e.g.
-    ``DESPIKE=None``, ``FROM_START={}``): a development study's peer of a default. Returns
-    the settings applied (recorded beside the figures); an unknown name or a value that is no
-    literal is an error that names it."""
+def sequence_settings(pairs) -> dict:
+    """``{name: value}`` from ``name=value`` strings (a Python literal each, e.g.
+    ``despike=None``, ``from_start=set()``): options of the sequence stage
+    (:class:`topopose.sequence.options.SequenceOptions` fields), a development study's peer of
+    a default, passed to the fits as options. An unknown name or a value that is no literal is
+    an error that names it."""
     import ast
+
+    from topopose.sequence.options import SequenceOptions
 
     out = {}
     for pair in pairs or ():
         name, sep, value = pair.partition("=")
-        if not sep or not hasattr(module, name.strip()):
-            raise SystemExit(f"--set {pair!r}: {module.__name__} has no constant {name.strip()!r}")
         try:
             v = ast.literal_eval(value.strip())
         except (ValueError, SyntaxError):
             raise SystemExit(f"--set {pair!r}: {value.strip()!r} is not a Python literal") from None
-        setattr(module, name.strip(), v)
-        out[name.strip()] = value.strip()
+        out[name.strip()] = v
+        try:
+            SequenceOptions.of(**{name.strip(): v})
+        except TypeError:
+            raise SystemExit(f"--set {pair!r}: no sequence option {name.strip()!r} "
+                             "(topopose.sequence.options)") from None
+        if not sep:
+            raise SystemExit(f"--set {pair!r}: expected name=value")
     return out

@@ -206,7 +206,7 @@ def drop_variants(cap, est, p, det, score_with=None) -> dict:
     unplaced and the quality of the pose without it (a right "missing limb" when every other
     part is right)."""
     from topopose.frame.confidence import DROP_PARTS, drop_part_features
-    from topopose.frame.estimate import vertex_radii
+    from topopose.frame.thickness import vertex_radii
     from topopose.pose.pose import Pose
 
     if p.status == "failed" or det.alignment is None or any(x is None for x in p.parts.values()):
@@ -242,7 +242,7 @@ def swapped_rows(cap, est, out, ev, like):
     from types import SimpleNamespace
 
     from topopose.frame.confidence import frame_features
-    from topopose.frame.estimate import vertex_radii
+    from topopose.frame.thickness import vertex_radii
     from topopose.pose.pose import Pose
     rows = []
     for (p, det), s in zip(out, ev.frames):

@@ -63,7 +63,7 @@ VARIANTS = {"track": "person_track = true\n",              # MediaPipe's trackin
             # the reader without read-ahead: FFmpeg's own threads, decoding in the reader thread
             "oldreader": "decode_threads = 0\ndecode_ahead = 0\n",
             # the hull carved from the full-size masks (not from the network's small ones)
-            "fullmasks": ""}
+            "fullmasks": "upsampled = false\n"}
 HAND_EXT = 0.10         # metres beyond the wrist
 
 
@@ -230,7 +230,7 @@ def confidence_curve(rows, precisions=(1.0, 0.95, 0.9, 0.8, 0.75, 0.7, 0.0)) -> 
 def as_run(poses, model, up, min_confidence, consistency=None, trim=None) -> list:
     """The poses as ``topopose run`` writes them (:func:`topopose.batch.run.run`): the confidence
     gate's decision at ``min_confidence`` unless None (the run's default gate,
-    :func:`~topopose.frame.estimate.default_gate`, at its minimum for the camera count; a frame
+    :func:`~topopose.frame.rules.default_gate`, at its minimum for the camera count; a frame
     rejected for its AHA distance that the gate judged too gets the gate's reason after it,
     as ``confidence.judge_frame`` writes it), then
     :func:`~topopose.sequence.motion.process_sequence` (track, skeleton, sides; ``consistency``:
@@ -313,8 +313,6 @@ def run_method(rec, method, resolution, nframes, work: Path, ref, picture=None, 
     for o in opts:
         extra += VARIANTS[o]
     make_capture(rec, cdir, base, extra)
-    import topopose.capture.background as bg
-    bg.UPSAMPLED_MASKS = "fullmasks" not in opts
     def one_pass(support):
         """The run end to end, timed; ``support``: record the silhouette the model leaves
         unexplained (:mod:`topopose.frame.support`, which the run's consistency reads: on by

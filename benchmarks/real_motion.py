@@ -278,7 +278,7 @@ def toe_errors(markers, ref, rows) -> dict:
     return {"median": float(np.median(errs)) if errs else None, "n": len(errs)}
 
 
-def run_recording(rec: Path, work: Path, raw_path=None, resolution=100):
+def run_recording(rec: Path, work: Path, raw_path=None, resolution=100, sequence=None):
     """Per-frame run (gates off) and the motion stage; returns raw poses, motion, capture, TRC."""
     import topopose as tp
     from real import make_capture
@@ -288,10 +288,10 @@ def run_recording(rec: Path, work: Path, raw_path=None, resolution=100):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         cap = tp.load_capture(cdir)
-    return run_capture(cap, work, raw_path, resolution)
+    return run_capture(cap, work, raw_path, resolution, sequence)
 
 
-def run_capture(cap, work: Path, raw_path=None, resolution=100):
+def run_capture(cap, work: Path, raw_path=None, resolution=100, sequence=None):
     """:func:`run_recording` on a loaded (or in-memory) capture."""
     from topopose.batch import run
     from topopose.pose.export import OPENSIM_LABELS, marker_names, write_trc
@@ -313,7 +313,8 @@ def run_capture(cap, work: Path, raw_path=None, resolution=100):
     t_frames = None if reused else round(time.perf_counter() - t0, 2)
     raw = sorted(raw, key=lambda p: p.frame)
     t0 = time.perf_counter()
-    motion = process_sequence(raw, model, cap.up_vector, fps=cap.fps)   # as topopose run
+    motion = process_sequence(raw, model, cap.up_vector, sequence,
+                              fps=cap.fps)   # as topopose run
     t_motion = time.perf_counter() - t0
     trc_path = work / "motion.trc"
     write_trc(trc_path, motion.poses, marker_names(motion.poses, model.parts),
@@ -337,37 +338,29 @@ def grid_spread(rec: Path, work: Path, ref, resolutions) -> dict:
     return out
 
 
-# peers of the default motion stage, from the same per-frame poses: kinematic_fit constants
-PEERS = {"the neck and shoulders each on its own target (GIRDLE = False)": {"GIRDLE": False},
-         "the smoothing window 9 frames at any rate "
-         "(SMOOTH_RATE = None)": {"SMOOTH_RATE": None},
-         "temporal outliers kept as fitted, not bridged (BRIDGE = False)":
-             {"BRIDGE": False},
-         "one frame's swung bones smoothed with the others "
-         "(DESPIKE = None)": {"DESPIKE": None},
-         "hanging arms' elbows and wrists at their fractions only "
-         "(FROM_START = {})": {"FROM_START": set()},
-         "both (DESPIKE = None, FROM_START = {})":
-             {"DESPIKE": None, "FROM_START": set()}}
+# peers of the default motion stage, from the same per-frame poses: sequence options
+PEERS = {"the neck and shoulders each on its own target (GIRDLE = False)": {"girdle": False},
+         "the smoothing window 9 frames at 60 frames/s, as before session 33 "
+         "(smooth = 9)": {"smooth": 9},
+         "temporal outliers kept as fitted, not bridged, as before session 34 (BRIDGE = False)":
+             {"bridge": False},
+         "one frame's swung bones smoothed with the others, as before session 35 "
+         "(despike = None)": {"despike": None},
+         "hanging arms' elbows and wrists at their fractions only, as before session 35 "
+         "(from_start = {})": {"from_start": set()},
+         "both, as session 34 (despike = None, from_start = {})":
+             {"despike": None, "from_start": set()}}
 
 
 def peer_scores(raw, cap, model, ref, work) -> dict:
     """The motion stage again from the same per-frame poses with each of :data:`PEERS`'
     settings: MPJPE (side names) on all and on the right frames, as :func:`score` gives it."""
-    from topopose.sequence import kinematic_fit as kf
     from topopose.pose.export import OPENSIM_LABELS, marker_names, write_trc
     from topopose.sequence.motion import process_sequence
 
     out = {}
     for k, (label, consts) in enumerate(PEERS.items()):
-        keep = {c: getattr(kf, c) for c in consts}
-        try:
-            for c, v in consts.items():
-                setattr(kf, c, v)
-            motion = process_sequence(raw, model, cap.up_vector, fps=cap.fps)
-        finally:
-            for c, v in keep.items():
-                setattr(kf, c, v)
+        motion = process_sequence(raw, model, cap.up_vector, fps=cap.fps, **consts)
         path = Path(work) / f"peer{k}.trc"
         write_trc(path, motion.poses, marker_names(motion.poses, model.parts),
                   fps=cap.fps or 25.0, units=cap.units, up=cap.up, labels=OPENSIM_LABELS)
@@ -738,30 +731,29 @@ def report(doc) -> str:
 
 
 def main(argv=None):
-    from _machine import apply_settings, machine, results_dir, write_results
+    from _machine import machine, results_dir, sequence_settings, write_results
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("recording", nargs="?", default=str(DEFAULT))
     ap.add_argument("--raw", default=None, help="per-frame poses.jsonl to reuse (or write)")
     ap.add_argument("--out", default=str(results_dir()))
     ap.add_argument("--no-hand-hints", action="store_true",
-                    help="the kinematic fit without the hand hints (kinematic_fit.HAND_HINTS): "
+                    help="the kinematic fit without the hand hints (hints=False): "
                          "the peer of the default")
     ap.add_argument("--spread", default="96,98,102,104",
                     help="other grid resolutions to run the benchmark at (grid_spread; "
                          "'' to skip)")
     ap.add_argument("--quick", action="store_true", help="without the other grids (--spread '')")
     ap.add_argument("--set", action="append", metavar="NAME=VALUE",
-                    help="a kinematic_fit constant for this run (a Python literal; repeatable): "
+                    help="a sequence option (name=value, a SequenceOptions field) for this run "
+                         "(a Python literal; repeatable): "
                          "a development variant, never a published figure")
     a = ap.parse_args(argv)
-    from topopose.sequence import kinematic_fit as kf
-    settings = apply_settings(kf, a.set)
+    from topopose.sequence.options import SequenceOptions
+    settings = sequence_settings(a.set)
+    sequence = SequenceOptions.of(**settings, **({"hints": False} if a.no_hand_hints else {}))
     if a.quick:
         a.spread = ""
-    if a.no_hand_hints:
-        from topopose.sequence import kinematic_fit
-        kinematic_fit.HAND_HINTS = False
     from real import person_recording
 
     opened = person_recording(a.recording)
@@ -771,7 +763,8 @@ def main(argv=None):
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
-        raw, motion, cap, model, trc_path, secs = run_recording(rec, Path(tmp), a.raw)
+        raw, motion, cap, model, trc_path, secs = run_recording(rec, Path(tmp), a.raw,
+                                                                 sequence=sequence)
         s, markers, right = score(raw, motion.poses, trc_path, ref, model)
         picture(out / "real_motion.png", markers, ref, right, motion.poses,
                 np.asarray(cap.up_vector, float))

@@ -89,14 +89,15 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import apply_settings, machine  # noqa: E402
+from _machine import machine, sequence_settings  # noqa: E402
 
 from topopose.capture import load_capture  # noqa: E402
 from topopose.synth.capture import SMOOTH, synthetic_capture, write_capture  # noqa: E402
 from topopose.batch import run  # noqa: E402
 from topopose.sequence.chirality import assign_sides  # noqa: E402
-from topopose.sequence.kinematic_fit import (BONE_QUANTILE, fit_sequence,  # noqa: E402
-                                         initial_placement)
+from topopose.sequence.kinematic_fit import fit_sequence as _fit_sequence  # noqa: E402
+from topopose.sequence.kinematic_fit import initial_placement  # noqa: E402
+from topopose.sequence.options import SkeletonFitOptions  # noqa: E402
 from topopose.pose.model import load_model  # noqa: E402
 from topopose.batch.quality import evaluate, point_segment_distance  # noqa: E402
 from topopose.sequence.track import gated_only, track  # noqa: E402
@@ -141,6 +142,17 @@ PAIRS = (("hand_1", "hand_2"), ("foot_1", "foot_2"))
 # the joints the issue names (MPJPE); the others are reported per joint only
 MPJPE_JOINTS = ("neck", "shoulder", "elbow", "wrist", "hip", "knee", "ankle")
 
+
+SETTINGS = {}     # the sequence options of --set, for every fit of the run
+
+
+def fit_sequence(poses, model, **options):
+    """:func:`topopose.sequence.kinematic_fit.fit_sequence` with the run's ``--set`` options
+    (those given here win)."""
+    return _fit_sequence(poses, model, **{**SETTINGS, **options})
+
+
+BONE_QUANTILE = SkeletonFitOptions().quantile
 
 def nearest_side(x, segs, pair):
     d = [point_segment_distance(x, *segs[g]) for g in pair]
@@ -294,7 +306,7 @@ def main_fit(tracked, model):
     from dataclasses import replace
 
     m = replace(model, joints=[replace(j, width=(0.0, 0.0), at_raised=None) for j in model.joints])
-    return fit_sequence(tracked, m, spine=0.0, quantile=50)
+    return fit_sequence(tracked, m, spine=0.0, quantile=50, limb_quantile={})
 
 
 def fit_before_rest(tracked, model):
@@ -303,13 +315,8 @@ def fit_before_rest(tracked, model):
     neck's bone took its median length (:data:`~topopose.sequence.kinematic_fit.SLIDE_QUANTILE`)
     and a raised arm's shoulder moved down (:data:`~topopose.sequence.kinematic_fit.
     RAISED_SHOULDER`)."""
-    from topopose.sequence import kinematic_fit as kf
-    keep = kf.HELD_SHOULDER, kf.SLIDE_QUANTILE, kf.RAISED_SHOULDER
-    kf.HELD_SHOULDER, kf.SLIDE_QUANTILE, kf.RAISED_SHOULDER = None, None, None
-    try:
-        return fit_sequence(tracked, model)
-    finally:
-        kf.HELD_SHOULDER, kf.SLIDE_QUANTILE, kf.RAISED_SHOULDER = keep
+    return fit_sequence(tracked, model, held_shoulder=None, slide_quantile=None,
+                        raised_shoulder=None)
 
 
 BIAS_JOINTS = ("neck", "shoulder", "elbow", "wrist", "hip", "knee", "ankle")
@@ -479,40 +486,23 @@ def bias_report(rows, setups, info, real=None) -> str:
 
 def fit_with_bend(tracked, model):
     """The fit with the bent limbs' middle joints at their curve's bend
-    (:data:`~topopose.sequence.kinematic_fit.BEND` = ``BEND_DEPTH``; off by default since it hurts
+    (``bend=BEND_DEPTH``; off by default since it hurts
     the real 4-camera recording)."""
     from topopose.sequence import kinematic_fit as kf
-    keep = kf.BEND
-    kf.BEND = kf.BEND_DEPTH
-    try:
-        return fit_sequence(tracked, model)
-    finally:
-        kf.BEND = keep
+    return fit_sequence(tracked, model, bend=kf.BEND_DEPTH)
 
 
 def fit_without_tips(tracked, model):
     """The fit with the tips' targets as the curves give them (no
     :func:`~topopose.sequence.kinematic_fit.tip_targets` correction: ``TIP_TURN``, ``TIP_STRETCH``
     empty), the peer of the toe turned from the shank and the fingertip moved out."""
-    from topopose.sequence import kinematic_fit as kf
-    keep = kf.TIP_TURN, kf.TIP_STRETCH
-    kf.TIP_TURN, kf.TIP_STRETCH = {}, {}
-    try:
-        return fit_sequence(tracked, model)
-    finally:
-        kf.TIP_TURN, kf.TIP_STRETCH = keep
+    return fit_sequence(tracked, model, tip_turn={}, tip_stretch={})
 
 
 def fit_without_girdle(tracked, model):
-    """The fit with each joint of a girdle on its own target (``kinematic_fit.GIRDLE`` off), the
+    """The fit with each joint of a girdle on its own target (``girdle=False``), the
     peer of the neck and shoulders placed as one symmetric rigid body."""
-    from topopose.sequence import kinematic_fit as kf
-    keep = kf.GIRDLE
-    kf.GIRDLE = False
-    try:
-        return fit_sequence(tracked, model)
-    finally:
-        kf.GIRDLE = keep
+    return fit_sequence(tracked, model, girdle=False)
 
 
 def ungated(poses):
@@ -626,7 +616,7 @@ def analyse(raw, cap, model):
     # the peer of the legs' bones at LIMB_QUANTILE: every bone at BONE_QUANTILE (a quantile
     # given leaves LIMB_QUANTILE out; the neck's and shoulders' own percentiles stay)
     err_leg70, leg_holding, leg_arms = peer_errors(
-        fit_sequence(tracked, model, quantile=BONE_QUANTILE)[0])
+        fit_sequence(tracked, model, quantile=BONE_QUANTILE, limb_quantile={})[0])
     err_notips, tips_holding, tips_arms = peer_errors(fit_without_tips(tracked, model)[0])
     err_nogirdle, girdle_holding, girdle_arms = peer_errors(
         fit_without_girdle(tracked, model)[0])
@@ -863,11 +853,12 @@ def main(argv=None):
     ap.add_argument("--real-json", default=None,
                     help="with --bias: real_motion.json, the real recording's bias beside")
     ap.add_argument("--set", action="append", metavar="NAME=VALUE",
-                    help="a kinematic_fit constant for this run (a Python literal; repeatable): "
-                         "the peer of a default, e.g. results/tracking_peer.md")
+                    help="a sequence option (name=value, a SequenceOptions field) for this run "
+                         "(a Python literal; repeatable): "
+                         "the peer of a default, e.g. results/tracking_before.md")
     a = ap.parse_args(argv)
-    from topopose.sequence import kinematic_fit
-    settings = apply_settings(kinematic_fit, a.set)
+    settings = sequence_settings(a.set)
+    SETTINGS.update(settings)
     model = load_model("human")
     work = a.work or tempfile.mkdtemp(prefix="topopose_tracking_")
     seqs = DEV_SEQUENCES if a.dev else SEQUENCES

@@ -71,14 +71,10 @@ def per_frame(work, motion, seed, build, frames, model, setup, variant):
     return cap, res.poses
 
 
-def measure(cap, poses, model, centred):
-    """MPJPE (median, per joint) of the fit over the good frames, with or without centring."""
-    old = kf.CENTRED
-    kf.CENTRED = centred
-    try:
-        fitted, tree, _ = kf.fit_sequence(track(poses, model), model)
-    finally:
-        kf.CENTRED = old
+def measure(cap, poses, model, centred, **options):
+    """MPJPE (median, per joint) of the fit over the good frames, with or without centring
+    (and other sequence ``options``)."""
+    fitted, tree, _ = kf.fit_sequence(track(poses, model), model, centred=centred, **options)
     good = {fs.frame for fs in evaluate(cap.gt, poses, model=model).frames
             if fs.quality == "good"}
     errs = []

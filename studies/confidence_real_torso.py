@@ -35,7 +35,7 @@ FEATURES = ("head_bend", "head_offset", "torso_radius", "head_torso", "end_radiu
 def frame_row(est, frame, trunk):
     """One frame: the alignment's torso / crotch data vertices and the placed ones against
     ``trunk`` (name → reference position), the hull's largest inscribed ball (voxels, metres)."""
-    from topopose.frame.estimate import taxicab_radii
+    from topopose.frame.thickness import taxicab_radii
 
     p, det = est.estimate(frame, detail=True)
     if p.status == "failed":

@@ -30,7 +30,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(1, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # the benchmarks a study builds on
 import tracking as T  # noqa: E402
-from _machine import apply_settings, machine, machine_line, results_dir  # noqa: E402
+from _machine import machine, machine_line, results_dir, sequence_settings  # noqa: E402
+
+SETTINGS = {}     # the sequence options of --set / --no-bridge, for every fit of the run
 
 from topopose.capture import load_capture  # noqa: E402
 from topopose.synth.capture import synthetic_capture, write_capture  # noqa: E402
@@ -67,7 +69,8 @@ def sequence(work, motion, seed, build, setup, fps, seconds, model):
 
 def measure(cap, poses, model, window, setup):
     """MPJPE (median over the frames counted, see the module docstring) with ``window``."""
-    fitted, tree, _ = kf.fit_sequence(track(poses, model), model, smooth=window)
+    fitted, tree, _ = kf.fit_sequence(track(poses, model), model, **{**SETTINGS,
+                                                                      "smooth": window})
     keep = None
     if setup != "8":
         keep = {fs.frame for fs in evaluate(cap.gt, poses, model=model).frames
@@ -100,14 +103,16 @@ def main(argv=None):
     ap.add_argument("--out", default=str(results_dir()))
     ap.add_argument("--name", default="fps_dev")
     ap.add_argument("--no-bridge", action="store_true",
-                    help="temporal outliers kept as fitted (kinematic_fit.BRIDGE = False): the "
+                    help="temporal outliers kept as fitted (bridge=False): the "
                          "peer of the default")
     ap.add_argument("--set", action="append", metavar="NAME=VALUE",
-                    help="a kinematic_fit constant for this run (a Python literal; repeatable)")
+                    help="a sequence option (SequenceOptions field) for this run (a Python literal; "
+                         "repeatable)")
     a = ap.parse_args(argv)
+    settings = sequence_settings(a.set)
     if a.no_bridge:
-        kf.BRIDGE = False
-    settings = apply_settings(kf, a.set)
+        settings["bridge"] = False
+    SETTINGS.update(settings)
     if a.work is None:
         import tempfile
 

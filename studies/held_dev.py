@@ -71,44 +71,30 @@ def _base(tracked, model):
     return kf.fit_sequence(tracked, model)
 
 
-def _with(**consts):
-    """A variant: fit_sequence with kinematic_fit's constants set (restored after)."""
+def _with(**options):
+    """A variant: fit_sequence with these sequence options (``SequenceOptions`` fields)."""
     def f(tracked, model):
-        keep = {k: getattr(kf, k) for k in consts}
-        try:
-            for k, v in consts.items():
-                setattr(kf, k, v)
-            return kf.fit_sequence(tracked, model)
-        finally:
-            for k, v in keep.items():
-                setattr(kf, k, v)
+        return kf.fit_sequence(tracked, model, **options)
     return f
 
 
-def _gaps(g, **consts):
+def _gaps(g, **options):
     """A variant: :func:`~topopose.sequence.kinematic_fit.held_gaps` on, runs up to ``g`` frames."""
     def f(tracked, model):
-        keep = {k: getattr(kf, k) for k in consts}
-        try:
-            for k, v in consts.items():
-                setattr(kf, k, v)
-            return kf.fit_sequence(tracked, model, max_gap=g, gaps=True)
-        finally:
-            for k, v in keep.items():
-                setattr(kf, k, v)
+        return kf.fit_sequence(tracked, model, max_gap=g, gaps=True, **options)
     return f
 
 
 # HOLD_FRAMES 3 was the default before these runs; HELD_GAP's max_gap also bounds the unmatched
 # frames interpolated whole (not scored: they are not matched)
-VARIANTS["hold3"] = _with(HOLD_FRAMES=3)
+VARIANTS["hold3"] = _with(hold_frames=3)
 for _h in (10, 15):
-    VARIANTS[f"hold{_h}"] = _with(HOLD_FRAMES=_h)
+    VARIANTS[f"hold{_h}"] = _with(hold_frames=_h)
 for _g in (5, 10, 15, 30, 60):
     VARIANTS[f"gap{_g}"] = _gaps(_g)
-VARIANTS["nohint"] = _with(HAND_HINTS=False)
-VARIANTS["hold3_nohint"] = _with(HOLD_FRAMES=3, HAND_HINTS=False)
-VARIANTS["gap10_nohint"] = _gaps(10, HAND_HINTS=False)
+VARIANTS["nohint"] = _with(hints=False)
+VARIANTS["hold3_nohint"] = _with(hold_frames=3, hints=False)
+VARIANTS["gap10_nohint"] = _gaps(10, hints=False)
 
 
 def main(argv=None):

@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(1, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # the benchmarks a study builds on
 import centre_dev as CD  # noqa: E402
 import tracking as T  # noqa: E402
-from _machine import apply_settings, machine  # noqa: E402
+from _machine import machine, sequence_settings  # noqa: E402
 
 from topopose.sequence import kinematic_fit as kf  # noqa: E402
 from topopose.pose.model import load_model  # noqa: E402
@@ -61,27 +61,25 @@ def main(argv=None):
     ap.add_argument("--variants", default="off,knee40_w1,knee40,knee40_elbow50")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     ap.add_argument("--set", action="append", metavar="NAME=VALUE",
-                    help="a kinematic_fit constant for this run (a Python literal; repeatable)")
+                    help="a sequence option (SequenceOptions field) for this run (a Python literal; "
+                         "repeatable)")
     a = ap.parse_args(argv)
-    settings = apply_settings(kf, a.set)
+    settings = sequence_settings(a.set)
     model = load_model("human")
     keep = {int(x) for x in a.seeds.split(",")}
     seqs = [s for s in T.DEV_SEQUENCES if s[1] in keep]
     setups, variants = a.setups.split(","), a.variants.split(",")
-    rows, old, old_w = [], kf.FROM_END, kf.FROM_END_WEIGHT
-    try:
-        for st in setups:
-            for motion, seed, build in seqs:
-                cap, poses = CD.per_frame(a.work, motion, seed, build, a.frames, model, st, "on")
-                for v in variants:
-                    kf.FROM_END, kf.FROM_END_WEIGHT = ends(v), weight(v, old_w)
-                    r = CD.measure(cap, poses, model, True)
-                    r.update(setup=st, motion=motion, seed=seed, variant=v, ms=0.0)
-                    rows.append(r)
-                    print(json.dumps({k: r[k] for k in ("setup", "motion", "seed", "variant",
-                                                        "frames", "mpjpe")}), flush=True)
-    finally:
-        kf.FROM_END, kf.FROM_END_WEIGHT = old, old_w
+    rows, old_w = [], kf.FIT.from_end_weight
+    for st in setups:
+        for motion, seed, build in seqs:
+            cap, poses = CD.per_frame(a.work, motion, seed, build, a.frames, model, st, "on")
+            for v in variants:
+                r = CD.measure(cap, poses, model, True, **{
+                    **settings, "from_end": ends(v), "from_end_weight": weight(v, old_w)})
+                r.update(setup=st, motion=motion, seed=seed, variant=v, ms=0.0)
+                rows.append(r)
+                print(json.dumps({k: r[k] for k in ("setup", "motion", "seed", "variant",
+                                                    "frames", "mpjpe")}), flush=True)
     info = machine(resolution=100, subject="body", seeds=a.seeds, frames=a.frames,
                    settings=settings)
     out = Path(a.out)

@@ -45,18 +45,18 @@ LEG = (("hip", "UpLeg_head"), ("knee", "Leg_head"), ("ankle", "Foot_head"), ("to
 VARIANTS = dict(H.VARIANTS)
 # "before": the earlier defaults (no HOLD_AGE, no smoothing); the others on top of
 # the current defaults unless they set these two themselves
-VARIANTS["before"] = H._with(HOLD_AGE=None, SMOOTH=0)
-VARIANTS["hold0"] = H._with(HOLD_FRAMES=0, HOLD_AGE=None, SMOOTH=0)
-VARIANTS["noev"] = H._with(ARM_EVIDENCE=False, HOLD_AGE=None, SMOOTH=0)
-VARIANTS["noshoulder"] = H._with(HULL_SHOULDER=False, HOLD_AGE=None, SMOOTH=0)
+VARIANTS["before"] = H._with(hold_age=None, smooth=0)
+VARIANTS["hold0"] = H._with(hold_frames=0, hold_age=None, smooth=0)
+VARIANTS["noev"] = H._with(evidence=False, hold_age=None, smooth=0)
+VARIANTS["noshoulder"] = H._with(shoulders=False, hold_age=None, smooth=0)
 for _a in (1, 3, 5, 8, 12):
-    VARIANTS[f"age{_a}"] = H._with(HOLD_AGE=_a, SMOOTH=0)
-VARIANTS["age8_nohint"] = H._with(HOLD_AGE=8, HAND_HINTS=False, SMOOTH=0)
+    VARIANTS[f"age{_a}"] = H._with(hold_age=_a, smooth=0)
+VARIANTS["age8_nohint"] = H._with(hold_age=8, hints=False, smooth=0)
 for _w in (5, 7, 9, 11, 13):
     for _m in (None, 0.1, 0.15, 0.25):
-        VARIANTS[f"smooth{_w}_{_m}"] = H._with(SMOOTH=_w, SMOOTH_MOVE=_m)
+        VARIANTS[f"smooth{_w}_{_m}"] = H._with(smooth=_w, move=_m)
 for _a in (None, 5, 12):
-    VARIANTS[f"smooth9_age{_a}"] = H._with(HOLD_AGE=_a)
+    VARIANTS[f"smooth9_age{_a}"] = H._with(hold_age=_a)
 
 
 def tracked_sequence(work, motion, seed, build, model):

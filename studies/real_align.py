@@ -152,7 +152,7 @@ def cause(ch, rt) -> str:
 
 
 def run(est, cap, ref, volumes) -> dict:
-    from topopose.frame.estimate import matched_arc_cost
+    from topopose.frame.thickness import matched_arc_cost
 
     est.hull = lambda name: volumes[name]
     rows, right = [], 0

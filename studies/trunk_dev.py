@@ -56,15 +56,9 @@ def cached(work, setup, motion, seed, build, n, model):
 
 
 def score(d, consts, model):
-    """Errors, trunk biases and widths of one sequence's fit with ``consts`` set."""
-    keep = {k: getattr(kf, k) for k in consts}
-    try:
-        for k, x in consts.items():
-            setattr(kf, k, x)
-        fitted, tree, _ = kf.fit_sequence(track(d["poses"], model), model)
-    finally:
-        for k, x in keep.items():
-            setattr(kf, k, x)
+    """Errors, trunk biases and widths of one sequence's fit with the sequence options
+    ``consts`` (``SequenceOptions`` field names)."""
+    fitted, tree, _ = kf.fit_sequence(track(d["poses"], model), model, **consts)
     out = {"good": [], "all": [], "bias": {}, "hip width": [], "shoulder width": []}
     for p in fitted:
         if not (p.matched and p.joints) or p.diagnostics.get("interpolated"):
@@ -119,7 +113,7 @@ def main(argv=None):
     ap.add_argument("--walk-frames", type=int, default=40)
     ap.add_argument("--frames", type=int, default=30, help="frames of the other motions")
     ap.add_argument("--variants", default="base",
-                    help="comma-separated: base, or NAME=value;NAME=value (kinematic_fit)")
+                    help="comma-separated: base, or name=value;name=value (SequenceOptions fields)")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results"))
     a = ap.parse_args(argv)
     model = load_model("human")

@@ -162,6 +162,7 @@ def test_qualisys_exact_round_trip(tmp_path, known):
 
 def test_cli_writes_a_calibration_load_capture_accepts(tmp_path, capsys):
     out = tmp_path / "cap" / "calibration.toml"
+    out.parent.mkdir()                               # no folder is made silently
     assert main(["calib", "import", str(DATA / "Calib.qca.txt"), "--out", str(out)]) == 0
     assert "4 cameras" in capsys.readouterr().out
     cams = read_calibration(out)

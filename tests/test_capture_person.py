@@ -263,12 +263,10 @@ def test_cut_and_person_track_fields(tmp_path, fake_mediapipe):
     assert opts["person_track"] is False and opts["cut"] == 0.4
 
 
-def test_downscaled_person_masks_carve_the_hull_of_their_upsampling(tmp_path, fake_mediapipe,
-                                                                     monkeypatch):
+def test_downscaled_person_masks_carve_the_hull_of_their_upsampling(tmp_path, fake_mediapipe):
     """``scale = 0.25``: the silhouettes are UpsampledMasks carrying the network's 40 × 30
     masks, and the hull carved from those is the hull of the full-size (nearest-neighbour
     upsampled) masks, voxel for voxel."""
-    import topopose.capture.background as bg
     from topopose.capture.background import UpsampledMask
     from topopose.hull import HullCarver
 
@@ -280,7 +278,7 @@ def test_downscaled_person_masks_carve_the_hull_of_their_upsampling(tmp_path, fa
     for m in masks:
         assert np.array_equal(m, np.repeat(np.repeat(m.small, 4, 0), 4, 1).astype(bool))
     got = visual_hull(cap, "000000", resolution=40)
-    monkeypatch.setattr(bg, "UPSAMPLED_MASKS", False)
+    cap.options["silhouettes"]["upsampled"] = False
     cap.cache.pop("foreground_last", None)
     plain = cap.silhouettes("000000")
     assert not any(isinstance(m, UpsampledMask) for m in plain)

@@ -261,10 +261,10 @@ def _resized_capture(tmp_path, cams, scene, size, policy_toml):
 
 def test_size_policy_error_names_file_sizes_and_option(tmp_path, cams, scene):
     root = _resized_capture(tmp_path, cams, scene, (152, 120), None)
-    with pytest.raises(InputError) as e:               # the background is checked at loading
+    with pytest.raises(InputError) as e:               # the first frame is checked at loading
         load_capture(root)
     msg = str(e.value)
-    for word in ("cam_02.png", "152x120", "[160, 120]", "size_policy", "pad", "scale"):
+    for word in ("cam_02/000000.png", "152x120", "[160, 120]", "size_policy", "pad", "scale"):
         assert word in msg, (word, msg)
     # a video of the wrong size stops the capture at loading
     vid = video_capture(tmp_path / "v", cams, scene)

@@ -71,9 +71,11 @@ def test_run_bad_output_paths(cap, poses, tmp_path, capsys):
         # (--c3d without the optional c3d package is refused for that reason first)
         one_line_exit_2(capsys, base + ["--output", str(poses), opt, str(tmp_path)], opt)
         assert poses.read_bytes() == before
-    # missing folders are created
+    # a missing folder is not made silently
     deep = tmp_path / "a" / "b" / "p.jsonl"
-    assert main(base + ["--output", str(deep), "--frames", "0"]) == 0 and deep.exists()
+    one_line_exit_2(capsys, base + ["--output", str(deep), "--frames", "0"], "--output",
+                    "does not exist")
+    assert not (tmp_path / "a").exists()
 
 
 def test_read_only_folder_refused(cap, tmp_path, monkeypatch, capsys):

@@ -23,7 +23,7 @@ def folder(tmp_path_factory):
 
 
 def test_cli_hull_writes_volume(folder, tmp_path, capsys):
-    out = tmp_path / "sub" / "v.npz"
+    out = tmp_path / "v.npz"
     assert main(["hull", str(folder), "--frame", "000001", "--resolution", "40",
                  "--out", str(out)]) == 0
     assert "voxels" in capsys.readouterr().out

@@ -63,7 +63,7 @@ def test_noisy_hulls_with_their_bbox():
     (``diagnostics["bbox"]``, as the pose pipeline does)."""
     from topopose.synth import synthetic_capture
     from topopose.hull import visual_hull
-    from topopose.frame.estimate import fill_cavities as fill_volume
+    from topopose.frame.placement import fill_cavities as fill_volume
 
     cap = synthetic_capture(subject="human", frames=3, seed=5, noise=2, separated=True, cameras=8)
     filled = 0

@@ -189,7 +189,7 @@ def test_clean_frames_pass_the_gate(clean):
 def test_swapped_head_and_hand_fail_the_gate(clean):
     """The same frames with the head's and a hand's data vertices exchanged (a wrong pose whose
     AHA distance is unchanged) fall below the gate."""
-    from topopose.frame.estimate import vertex_radii
+    from topopose.frame.thickness import vertex_radii
 
     cap, est, out = clean
     for pose, det in out:
@@ -313,20 +313,25 @@ def test_the_fitted_confidence_decides_instead_of_the_distance_threshold():
     vol, n, data, model, al, radii = _frame()
     err = "AHA distance 0.900 above threshold T_d = 0.4"
     args = (vol, n, data, model, (0, 0, 1), 0.9, model.threshold, 0)
-    st, e, d = C.judge_frame(*args, "rejected", err, min_confidence=0.0, al=al)
+    st, e, d = C.judge_frame(*args, "rejected", err, C.Gate(min_confidence=0.0),
+                             aligned=C.Aligned(al))
     assert (st, e) == ("matched", None) and C.replaces_threshold()
-    st, e, d = C.judge_frame(*args, "rejected", err, min_confidence=1.0, al=al)
+    st, e, d = C.judge_frame(*args, "rejected", err, C.Gate(min_confidence=1.0),
+                             aligned=C.Aligned(al))
     assert st == "rejected" and e == f"{err}; confidence 0.00 below 1"   # both reasons
     from topopose.sequence.track import gated_only
 
     assert not gated_only(Pose("f", st, 0.9, {}, e))   # not a frame only the gate rejected
-    assert C.judge_frame(*args, "rejected", err, min_confidence=None, al=al)[:2] == ("rejected", err)
+    assert C.judge_frame(*args, "rejected", err, C.Gate(min_confidence=None),
+                         aligned=C.Aligned(al))[:2] == ("rejected", err)
     other = "3 parts unmatched (head, hand_1, hand_2)"
-    assert C.judge_frame(*args, "rejected", other, min_confidence=0.0, al=al)[:2] == ("rejected", other)
+    assert C.judge_frame(*args, "rejected", other, C.Gate(min_confidence=0.0),
+                         aligned=C.Aligned(al))[:2] == ("rejected", other)
     assert not C.distance_only("AHA distance inf above threshold T_d = 0.4")
     # a T_d chosen by the caller (not the model's own) stands
     chosen = (vol, n, data, model, (0, 0, 1), 0.9, model.threshold / 2, 0)
-    assert C.judge_frame(*chosen, "rejected", err, min_confidence=0.0, al=al)[:2] == ("rejected", err)
+    assert C.judge_frame(*chosen, "rejected", err, C.Gate(min_confidence=0.0),
+                         aligned=C.Aligned(al))[:2] == ("rejected", err)
 
 
 def test_a_limb_cut_off_scores_below_the_intact_frame(clean):
@@ -491,8 +496,8 @@ def test_head_doubt_by_default_for_a_head_the_alignment_left_unmatched(clean, mo
     def judge(doubt):
         return C.judge_frame(det.volume, dg["hull_voxels"], det.data, est.model, est.up,
                              pose.distance, est.threshold, 1, "matched", None,
-                             min_confidence=0.5, al=al2, parts=pose.parts,
-                             drop_parts=C.DROP_PARTS, doubt_head=doubt)
+                             C.Gate(min_confidence=0.5, drop_parts=C.DROP_PARTS, doubt_head=doubt),
+                             aligned=C.Aligned(al2, parts=pose.parts))
 
     status, error, diag = judge(False)
     assert status == "rejected" and diag["confidence_features"]["head_bend"] == 0.0

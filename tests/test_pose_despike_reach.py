@@ -4,6 +4,7 @@ keep their bones' lengths from the shoulder when its curve ends short
 (:func:`~topopose.sequence.kinematic_fit.from_start`) — on hand-made bodies whose truth is known."""
 import numpy as np
 
+from topopose.sequence.options import SequenceOptions
 from topopose.sequence import kinematic_fit as kf
 from topopose.frame.curves import resample
 from topopose.sequence.kinematic_fit import fit_sequence, kinematic_tree
@@ -47,8 +48,7 @@ def test_one_frames_wrong_arm_is_not_smoothed_into_its_neighbours(monkeypatch):
     arms stay on their truth and frame 10's arm comes back near it, listed in
     ``diagnostics["despiked_joints"]``; without, the wrong arm is averaged into the frames
     around it."""
-    monkeypatch.setattr(kf, "TIP_TURN", {})
-    monkeypatch.setattr(kf, "TIP_STRETCH", {})
+    opts = SequenceOptions().with_(tip_turn={}, tip_stretch={})
     tree = kinematic_tree(HUMAN)
     poses, truth = [], []
     for i in range(21):
@@ -59,7 +59,7 @@ def test_one_frames_wrong_arm_is_not_smoothed_into_its_neighbours(monkeypatch):
     near = [6, 7, 8, 9, 11, 12, 13, 14]
 
     def arm_errors(frames):
-        out, tree, _ = fit_sequence(frames, HUMAN, smooth=9)
+        out, tree, _ = fit_sequence(frames, HUMAN, opts, smooth=9)
         assert not any(p.diagnostics.get("temporal_outlier") for p in out)
         P = np.array([[p.joints[n] for n in tree.names] for p in out])
         e = np.linalg.norm(P - np.array(truth), axis=2)[:, arm]
@@ -74,7 +74,7 @@ def test_one_frames_wrong_arm_is_not_smoothed_into_its_neighbours(monkeypatch):
     text = summary_text(RunResult(out, None, counts={"matched": 21}))
     assert "1 frame with a bone far off the frames around, replaced by theirs " \
         "(diagnostics.despiked_joints)" in text
-    monkeypatch.setattr(kf, "DESPIKE", None)
+    opts = opts.with_(despike=None)
     out, near_off, at_off = arm_errors(poses)
     assert not any(p.diagnostics.get("despiked_joints") for p in out)
     assert "despiked" not in summary_text(RunResult(out, None))
@@ -100,9 +100,7 @@ def test_a_hanging_arm_cut_short_keeps_its_elbow_and_wrist(monkeypatch):
     lengths (:data:`FROM_START`, weight 1) their targets are the truth; the default weight
     (0.5) moves them half-way, and the fitted elbow and wrist come nearer (the wrist less: the
     fingertip's target, at the cut end, pulls it back); the uncut frames are unchanged."""
-    monkeypatch.setattr(kf, "TIP_TURN", {})
-    monkeypatch.setattr(kf, "TIP_STRETCH", {})
-    monkeypatch.setattr(kf, "GIRDLE", False)
+    opts = SequenceOptions().with_(tip_turn={}, tip_stretch={}, girdle=False)
     tree = kinematic_tree(HUMAN)
     poses, truth = [], []
     for i in range(12):
@@ -111,20 +109,20 @@ def test_a_hanging_arm_cut_short_keeps_its_elbow_and_wrist(monkeypatch):
         poses.append(_cut_hand(pose, 0.12) if i % 2 else pose)
     truth = np.array(truth)
     js = [tree.names.index(n) for n in ("elbow_1", "wrist_1")]
-    init = np.stack([kf.initial_placement(p, tree) for p in poses])
-    L = kf.bone_lengths(init, tree)
+    init = np.stack([kf.initial_placement(p, tree, fit=opts.skeleton_fit) for p in poses])
+    L = kf.bone_lengths(init, tree, fit=opts.skeleton_fit)
     arm = {("hand", "elbow"), ("hand", "wrist")}
-    monkeypatch.setattr(kf, "FROM_START_WEIGHT", 1.0)
-    placed = kf.from_start(init, poses, tree, L, joints=arm)
+    opts = opts.with_(from_start_weight=1.0)
+    placed = kf.from_start(init, poses, tree, L, joints=arm, fit=opts.skeleton_fit)
     assert np.linalg.norm(placed[1::2, js] - truth[1::2, js], axis=2).max() < 0.01
     assert np.linalg.norm(init[1::2, js] - truth[1::2, js], axis=2).min() > 0.05
-    monkeypatch.setattr(kf, "FROM_START_WEIGHT", 0.5)   # the default: half-way
-    half = kf.from_start(init, poses, tree, L, joints=arm)
+    opts = opts.with_(from_start_weight=0.5)   # the default: half-way
+    half = kf.from_start(init, poses, tree, L, joints=arm, fit=opts.skeleton_fit)
     assert np.allclose(half[1::2, js[0]], 0.5 * (placed[1::2, js[0]] + init[1::2, js[0]]))
     err = {}
     for on in (True, False):
-        monkeypatch.setattr(kf, "FROM_START", {("hand", "elbow"), ("hand", "wrist")} if on else {})
-        out, tree, _ = fit_sequence(poses, HUMAN, smooth=0)
+        opts = opts.with_(from_start={("hand", "elbow"), ("hand", "wrist")} if on else {})
+        out, tree, _ = fit_sequence(poses, HUMAN, opts, smooth=0)
         P = np.array([[p.joints[n] for n in tree.names] for p in out])
         err[on] = np.linalg.norm(P - truth, axis=2)[:, js]
     assert err[False][1::2].min() > 0.09, err                     # 10–11 cm without
@@ -139,7 +137,7 @@ def test_from_start_leaves_a_raised_arm_and_reaches_past_a_short_curve(monkeypat
     length is placed past the end, along the curve's last direction, at exactly that length
     from the elbow — unless that is more than :data:`REACH_PAST` past it (then a curve cut
     that short is no lost hand: the placement is kept)."""
-    monkeypatch.setattr(kf, "FROM_START_WEIGHT", 1.0)
+    opts = SequenceOptions().with_(from_start_weight=1.0)
     tree = kinematic_tree(HUMAN)
     pose, _ = _still_body(0, 0.0, np.zeros(3))
     c = np.asarray(pose.diagnostics["curves"]["hand_1"], float)
@@ -151,9 +149,9 @@ def test_from_start_leaves_a_raised_arm_and_reaches_past_a_short_curve(monkeypat
     short = _cut_hand(_still_body(2, 0.0, np.zeros(3))[0], 0.12)
     cut = _cut_hand(_still_body(3, 0.0, np.zeros(3))[0], 0.3)
     frames = [pose, raised, short, cut]
-    init = np.stack([kf.initial_placement(p, tree) for p in frames])
-    L = kf.bone_lengths(init, tree)
-    out = kf.from_start(init, frames, tree, L, joints={("hand", "elbow"), ("hand", "wrist")})
+    init = np.stack([kf.initial_placement(p, tree, fit=opts.skeleton_fit) for p in frames])
+    L = kf.bone_lengths(init, tree, fit=opts.skeleton_fit)
+    out = kf.from_start(init, frames, tree, L, joints={("hand", "elbow"), ("hand", "wrist")}, fit=opts.skeleton_fit)
     e, w = tree.names.index("elbow_1"), tree.names.index("wrist_1")
     assert np.array_equal(out[1], init[1])                          # raised: untouched
     assert abs(np.linalg.norm(out[2, w] - out[2, e]) - L[w]) < 1e-9

@@ -4,7 +4,7 @@ import numpy as np
 from scipy import ndimage
 
 from topopose.hull import Volume
-from topopose.frame.estimate import fill_cavities
+from topopose.frame.placement import fill_cavities
 
 
 def _cavities(a):
@@ -62,7 +62,7 @@ def test_off_axis_leaf_against_the_angle():
     import math
 
     from topopose.match import Tree
-    from topopose.frame.estimate import off_axis_leaf
+    from topopose.frame.placement import off_axis_leaf
 
     mapping = {"crotch": 0, "torso": 1, "head": 2}
     for deg in (0, 20, 44, 46, 60, 90, 135, 180):
@@ -112,7 +112,7 @@ def test_missing_cost_is_the_deleted_leaf_arcs_weight():
     arc (γ(w, 0) = w), and the distance without it is Σ |w − w'| of the matched arcs."""
     from topopose.match import align
     from topopose.match.tree import Tree
-    from topopose.frame.estimate import missing_cost
+    from topopose.frame.thickness import missing_cost
 
     pattern = Tree([("c", "a", 0.4), ("c", "b", 0.35), ("c", "d", 0.25)])
     al = align(pattern, Tree([("x", "p", 0.42), ("x", "q", 0.33)]), method="aha",
@@ -132,7 +132,7 @@ def test_short_limb_drops_a_hand_shorter_than_the_ratio_of_the_leg():
     path is named (the shorter of two); otherwise, or with the torso or the legs unmatched,
     None. Oracle: the path lengths the test built."""
     from topopose.match import Tree
-    from topopose.frame.estimate import short_limb
+    from topopose.frame.placement import short_limb
 
     def tree(arm1, arm2, leg=1.0):
         # torso 0, crotch 1, feet 2, 3 (legs leg and 0.8 leg), hands 4, 5 (via a shoulder 6)

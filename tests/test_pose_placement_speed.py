@@ -5,6 +5,8 @@ Oracles: brute force on small random volumes (np.argwhere on the whole grid, bal
 growing-cube search, the EDT on the projections' box), and the estimator's poses against the
 reference path (every shortcut switched off by calling the plain functions) on synthetic
 capsule and body frames."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -82,7 +84,9 @@ def _plain(est, frame, monkeypatch):
         pb = prune.prune_bumps
         m.setattr(prune, "prune_bumps", lambda *a, squared=None, **k: pb(*a, **k))
         jf = confidence.judge_frame
-        m.setattr(confidence, "judge_frame", lambda *a, radius_map=None, **k: jf(*a, **k))
+        m.setattr(confidence, "judge_frame",
+                  lambda *a, aligned=None, **k: jf(*a, aligned=replace(aligned, radius_map=None),
+                                                   **k))
         return est.estimate(frame)
 
 

@@ -3,6 +3,7 @@ on hand-made skeleton curves whose truth is known."""
 import numpy as np
 import pytest
 
+from topopose.sequence.options import SequenceOptions
 from topopose.errors import InputError
 from topopose.sequence.chirality import assign_sides, frame_scores, numbered
 from topopose.frame.curves import resample
@@ -65,7 +66,7 @@ def _hand_2_unseen(yaw, seed):
     ``HOLD_FRAMES + 1``: too far to hold the first's arm) with hand_2 not found (no part, no
     curve). Returns (whole, cut, the second frame's true parts, the second frame's numbering
     map)."""
-    from topopose.sequence.kinematic_fit import HOLD_FRAMES
+    HOLD_FRAMES = SequenceOptions().gaps.hold_frames
 
     rng = np.random.default_rng(seed)
     parts, curves = _body(yaw, rng)
@@ -193,13 +194,11 @@ def test_kinematic_tree_of_the_models():
 
 
 def test_fit_constant_bone_lengths_recovers_joints_and_fills_gaps(monkeypatch):
-    from topopose.sequence import kinematic_fit as kf
     # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
     # girdle puts it (the rig's 0.1): each joint on its own target here
-    monkeypatch.setattr(kf, "GIRDLE", False)
+    opts = SequenceOptions().with_(girdle=False)
     # these curves run exactly through the tips' truth: no thinned branch end to correct
-    monkeypatch.setattr(kf, "TIP_TURN", {})
-    monkeypatch.setattr(kf, "TIP_STRETCH", {})
+    opts = opts.with_(tip_turn={}, tip_stretch={})
     rng = np.random.default_rng(1)
     tree = kinematic_tree(HUMAN)
     poses, truth = [], []
@@ -213,7 +212,7 @@ def test_fit_constant_bone_lengths_recovers_joints_and_fills_gaps(monkeypatch):
         pose.diagnostics["curves"] = noisy
         poses.append(pose)
     poses[3].status = "rejected"                            # a gap to fill
-    out, tree, L = fit_sequence(poses, HUMAN, max_gap=2)
+    out, tree, L = fit_sequence(poses, HUMAN, opts, max_gap=2)
     for i, p in enumerate(out):
         assert set(p.joints) == set(tree.names)
         for j, par in enumerate(tree.parents):
@@ -228,7 +227,7 @@ def test_fit_constant_bone_lengths_recovers_joints_and_fills_gaps(monkeypatch):
             assert err < 0.02, (i, err)
     assert np.isnan(L[tree.root])
     # smoothing keeps the lengths
-    out2, _, _ = fit_sequence(poses, HUMAN, max_gap=2, smooth=5)
+    out2, _, _ = fit_sequence(poses, HUMAN, opts, max_gap=2, smooth=5)
     assert all(p.diagnostics.get("smoothed") for p in out2)
     p = out2[5]
     j = tree.names.index("elbow_1")
@@ -271,10 +270,9 @@ def test_frame_without_head_keeps_a_skeleton_with_held_joints(monkeypatch):
     """A frame whose head (part and curve) is missing: the root (chest, at the torso part) is
     still placed, the head's chain keeps the previous frame's directions (flagged), and every
     other joint is fitted as in the complete frame."""
-    from topopose.sequence import kinematic_fit as kf
     # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
     # girdle puts it (the rig's 0.1): each joint on its own target here
-    monkeypatch.setattr(kf, "GIRDLE", False)
+    opts = SequenceOptions().with_(girdle=False)
     rng = np.random.default_rng(5)
     tree = kinematic_tree(HUMAN)
     parts, curves = _body(0.4, rng)
@@ -282,7 +280,7 @@ def test_frame_without_head_keeps_a_skeleton_with_held_joints(monkeypatch):
     cut, _ = _numbered_frame("000001", parts, curves, False, False)
     cut.parts["head"] = None
     del cut.diagnostics["curves"]["head"]
-    out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
+    out, tree, L = fit_sequence([full, cut], HUMAN, opts, max_gap=0)
     a, b = out
     assert set(b.joints) == set(tree.names) and "interpolated" not in b.diagnostics
     assert sorted(b.diagnostics["held_joints"]) == ["neck", "skull"]
@@ -291,7 +289,7 @@ def test_frame_without_head_keeps_a_skeleton_with_held_joints(monkeypatch):
     for k in tree.names:                       # the same body: the held joints too (the
         assert np.linalg.norm(b.joints[k] - a.joints[k]) < 1e-3, k   # root refined on fewer)
     # the lone frame has no earlier fit to hold from: no skeleton, not a wrong one
-    alone, _, _ = fit_sequence([cut], HUMAN)
+    alone, _, _ = fit_sequence([cut], HUMAN, opts)
     assert alone[0].joints == {}
 
 
@@ -302,7 +300,7 @@ def test_an_unseen_arm_is_held_from_the_last_fitted_frame_up_to_hold_frames_back
     unseen arm is the whole frame's arm, moved with the root (the truth: the same body, so
     every joint where the whole frame's fit put it, plus the translation); further back it
     takes the rest pose, its upper arm hanging along the trunk."""
-    from topopose.sequence.kinematic_fit import HOLD_FRAMES
+    HOLD_FRAMES = SequenceOptions().gaps.hold_frames
 
     assert HOLD_FRAMES == 5
     rng = np.random.default_rng(3)
@@ -342,11 +340,12 @@ def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_fo
     from topopose.sequence import kinematic_fit as kf
     # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
     # girdle puts it (the rig's 0.1): each joint on its own target here
-    monkeypatch.setattr(kf, "GIRDLE", False)
-    from topopose.sequence.kinematic_fit import ACROSS, FOLD, HELD_SHOULDER
+    opts = SequenceOptions().with_(girdle=False)
+    from topopose.sequence.kinematic_fit import ACROSS, FOLD
+    HELD_SHOULDER = kf.GAPS.held_shoulder
 
     full, cut, parts2, m = _hand_2_unseen(0.9, 8)          # the right hand: not found
-    out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
+    out, tree, L = fit_sequence([full, cut], HUMAN, opts, max_gap=0)
     b = out[1]
     assert sorted(b.diagnostics["held_joints"]) == ["elbow_2", "fingertip_2", "shoulder_2",
                                                     "wrist_2"]
@@ -378,7 +377,7 @@ def test_an_arm_unseen_after_an_unrelated_frame_hangs_with_its_forearm_folded_fo
         assert np.dot(h, inward) > np.sin(ACROSS) - 0.35, (h, inward)   # towards the other side
     # the frame right after the same body: the arm of that frame, not the rest pose
     cut.frame = "000001"
-    out, tree, L = fit_sequence([full, cut], HUMAN, max_gap=0)
+    out, tree, L = fit_sequence([full, cut], HUMAN, opts, max_gap=0)
     rel = [q.joints["wrist_2"] - q.joints["chest"] for q in out]
     assert np.linalg.norm(rel[1] - rel[0]) < 0.02
 
@@ -421,10 +420,9 @@ def test_chain_fit_finds_the_elbow_at_the_corner_of_a_bent_arm_curve(monkeypatch
     """Oracle: an arm curve bent 90° at a known elbow, true bone lengths, no placement target
     for the elbow and wrist: the chain's elbow lands on the curve's corner (the relative arc
     length alone, the initial placement without ``BEND``, misses it by several cm)."""
-    from topopose.sequence import kinematic_fit as kf
     from topopose.sequence.kinematic_fit import bone_lengths, fit_frame, initial_placement
 
-    monkeypatch.setattr(kf, "BEND", None)
+    opts = SequenceOptions().with_(bend=None)
     tree = kinematic_tree(HUMAN)
     parts, curves = _body(0.0, np.random.default_rng(3))
     torso = parts["torso"]
@@ -434,8 +432,8 @@ def test_chain_fit_finds_the_elbow_at_the_corner_of_a_bent_arm_curve(monkeypatch
     H = W + [0.08, 0.0, 0.0]
     parts["left_hand"], curves["left_hand"] = H, resample([torso, S, E, W, H], 64)
     pose, _ = _numbered_frame("000000", parts, curves, False, False)
-    P0 = initial_placement(pose, tree)
-    L = bone_lengths(P0[None], tree)
+    P0 = initial_placement(pose, tree, fit=opts.skeleton_fit)
+    L = bone_lengths(P0[None], tree, fit=opts.skeleton_fit)
     el, wr = tree.names.index("elbow_1"), tree.names.index("wrist_1")
     sh, tip = tree.names.index("shoulder_1"), tree.names.index("fingertip_1")
     L[el], L[wr] = np.linalg.norm(E - P0[sh]), np.linalg.norm(W - E)
@@ -492,7 +490,9 @@ def test_hips_from_the_junction_by_hull_radius_and_spine_shift():
     the hull radius (the spine shift's length), then back with the trunk; the trunk's curves
     move back by SPINE_BACK × the spine shift, the limbs' curves do not. A hanging leg (this
     standing body's) takes HANGING_WIDTH, a raised one the model's ``width``."""
-    from topopose.sequence.kinematic_fit import (HANGING_WIDTH, SPINE_BACK, frame_curves,
+    from topopose.sequence import kinematic_fit as kf
+    HANGING_WIDTH, SPINE_BACK = kf.FIT.hanging_width, kf.FIT.spine
+    from topopose.sequence.kinematic_fit import (frame_curves,
                                              initial_placement)
 
     rng = np.random.default_rng(4)
@@ -551,16 +551,12 @@ def test_a_raised_leg_hip_takes_the_model_width_a_hanging_one_the_hanging_width(
           for k, s in (("1", "left"), ("2", "right"))}                  # their curves
     for k, m in (("1", "2"), ("2", "1")):
         x = P[tree.names.index("hip_" + k)]
-        w_al, w_out = model_w if k == "1" else kf.HANGING_WIDTH
+        w_al, w_out = model_w if k == "1" else kf.FIT.hanging_width
         lat = (on[k] - on[m]) * [1.0, 1.0, 0.0]                        # outward: across the trunk
         want = cr + w_al * r * ax + w_out * r * lat / np.linalg.norm(lat)
         assert np.allclose(x, want, atol=1e-9), (k, x - want)
-    old = kf.HANGING_WIDTH
-    try:
-        kf.HANGING_WIDTH = None
-        P1 = kf.initial_placement(pose, tree, spine=0.0)
-    finally:
-        kf.HANGING_WIDTH = old
+    P1 = kf.initial_placement(pose, tree, spine=0.0,
+                              fit=SequenceOptions.of(hanging_width=None).skeleton_fit)
     lat = (on["2"] - on["1"]) * [1.0, 1.0, 0.0]
     assert np.allclose(P1[tree.names.index("hip_2")],
                        cr + model_w[0] * r * ax + model_w[1] * r * lat / np.linalg.norm(lat))
@@ -612,10 +608,9 @@ def test_neck_slides_with_the_chest_junction(monkeypatch):
     fitted neck is its placement on the curve; with every bone constant (``slide=False``) the
     neck keeps a fixed distance from the moving junction and leaves it (the truth: the neck's
     placement on the frame's curve, which runs through the true neck)."""
-    from topopose.sequence import kinematic_fit as kf
     # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
     # girdle puts it (the rig's 0.1): each joint on its own target here
-    monkeypatch.setattr(kf, "GIRDLE", False)
+    opts = SequenceOptions().with_(girdle=False)
     from topopose.sequence.kinematic_fit import frame_lengths, initial_placement
 
     rng = np.random.default_rng(5)
@@ -635,17 +630,16 @@ def test_neck_slides_with_the_chest_junction(monkeypatch):
                                       for k, v in pose.diagnostics["curves"].items()}
         poses.append(pose)
     k = tree.names.index("neck")
-    out, _, L = fit_sequence(poses, HUMAN, max_gap=0, slide=True)
-    median, _, _ = fit_sequence(poses, HUMAN, max_gap=0)     # constant, at its median length
-    from topopose.sequence import kinematic_fit as kf
-    monkeypatch.setattr(kf, "SLIDE_QUANTILE", None)              # at the limbs' 70th percentile
-    fixed, _, L = fit_sequence(poses, HUMAN, max_gap=0)
-    err_median = [np.linalg.norm(q.joints["neck"] - initial_placement(q, tree)[k])
+    out, _, L = fit_sequence(poses, HUMAN, opts, max_gap=0, slide=True)
+    median, _, _ = fit_sequence(poses, HUMAN, opts, max_gap=0)     # constant, at its median length
+    opts = opts.with_(slide_quantile=None)              # at the limbs' 70th percentile
+    fixed, _, L = fit_sequence(poses, HUMAN, opts, max_gap=0)
+    err_median = [np.linalg.norm(q.joints["neck"] - initial_placement(q, tree, fit=opts.skeleton_fit)[k])
                   for q in median]
     err_slide, err_fixed = [], []
     for p, q in zip(out, fixed):
-        P0 = initial_placement(p, tree)
-        Lf = frame_lengths(P0, L, tree, slide=True)
+        P0 = initial_placement(p, tree, fit=opts.skeleton_fit)
+        Lf = frame_lengths(P0, L, tree, slide=True, fit=opts.skeleton_fit)
         assert abs(Lf[k] - np.linalg.norm(P0[k] - P0[tree.root])) < 1e-12
         assert abs(np.linalg.norm(p.joints["neck"] - p.joints["chest"]) - Lf[k]) < 1e-9
         err_slide.append(np.linalg.norm(p.joints["neck"] - P0[k]))
@@ -712,10 +706,9 @@ def test_neck_bone_at_its_median_follows_a_junction_sliding_both_ways(monkeypatc
     scatters symmetrically about the true length, and no curve cuts it short. The neck's bone
     at its median length (``SLIDE_QUANTILE``) is the true length and the fitted neck stays
     nearer the true neck than with the limbs' 70th percentile, which is too long."""
-    from topopose.sequence import kinematic_fit as kf
     # the hand-made body's neck lies 0.45 × the shoulder width above them, not where the
     # girdle puts it (the rig's 0.1): each joint on its own target here
-    monkeypatch.setattr(kf, "GIRDLE", False)
+    opts = SequenceOptions().with_(girdle=False)
 
     tree = kinematic_tree(HUMAN)
     k = tree.names.index("neck")
@@ -736,11 +729,11 @@ def test_neck_bone_at_its_median_follows_a_junction_sliding_both_ways(monkeypatc
     true_len = np.linalg.norm(truth[0] - (_body(0.3, np.random.default_rng(7))[0]["torso"]))
 
     def neck_error():
-        out, _, L = fit_sequence(poses, HUMAN, max_gap=0)
+        out, _, L = fit_sequence(poses, HUMAN, opts, max_gap=0)
         return L[k], np.mean([np.linalg.norm(p.joints["neck"] - t) for p, t in zip(out, truth)])
 
     L50, e50 = neck_error()
-    monkeypatch.setattr(kf, "SLIDE_QUANTILE", None)
+    opts = opts.with_(slide_quantile=None)
     L70, e70 = neck_error()
     assert abs(L50 - true_len) < 0.005, (L50, true_len)
     assert L70 > true_len + 0.01
@@ -753,7 +746,6 @@ def test_an_unseen_shoulder_is_not_raised_with_its_raised_mate(monkeypatch):
     the plane across the trunk — near the body's hanging shoulder (the same body with both arms
     hanging, fitted) — where the mate's half turn (``HELD_SHOULDER = None``) copies the raised
     shoulder's height."""
-    from topopose.sequence import kinematic_fit as kf
     def frames(raise_left):
         parts, curves = _body(1.2, np.random.default_rng(4))
         torso = parts["torso"]
@@ -778,8 +770,8 @@ def test_an_unseen_shoulder_is_not_raised_with_its_raised_mate(monkeypatch):
     out, tree, _ = fit_sequence([ref, cut], HUMAN, max_gap=0)
     truth = out[0].joints[k]                 # the same body, both arms hanging, seen
     new = np.linalg.norm(out[1].joints[k] - truth)
-    monkeypatch.setattr(kf, "HELD_SHOULDER", None)
-    out0, _, _ = fit_sequence([ref, cut], HUMAN, max_gap=0)
+    opts = SequenceOptions().with_(held_shoulder=None)
+    out0, _, _ = fit_sequence([ref, cut], HUMAN, opts, max_gap=0)
     old = np.linalg.norm(out0[1].joints[k] - truth)
     assert new < 0.03 and old > new + 0.03, (new, old)
 
@@ -804,10 +796,10 @@ def test_a_raised_arms_shoulder_moves_down_the_trunk(monkeypatch):
     from topopose.sequence import kinematic_fit as kf
     tree = kinematic_tree(HUMAN)
     pose, m, (torso, crotch, ax) = _raised_left_frame()
-    P, drop = kf.initial_placement(pose, tree), kf.RAISED_SHOULDER
+    P, drop = kf.initial_placement(pose, tree), kf.FIT.raised_shoulder
     assert drop > 0
-    monkeypatch.setattr(kf, "RAISED_SHOULDER", None)
-    P0 = kf.initial_placement(pose, tree)
+    opts = SequenceOptions().with_(raised_shoulder=None)
+    P0 = kf.initial_placement(pose, tree, fit=opts.skeleton_fit)
     S = np.linalg.norm(torso - crotch)
     up = "shoulder_" + m["left_hand"][-1]
     for j, n in enumerate(tree.names):
@@ -844,11 +836,11 @@ def test_a_bent_limbs_middle_joint_is_placed_at_its_curves_bend(monkeypatch):
     tree = kinematic_tree(HUMAN)
     pose, E, _ = _bent_arm_pose()
     el = tree.names.index("elbow_1")
-    assert kf.BEND is None                       # off by default
-    monkeypatch.setattr(kf, "BEND", kf.BEND_DEPTH)
-    P = kf.initial_placement(pose, tree)
-    monkeypatch.setattr(kf, "BEND", None)
-    P0 = kf.initial_placement(pose, tree)
+    assert kf.FIT.bend is None                       # off by default
+    opts = SequenceOptions().with_(bend=kf.BEND_DEPTH)
+    P = kf.initial_placement(pose, tree, fit=opts.skeleton_fit)
+    opts = opts.with_(bend=None)
+    P0 = kf.initial_placement(pose, tree, fit=opts.skeleton_fit)
     assert np.linalg.norm(P[el] - E) < 0.015, np.linalg.norm(P[el] - E)
     assert np.linalg.norm(P0[el] - E) > 0.04
     changed = {tree.names[j] for j in range(len(tree.names)) if not np.allclose(P[j], P0[j])}
@@ -864,11 +856,11 @@ def test_a_bent_limbs_middle_joint_is_placed_at_its_curves_bend(monkeypatch):
     parts, curves = _body(0.0, np.random.default_rng(3), knee=0.3)
     pose2, _ = _numbered_frame("000000", parts, curves, False, False)
     knee = parts["crotch"] + np.array([0.3, 0.1, -0.45])     # W([knee, 0.1, 0.5]), yaw 0
-    monkeypatch.setattr(kf, "BEND", kf.BEND_DEPTH)
+    opts = opts.with_(bend=kf.BEND_DEPTH)
     k = tree.names.index("knee_1")
-    e = np.linalg.norm(kf.initial_placement(pose2, tree)[k] - knee)
-    monkeypatch.setattr(kf, "BEND", None)
-    e0 = np.linalg.norm(kf.initial_placement(pose2, tree)[k] - knee)
+    e = np.linalg.norm(kf.initial_placement(pose2, tree, fit=opts.skeleton_fit)[k] - knee)
+    opts = opts.with_(bend=None)
+    e0 = np.linalg.norm(kf.initial_placement(pose2, tree, fit=opts.skeleton_fit)[k] - knee)
     assert e < e0 - 0.01, (e, e0)
 
 
@@ -890,8 +882,8 @@ def test_shoulder_bone_at_its_median_as_the_junction_slides(monkeypatch):
     init = np.repeat(base[None], 2 * len(dz), axis=0)
     init[:, tree.root, 2] += np.concatenate([dz, -dz])
     L = kf.bone_lengths(init, tree)
-    monkeypatch.setattr(kf, "SHOULDER_QUANTILE", None)
-    L70 = kf.bone_lengths(init, tree)
+    opts = SequenceOptions().with_(shoulder_quantile=None)
+    L70 = kf.bone_lengths(init, tree, fit=opts.skeleton_fit)
     assert abs(L[sh[0]] - true_len) < abs(L70[sh[0]] - true_len) - 0.003, (L[sh[0]], L70[sh[0]])
     assert abs(L[sh[0]] - L[sh[1]]) < 1e-12
     others = [j for j in range(len(tree.names)) if tree.parents[j] >= 0 and j not in sh]
@@ -903,8 +895,7 @@ def test_leg_bones_at_the_limb_quantile_arm_bones_at_the_bone_quantile(monkeypat
     (knee, ankle, toe: ``LIMB_QUANTILE["foot"]`` = 80) recover their true length, the arm's
     (at ``BONE_QUANTILE`` = 70) come out short; an explicit quantile applies to every bone."""
     from topopose.sequence import kinematic_fit as kf
-    monkeypatch.setattr(kf, "BONE_QUANTILE", 70)
-    monkeypatch.setattr(kf, "LIMB_QUANTILE", {"foot": 80})
+    opts = SequenceOptions().with_(quantile=70, limb_quantile={"foot": 80})
     rng = np.random.default_rng(8)
     tree = kinematic_tree(HUMAN)
     order = tree.order()
@@ -921,8 +912,8 @@ def test_leg_bones_at_the_limb_quantile_arm_bones_at_the_bone_quantile(monkeypat
             d = rng.normal(size=3)
             k = rng.uniform(0.6, 0.9) if short[f] else 1.0
             init[f, j] = init[f, p] + k * true_L[(tree.base[j], tree.base[p])] * d / np.linalg.norm(d)
-    L = kf.bone_lengths(init, tree)
-    L70 = kf.bone_lengths(init, tree, quantile=70)
+    L = kf.bone_lengths(init, tree, fit=opts.skeleton_fit)
+    L70 = kf.bone_lengths(init, tree, quantile=70, fit=opts.skeleton_fit)
     for base in ("knee", "ankle", "toe", "elbow", "wrist", "fingertip"):
         js = [j for j in range(len(tree.names)) if tree.base[j] == base]
         assert len(js) == 2
@@ -1067,15 +1058,14 @@ def test_tip_targets_turn_the_toe_from_the_shank_and_stretch_the_fingertip(yaw):
 def test_fit_sequence_places_the_toe_on_its_turned_target(monkeypatch):
     """The fit follows the corrected tip targets: with ``TIP_TURN`` the fitted toe lies at the
     turned target (the bend at the ankle grows by the turn, as measured on the fitted joints)."""
-    from topopose.sequence import kinematic_fit as kf
-    monkeypatch.setattr(kf, "TIP_STRETCH", {})
+    opts = SequenceOptions().with_(tip_stretch={})
     rng = np.random.default_rng(1)
     poses = [_numbered_frame(f"{i:06d}", *_body(0.3 * i, rng, toe=0.1), False, False)[0]
              for i in range(4)]
     bends = {}
     for turn in (0.0, 20.0):
-        monkeypatch.setattr(kf, "TIP_TURN", {"toe": turn})
-        out, tree, _ = fit_sequence(poses, HUMAN)
+        opts = opts.with_(tip_turn={"toe": turn})
+        out, tree, _ = fit_sequence(poses, HUMAN, opts)
         bends[turn] = [_angle(p.joints["ankle_1"] - p.joints["knee_1"],
                               p.joints["toe_1"] - p.joints["ankle_1"]) for p in out]
     for b0, b1 in zip(bends[0.0], bends[20.0]):
@@ -1090,7 +1080,7 @@ def test_knee_from_the_far_end_when_the_legs_junction_drops(monkeypatch):
     curve it is 6 cm low (0.415 m), and with the default half weight half-way between (0.445
     m). Frames with the full curve keep their knee."""
     from topopose.sequence import kinematic_fit as kf
-    monkeypatch.setattr(kf, "FROM_END", {("foot", "knee"): 40})
+    opts = SequenceOptions().with_(from_end={("foot", "knee"): 40})
     tree = kinematic_tree(HUMAN)
     rng = np.random.default_rng(7)
     poses, drop = [], {2, 5}
@@ -1103,10 +1093,10 @@ def test_knee_from_the_far_end_when_the_legs_junction_drops(monkeypatch):
             curves[side] = resample([o + [0, 0, top], o], 64)
         pose, _ = _numbered_frame(f"{i:06d}", parts, curves, False, False)
         poses.append(pose)
-    init = np.stack([kf.initial_placement(p, tree) for p in poses])
-    out = kf.from_end(init, poses, tree, weight=1.0)
-    half = kf.from_end(init, poses, tree)
-    assert kf.FROM_END_WEIGHT == 0.5
+    init = np.stack([kf.initial_placement(p, tree, fit=opts.skeleton_fit) for p in poses])
+    out = kf.from_end(init, poses, tree, weight=1.0, fit=opts.skeleton_fit)
+    half = kf.from_end(init, poses, tree, fit=opts.skeleton_fit)
+    assert kf.FIT.from_end_weight == 0.5
     for k in (tree.names.index("knee_1"), tree.names.index("knee_2")):
         assert np.all(np.abs(out[:, k, 2] - 0.475) < 0.02), out[:, k, 2]
         assert np.all(np.abs(half[sorted(drop), k, 2] - 0.445) < 0.01), half[:, k, 2]
@@ -1115,7 +1105,7 @@ def test_knee_from_the_far_end_when_the_legs_junction_drops(monkeypatch):
         assert np.allclose(out[keep, k], init[keep, k], atol=1e-9)
     other = [j for j, b in enumerate(tree.base) if b != "knee"]
     assert np.allclose(out[:, other], init[:, other], equal_nan=True)
-    assert np.allclose(kf.from_end(init, poses, tree, ends={}), init, equal_nan=True)
+    assert np.allclose(kf.from_end(init, poses, tree, ends={}, fit=opts.skeleton_fit), init, equal_nan=True)
 
 
 @pytest.mark.parametrize("seed", range(4))

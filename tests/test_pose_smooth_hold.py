@@ -6,6 +6,7 @@ import copy
 import numpy as np
 import pytest
 
+from topopose.sequence.options import SequenceOptions
 from topopose.sequence import kinematic_fit as kf
 from topopose.sequence.kinematic_fit import fit_sequence, kinematic_tree
 
@@ -71,8 +72,8 @@ def test_default_smoothing_brings_a_noisy_continuing_motion_closer_to_the_truth(
     default fit (``SMOOTH``) is nearer each frame's true joints than the unsmoothed fit, flags
     the frames ``smoothed`` and keeps every bone at its constant length."""
     assert kf.SMOOTH == 9
-    monkeypatch.setattr(kf, "TIP_TURN", {})          # curves through the tips' truth
-    monkeypatch.setattr(kf, "TIP_STRETCH", {})
+    opts = SequenceOptions().with_(tip_turn={})          # curves through the tips' truth
+    opts = opts.with_(tip_stretch={})
     rng = np.random.default_rng(0)
     tree = kinematic_tree(HUMAN)
     poses, truth = [], []
@@ -84,7 +85,7 @@ def test_default_smoothing_brings_a_noisy_continuing_motion_closer_to_the_truth(
         poses.append(pose)
     err = {}
     for smooth in (None, 0):
-        out, tree, L = fit_sequence(poses, HUMAN, smooth=smooth)
+        out, tree, L = fit_sequence(poses, HUMAN, opts, smooth=smooth)
         P = np.array([[p.joints[n] for n in tree.names] for p in out])
         err[smooth] = float(np.linalg.norm(P - np.array(truth), axis=2).mean())
         if smooth is None:
@@ -107,8 +108,7 @@ def test_the_default_window_keeps_its_duration_at_the_capture_frame_rate(monkeyp
 
     assert (kf.smooth_window(25), kf.smooth_window(60), kf.smooth_window(None)) == (9, 21, 9)
     assert kf.smooth_window(1) == 3
-    monkeypatch.setattr(kf, "TIP_TURN", {})
-    monkeypatch.setattr(kf, "TIP_STRETCH", {})
+    opts = SequenceOptions().with_(tip_turn={}, tip_stretch={})
     rng = np.random.default_rng(1)
     tree = kinematic_tree(HUMAN)
     poses, clean = [], []
@@ -119,15 +119,15 @@ def test_the_default_window_keeps_its_duration_at_the_capture_frame_rate(monkeyp
         pose.diagnostics["curves"] = {k: v + rng.normal(scale=0.01, size=v.shape)
                                       for k, v in pose.diagnostics["curves"].items()}
         poses.append(pose)
-    out, _, _ = fit_sequence(clean, HUMAN, smooth=0)
+    out, _, _ = fit_sequence(clean, HUMAN, opts, smooth=0)
     truth = [[p.joints[n] for n in tree.names] for p in out]
     err, fits = {}, {}
     for smooth in (9, 21):
-        out, _, _ = fit_sequence(poses, HUMAN, smooth=smooth)
+        out, _, _ = fit_sequence(poses, HUMAN, opts, smooth=smooth)
         fits[smooth] = np.array([[p.joints[n] for n in tree.names] for p in out])
         err[smooth] = float(np.linalg.norm(fits[smooth] - np.array(truth), axis=2).mean())
     assert err[21] < 0.9 * err[9], err
-    m = process_sequence(poses, HUMAN, np.array([0.0, 0.0, 1.0]), track=False, sides=False,
+    m = process_sequence(poses, HUMAN, np.array([0.0, 0.0, 1.0]), opts, track=False, sides=False,
                          fps=60, consistency=False)
     got = np.array([[p.joints[n] for n in tree.names] for p in m.poses])
     assert np.allclose(got, fits[21])
@@ -163,7 +163,7 @@ def test_a_frame_off_the_motion_around_it_is_flagged_and_bridged(monkeypatch):
     flagged = [i for i, p in enumerate(out) if p.diagnostics.get("temporal_outlier")]
     assert flagged == [7]
     d = [p.diagnostics["neighbour_distance"] for p in out]
-    assert d[7] >= kf.SMOOTH_MOVE and max(d[:7] + d[8:]) < 0.5 * kf.SMOOTH_MOVE
+    assert d[7] >= kf.SMOOTHING.move and max(d[:7] + d[8:]) < 0.5 * kf.SMOOTHING.move
     assert [i for i, p in enumerate(out) if p.diagnostics.get("interpolated")] == [7]
     assert np.linalg.norm(J(raw[7]) - truth[7], axis=1).mean() > 0.2
     assert np.linalg.norm(J(out[7]) - truth[7], axis=1).mean() < 0.02
@@ -180,8 +180,8 @@ def test_a_frame_off_the_motion_around_it_is_flagged_and_bridged(monkeypatch):
     assert ("1 skeleton off the motion around it (diagnostics.temporal_outlier, 1 interpolated "
             "from the frames either side)") in text
     assert "off the motion" not in summary_text(RunResult(raw, None))
-    monkeypatch.setattr(kf, "BRIDGE", False)
-    kept, _, _ = fit_sequence(poses, HUMAN)
+    opts = SequenceOptions().with_(bridge=False)
+    kept, _, _ = fit_sequence(poses, HUMAN, opts)
     assert kept[7].diagnostics.get("temporal_outlier")
     assert "smoothed" not in kept[7].diagnostics and "interpolated" not in kept[7].diagnostics
     assert np.array_equal(J(kept[7]), J(raw[7]))
@@ -266,12 +266,7 @@ def test_default_smoothing_leaves_unrelated_poses_alone():
         assert "smoothed" not in p.diagnostics
         for n in p.joints:
             assert np.array_equal(p.joints[n], q.joints[n])
-    keep = kf.SMOOTH_MOVE
-    try:
-        kf.SMOOTH_MOVE = None
-        c, _, _ = fit_sequence(poses, HUMAN)
-    finally:
-        kf.SMOOTH_MOVE = keep
+    c, _, _ = fit_sequence(poses, HUMAN, move=None)
     assert max(np.linalg.norm(p.joints["wrist_1"] - q.joints["wrist_1"])
                for p, q in zip(c, b)) > 0.1
 
@@ -283,7 +278,7 @@ def test_a_lost_arm_is_held_up_to_hold_age_frames_after_it_was_seen(monkeypatch,
     with the root (the truth: the same rigid body); later it takes the rest pose, its upper
     arm hanging along the trunk (nothing else fills it: no hull evidence, hints or hull
     shoulders in these frames). Without the limit (None) it is held throughout."""
-    monkeypatch.setattr(kf, "HOLD_AGE", age)
+    opts = SequenceOptions().with_(hold_age=age)
     n = age + 4
     frames, shifts = [], []
     for i in range(n):
@@ -307,8 +302,8 @@ def test_a_lost_arm_is_held_up_to_hold_age_frames_after_it_was_seen(monkeypatch,
             res.append((off < 0.005, np.dot(u, down) / np.linalg.norm(u) > 0.999))
         return res
 
-    res = held_and_hanging(fit_sequence(frames, HUMAN, max_gap=0, smooth=0)[0])
+    res = held_and_hanging(fit_sequence(frames, HUMAN, opts, max_gap=0, smooth=0)[0])
     assert res == [(True, False)] * age + [(False, True)] * (n - 1 - age)
-    monkeypatch.setattr(kf, "HOLD_AGE", None)
-    res = held_and_hanging(fit_sequence(frames, HUMAN, max_gap=0, smooth=0)[0])
+    opts = opts.with_(hold_age=None)
+    res = held_and_hanging(fit_sequence(frames, HUMAN, opts, max_gap=0, smooth=0)[0])
     assert res == [(True, False)] * (n - 1)

@@ -137,7 +137,7 @@ def test_junction_position_is_the_connected_cooptimal_cluster():
     import numpy as np
 
     from topopose.match import Tree
-    from topopose.frame.estimate import junction_position
+    from topopose.frame.placement import junction_position
 
     # 0 - 1 - 2 - 3 - 5, with 4 hanging off 1; co-optimal images of "J": 1, 2, 4 (connected to
     # the chosen 1 through co-optimal vertices) and 5 (reached only through 3, not co-optimal)
@@ -214,7 +214,7 @@ def test_arm_keep_on_the_boundary_when_the_limb_leaves_across_a_grid_edge():
     import numpy as np
 
     from topopose.hull import Volume
-    from topopose.frame.estimate import arm_keep
+    from topopose.frame.placement import arm_keep
     from topopose.skeleton import data_tree
     from topopose.topology import thin
 

@@ -55,7 +55,7 @@ def test_arc_cost_equals_brute_force_on_stars(seed):
 
 def test_thickness_moves_the_head_to_the_thick_branch():
     """Two torso branches of equal length: lengths cannot tell head from hand, radii can."""
-    from topopose.frame.estimate import thickness_arc_cost
+    from topopose.frame.thickness import thickness_arc_cost
 
     P = Tree([("torso", "head", 0.2), ("torso", "hand", 0.2)], root="torso")
     D = Tree([(0, 1, 0.2), (0, 2, 0.2)])
@@ -74,7 +74,7 @@ def test_vertex_radii_of_a_ball_and_a_rod():
     """A ball of radius 10 voxels with a rod of radius 2 voxels: the ball's centre has the
     largest radius (1), the rod's axis 2/10 of it (± the EDT's voxel rounding)."""
     from topopose.hull import Volume
-    from topopose.frame.estimate import vertex_radii
+    from topopose.frame.thickness import vertex_radii
 
     g = np.indices((40, 30, 30)).astype(float)
     ball = ((g[0] - 12) ** 2 + (g[1] - 15) ** 2 + (g[2] - 15) ** 2) <= 10 ** 2
@@ -112,7 +112,7 @@ SEED = 5
 
 
 def test_matched_arc_cost_is_the_distance_part_paid():
-    from topopose.frame.estimate import matched_arc_cost
+    from topopose.frame.thickness import matched_arc_cost
 
     rng = np.random.default_rng(3)
     P = Tree([("r", "a", 0.3), ("r", "b", 0.5), ("b", "c", 0.2)], root="r")
@@ -151,7 +151,7 @@ def test_arc_cost_by_index_equals_the_formula(seed):
     formula computed element by element (unknown radius → no cost), for integer ids (some
     without a radius, some out of the table), for other ids (the dict path) and for the root
     arc's extra term."""
-    from topopose.frame.estimate import thickness_arc_cost
+    from topopose.frame.thickness import thickness_arc_cost
 
     rng = np.random.default_rng(seed)
     profile = {"head": (0.55, 1.2), "hand": (0.0, 0.35), "torso": (0.8, 1.0)}
@@ -242,7 +242,7 @@ def test_vertex_radii_equal_the_plain_loop(seed):
     from types import SimpleNamespace
 
     from topopose.hull import Volume
-    from topopose.frame.estimate import taxicab_radii, vertex_radii
+    from topopose.frame.thickness import taxicab_radii, vertex_radii
 
     rng = np.random.default_rng(seed)
     occ = np.zeros((30, 28, 40), bool)

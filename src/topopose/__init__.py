@@ -42,6 +42,10 @@ _LAZY = {
     "estimate_pose": "topopose.frame",
     "Pose": "topopose.pose",
     "run": "topopose.batch",
+    # options (frozen dataclasses, grouped by stage)
+    "EstimatorOptions": "topopose.frame.options",
+    "SequenceOptions": "topopose.sequence.options",
+    "RunOptions": "topopose.batch.options",
     # applications (thesis §13.3)
     "segment": "topopose.apps.segment",
     "detect": "topopose.apps.detect",

@@ -24,11 +24,9 @@ cardinality of their union)."
 from __future__ import annotations
 
 import itertools
-import json
 import math
 import re
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -228,6 +226,10 @@ def cluster_poses(poses, *, clusters=None, threshold=None, auto="silhouette", re
     from scipy.cluster.hierarchy import fcluster, linkage
     from scipy.spatial.distance import squareform
 
+    from topopose._paths import check_number
+
+    clusters = check_number(clusters, "clusters", low=1, integer=True)
+    threshold = check_number(threshold, "threshold", low=0)
     frames, plist, status = [], [], []
     for p in poses:
         frames.append(p.frame if hasattr(p, "frame") else p["frame"])
@@ -343,29 +345,3 @@ def cluster_figure(poses, result: Clustering, out, up="+z") -> None:
     fig.tight_layout()
     fig.savefig(out)
     plt.close(fig)
-
-
-def cluster_cli(a) -> int:
-    """``topopose cluster POSES.jsonl [--output F.jsonl] [--clusters K | --threshold T]``."""
-    from topopose.apps.detect import header_up, read_poses_file
-
-    if a.clusters is not None and a.threshold is not None:
-        raise InputError("cluster: give --clusters or --threshold, not both")
-    poses, header = read_poses_file(a.poses)
-    if not poses:
-        raise InputError(f"{a.poses}: no pose in the file")
-    res = cluster_poses(poses, clusters=a.clusters, threshold=a.threshold, auto=a.auto)
-    lines = "".join(json.dumps({"frame": f, "cluster": c}) + "\n" for f, c in zip(res.frames, res.labels))
-    if a.output:
-        Path(a.output).write_text(lines)
-    else:
-        print(lines, end="")
-    import sys
-
-    out = sys.stdout if a.output else sys.stderr
-    print(f"{res.k} clusters over {len(res.used)} matched frames ({res.method})", file=out)
-    for c, m in enumerate(res.medoids):
-        print(f"  cluster {c}: {sum(v == c for v in res.labels)} frames, medoid {m}", file=out)
-    if a.figure:
-        cluster_figure(poses, res, a.figure, up=a.up or header_up(header) or "+z")
-    return 0

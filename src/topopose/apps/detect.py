@@ -38,7 +38,6 @@ case-insensitively; numbered and sided names resolve to each other (``hand_1`` â
 """
 from __future__ import annotations
 
-import json
 import re
 import tomllib
 from dataclasses import dataclass
@@ -52,14 +51,22 @@ AXES = ("x", "y", "z")
 RELATIONS = ("b", "i", "c", "p", "u")
 KEYWORDS = {"and", "or", "xor", "not", "true", "false"}
 LIBRARY = Path(__file__).with_name("poses.toml")
+#: the deepest nesting of a description (operators, ``not`` and parentheses around a relation)
+MAX_DEPTH = 100
+#: the largest pose library file read (bytes)
+MAX_LIBRARY_BYTES = 1 << 20
 
 
 class ExpressionError(InputError):
-    """A description that does not parse: the message shows the column with a caret."""
+    """A description that does not parse: the message shows the column with a caret (a long
+    description: the 60 characters around it)."""
 
     def __init__(self, text, col, message):
         self.text, self.col, self.reason = text, col, message
-        super().__init__(f"expression: {message} at column {col + 1}\n  {text}\n  {' ' * col}^")
+        lo = max(0, col - 30) if len(text) > 60 else 0
+        shown = text[lo:lo + 60] if len(text) > 60 else text
+        super().__init__(f"expression: {message} at column {col + 1}\n  {shown}\n  "
+                         f"{' ' * (col - lo)}^")
 
 
 # ----------------------------------------------------------------------------- AST
@@ -127,6 +134,7 @@ class _Parser:
         self.text = text
         self.toks = tokenize(text)
         self.i = 0
+        self.nest = 0            # enclosing 'not's and parentheses (bounds the recursion)
 
     def peek(self, k=0):
         return self.toks[min(self.i + k, len(self.toks) - 1)]
@@ -147,7 +155,14 @@ class _Parser:
         t = self.peek()
         if t.kind != "end":
             self.error(t, f"expected an operator (and, or, xor) or the end, got {t.text!r}")
+        if depth(node) > MAX_DEPTH:
+            self.error(self.toks[0], f"nested deeper than {MAX_DEPTH} operators")
         return node
+
+    def deeper(self, tok):
+        self.nest += 1
+        if self.nest > MAX_DEPTH:
+            self.error(tok, f"nested deeper than {MAX_DEPTH} levels ('not', parentheses)")
 
     def _binary(self, op, sub):
         node = sub()
@@ -167,15 +182,18 @@ class _Parser:
 
     def unary(self):
         if self.is_word(self.peek(), "not"):
-            self.next()
-            return Not(self.unary())
+            self.deeper(self.next())
+            node = Not(self.unary())
+            self.nest -= 1
+            return node
         return self.primary()
 
     def primary(self):
         t = self.peek()
         if t.kind == "punct" and t.text == "(":
-            self.next()
+            self.deeper(self.next())
             node = self.expr()
+            self.nest -= 1
             c = self.peek()
             if not (c.kind == "punct" and c.text == ")"):
                 self.error(c, f"expected ')' to close the '(' at column {t.col + 1}, got "
@@ -219,11 +237,16 @@ class _Parser:
             return Rel("order", self.parts(3, more=True), relation=rel)
         if w in ("near", "far"):
             parts = self.parts(2)
+            m, n = self.peek(), self.peek(1)
+            if m.kind == "punct" and m.text == "-" and n.kind == "num" and n.col == m.col + 1:
+                self.error(m, f"the distance of {t.text!r} must be â‰¥ 0, got -{n.text}")
             self._sep()
             n = self.next()
             if n.kind != "num":
                 self.error(n, f"expected a distance (a number) after the parts of {t.text!r}, got "
                               f"{n.text or 'the end'!r}")
+            if not np.isfinite(float(n.text)):
+                self.error(n, f"the distance of {t.text!r} must be a finite number, got {n.text}")
             return Rel(w, parts, value=float(n.text))
         if w in KEYWORDS or w in ("greatest", "least"):
             self.error(t, f"{t.text!r} cannot start a relation")
@@ -275,6 +298,19 @@ def parse(text: str):
     if not isinstance(text, str):
         raise InputError(f"expression: expected a string, got {type(text).__name__}")
     return _Parser(text).parse()
+
+
+def depth(node) -> int:
+    """Nesting depth of a syntax tree (a relation or constant: 1), counted without recursion."""
+    best, todo = 0, [(node, 1)]
+    while todo:
+        n, d = todo.pop()
+        best = max(best, d)
+        if isinstance(n, Not):
+            todo.append((n.arg, d + 1))
+        elif isinstance(n, BinOp):
+            todo += [(n.left, d + 1), (n.right, d + 1)]
+    return best
 
 
 def parts_of(node) -> set:
@@ -370,7 +406,11 @@ def evaluate(node, parts: dict, up="+z", aliases: dict | None = None, margin: fl
         p = resolve(name, parts, aliases)
         if p is None:
             return None
-        p = np.asarray(p, float).reshape(3)
+        try:
+            p = np.asarray(p, float).reshape(3)
+        except (TypeError, ValueError, OverflowError):
+            raise InputError(f"part {name!r}: a position must be [x, y, z] (numbers), "
+                             f"got {p!r}"[:300]) from None
         if not np.all(np.isfinite(p)):
             return None
         pos[name] = p
@@ -446,18 +486,26 @@ def load_library(path=None) -> tuple[dict, dict]:
     poses, aliases = {}, {}
     for f in [LIBRARY] + ([Path(path)] if path else []):
         try:
-            d = tomllib.loads(Path(f).read_text())
+            if Path(f).is_file() and Path(f).stat().st_size > MAX_LIBRARY_BYTES:
+                raise InputError(f"{f}: not a pose library (larger than "
+                                 f"{MAX_LIBRARY_BYTES >> 20} MB)")
+            d = tomllib.loads(Path(f).read_text(encoding="utf-8"))
         except FileNotFoundError:
             raise InputError(f"{f}: no such pose library") from None
-        except (OSError, tomllib.TOMLDecodeError) as exc:
-            raise InputError(f"{f}: not a readable TOML pose library ({exc})") from None
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, RecursionError) as exc:
+            raise InputError(f"{f}: not a readable TOML pose library "
+                             f"({str(exc)[:200] or type(exc).__name__})") from None
         for model, table in (d.get("aliases") or {}).items():
             if not isinstance(table, dict):
                 raise InputError(f"{f}: aliases.{model} must be a table alias = \"part\"")
             aliases.update({str(k).lower(): str(v) for k, v in table.items()})
+        if not isinstance(d.get("aliases") or {}, dict) or not isinstance(d.get("pose") or [], list):
+            raise InputError(f"{f}: 'aliases' must be a table and 'pose' an array of tables")
         for i, p in enumerate(d.get("pose") or []):
             if not isinstance(p, dict) or "name" not in p or "expr" not in p:
                 raise InputError(f"{f}: pose[{i}] needs a name and an expr")
+            if not isinstance(p["expr"], str):
+                raise InputError(f"{f}: pose[{i}].expr must be a text")
             try:
                 parse(p["expr"])
             except ExpressionError as exc:
@@ -517,17 +565,35 @@ def detect(poses, expr, up="+z", aliases=None, matched_only=True, margin: float 
     ``value`` is None for frames that are not matched (``matched_only``), lack a part, or are
     undecided within ``margin`` (:func:`evaluate`).
     """
+    from topopose.pose.pose import Pose
+
     node = parse(expr) if isinstance(expr, str) else expr
+    if not isinstance(node, (Rel, Not, BinOp, Const)):
+        raise InputError(f"detect: expr must be a description (text), got {type(expr).__name__}")
     if aliases is None:
         aliases = load_library()[1]
+    margin = _margin(margin)
     out = []
-    for p in poses:
-        frame = p.frame if hasattr(p, "frame") else p["frame"]
-        status = p.status if hasattr(p, "status") else p.get("status", "matched")
+    for i, p in enumerate(poses):
+        if isinstance(p, dict):             # the same checks as a poses file's line
+            frame = p.get("frame")
+            p = Pose.from_dict({"status": "matched", **p}, source=f"detect: poses[{i}]")
+        elif isinstance(p, Pose):
+            frame = p.frame
+        else:
+            raise InputError(f"detect: poses[{i}] must be a Pose or a dict with 'frame' and "
+                             f"'parts', got {type(p).__name__}")
+        status = p.status
         parts = description_parts(p)
         val = None if (matched_only and status != "matched") else evaluate(node, parts, up, aliases, margin)
         out.append({"frame": frame, "value": val})
     return out
+
+
+def _margin(margin) -> float:
+    from topopose._paths import check_number
+
+    return check_number(margin, "--margin", low=0) or 0.0
 
 
 def intervals(results) -> list:
@@ -545,51 +611,3 @@ def intervals(results) -> list:
     if cur is not None:
         runs.append(tuple(cur))
     return runs
-
-
-def detect_cli(a) -> int:
-    """``topopose detect POSES.jsonl "EXPR" | --pose NAME [--output F.jsonl] [--csv F.csv]``."""
-    import csv
-    import sys
-
-    library, aliases = load_library(a.library)
-    if a.list:
-        for p in library.values():
-            print(f"{p.name}: {p.expr}" + (f"   # {p.description}" if p.description else ""))
-        return 0
-    if (a.expr is None) == (a.pose is None):
-        raise InputError("detect: give an expression or --pose NAME (one of them)")
-    if a.pose is not None:
-        if a.pose.lower() not in library:
-            raise InputError(f"--pose: unknown pose {a.pose!r}; the library has "
-                             f"{', '.join(p.name for p in library.values())}")
-        expr = library[a.pose.lower()].expr
-    else:
-        expr = a.expr
-    try:
-        node = parse(expr)
-    except ExpressionError as exc:
-        print(f"topopose: error: {exc}", file=sys.stderr)       # keep the caret's line
-        return 2
-    poses, header = read_poses_file(a.poses)
-    up = a.up or header_up(header) or "+z"
-    res = detect(poses, node, up=up, aliases=aliases, margin=getattr(a, "margin", 0.0) or 0.0)
-    if a.output:
-        Path(a.output).write_text("".join(json.dumps(r) + "\n" for r in res))
-    else:
-        for r in res:
-            print(json.dumps(r))
-    if a.csv:
-        with open(a.csv, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["frame", "value"])
-            for r in res:
-                w.writerow([r["frame"], "" if r["value"] is None else int(r["value"])])
-    n_true = sum(r["value"] is True for r in res)
-    n_none = sum(r["value"] is None for r in res)
-    runs = intervals(res)
-    out = sys.stdout if a.output else sys.stderr
-    print(f"{n_true} of {len(res)} frames true ({n_none} undecided), up {up}: {expr}", file=out)
-    for first, last, n in runs:
-        print(f"  {first} .. {last}  ({n} frames)", file=out)
-    return 0

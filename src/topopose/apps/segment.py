@@ -31,10 +31,7 @@ Labels are 1..E in the order of the model's edges, named ``"u-v"`` (e.g. ``"tors
 from __future__ import annotations
 
 import itertools
-import json
 import math
-import time
-from pathlib import Path
 
 import numpy as np
 
@@ -74,7 +71,7 @@ def bone_segments(pose, model, names=None, start=None) -> list:
     (1-based index into ``names``, default :func:`arc_names`); bones with a joint not placed
     are left out. Empty when the model declares no joints or the pose has no curves.
     """
-    from topopose.sequence.kinematic_fit import initial_placement
+    from topopose.sequence.joint_placement import initial_placement
 
     if not getattr(model, "joints", None) or not (pose.diagnostics or {}).get("curves"):
         return []
@@ -100,7 +97,7 @@ def _bone_table(model, names, start):
     """The kinematic tree of ``model`` and its bones ``(child, parent, f, trunk label, label)``
     for :func:`bone_segments`: the trunk takes the fraction f of the bone from its parent
     joint; cached per model, names and start."""
-    from topopose.sequence.kinematic_fit import kinematic_tree
+    from topopose.sequence.skeleton_fit import kinematic_tree
     from topopose.pose.model import part_stem
 
     key = (id(model), names, start)
@@ -664,56 +661,3 @@ def renumbered_accuracy(pred, truth, names, return_mapping=False):
         if acc > best:
             best, best_m = acc, m
     return (best, best_m) if return_mapping else best
-
-
-def segment_cli(a) -> int:
-    """``topopose segment CAPTURE --poses P.jsonl --out DIR [--frames ...]``."""
-    from PIL import Image
-
-    from topopose.capture import load_capture
-    from topopose.pose.model import guess_model
-    from topopose.apps.detect import read_poses_file
-    from topopose.frame.estimate import FrameEstimator
-
-    cap = load_capture(a.capture)
-    poses, _ = read_poses_file(a.poses)
-    if not poses:
-        raise InputError(f"{a.poses}: no pose in the file")
-    if a.frames:
-        want = {cap.frame_name(f) for f in a.frames.split(",")}
-        poses = [p for p in poses if p.frame in want]
-    model = guess_model(poses[0], a.model)
-    res = a.resolution or int(poses[0].diagnostics.get("resolution", 100))
-    tol = poses[0].diagnostics.get("hull_tolerance")
-    est = FrameEstimator(cap, model, res, tolerance=None if tol is None else int(tol))
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
-    names_all = arc_names(model)
-    cols = label_colours(len(names_all))
-    n_done, summary = 0, []
-    for p in poses:
-        if p.status != "matched":
-            continue
-        pose, det = est.estimate(p.frame, detail=True)
-        if pose.status != "matched" or det.alignment is None:
-            summary.append({"frame": p.frame, "status": pose.status, "error": pose.error})
-            continue
-        t0 = time.perf_counter()
-        labels, names = segment(det.volume, det.skeleton, det.alignment, det.data, names=names_all,
-                                pose=pose, model=model)
-        ms = (time.perf_counter() - t0) * 1e3
-        vol = det.volume
-        np.savez_compressed(out / f"{p.frame}_labels.npz", labels=labels.astype(np.uint8),
-                            names=np.array(names), origin=vol.origin, voxel_size=vol.voxel_size)
-        write_label_mesh(out / f"{p.frame}.ply", labels, names, vol.origin, vol.voxel_size)
-        sils = cap.silhouettes(p.frame)
-        for cam, img in zip(cap.cameras, camera_masks(cap, labels, vol.origin, vol.voxel_size, sils)):
-            Image.fromarray(cols[img]).save(out / f"{p.frame}_{cam.name}.png")
-        counts = np.bincount(labels.ravel(), minlength=len(names) + 1)[1:]
-        summary.append({"frame": p.frame, "status": "segmented", "segment_ms": round(ms, 3),
-                        "voxels": {n: int(c) for n, c in zip(names, counts)}})
-        n_done += 1
-    (out / "segmentation.jsonl").write_text("".join(json.dumps(s) + "\n" for s in summary))
-    print(f"segmented {n_done} matched frames into {out} (labels: "
-          + ", ".join(f"{i + 1}={n}" for i, n in enumerate(names_all)) + ")")
-    return 0

@@ -22,7 +22,6 @@ to frames, of false positives to frames, and of false positives to matchings (TP
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -279,10 +278,11 @@ def evaluation_tolerance(gt: dict, relative=None, absolute=None, junction_factor
     if relative is not None and absolute is not None:
         raise InputError("evaluate: give --tolerance (fraction of the height) or --tolerance-m, "
                          "not both")
+    from topopose._paths import check_number
+
     for name, x in (("--tolerance", relative), ("--tolerance-m", absolute),
                     ("--junction-factor", junction_factor)):
-        if x is not None and not x > 0:
-            raise InputError(f"evaluate: {name} must be > 0 (got {x})")
+        check_number(x, name, above=0)
     if absolute is not None:
         return float(absolute), 1.0 if junction_factor is None else float(junction_factor)
     h = gt.get("height")
@@ -306,32 +306,3 @@ def summary_table(ev: Evaluation, thresholds=(0.1, 0.2, 0.3, 0.4, 0.6, 2.0)) -> 
         r = ev.rates(t)
         lines.append(f"{t:9.2f}  {r['tp_rate']:7.2f}  {r['fp_rate']:7.2f}  {r['fp_per_match']:8.3f}")
     return "\n".join(lines)
-
-
-def evaluate_cli(a) -> int:
-    """``topopose evaluate CAPTURE --poses POSES.jsonl [--out DIR] [--tolerance T | --tolerance-m D]
-    [--junction-factor F]``."""
-    from topopose.capture import load_capture
-    from topopose.pose.pose import read_poses
-
-    cap = load_capture(a.capture)
-    gt = cap.gt
-    if gt is None:
-        raise InputError(f"{a.capture}: no gt.json; evaluation needs ground truth "
-                         "(synthetic captures from `topopose synth` have it)")
-    poses = read_poses(a.poses)
-    tol, jf = evaluation_tolerance(gt, getattr(a, "tolerance", None), getattr(a, "tolerance_m", None),
-                                   getattr(a, "junction_factor", None))
-    ev = evaluate(gt, poses, tolerance=tol, junction_factor=jf)
-    h = gt.get("height")
-    print(f"tolerance {tol:.4g} capture units" + (f" = {tol / float(h):.3g} x height" if h else "")
-          + f", junctions x {jf:g}")
-    print(summary_table(ev))
-    out = Path(a.out) if a.out else Path(a.poses).resolve().parent
-    out.mkdir(parents=True, exist_ok=True)
-    from topopose.viz.figures import plot_quality
-
-    fig = out / (Path(a.poses).stem + "_quality.png")
-    plot_quality([(f"{gt.get('subject', 'capture')}", ev)], fig)
-    print(f"wrote {fig}")
-    return 0

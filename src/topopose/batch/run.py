@@ -18,11 +18,13 @@ import json
 import math
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from topopose.batch.options import RunOptions
 from topopose.errors import InputError
 from topopose.frame.estimate import FrameEstimator
+from topopose.frame.options import EstimatorOptions
 from topopose.frames import sort_frames, sort_poses
 from topopose.pose.model import load_model
 from topopose.pose.pose import Pose, read_poses, write_poses
@@ -30,7 +32,9 @@ from topopose.pose.pose import Pose, read_poses, write_poses
 
 @dataclass
 class RunResult:
-    """What a run produced (all frames of the output file, including resumed ones)."""
+    """What a run produced (all frames of the output file, including resumed ones).
+    ``written``: the output and exports were written (False when every frame failed and an
+    existing output was kept)."""
 
     poses: list
     output: Path | None
@@ -38,6 +42,7 @@ class RunResult:
     skipped: int = 0
     seconds: float = 0.0
     counts: dict = field(default_factory=dict)
+    written: bool = True
 
     @property
     def failed(self) -> list:
@@ -62,6 +67,8 @@ def _frame_bound(cap, text: str, whole: str):
         if not cap.fps:
             raise InputError(f"--frames: {whole!r} gives times but the capture has no frame rate "
                              f"(videos give it; else set [capture] fps in capture.toml)")
+        if not math.isfinite(sec):
+            raise InputError(f"--frames: {whole!r}: {t!r} is not a finite time")
         return max(0, math.ceil(sec * cap.fps - 1e-9))
     return int(t)
 
@@ -88,6 +95,9 @@ def select_frames(cap, frames) -> list:
                 raise InputError(f"--frames: {frames!r} must be START:STOP[:STEP] (indices, or "
                                  "times like 0.5s:1.2s) or a comma-separated list of frame "
                                  "names") from None
+            if sl.step is not None and sl.step <= 0:
+                raise InputError(f"--frames: {frames!r}: the step must be a positive number of "
+                                 "frames")
             out = list(cap.frames)[sl]
             if not out:
                 raise InputError(f"--frames: {frames!r} selects no frame ({len(cap.frames)} frames)")
@@ -123,7 +133,7 @@ def _build(spec) -> FrameEstimator:
 
     cap = spec["capture"] if "capture" in spec else load_capture(spec["capture_path"])
     model = model_from_dict(spec["model"], source="model")
-    return FrameEstimator(cap, model, spec["resolution"], spec["threshold"], **spec["options"])
+    return FrameEstimator(cap, model, spec["resolution"], spec["threshold"], spec["options"])
 
 
 def _worker_estimate(spec_key, spec, frame) -> dict:
@@ -152,18 +162,8 @@ def _progress(total, enabled, desc):
                 smoothing=0)
 
 
-#: ``run``'s default for ``centre`` (:mod:`topopose.frame.centre`: the limbs' curves onto the
-#: silhouettes' centre lines, recorded per frame for the kinematic fit): on — development
-#: MPJPE 8 cameras 3.63 → 3.44 cm, 4 phones (4p / 4pd) unchanged (studies/centre_dev.py)
-CENTRE = True
-
-
-def run(capture, model="human", resolution=100, threshold=None, output=None, *, frames=None,
-        workers=1, scheduler=None, resume=False, progress=True, trc=None, csv=None, c3d=None,
-        constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
-        tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None, track=True,
-        sides=True, skeleton=True, smooth=None, bvh=None, consistency=None,
-        support=None, support_test=False, trim=None, centre=None) -> RunResult:
+def run(capture, model="human", resolution=100, threshold=None, output=None,
+        options: RunOptions | None = None, **flat) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -173,78 +173,25 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     resolution, threshold : see :class:`FrameEstimator`
     output : path, optional
         JSON Lines output; each frame is appended and flushed as soon as it is done.
-    frames : None, list or "a:b" / "f1,f2"
-    workers : int
-        > 1: run frames in that many worker processes (Dask ``LocalCluster``).
-    scheduler : str, optional
-        Address of a Dask scheduler (e.g. ``"tcp://host:8786"``): run on that cluster.
-    resume : bool
-        Skip the frames already in ``output`` (an interrupted run continues).
-    trc, csv, c3d : path, optional
-        Exports of the matched frames (TRC in metres, wide CSV, C3D with the optional extra).
-    constraints : bool
-        False drops the model's coordinate constraints (acrobatics).
-    betweenness, relation : apply the betweenness constraints; ``relation`` overrides the
-        model's relation (``"b"`` or ``"i"``, thesis §13.2.2.2).
-    tolerance : int or None
-        Visual-hull tolerance (voxels seen by C − tolerance cameras); None: 1 with ≥ 6
-        cameras, else 0 (see :class:`FrameEstimator`).
-    refocus : bool
-        Visual hull on a grid refocused on the subject every frame, fixed voxel size
-        (thesis §13.2.2.1; as ``topopose hull --refocus``).
-    on_pose : callable, optional
-        Called with each :class:`Pose` as it finishes (e.g. a live viewer).
-    gate : bool or None
-        ``matched`` also needs the frame's confidence (:mod:`.confidence`, with the time
-        factors computed over the run at the end) above its minimum; False: the confidence is
-        reported only; None: :func:`~topopose.frame.estimate.default_gate` (on with fewer than
-        6 cameras).
-    thickness : float or None
-        Weight of the thickness term of the arc cost (see :class:`FrameEstimator`); 0: off.
-    track : bool
-        Sequences (more than one frame): give the numbered parts stable identities over time
-        (:func:`topopose.sequence.track.track`); the output file is rewritten with them.
-    sides : bool
-        Name the model's mirror pairs left / right (:mod:`topopose.sequence.chirality`).
-    skeleton : bool
-        Fit the full kinematic skeleton (:mod:`topopose.sequence.kinematic_fit`): ``Pose.joints``.
-    smooth : int, optional
-        Savitzky–Golay window (frames) smoothing the skeleton over runs of continuing motion
-        (default :func:`topopose.sequence.kinematic_fit.smooth_window` of the capture's frame
-        rate: 9 frames at 25 frames/s, 0.36 s; 0: off).
-    trim : bool, optional
-        Hands trimmed back out of the hull's phantom volume where the silhouettes' evidence
-        ends (:mod:`topopose.frame.trim`, recorded per frame, applied after the identities;
-        default :data:`topopose.sequence.motion.TRIM`, on).
-    centre : bool, optional
-        Record per frame the limbs' curves moved onto the silhouettes' centre lines
-        (:mod:`topopose.frame.centre`, ``diagnostics["centred"]``; the kinematic fit uses them,
-        :data:`topopose.sequence.kinematic_fit.CENTRED`); None (default): :data:`CENTRE`. Recorded
-        in the run's per-frame options (the poses file's header).
-    bvh : path, optional
-        BVH export of the fitted skeleton (Blender).
-    consistency : bool, "union", dict or None
-        Sequences of one subject (a run of unrelated poses is left as it is): ``matched``
-        decided with the run's own consistency (:mod:`topopose.sequence.consistency`). None
-        (default): :data:`topopose.sequence.motion.CONSISTENCY`, ``"union"`` — a frame the
-        confidence gate matched stays matched (unless a part of it was held at its tracked
-        prediction) and a frame the gate alone rejected is matched when consistent with the
-        run; True (``run --consistency``): the consistency instead of the gate; False
-        (``--no-consistency``): the gate alone; a dict gives
-        :func:`~topopose.sequence.consistency.judge_sequence`'s settings
-        (``benchmarks/results/consistency.md``). With ``track``, ``sides`` and ``skeleton``
-        all off, None means False: the per-frame results as the estimator gave them.
-    support : bool, optional
-        Record each frame's ``diagnostics["unexplained"]`` (:mod:`topopose.frame.support`),
-        which the consistency reads; None (default): with ``consistency`` (on by default) or
-        ``support_test``.
-    support_test : bool or "replace"
-        Per frame (also runs of unrelated poses): a matched frame whose silhouette is left
-        unexplained by the placed model above
-        :data:`topopose.sequence.consistency.MAX_UNEXPLAINED` is rejected
-        (:func:`topopose.sequence.consistency.judge_support`, ``run --support``); ``"replace"``:
-        the test replaces the confidence gate (frames the gate alone rejected are matched when
-        they pass). Off by default (``benchmarks/results/applications.md``).
+    options : RunOptions, optional
+        Every option, grouped (:class:`~topopose.batch.options.RunOptions`, which documents
+        them; default: the defaults).
+    **flat
+        Options changed by name (:meth:`~topopose.batch.options.RunOptions.with_`): ``frames``,
+        ``resume``, ``progress``, ``on_pose``, ``support``, ``support_test``, ``centre``; the
+        exports ``trc``, ``csv``, ``c3d``, ``bvh``; ``workers`` or a Dask ``scheduler``; any
+        per-frame option of :class:`FrameEstimator` (``constraints``, ``betweenness``,
+        ``relation``, ``max_missing``, ``thinning``, ``tolerance``, ``refocus``, ``gate``,
+        ``thickness``, ...); any option of the sequence stage
+        (:class:`~topopose.sequence.options.SequenceOptions`: ``track``, ``sides``,
+        ``skeleton``, ``smooth``, ``trim``, ``consistency``, ...). With ``track``, ``sides``
+        and ``skeleton`` all off, ``consistency`` None means False: the per-frame results as
+        the estimator gave them.
+
+    Every output is checked before any work (:func:`topopose._paths.check_outputs`) against
+    the capture's files, the model file and the other outputs; the output replaces an existing
+    file only when the run completes, and not at all when every frame failed (exit status 1,
+    the old file kept).
 
     Returns
     -------
@@ -254,23 +201,22 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     from topopose import _paths
     from topopose.capture import Capture, load_capture
 
+    o = (options or RunOptions()).with_(**flat)
+    resume, support, support_test = o.resume, o.support, o.support_test
+    workers, scheduler = o.parallel.workers, o.parallel.scheduler
+    eo, seq = o.estimator, o.sequence
+    track, sides, skeleton, consistency = seq.track, seq.sides, seq.skeleton, seq.consistency
     # ---- every argument and output checked before any work or any write
     if workers is None or isinstance(workers, bool) or int(workers) < 1:
         raise InputError(f"--workers: must be at least 1, got {workers}")
     resolution = _paths.check_resolution(resolution)
     threshold = _paths.check_threshold(threshold)
-    m = load_model(model, constraints=constraints)
+    _paths.check_number(eo.alignment.thickness, "--thickness", low=0)
+    _paths.check_number(seq.smoothing.smooth, "--smooth", low=0, integer=True)
+    m = load_model(model, constraints=eo.alignment.constraints)
     cap = capture if isinstance(capture, Capture) else load_capture(capture)
-    tolerance = _paths.check_tolerance(tolerance, len(cap.cameras))
-    if gate is None:
-        from topopose.frame.estimate import default_gate
-        gate = default_gate(cap)
-    options = {"betweenness": betweenness, "relation": relation, "max_missing": max_missing,
-               "thinning": thinning, "tolerance": tolerance, "gate": gate}
-    if refocus:
-        options["refocus"] = True
-    if thickness is not None:
-        options["thickness"] = float(thickness)
+    eo = _checked_estimator(eo, cap)
+    gate = eo.confidence.gate
     from topopose.sequence.motion import consistency_settings
     if consistency is None and not (track or sides or skeleton):
         consistency = False               # no sequence stage asked for: per-frame results
@@ -279,47 +225,37 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     except ValueError as e:
         raise InputError(str(e)) from None
     if support or (support is None and (judged or support_test)):   # read by them
-        options["support"] = True
-    if CENTRE if centre is None else centre:
-        options["centre"] = True
-    todo = select_frames(cap, frames)
-    if c3d is not None:
-        from topopose.pose.export import require_c3d
-        require_c3d()
-    if trc is not None or c3d is not None:
-        from topopose.pose.export import metres_per_unit
-        metres_per_unit(cap.units)
-    if bvh is not None and not (skeleton and m.joints):
-        raise InputError(f"--bvh: model {m.name!r} has no [[joint]] (or --no-skeleton): no "
-                         "skeleton to export")
-    exports = {k: _paths.writable_output(v, f"--{k}") for k, v in
-               (("trc", trc), ("csv", csv), ("c3d", c3d), ("bvh", bvh)) if v is not None}
-    out = _paths.writable_output(output, "--output") if output is not None else None
-    header = run_header(cap, m, resolution, threshold, options)
-    done = {}
+        eo = eo.with_(support=True)
+    eo = eo.with_(centre=bool(o.centre))
+    todo = select_frames(cap, o.frames)
+    out, exports = _checked_outputs(output, o.exports, cap, m, skeleton, model)
+    if scheduler and todo:
+        probe_scheduler(scheduler)                # before any write
+    header = run_header(cap, m, resolution, threshold, run_settings(eo))
     partial = out.with_name(out.name + ".partial") if out is not None else None
-    if out is not None and resume:
-        for f in (out, partial):         # the .partial file of a killed run holds its frames
-            if f.exists():
-                check_resume(f, header, m)
-                for p in read_poses(f, strict=False):
-                    done[p.frame] = p
+    done = _resumed(out, partial, header, m) if out is not None and resume else {}
     skipped = [f for f in todo if f in done]
     todo = [f for f in todo if f not in done]
 
     # ---- the run: frames appended (and flushed) to a temporary file beside the output, which
-    # replaces the output at the end — also on Ctrl-C or an error, so nothing computed is lost;
+    # replaces the output when the run completes. Interrupted (Ctrl-C, an error), it replaces
+    # only a missing output or a resumed one (which it extends): an existing file of another run
+    # is left as it was and the frames computed stay in the partial file, which --resume reads;
     # a killed process leaves the existing output as it was (and the partial file beside it)
     results = dict(done)
+    existed = out is not None and out.exists()
     t0 = time.perf_counter()
     fh = None
     if partial is not None:
-        fh = open(partial, "w")
+        try:
+            fh = open(partial, "w")
+        except OSError as exc:
+            raise InputError(f"--output: cannot write beside {out} ({exc.strerror or exc})") from None
         fh.write(json.dumps(header, separators=(",", ":")) + "\n")
         for p in sort_poses(done.values()):
             fh.write(p.to_json() + "\n")
         fh.flush()
-    bar = _progress(len(todo), progress and len(todo) > 0, f"{m.name} @ {resolution}³")
+    bar = _progress(len(todo), o.progress and len(todo) > 0, f"{m.name} @ {resolution}³")
     first = [True]
 
     def finish(pose: Pose):
@@ -333,9 +269,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
                 first[0] = False          # the first run's compilation and tables
                 bar.start_t = bar.last_print_t = bar._time()
                 bar.initial = bar.n
-            bar.set_postfix(status=pose.status[:7], refresh=False)
-        if on_pose is not None:
-            on_pose(pose)
+            bar.set_postfix(status=f"{pose.status:8}", refresh=False)   # whole, fixed width
+        if o.on_pose is not None:
+            o.on_pose(pose)
 
     def note(message):
         if bar is not None:
@@ -344,74 +280,185 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     from topopose import _notices
     from topopose.batch import warmup
 
-    try:
-        with _notices.notices(note):
-            if todo and (workers > 1 or scheduler):
-                _run_dask(cap, m, resolution, threshold, options, todo, workers, scheduler, finish)
-            elif todo:
-                from topopose.capture import prefetch
-
-                warm = warmup.start_warmup()     # first run: a helper process
-                try:
-                    est = FrameEstimator(cap, m, resolution, threshold, **options)
-                    est.warmup = warm
-                    # decoding + silhouettes run ahead in threads, the masks at the resolution
-                    # the grid needs
-                    with prefetch(cap, todo, factors=est.mask_factors()):
-                        for f in todo:
-                            finish(est.estimate(f))
-                finally:
-                    warm.close()
-    finally:
-        if bar is not None:
-            bar.close()
-        from topopose.frame.confidence import temporal_confidence      # time factors need the whole run
-        temporal_confidence(list(results.values()), {f: i for i, f in enumerate(cap.frames)},
-                            gate=gate and m.name == "human")
-        if support_test:                  # per frame, on the statuses the gate gave
-            from topopose.sequence.consistency import judge_support
-            judge_support(results.values(), gate=support_test != "replace")
-        if fh is not None:
-            fh.close()
-            if len(results) > len(done) or not out.exists() or resume:
-                write_poses(out, results.values(), header)   # sorted, atomic replace
-            partial.unlink(missing_ok=True)
-    seconds = time.perf_counter() - t0
-    poses = [results[k] for k in sort_frames(results)]
+    complete = False
+    written = True
     motion = None
-    # a resume with nothing to do keeps the file
-    if (track or sides or skeleton or judged) and todo:
-        from topopose.sequence.motion import process_sequence
-        motion = process_sequence(poses, m, cap.up_vector, track=track, sides=sides,
-                                  skeleton=skeleton, smooth=smooth, consistency=consistency,
-                                  trim=trim, fps=cap.fps)
-        poses = motion.poses
-        if out is not None:
-            write_poses(out, poses, header)
+    poses = []
+    try:
+        try:
+            with _notices.notices(note):
+                if todo and (workers > 1 or scheduler):
+                    _run_dask(cap, m, resolution, threshold, eo, todo, workers, scheduler, finish)
+                elif todo:
+                    from topopose.capture import prefetch
+
+                    warm = warmup.start_warmup()     # first run: a helper process
+                    try:
+                        est = FrameEstimator(cap, m, resolution, threshold, eo)
+                        est.warmup = warm
+                        # decoding + silhouettes run ahead in threads (at the resolution the
+                        # grid needs, when the masks are reduced)
+                        with prefetch(cap, todo, factors=est.mask_factors()):
+                            for f in todo:
+                                finish(est.estimate(f))
+                    finally:
+                        warm.close()
+        finally:
+            if bar is not None:
+                bar.close()
+            from topopose.frame.confidence import temporal_confidence   # time factors: the whole run
+            temporal_confidence(list(results.values()), {f: i for i, f in enumerate(cap.frames)},
+                                gate=gate and m.name == "human")
+            if support_test:                  # per frame, on the statuses the gate gave
+                from topopose.sequence.consistency import judge_support
+                judge_support(results.values(), gate=support_test != "replace")
+            if fh is not None:
+                fh.close()
+        seconds = time.perf_counter() - t0
+        poses = [results[k] for k in sort_frames(results)]
+        if todo and existed and not resume and all(results[f].status == "failed" for f in todo):
+            # nothing worth keeping: the complete result already there stays
+            partial.unlink(missing_ok=True)
+            print(f"topopose: note: every frame failed; {out} left as it was", file=sys.stderr)
+            written, exports = False, {}
+        else:
+            # a resume with nothing to do keeps the file
+            if (track or sides or skeleton or judged) and todo:
+                from topopose.sequence.motion import process_sequence
+                motion = process_sequence(poses, m, cap.up_vector,
+                                          replace(seq, consistency=consistency), fps=cap.fps)
+                poses = motion.poses
+            if out is not None and (todo or not existed or resume):
+                write_poses(out, poses, header)                   # sorted, atomic replace
+            if partial is not None:
+                partial.unlink(missing_ok=True)
+        complete = True
+    except BaseException as exc:
+        if not complete and partial is not None and partial.exists():
+            if existed and not resume:        # another run's file: never replaced by a part
+                if len(results) > len(done) and isinstance(exc, KeyboardInterrupt):
+                    exc.add_note(f"{out} left as it was; the {len(results) - len(done)} frames "
+                                 f"computed are in {partial} (--resume continues from them)")
+                elif len(results) == len(done):
+                    partial.unlink(missing_ok=True)
+            else:                              # nothing computed is lost
+                write_poses(out, results.values(), header)
+                partial.unlink(missing_ok=True)
+        raise
     counts = {s: sum(p.status == s for p in poses) for s in ("matched", "rejected", "failed")}
     res = RunResult(poses, out, computed=len(todo), skipped=len(skipped), seconds=seconds,
-                    counts=counts)
+                    counts=counts, written=written)
+    write_exports(exports, poses, motion, m, cap)
+    return res
+
+
+def _checked_estimator(eo, cap) -> EstimatorOptions:
+    """``eo`` with the hull tolerance checked against the cameras and the gate's default for
+    the capture (:func:`~topopose.frame.rules.default_gate`)."""
+    from topopose import _paths
+
+    tolerance = _paths.check_tolerance(eo.hull.tolerance, len(cap.cameras))
+    gate = eo.confidence.gate
+    if gate is None:
+        from topopose.frame.rules import default_gate
+        gate = default_gate(cap)
+    return eo.with_(tolerance=tolerance, gate=gate)
+
+
+def run_inputs(capture_path, model) -> list:
+    """What a run reads, which no output may replace: the capture's files (``capture_path``:
+    its folder, or None for a capture in memory) and a model file."""
+    from topopose import _paths
+
+    return [("--model", _paths.file_input(model)),
+            *(_paths.capture_inputs(capture_path) if capture_path is not None else [])]
+
+
+def _checked_outputs(output, ex, cap, m, skeleton, model) -> tuple:
+    """``(output, {kind: path})``: the poses file and the exports asked for
+    (:class:`~topopose.batch.options.ExportOptions`), checked together before any work
+    (:func:`topopose._paths.check_outputs`: writable, none an input of the run nor the file of
+    another output), C3D's extra installed, the capture's units known, a skeleton for BVH."""
+    from topopose import _paths
+
+    trc, csv, c3d, bvh = ex.trc, ex.csv, ex.c3d, ex.bvh
+    if c3d is not None:
+        from topopose.pose.export import require_c3d
+        require_c3d()
+    if trc is not None or c3d is not None:
+        from topopose.pose.export import metres_per_unit
+        metres_per_unit(cap.units)
+    if bvh is not None and not (skeleton and m.joints):
+        raise InputError(f"--bvh: model {m.name!r} has no [[joint]] (or --no-skeleton): no "
+                         "skeleton to export")
+    checked = _paths.check_outputs({"--output": output, "--trc": trc, "--csv": csv, "--c3d": c3d,
+                                    "--bvh": bvh}, run_inputs(cap.path, model))
+    return checked.get("--output"), {k[2:]: checked[k] for k in ("--trc", "--csv", "--c3d", "--bvh")
+                                     if k in checked}
+
+
+def write_exports(exports, poses, motion, m, cap):
+    """Write each export of ``{kind: path}`` (TRC, CSV, C3D of the matched frames; BVH of the
+    fitted skeleton), each to a temporary file renamed at the end."""
+    from topopose import _paths
+
     units = cap.units
     fps = cap.fps or 25.0
     from topopose.pose.export import OPENSIM_LABELS, marker_names, write_c3d, write_csv, write_trc
     markers = marker_names(poses, m.parts)
     writers = {"trc": lambda t: write_trc(t, poses, markers, fps=fps, units=units, up=cap.up,
-                                          labels=OPENSIM_LABELS),
+                                          labels=OPENSIM_LABELS, name=exports["trc"].name),
                "csv": lambda t: write_csv(t, poses, markers),
                "c3d": lambda t: write_c3d(t, poses, markers, fps=fps, units=units,
                                           labels=OPENSIM_LABELS),
                "bvh": lambda t: write_motion_bvh(t, poses, motion, m, fps=fps, units=units,
                                                  up=cap.up)}
     for k, path in exports.items():
-        with _paths.atomic_output(path) as t:
+        with _paths.atomic_output(path, f"--{k}") as t:
             writers[k](t)
-    return res
+
+
+def _resumed(out, partial, header, model) -> dict:
+    """``{frame: Pose}`` already in ``out`` or in the ``.partial`` file of a killed run,
+    refused when made with other settings (:func:`check_resume`)."""
+    done = {}
+    for f in (out, partial):         # the .partial file of a killed run holds its frames
+        if f.exists():
+            check_resume(f, header, model)
+            for p in read_poses(f, strict=False):
+                done[p.frame] = p
+    return done
 
 
 def _hash(obj) -> str:
     import hashlib
 
     return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def run_settings(options: EstimatorOptions) -> dict:
+    """The per-frame options a poses file's header records (``--resume`` refuses others):
+    alignment, thinning, hull tolerance and gate always; refocus, the thickness weight and
+    the support and centre records when on; any other option that is not its default (but
+    ``constraints``, which the model's hash records)."""
+    a, r = options.alignment, options.records
+    out = {"betweenness": a.betweenness, "relation": a.relation, "max_missing": a.max_missing,
+           "thinning": options.thinning.method, "tolerance": options.hull.tolerance,
+           "gate": options.confidence.gate}
+    if options.hull.refocus:
+        out["refocus"] = True
+    if a.thickness is not None:
+        out["thickness"] = float(a.thickness)
+    if r.support:
+        out["support"] = True
+    if r.centre:
+        out["centre"] = True
+    default = EstimatorOptions().flat()
+    for k, v in options.flat().items():
+        if k not in out and k not in ("refocus", "thickness", "support", "centre", "constraints") \
+                and v != default[k]:
+            out[k] = v
+    return out
 
 
 def run_header(cap, model, resolution, threshold, options) -> dict:
@@ -485,6 +532,39 @@ def write_motion_bvh(path, poses, motion, model, fps=25.0, units="m", up="+z"):
     return write_bvh(path, names, tree.parents, P, fps=fps, units=units, up=up)
 
 
+#: seconds a Dask scheduler has to answer (connection and first reply) before ``--scheduler``
+#: is refused: a cluster on a network answers in well under a second
+SCHEDULER_TIMEOUT = 20.0
+
+
+def probe_scheduler(address, timeout: float = SCHEDULER_TIMEOUT) -> None:
+    """Ask ``address`` who it is, within ``timeout`` seconds, before a ``Client`` connects:
+    an address that does not parse, a server that accepts and never replies, or one that
+    speaks another protocol (an HTTP server) raises InputError naming ``--scheduler``."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def ask():
+        comm = await connect(address, timeout=timeout)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        reply = asyncio.run(asyncio.wait_for(ask(), timeout))
+    except (TimeoutError, asyncio.TimeoutError):
+        raise InputError(f"--scheduler: {address!r} did not answer within {timeout:g} s "
+                         "(not a Dask scheduler, or unreachable)") from None
+    except Exception as exc:            # noqa: BLE001  bad address, refused, another protocol
+        raise InputError(f"--scheduler: no Dask scheduler at {address!r} "
+                         f"({type(exc).__name__}: {str(exc)[:200]})") from None
+    if not isinstance(reply, dict) or reply.get("type") != "Scheduler":
+        raise InputError(f"--scheduler: {address!r} answered, but is not a Dask scheduler")
+
+
 def _run_dask(cap, model, resolution, threshold, options, todo, workers, scheduler, finish):
     from dask.distributed import Client, LocalCluster, as_completed
 
@@ -492,7 +572,7 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
     key = _key(spec)
     if scheduler:
         try:
-            client = Client(scheduler, timeout="20s")
+            client = Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT}s")
         except (OSError, TimeoutError) as exc:
             raise InputError(f"--scheduler: cannot reach Dask scheduler {scheduler!r} ({exc})") from None
         cluster = None
@@ -544,53 +624,6 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
 MIN_FRAMES_PER_WORKER = 1000
 
 
-def run_cli(a) -> int:
-    """``topopose run``: prints a summary; exit 1 when some frames failed."""
-    workers = a.workers
-    if workers and workers > 1 and not a.scheduler:
-        from topopose.capture import load_capture
-
-        n = len(select_frames(load_capture(a.capture), getattr(a, "frames", None)))
-        if n < MIN_FRAMES_PER_WORKER * workers:
-            print(f"topopose: note: --workers {workers}: {n} frames run faster in this process "
-                  f"(starting {workers} worker processes costs more than they save below "
-                  f"{MIN_FRAMES_PER_WORKER * workers} frames)", file=sys.stderr)
-            workers = 1
-    if getattr(a, "rerun", None):
-        from topopose._paths import writable_output
-        from topopose.viz.rerun import require_rerun
-        require_rerun()                      # fail before the run, not after
-        writable_output(a.rerun, "--rerun")
-    res = run(a.capture, model=a.model, resolution=a.resolution, threshold=a.threshold,
-              output=a.output, frames=getattr(a, "frames", None), workers=workers,
-              scheduler=a.scheduler, resume=a.resume, progress=True, trc=a.trc, csv=a.csv,
-              c3d=getattr(a, "c3d", None),
-              constraints=not getattr(a, "no_constraints", False),
-              tolerance=getattr(a, "tolerance", None),
-              refocus=getattr(a, "refocus", False),
-              on_pose=None, gate={"on": True, "off": False}.get(getattr(a, "confidence_gate", "auto")),
-              thickness=getattr(a, "thickness", None), track=getattr(a, "track", True),
-              sides=getattr(a, "sides", True), skeleton=getattr(a, "skeleton", True),
-              smooth=getattr(a, "smooth", None), bvh=getattr(a, "bvh", None),
-              consistency=getattr(a, "consistency", None),
-              support_test=getattr(a, "support", None) or False, trim=getattr(a, "trim", None),
-              centre=getattr(a, "centre", None))
-    if getattr(a, "rerun", None):
-        from topopose.viz.rerun import record_run
-        record_run(a.rerun, a.capture, res.poses, model=a.model, resolution=a.resolution,
-                   tolerance=getattr(a, "tolerance", None))
-        print(f"recorded {a.rerun} (open it with `rerun {a.rerun}`)")
-    print(summary_text(res))
-    for p in res.failed[:10]:
-        print(f"  failed {p.frame}: {p.error}")
-    if len(res.failed) > 10:
-        print(f"  ... {len(res.failed) - 10} more failed frames (see {a.output})")
-    extra = [x for x in (a.trc, a.csv, getattr(a, "c3d", None), getattr(a, "bvh", None)) if x]
-    if extra:
-        print("exports: " + ", ".join(str(x) for x in extra))
-    return res.exit_status
-
-
 def summary_text(res: RunResult) -> str:
     c = res.counts
     n = len(res.poses)
@@ -605,7 +638,7 @@ def summary_text(res: RunResult) -> str:
             t = float(np.median([p.timings_ms["total"] for p in comp]))
             fps += f"; median {t:.1f} ms/frame in the estimator"
         fps += ")"
-    where = f" → {res.output}" if res.output else ""
+    where = f" → {res.output}" if res.output and res.written else ""
     skipped = f" ({res.skipped} resumed)" if res.skipped else ""
     out = [p for p in res.poses if p.diagnostics.get("temporal_outlier")]
     off = ""

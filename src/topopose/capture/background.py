@@ -377,11 +377,6 @@ def _person_maps(cap, frame, images, p) -> list:
     return out
 
 
-#: False: :func:`masks_from_maps` returns plain full-size masks (the hull then sums every pixel
-#: of them; ``studies/real_speed.py`` measures the difference)
-UPSAMPLED_MASKS = True
-
-
 class UpsampledMask(np.ndarray):
     """A boolean silhouette at the calibration size that is the nearest-neighbour upsampling of
     ``small`` (uint8 0/1, an integer factor smaller on each axis): the hull carver reads
@@ -395,12 +390,14 @@ def masks_from_maps(cap, maps) -> list:
     """Boolean silhouettes at the calibration size from probability maps (p > ``[silhouettes]
     cut``, default 0.5). A map an integer factor smaller than its image gives an
     :class:`UpsampledMask`. A camera whose map is the very array of the call before (``person_every``
-    keeps a camera's map between its segmentations) gets the mask made then again."""
+    keeps a camera's map between its segmentations) gets the mask made then again. ``[silhouettes]
+    upsampled = false``: plain full-size masks (the hull then reads every pixel of them)."""
     cut = int(255 * float(cap.options["silhouettes"].get("cut", 0.5)))
+    upsampled = bool(cap.options["silhouettes"].get("upsampled", True))
     last = cap.cache.get("masks_last") or []
     out = []
     for c, (q, cam) in enumerate(zip(maps, cap.cameras)):
-        if c < len(last) and last[c][0] is q and last[c][1] == (cut, UPSAMPLED_MASKS):
+        if c < len(last) and last[c][0] is q and last[c][1] == (cut, upsampled):
             out.append(last[c][2])
             continue
         m = q > cut
@@ -409,9 +406,9 @@ def masks_from_maps(cap, maps) -> list:
             small = m.view(np.uint8)              # 0/1 (views: no copies)
             m = cv2.resize(small, tuple(cam.size), interpolation=cv2.INTER_NEAREST).view(bool)
         h, w = small.shape if small is not None else (0, 0)
-        if UPSAMPLED_MASKS and small is not None and cam.size[0] % w == 0 and cam.size[1] % h == 0:
+        if upsampled and small is not None and cam.size[0] % w == 0 and cam.size[1] % h == 0:
             m = m.view(UpsampledMask)
             m.small = small
         out.append(m)
-    cap.cache["masks_last"] = [(q, (cut, UPSAMPLED_MASKS), m) for q, m in zip(maps, out)]
+    cap.cache["masks_last"] = [(q, (cut, upsampled), m) for q, m in zip(maps, out)]
     return out

@@ -388,28 +388,3 @@ def import_calibration(files, format: str | None = None, size=None) -> list:
         raise InputError(f"calib import: camera name(s) {dup} appear twice (one file per camera, "
                          f"named after the camera, or in a folder named after it)")
     return cams
-
-
-def calib_import_cli(a) -> int:
-    """``topopose calib import FILE... [--format F] [--size WxH | --image IMG] --out FILE``."""
-    size = a.size
-    if getattr(a, "image", None):
-        img = cv2.imread(str(a.image), cv2.IMREAD_UNCHANGED)
-        if img is None:
-            raise InputError(f"--image {a.image}: unreadable image")
-        size = (img.shape[1], img.shape[0])
-    cams = import_calibration(a.files, a.format, size)
-    out = write_calibration(cams, a.out)
-    from topopose.capture.calibration import read_calibration
-
-    read_calibration(out)                     # what load_capture will read
-    print(f"wrote {out}: {len(cams)} cameras ({', '.join(c.name for c in cams)})")
-    if len(a.files) == len(cams):             # one file per camera: where each one lies
-        moved = [(c.name, Path(f).parent) for c, f in zip(cams, a.files)
-                 if Path(f).parent.name not in ("", ".") and Path(f).parent.name != c.name
-                 and Path(f).name.split(".")[0] != c.name]
-        if moved:
-            print("note: these cameras' files lie in folders of other names; their masks "
-                  "belong under silhouettes/<camera>: "
-                  + ", ".join(f"{n} ← {d}" for n, d in moved))
-    return 0

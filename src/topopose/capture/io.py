@@ -35,7 +35,8 @@ from topopose.capture.options import SEQUENCE_METHODS
 from topopose.capture.silhouettes import extract_silhouette
 from topopose.capture.images import (_background, _frame_source, _sequence_method, _size_message,
                                      _warn_size, fit_size, image_list, read_images, size_policy)
-from topopose.capture.sources import VIDEO_EXTENSIONS, ImageSource, Prefetcher, VideoSource, imread
+from topopose.capture.sources import (MAX_IMAGE_PIXELS, VIDEO_EXTENSIONS, ImageSource, Prefetcher,
+                                      VideoSource, imread, png_size)
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
 
@@ -120,16 +121,22 @@ def _scaled_camera(cam: Camera, size) -> Camera:
     return Camera(cam.name, size, K, cam.distortions, cam.rotation, cam.translation, cam.fisheye)
 
 
-def _first_size(src, camera, frames) -> tuple | None:
-    """(w, h) of the camera's first readable frame (None when there is none)."""
+def _first_size(src, camera, frames) -> tuple:
+    """((w, h), path) of the camera's first readable frame ((None, None) when there is none):
+    a PNG's header, else the decoded image."""
     for f in frames:
         p = src.path(camera, f)
         if p is None:
             continue
-        img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
-        if img is not None:
-            return img.shape[1], img.shape[0]
-    return None
+        size = png_size(p)
+        if size is not None and 0 < size[0] * size[1] <= MAX_IMAGE_PIXELS:
+            return size, p
+        try:
+            img = imread(p, cv2.IMREAD_UNCHANGED, camera)
+        except InputError:                   # that frame fails on its own, with its reason
+            continue
+        return (img.shape[1], img.shape[0]), p
+    return None, None
 
 
 def load_capture(path) -> Capture:
@@ -239,17 +246,16 @@ def load_capture(path) -> Capture:
     cap = Capture(cameras=cameras, frames=frames, path=root, up=opts["up"], units=opts["units"],
                   fps=fps, volume=opts["volume"], options=options, files=files or None,
                   reader=read_silhouettes)
-    # sizes known now (videos; first image of each folder): "scale" rescales the cameras,
-    # "pad" warns once, "error" stops a video capture at once (every frame would fail)
+    # sizes known now (videos; first image of each folder, a PNG's header): "scale" rescales
+    # the cameras, "pad" warns once, "error" stops at once (every frame would fail)
     for k, cam in enumerate(cameras):
         if source == "videos":
-            size = src.sizes.get(cam.name)
+            size, where = src.sizes.get(cam.name), src.videos[cam.name]
         else:
-            size = _first_size(src, cam.name, frames) if size_policy(cap, cam.name) != "error" else None
+            size, where = _first_size(src, cam.name, frames)
         if size is None or tuple(size) == tuple(cam.size):
             continue
         pol = size_policy(cap, cam.name)
-        where = src.videos[cam.name] if source == "videos" else Path(base / names[cam.name])
         if pol == "error":
             raise InputError(_size_message(where, size, cam))
         _warn_size(cap, cam, size, where, pol)
@@ -319,7 +325,7 @@ def reduce_masks(masks, factors) -> list:
 
 
 def _read_mask(cap: Capture, cam, p, factor: int = 1, rule: str = "majority"):
-    img = fit_size(cap, p, imread(p, cv2.IMREAD_UNCHANGED), cam)
+    img = fit_size(cap, p, imread(p, cv2.IMREAD_UNCHANGED, cam.name), cam)
     if img.ndim == 3:
         img = img[:, :, :3].max(axis=2)
     if img.dtype != np.uint8:   # 16-bit masks: same rule on the 8-bit scale

@@ -36,6 +36,7 @@ SILHOUETTE_DEFAULTS = {
     "person_track": False,  # person: MediaPipe's tracking mode (detector skipped between frames)
     "person_every": 1,     # person: each camera segmented every N-th frame, cameras staggered
     "cut": 0.5,            # hard fusion: a pixel is subject when its probability exceeds this
+    "upsampled": True,     # the hull reads a segmenter's small mask where the full one is its upsampling
     # reading videos (any method; capture/sources.py)
     "decode_threads": 1,   # FFmpeg threads per video (0: FFmpeg's own choice, one per core)
     "decode_ahead": 2,     # frames decoded ahead of the silhouettes by a thread of their own (0: none)
@@ -45,7 +46,7 @@ _SIL_TYPES = {"method": str, "threshold": (int, float), "median": int, "blur": (
               "samples": int, "reveal": (int, float), "shadow": (int, float), "uncertain": (int, float),
               "zone_margin": (int, float), "fusion": str, "p_detect": (int, float),
               "p_false": (int, float), "occupancy": (int, float), "open3d": int,
-              "selfie_floor": (int, float), "person_track": bool, "person_every": int, "cut": (int, float),
+              "selfie_floor": (int, float), "person_track": bool, "person_every": int, "cut": (int, float), "upsampled": bool,
               "decode_threads": int, "decode_ahead": int}
 _CAPTURE_KEYS = {"up", "units", "fps", "volume", "size_policy"}
 #: What to do with an image whose size differs from its camera's calibration size

@@ -47,6 +47,7 @@ import threading
 import cv2
 import numpy as np
 
+from topopose._quiet import native_stderr_silenced
 from topopose.errors import InputError
 
 _MODEL = {}
@@ -63,12 +64,15 @@ def _process(make, key, rgb, fresh=False):
         lock = _LOCKS.setdefault(key, threading.Lock())
     with lock:
         if fresh or key not in _MODEL:
-            _MODEL[key] = make()
+            with native_stderr_silenced():      # MediaPipe's C++ start-up log lines
+                _MODEL[key] = make()
+                return _MODEL[key].process(rgb)
         try:
             return _MODEL[key].process(rgb)
         except (RuntimeError, ValueError):
-            _MODEL[key] = make()
-            return _MODEL[key].process(rgb)
+            with native_stderr_silenced():
+                _MODEL[key] = make()
+                return _MODEL[key].process(rgb)
 
 
 def _selfie():

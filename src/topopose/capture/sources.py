@@ -49,15 +49,42 @@ def video_frame_name(i: int) -> str:
     return f"{int(i):06d}"
 
 
-def imread(path: Path, flags: int = cv2.IMREAD_COLOR) -> np.ndarray:
-    """``cv2.imread`` that accepts any path and raises :class:`InputError` on failure."""
+#: the most pixels an image may have (OpenCV's own limit, ``CV_IO_MAX_IMAGE_PIXELS``)
+MAX_IMAGE_PIXELS = 1 << 30
+
+
+def png_size(path) -> tuple | None:
+    """(w, h) from a PNG file's header (its first 24 bytes), or None for another file."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(24)
+    except OSError:
+        return None
+    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        return None
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+
+
+def imread(path: Path, flags: int = cv2.IMREAD_COLOR, camera: str | None = None) -> np.ndarray:
+    """``cv2.imread`` that accepts any path and raises :class:`InputError` naming the file (and
+    ``camera``) on failure, also for an image whose header claims more than
+    :data:`MAX_IMAGE_PIXELS`."""
+    who = f" of camera {camera!r}" if camera else ""
+    size = png_size(path)
+    if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
+        raise InputError(f"{path}: the image{who} claims {size[0]}x{size[1]} pixels in its "
+                         f"header (at most {MAX_IMAGE_PIXELS} pixels): a corrupt file")
     try:
         buf = np.fromfile(path, dtype=np.uint8)
     except OSError as exc:
-        raise InputError(f"{path}: cannot read the image ({exc.strerror or exc})") from None
-    img = cv2.imdecode(buf, flags) if buf.size else None
+        raise InputError(f"{path}: cannot read the image{who} ({exc.strerror or exc})") from None
+    try:
+        img = cv2.imdecode(buf, flags) if buf.size else None
+    except cv2.error as exc:                 # OpenCV refuses the header (size, format)
+        why = str(exc).strip().splitlines()[-1][:200]
+        raise InputError(f"{path}: cannot decode the image{who} ({why})") from None
     if img is None:
-        raise InputError(f"{path}: unreadable or corrupt image")
+        raise InputError(f"{path}: unreadable or corrupt image{who}")
     return img
 
 
@@ -76,7 +103,7 @@ class ImageSource:
             where = self.folders.get(camera, camera)
             raise InputError(f"{where}: frame {frame!r} missing for camera {camera!r} "
                              f"(other cameras have it)")
-        return imread(p, cv2.IMREAD_COLOR)
+        return imread(p, cv2.IMREAD_COLOR, camera)
 
     def path(self, camera: str, frame: str):
         return self.files[camera].get(frame)

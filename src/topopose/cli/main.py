@@ -16,12 +16,26 @@ METHODS_THIN = ["d6i1d", "pkd6", "d6u", "d6i2d", "ack3"]
 METHODS_MATCH = ["aha", "ha", "alignment"]
 
 
+#: the largest image side a size option takes (pixels)
+MAX_IMAGE_SIDE = 16384
+
+
 def _size(text: str) -> tuple[int, int]:
     try:
         w, h = (int(x) for x in text.lower().split("x"))
     except ValueError:
         raise argparse.ArgumentTypeError(f"--size must be WxH, e.g. 640x480, got {text!r}") from None
+    if not (0 < w <= MAX_IMAGE_SIDE and 0 < h <= MAX_IMAGE_SIDE):
+        raise argparse.ArgumentTypeError(f"--size: {text!r}: width and height must be 1.."
+                                         f"{MAX_IMAGE_SIDE} pixels")
     return w, h
+
+
+class _Parser(argparse.ArgumentParser):
+    """Argument errors in one line (``topopose: error: ...``), exit 2, as every other error."""
+
+    def error(self, message):
+        self.exit(2, f"topopose: error: {self.prog}: {message} (see {self.prog} --help)\n")
 
 
 def _npz(path) -> Path:
@@ -34,8 +48,9 @@ def _npz(path) -> Path:
 def cmd_demo(a):
     from topopose.batch.demo import run_demo
 
-    _paths.writable_folder(a.dir, "DIR")
+    _paths.check_number(a.frames, "--frames", low=1, integer=True)
     _paths.check_resolution(a.resolution)
+    _paths.writable_folder(a.dir, "DIR")
 
     return run_demo(a.dir, frames=a.frames, resolution=a.resolution, seed=a.seed, noise=a.noise,
                     subjects=a.subjects.split(",") if a.subjects else None)
@@ -44,6 +59,17 @@ def cmd_demo(a):
 def cmd_synth(a):
     from topopose.synth.capture import synthesize
 
+    _paths.check_number(a.cameras, "--cameras", low=1, high=256, integer=True)
+    _paths.check_number(a.thickness, "--thickness", above=0, high=10)
+    _paths.check_number(a.fps, "--fps", above=0, high=10000)
+    _paths.check_number(a.margin, "--margin", low=0, high=1)
+    _paths.check_number(a.noise, "--noise", low=0, high=3, integer=True)
+    n = _paths.check_number(a.frames, "--frames", low=1, integer=True)
+    need = float(n) * a.cameras * a.size[0] * a.size[1] * 2     # masks and their PNG bytes, held
+    avail = _paths.available_memory()                           # until written
+    if avail is not None and need > avail:
+        raise InputError(f"--frames: {n} frames of {a.cameras} cameras at {a.size[0]}x{a.size[1]} "
+                         f"need about {_paths._gb(need)} of memory, {_paths._gb(avail)} available")
     _paths.writable_folder(a.out, "OUT")
     old = [p for p in ("calibration.toml", "silhouettes", "images", "gt.json") if (Path(a.out) / p).exists()]
     if old and not a.force:
@@ -61,12 +87,12 @@ def cmd_hull(a):
     from topopose.hull import visual_hull
 
     _paths.check_resolution(a.resolution)
-    out = _paths.writable_output(_npz(a.out), "--out")
+    out = _paths.writable_output(_npz(a.out), "--out", inputs=_paths.capture_inputs(a.capture))
     cap = load_capture(a.capture)
     tolerance = _paths.check_tolerance(a.tolerance, len(cap.cameras))
     vol = visual_hull(cap, a.frame, resolution=a.resolution, tolerance=tolerance,
                       refocus=a.refocus)
-    with _paths.atomic_output(out) as tmp:
+    with _paths.atomic_output(out, "--out") as tmp:
         vol.save(tmp)
     d = vol.diagnostics
     extra = f", {len(d['components_dropped'])} small components dropped" if d.get("components_dropped") else ""
@@ -80,10 +106,10 @@ def cmd_skeleton(a):
     from topopose.hull import Volume
     from topopose.topology import thin
 
-    out = _paths.writable_output(_npz(a.out), "--out")
+    out = _paths.writable_output(_npz(a.out), "--out", inputs=[("VOLUME", a.volume)])
     vol = Volume.load(a.volume)
     skel = thin(vol.data, method=a.method)
-    with _paths.atomic_output(out) as tmp:
+    with _paths.atomic_output(out, "--out") as tmp:
         Volume(skel, vol.origin, vol.voxel_size).save(tmp)
     print(f"wrote {a.out}: {int(skel.sum())} skeleton voxels ({a.method})")
     return 0
@@ -99,19 +125,22 @@ def cmd_tree(a):
         except ValueError:
             raise InputError("--resolutions: expected integers separated by commas, "
                              f"got {a.resolutions!r}") from None
-        if a.out is not None:
-            _paths.writable_output(a.out, "--out")
+        if a.out is not None:                # the figure, and the table and numbers beside it
+            png = Path(a.out).with_suffix(".png")
+            _paths.check_outputs({"--out": png, "--out (.md)": png.with_suffix(".md"),
+                                  "--out (.json)": png.with_suffix(".json")},
+                                 _paths.capture_inputs(a.stats))
         return tree_stats_cli(a.stats, out=a.out, resolutions=res, incomplete=a.border)
     if a.skeleton is None or a.out is None:
         raise InputError("topopose tree: give SKELETON.npz and --out TREE.json (or --stats CAPTURE)")
-    _paths.writable_output(a.out, "--out")
+    _paths.writable_output(a.out, "--out", inputs=[("SKELETON", a.skeleton)])
     vol = Volume.load(a.skeleton)
     try:
         tree = data_tree(vol.data, origin=vol.origin, voxel_size=vol.voxel_size, weight=a.weight,
                          border="grid" if a.border else None)
     except InputError as exc:
         raise InputError(f"{a.skeleton}: {exc}") from None
-    with _paths.atomic_output(a.out) as tmp:
+    with _paths.atomic_output(a.out, "--out") as tmp:
         tree.save(tmp)
     d = tree.diagnostics
     notes = [f"{k.replace('_', ' ')}: {d[k]}" for k in ("cycles_broken", "loops", "small_cycles")
@@ -142,59 +171,61 @@ def cmd_match(a):
 
 
 def cmd_run(a):
-    from topopose.batch.run import run_cli
+    from topopose.cli.run import run_cli
 
     return run_cli(a)
 
 
 def cmd_view(a):
-    from topopose.viz import view_cli
+    from topopose.cli.view import view_cli
 
-    _paths.writable_output(a.out, "--out")
+    _paths.writable_output(a.out, "--out", suffix=(".png", ".pdf", ".svg", ".jpg", ".jpeg"),
+                           inputs=[*_paths.capture_inputs(a.capture), ("--poses", a.poses),
+                                   ("--model", _paths.file_input(a.model))])
 
     return view_cli(a)
 
 
 def cmd_evaluate(a):
-    from topopose.batch.quality import evaluate_cli
+    from topopose.cli.run import evaluate_cli
 
     if a.out:
-        _paths.writable_folder(a.out, "--out")
+        _paths.writable_folder(a.out, "--out", inputs=_paths.capture_inputs(a.capture))
 
     return evaluate_cli(a)
 
 
 def cmd_segment(a):
-    from topopose.apps.segment import segment_cli
+    from topopose.cli.apps import segment_cli
 
     return segment_cli(a)
 
 
 def cmd_detect(a):
-    from topopose.apps.detect import detect_cli
+    from topopose.cli.apps import detect_cli
 
     return detect_cli(a)
 
 
 def cmd_cluster(a):
-    from topopose.apps.cluster import cluster_cli
+    from topopose.cli.apps import cluster_cli
 
     return cluster_cli(a)
 
 
 def cmd_learn_model(a):
-    from topopose.kinematics import learn_model_cli
+    from topopose.cli.learn import learn_model_cli
 
     _paths.check_resolution(a.resolution)
-    _paths.writable_output(a.out, "--out")
-    if a.joints:
-        _paths.writable_output(a.joints, "--joints")
+    out = Path(a.out)
+    _paths.check_outputs({"--out": out, "--out (.joints.toml)": out.with_suffix(".joints.toml"),
+                          "--joints": a.joints}, _paths.capture_inputs(a.capture))
 
     return learn_model_cli(a)
 
 
 def cmd_calib(a):
-    from topopose.capture.calib_import import calib_import_cli
+    from topopose.cli.calib import calib_import_cli
 
     return calib_import_cli(a)
 
@@ -227,6 +258,8 @@ def cmd_bench(a):
     # results go to the tracked benchmarks/results/ only with --save; else to an untracked
     # folder (benchmarks/results/quick/ is ignored by git)
     out = bdir / "results" if a.save else bdir / "results" / "quick"
+    if bdir.is_dir() and os.access(bdir, os.W_OK):
+        (bdir / "results").mkdir(exist_ok=True)      # the checkout's own folder
     _paths.writable_folder(out, "benchmarks/results")
     env = dict(os.environ, TOPOPOSE_BENCH_RESULTS=str(out))
     src = str(here.parents[1])               # the package the scripts import: this one
@@ -283,7 +316,8 @@ HELP = {
     ("run", "--threshold"): "AHA distance threshold T_d above which a frame is rejected "
                             "(default: the model's)",
     ("run", "--output"): "poses file (JSON Lines, one header line then one line per frame; "
-                         "written to OUTPUT.partial and renamed at the end) (default %(default)s)",
+                         "an existing file is replaced only when the run completes) (default "
+                         "%(default)s)",
     ("run", "--trc"): "also export the matched frames as TRC (OpenSim, metres, Y up)",
     ("run", "--csv"): "also export the matched frames as a wide CSV (<part>_x, _y, _z)",
     ("run", "--c3d"): "also export the matched frames as C3D (pip install topopose[c3d])",
@@ -320,12 +354,22 @@ def _fill_help(parser: argparse.ArgumentParser, name=None) -> None:
 
 # --------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="topopose", description=__doc__.splitlines()[0])
+    p = _Parser(prog="topopose", description=__doc__.splitlines()[0])
     from topopose import __version__
 
     p.add_argument("--version", action="version", version=f"topopose {__version__}")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
+    _add_stage_commands(sub)
+    _add_run_command(sub)
+    _add_other_commands(sub)
+    _fill_help(p)
+    return p
+
+
+def _add_stage_commands(sub):
+    """``demo``, ``synth`` and one command per pipeline stage: ``hull``, ``skeleton``, ``tree``,
+    ``match``."""
     s = sub.add_parser("demo", help="synthesize captures, run them, write poses and pictures")
     s.add_argument("dir", nargs="?", default="topopose-demo")
     s.add_argument("--frames", type=int, default=6)
@@ -391,6 +435,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--cut", action="store_true")
     s.set_defaults(func=cmd_match)
 
+
+def _add_run_command(sub):
+    """``run``: every frame of a capture."""
     s = sub.add_parser("run", help="estimate the pose in every frame of a capture")
     s.add_argument("capture")
     s.add_argument("--model", default="human")
@@ -408,7 +455,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="drop the model's coordinate constraints (acrobatics)")
     s.add_argument("--confidence-gate", choices=["auto", "on", "off"], default="auto",
                    help="human model: 'matched' also needs the fitted confidence >= its minimum "
-                        "(topopose/pose/confidence_model.json); auto (default): on, off with "
+                        "(the shipped confidence model); auto (default): on, off with "
                         "--no-constraints (the fit knows upright subjects only); measured on "
                         "held-out synthetic frames, 8 cameras: precision of 'matched' 0.86 -> "
                         "0.94, keeping 80 %% of the right frames")
@@ -435,27 +482,28 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--bvh", help="BVH export of the fitted skeleton (Blender)")
     s.add_argument("--trim", action=argparse.BooleanOptionalAction, default=None,
                    help="hands moved back out of the hull's phantom volume, where the "
-                        "silhouettes' evidence ends (default on: pose/trim.py)")
+                        "silhouettes' evidence ends (default on)")
     s.add_argument("--centre", action=argparse.BooleanOptionalAction, default=None,
                    help="the limbs' skeleton curves moved onto the silhouettes' centre lines "
-                        "for the skeleton's fit, recorded per frame (pose/centre.py; default: "
-                        "topopose.batch.run.CENTRE)")
+                        "for the skeleton's fit, recorded per frame (default on)")
     s.add_argument("--consistency", action=argparse.BooleanOptionalAction, default=None,
                    help="sequences of one subject: 'matched' decided by agreement with the "
                         "neighbouring frames and the silhouettes the placed model explains "
                         "instead of the confidence gate; --no-consistency: the gate alone "
                         "(default: both, a frame is matched when the gate matches it or, "
-                        "rejected by the gate alone, it is consistent with the run: "
-                        "benchmarks/results/consistency.md)")
+                        "rejected by the gate alone, it is consistent with the run)")
     s.add_argument("--support", action="store_const", const=True, default=None,
                    help="per frame: reject a matched frame whose silhouettes the placed model "
-                        "leaves unexplained (share above pose.consistency.MAX_UNEXPLAINED; "
-                        "default off: benchmarks/results/applications.md)")
+                        "leaves unexplained (more than a fixed share of the silhouettes' "
+                        "pixels; default off)")
     s.add_argument("--support-replace", dest="support", action="store_const", const="replace",
                    help="as --support, instead of the confidence gate: a frame the gate alone "
                         "rejected is matched when its silhouettes are explained")
     s.set_defaults(func=cmd_run)
 
+
+def _add_other_commands(sub):
+    """``view``, ``evaluate``, ``learn-model``, ``calib``, the applications and ``bench``."""
     s = sub.add_parser("view", help="render one frame as a PNG")
     s.add_argument("capture")
     s.add_argument("--poses", required=True)
@@ -556,8 +604,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write to the tracked benchmarks/results/ (default: benchmarks/results/quick/, "
                         "ignored by git)")
     s.set_defaults(func=cmd_bench)
-    _fill_help(p)
-    return p
 
 
 def _quiet_broken_pipe() -> int:
@@ -574,20 +620,27 @@ def _quiet_broken_pipe() -> int:
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    from topopose._quiet import one_line_warnings
+
     try:
-        return int(args.func(args) or 0)
+        with one_line_warnings():        # ours one line each; other packages' dropped
+            return int(args.func(args) or 0)
     except InputError as exc:
         print(f"topopose: error: {exc}".replace("\n", " "), file=sys.stderr)
         return 2
     except BrokenPipeError:
         return _quiet_broken_pipe()
-    except KeyboardInterrupt:
-        print("topopose: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        # what the interrupted command kept, in the same line (run: the file left as it was)
+        notes = "; ".join(getattr(exc, "__notes__", ()))
+        print("topopose: interrupted" + (f": {notes}" if notes else ""), file=sys.stderr)
         return 130
-    except (PermissionError, IsADirectoryError, NotADirectoryError, FileNotFoundError) as exc:
+    except OSError as exc:
+        if exc.filename is None:
+            raise
         # a path the user gave that a handler did not check up front: still one line, exit 2
-        where = exc.filename if exc.filename is not None else ""
-        print(f"topopose: error: {where}: {exc.strerror or exc}".replace("\n", " "), file=sys.stderr)
+        print(f"topopose: error: {exc.filename}: {exc.strerror or exc}".replace("\n", " "),
+              file=sys.stderr)
         return 2
 
 

@@ -59,18 +59,92 @@ whose hull volume departs from the run's median by more than a factor 1.5 get ½
 the run is a coherent sequence (median δ / H over consecutive frames ≤ 0.1). They multiply the
 product confidence; the fitted confidence only reports them in its factors.
 
-With 4 cameras few frames are right at all and wrong ones score as high: the 4-camera minimum
-matches few frames (docs/accuracy.md). The confidence is reported for every frame. With the
-gate on (``FrameEstimator(gate=True)``, ``topopose run --confidence-gate on``; the default,
-:func:`topopose.frame.estimate.default_gate`), ``matched`` for the human model also needs
-confidence ≥ ``min_confidence``; rejected frames keep their best guess. The model is fitted on
-synthetic captures only; the real recording is used to check, never to fit.
+**The trunk's junctions** (issue 11): ``crotch_radius``, ``torso_radius``, ``head_torso``,
+``hip_flex``, ``crotch_room`` and the placed head's ``head_placed_offset`` / ``head_placed_bend``
+are fitted too (``benchmarks/confidence.py`` ``JUNCTION_FEATURES``; held-out seeds of the
+calibration, 8 cameras: recall of the right frames at precision 0.95 0.908 → 0.922; body
+benchmark, seeds 21, 22, TP rate / FP per match: separated 0.908 / 0.009 against 0.758 / 0.000
+refitted without them; ``docs/body_accuracy.md``).
+
+**Missing limbs** (issue 11): ``matched_distance`` (the distance without the unmatched leaf
+parts' deletion cost) is a feature of the trees (a logistic refit gave it no weight,
+``benchmarks/results/confidence_refit_matched_distance.md``).
+
+**Per-part trust** (issue 11, :func:`judge_frame` ``drop_parts``; ``FrameEstimator(part_trust=
+False)`` off): a frame with every part placed that only the confidence rejects is matched without
+the one extremity (:data:`DROP_PARTS`) whose removal (:func:`drop_part_features`) makes the
+confidence reach the minimum + ``drop_margin`` (:func:`min_drop_for`, chosen out of fold by
+``benchmarks/confidence.py --fit``; a tie names no part, :func:`untrusted_part`); the part is
+unplaced, its guess kept. Refit of 2026-11-24 on the pipeline with short arm, trunk blend and
+placed missing, rods at weight 0.5, the size guard up to 0.11: held out, 8 cameras, precision /
+recall of the right frames 0.960 / 0.894 (model before) → 0.960 / 0.909 → **0.961 / 0.936** with
+per-part trust; body benchmark (seeds 21, 22, offline) separated 0.908 / 0.000 → 0.950 / 0.009,
+all poses 0.717 / 0.034 → 0.742 / 0.022 (``docs/body_accuracy.md``, "Per-part trust"). Refitted
+again on the merged pipeline (hand on the trunk, head ball, trunk kept; the shipped model,
+minima 0.72 with 8 cameras, 0.91 with 4): held out, 8 cameras, 0.975 / 0.912 (the model before,
+on the new frames) → 0.973 / 0.935; body benchmark (offline) separated 0.958 / 0.009 → 0.967 /
+0.009, all poses 0.725 / 0.022 → 0.767 / 0.021 (``benchmarks/results/confidence.md``).
+Refitted after the junction without its cluster's leaves (``estimate.JUNCTION_CORE``, issue 11
+session 10; the shipped model, minima 0.52 with 8 cameras, 0.92 with 4): held out, 8 cameras,
+with per-part trust 0.973 / 0.938 → 0.958 / 0.970; body benchmark (offline, seeds 21, 22)
+separated 0.983 / 0.017 → 0.975 / 0.008, all poses 0.783 / 0.021 → 0.817 / 0.020.
+
+**Head doubt** (issue 11, :func:`head_doubt`, :func:`judge_frame` ``doubt_head``;
+``FrameEstimator(head_doubt=False)`` off): when no part's removal explains the doubt and the
+alignment left the head unmatched (the head placed from the hull alone), the frame with its
+alignment's head features (:data:`HEAD_FEATURES`) at a right frame's typical values
+(``"typical_head"`` in the model, medians of the calibration's right frames) is scored; reaching
+:func:`min_drop_for`, the frame is matched without its head. For *any* head
+(``head_doubt="any"``, opt-in) it also rescues the right all-pose frames whose alignment put
+the torso on a shoulder junction (head offset 0.18–0.32, bend 0.76–1.2, the placed head and
+torso right; body benchmark, seeds 21, 22, ``quality.py --only body``: separated 0.975 / 0.017
+→ 0.983 / 0.017, all poses 0.775 / 0.021 → 0.800 / 0.020), but it cannot tell them from a torso
+on the junction of a spurious limb: of the deliberate rods the gate rejects it lets through 11
+of 157 held out, 15 of 169 calibration (``confidence.md``) and
+``test_spurious_limb_fails_the_gate``'s rod frame (confidence 0.26 → 0.74, head unplaced). By
+default (an unmatched head only) none of the 414 deliberate rods gets through; held out, 8
+cameras, 0.973 / 0.935 → 0.973 / 0.938; body benchmark separated 0.975 → 0.983, all poses
+0.775 → 0.783 (FP/match 0.017, 0.021 unchanged).
+
+**Not reached** (``confidence_models.md``): with 4 cameras no model reaches precision 0.95 for
+more than a few right frames (held out: 7 of 209 right frames with 4 cameras, none of 131 with
+the 4 portrait cameras; the real recording's 4 phone cameras: none of its ~67 right frames, the
+model replaced: 1): few 4-camera frames are right at all (15–33 %) and the wrong ones score as
+high. After the refits of 2026-11-24 (minimum 0.90, then 0.91 with 4 cameras): held out 15, then
+14 matched of 235–249 right frames (precision 0.93), 4 portrait cameras 1–2 of 151–158; the real
+recording none of its 66–67 right frames — their alignment head features and radius ratios lie outside the synthetic 4-camera
+right frames' (``confidence.md``, last table). Why (``benchmarks/confidence_real_torso.py``,
+``results/confidence_real_torso.md``): (1) the subject leans (trunk 27° from the vertical at
+the median, up to 49°) on one leg, and in half of the right frames (17 of 33) the *alignment's*
+torso vertex sits on another junction, 0.59 m from Pose2Sim's neck (the placed torso, moved back
+onto the spine, 0.14 m): those frames carry head_bend 1.55, head_offset 0.36, torso_radius 0.18,
+head_torso 1.67; the other half 0.37 / 0.15 / 1.0 / 0.36, near the synthetic right frames';
+(2) the radius features are relative to the hull's largest inscribed ball, which on the
+recording is 11 voxels (0.22 m, hull 0.12 m³) against 6 (0.15 m, 0.08–0.11 m³) on synthetic
+4-camera bodies, so a hand's 2 voxels give end_radius 0.18 instead of 0.33; (3) its smooth
+network masks grow fewer spurious branches (5–8 against 12–16 with noise level 2). The
+calibration set-up ``4r`` (``benchmarks/confidence.py``: the portrait phone cameras in two
+facing pairs as the recording's — ``synthetic_capture(layout="pairs")`` —, the volume fitted
+to the silhouettes, and balancing poses tilted up to 45° — ``lean``,
+:func:`topopose.synth.body.body_balance`) reproduces (1) in part (a third of its right
+balancing frames, head_bend 1.1) but not (2): no set-up tried (facing pairs, fitted volume,
+lean, noise level 3) fattens the hull's trunk beyond 0.15 m. Refitted with it (not shipped,
+``results/confidence_refit_4r.md``) the recording still has no right frame at the 4-camera
+minimum (0.85), 8 right of 14 at 0.5, and the 8-camera held-out precision fell to 0.947.
+
+The confidence is reported for every frame. With the gate on (``FrameEstimator(gate=True)``,
+``topopose run --confidence-gate on``; the default, :func:`topopose.frame.rules.default_gate`),
+``matched`` for the human model also needs confidence ≥ ``min_confidence``; rejected frames
+keep their best guess. Everything was fitted on synthetic captures only (capsule human and
+``body``, the three camera set-ups, walk and random motion, separated / all poses); the real
+recording is used to check, never to fit.
 """
 from __future__ import annotations
 
 import itertools
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -469,21 +543,45 @@ def passes_gate(status, error, confidence, min_confidence) -> bool:
     return status == "matched" or (replaces_threshold() and distance_only(error))
 
 
+@dataclass(frozen=True)
+class Gate:
+    """How :func:`judge_frame` judges a frame: ``min_share`` of the hull in its largest
+    component, ``min_confidence`` (None: no gate), per-part trust (``drop_parts``, e.g.
+    :data:`DROP_PARTS`; empty: off) and the head doubt (``doubt_head``)."""
+
+    min_share: float = 0.8
+    min_confidence: float | None = MIN_CONFIDENCE
+    drop_parts: tuple = ()
+    doubt_head: object = False
+
+
+@dataclass(frozen=True)
+class Aligned:
+    """What the alignment of a frame tells :func:`judge_frame`: ``al`` (its mapping and
+    matched arcs give the features), ``thickness_cost`` (the part of its distance paid to the
+    thickness term), ``missing_cost``, ``parts`` (the placed positions: features
+    ``head_placed_*``), ``reach`` and ``radius_map`` (its ``radii``, if already computed) of
+    :func:`topopose.frame.thickness.vertex_radii`."""
+
+    al: object = None
+    thickness_cost: float = 0.0
+    missing_cost: float = 0.0
+    parts: dict | None = None
+    reach: int = 0
+    radius_map: object = None
+
+
 def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,
-                min_share=0.8, min_confidence=MIN_CONFIDENCE, units="m", al=None,
-                thickness_cost=0.0, reach=0, radius_map=None, missing_cost=0.0,
-                parts=None, drop_parts=(), doubt_head=False) -> tuple:
+                gate: Gate | None = None, units="m", aligned: Aligned | None = None) -> tuple:
     """Status, reason and diagnostics of one frame from what the stages know.
 
     A ``matched`` frame becomes ``rejected`` when the hull's largest component holds less than
     ``min_share`` of its voxels (the dropped components are named with their sizes and shares),
-    or when its confidence is below ``min_confidence`` (None: no gate). The confidence is the
-    fitted one (:func:`fitted_confidence`) for the models of :data:`CONFIDENCE_MODEL`, else
-    the product (:func:`frame_confidence`). ``al``: the alignment (its mapping and matched
-    arcs give the features), ``thickness_cost``: the part of its distance paid to the
-    thickness term, ``reach`` and ``radius_map`` (its ``radii``, if already computed): of
-    :func:`topopose.frame.estimate.vertex_radii`; ``parts``: the placed positions (features
-    ``head_placed_*``).
+    or when its confidence is below ``min_confidence`` (None: no gate; both of ``gate``,
+    :class:`Gate`). The confidence is the fitted one (:func:`fitted_confidence`) for the
+    models of :data:`CONFIDENCE_MODEL`, else the product (:func:`frame_confidence`), from the
+    features of the hull, the data tree and what the alignment tells (``aligned``,
+    :class:`Aligned`).
 
     **Per-part trust** (``drop_parts``, e.g. :data:`DROP_PARTS`; empty: off): a frame with every
     part placed that only the fitted confidence rejects is matched without one part when the
@@ -509,6 +607,11 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     """
     from topopose.capture.options import UNITS
 
+    g, a = gate or Gate(), aligned or Aligned()
+    min_share, min_confidence, drop_parts, doubt_head = (g.min_share, g.min_confidence,
+                                                         g.drop_parts, g.doubt_head)
+    al, thickness_cost, missing_cost, parts, reach, radius_map = (
+        a.al, a.thickness_cost, a.missing_cost, a.parts, a.reach, a.radius_map)
     vd = vol.diagnostics or {}
     share = float(vd.get("largest_share", 1.0))
     dropped = vd.get("components_dropped") or []
@@ -520,7 +623,7 @@ def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, statu
     if al is not None:
         from types import SimpleNamespace
 
-        from topopose.frame.estimate import vertex_radii
+        from topopose.frame.thickness import vertex_radii
         mapped = [v for v in (al.mapping or {}).values() if v is not None]
         radii = vertex_radii(vol, SimpleNamespace(vertices=mapped, positions=data.positions), reach,
                              radius_map)

@@ -13,11 +13,21 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from types import SimpleNamespace
 
 import numpy as np
 
 from topopose.errors import InputError
+from topopose.frame.options import DEFAULT as DEFAULT_OPTIONS
+from topopose.frame.options import EstimatorOptions
+from topopose.frame.placement import (_touches_border, arm_keep, betweenness_by_lengths,
+                                      fill_cavities, junction_position, off_axis_leaf,
+                                      short_limb)
+from topopose.frame.rules import (HEAD_FROM_HULL, JUNCTION_CORE, LEAF_AXIS, MATCHED_DISTANCE,
+                                  PLACED_MISSING, PRUNE, SHORT_ARM, _rule_option, _spine_option,
+                                  default_gate, default_tolerance)
+from topopose.frame.thickness import (DEFAULT_THICKNESS_WEIGHT, THICKNESS, THICKNESS_REACH,
+                                      matched_arc_cost, missing_cost, taxicab_radii,
+                                      thickness_arc_cost, vertex_radii)
 from topopose.pose.model import Model, load_model
 from topopose.pose.pose import Pose
 
@@ -58,6 +68,10 @@ class FrameEstimator:
         A :class:`Model`, a built-in name or a TOML path.
     resolution : int
         Voxels along the longest side of the capture volume (thesis: 100 is the compromise).
+    options : EstimatorOptions, optional
+        Every option below, grouped by stage (:mod:`topopose.frame.options`; default: the
+        defaults below). ``**flat`` changes options by the names below
+        (:meth:`~topopose.frame.options.EstimatorOptions.with_`).
     threshold : float, optional
         T_d; default the model's own (None in the model: 2, i.e. reject nothing).
     constraints : bool
@@ -210,8 +224,8 @@ class FrameEstimator:
         Never contract a constrained model arc between two junctions (the human trunk, torso
         above crotch) — unless only the contracted alignment passes T_d (a data tree with one
         junction; flagged ``junctions_contracted`` in the alignment's diagnostics):
-        :data:`topopose.match.align.KEEP_CONSTRAINED_JUNCTIONS` (on) when None. Measured in
-        ``studies/real_align.py``, ``docs/accuracy.md``.
+        on when None or True. Measured in
+        ``benchmarks/real_align.py``, ``docs/real_alignment.md``.
     refocus : bool
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
@@ -255,30 +269,18 @@ class FrameEstimator:
         the reduction moves a few boundary voxels (``docs/decisions.md``).
     """
 
-    def __init__(self, cap, model="human", resolution=100, threshold=None, *, constraints=True,
-                 betweenness=True, max_missing=1, thinning="d6i1d", tolerance=None,
-                 relation=None, fill=True, repair=None, junction_centroid=None, refocus=False,
-                 min_share=0.8, gate=None, min_confidence=None, thickness=None,
-                 thickness_profile=None, tips=("head",), prune=None, leaf_axis=None,
-                 tip_fraction=1.0, spine=None, tip_anchor=None,
-                 head_from_hull=None, trunk=None, matched_distance=None, crotch_drop=None,
-                 short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
-                 hand_trunk=None, head_ball=None, keep_junctions=None, head_doubt=None,
-                 head_axis=None, junction_core=None, support=None, trim=None,
-                 centre=None, mask_resolution=None):
+    def __init__(self, cap, model="human", resolution=100, threshold=None,
+                 options: EstimatorOptions | None = None, **flat):
         from topopose.match import Matcher
         from topopose.frame.confidence import min_confidence_for
 
-        self.min_share = float(min_share)
-        from topopose.hull.hull import MASK_RESOLUTION
-        self.mask_resolution = (MASK_RESOLUTION if mask_resolution is True
-                                else (mask_resolution or None))
-        if support is not None:
-            self.support = bool(support)
-        if trim is not None:
-            self.trim = bool(trim)
-        if centre is not None:
-            self.centre = bool(centre)
+        self.options = o = (options or DEFAULT_OPTIONS).with_(**flat)
+        hu, th, a, pl, co, rec = (o.hull, o.thinning, o.alignment, o.placement, o.confidence,
+                                  o.records)
+        self.curves, self.leaves, self.arm_evidence = rec.curves, rec.leaves, rec.arm_evidence
+        self.support, self.trim, self.centre = bool(rec.support), bool(rec.trim), bool(rec.centre)
+        constraints, gate, min_confidence = a.constraints, co.gate, co.min_confidence
+        self.min_share = float(co.min_share)
         # the fitted confidence knows upright subjects only (its head features look up): without
         # the coordinate constraints (acrobatic poses) the default gate is off — on, it rejected
         # 105 of the 198 frames of benchmarks/applications.py's acrobatic sequence, every
@@ -286,10 +288,10 @@ class FrameEstimator:
         self.gate = ((default_gate(cap) and constraints) if gate is None else bool(gate))
         self.min_confidence = None if min_confidence is None else float(min_confidence)
         # per-part trust (pose/confidence.py judge_frame, DROP_PARTS): None/True on, False off
-        self.part_trust = part_trust is not False
+        self.part_trust = co.part_trust is not False
         # head doubt (pose/confidence.py head_doubt): None/True an unmatched head, "any" any
         # head, False off
-        self.head_doubt = True if head_doubt is None else head_doubt
+        self.head_doubt = True if co.head_doubt is None else co.head_doubt
 
         self.cap = cap
         self.model: Model = load_model(model, constraints=constraints)
@@ -301,32 +303,33 @@ class FrameEstimator:
             raise InputError(f"--resolution: {resolution} is too small (at least 8 voxels)")
         self.threshold = (float(threshold) if threshold is not None
                           else (self.model.threshold if self.model.threshold is not None else 2.0))
-        self.betweenness = betweenness
-        self.relation = relation
-        self.max_missing = int(max_missing)
-        self.thinning = thinning
-        self.tolerance = default_tolerance(cap) if tolerance is None else int(tolerance)
-        self.fill = bool(fill)
-        self.refocus = bool(refocus)
-        if repair is None:
-            repair = 1
-        self.repair = int(repair)
+        self.betweenness = a.betweenness
+        self.relation = a.relation
+        self.max_missing = int(a.max_missing)
+        self.thinning = th.method
+        self.tolerance = default_tolerance(cap) if hu.tolerance is None else int(hu.tolerance)
+        self.fill = bool(hu.fill)
+        self.refocus = bool(hu.refocus)
+        from topopose.hull.hull import MASK_RESOLUTION
+        self.mask_resolution = (MASK_RESOLUTION if hu.mask_resolution is True
+                                else (hu.mask_resolution or None))
+        self.repair = 1 if hu.repair is None else int(hu.repair)
         self.pattern = self.model.pattern()
+        junction_centroid = pl.junction_centroid
         if junction_centroid is None:
             junction_centroid = self.model.complete
         adj = self.model.tree.adjacency()
         self.junctions = ({p for p in self.model.parts if len(adj[p]) > 1}
                           if junction_centroid else set())
-        self.junction_core = (JUNCTION_CORE.get(self.model.name, False) if junction_core is None
-                              else bool(junction_core))
+        self.junction_core = (JUNCTION_CORE.get(self.model.name, False)
+                              if pl.junction_core is None else bool(pl.junction_core))
         self.up = np.asarray(cap.up_vector, dtype=float)
-        from topopose.match.align import KEEP_CONSTRAINED_JUNCTIONS
         self.matcher = Matcher(self.pattern, method="aha", cut=False, up=self.up,
-                               keep_junctions=(KEEP_CONSTRAINED_JUNCTIONS if keep_junctions is None
-                                               else bool(keep_junctions)))
+                               keep_junctions=a.keep_junctions is not False)
         self.warmup = None      # first run: the helper process of topopose.batch.warmup.start_warmup
-        self.thickness_profile = (THICKNESS.get(self.model.name) if thickness_profile is None
-                                  else dict(thickness_profile))
+        self.thickness_profile = (THICKNESS.get(self.model.name) if a.thickness_profile is None
+                                  else dict(a.thickness_profile))
+        thickness, prune = a.thickness, th.prune
         if thickness is None:
             thickness = DEFAULT_THICKNESS_WEIGHT
         self.thickness = float(thickness) if self.thickness_profile else 0.0
@@ -339,21 +342,22 @@ class FrameEstimator:
         self._root_arc = nb[0] if nb else None
         # a leaf that must continue the body axis (LEAF_AXIS): (leaf, junction, axis end, cos)
         rule = LEAF_AXIS.get(self.model.name)
-        cos = (rule[3] if rule else 0.0) if leaf_axis is None else float(leaf_axis)
+        cos = (rule[3] if rule else 0.0) if pl.leaf_axis is None else float(pl.leaf_axis)
         self.leaf_axis = (*rule[:3], cos) if rule and cos else None
-        self.tip_fraction = float(tip_fraction)
+        self.tip_fraction = float(pl.tip_fraction)
         # the head from the hull's highest thick point (pose/tips.py), for upright subjects
         rule = HEAD_FROM_HULL.get(self.model.name)
         frac = ((rule[2] if rule and any(c.kind == "above" and rule[0] in c.parts
                                           for c in self.model.constraints) else 0.0)
-                if head_from_hull is None else float(head_from_hull))
+                if pl.head_from_hull is None else float(pl.head_from_hull))
         self.head_from_hull = (rule[0], rule[1], frac) if rule and frac > 0 else None
         # leaf parts placed where their branch leaves the hull (pose/tips.py)
-        stems = set(tips or ())
+        stems = set(pl.tips or ())
         self.tips = [p for p in self.model.parts if len(adj[p]) == 1 and self.model.complete
                      and p.rstrip("_0123456789") in stems]
         # tips prolonged away from an anchor part (TIP_ANCHOR), where the hull does not place them
         from topopose.frame.tips import TIP_ANCHOR
+        tip_anchor = pl.tip_anchor
         if isinstance(tip_anchor, dict):
             self.tip_anchor = dict(tip_anchor)
         elif tip_anchor is None or tip_anchor is True:
@@ -362,40 +366,41 @@ class FrameEstimator:
                                if p not in placed}
         else:
             self.tip_anchor = {}
-        self.spine = _spine_option(self.model, spine)
+        self.spine = _spine_option(self.model, pl.spine)
         self.matched_distance = (MATCHED_DISTANCE.get(self.model.name, False)
-                                 if matched_distance is None else bool(matched_distance))
+                                 if a.matched_distance is None else bool(a.matched_distance))
         from topopose.frame.anatomy import CROTCH_DROP, TORSO_ON_TRUNK, TRUNK_BLEND
-        self.trunk = _rule_option(self.model, TORSO_ON_TRUNK, trunk, default=True)
+        self.trunk = _rule_option(self.model, TORSO_ON_TRUNK, pl.trunk, default=True)
+        trunk_blend = pl.trunk_blend
         if isinstance(trunk_blend, (int, float)) and not isinstance(trunk_blend, bool):
             rule = TRUNK_BLEND.get(self.model.name) if self.model.complete else None
             self.trunk_blend = (*rule[:4], float(trunk_blend)) if rule and trunk_blend else None
         else:
             self.trunk_blend = _rule_option(self.model, TRUNK_BLEND, trunk_blend, default=True)
-        self.crotch_drop = _rule_option(self.model, CROTCH_DROP, crotch_drop, default=True)
+        self.crotch_drop = _rule_option(self.model, CROTCH_DROP, pl.crotch_drop, default=True)
         self.placed_missing = (PLACED_MISSING.get(self.model.name, False)
-                               if placed_missing is None else bool(placed_missing))
+                               if a.placed_missing is None else bool(a.placed_missing))
         # a hand whose branch ends at the elbow (SHORT_ARM): (hands, torso, crotch, feet, ratio)
         rule = SHORT_ARM.get(self.model.name) if self.model.complete else None
-        ratio = (rule[4] if rule else 0.0) if short_arm is None else float(short_arm)
+        ratio = (rule[4] if rule else 0.0) if pl.short_arm is None else float(pl.short_arm)
         self.short_arm = (*rule[:4], ratio) if rule and ratio > 0 else None
         # a hand next to the trunk's core (HAND_ON_TRUNK): (hands, core, reach)
         from topopose.frame.anatomy import HAND_ON_TRUNK
         rule = HAND_ON_TRUNK.get(self.model.name) if self.model.complete else None
-        reach = (rule[2] if rule else 0.0) if hand_trunk is None else float(hand_trunk)
+        reach = (rule[2] if rule else 0.0) if pl.hand_trunk is None else float(pl.hand_trunk)
         self.hand_trunk = (*rule[:2], reach) if rule and reach > 0 else None
         # the head from the hull holds a head-sized ball (tips.HEAD_BALL): (ball, reach)
         from topopose.frame.tips import HEAD_BALL
         rule = HEAD_BALL.get(self.model.name)
-        ball = ((rule[0] if rule and len(cap.cameras) >= rule[3] else 0.0) if head_ball is None
-                else float(head_ball))
+        ball = ((rule[0] if rule and len(cap.cameras) >= rule[3] else 0.0)
+                if pl.head_ball is None else float(pl.head_ball))
         self.head_ball = ((ball, *(rule[1:3] if rule else (1.5, 1.5))) if ball > 0 else None)
         # without coordinate constraints: the head from the hull along the body's own axis
         # (tips.HEAD_AXIS): (head, anchor, lower end, min_fraction, max_shift)
         from topopose.frame.tips import HEAD_AXIS
         rule = HEAD_AXIS.get(self.model.name) if self.model.complete else None
         on = (not any(c.kind == "above" and rule[0] in c.parts for c in self.model.constraints)
-              if head_axis is None and rule else bool(head_axis))
+              if pl.head_axis is None and rule else bool(pl.head_axis))
         self.head_axis = tuple(rule) if rule and on else None
 
     def arc_cost(self, vol, data, radii=None):
@@ -406,19 +411,6 @@ class FrameEstimator:
         return thickness_arc_cost(vertex_radii(vol, data, self.thickness_reach, radii),
                                   self.thickness_profile, self.thickness,
                                   root=self.model.root, root_arc=self._root_arc)
-
-    curves = True    # record the skeleton curve of each matched arc (pose.curves)
-    leaves = True    # record the data tree's unmatched leaves (pose.track: snapping)
-    arm_evidence = True   # record the hull's remainder when a limb is unplaced (pose.unseen)
-    # record the silhouette the placed model leaves unexplained (pose.support; used by
-    # ``run --consistency``, which turns it on)
-    support = False
-    # record the hands' curves trimmed out of the hull's phantom volume (pose.trim; applied by
-    # the sequence stage, nothing else changes)
-    trim = True
-    # record the limbs' curves moved onto the silhouettes' centre lines (pose.centre; applied
-    # by the kinematic fit, nothing else changes)
-    centre = False
 
     # ------------------------------------------------------------------ stages
     def hull(self, frame):
@@ -491,14 +483,76 @@ class FrameEstimator:
 
         Returns a :class:`Pose`, or ``(Pose, FrameDetail)`` when ``detail`` is true.
         """
-        from topopose.skeleton import data_tree
-        from topopose.topology import thin
-
         name = self.cap.frame_name(frame)
         timings = {}
         det = FrameDetail()
-        stage = "hull"
         t_all = time.perf_counter()
+        got = self._stages(name, timings, det, t_all)
+        if isinstance(got, Pose):
+            return (got, det) if detail else got
+        vol, n_vox, skel, data, sq, al, thick, arc_cost, radii, unordered = got
+
+        # T_d applies to the length distance of §12.1.1; the thickness term only chooses the
+        # alignment (see THICKNESS for the measurement)
+        t0 = time.perf_counter()       # "placement": parts, judgement and curves of the frame
+        dist = float(al.distance) - thick
+        parts, on_skeleton, missing, rules, edt, sk_vox = self._place(vol, skel, data, al, sq,
+                                                                      unordered)
+        dropped, short, from_hull, on_core, on_trunk, diag_spine, detect_parts = (
+            rules[k] for k in ("dropped", "short", "from_hull", "on_core", "on_trunk",
+                               "diag_spine", "detect_parts"))
+        status, error, extra, parts, mcost = self._judge(vol, n_vox, data, al, dist, thick,
+                                                         radii, parts, on_skeleton, missing,
+                                                         unordered)
+        diag = {"model": self.model.name, "resolution": self.resolution,
+                "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
+                "skeleton_voxels": int(data.diagnostics.get("n_voxels", -1)),
+                "data_vertices": data.n_vertices, "missing": missing, **extra}
+        if vol.diagnostics.get("grid") == "beyond":    # carved on a grid of its own
+            diag["hull_grid"] = "beyond"
+        if arc_cost is not None:
+            diag["thickness_cost"] = round(thick, 6)
+        diag["missing_cost"] = round(mcost, 6)
+        if self.prune > 0:
+            diag["pruned_bumps"] = len(data.diagnostics.get("pruned_bumps", ()))
+        if from_hull:
+            diag["from_hull"] = from_hull
+        if dropped:
+            diag["off_axis"] = dropped
+        if short:
+            diag["short_arm"] = short
+        if on_core:
+            diag["hand_on_trunk"] = on_core
+        if on_trunk:
+            diag["on_trunk"] = self.trunk[0]
+        if self.spine:
+            diag["spine_shift"] = diag_spine
+        detect_parts = {p: x for p, x in detect_parts.items() if parts.get(p) is not None}
+        if detect_parts:
+            # the crotch before the drop (pose/anatomy.py CROTCH_DROP): the pelvis, what the
+            # pose descriptions compare (§13.3.2.1, topopose.apps.detect.description_parts)
+            diag["detect_parts"] = detect_parts
+        if unordered:
+            diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
+        if self.curves:
+            self._record(diag, vol, skel, data, al, parts, on_skeleton,
+                         short + on_core + ([extra["untrusted"]] if extra.get("untrusted")
+                                            else []), edt, sk_vox, timings)
+        if self.leaves:      # candidates for a misplaced numbered part (pose.track)
+            from topopose.frame.tips import free_leaves
+            diag["free_leaves"] = free_leaves(data, al.mapping)
+        timings["placement"] = (time.perf_counter() - t0) * 1e3
+        timings["total"] = (time.perf_counter() - t_all) * 1e3
+        pose = Pose(name, status, dist, parts, error, timings, diag)
+        return (pose, det) if detail else pose
+
+    def _stages(self, name, timings, det, t_all):
+        """Hull → thinning → data tree → alignment of one frame (§12.1): ``(vol, n_vox, skel,
+        data, sq, al, thick, arc_cost, radii, unordered)``, or the failed :class:`Pose`."""
+        from topopose.skeleton import data_tree
+        from topopose.topology import thin
+
+        stage = "hull"
         try:
             t0 = time.perf_counter()
             vol = self.hull(name)
@@ -572,7 +626,7 @@ class FrameEstimator:
             al = self.matcher.align(data, data_root=data_root, arc_cost=arc_cost)
             thick = matched_arc_cost(al, arc_cost)
             if self.matcher.contractible is not None:
-                # KEEP_CONSTRAINED_JUNCTIONS: the trunk contracted only when that alone passes T_d
+                # keep_junctions: the trunk contracted only when that alone passes T_d
                 def judged(a, t):
                     return a.distance - t - (missing_cost(self.pattern, a)
                                              if self.matched_distance else 0.0)
@@ -600,21 +654,23 @@ class FrameEstimator:
             det.alignment = al
         except FrameError as exc:
             pose = self._failed(name, f"{stage}: {exc}", timings, t_all)
-            return (pose, det) if detail else pose
+            return pose
         except InputError as exc:
             pose = self._failed(name, f"{stage}: {exc}", timings, t_all)
-            return (pose, det) if detail else pose
+            return pose
         except Exception as exc:  # a frame never stops a run
             pose = self._failed(name, f"{stage}: {type(exc).__name__}: {exc}", timings, t_all)
-            return (pose, det) if detail else pose
+            return pose
+        return vol, n_vox, skel, data, sq, al, thick, arc_cost, radii, unordered
 
-        # T_d applies to the length distance of §12.1.1; the thickness term only chooses the
-        # alignment (see THICKNESS for the measurement)
-        t0 = time.perf_counter()       # "placement": parts, judgement and curves of the frame
+    def _place(self, vol, skel, data, al, sq, unordered):
+        """The parts' positions from the alignment and the placement rules; returns ``(parts,
+        on_skeleton, missing, rules, edt, sk_vox)``, ``rules`` the diagnostics of the rules
+        that moved or dropped parts (``dropped``, ``short``, ``from_hull``, ``on_core``,
+        ``on_trunk``, ``diag_spine``, ``detect_parts``)."""
         from topopose.frame.tips import hull_box, skeleton_voxels
         box = hull_box(vol)
         sk_vox = skeleton_voxels(skel, box)     # the skeleton's voxels, once a frame
-        dist = float(al.distance) - thick
         parts = {}
         for p in self.model.parts:
             v = al.mapping.get(p)
@@ -681,6 +737,17 @@ class FrameEstimator:
         if self.trunk_blend is not None:     # arms on the chest pull the junction forward
             from topopose.frame.anatomy import trunk_blend
             parts = trunk_blend(parts, self.trunk_blend)
+        rules = dict(dropped=dropped, short=short, from_hull=from_hull, on_core=on_core,
+                     on_trunk=on_trunk, diag_spine=diag_spine if self.spine else None,
+                     detect_parts=detect_parts)
+        return parts, on_skeleton, missing, rules, edt, sk_vox
+
+
+    def _judge(self, vol, n_vox, data, al, dist, thick, radii, parts, on_skeleton, missing,
+               unordered):
+        """The frame's status (T_d, unmatched parts, the confidence gate): ``(status, error,
+        extra, parts, mcost)``, ``extra`` the confidence diagnostics; per-part trust may unplace
+        one part (in ``parts`` and ``on_skeleton``)."""
         status, error = "matched", None
         mcost = missing_cost(self.pattern, al)
         # T_d judges what the matched parts cost (MATCHED_DISTANCE): a missing limb is a right
@@ -699,118 +766,89 @@ class FrameEstimator:
             if unordered:
                 error += "; no co-optimal alignment satisfies the betweenness constraint"
         # what the hull lost and how far to trust the frame (topopose.frame.confidence)
-        from topopose.frame.confidence import DROP_PARTS, judge_frame
+        from topopose.frame.confidence import DROP_PARTS, Aligned, Gate, judge_frame
 
         status, error, extra = judge_frame(
             vol, n_vox, data, self.model, self.up, dist, self.threshold, len(missing), status,
-            error, self.min_share, self.min_confidence if self.gate else None, self.cap.units,
-            al=al, thickness_cost=thick, reach=self.thickness_reach,
-            radius_map=radii, missing_cost=mcost, parts=parts,
-            drop_parts=DROP_PARTS if self.part_trust else (), doubt_head=self.head_doubt)
+            error, Gate(self.min_share, self.min_confidence if self.gate else None,
+                        DROP_PARTS if self.part_trust else (), self.head_doubt), self.cap.units,
+            aligned=Aligned(al, thickness_cost=thick, reach=self.thickness_reach,
+                            radius_map=radii, missing_cost=mcost, parts=parts))
         if extra.get("untrusted"):     # per-part trust: unplaced, its best guess kept
             extra["untrusted_guess"] = np.round(parts[extra["untrusted"]], 6).tolist()
             parts = {**parts, extra["untrusted"]: None}
             on_skeleton[extra["untrusted"]] = None      # no curve for it either
-        diag = {"model": self.model.name, "resolution": self.resolution,
-                "hull_tolerance": self.tolerance, "hull_voxels": n_vox,
-                "skeleton_voxels": int(data.diagnostics.get("n_voxels", -1)),
-                "data_vertices": data.n_vertices, "missing": missing, **extra}
-        if vol.diagnostics.get("grid") == "beyond":    # carved on a grid of its own
-            diag["hull_grid"] = "beyond"
-        if arc_cost is not None:
-            diag["thickness_cost"] = round(thick, 6)
-        diag["missing_cost"] = round(mcost, 6)
-        if self.prune > 0:
-            diag["pruned_bumps"] = len(data.diagnostics.get("pruned_bumps", ()))
-        if from_hull:
-            diag["from_hull"] = from_hull
-        if dropped:
-            diag["off_axis"] = dropped
-        if short:
-            diag["short_arm"] = short
-        if on_core:
-            diag["hand_on_trunk"] = on_core
-        if on_trunk:
-            diag["on_trunk"] = self.trunk[0]
-        if self.spine:
-            diag["spine_shift"] = diag_spine
-        detect_parts = {p: x for p, x in detect_parts.items() if parts.get(p) is not None}
-        if detect_parts:
-            # the crotch before the drop (pose/anatomy.py CROTCH_DROP): the pelvis, what the
-            # pose descriptions compare (§13.3.2.1, topopose.apps.detect.description_parts)
-            diag["detect_parts"] = detect_parts
-        if unordered:
-            diag["betweenness_unsatisfied"] = sorted(set(unordered), key=unordered.index)
-        if self.curves:
-            # skeleton curve of each matched arc, for left/right and the kinematic fit (§13.3.1)
-            from topopose.frame.curves import arc_curves, model_arcs
-            # hand hints: a hand unplaced by a rule (short_arm, hand_on_trunk, untrusted) whose
-            # branch is matched keeps that branch's curve (its end: near the wrist, measured in
-            # benchmarks/tracking.py) in diagnostics["hand_hints"] for the kinematic fit
-            # (kinematic_fit.HAND_HINTS); parts, statuses and the other curves unchanged
-            hinted = {p: data.positions.get(al.mapping.get(p)) for p in
-                      short + on_core + ([extra["untrusted"]] if extra.get("untrusted") else [])
-                      if al.mapping.get(p) is not None
-                      and not any(u == p for u, _ in model_arcs(self.model))}     # leaves
-            hinted = {p: np.asarray(x, float) for p, x in hinted.items() if x is not None}
-            try:
-                # (the model's [[joint]] positions along arcs are fractions of these curves)
-                curves = arc_curves(skel, vol.origin, vol.voxel_size, data, al,
-                                    self.model, {**on_skeleton, **hinted}, voxels=sk_vox)
-                hints = {p: curves.pop(p) for p in hinted if p in curves}
-                diag["curves"] = curves
-                if hints:
-                    diag["hand_hints"] = hints
-                # the shoulders the trunk's cross-section below the neck tells (pose/unseen.py;
-                # used by the kinematic fit, nothing else changes)
-                if self.spine and diag.get("spine_shift") is not None:
-                    from topopose.frame.unseen import frame_hull_shoulders
-                    hs = frame_hull_shoulders(vol, curves, parts, self.model, diag["spine_shift"])
-                    if hs is not None:
-                        diag["hull_shoulders"] = np.round(hs, 4).tolist()
-                # an unplaced limb: the hull the matched curves leave unexplained, where it
-                # can lie (pose/unseen.py; used by the kinematic fit, nothing else changes)
-                if self.arm_evidence and any(parts.get(x) is None for pair, _ in
-                                             self.model.mirrors for x in pair):
-                    from topopose.frame.unseen import hull_remainder
-                    diag["arm_evidence"] = np.round(hull_remainder(
-                        vol, curves, edt), 4).tolist()
-            except Exception as exc:           # never costs the frame its pose
-                diag["curves_error"] = f"{type(exc).__name__}: {exc}"
-            if self.trim and diag.get("curves") and getattr(self, "_silhouettes", None):
-                from topopose.frame.trim import trimmed_curves
-                t1 = time.perf_counter()
-                cut = trimmed_curves(diag["curves"], parts, *self._silhouettes, vol.voxel_size)
-                if cut:
-                    diag["trim"] = {q: c.tolist() for q, c in cut.items()}
-                timings["trim"] = (time.perf_counter() - t1) * 1e3
-            if self.centre and diag.get("curves") and getattr(self, "_silhouettes", None):
-                # the limbs' curves onto the silhouettes' centre lines (§13.3.1)
-                from topopose.frame.centre import frame_offsets
-                t1 = time.perf_counter()
-                cen, cen_trim = frame_offsets(diag["curves"], diag.get("trim"),
-                                              *self._silhouettes, vol.data, vol.origin,
-                                              vol.voxel_size, edt)
-                if cen:
-                    diag["centred"] = cen
-                if cen_trim:
-                    diag["centred_trim"] = cen_trim
-                timings["centre"] = (time.perf_counter() - t1) * 1e3
-            if self.support and diag.get("curves") and getattr(self, "_silhouettes", None):
-                # analysis by synthesis: the silhouette the placed model leaves unexplained
-                from topopose.frame.support import support_features
-                t1 = time.perf_counter()
-                sup = support_features(diag["curves"], parts, *self._silhouettes, vol.data,
-                                       vol.origin, vol.voxel_size, edt, extras=False)
-                diag["unexplained"] = round(sup["unexplained"], 4)
-                timings["support"] = (time.perf_counter() - t1) * 1e3
-        if self.leaves:      # candidates for a misplaced numbered part (pose.track)
-            from topopose.frame.tips import free_leaves
-            diag["free_leaves"] = free_leaves(data, al.mapping)
-        timings["placement"] = (time.perf_counter() - t0) * 1e3
-        timings["total"] = (time.perf_counter() - t_all) * 1e3
-        pose = Pose(name, status, dist, parts, error, timings, diag)
-        return (pose, det) if detail else pose
+        return status, error, extra, parts, mcost
+
+
+    def _record(self, diag, vol, skel, data, al, parts, on_skeleton, hinted_parts, edt,
+                sk_vox, timings):
+        """Record in ``diag`` the skeleton curves of the matched arcs and what the sequence
+        stage reads from them (hand hints, hull shoulders, arm evidence, trim, centre,
+        support)."""
+        # the skeleton curve of each matched arc, for left/right and the kinematic fit (§13.3.1)
+        from topopose.frame.curves import arc_curves, model_arcs
+        # hand hints: a hand unplaced by a rule (short_arm, hand_on_trunk, untrusted) whose
+        # branch is matched keeps that branch's curve (its end: near the wrist, measured in
+        # benchmarks/tracking.py) in diagnostics["hand_hints"] for the kinematic fit
+        # (kinematic_fit.HAND_HINTS); parts, statuses and the other curves unchanged
+        hinted = {p: data.positions.get(al.mapping.get(p)) for p in
+                  hinted_parts
+                  if al.mapping.get(p) is not None
+                  and not any(u == p for u, _ in model_arcs(self.model))}     # leaves
+        hinted = {p: np.asarray(x, float) for p, x in hinted.items() if x is not None}
+        try:
+            # (the model's [[joint]] positions along arcs are fractions of these curves)
+            curves = arc_curves(skel, vol.origin, vol.voxel_size, data, al,
+                                self.model, {**on_skeleton, **hinted}, voxels=sk_vox)
+            hints = {p: curves.pop(p) for p in hinted if p in curves}
+            diag["curves"] = curves
+            if hints:
+                diag["hand_hints"] = hints
+            # the shoulders the trunk's cross-section below the neck tells (pose/unseen.py;
+            # used by the kinematic fit, nothing else changes)
+            if self.spine and diag.get("spine_shift") is not None:
+                from topopose.frame.unseen import frame_hull_shoulders
+                hs = frame_hull_shoulders(vol, curves, parts, self.model, diag["spine_shift"])
+                if hs is not None:
+                    diag["hull_shoulders"] = np.round(hs, 4).tolist()
+            # an unplaced limb: the hull the matched curves leave unexplained, where it
+            # can lie (pose/unseen.py; used by the kinematic fit, nothing else changes)
+            if self.arm_evidence and any(parts.get(x) is None for pair, _ in
+                                         self.model.mirrors for x in pair):
+                from topopose.frame.unseen import hull_remainder
+                diag["arm_evidence"] = np.round(hull_remainder(
+                    vol, curves, edt), 4).tolist()
+        except Exception as exc:           # never costs the frame its pose
+            diag["curves_error"] = f"{type(exc).__name__}: {exc}"
+        if self.trim and diag.get("curves") and getattr(self, "_silhouettes", None):
+            from topopose.frame.trim import trimmed_curves
+            t1 = time.perf_counter()
+            cut = trimmed_curves(diag["curves"], parts, *self._silhouettes, vol.voxel_size)
+            if cut:
+                diag["trim"] = {q: c.tolist() for q, c in cut.items()}
+            timings["trim"] = (time.perf_counter() - t1) * 1e3
+        if self.centre and diag.get("curves") and getattr(self, "_silhouettes", None):
+            # the limbs' curves onto the silhouettes' centre lines (§13.3.1)
+            from topopose.frame.centre import frame_offsets
+            t1 = time.perf_counter()
+            cen, cen_trim = frame_offsets(diag["curves"], diag.get("trim"),
+                                          *self._silhouettes, vol.data, vol.origin,
+                                          vol.voxel_size, edt)
+            if cen:
+                diag["centred"] = cen
+            if cen_trim:
+                diag["centred_trim"] = cen_trim
+            timings["centre"] = (time.perf_counter() - t1) * 1e3
+        if self.support and diag.get("curves") and getattr(self, "_silhouettes", None):
+            # analysis by synthesis: the silhouette the placed model leaves unexplained
+            from topopose.frame.support import support_features
+            t1 = time.perf_counter()
+            sup = support_features(diag["curves"], parts, *self._silhouettes, vol.data,
+                                   vol.origin, vol.voxel_size, edt, extras=False)
+            diag["unexplained"] = round(sup["unexplained"], 4)
+            timings["support"] = (time.perf_counter() - t1) * 1e3
+
 
     def spine_parts(self, vol, skel, data, al, parts, edt=None, voxels=None):
         """``parts`` with the body-axis parts moved back onto the spine
@@ -840,536 +878,12 @@ class FrameEstimator:
                      "hull_tolerance": self.tolerance})
 
 
-def path_length(adj, u, v):
-    """Length of the path from ``u`` to ``v`` in a tree given as ``{vertex: [(neighbour,
-    weight), ...]}`` (``Tree.adjacency()``), or None when they are not connected."""
-    seen, stack = {u: 0.0}, [u]
-    while stack:
-        x = stack.pop()
-        if x == v:
-            return seen[x]
-        for y, w in adj[x]:
-            if y not in seen:
-                seen[y] = seen[x] + w
-                stack.append(y)
-    return None
-
-
-def betweenness_by_lengths(al, pattern, data, constraint):
-    """Apply a betweenness constraint (thesis §12.2.2), choosing by limb lengths among the
-    co-optimal alignments that satisfy it.
-
-    :func:`topopose.match.apply_betweenness` returns the first co-optimal alignment that
-    satisfies the constraint. A betweenness sequence (thumb, index, middle, ring, little) is
-    satisfied by an order and by its reverse alike (R(P1, P2, P3) is symmetric in P1, P2), and
-    the alignment often cannot tell them apart either: when every data finger is shorter
-    (or longer) than every model finger, Σ|w − w′| is the same for every permutation of the
-    fingers (on synthetic hands all 120 were co-optimal), so "first" was the little finger
-    named thumb in most frames. Among the satisfying co-optimal alignments this keeps the one
-    whose limb lengths, relative to their mean, are closest to the model's (Σ of absolute
-    differences; the limb of a part is its tree path from the image of the part's model
-    neighbour): the thumb is the short one. The mirror image of the chosen assignment is
-    compared too (it may not be co-optimal); when it wins only ``mapping`` is swapped
-    (``diagnostics["betweenness"] = "mirrored"``; distance and arcs stay the alignment's).
-    Same return convention as ``apply_betweenness``.
-    """
-    from topopose.match import apply_betweenness
-    from topopose.match.betweenness import cooptimal_alignments, satisfies
-
-    parts = tuple(constraint.parts)
-    ctx = getattr(al, "_ctx", None)
-    if ctx is None:
-        return apply_betweenness(al, pattern, data, constraint)
-    rel = constraint.relation or "b"
-    adj = pattern.adjacency()
-    plen, base = {}, {}
-    for p in parts:
-        nb = [(n, w) for n, w in adj[p] if math.isfinite(w)]
-        if len(nb) != 1:                  # not a limb end: plain betweenness
-            return apply_betweenness(al, pattern, data, constraint)
-        base[p], plen[p] = nb[0]
-    pm = float(np.mean(list(plen.values())))
-    dadj = data.adjacency()
-
-    def tree_dist(u, v):
-        return None if u is None or v is None else path_length(dadj, u, v)
-
-    def score(cand, use):
-        d = {p: tree_dist(cand.mapping.get(base[p]), cand.mapping.get(p)) for p in use}
-        ok = [p for p in use if d[p] is not None and math.isfinite(d[p])]
-        dm = float(np.mean([d[p] for p in ok])) if ok else 0.0
-        pmu = float(np.mean([plen[p] for p in ok])) if ok else pm
-        return sum(abs(d[p] / dm - plen[p] / pmu) for p in ok) if dm > 0 else math.inf
-
-    cands = [ctx.make(ctx.top, np.array(ev, np.int64).reshape(-1, 3))
-             for ev in cooptimal_alignments(al, parts)]
-    best = None
-    for cand in cands:
-        if satisfies(cand.mapping, data.positions, parts, rel):
-            s = score(cand, parts)
-            if best is None or s < best[0]:
-                best = (s, cand)
-    if best is None:
-        al.diagnostics["betweenness"] = "unsatisfied"
-        return al
-    cand = best[1]
-    cand.diagnostics["betweenness"] = "applied"
-    # the mirror image of the sequence satisfies the constraint as well (same triples); the
-    # alignment may have kept only one orientation, so compare both by their lengths
-    n = len(parts)
-    mirror = SimpleNamespace(mapping={**cand.mapping, **{parts[i]: cand.mapping.get(parts[n - 1 - i])
-                                                         for i in range(n)}})
-    if score(mirror, parts) < best[0]:
-        cand.mapping = mirror.mapping
-        cand.diagnostics["betweenness"] = "mirrored"
-    return cand
-
-
-# Relative thickness of each part of a built-in model (thesis §12.3 gives lengths only): the
-# hull's inscribed-ball radius (taxicab distance transform on the hull's box, 0.5 ms at 100³;
-# the exact EDT took 9 ms for about the same figures) at the part's data vertex — the largest within
-# ±THICKNESS_REACH × resolution voxels (2 at 100³: a skeleton end lies at the crown, the head's
-# centre is a few voxels in) — over the largest radius of the hull (the chest). Ranges
-# (lo, hi) = 5–95 % of the correctly placed parts of `body` frames (5 builds × 2 seeds, 400
-# frames, 100³, noise 1), except the head's lower bound (5 %: 0.44), lowered to 0.30 for the
-# capsule human, whose small head sphere measures 0.33 (at 0.44 it lost one of 40 separated
-# frames to a head/hand swap); inside no cost, outside weight × the log of the excess
-# (thickness_arc_cost). Keys: part name stems. The alignment's distance without the term is
-# what T_d judges. Measured on those 200 separated + 200 all-pose frames (0.08 × height, every
-# part; TP rate / FP per match, separated; all):
-#   no thickness term                         0.85 / 0.128;  0.45  / 0.419
-#   weight 1, reach 2 (default)               0.85 / 0.115;  0.525 / 0.103
-#   the same, head lower bound 0.44           0.86 / 0.104;  0.535 / 0.085
-#   weight 0.3 / 0.6, reach 2, T_d on total   0.86 / 0.104, 0.845 / 0.091;  0.51 / 0.143, 0.515 / 0.104
-#   weight 1, reach 2, T_d on the total       0.835 / 0.092; 0.525 / 0.071
-#   leaves only (no torso, crotch), w 0.3     0.86 / 0.109;  0.51  / 0.164
-#   radius at the vertex only (reach 0), w .3 0.86 / 0.109;  0.505 / 0.263 (w 0.6, 1: worse)
-#   two-sided log cost around the medians    0.855 / 0.100, 0.41 / 0.241 (w 0.05); worse at 0.1
-# The held-out seeds of benchmarks/quality.py (quality_body.md) check it. Capsule human (40
-# frames, noise 1, 100³): separated 1.00 / 0 either way; all poses 0.75 / 0.118 → 0.80 / 0.
-# The dog, the spider and the hand have no profile (term off).
-DEFAULT_THICKNESS_WEIGHT = 1.0
-# Scale-axis pruning of skeleton bumps (topopose.skeleton.prune.prune_bumps) per model: the
-# ratio; models not listed: off. Measured on `body` (5 builds x seeds 41, 42 x 12 frames, 100³,
-# noise 1, 0.08 x height; TP rate / FP per match), separated; all poses:
-#   off                                   0.833 / 0.123;  0.592 / 0.145
-#   branch length < c x junction radius   c 1.0: 0.833 / 0.123, 0.600 / 0.143; c 1.5: 0.842 / 0.114,
-#                                         0.617 / 0.129; c 2.0: 0.858 / 0.104, 0.608 / 0.120
-#                                         (the head's short branch is pruned: missing limb 12 → 32)
-#   ball containment (default) < c        c 1.6: 0.842 / 0.114, 0.592 / 0.155; c 2.0: 0.858 / 0.096,
-#                                         0.617 / 0.129; c 2.4: 0.858 / 0.096, 0.600 / 0.163
-# (before the head tips of pose/tips.py; with them, c 2.0 contain: off 0.817 / 0.140; 0.567 / 0.181
-# → on 0.833 / 0.123; 0.592 / 0.165.) Held-out seeds: benchmarks/quality.py (quality_body.md,
-# "no-prune" rows).
-PRUNE = {"human": 2.0}
-THICKNESS = {"human": {"head": (0.30, 0.85), "hand": (0.0, 0.40), "foot": (0.0, 0.43),
-                       "crotch": (0.83, 9.0), "torso": (0.67, 9.0)}}
-# A leaf part that must continue the body axis (model: (leaf, its junction, the junction's other
-# axis end, minimum cosine)): the leaf's data vertex must lie within acos(cos) of the direction
-# axis end → junction, seen from the junction (data vertices of the alignment), else the leaf is
-# left unplaced — a missing limb: the frame stays usable when the rest is right. Only in frames
-# with every other part placed (a second missing part would make the frame partial, rejected).
-# On `body` the skeleton often has no head branch — a raised arm merges with the head in the
-# hull, or the head is absorbed into the shoulders' junction — and the head then takes a
-# shoulder spur or a bend of an arm path, sideways of the neck (0.08–0.33 × height off).
-# Measured on `body` (builds average, heavy, child, lean, random × tuning seeds 41–44 × 8 frames,
-# 100³, noise 1, 0.08 × height; TP rate / FP per match), separated (160 frames); all poses (160):
-#   off                                       0.825 / 0.170;  0.644 / 0.127
-#   cos 0.6 / 0.7 / 0.8, in every frame       0.875 / 0.114, 0.881 / 0.108, 0.887 / 0.101;
-#                                             0.637 / 0.121, 0.631 / 0.106, 0.637 / 0.097
-#   the same, only with nothing else missing  0.875 / 0.119, 0.881 / 0.113 (default: cos 0.7,
-#                                             45°), 0.887 / 0.107;  0.650 / 0.119, 0.656 / 0.110,
-#                                             0.662 / 0.102
-#   the world's up axis instead (cos 0.7)     0.875 / 0.114 (0.875 / 0.119);  0.644 / 0.096
-#                                             (0.662 / 0.102)
-# Tip of the head (pose/tips.py) only half way (tip_fraction 0.5), on top of cos 0.7, seeds 41,
-# 42: 0.912 / 0.076 → 0.938 / 0.051; all poses 0.675 / 0.115 → 0.688 / 0.098: the head's skeleton
-# end lies 2–5 % of the height beside the neck → crown segment (the face's volume), and the tip
-# moves it as far again sideways; the real recording's head-top marker wants the whole way
-# (tips.py), so the default stays 1. Held-out seeds: benchmarks/quality.py (quality_body.md,
-# "no-leaf-axis", "gate-off" and "tip-half" rows): without the confidence gate separated 0.86 /
-# 0.096 → 0.88 / 0.070, all poses 0.55 / 0.185 either way; with the gate (pose/confidence.py,
-# the default) nothing changes at status — the gate already rejects those frames. On the real
-# recording (benchmarks/real.py, person silhouettes, a subject bending and balancing) cos 0.7
-# leaves the head unplaced in 69 of 100 frames and the frames with head, hands and feet within
-# 0.15 m fall from 31 % to 15 %: the default is off (0); ``leaf_axis=0.7`` turns it on.
-LEAF_AXIS = {"human": ("head", "torso", "crotch", 0.0)}
-# A hand whose arm branch ends at the elbow is left unplaced (short_limb, FrameEstimator(
-# short_arm=...)): model name → (hands, arm base, leg base, feet, min ratio). With a forearm
-# folded onto the chest or the belly (elbow bent 100–120°, the arm rotated inwards) the hull
-# fuses forearm and trunk, the arm's skeleton branch ends at the elbow and the alignment puts the
-# hand there (0.1–0.2 of the normalized tree against 0.18 for the model's arm; deleting the arm
-# would cost 0.18): "hand at the elbow" was the commonest misplaced all-pose frame
-# (studies/diagnose_body.py). Only when every other part is placed (a second missing part
-# would make the frame partial), the shorter hand. The ratio of the torso → hand path to the
-# longest crotch → foot path, `body` dev seeds 41, 42 (5 builds × 12 frames, 100³, noise 1, gate
-# off): right hands of separated frames 1 % / 5 % / median 0.39 / 0.49 / 0.69; 0.35 lies below.
-# All-pose frames, TP rate / FP per match: off 0.800 / 0.086, ratio 0.25–0.45 0.817 / 0.067
-# (the same 2 misplaced frames become "missing limb"); separated frames unchanged. The hand's
-# inscribed radius and the path alone (normalized weights) did not separate wrong from right
-# hands. Held out (benchmarks/quality.py, quality_body.md, "no-short-arm" rows; gate off): all
-# poses 0.77 / 0.080 → 0.79 / 0.050 (misplaced 21 → 18), separated 0.93 / 0.067 either way.
-SHORT_ARM = {"human": (("hand_1", "hand_2"), "torso", "crotch", ("foot_1", "foot_2"), 0.35)}
-# max_missing on the parts placed (FrameEstimator(placed_missing=...)): model name → on. With an
-# arm on the body the alignment often leaves the head unmatched as well (a short head branch
-# pruned or absorbed into the shoulders); the head from the hull (HEAD_FROM_HULL) places it,
-# yet the frame was rejected for two unmatched parts although only the arm's hand is without a
-# position — a "missing limb" frame, right by §13.2.2. `body` dev seeds 41, 42 (5 builds × 12
-# frames, 100³, noise 1, gate off; TP rate / FP per match, with SHORT_ARM and TRUNK_BLEND): all
-# poses 0.825 / 0.057 → 0.842 / 0.056 (2 right frames more matched, no wrong one), separated
-# 0.917 / 0.043 either way. Held out (benchmarks/quality.py, quality_body.md,
-# "no-placed-missing" rows; gate off): all poses 0.78 / 0.051 → 0.79 / 0.050, separated 0.93 /
-# 0.067 either way.
-PLACED_MISSING = {"human": True}
-# The head from the hull (pose/tips.py, head_from_hull): (head, anchor, min_fraction) — the head
-# part is put where the direction anchor → the hull's highest point whose inscribed radius is
-# ≥ min_fraction × the hull's largest leaves the hull, whatever the alignment gave the head
-# (the status stays the alignment's: ``missing`` lists the parts it left unmatched;
-# ``diagnostics["from_hull"]`` names the head). On for models whose head carries an "above"
-# coordinate constraint (upright subjects). Real recording (benchmarks/real.py, person
-# silhouettes, 4 cameras, 100³; cached hulls, frames with head, hands and feet within 0.15 m):
-# off 32 → 0.4: 71 of 100 (0.3: 68, 0.35: 71, 0.45: 59, 0.5: 22); head median / p90 error
-# 0.122 / 0.370 → 0.068 / 0.096 m. Body subject (benchmarks/quality.py's body set, seeds 21, 22,
-# 100³, TP rate / FP per match, gate on | off): separated 0.79 / 0.031 | 0.86 / 0.096 → 0.81 /
-# 0.010 | 0.89 / 0.061, all poses 0.46 / 0.083 | 0.55 / 0.185 → 0.47 / 0.067 | 0.56 / 0.173;
-# head median error 5.6 → 2.1 cm. The window is narrow: on the body's 8-camera hulls raised
-# arms count as thick below 0.4 (separated, gate on: 0.3 → 0.64 / 0.214, 0.35 → 0.78 / 0.051,
-# 0.45 → 0.82 / 0.000); on the real recording's 4-camera hulls (a trunk inflated by phantom
-# volume) the head no longer does above it (0.45 → 59 right frames). On a coarse grid the rule
-# is skipped (thick radius below 1.5 voxels, :func:`~topopose.frame.tips.thick_top`): at 50³ the
-# body's trunk is 3–3.5 voxels thick and the rule cost separated frames 0.53 / 0.190 → 0.48 /
-# 0.266; at 100³ it is 5–6 voxels.
-HEAD_FROM_HULL = {"human": ("head", "torso", 0.4)}
-# T_d on the distance of the matched parts only (FrameEstimator(matched_distance=...)): model
-# name → on. An arm lying on the body has no skeleton branch: the alignment deletes the model's
-# arm (γ(w, 0) = w: 0.18 of the human's normalized weight) and the frame — a right one, a
-# missing limb of §13.2.2 — lands at 0.40–0.70, above T_d = 0.4, with 0.22–0.52 for the rest.
-# Measured on ``body`` (training seeds 41, 42, 5 builds × 12 frames, 100³, noise 1, gate off,
-# torso on the trunk; TP rate / FP per match), all poses: whole distance 0.667 / 0.059 →
-# matched parts 0.800 / 0.086 (T_d 0.35 on it: 0.767 / 0.052); separated 0.908 / 0.044 →
-# 0.908 / 0.052. With the gate (the default) the fitted confidence decides instead of T_d and
-# reports both distances (pose/confidence.py; only the whole one is fitted). Held-out seeds 21,
-# 22 (benchmarks/quality.py, quality_body.md, "whole-distance" rows), gate off: separated 0.91 /
-# 0.044 → 0.93 / 0.067, all poses 0.60 / 0.111 → 0.73 / 0.111; with the gate unchanged (0.85 /
-# 0.010; 0.60 / 0.053).
-MATCHED_DISTANCE = {"human": True}
-THICKNESS_REACH = 0.02      # × resolution: the radius at a vertex is the largest within ± that
-
-
-def taxicab_radii(vol):
-    """The taxicab distance transform of the hull on its bounding box grown by one voxel
-    (:func:`scipy.ndimage.distance_transform_cdt`'s, computed by
-    :func:`topopose.frame.estimate_kernels.taxicab_distances`): ``(dt, lo)``, voxel ``ijk`` at
-    ``dt[ijk - lo]``. One per frame serves every :func:`vertex_radii` of the frame."""
-    from topopose.frame.estimate_kernels import taxicab_distances
-
-    a = vol.data
-    bbox = (vol.diagnostics or {}).get("bbox")
-    if bbox is None:
-        occ = [np.flatnonzero(a.any(axis=tuple(i for i in range(3) if i != ax))) for ax in range(3)]
-        bbox = ([int(o[0]) for o in occ], [int(o[-1]) for o in occ])
-    lo = [max(int(x) - 1, 0) for x in bbox[0]]
-    hi = [min(int(x) + 2, n) for x, n in zip(bbox[1], a.shape)]
-    return taxicab_distances(a[lo[0]:hi[0], lo[1]:hi[1], lo[2]:hi[2]]), lo
-
-
-def vertex_radii(vol, data, reach: int = 0, radii=None) -> dict:
-    """Inscribed-ball radius of the hull at every data vertex, relative to the hull's largest:
-    the taxicab distance transform (:func:`scipy.ndimage.distance_transform_cdt`, 20× faster
-    than the exact EDT) on the hull's bounding box, its largest value within ``reach`` voxels
-    of the vertex (0: at the vertex; a vertex whose voxel is background — an I-component
-    centroid off the hull — takes the largest of its 3×3×3 neighbourhood). ``radii``:
-    :func:`taxicab_radii` of ``vol`` if already computed."""
-    from topopose.frame.estimate_kernels import window_max
-
-    dt, lo = taxicab_radii(vol) if radii is None else radii
-    ref = float(dt.max()) or 1.0
-    org, vs = np.asarray(vol.origin, float), float(vol.voxel_size)
-    verts = [v for v in data.vertices if data.positions.get(v) is not None]
-    if not verts:
-        return {}
-    # every vertex at once (the same arithmetic, element by element)
-    pos = np.array([np.asarray(data.positions[v]) for v in verts])
-    x = np.round((pos - org) / vs).astype(int) - np.asarray(lo)
-    x = np.clip(x, 0, np.array(dt.shape) - 1)
-    r = window_max(dt, x.astype(np.int64), int(max(reach, 0)))
-    return {v: float(a) / ref for v, a in zip(verts, r.tolist())}
-
-
-def thickness_arc_cost(radii: dict, profile: dict, weight: float, cap: float = 1.5,
-                       root=None, root_arc=None):
-    """Arc cost term (:meth:`topopose.match.Matcher.align`) of the parts' thickness.
-
-    Resizing the model arc that ends at part ``p`` (its lower end, away from the root) to a
-    data path ending at vertex ``v`` costs ``weight × min(max(0, log(lo / r), log(r / hi)),
-    cap)``, with ``r`` the relative radius of :func:`vertex_radii` at ``v`` and ``(lo, hi)``
-    the part's range (``profile``, by name stem, e.g. :data:`THICKNESS`; parts without one pay
-    nothing): nothing inside the range, the log of the excess outside. The arc ``root`` →
-    ``root_arc`` also pays for the root's own thickness at its upper end. A head is thick, a hand thin: a bent
-    arm whose branch is as short as the neck+head branch no longer takes the head.
-    """
-    def stem(p):
-        head, sep, tail = str(p).rpartition("_")
-        return head if sep and tail.isdigit() else str(p)
-
-    known = {}             # id of a vertex list → (list, its radii with NaN where unknown)
-    # vertices numbered 0 … n - 1 (data trees): the radii as an array, read by index, and
-    # each part's term computed once over all vertices (elementwise: the same values)
-    ids = [v for v in radii if isinstance(v, (int, np.integer)) and not isinstance(v, bool)]
-    table = None
-    if ids and len(ids) == len(radii) and min(ids) >= 0 and max(ids) < 4 * len(ids) + 64:
-        table = np.full(max(ids) + 1, np.nan)
-        table[np.asarray(ids, np.int64)] = [radii[v] for v in ids]
-    by_stem = {}           # stem → its term over ``table``
-
-    def values(lo, hi, radius):
-        r = np.maximum(np.where(np.isnan(radius), max(lo, 1e-3), radius), 1e-3)
-        out = np.maximum(np.log(max(lo, 1e-3) / r), np.log(r / hi))
-        return weight * np.clip(out, 0.0, cap)
-
-    def term(part, verts):
-        rho = profile.get(stem(part))
-        if rho is None:
-            return np.zeros(len(verts))
-        got = known.get(id(verts))
-        if got is None or got[0] is not verts:
-            idx = None
-            if table is not None and len(verts):
-                idx = np.asarray(verts)
-                if (idx.dtype.kind not in "iu" or idx.ndim != 1 or idx.min() < 0
-                        or idx.max() >= len(table)):
-                    idx = None
-            got = known[id(verts)] = (verts, idx if idx is not None else np.array(
-                [radii.get(v, np.nan) for v in verts], float))
-        if got[1].dtype.kind in "iu":
-            t = by_stem.get(stem(part))
-            if t is None:
-                t = by_stem[stem(part)] = values(*rho, table)
-            return t[got[1]]
-        return values(*rho, got[1])
-
-    def cost(p_up, p_low, d_up, d_low):
-        C = np.zeros((len(p_up), len(d_up)))
-        low = {}
-        up = {}
-        for i, (pu, pl) in enumerate(zip(p_up, p_low)):
-            if pl not in low:
-                low[pl] = term(pl, d_low)
-            C[i] = low[pl]
-            if pu == root and pl == root_arc:
-                if pu not in up:
-                    up[pu] = term(pu, d_up)
-                C[i] += up[pu]
-        return C
-
-    return cost
-
-
-def matched_arc_cost(al, arc_cost) -> float:
-    """The part of ``al.distance`` paid to ``arc_cost`` (0 when None): its value on every
-    matched pair of arcs (``al.pairs``: pattern path, data path, upper ends first)."""
-    if arc_cost is None or not math.isfinite(al.distance):
-        return 0.0
-    pairs = al.pairs or []
-    if not pairs:
-        return 0.0
-    C = arc_cost([p[0] for p, _ in pairs], [p[-1] for p, _ in pairs],
-                 [d[0] for _, d in pairs], [d[-1] for _, d in pairs])
-    return float(np.trace(np.asarray(C)))
-
-
-def missing_cost(pattern, al) -> float:
-    """What the unmatched leaf parts of the alignment ``al`` cost it: the normalized weight of
-    each model leaf arc whose leaf maps to no data vertex (a deleted arc costs γ(w, 0) = w)."""
-    if not math.isfinite(al.distance):
-        return 0.0
-    adj = pattern.adjacency()
-    return float(sum(adj[p][0][1] for p, v in (al.mapping or {}).items()
-                     if v is None and len(adj.get(p, ())) == 1 and math.isfinite(adj[p][0][1])))
-
-
-def arm_keep(vol) -> np.ndarray:
-    """Keep mask of an incomplete model's thinning (thesis §12.1): one voxel where the
-    infinite limb (the forearm) leaves the grid.
-
-    The thesis keeps the object voxel nearest the centroid of the object voxels on the grid
-    boundary (:func:`topopose.topology.border_constraint`). Two refinements make it the limb's
-    exit point in every frame: the boundary voxels are split into 26-connected pieces and
-    only the largest one (the limb's cut section; a fingertip grazing the grid side makes a
-    small second piece) is used, and the kept voxel is taken among that piece's own voxels,
-    so it always lies on the boundary — a limb leaving across an edge or a corner of the grid
-    gives an L-shaped section whose centroid is inside the object, and the object voxel
-    nearest it is then not on the boundary (no skeleton end touches the border, the frame
-    fails). Empty mask when the object does not touch the boundary.
-    """
-    import cc3d
-
-    a = vol.data
-    onb = np.zeros(a.shape, dtype=bool)
-    for ax in range(3):
-        for end in (0, -1):
-            idx = [slice(None)] * 3
-            idx[ax] = end
-            onb[tuple(idx)] = a[tuple(idx)]
-    out = np.zeros(a.shape, dtype=bool)
-    if not onb.any():
-        return out
-    lab, n = cc3d.connected_components(onb, connectivity=26, return_N=True)
-    sizes = np.bincount(lab.ravel())
-    sizes[0] = 0
-    pts = np.argwhere(lab == int(np.argmax(sizes)))
-    c = pts.mean(axis=0)
-    out[tuple(pts[int(np.argmin(((pts - c) ** 2).sum(axis=1)))])] = True
-    return out
-
-
-def off_axis_leaf(data, mapping, leaf, junction, axis_end, min_cos) -> bool:
-    """Whether ``leaf``'s data vertex leaves the data vertex of ``junction`` at more than
-    acos(``min_cos``) from the axis ``axis_end`` → ``junction`` (a head beside the neck: a
-    shoulder spur or an arm's bend). False when one of the three is unmatched or two coincide."""
-    pts = [data.positions.get(mapping.get(p)) if mapping.get(p) is not None else None
-           for p in (leaf, junction, axis_end)]
-    if any(x is None for x in pts):
-        return False
-    leaf_p, junc, end = (np.asarray(x, dtype=float) for x in pts)
-    a, b = junc - end, leaf_p - junc
-    na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
-    if na == 0 or nb == 0:
-        return False
-    return float(a @ b) / (na * nb) < min_cos
-
-
-def short_limb(data, mapping, limbs, base, leg_base, legs, min_ratio):
-    """The part of ``limbs`` (the hands) whose data path from ``base``'s vertex (the torso) is
-    the shortest, when it is shorter than ``min_ratio`` × the longest data path from
-    ``leg_base`` (the crotch) to one of ``legs`` (the feet); else None (also when ``base``,
-    ``leg_base`` or every leg is unmatched). A real arm's branch, shoulder centre → hand, is
-    about 0.7 of a leg's (``body``, median); one that ends at the elbow (a forearm folded onto the body, fused with
-    it in the hull) is shorter than the upper arm, and the hand placed at its end is wrong."""
-    adj = data.adjacency()
-
-    def length(a, b):
-        u, v = mapping.get(a), mapping.get(b)
-        return None if u is None or v is None else path_length(adj, u, v)
-
-    leg = max((x for x in (length(leg_base, f) for f in legs) if x is not None), default=None)
-    if not leg:
-        return None
-    arms = [(x, p) for p, x in ((p, length(base, p)) for p in limbs) if x is not None]
-    if not arms:
-        return None
-    x, p = min(arms)
-    return p if x < min_ratio * leg else None
-
-
-# A junction's centroid (junction_position) without the data leaves of its co-optimal cluster:
-# model name → on. Measured on ``body`` (dev seeds 1, 11, 14, 5 builds × 12 frames, 100³, noise
-# 1, gate off): 30 of 180 all-pose frames have a leaf in the torso's cluster (a forearm on the
-# belly, its branch contracted into the junction), their torso error falls in 20 (e.g. 0.60 →
-# 0.25, 1.00 → 0.67 × the tolerance), TP rate / FP per match 0.811 / 0.070 → 0.817 / 0.064;
-# separated unchanged (0.978 / 0.022). Held out (benchmarks/quality.py, quality_body.md,
-# "no-junction-core" rows, the confidence refit with the rule): gate on, all poses 0.808 / 0.020
-# → 0.817 / 0.020, separated 0.975 / 0.008 either way; gate off unchanged (docs/accuracy.md).
-# See FrameEstimator(junction_core=).
-JUNCTION_CORE = {"human": True}
-
-
-def junction_position(al, data, part, v, leaves: bool = True):
-    """Position of the junction part ``part`` mapped to data vertex ``v``.
-
-    Thinning seldom leaves one intersection voxel where several limbs meet (§7.3): the data tree
-    holds a cluster of junction vertices joined by edges of a voxel or two, and the alignment
-    can map the model junction to any of them at the same cost (its co-optimal
-    ``alternatives``, §12.2.2). The chosen one is a tie-break; the cluster — the alternatives
-    connected to ``v`` through alternatives in the data tree — is the junction, and its centroid
-    the estimate (measured in ``benchmarks/quality.py``: the spider's cephalothorax, the
-    human's torso). ``leaves`` False: the cluster's leaves of the data tree left out
-    (unless it has nothing else) — the far end of a branch contracted into the junction
-    (:data:`JUNCTION_CORE`).
-    """
-    alts = set((al.alternatives or {}).get(part) or ())
-    if len(alts) <= 1 or v not in alts:
-        return data.positions.get(v)
-    adj = data.adjacency()
-    seen, stack = {v}, [v]
-    while stack:
-        x = stack.pop()
-        for y, _w in adj.get(x, ()):
-            if y in alts and y not in seen:
-                seen.add(y)
-                stack.append(y)
-    if not leaves:
-        seen = [u for u in seen if len(adj.get(u, ())) > 1] or seen
-    pts = [data.positions[u] for u in seen if data.positions.get(u) is not None]
-    return np.mean(np.asarray(pts, dtype=float), axis=0) if pts else data.positions.get(v)
-
-
-def fill_cavities(vol):
-    """Fill the volume's cavities, in place: background components (6-adjacency, the dual of
-    the object's 26-adjacency) that do not reach the outside become object. Returns ``vol``.
-
-    :func:`topopose.hull.fill_cavities` (same result as ``scipy.ndimage.binary_fill_holes``)
-    on the hull's bounding box ``vol.diagnostics["bbox"]`` when :func:`topopose.visual_hull`
-    left one (it must still hold every voxel), else on the box it computes."""
-    from topopose.hull import fill_cavities as fill
-
-    if not vol.data.flags.c_contiguous:
-        vol.data = np.ascontiguousarray(vol.data)
-    n, _ = fill(vol.data, (vol.diagnostics or {}).get("bbox"))     # in place: the frame's own hull
-    if n:
-        vol.diagnostics["cavities_filled"] = n
-    return vol
-
-
-def default_tolerance(cap) -> int:
-    """Visual-hull tolerance used by default: 1 with ≥ 6 cameras, else 0."""
-    return 1 if len(cap.cameras) >= 6 else 0
-
-
-def default_gate(cap) -> bool:
-    """Confidence gate used by default: on, whatever the number of cameras.
-
-    The fitted confidence (:mod:`.confidence`) is calibrated per camera count, so one rule
-    serves every set-up (measured by ``benchmarks/confidence.py``,
-    ``benchmarks/results/confidence.md``). ``cap`` is kept for callers.
-    """
-    return True
-
-
-def _rule_option(model, table, option, default: bool):
-    """A per-model rule option of :class:`FrameEstimator` (``trunk``, ``crotch_drop``): the
-    model's entry of ``table`` (complete models only) when ``option`` is True, or None and
-    ``default``; a tuple or list replaces it; anything else (False): off (None)."""
-    if isinstance(option, (tuple, list)):
-        return tuple(option)
-    if option is True or (option is None and default):
-        return table.get(model.name) if model.complete else None
-    return None
-
-
-def _spine_option(model, spine):
-    """The spine shift shares of :class:`FrameEstimator` (``{part: share}``, empty: off):
-    None: the model's entry of :data:`topopose.frame.anatomy.SPINE_SHIFT` (complete models
-    only); False/0: off; a number: that multiple of the model's entry; a dict: the shares."""
-    from topopose.frame.anatomy import SPINE_SHIFT
-
-    base = SPINE_SHIFT.get(model.name, {}) if model.complete else {}
-    if spine is None or spine is True:
-        return dict(base)
-    if isinstance(spine, dict):
-        return {p: float(x) for p, x in spine.items() if p in model.parts}
-    return {p: float(spine) * x for p, x in base.items()} if spine else {}
-
-
-def _touches_border(a: np.ndarray) -> bool:
-    return bool(a[0].any() or a[-1].any() or a[:, 0].any() or a[:, -1].any()
-                or a[:, :, 0].any() or a[:, :, -1].any())
-
-
-def estimate_pose(cap, frame, model="human", resolution=100, threshold=None, *,
-                  constraints=True, betweenness=True, max_missing=1, thinning="d6i1d",
-                  tolerance=None) -> Pose:
+def estimate_pose(cap, frame, model="human", resolution=100, threshold=None,
+                  options: EstimatorOptions | None = None, **flat) -> Pose:
     """Estimate the pose of one frame (thesis §12.1, Fig. 12.8).
+
+    ``options`` (:class:`~topopose.frame.options.EstimatorOptions`) and ``**flat`` (options
+    by :class:`FrameEstimator` parameter name, e.g. ``constraints=False``) as there.
 
     For many frames build one :class:`FrameEstimator` (or use :func:`topopose.run`): it
     reuses the model precomputation and the hull's projection tables.
@@ -1381,7 +895,4 @@ def estimate_pose(cap, frame, model="human", resolution=100, threshold=None, *,
     >>> pose = tp.estimate_pose(cap, "000012", "human")              # doctest: +SKIP
     >>> pose.status, pose.parts["head"]                              # doctest: +SKIP
     """
-    est = FrameEstimator(cap, model, resolution, threshold, constraints=constraints,
-                         betweenness=betweenness, max_missing=max_missing, thinning=thinning,
-                         tolerance=tolerance)
-    return est.estimate(frame)
+    return FrameEstimator(cap, model, resolution, threshold, options, **flat).estimate(frame)

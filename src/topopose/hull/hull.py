@@ -554,6 +554,85 @@ def get_carver(cap, origin, voxel_size, shape) -> HullCarver:
 
 
 # --------------------------------------------------------------------------- main entry
+def _refocus_grid(cap, resolution, tolerance, name, masks, user_box, person, lattice=None):
+    """The grid refocused on the subject (thesis §13.2.2.1): ``(voxel size, origin, shape,
+    empty)``, empty when no box holds the subject. ``lattice`` ``(voxel size, origin)``: a
+    frame beyond the fitted volume, on that grid's voxels and lattice, its box fitted whole
+    (:func:`frame_box`)."""
+    empty = False
+    base = np.zeros(3)
+    # the subject's box: coarse passes over the capture volume (given, or fitted to the
+    # sampled frames and enlarged by a quarter on each side for frames outside the sample;
+    # "person": the frame's own cone box, on the zone grid's lattice)
+    if lattice is not None:
+        vs, base = lattice
+    elif person:
+        vs, within = _person_zone(cap, resolution, tolerance, name, masks)[0], None
+    else:
+        vs = _refocus_voxel_size(cap, resolution, tolerance, user_box)
+        if user_box is not None:
+            within = user_box
+        else:
+            glo, ghi = capture_box(cap, tolerance)
+            grow = 0.25 * (ghi - glo)
+            within = (glo - grow, ghi + grow)
+    box = (frame_box(cap.cameras, masks, tolerance) if lattice is not None
+           else fit_box(cap.cameras, masks, tolerance, within=within))
+    if box is not None and user_box is not None:
+        box = (np.maximum(box[0], user_box[0]), np.minimum(box[1], user_box[1]))
+        if np.any(box[0] >= box[1]):
+            box = None
+    if box is None:
+        empty = True
+        c = np.mean(user_box, axis=0) if user_box is not None else np.mean(
+            [cam.center for cam in cap.cameras], axis=0)
+        box = (c - vs, c + vs)
+    ilo = np.floor((box[0] - base) / vs + 0.5).astype(int) - 1
+    ihi = np.ceil((box[1] - base) / vs - 0.5).astype(int) + 1
+    if user_box is not None:            # no margin beyond the capture volume
+        ulo = np.ceil(user_box[0] / vs - 0.5 - 1e-9).astype(int)
+        uhi = np.floor(user_box[1] / vs - 0.5 + 1e-9).astype(int)
+        ilo, ihi = np.maximum(ilo, ulo), np.minimum(ihi, np.maximum(uhi, ulo))
+    shape = tuple(int(s) for s in np.maximum(ihi - ilo + 1, 1))
+    origin = base + ilo * vs
+    return vs, origin, shape, empty
+
+
+def _kept_components(occ, st, shape, consensus, max_removed, keep_largest):
+    """The carved grid's kept voxels: the consensus hull, or the largest 26-component;
+    ``(occ, dropped, voxels, lo, hi, touches_border, consensus diagnostics, empty)``."""
+    empty = False
+    dropped, nvox, touches = [], 0, False
+    lo_i = hi_i = None
+    cdiag = {}
+    if consensus is not None:
+        if st[9] >= st[6]:
+            dropped, nvox, lo_i, hi_i, cdiag = consensus_hull_labels(
+                occ, st[6:9], st[9:12], int(consensus), float(max_removed))
+            touches = bool(np.any(lo_i == 0) or np.any(hi_i == np.array(shape) - 1))
+        else:
+            empty = True
+            cdiag = {"consensus": {"repair": int(consensus), "strict_voxels": 0,
+                                   "tolerant_voxels": 0, "path": "one-pass"}}
+        occ = occ.view(bool)
+    elif st[9] >= st[6]:
+        lo_i, hi_i = st[6:9].astype(int), st[9:12].astype(int)
+        bb = tuple(slice(int(a), int(b) + 1) for a, b in zip(lo_i, hi_i))
+        if keep_largest:
+            dropped = keep_largest_component(occ, bb)
+        sub = occ[bb]
+        nvox = int(np.count_nonzero(sub))
+        if dropped:                     # the kept component's own bounding box
+            for ax in range(3):
+                other = tuple(a for a in range(3) if a != ax)
+                nz = np.flatnonzero(sub.any(axis=other))
+                lo_i[ax], hi_i[ax] = lo_i[ax] + nz[0], lo_i[ax] + nz[-1]
+        touches = bool(np.any(lo_i == 0) or np.any(hi_i == np.array(shape) - 1))
+    else:
+        empty = True
+    return occ, dropped, nvox, lo_i, hi_i, touches, cdiag, empty
+
+
 def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: bool = False,
                 keep_largest: bool = True, volume=None, masks=None, consensus: int | None = None,
                 max_removed: float = 0.2, _lattice=None) -> Volume:
@@ -643,42 +722,8 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
     fitted = False                      # on the volume fitted to sampled frames
     person = user_box is None and _person_grid(cap)
     if refocus:
-        # the subject's box: coarse passes over the capture volume (given, or fitted to the
-        # sampled frames and enlarged by a quarter on each side for frames outside the sample;
-        # "person": the frame's own cone box, on the zone grid's lattice)
-        base = np.zeros(3)
-        if _lattice is not None:
-            # a frame beyond the fitted volume: the fixed grid's voxels, on its lattice
-            vs, base = _lattice
-        elif person:
-            vs, within = _person_zone(cap, resolution, tolerance, name, masks)[0], None
-        else:
-            vs = _refocus_voxel_size(cap, resolution, tolerance, user_box)
-            if user_box is not None:
-                within = user_box
-            else:
-                glo, ghi = capture_box(cap, tolerance)
-                grow = 0.25 * (ghi - glo)
-                within = (glo - grow, ghi + grow)
-        box = (frame_box(cap.cameras, masks, tolerance) if _lattice is not None
-               else fit_box(cap.cameras, masks, tolerance, within=within))
-        if box is not None and user_box is not None:
-            box = (np.maximum(box[0], user_box[0]), np.minimum(box[1], user_box[1]))
-            if np.any(box[0] >= box[1]):
-                box = None
-        if box is None:
-            empty = True
-            c = np.mean(user_box, axis=0) if user_box is not None else np.mean(
-                [cam.center for cam in cap.cameras], axis=0)
-            box = (c - vs, c + vs)
-        ilo = np.floor((box[0] - base) / vs + 0.5).astype(int) - 1
-        ihi = np.ceil((box[1] - base) / vs - 0.5).astype(int) + 1
-        if user_box is not None:            # no margin beyond the capture volume
-            ulo = np.ceil(user_box[0] / vs - 0.5 - 1e-9).astype(int)
-            uhi = np.floor(user_box[1] / vs - 0.5 + 1e-9).astype(int)
-            ilo, ihi = np.maximum(ilo, ulo), np.minimum(ihi, np.maximum(uhi, ulo))
-        shape = tuple(int(s) for s in np.maximum(ihi - ilo + 1, 1))
-        origin = base + ilo * vs
+        vs, origin, shape, empty = _refocus_grid(cap, resolution, tolerance, name, masks,
+                                                 user_box, person, _lattice)
     elif person:
         vs, (origin, shape) = _person_zone(cap, resolution, tolerance, name, masks)
     else:
@@ -704,34 +749,9 @@ def visual_hull(cap, frame, resolution: int = 100, tolerance: int = 0, refocus: 
         st = carver.stats.copy()
         t["carve"] = (time.perf_counter() - t0) * 1e3
     t0 = time.perf_counter()
-    dropped, nvox, touches = [], 0, False
-    lo_i = hi_i = None
-    cdiag = {}
-    if consensus is not None:
-        if st[9] >= st[6]:
-            dropped, nvox, lo_i, hi_i, cdiag = consensus_hull_labels(
-                occ, st[6:9], st[9:12], int(consensus), float(max_removed))
-            touches = bool(np.any(lo_i == 0) or np.any(hi_i == np.array(shape) - 1))
-        else:
-            empty = True
-            cdiag = {"consensus": {"repair": int(consensus), "strict_voxels": 0,
-                                   "tolerant_voxels": 0, "path": "one-pass"}}
-        occ = occ.view(bool)
-    elif st[9] >= st[6]:
-        lo_i, hi_i = st[6:9].astype(int), st[9:12].astype(int)
-        bb = tuple(slice(int(a), int(b) + 1) for a, b in zip(lo_i, hi_i))
-        if keep_largest:
-            dropped = keep_largest_component(occ, bb)
-        sub = occ[bb]
-        nvox = int(np.count_nonzero(sub))
-        if dropped:                     # the kept component's own bounding box
-            for ax in range(3):
-                other = tuple(a for a in range(3) if a != ax)
-                nz = np.flatnonzero(sub.any(axis=other))
-                lo_i[ax], hi_i[ax] = lo_i[ax] + nz[0], lo_i[ax] + nz[-1]
-        touches = bool(np.any(lo_i == 0) or np.any(hi_i == np.array(shape) - 1))
-    else:
-        empty = True
+    occ, dropped, nvox, lo_i, hi_i, touches, cdiag, none = _kept_components(
+        occ, st, shape, consensus, max_removed, keep_largest)
+    empty = empty or none
     t["components"] = (time.perf_counter() - t0) * 1e3
     bbox = None if lo_i is None or nvox == 0 else ([int(x) for x in lo_i], [int(x) for x in hi_i])
     total = nvox + sum(dropped)

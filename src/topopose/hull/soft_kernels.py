@@ -1,7 +1,6 @@
 """Numba kernel of the soft visual hull (:mod:`.soft`)."""
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 from topopose.geometry.carver_kernels import _pixel

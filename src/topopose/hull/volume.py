@@ -53,12 +53,17 @@ class Volume:
                 if "volume" not in f:
                     raise InputError(f"{path}: no array 'volume' in the .npz (keys: {sorted(f.keys())})")
                 data = f["volume"]
-                origin = f["origin"] if "origin" in f else np.zeros(3)
+                origin = np.asarray(f["origin"] if "origin" in f else np.zeros(3), dtype=float)
                 vs = float(f["voxel_size"]) if "voxel_size" in f else 1.0
         except InputError:
             raise
         except Exception as exc:  # unreadable file
             raise InputError(f"{path}: cannot read volume .npz ({exc})") from None
+        if origin.shape != (3,) or not np.all(np.isfinite(origin)):
+            raise InputError(f"{path}: field 'origin' must be 3 finite numbers, got "
+                             f"{origin.ravel().tolist()}"[:300])
+        if not (np.isfinite(vs) and vs > 0):
+            raise InputError(f"{path}: field 'voxel_size' must be a finite number > 0, got {vs!r}")
         if data.ndim != 3:
             raise InputError(f"{path}: field 'volume' must be a 3D array, got shape {data.shape}")
         if data.dtype != bool:

@@ -38,7 +38,7 @@ from __future__ import annotations
 import json
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -238,20 +238,39 @@ def _name_parts(keys, key_edges, lengths, heights, up_ok):
 
 
 # --------------------------------------------------------------------------- main
-def learn_structure(volumes, frames=None, *, up=(0.0, 0.0, 1.0), coherence="frequent",
-                    tau: float = 0.97, low_motion: float = 0.25, min_interval: int = 4,
-                    window: int = 3, merge: float = 0.1, coarse: int = 16, fine: int = 64,
-                    n_base: int = 64, step_size: int = 1, deform: dict | None = None,
-                    criterion: str = "correlation", rigidity: float = 0.002, smooth: float = 0.0,
-                    place_joints: bool = True,
-                    name: str | None = None, source: str = "sequence",
-                    progress: bool = False, pergs: list | None = None) -> LearnedStructure:
+@dataclass(frozen=True)
+class LearnOptions:
+    """Options of :func:`learn_structure` (Mukasa §2); see its parameters."""
+
+    coherence: str = "frequent"
+    tau: float = 0.97
+    low_motion: float = 0.25
+    min_interval: int = 4
+    window: int = 3
+    merge: float = 0.1
+    coarse: int = 16
+    fine: int = 64
+    n_base: int = 64
+    step_size: int = 1
+    deform: dict | None = None
+    criterion: str = "correlation"
+    rigidity: float = 0.002
+    smooth: float = 0.0
+    place_joints: bool = True
+
+
+def learn_structure(volumes, frames=None, options: LearnOptions | None = None, *,
+                    up=(0.0, 0.0, 1.0), name: str | None = None, source: str = "sequence",
+                    progress: bool = False, pergs: list | None = None,
+                    **flat) -> LearnedStructure:
     """Learn the kinematic structure and motion from a sequence of volumes (Mukasa §2).
 
     Parameters
     ----------
     volumes : list of Volume (or of (data, origin, voxel_size) tuples)
     frames : list of frame names (default "000000", ...).
+    options : LearnOptions, optional
+        The options below (``**flat`` changes them by name, e.g. ``tau=0.9``).
     up : the world up axis (names built-in parts; "above" constraints).
     coherence : rule of §2.2 (see :func:`~.structure.coherence_rule`). With ``"frequent"``,
         when no interval is long enough the rule ``"ends"`` is tried before giving up
@@ -290,8 +309,9 @@ def learn_structure(volumes, frames=None, *, up=(0.0, 0.0, 1.0), coherence="freq
     pergs : list of PERG, optional
         Precomputed pERGs of the frames (e.g. to compare settings without recomputing).
     """
-    if criterion not in ("correlation", "rigidity"):
-        raise InputError(f"learn-model: criterion {criterion!r} must be 'correlation' or 'rigidity'")
+    o = replace(options or LearnOptions(), **flat)
+    if o.criterion not in ("correlation", "rigidity"):
+        raise InputError(f"learn-model: criterion {o.criterion!r} must be 'correlation' or 'rigidity'")
     vols = []
     for v in volumes:
         if hasattr(v, "data"):
@@ -310,99 +330,14 @@ def learn_structure(volumes, frames=None, *, up=(0.0, 0.0, 1.0), coherence="freq
     up = np.asarray(up, float)
     up = up / np.linalg.norm(up)
     timings = {}
+    merge, deform, window = o.merge, o.deform, o.window
 
-    # 1. pERG per frame
-    it = range(T)
-    if progress:
-        from tqdm import tqdm
-
-        it = tqdm(it, desc="pERG", unit="frame")
-    G = []
-    tm = {"mesh": 0.0, "geodesic": 0.0, "reeb_perg": 0.0}
-    for f in it:
-        if pergs is not None:
-            g = pergs[f]
-        else:
-            d, o, s = vols[f]
-            if not d.any():
-                raise InputError(f"{source}: frame {frames[f]} has an empty volume")
-            g = perg(d, o, s, coarse=coarse, fine=fine, n_base=n_base, step_size=step_size)
-        for k in tm:
-            tm[k] += g.diagnostics["timings_ms"][k]
-        G.append(g)
-    timings.update({k: v / T for k, v in tm.items()})
+    G = _pergs(vols, frames, pergs, o, progress, source, timings)
     extent = float(np.median([g.diagnostics["extent"] for g in G]))
 
-    # 2. coherent intervals
     t0c = time.perf_counter()
-    sigs = [g.signature() for g in G]
-    rule = coherence_rule(sigs, coherence)
-    coh = [is_coherent(s, rule) for s in sigs]
-    runs = intervals(coh)
-    valid = [(a, b) for a, b in runs if b - a >= max(min_interval, 3)]
-    fallback = None
-    if not valid and coherence == "frequent":
-        # star-like subjects: their junction splits in many ways; accept any loop-free
-        # graph with the usual number of end points
-        rule2 = coherence_rule(sigs, "ends")
-        coh2 = [is_coherent(s, rule2) for s in sigs]
-        runs2 = intervals(coh2)
-        valid2 = [(a, b) for a, b in runs2 if b - a >= max(min_interval, 3)]
-        if valid2:
-            fallback = "ends"
-            rule, coh, runs, valid = rule2, coh2, runs2, valid2
-    pts = [g.positions for g in G]
-    cache = {}
-
-    def sim(i, j):
-        """−chamfer of two pERGs' node sets (stands in for the AMRG similarity of [11])."""
-        if i == j:
-            return 0.0
-        k = (min(i, j), max(i, j))
-        if k not in cache:
-            cache[k] = -chamfer(pts[i], pts[j])
-        return cache[k]
-
-    def spread(frames_, n=40):
-        """At most n frames evenly spread over ``frames_`` (bounds the O(T²) choice)."""
-        if len(frames_) <= n:
-            return list(frames_)
-        return [frames_[i] for i in np.linspace(0, len(frames_) - 1, n).astype(int)]
-
-    status, message = "ok", ""
-    cand = [f for a, b in valid for f in range(a, b)]
-    if not cand:
-        status = "no_coherent_interval"
-        if rule is None:
-            why = "no frame has a loop-free graph (limbs touch in every frame)"
-        elif not any(coh):
-            why = "no frame matches the coherence rule"
-        else:
-            why = (f"coherent frames only in intervals shorter than {max(min_interval, 3)} frames "
-                   f"({', '.join(f'{frames[a]}–{frames[b - 1]}' for a, b in runs)})")
-        if rule is None:
-            rule_txt = "none"
-        else:
-            degs = "any" if rule[1] is None else sorted(rule[1])
-            if degs != "any" and len(degs) > 3:
-                degs = f"{degs[:3]} and {len(degs) - 3} more"
-            rule_txt = f"{rule[0]} end points, branch degrees {degs}"
-        message = (f"{source}: no topologically coherent interval (Mukasa §2.2; rule: {rule_txt}): "
-                   f"{why}. Wrote the best partial structure (the reduced graph of the most "
-                   f"typical frame) without joints.")
-        common = Counter((e, b) for e, b, l in sigs).most_common(1)[0][0]
-        pool = [f for f in range(T) if sigs[f][:2] == common] or list(range(T))
-        ref = spread(pool)
-        t0 = max(spread(pool), key=lambda f: sum(sim(f, j) for j in ref))
-    else:
-        pool = [f for f in range(T) if coh[f]]
-        ref = spread(pool)
-        # the initial model has the most frequent signature of the usable frames (the most
-        # typical graph), then the highest similarity to all coherent frames (§2.3)
-        typical = Counter(sigs[f] for f in cand).most_common(1)[0][0]
-        cand = [f for f in cand if sigs[f] == typical]
-        t0 = max(spread(cand), key=lambda f: sum(sim(f, j) for j in ref))
-
+    sigs, rule, coh, runs, valid, fallback, status, message, t0, sim = _initial_frame(
+        G, frames, o, source)
     timings["coherence"] = 1e3 * (time.perf_counter() - t0c) / T   # with the initial frame
     g0 = _tree_of(G[t0])
     n = g0.n
@@ -431,72 +366,14 @@ def learn_structure(volumes, frames=None, *, up=(0.0, 0.0, 1.0), coherence="freq
     # 4–5. rigid pieces per coherent interval, integrated per branch
     t0k = time.perf_counter()
 
-    def structure_for(merge_dist):
-        """Steps 4–6 with branch points closer than ``merge_dist`` merged into junctions."""
-        deg, groups = _junction_groups(g0.positions, E0, n, merge_dist)
-        group_of = {v: i for i, gr in enumerate(groups) for v in gr}
-        leaves = [v for v in range(n) if deg[v] == 1]
-        all_chains = chains(n, E0)
-        branch_chains = [ch for ch in all_chains
-                         if not (ch[0] in group_of and ch[-1] in group_of and group_of[ch[0]] == group_of[ch[-1]])]
-        cuts_per_chain = {}
-        per_interval = []
-        for ci, ch in enumerate(branch_chains):
-            best = ([], -1, 0)
-            for a, b in (valid if status == "ok" else []):
-                traj = Q[a:b]
-                if smooth > 0:
-                    from scipy.ndimage import gaussian_filter1d
-
-                    traj = gaussian_filter1d(traj, smooth, axis=0, mode="nearest")
-                Rm = _affinity(traj, ch, criterion, low_motion, rigidity * extent)
-                cuts = _clean_cuts(segment_chain(Rm, tau if criterion == "correlation" else 0.0), ch, deg)
-                per_interval.append({"interval": [frames[a], frames[b - 1]], "chain": ci, "joints": len(cuts)})
-                if (len(cuts), b - a) > (len(best[0]), best[2]):
-                    best = (cuts, a, b - a)
-            cuts_per_chain[ci] = best[0]
-
-        # 6. the integrated structure: vertices and their per-frame positions
-        key_pos = {}          # key id -> (T, 3)
-        for v in leaves:
-            key_pos[("end", v)] = Q[:, v]
-        for i, gr in enumerate(groups):
-            key_pos[("junction", i)] = Q[:, gr].mean(1)
-
-        def key_of(v):
-            return ("end", v) if deg[v] == 1 else ("junction", group_of[v])
-
-        key_edges, chain_info = [], []
-        seg_len = []
-        for ci, ch in enumerate(branch_chains):
-            a, b = key_of(ch[0]), key_of(ch[-1])
-            cuts = cuts_per_chain[ci]
-            jpos = joint_positions(Q, ch, cuts, key_pos[a], key_pos[b],
-                                   a[0] == "junction", b[0] == "junction") if place_joints else \
-                [(Q[:, ch[c - 1]] + Q[:, ch[c]]) / 2 for c in cuts]
-            seq = [key_pos[a], *jpos, key_pos[b]]
-            lens = [float(np.median(np.linalg.norm(seq[i + 1] - seq[i], axis=1))) for i in range(len(seq) - 1)]
-            key_edges.append((a, b))
-            chain_info.append((a, b, jpos, lens))
-            seg_len.append(sum(lens))
-        keys = list(key_pos)
-        heights = {k: float(np.median(key_pos[k] @ up)) for k in keys}
-
-        def up_ok(a, b):
-            return float(np.mean((key_pos[a] - key_pos[b]) @ up > 0))
-
-        names, builtin = _name_parts(keys, key_edges, seg_len, heights, up_ok)
-        return (deg, groups, leaves, branch_chains, cuts_per_chain, per_interval, key_pos,
-                key_edges, chain_info, seg_len, keys, heights, up_ok, names, builtin)
-
-    st = structure_for(merge * extent)
+    st = _structure(g0, E0, n, merge * extent, valid, status, Q, extent, frames, up, o)
     merged = merge
     if st[-1] is None:
         # not (yet) a built-in subject: junctions split in the initial graph (e.g. a spider's
         # 9-limbed cephalothorax) may need a larger merge distance to reveal one
         for mf in (0.2, 0.3):
             if mf > merge:
-                st2 = structure_for(mf * extent)
+                st2 = _structure(g0, E0, n, mf * extent, valid, status, Q, extent, frames, up, o)
                 if st2[-1] is not None:
                     st, merged = st2, mf
                     break
@@ -504,57 +381,9 @@ def learn_structure(volumes, frames=None, *, up=(0.0, 0.0, 1.0), coherence="freq
      key_edges, chain_info, seg_len, keys, heights, up_ok, names, builtin) = st
     timings["cluster_integrate"] = 1e3 * (time.perf_counter() - t0k) / T     # §2.3–2.4, joints
     t0f = time.perf_counter()
-    # full joint tree
-    full_edges, joints_t = [], [dict() for _ in range(T)]
-    for k in keys:
-        for f in range(T):
-            joints_t[f][names[k]] = key_pos[k][f]
-    for (a, b, jpos, lens) in chain_info:
-        na, nb = names[a], names[b]
-        if a[0] == "end":          # number the joints from the end point inwards
-            stem, order_j = na, list(range(len(jpos)))
-            seqn = [na] + [f"{stem}_j{i + 1}" for i in order_j] + [nb]
-        elif b[0] == "end":
-            stem = nb
-            seqn = [na] + [f"{stem}_j{len(jpos) - i}" for i in range(len(jpos))] + [nb]
-        else:
-            stem = f"{na}_{nb}"
-            seqn = [na] + [f"{stem}_j{i + 1}" for i in range(len(jpos))] + [nb]
-        for i, p in enumerate(jpos):
-            for f in range(T):
-                joints_t[f][seqn[i + 1]] = p[f]
-        for i in range(len(seqn) - 1):
-            full_edges.append((seqn[i], seqn[i + 1], lens[i]))
-    full = Tree(full_edges) if full_edges else (Tree([], vertices=[names[keys[0]]]) if len(keys) == 1 else None)
-    segments = [(u, v) for u, v, _ in full_edges]
-
-    # the reduced model (homeomorphic reduction of the joint tree)
-    from topopose.pose.model import Model
-
-    red_edges = [(names[a], names[b], max(L, 1e-6)) for (a, b), L in zip(key_edges, seg_len)]
-    cons = []
-    if builtin is not None:
-        inv = {v: k for k, v in names.items()}
-        for c in builtin.constraints:
-            if c.kind in ("above", "below") and all(p in inv for p in c.parts[:2]):
-                frac = up_ok(inv[c.parts[0]], inv[c.parts[1]])
-                if (frac if c.kind == "above" else 1 - frac) >= 0.95:
-                    cons.append(c)
-            elif c.kind == "between":
-                pass  # chirality is not learned
-        root = builtin.root
-        mname = name or f"{builtin.name}_learned"
-    else:
-        jn = [names[k] for k in keys if k[0] == "junction"]
-        degs = Counter(p for e in red_edges for p in e[:2])
-        root = max(jn, key=lambda p: degs[p]) if jn else None
-        mname = name or "learned"
-    model = None
-    if red_edges:
-        desc = (f"learned by topopose learn-model (Mukasa et al.) from {source}: "
-                f"{len(full.vertices)} joints, {sum(coh)}/{T} coherent frames")
-        model = Model(name=mname, tree=Tree(red_edges, constraints=cons), root=root, complete=True,
-                      description=desc)
+    full, joints_t, segments, model = _learned_models(keys, names, key_pos, chain_info, key_edges,
+                                                      seg_len, builtin, up_ok, T, coh, source,
+                                                      name)
     timings["model"] = 1e3 * (time.perf_counter() - t0f) / T
     diag = {"timings_ms_per_frame": timings, "extent": extent, "nodes": n,
             "per_interval": per_interval, "builtin": builtin.name if builtin is not None else None,
@@ -732,6 +561,228 @@ def joint_metrics(detected, truth, height: float) -> tuple:
     return S / len(M), float(d.min(1).mean() / height)
 
 
+def _pergs(vols, frames, pergs, o, progress, source, timings) -> list:
+    """Step 1: the pERG of each frame (or the given ones), their mean timings in ``timings``."""
+    T = len(vols)
+    coarse, fine, n_base, step_size = o.coarse, o.fine, o.n_base, o.step_size
+    # 1. pERG per frame
+    it = range(T)
+    if progress:
+        from tqdm import tqdm
+
+        it = tqdm(it, desc="pERG", unit="frame")
+    G = []
+    tm = {"mesh": 0.0, "geodesic": 0.0, "reeb_perg": 0.0}
+    for f in it:
+        if pergs is not None:
+            g = pergs[f]
+        else:
+            d, o, s = vols[f]
+            if not d.any():
+                raise InputError(f"{source}: frame {frames[f]} has an empty volume")
+            g = perg(d, o, s, coarse=coarse, fine=fine, n_base=n_base, step_size=step_size)
+        for k in tm:
+            tm[k] += g.diagnostics["timings_ms"][k]
+        G.append(g)
+    timings.update({k: v / T for k, v in tm.items()})
+    return G
+
+
+def _initial_frame(G, frames, o, source):
+    """Step 2: the coherent intervals (§2.2) and the initial frame (§2.3): ``(sigs, rule, coh,
+    runs, valid, fallback, status, message, t0, sim)``, ``sim`` the frames' similarity."""
+    T = len(G)
+    coherence, min_interval = o.coherence, o.min_interval
+    sigs = [g.signature() for g in G]
+    rule = coherence_rule(sigs, coherence)
+    coh = [is_coherent(s, rule) for s in sigs]
+    runs = intervals(coh)
+    valid = [(a, b) for a, b in runs if b - a >= max(min_interval, 3)]
+    fallback = None
+    if not valid and coherence == "frequent":
+        # star-like subjects: their junction splits in many ways; accept any loop-free
+        # graph with the usual number of end points
+        rule2 = coherence_rule(sigs, "ends")
+        coh2 = [is_coherent(s, rule2) for s in sigs]
+        runs2 = intervals(coh2)
+        valid2 = [(a, b) for a, b in runs2 if b - a >= max(min_interval, 3)]
+        if valid2:
+            fallback = "ends"
+            rule, coh, runs, valid = rule2, coh2, runs2, valid2
+    pts = [g.positions for g in G]
+    cache = {}
+
+    def sim(i, j):
+        """−chamfer of two pERGs' node sets (stands in for the AMRG similarity of [11])."""
+        if i == j:
+            return 0.0
+        k = (min(i, j), max(i, j))
+        if k not in cache:
+            cache[k] = -chamfer(pts[i], pts[j])
+        return cache[k]
+
+    def spread(frames_, n=40):
+        """At most n frames evenly spread over ``frames_`` (bounds the O(T²) choice)."""
+        if len(frames_) <= n:
+            return list(frames_)
+        return [frames_[i] for i in np.linspace(0, len(frames_) - 1, n).astype(int)]
+
+    status, message = "ok", ""
+    cand = [f for a, b in valid for f in range(a, b)]
+    if not cand:
+        status = "no_coherent_interval"
+        if rule is None:
+            why = "no frame has a loop-free graph (limbs touch in every frame)"
+        elif not any(coh):
+            why = "no frame matches the coherence rule"
+        else:
+            why = (f"coherent frames only in intervals shorter than {max(min_interval, 3)} frames "
+                   f"({', '.join(f'{frames[a]}–{frames[b - 1]}' for a, b in runs)})")
+        if rule is None:
+            rule_txt = "none"
+        else:
+            degs = "any" if rule[1] is None else sorted(rule[1])
+            if degs != "any" and len(degs) > 3:
+                degs = f"{degs[:3]} and {len(degs) - 3} more"
+            rule_txt = f"{rule[0]} end points, branch degrees {degs}"
+        message = (f"{source}: no topologically coherent interval (Mukasa §2.2; rule: {rule_txt}): "
+                   f"{why}. Wrote the best partial structure (the reduced graph of the most "
+                   f"typical frame) without joints.")
+        common = Counter((e, b) for e, b, l in sigs).most_common(1)[0][0]
+        pool = [f for f in range(T) if sigs[f][:2] == common] or list(range(T))
+        ref = spread(pool)
+        t0 = max(spread(pool), key=lambda f: sum(sim(f, j) for j in ref))
+    else:
+        pool = [f for f in range(T) if coh[f]]
+        ref = spread(pool)
+        # the initial model has the most frequent signature of the usable frames (the most
+        # typical graph), then the highest similarity to all coherent frames (§2.3)
+        typical = Counter(sigs[f] for f in cand).most_common(1)[0][0]
+        cand = [f for f in cand if sigs[f] == typical]
+        t0 = max(spread(cand), key=lambda f: sum(sim(f, j) for j in ref))
+
+    return sigs, rule, coh, runs, valid, fallback, status, message, t0, sim
+
+
+def _structure(g0, E0, n, merge_dist, valid, status, Q, extent, frames, up, o):
+    """Steps 4–6 with branch points closer than ``merge_dist`` merged into junctions."""
+    smooth, criterion, low_motion, rigidity, tau, place_joints = (
+        o.smooth, o.criterion, o.low_motion, o.rigidity, o.tau, o.place_joints)
+    deg, groups = _junction_groups(g0.positions, E0, n, merge_dist)
+    group_of = {v: i for i, gr in enumerate(groups) for v in gr}
+    leaves = [v for v in range(n) if deg[v] == 1]
+    all_chains = chains(n, E0)
+    branch_chains = [ch for ch in all_chains
+                     if not (ch[0] in group_of and ch[-1] in group_of and group_of[ch[0]] == group_of[ch[-1]])]
+    cuts_per_chain = {}
+    per_interval = []
+    for ci, ch in enumerate(branch_chains):
+        best = ([], -1, 0)
+        for a, b in (valid if status == "ok" else []):
+            traj = Q[a:b]
+            if smooth > 0:
+                from scipy.ndimage import gaussian_filter1d
+
+                traj = gaussian_filter1d(traj, smooth, axis=0, mode="nearest")
+            Rm = _affinity(traj, ch, criterion, low_motion, rigidity * extent)
+            cuts = _clean_cuts(segment_chain(Rm, tau if criterion == "correlation" else 0.0), ch, deg)
+            per_interval.append({"interval": [frames[a], frames[b - 1]], "chain": ci, "joints": len(cuts)})
+            if (len(cuts), b - a) > (len(best[0]), best[2]):
+                best = (cuts, a, b - a)
+        cuts_per_chain[ci] = best[0]
+
+    # 6. the integrated structure: vertices and their per-frame positions
+    key_pos = {}          # key id -> (T, 3)
+    for v in leaves:
+        key_pos[("end", v)] = Q[:, v]
+    for i, gr in enumerate(groups):
+        key_pos[("junction", i)] = Q[:, gr].mean(1)
+
+    def key_of(v):
+        return ("end", v) if deg[v] == 1 else ("junction", group_of[v])
+
+    key_edges, chain_info = [], []
+    seg_len = []
+    for ci, ch in enumerate(branch_chains):
+        a, b = key_of(ch[0]), key_of(ch[-1])
+        cuts = cuts_per_chain[ci]
+        jpos = joint_positions(Q, ch, cuts, key_pos[a], key_pos[b],
+                               a[0] == "junction", b[0] == "junction") if place_joints else \
+            [(Q[:, ch[c - 1]] + Q[:, ch[c]]) / 2 for c in cuts]
+        seq = [key_pos[a], *jpos, key_pos[b]]
+        lens = [float(np.median(np.linalg.norm(seq[i + 1] - seq[i], axis=1))) for i in range(len(seq) - 1)]
+        key_edges.append((a, b))
+        chain_info.append((a, b, jpos, lens))
+        seg_len.append(sum(lens))
+    keys = list(key_pos)
+    heights = {k: float(np.median(key_pos[k] @ up)) for k in keys}
+
+    def up_ok(a, b):
+        return float(np.mean((key_pos[a] - key_pos[b]) @ up > 0))
+
+    names, builtin = _name_parts(keys, key_edges, seg_len, heights, up_ok)
+    return (deg, groups, leaves, branch_chains, cuts_per_chain, per_interval, key_pos,
+            key_edges, chain_info, seg_len, keys, heights, up_ok, names, builtin)
+
+
+def _learned_models(keys, names, key_pos, chain_info, key_edges, seg_len, builtin, up_ok, T,
+                    coh, source, name):
+    """The full joint tree, the joints' per-frame positions and the reduced model (the
+    homeomorphic reduction of the joint tree): ``(full, joints_t, segments, model)``."""
+    # full joint tree
+    full_edges, joints_t = [], [dict() for _ in range(T)]
+    for k in keys:
+        for f in range(T):
+            joints_t[f][names[k]] = key_pos[k][f]
+    for (a, b, jpos, lens) in chain_info:
+        na, nb = names[a], names[b]
+        if a[0] == "end":          # number the joints from the end point inwards
+            stem, order_j = na, list(range(len(jpos)))
+            seqn = [na] + [f"{stem}_j{i + 1}" for i in order_j] + [nb]
+        elif b[0] == "end":
+            stem = nb
+            seqn = [na] + [f"{stem}_j{len(jpos) - i}" for i in range(len(jpos))] + [nb]
+        else:
+            stem = f"{na}_{nb}"
+            seqn = [na] + [f"{stem}_j{i + 1}" for i in range(len(jpos))] + [nb]
+        for i, p in enumerate(jpos):
+            for f in range(T):
+                joints_t[f][seqn[i + 1]] = p[f]
+        for i in range(len(seqn) - 1):
+            full_edges.append((seqn[i], seqn[i + 1], lens[i]))
+    full = Tree(full_edges) if full_edges else (Tree([], vertices=[names[keys[0]]]) if len(keys) == 1 else None)
+    segments = [(u, v) for u, v, _ in full_edges]
+
+    # the reduced model (homeomorphic reduction of the joint tree)
+    from topopose.pose.model import Model
+
+    red_edges = [(names[a], names[b], max(L, 1e-6)) for (a, b), L in zip(key_edges, seg_len)]
+    cons = []
+    if builtin is not None:
+        inv = {v: k for k, v in names.items()}
+        for c in builtin.constraints:
+            if c.kind in ("above", "below") and all(p in inv for p in c.parts[:2]):
+                frac = up_ok(inv[c.parts[0]], inv[c.parts[1]])
+                if (frac if c.kind == "above" else 1 - frac) >= 0.95:
+                    cons.append(c)
+            elif c.kind == "between":
+                pass  # chirality is not learned
+        root = builtin.root
+        mname = name or f"{builtin.name}_learned"
+    else:
+        jn = [names[k] for k in keys if k[0] == "junction"]
+        degs = Counter(p for e in red_edges for p in e[:2])
+        root = max(jn, key=lambda p: degs[p]) if jn else None
+        mname = name or "learned"
+    model = None
+    if red_edges:
+        desc = (f"learned by topopose learn-model (Mukasa et al.) from {source}: "
+                f"{len(full.vertices)} joints, {sum(coh)}/{T} coherent frames")
+        model = Model(name=mname, tree=Tree(red_edges, constraints=cons), root=root, complete=True,
+                      description=desc)
+    return full, joints_t, segments, model
+
+
 # --------------------------------------------------------------------------- captures
 def learn_model(capture, resolution: int = 100, frames=None, *, progress: bool = False,
                 **kwargs) -> LearnedStructure:
@@ -777,60 +828,3 @@ def learn_model(capture, resolution: int = 100, frames=None, *, progress: bool =
 #: coherent intervals shorter than this give learned models whose parts may be mislabelled
 #: (6 random frames can give a model that swaps head and hand, yet frames "match")
 MIN_COHERENT_FRAMES = 10
-
-
-def learn_model_cli(args) -> int:
-    """``topopose learn-model CAPTURE --out MODEL.toml [--resolution N] [--joints F.jsonl]
-    [--frames RANGE] [--coherence frequent|human] [--criterion correlation|rigidity]``.
-
-    Writes MODEL.toml (the reduced tree for ``topopose run``), MODEL.joints.toml (the
-    full joint tree, also a valid model file) and, with ``--joints``, the per-frame joints
-    and segments as JSON Lines. Exit 0 on success, 1 when no coherent interval was found
-    (the best partial structure is written and the reason printed), 2 for unusable input.
-    """
-    import sys
-
-    out = Path(args.out)
-    if out.suffix.lower() != ".toml":
-        raise InputError(f"--out {out}: the model file must end in .toml")
-    from topopose.capture import load_capture
-
-    cap = load_capture(args.capture)
-    synth = (cap.gt or {}).get("synth") or {} if isinstance(cap.gt, dict) else {}
-    if synth.get("motion") == "random":
-        raise InputError(f"{args.capture}: learn-model needs a motion sequence, and this synthetic "
-                         "capture holds independent random poses (gt.json synth.motion = 'random'): "
-                         "no motion to learn the rigid parts from; try `topopose synth DIR --motion walk`")
-    frames = None
-    if getattr(args, "frames", None):
-        from topopose.batch.run import select_frames
-
-        frames = select_frames(cap, args.frames)
-    res = learn_model(cap, resolution=args.resolution, frames=frames, progress=sys.stderr.isatty(),
-                      coherence=getattr(args, "coherence", "frequent"),
-                      criterion=getattr(args, "criterion", "correlation"))
-    if res.model is None:
-        print(f"topopose: error: {res.message or 'no structure found'}; nothing written", file=sys.stderr)
-        return 1
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if res.model is not None:
-        res.model.save(out)
-        fm = res.full_model()
-        if fm is not None:
-            fm.save(out.with_suffix(".joints.toml"))
-    if getattr(args, "joints", None):
-        res.write_jsonl(args.joints)
-    print(f"{res.diagnostics.get('builtin') or 'learned'} structure: "
-          f"{len(res.full.vertices) if res.full else 0} joints, model parts "
-          f"{res.model.parts if res.model else []}; coherent frames {sum(res.coherent)}/{len(res.frames)}; "
-          f"wrote {out}" + (f" and {out.with_suffix('.joints.toml')}" if res.model else ""))
-    if res.status != "ok":
-        print(f"topopose: warning: {res.message}", file=sys.stderr)
-        return 1
-    longest = max((b - a for a, b in res.intervals), default=0)
-    if longest < MIN_COHERENT_FRAMES:
-        print(f"topopose: warning: the longest topologically coherent interval has {longest} frames "
-              f"(fewer than {MIN_COHERENT_FRAMES}): too short to tell the rigid parts apart "
-              "reliably (parts may be mislabelled, e.g. head and hand swapped); learn from a longer "
-              "sequence of smooth motion", file=sys.stderr)
-    return 0

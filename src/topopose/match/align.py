@@ -64,7 +64,6 @@ _NO_POS = np.zeros((0, 3))
 # Leaf arcs are unaffected (a deleted leaf arc is a missing part, not a contraction). Measured
 # in studies/real_align.py (docs/accuracy.md). The default of
 # FrameEstimator(keep_junctions=None); Matcher and align() keep the thesis' AHA (False).
-KEEP_CONSTRAINED_JUNCTIONS = True
 
 
 # ---------------------------------------------------------------------- cost function
@@ -621,7 +620,7 @@ class Matcher:
     up : the up vector for coordinate constraints without an axis (§12.2.1)
     rtol : relative tolerance defining co-optimal alternatives
     keep_junctions : forbid deleting (contracting) a pattern arc between two junctions that
-        carries a coordinate constraint (:data:`KEEP_CONSTRAINED_JUNCTIONS`); default off. A
+        carries a coordinate constraint (the per-frame estimator's ``keep_junctions``, on by default); default off. A
         data tree too small to keep it (every alignment infinite) gets the thesis' alignment,
         flagged ``diagnostics["junctions_contracted"]``
 
@@ -674,7 +673,7 @@ class Matcher:
 
     def constrained_junction_arcs(self) -> list:
         """Pattern items (arcs) whose both ends are junctions (degree > 1) and which carry a
-        coordinate constraint (:data:`KEEP_CONSTRAINED_JUNCTIONS`)."""
+        coordinate constraint (the per-frame estimator's ``keep_junctions``, on by default)."""
         P = self._P
         adj = self.pattern.adjacency()
         out = []

@@ -117,7 +117,8 @@ def _frame_numbers(poses):
     return nums
 
 
-def write_trc(path, poses, parts, fps=25.0, units="m", up="+z", y_up=True, labels=None) -> Path:
+def write_trc(path, poses, parts, fps=25.0, units="m", up="+z", y_up=True, labels=None,
+              name=None) -> Path:
     """Write an OpenSim ``.trc`` marker file, in metres.
 
     Parameters
@@ -130,6 +131,9 @@ def write_trc(path, poses, parts, fps=25.0, units="m", up="+z", y_up=True, label
         OpenSim's convention.
     labels : dict, optional
         Marker label of each name (e.g. :data:`OPENSIM_LABELS`); unlisted names are kept.
+    name : str, optional
+        The file name the header records (default ``path``'s): the final name when ``path``
+        is a temporary file renamed at the end.
     """
     path = Path(path)
     poses = sort_poses(poses)
@@ -139,7 +143,7 @@ def write_trc(path, poses, parts, fps=25.0, units="m", up="+z", y_up=True, label
     nums = _frame_numbers(poses)
     n, m = len(poses), len(parts)
     fps = float(fps or 25.0)
-    lines = [f"PathFileType\t4\t(X/Y/Z)\t{path.name}",
+    lines = [f"PathFileType\t4\t(X/Y/Z)\t{name or path.name}",
              "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\t"
              "OrigDataStartFrame\tOrigNumFrames",
              f"{fps:.2f}\t{fps:.2f}\t{n}\t{m}\tm\t{fps:.2f}\t{(nums[0] + 1) if nums else 1}\t{n}",

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -67,7 +68,8 @@ class Pose:
         d = {"frame": str(self.frame), "status": self.status,
              "distance": None if self.distance is None or not math.isfinite(self.distance)
              else float(self.distance),
-             "parts": {str(k): (None if v is None else [float(x) for x in np.asarray(v).ravel()])
+             "parts": {str(k): (None if v is None or not np.all(np.isfinite(v))   # unplaced
+                                else [float(x) for x in np.asarray(v).ravel()])
                        for k, v in self.parts.items()},
              "error": self.error,
              "timings_ms": {k: round(float(v), 3) for k, v in self.timings_ms.items()}}
@@ -75,7 +77,7 @@ class Pose:
             d["diagnostics"] = _jsonable(self.diagnostics)
         if self.joints:
             d["joints"] = {str(k): [float(x) for x in np.asarray(v).ravel()]
-                           for k, v in self.joints.items()}
+                           for k, v in self.joints.items() if np.all(np.isfinite(v))}
         return d
 
     def to_json(self) -> str:
@@ -83,30 +85,58 @@ class Pose:
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "poses") -> "Pose":
+        """A pose from its JSON object; every field checked (positions: three finite numbers
+        within :data:`MAX_COORDINATE`), InputError naming ``source`` and the field."""
         if not isinstance(d, dict) or "frame" not in d or "status" not in d:
             raise InputError(f"{source}: expected an object with 'frame' and 'status'")
-        if d["status"] not in STATUSES:
-            raise InputError(f"{source}: status {d['status']!r} must be one of {STATUSES}")
-        parts = {}
-        for k, v in (d.get("parts") or {}).items():
-            if v is None:
-                parts[k] = None
-            else:
-                a = np.asarray(v, dtype=float)
-                if a.shape != (3,):
-                    raise InputError(f"{source}: parts.{k} must be [x, y, z] or null")
-                parts[k] = a
-        joints = {}
-        for k, v in (d.get("joints") or {}).items():
-            a = np.asarray(v, dtype=float)
-            if a.shape != (3,):
-                raise InputError(f"{source}: joints.{k} must be [x, y, z]")
-            joints[k] = a
+        if not isinstance(d["frame"], (str, int)) or isinstance(d["frame"], bool):
+            raise InputError(f"{source}: field 'frame' must be a frame name, got {d['frame']!r}"[:300])
+        if not isinstance(d["status"], str) or d["status"] not in STATUSES:
+            raise InputError(f"{source}: status {d['status']!r} must be one of {STATUSES}"[:300])
+        for key in ("parts", "joints", "timings_ms", "diagnostics"):
+            if d.get(key) is not None and not isinstance(d[key], dict):
+                raise InputError(f"{source}: field '{key}' must be an object")
+        parts = {k: None if v is None else _point(v, f"{source}: parts.{k}")
+                 for k, v in (d.get("parts") or {}).items()}
+        joints = {k: _point(v, f"{source}: joints.{k}") for k, v in (d.get("joints") or {}).items()}
         dist = d.get("distance")
+        if dist is not None and not _number(dist, finite=True):
+            raise InputError(f"{source}: field 'distance' must be a finite number or null, "
+                             f"got {dist!r}"[:300])
+        if d.get("error") is not None and not isinstance(d["error"], str):
+            raise InputError(f"{source}: field 'error' must be a text or null")
         return cls(frame=str(d["frame"]), status=d["status"],
                    distance=None if dist is None else float(dist), parts=parts,
                    error=d.get("error"), timings_ms=dict(d.get("timings_ms") or {}),
                    diagnostics=dict(d.get("diagnostics") or {}), joints=joints)
+
+
+#: the largest position coordinate a poses file may hold (capture units): far beyond any
+#: capture volume, small enough that distances and squares stay finite
+MAX_COORDINATE = 1e9
+
+
+def _number(x, finite=False) -> bool:
+    """A JSON number (not a boolean); with ``finite``, one that is a finite float."""
+    if not isinstance(x, numbers.Real) or isinstance(x, (bool, np.bool_)):
+        return False
+    try:
+        return not finite or math.isfinite(float(x))
+    except OverflowError:                        # an integer beyond any float
+        return False
+
+
+def _point(v, where) -> np.ndarray:
+    """``[x, y, z]`` of finite numbers within :data:`MAX_COORDINATE`, else InputError."""
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if not (isinstance(v, (list, tuple)) and len(v) == 3 and all(_number(x) for x in v)):
+        raise InputError(f"{where} must be [x, y, z] (three numbers)"[:300])
+    a = np.asarray(v, dtype=float) if all(_number(x, finite=True) for x in v) else np.full(3, np.inf)
+    if not np.all(np.isfinite(a)) or np.any(np.abs(a) > MAX_COORDINATE):
+        raise InputError(f"{where} must be finite coordinates within ±{MAX_COORDINATE:g}, "
+                         f"got {list(v)}"[:300])
+    return a
 
 
 def is_header(d) -> bool:
@@ -127,7 +157,7 @@ def read_header(path) -> dict | None:
         raise InputError(f"{path}: cannot read poses ({exc})") from None
     try:
         d = json.loads(first)
-    except json.JSONDecodeError:
+    except (ValueError, RecursionError):         # not JSON (or nested beyond reading)
         return None
     return d if is_header(d) else None
 
@@ -152,10 +182,11 @@ def read_poses(path, strict: bool = True) -> list:
             continue
         try:
             d = json.loads(line)
-        except json.JSONDecodeError as exc:
+        except (ValueError, RecursionError) as exc:   # also numbers too long, nesting too deep
             if not strict and i == len(lines) - 1:
                 break
-            raise InputError(f"{path}: line {i + 1} is not JSON ({exc})") from None
+            raise InputError(f"{path}: line {i + 1} is not JSON "
+                             f"({str(exc)[:200] or type(exc).__name__})") from None
         if is_header(d):
             continue
         p = Pose.from_dict(d, source=f"{path}: line {i + 1}")

@@ -22,7 +22,7 @@ __all__ = ["edge_lengths", "subject_model", "two_pass"]
 def edge_lengths(model: Model, alignment, data) -> dict:
     """Length of every finite model edge in one matched frame: the data-tree path between the
     images of its two parts (normalized weights), or None when a part is unplaced."""
-    from topopose.frame.estimate import path_length
+    from topopose.frame.placement import path_length
 
     adj = data.adjacency()
     out = {}

@@ -99,6 +99,100 @@ def body_scale(poses) -> float:
     return float(np.median(ext)) if ext else 1.0
 
 
+def _prediction(last, prev, last_t, prev_t, t, velocity, max_gap):
+    """Each identity's constant-velocity prediction at frame number ``t`` (NaN: stale)."""
+    pred = last.copy()                        # constant-velocity prediction
+    moving = ~np.isnan(prev).any(axis=1) & (last_t > prev_t)
+    for a in np.flatnonzero(moving):
+        vel = (last[a] - prev[a]) / (last_t[a] - prev_t[a])
+        pred[a] = last[a] + velocity * vel * (t - last_t[a])
+    pred[t - last_t > max_gap] = np.nan    # stale identity: neutral
+    return pred
+
+
+def _costs(pred, obs, seen, gate):
+    """(k, k) distances of the predictions (rows) to the seen observations (columns); an
+    identity never seen costs ``gate``."""
+    k = len(obs)
+    cost = np.zeros((k, k))
+    for a in range(k):
+        for j in range(k):
+            if seen[j]:
+                cost[a, j] = (gate if np.isnan(pred[a]).any()     # never seen: neutral
+                              else np.linalg.norm(pred[a] - obs[j]))
+    return cost
+
+
+def _snap_outliers(candidates, obs, outlier, moved, p, pred, cost, streak, reinit, snap, snapped):
+    """Each outlier of an established identity moved to the free candidate nearest its
+    prediction, within ``snap`` and nearer than the observation (``obs``, ``outlier``,
+    ``moved`` and ``snapped`` updated in place)."""
+    free = np.asarray(candidates, dtype=float).reshape(-1, 3)
+    for j in np.flatnonzero(outlier):
+        a = p[j]
+        if streak[a] < reinit or np.isnan(pred[a]).any() or not len(free):
+            continue
+        d = np.linalg.norm(free - pred[a], axis=1)
+        m = int(np.argmin(d))
+        if d[m] <= snap and d[m] < cost[a, j]:
+            obs[j] = snapped[j] = free[m]
+            outlier[j], moved[j] = False, True
+            free = np.delete(free, m, axis=0)
+
+
+def _relink(p, rel, rel_anchor, anchor, obs, up, gate):
+    """The numbering ``p`` (in place) of a segment after a short gap: the positions relative
+    to the anchor assigned to the identities' last ones (only across the anchor's travel and
+    the up axis when the anchor travelled)."""
+    diff = rel[:, None, :] - (obs - anchor)[None]
+    travel = anchor - rel_anchor
+    if (up is not None and not np.isnan(up).any() and not np.isnan(travel).any()
+            and np.linalg.norm(travel) > 0.25 * gate):
+        lat = np.cross(up, travel)
+        if np.linalg.norm(lat) > 0:
+            diff = diff @ (lat / np.linalg.norm(lat))[:, None]
+    cost = np.linalg.norm(diff, axis=2)
+    rows, cols = linear_sum_assignment(cost)
+    p[cols] = rows
+
+
+def _fresh_state(k):
+    """The state of ``k`` new identities: last and previous positions and frame numbers, the
+    outlier runs and the inlier streaks."""
+    last, prev = np.full((k, 3), np.nan), np.full((k, 3), np.nan)
+    last_t, prev_t = np.full(k, -np.inf), np.full(k, -np.inf)
+    return last, prev, last_t, prev_t, [[] for _ in range(k)], np.zeros(k, dtype=int)
+
+
+def _reinit(fresh, p, cand, obs, t, last, last_t, prev, prev_t, streak):
+    """The identities of the observations ``fresh`` re-initialized at their consistent run of
+    outliers (in place)."""
+    for j in fresh:
+        a = p[j]
+        (t0, x0) = cand[a][-2]
+        prev[a], prev_t[a] = x0, t0
+        last[a], last_t[a] = obs[j], t
+        cand[a].clear()
+        streak[a] = 1
+
+
+def _update(seen, p, obs, t, last, last_t, prev, prev_t, streak, anchor, rel, rel_anchor):
+    """Each identity seen at frame number ``t`` moved to its observation (in place); returns
+    the positions relative to the anchor ``(rel, rel_anchor)``."""
+    k = len(obs)
+    for j in np.flatnonzero(seen):
+        a = p[j]
+        streak[a] = streak[a] + 1 if t - last_t[a] <= 1 else 1
+        prev[a], prev_t[a] = last[a], last_t[a]
+        last[a], last_t[a] = obs[j], t
+        if anchor is not None and not np.isnan(anchor).any():
+            if rel is None or len(rel) != k:
+                rel = np.full((k, 3), np.nan)
+            rel[a] = obs[j] - anchor
+            rel_anchor = anchor
+    return rel, rel_anchor
+
+
 def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, misplaced=None,
                       reinit=3, anchors=None, relink=None, up=None, detail=False,
                       candidates=None, snap=None, snap_run=None):
@@ -144,8 +238,7 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
         per-frame observations behind max(``reinit``, ``snap_run`` + 1) snaps in a row that
         are consistent among themselves re-initialize the identity as outliers do
     snap : largest distance between a prediction and a candidate; default ``gate`` / 2
-    snap_run : see ``candidates``; default ``max_gap`` (a large number: snaps never give way,
-        ``studies/real_snap.py``'s peer)
+    snap_run : see ``candidates``; default ``max_gap`` (a large number: snaps never give way)
 
     Returns
     -------
@@ -163,8 +256,7 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
     segment = np.full(n, -1, dtype=int)
     kmax = max((len(o) for o in observations if o is not None), default=0)
     held = np.zeros((n, kmax), dtype=bool)
-    predicted = np.full((n, kmax, 3), np.nan)
-    snapped = np.full((n, kmax, 3), np.nan)
+    predicted, snapped = np.full((n, kmax, 3), np.nan), np.full((n, kmax, 3), np.nan)
     snap = 0.5 * gate if snap is None else float(snap)
     snap_run = max_gap if snap_run is None else snap_run
     last = prev = last_t = prev_t = None
@@ -186,19 +278,9 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
         lost = last is None or len(last) != k or times[i] - np.max(last_t) > max_gap
         fresh = None
         if not lost:
-            pred = last.copy()                        # constant-velocity prediction
-            moving = ~np.isnan(prev).any(axis=1) & (last_t > prev_t)
-            for a in np.flatnonzero(moving):
-                vel = (last[a] - prev[a]) / (last_t[a] - prev_t[a])
-                pred[a] = last[a] + velocity * vel * (times[i] - last_t[a])
-            pred[times[i] - last_t > max_gap] = np.nan    # stale identity: neutral
+            pred = _prediction(last, prev, last_t, prev_t, times[i], velocity, max_gap)
             predicted[i, :k] = pred
-            cost = np.zeros((k, k))
-            for a in range(k):
-                for j in range(k):
-                    if seen[j]:
-                        cost[a, j] = (gate if np.isnan(pred[a]).any()     # never seen: neutral
-                                      else np.linalg.norm(pred[a] - obs[j]))
+            cost = _costs(pred, obs, seen, gate)
             rows, cols = linear_sum_assignment(cost)
             p = np.empty(k, dtype=int)
             p[cols] = rows
@@ -212,17 +294,8 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
             if candidates is not None and candidates[i] is not None and len(candidates[i]):
                 # an outlier of an established track moves to the free skeleton leaf nearest
                 # its prediction (the frame put the part on another branch: a phantom one)
-                free = np.asarray(candidates[i], dtype=float).reshape(-1, 3)
-                for j in np.flatnonzero(outlier):
-                    a = p[j]
-                    if streak[a] < reinit or np.isnan(pred[a]).any() or not len(free):
-                        continue
-                    d = np.linalg.norm(free - pred[a], axis=1)
-                    m = int(np.argmin(d))
-                    if d[m] <= snap and d[m] < cost[a, j]:
-                        obs[j] = snapped[i, j] = free[m]
-                        outlier[j], moved[j] = False, True
-                        free = np.delete(free, m, axis=0)
+                _snap_outliers(candidates[i], obs, outlier, moved, p, pred, cost, streak, reinit,
+                               snap, snapped[i])
             # only an established track (``reinit`` inlier updates in a row) holds a part: the
             # prediction of a track that follows unrelated poses means nothing
             held[i, :k] = outlier & bad & (streak[p] >= reinit)
@@ -254,44 +327,18 @@ def assign_identities(times, observations, gate, max_gap=5, velocity=0.5, mispla
             if (anchors is not None and rel is not None and len(rel) == k and fresh is None
                     and not np.isnan(anchors[i]).any() and seen.all()
                     and not np.isnan(rel).any() and times[i] - np.max(last_t) <= relink):
-                diff = rel[:, None, :] - (obs - anchors[i])[None]
-                travel = anchors[i] - rel_anchor
-                if (up is not None and not np.isnan(up[i]).any() and not np.isnan(travel).any()
-                        and np.linalg.norm(travel) > 0.25 * gate):
-                    lat = np.cross(up[i], travel)
-                    if np.linalg.norm(lat) > 0:
-                        diff = diff @ (lat / np.linalg.norm(lat))[:, None]
-                cost = np.linalg.norm(diff, axis=2)
-                rows, cols = linear_sum_assignment(cost)
-                p[cols] = rows
+                _relink(p, rel, rel_anchor, anchors[i], obs, None if up is None else up[i], gate)
             seg += 1
-            last, prev = np.full((k, 3), np.nan), np.full((k, 3), np.nan)
-            last_t, prev_t = np.full(k, -np.inf), np.full(k, -np.inf)
-            cand = [[] for _ in range(k)]
-            streak = np.zeros(k, dtype=int)
+            last, prev, last_t, prev_t, cand, streak = _fresh_state(k)
             held[i] = False
             fresh = None
         elif fresh:                                   # some identities re-initialized
             seg += 1
-            for j in fresh:
-                a = p[j]
-                (t0, x0) = cand[a][-2]
-                prev[a], prev_t[a] = x0, t0
-                last[a], last_t[a] = obs[j], times[i]
-                cand[a].clear()
-                streak[a] = 1
+            _reinit(fresh, p, cand, obs, times[i], last, last_t, prev, prev_t, streak)
         perm[i] = p
         segment[i] = seg
-        for j in np.flatnonzero(seen):
-            a = p[j]
-            streak[a] = streak[a] + 1 if times[i] - last_t[a] <= 1 else 1
-            prev[a], prev_t[a] = last[a], last_t[a]
-            last[a], last_t[a] = obs[j], times[i]
-            if anchors is not None and not np.isnan(anchors[i]).any():
-                if rel is None or len(rel) != k:
-                    rel = np.full((k, 3), np.nan)
-                rel[a] = obs[j] - anchors[i]
-                rel_anchor = anchors[i]
+        rel, rel_anchor = _update(seen, p, obs, times[i], last, last_t, prev, prev_t, streak,
+                                  None if anchors is None else anchors[i], rel, rel_anchor)
     if detail:
         return ((perm, segment, held, predicted) if candidates is None
                 else (perm, segment, held, predicted, snapped))

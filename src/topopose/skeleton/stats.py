@@ -164,9 +164,14 @@ def tree_stats_cli(capture_path, out=None, resolutions=(50, 100, 150), incomplet
         png = png.with_suffix(".png")
     table = stats_table(stats)
     print(table)
-    stats_figure(stats, png, title=f"data trees of {path.name}")
-    png.with_suffix(".md").write_text(f"# Data-tree statistics: {path}\n\n{table}\n")
-    png.with_suffix(".json").write_text(json.dumps({str(k): v for k, v in stats.items()}, indent=1))
+    from topopose._paths import atomic_output
+
+    with atomic_output(png, "--out") as tmp:
+        stats_figure(stats, tmp, title=f"data trees of {path.name}")
+    with atomic_output(png.with_suffix(".md"), "--out") as tmp:
+        tmp.write_text(f"# Data-tree statistics: {path}\n\n{table}\n")
+    with atomic_output(png.with_suffix(".json"), "--out") as tmp:
+        tmp.write_text(json.dumps({str(k): v for k, v in stats.items()}, indent=1))
     print(f"wrote {png}, {png.with_suffix('.md')}, {png.with_suffix('.json')}")
     failed = sum(len(r["failed"]) for r in stats.values())
     for res, r in stats.items():

@@ -244,6 +244,199 @@ def _open_closed_loop(coords, nbr, comp_voxels):
 
 
 # --------------------------------------------------------------------------- main entry
+def _check_options(small_cycle, small_loop, labelling):
+    """The options of :func:`data_tree` checked (InputError naming the bad one)."""
+    if not (isinstance(small_cycle, (int, float)) and 0 <= small_cycle <= 1):
+        raise InputError(f"small_cycle: expected a fraction in [0, 1], got {small_cycle!r}")
+    if not (isinstance(small_loop, (int, float)) and not isinstance(small_loop, bool)
+            and 0 <= small_loop < math.inf):
+        raise InputError(f"small_loop: expected a number of voxels ≥ 0, got {small_loop!r}")
+    if labelling not in ("voxels", "ndimage"):
+        raise InputError(f"labelling: expected \"voxels\" or \"ndimage\", got {labelling!r}")
+
+
+def _raw_edges(coords, nbr, deg, cls, comp, ncomp, kept_comp, vid, csize):
+    """The data tree's edges before the cycles are broken: B components (Alg. 13, lines
+    10-11) and direct E–I contacts, digital triangles absorbed; ``(raw, dsteps, triangles)``."""
+    bb, contacts, csteps, direct, dsteps = branch_contacts(coords, nbr, deg, cls, comp, ncomp)
+    order = np.argsort(contacts[:, 0], kind="stable")
+    contacts, csteps = contacts[order], csteps[order]
+    if contacts.shape[0] % 2 or np.any(contacts[0::2, 0] != contacts[1::2, 0]):
+        raise AssertionError("a B component with other than two contacts (impossible for "
+                             "voxels of degree 2)")
+    c1, c2 = contacts[0::2], contacts[1::2]
+    bcomp = c1[:, 0]
+    sel = kept_comp[bcomp]
+    c1, c2, bcomp = c1[sel], c2[sel], bcomp[sel]
+    s1, s2 = csteps[0::2][sel], csteps[1::2][sel]
+    # each edge: u, v, length (voxel units), count, contact voxel at u, contact voxel at v
+    # (and its B component, -1 for none: kept beside the tree for Tree.voxels)
+    raw = list(zip(vid[c1[:, 1]].tolist(), vid[c2[:, 1]].tolist(),
+                   (bb[bcomp] + s1 + s2).tolist(), csize[bcomp].tolist(),
+                   c1[:, 3].tolist(), c2[:, 3].tolist(), bcomp.tolist()))
+    dsel = kept_comp[direct[:, 0]]
+    direct, dsteps = direct[dsel], dsteps[dsel]
+    raw += list(zip(vid[direct[:, 0]].tolist(), vid[direct[:, 1]].tolist(), dsteps.tolist(),
+                    [0] * len(dsteps), direct[:, 2].tolist(), direct[:, 3].tolist(),
+                    [-1] * len(dsteps)))
+
+    # a loop of one B voxel whose two contacts touch each other is a digital triangle
+    # (three mutually adjacent voxels, e.g. the corner of an axis-aligned bend): it encloses
+    # no hole, so it is absorbed into its vertex instead of being read as a limb.
+    triangles = 0
+    kept_raw = []
+    for e in raw:
+        if e[0] == e[1] and e[3] == 1 and np.abs(coords[e[4]] - coords[e[5]]).max() <= 1:
+            triangles += 1
+        else:
+            kept_raw.append(e)
+    raw = kept_raw
+
+    return raw, dsteps, triangles
+
+
+def _break_cycles(raw, nv, positions, vclass, world, coords, vs, small_cycle, small_loop, diag):
+    """Kruskal over the lengths: each rejected edge is the longest of its cycle, dropped (a
+    skeleton bubble) or detached at its contact end as a new leaf (``positions``, ``vclass``
+    and ``diag`` updated); returns ``(edges, n_vertices)``."""
+    parent = list(range(nv))
+
+    def find(x):
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    tree_e, rejected = [], []
+    for e in sorted(raw, key=lambda e: e[2]):  # stable: ties keep construction order
+        ru, rv = find(e[0]), find(e[1])
+        if ru == rv:
+            rejected.append(e)
+        else:
+            parent[ru] = rv
+            tree_e.append(e)
+    adj = [[] for _ in range(nv)]
+    for u, v, length, *_ in tree_e:
+        adj[u].append((v, length))
+        adj[v].append((u, length))
+    dist, centre = _distances_from_centre(nv, adj)
+    total = sum(e[2] for e in raw)
+    mdeg = [0] * nv
+    for u, v, *_ in raw:
+        mdeg[u] += 1
+        mdeg[v] += 1
+    edges = tree_e
+    for u, v, length, count, eu, ev, bc in rejected:
+        diag["loops" if u == v else "cycles_broken"] += 1
+        # the cycle this branch closes: the branch plus the spanning-tree path between its ends
+        # (for a loop, the gap between its two contact voxels inside the vertex component)
+        if u == v:
+            perimeter = length + float(np.linalg.norm(coords[eu] - coords[ev]))
+        else:
+            perimeter = length + _tree_distances(nv, adj, u)[v]
+        if perimeter < small_cycle * total or perimeter <= small_loop:
+            # a skeleton bubble (a small tunnel of the hull): two parallel paths for one
+            # stretch of limb; the longer one is dropped, nothing is detached
+            diag["small_cycles"] += 1
+            diag["dropped_branches"].append(length * vs)
+            mdeg[u] -= 1
+            mdeg[v] -= 1
+            continue
+        if u == v:
+            keep_end, cut_end, cut_vox = u, v, ev
+        else:
+            # detach at the contact end: the lower-degree end (a tip landing on a branch
+            # makes a degree-3 junction, degree 2 once detached); tie: farther from centre
+            if (mdeg[u], -dist[u]) < (mdeg[v], -dist[v]):
+                keep_end, cut_end, cut_vox = v, u, eu
+            else:
+                keep_end, cut_end, cut_vox = u, v, ev
+        mdeg[cut_end] -= 1
+        w = len(positions)
+        positions.append(world[cut_vox])
+        vclass.append("cut")
+        edges.append((keep_end, w, length, count, cut_vox, cut_vox, bc))
+        diag["cuts"].append({"edge": [keep_end, w], "detached_from": cut_end,
+                             "length": length * vs, "loop": u == v,
+                             "perimeter": perimeter * vs})
+    diag["centre"] = centre
+    nv = len(positions)
+    return edges, nv
+
+
+def _border_vertices(border, coords, shape, idx, comp, ncomp, vcomps, ccls, vid, diag) -> set:
+    """Incomplete models (§7.3.3.1): the E components on the border, whose edges become
+    infinite (``diag["border_vertices"]``, ``diag["border_vertex"]``)."""
+    if isinstance(border, str):
+        on = ((coords == 0) | (coords == np.asarray(shape) - 1)).any(1)
+    else:
+        on = border.reshape(-1)[idx]
+    hits = np.bincount(comp[on], minlength=ncomp)
+    bverts = [(int(-hits[c]), int(vid[c])) for c in vcomps if ccls[c] == E_CLASS and hits[c] > 0]
+    bverts.sort()
+    inf_vertices = {v for _, v in bverts}
+    diag["border_vertices"] = [v for _, v in bverts]
+    diag["border_vertex"] = bverts[0][1] if bverts else None
+    return inf_vertices
+
+
+def _components(n, cls, comp, ncomp, scomp, nscomp, coords, origin, vs):
+    """Per-component facts and the data tree's vertices (E components, then I components:
+    Alg. 13, lines 6-9): ``(ccls, csize, dropped, kept_comp, vcomps, vid, world, positions,
+    vclass)``."""
+    # ---- per-component facts (components are numbered in the order of their first voxel)
+    first = np.empty(ncomp, np.int64)
+    first[comp[::-1]] = np.arange(n - 1, -1, -1)
+    ccls = cls[first]
+    csize = np.bincount(comp, minlength=ncomp)
+    cscomp = scomp[first]
+    if nscomp > 1:
+        ssize = np.bincount(scomp, minlength=nscomp)
+        keep = int(np.argmax(ssize))
+        dropped = sorted((int(s) for i, s in enumerate(ssize) if i != keep), reverse=True)
+    else:
+        keep, dropped = 0, []
+    kept_comp = cscomp == keep
+
+    # ---- vertices: E components then I components (Alg. 13, lines 6-9)
+    is_vertex = kept_comp & (ccls != B_CLASS)
+    vcomps = np.concatenate([np.flatnonzero(is_vertex & (ccls == E_CLASS)),
+                             np.flatnonzero(is_vertex & (ccls == I_CLASS))])
+    vid = np.full(ncomp, -1, np.int64)
+    vid[vcomps] = np.arange(vcomps.size)
+    world = origin + coords * vs
+    cent = np.stack([np.bincount(comp, weights=world[:, d], minlength=ncomp) for d in range(3)], 1)
+    cent /= csize[:, None]
+    positions = [cent[c] for c in vcomps]
+    vclass = [_CLASS_NAME[int(ccls[c])] for c in vcomps]
+    return ccls, csize, dropped, kept_comp, vcomps, vid, world, positions, vclass
+
+
+def _weighted(edges, inf_vertices, vs, weight, vclass, nv, idx, vid, comp, ncomp, diag):
+    """The weighted edges (infinite at the border vertices) and which voxel makes which
+    vertex or edge (segmentation, thesis §13.3.1.1): ``(out, voxels)``."""
+    out = []
+    for u, v, length, count, *_ in edges:
+        if u in inf_vertices or v in inf_vertices:
+            w = math.inf
+        else:
+            w = length * vs if weight == "length" else float(count)
+        out.append((u, v, w))
+    diag["vertex_class"] = {i: c for i, c in enumerate(vclass)}
+    degs = np.zeros(nv, np.int64)
+    for u, v, _ in out:
+        degs[u] += 1
+        degs[v] += 1
+    diag["max_degree"] = int(degs.max()) if nv else 0
+    # which voxel makes which vertex or edge (segmentation, thesis §13.3.1.1)
+    ecomp = np.full(ncomp, -1, np.int64)
+    for j, e in enumerate(edges):
+        if e[6] >= 0:
+            ecomp[e[6]] = j
+    voxels = {"index": idx, "vertex": vid[comp], "edge": ecomp[comp]}
+    return out, voxels
+
+
 def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, weight="length",
               *, small_cycle=0.03, small_loop=8.0, labelling="voxels") -> Tree:
     """Build the data tree of a curve skeleton (thesis §7.3.3, Alg. 13).
@@ -323,13 +516,7 @@ def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, wei
         skeleton = skeleton.data
     skel = _check_skeleton(skeleton)
     origin, vs, border = _check_params(origin, voxel_size, border, weight, skel.shape)
-    if not (isinstance(small_cycle, (int, float)) and 0 <= small_cycle <= 1):
-        raise InputError(f"small_cycle: expected a fraction in [0, 1], got {small_cycle!r}")
-    if not (isinstance(small_loop, (int, float)) and not isinstance(small_loop, bool)
-            and 0 <= small_loop < math.inf):
-        raise InputError(f"small_loop: expected a number of voxels ≥ 0, got {small_loop!r}")
-    if labelling not in ("voxels", "ndimage"):
-        raise InputError(f"labelling: expected \"voxels\" or \"ndimage\", got {labelling!r}")
+    _check_options(small_cycle, small_loop, labelling)
     shape = skel.shape
     flat = skel.reshape(-1).view(np.uint8)
     nw = flat.size // 8
@@ -354,66 +541,11 @@ def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, wei
             f"neighbours and it holds {squares} full 2x2 squares and {cubes} full 2x2x2 blocks "
             "(a surface or a solid). Thin the volume first (tp.thin / `topopose skeleton`).")
 
-    # ---- per-component facts (components are numbered in the order of their first voxel)
-    first = np.empty(ncomp, np.int64)
-    first[comp[::-1]] = np.arange(n - 1, -1, -1)
-    ccls = cls[first]
-    csize = np.bincount(comp, minlength=ncomp)
-    cscomp = scomp[first]
-    if nscomp > 1:
-        ssize = np.bincount(scomp, minlength=nscomp)
-        keep = int(np.argmax(ssize))
-        dropped = sorted((int(s) for i, s in enumerate(ssize) if i != keep), reverse=True)
-    else:
-        keep, dropped = 0, []
-    kept_comp = cscomp == keep
+    ccls, csize, dropped, kept_comp, vcomps, vid, world, positions, vclass = _components(
+        n, cls, comp, ncomp, scomp, nscomp, coords, origin, vs)
 
-    # ---- vertices: E components then I components (Alg. 13, lines 6-9)
-    is_vertex = kept_comp & (ccls != B_CLASS)
-    vcomps = np.concatenate([np.flatnonzero(is_vertex & (ccls == E_CLASS)),
-                             np.flatnonzero(is_vertex & (ccls == I_CLASS))])
-    vid = np.full(ncomp, -1, np.int64)
-    vid[vcomps] = np.arange(vcomps.size)
-    world = origin + coords * vs
-    cent = np.stack([np.bincount(comp, weights=world[:, d], minlength=ncomp) for d in range(3)], 1)
-    cent /= csize[:, None]
-    positions = [cent[c] for c in vcomps]
-    vclass = [_CLASS_NAME[int(ccls[c])] for c in vcomps]
-
-    # ---- edges: B components (Alg. 13, lines 10-11) and direct E–I contacts
-    bb, contacts, csteps, direct, dsteps = branch_contacts(coords, nbr, deg, cls, comp, ncomp)
-    order = np.argsort(contacts[:, 0], kind="stable")
-    contacts, csteps = contacts[order], csteps[order]
-    if contacts.shape[0] % 2 or np.any(contacts[0::2, 0] != contacts[1::2, 0]):
-        raise AssertionError("a B component with other than two contacts (impossible for "
-                             "voxels of degree 2)")
-    c1, c2 = contacts[0::2], contacts[1::2]
-    bcomp = c1[:, 0]
-    sel = kept_comp[bcomp]
-    c1, c2, bcomp = c1[sel], c2[sel], bcomp[sel]
-    s1, s2 = csteps[0::2][sel], csteps[1::2][sel]
-    # each edge: u, v, length (voxel units), count, contact voxel at u, contact voxel at v
-    # (and its B component, -1 for none: kept beside the tree for Tree.voxels)
-    raw = list(zip(vid[c1[:, 1]].tolist(), vid[c2[:, 1]].tolist(),
-                   (bb[bcomp] + s1 + s2).tolist(), csize[bcomp].tolist(),
-                   c1[:, 3].tolist(), c2[:, 3].tolist(), bcomp.tolist()))
-    dsel = kept_comp[direct[:, 0]]
-    direct, dsteps = direct[dsel], dsteps[dsel]
-    raw += list(zip(vid[direct[:, 0]].tolist(), vid[direct[:, 1]].tolist(), dsteps.tolist(),
-                    [0] * len(dsteps), direct[:, 2].tolist(), direct[:, 3].tolist(),
-                    [-1] * len(dsteps)))
-
-    # a loop of one B voxel whose two contacts touch each other is a digital triangle
-    # (three mutually adjacent voxels, e.g. the corner of an axis-aligned bend): it encloses
-    # no hole, so it is absorbed into its vertex instead of being read as a limb.
-    triangles = 0
-    kept_raw = []
-    for e in raw:
-        if e[0] == e[1] and e[3] == 1 and np.abs(coords[e[4]] - coords[e[5]]).max() <= 1:
-            triangles += 1
-        else:
-            kept_raw.append(e)
-    raw = kept_raw
+    raw, dsteps, triangles = _raw_edges(coords, nbr, deg, cls, comp, ncomp, kept_comp, vid,
+                                        csize)
 
     diag = {"n_voxels": n,
             "voxel_classes": {"E": int(ncls[E_CLASS]), "B": int(ncls[B_CLASS]), "I": int(ncls[I_CLASS])},
@@ -438,102 +570,17 @@ def data_tree(skeleton, origin=(0.0, 0.0, 0.0), voxel_size=1.0, border=None, wei
     # ---- cycles: Kruskal over the lengths; rejected edges are the longest of their cycle
     edges = raw
     if len(raw) > nv - 1:
-        parent = list(range(nv))
-
-        def find(x):
-            while parent[x] != x:
-                parent[x] = parent[parent[x]]
-                x = parent[x]
-            return x
-
-        tree_e, rejected = [], []
-        for e in sorted(raw, key=lambda e: e[2]):  # stable: ties keep construction order
-            ru, rv = find(e[0]), find(e[1])
-            if ru == rv:
-                rejected.append(e)
-            else:
-                parent[ru] = rv
-                tree_e.append(e)
-        adj = [[] for _ in range(nv)]
-        for u, v, length, *_ in tree_e:
-            adj[u].append((v, length))
-            adj[v].append((u, length))
-        dist, centre = _distances_from_centre(nv, adj)
-        total = sum(e[2] for e in raw)
-        mdeg = [0] * nv
-        for u, v, *_ in raw:
-            mdeg[u] += 1
-            mdeg[v] += 1
-        edges = tree_e
-        for u, v, length, count, eu, ev, bc in rejected:
-            diag["loops" if u == v else "cycles_broken"] += 1
-            # the cycle this branch closes: the branch plus the spanning-tree path between its ends
-            # (for a loop, the gap between its two contact voxels inside the vertex component)
-            if u == v:
-                perimeter = length + float(np.linalg.norm(coords[eu] - coords[ev]))
-            else:
-                perimeter = length + _tree_distances(nv, adj, u)[v]
-            if perimeter < small_cycle * total or perimeter <= small_loop:
-                # a skeleton bubble (a small tunnel of the hull): two parallel paths for one
-                # stretch of limb; the longer one is dropped, nothing is detached
-                diag["small_cycles"] += 1
-                diag["dropped_branches"].append(length * vs)
-                mdeg[u] -= 1
-                mdeg[v] -= 1
-                continue
-            if u == v:
-                keep_end, cut_end, cut_vox = u, v, ev
-            else:
-                # detach at the contact end: the lower-degree end (a tip landing on a branch
-                # makes a degree-3 junction, degree 2 once detached); tie: farther from centre
-                if (mdeg[u], -dist[u]) < (mdeg[v], -dist[v]):
-                    keep_end, cut_end, cut_vox = v, u, eu
-                else:
-                    keep_end, cut_end, cut_vox = u, v, ev
-            mdeg[cut_end] -= 1
-            w = len(positions)
-            positions.append(world[cut_vox])
-            vclass.append("cut")
-            edges.append((keep_end, w, length, count, cut_vox, cut_vox, bc))
-            diag["cuts"].append({"edge": [keep_end, w], "detached_from": cut_end,
-                                 "length": length * vs, "loop": u == v,
-                                 "perimeter": perimeter * vs})
-        diag["centre"] = centre
-        nv = len(positions)
+        edges, nv = _break_cycles(raw, nv, positions, vclass, world, coords, vs, small_cycle,
+                                  small_loop, diag)
 
     # ---- incomplete models: E components on the border (§7.3.3.1)
     inf_vertices = set()
     if border is not None and not diag["closed_loop"]:
-        if isinstance(border, str):
-            on = ((coords == 0) | (coords == np.asarray(shape) - 1)).any(1)
-        else:
-            on = border.reshape(-1)[idx]
-        hits = np.bincount(comp[on], minlength=ncomp)
-        bverts = [(int(-hits[c]), int(vid[c])) for c in vcomps if ccls[c] == E_CLASS and hits[c] > 0]
-        bverts.sort()
-        inf_vertices = {v for _, v in bverts}
-        diag["border_vertices"] = [v for _, v in bverts]
-        diag["border_vertex"] = bverts[0][1] if bverts else None
+        inf_vertices = _border_vertices(border, coords, shape, idx, comp, ncomp, vcomps, ccls,
+                                        vid, diag)
 
-    out = []
-    for u, v, length, count, *_ in edges:
-        if u in inf_vertices or v in inf_vertices:
-            w = math.inf
-        else:
-            w = length * vs if weight == "length" else float(count)
-        out.append((u, v, w))
-    diag["vertex_class"] = {i: c for i, c in enumerate(vclass)}
-    degs = np.zeros(nv, np.int64)
-    for u, v, _ in out:
-        degs[u] += 1
-        degs[v] += 1
-    diag["max_degree"] = int(degs.max()) if nv else 0
-    # which voxel makes which vertex or edge (segmentation, thesis §13.3.1.1)
-    ecomp = np.full(ncomp, -1, np.int64)
-    for j, e in enumerate(edges):
-        if e[6] >= 0:
-            ecomp[e[6]] = j
-    voxels = {"index": idx, "vertex": vid[comp], "edge": ecomp[comp]}
+    out, voxels = _weighted(edges, inf_vertices, vs, weight, vclass, nv, idx, vid, comp, ncomp,
+                            diag)
     diag["time_ms"] = (perf_counter() - t0) * 1e3
     return Tree(out, vertices=list(range(nv)), positions=dict(enumerate(positions)),
                 root=diag["border_vertex"], diagnostics=diag, voxels=voxels)

@@ -24,7 +24,6 @@ import mmap
 import time
 from dataclasses import dataclass, field
 from functools import lru_cache
-from itertools import product
 
 import numpy as np
 

@@ -1,0 +1,294 @@
+"""Joints and frames a frame's curves do not give (sequence stage of the kinematic fit): a joint
+held from the last fitted frame, the rest pose of an unseen limb, an unseen arm bent to its
+hand hint or moved towards the hull's shoulder, held joints and short runs of unfitted frames
+interpolated."""
+from __future__ import annotations
+
+import numpy as np
+
+from topopose.sequence.joint_placement import HULL_GATE
+from topopose.sequence.options import DEFAULT, GapOptions
+from topopose.sequence.skeleton_fit import KinematicTree, _directions, forward
+
+GAPS = DEFAULT.gaps
+
+# GapOptions.hold_max = 0.15: m, mean move of the seen joints from the last fitted frame
+# GapOptions.hold_frames = 5: the last fitted frame at most this many frames before (3 → 5:
+#                     random motion, development seeds 51–56, MPJPE median 6.21 → 6.12 cm, frames
+#                     holding joints 7.28 → 7.22; 10 / 15 the same as 5: a part lost across 4–5
+#                     unmatched frames took the rest pose; walks 41–46 4.29 → 4.29, unrelated
+#                     random poses 21–32 unchanged: they fail the motion check)
+
+
+def _continues(prev, start, dt, gap: GapOptions = GAPS):
+    """Whether the last fitted frame ``prev``, ``dt`` frames before, is the same motion:
+    ``dt`` at most ``gap.hold_frames`` and the joints seen in both moved (relative to the first
+    of them, the root when seen) less than ``gap.hold_max`` on average (unrelated random
+    poses: the hands move 0.5–1.5 m; development seeds 21–33 with ``hold_max · dt``: frames
+    holding joints 8.6 → 8.9 cm)."""
+    if prev is None or not 1 <= dt <= gap.hold_frames:
+        return False
+    ok = np.flatnonzero(~np.isnan(start).any(axis=1))
+    if len(ok) == 0:
+        return False
+    d = (start[ok] - start[ok[0]]) - (prev[ok] - prev[ok[0]])
+    return float(np.linalg.norm(d, axis=1).mean()) < gap.hold_max
+
+
+def held_gaps(P, held, t, tree: KinematicTree, L, max_gap=5, hold_max=GAPS.hold_max):
+    """Fill the joints a frame did not see (``held``) from the frames either side that saw
+    them (issue 15: gap filling of short stretches, flagged, never silent).
+
+    A run of at most ``max_gap`` consecutive frames holding joint ``j``, between two fitted
+    frames ``a`` and ``b`` seeing it, the same motion (consecutive frame numbers, and the
+    joints both see moved less than ``hold_max`` per frame relative to the root, as
+    :func:`_continues`): the bone directions of ``j``'s chain held there are interpolated
+    linearly between ``a``'s and ``b``'s, the joints below re-placed with the frame's bone
+    lengths ``L`` (n_frames, n_joints). Unrelated poses (random-motion captures) fail the
+    motion check and keep their fill.
+
+    Parameters
+    ----------
+    P : (n_frames, n_joints, 3) fitted joints (NaN rows: unfitted frames)
+    held : (n_frames, n_joints) bool, the joints each frame did not see
+    t : (n_frames,) frame numbers
+
+    Returns
+    -------
+    P : a copy, filled; filled : (n_frames, n_joints) bool, the joints interpolated.
+    """
+    P = P.copy()
+    n_f = len(P)
+    filled = np.zeros(held.shape, dtype=bool)
+    fitted = ~np.isnan(P).any(axis=(1, 2))
+    seen = fitted[:, None] & ~held
+    order = tree.order()
+    for j in order[1:]:
+        i = 0
+        while i < n_f:
+            if not (fitted[i] and held[i, j]):
+                i += 1
+                continue
+            k = i
+            while k + 1 < n_f and fitted[k + 1] and held[k + 1, j]:
+                k += 1
+            a, b = i - 1, k + 1
+            i = k + 1
+            if a < 0 or b >= n_f or not (seen[a, j] and seen[b, j]) or b - a - 1 > max_gap \
+                    or t[b] - t[a] != b - a or filled[a + 1:b, j].any():
+                continue
+            both = np.flatnonzero(seen[a] & seen[b])
+            both = both[both != tree.root]
+            if len(both) == 0:
+                continue
+            move = np.linalg.norm((P[b, both] - P[b, tree.root]) - (P[a, both] - P[a, tree.root]),
+                                  axis=1).mean()
+            if move >= hold_max * (b - a):
+                continue
+            # the held joints of j's chain from j down (those the frames a and b both saw)
+            sub = [j] + [c for c in order if c != j and _below(tree, c, j)]
+            sub = [c for c in sub if held[a + 1:b, c].all() and seen[a, c] and seen[b, c]]
+            Da, Db = _directions(P[a], tree), _directions(P[b], tree)
+            for f in range(a + 1, b):
+                s = (t[f] - t[a]) / (t[b] - t[a])
+                D = _directions(P[f], tree)
+                D[sub] = (1 - s) * Da[sub] + s * Db[sub]
+                below = [c for c in order if c in sub or any(_below(tree, c, x) for x in sub)]
+                for c in below:
+                    d = D[c] / max(np.linalg.norm(D[c]), 1e-12)
+                    P[f, c] = P[f, tree.parents[c]] + L[f, c] * d
+                filled[f, sub] = True
+    return P, filled
+
+
+def _below(tree, c, j):
+    """Whether joint ``c`` lies below joint ``j`` in the tree."""
+    p = tree.parents[c]
+    while p >= 0:
+        if p == j:
+            return True
+        p = tree.parents[p]
+    return False
+
+
+FOLD = np.radians(130.0)  # an unseen arm's forearm and hand: folded forward and up by this angle
+                          # from hanging, and turned ACROSS the body (towards the other side)
+
+
+ACROSS = np.radians(30.0)  # by this angle about the trunk axis: a hand merged with the body lies
+                          # against the trunk's front (development seeds 21–28, 8 × 40 random
+                          # poses, gate on, the true unseen arm from its shoulder (down, out,
+                          # forward): elbow (19, 7, 10), wrist (−8, −10, 15) cm; MPJPE median of
+                          # the fit, FOLD / ACROSS: 90° / 0° 6.45, 110° / 0° 6.28, 110° / 30°
+                          # 6.20, 130° / 0° 6.20, 130° / 30° 6.13, 130° / 50° 6.19, 130° / 70°
+                          # 6.26 cm; frames holding joints 7.8 → 7.1 cm; walks 41–45 4.85 cm
+                          # either way: they hold the last frame's arm. Earlier, seeds 31–35
+                          # without ACROSS: 0° 7.14, 60° 7.05, 90° 6.80, 120° 6.85, 150° 7.05 cm;
+                          # the upper arm tilted forward and out: no gain, 6.11–6.29 cm)
+
+
+def _outward(P, tree, j, ax):
+    """Unit vector from the chest to the shoulder of joint j's arm (its arc's first joint),
+    across the trunk axis ``ax`` (zero when not defined)."""
+    s = j
+    while tree.parents[s] >= 0 and tree.arc[tree.parents[s]] == tree.arc[j]:
+        s = tree.parents[s]
+    c = tree.parents[s]
+    if c < 0:
+        return np.zeros(3)
+    v = P[s] - P[c]
+    v = v - np.dot(v, ax) * ax
+    n = np.linalg.norm(v)
+    return v / n if n > 0 else np.zeros(3)
+
+
+def rest_fill(start, pose, tree: KinematicTree, L, limbs, held_shoulder=GAPS.held_shoulder
+              ) -> np.ndarray:
+    """Unseen joints placed in a rest pose (an unseen limb is mostly one merged with the body):
+    a joint whose mirror mate hangs from the same parent joint mirrored about the trunk axis
+    (a half turn: hips; an arm's shoulder, with a forward known: opposite its mate across
+    the trunk axis, raised ``GapOptions.held_shoulder`` from the plane across it), the other bones
+    along the trunk axis — down for the limbs (arcs ending at a ``[[mirror]]`` part), up for
+    the others (the head) — except an arm's (a limb from the trunk's upper part) bones below
+    its first one: folded forward by ``FOLD`` and turned ``ACROSS`` the body (a hand merged
+    with the body lies against the trunk's front), forward being the seen lower limbs' tip directions (the toes) across the
+    trunk axis, across the direction from the arm's shoulder to the chest; without a forward,
+    down."""
+    out = start.copy()
+    if not tree.trunk:
+        return out
+    a, b = (pose.parts.get(x) for x in tree.trunk)
+    if a is None or b is None or np.isnan(out[tree.root]).any():
+        return out
+    ax = np.asarray(b, float) - np.asarray(a, float)
+    if np.linalg.norm(ax) <= 0:
+        return out
+    ax /= np.linalg.norm(ax)
+    fwd = []                       # forward: the tips of the limbs from the trunk's first part
+    for j, p in enumerate(tree.parents):
+        if tree.beyond and tree.beyond[j] and tree.arc[j][0] == tree.trunk[0] and \
+                not np.isnan(start[j]).any() and not np.isnan(start[p]).any():
+            v = start[j] - start[p]
+            fwd.append(v - np.dot(v, ax) * ax)
+    fwd = np.sum(fwd, axis=0) if fwd else None
+    fwd = fwd / np.linalg.norm(fwd) if fwd is not None and np.linalg.norm(fwd) > 0 else None
+    for j in tree.order()[1:]:
+        if not np.isnan(out[j]).any():
+            continue
+        p = tree.parents[j]
+        mates = [k for k in range(len(tree.names)) if k != j and tree.base[k] == tree.base[j]
+                 and tree.parents[k] == p and not np.isnan(start[k]).any()]
+        pp = tree.parents[p]
+        arm = fwd is not None and tree.arc[j][1] in limbs and tree.arc[j][0] == tree.trunk[1]
+        if mates and arm and held_shoulder is not None:
+            v = start[mates[0]] - out[p]
+            lat = v - np.dot(v, ax) * ax
+            lat /= max(np.linalg.norm(lat), 1e-12)
+            d = np.sin(held_shoulder) * ax - np.cos(held_shoulder) * lat
+        elif mates:
+            v = start[mates[0]] - out[p]
+            d = 2 * np.dot(v, ax) * ax - v
+        elif arm and pp >= 0 and tree.arc[pp] == tree.arc[j]:     # an arm below its elbow
+            lat = _outward(out, tree, j, ax)
+            d = -np.cos(FOLD) * ax + np.sin(FOLD) * (np.cos(ACROSS) * fwd - np.sin(ACROSS) * lat)
+        else:
+            d = -ax if tree.arc[j][1] in limbs else ax
+        out[j] = out[p] + L[j] * d / max(np.linalg.norm(d), 1e-12)
+    return out
+
+
+# GapOptions.hints = True: an unseen arm bent to reach its hand hint's end (:func:`hint_fill`)
+HINT_END = "wrist"  # the hint's end taken as the wrist ("wrist") or the elbow's direction
+                    # ("elbow": the upper arm towards it, the forearm as it was). Development
+                    # seeds 21–28 random, 41–43 walks (gate on, 80 hints): the end lies 18–29 cm
+                    # from the true elbow (median per rule and motion; none within 5 cm) but
+                    # 7–13 cm from the true wrist (the folded forearm's branch runs on to the
+                    # hand); MPJPE median, off → "elbow" → "wrist": random 6.50 → 6.56 → 6.29,
+                    # walks 5.05 → 5.00 → 5.00 cm; the held arms' mean shoulder/elbow/wrist
+                    # error, off → "wrist": random 17.1 → 15.6 (140 arms, 41 hinted), walks
+                    # 14.0 → 9.7 cm (42 arms). Benchmark seeds (tracking.py, gate on, same
+                    # run, without → with): walks MPJPE 4.76 → 4.69 cm, hinted arms 12.1 → 8.8
+                    # cm (101 arms); random 5.84 → 5.86 (mean 6.55 → 6.42; 13 frames better,
+                    # 10 worse), hinted arms 16.6 → 13.5 cm (23 arms). Gating the hint by its
+                    # reach (end beyond 1.0 / 1.2 × the arm, or within 0.3 / 0.5 of it): no gain
+
+
+SHOULDER_BLEND = 0.5  # the fraction of the way to the hull's shoulder an unseen arm moves
+
+
+def shoulder_fill(start, pose, tree: KinematicTree, unseen) -> np.ndarray:
+    """``start`` with each unseen arm (an arc from the trunk's upper part to a limb part, all
+    its joints ``unseen``) moved whole, its shoulder :data:`SHOULDER_BLEND` of the way to the
+    nearer of the frame's two shoulders from the hull (``diagnostics["hull_shoulders"]``: the
+    lateral extremes of the trunk's cross-section below the neck,
+    :func:`topopose.frame.unseen.hull_shoulders`) when that lies within :data:`HULL_GATE`. The
+    fit then keeps the chest → shoulder bone's length, taking its direction."""
+    H = pose.diagnostics.get("hull_shoulders")
+    out = start.copy()
+    if H is None or not tree.trunk:
+        return out
+    H = np.asarray(H, float).reshape(-1, 3)
+    for (u, v), js in tree.chains().items():
+        arm = js[1:]
+        if u != tree.trunk[1] or v not in tree.limbs or not arm or not unseen[arm].all() \
+                or np.isnan(out[arm]).any():
+            continue
+        h = H[int(np.argmin(np.linalg.norm(H - out[arm[0]], axis=1)))]
+        if np.linalg.norm(h - out[arm[0]]) > HULL_GATE:
+            continue
+        h = out[arm[0]] + SHOULDER_BLEND * (h - out[arm[0]])
+        out[arm] += h - out[arm[0]]
+    return out
+
+
+def hint_fill(start, pose, tree: KinematicTree, L, unseen) -> np.ndarray:
+    """``start`` with each unseen arm that has a hand hint (``diagnostics["hand_hints"]``:
+    the curve of the branch of a hand the per-frame stage left unplaced — an arm branch
+    ending at the elbow (``short_arm``), a hand on the trunk's core (``hand_on_trunk``) or an
+    untrusted hand — from the chest junction to the branch end) bent at the hint. With
+    :data:`HINT_END` ``"wrist"`` (default; the end lies near the wrist, not the elbow): the
+    shoulder kept (as ``start`` has it), the elbow and wrist by the law of cosines so that the
+    wrist is at the hint's end (on the line towards it, the arm straight, when out of reach),
+    bent in the plane of ``start``'s elbow (the rest pose's hanging upper arm or the last
+    frame's); with ``"elbow"``: the elbow a bone length from the shoulder towards the end.
+    The joints below keep ``start``'s bone directions. Only arcs whose joints are all
+    ``unseen`` (bool per joint: not placed by the frame)."""
+    hints = pose.diagnostics.get("hand_hints") or {}
+    out = start.copy()
+    for (u, v), js in tree.chains().items():
+        c = hints.get(v)
+        arm = js[1:]
+        if c is None or len(arm) < 2 or np.isnan(out[arm[0]]).any():
+            continue
+        end = np.asarray(c, float)[-1]
+        d = end - out[arm[0]]
+        if np.linalg.norm(d) <= 0 or np.isnan(out[arm]).any() or not unseen[arm].all():
+            continue
+        if HINT_END == "elbow" or len(arm) < 3:
+            e = out[arm[0]] + L[arm[1]] * d / np.linalg.norm(d)
+            out[arm[1:]] += e - out[arm[1]]
+            continue
+        # the end as the wrist: two bones (law of cosines), bent as ``start`` bends them
+        a, b, r = L[arm[1]], L[arm[2]], float(np.linalg.norm(d))
+        t = d / r
+        n = out[arm[1]] - out[arm[0]]
+        n = n - np.dot(n, t) * t
+        n = n / np.linalg.norm(n) if np.linalg.norm(n) > 1e-9 else np.zeros(3)
+        ca = np.clip((a * a + r * r - b * b) / (2 * a * r), -1.0, 1.0) if r < a + b else 1.0
+        e = out[arm[0]] + a * (ca * t + np.sqrt(1 - ca * ca) * n)
+        w = end - e
+        w = e + b * w / max(np.linalg.norm(w), 1e-12)
+        out[arm[3:]] += w - out[arm[2]]
+        out[arm[1]], out[arm[2]] = e, w
+    return out
+
+
+def _interpolate(P, t, L, tree: KinematicTree, a, b) -> None:
+    """Frames ``a + 1 … b - 1`` of ``P`` (in place) interpolated between frames ``a`` and ``b``
+    by their frame numbers ``t``: the root position and the bone directions linearly
+    (normalized), the bone lengths ``L`` (per frame) too."""
+    Da, Db = _directions(P[a], tree), _directions(P[b], tree)
+    for k in range(a + 1, b):
+        s = (t[k] - t[a]) / (t[b] - t[a])
+        root = (1 - s) * P[a, tree.root] + s * P[b, tree.root]
+        P[k] = forward(root, (1 - s) * Da + s * Db, (1 - s) * L[a] + s * L[b], tree)

@@ -222,6 +222,7 @@ def test_pmatrix_files_of_one_name_in_camera_folders(tmp_path, capsys, named):
         f.write_text(_pmatrix_text(c, c.name if named else None))
         files.append(f)
     out = tmp_path / "cap" / "calibration.toml"
+    out.parent.mkdir()
     assert main(["calib", "import", *map(str, files), "--size", "320x240", "--out", str(out)]) == 0
     want = [c.name for c in cams] if named else folders
     said = capsys.readouterr().out

@@ -399,7 +399,8 @@ def _crossed_legs_sequence(n, rng):
 
 
 def test_a_long_tracked_segment_overrules_one_frame_with_crossed_legs():
-    from topopose.sequence.chirality import COHERENT, OVERRULE_MIN
+    from topopose.sequence.chirality import SIDES
+    COHERENT, OVERRULE_MIN = SIDES.coherent, SIDES.overrule_min
     rng = np.random.default_rng(2)
     n = max(OVERRULE_MIN + 1, int(np.ceil(2 / (1 - COHERENT))) + 1)   # coherent despite one
     poses, truth = _crossed_legs_sequence(n, rng)

@@ -51,7 +51,8 @@ def cmd_synth(a):
                          "give --force to replace it, or another folder")
     out = synthesize(a.out, subject=a.subject, frames=a.frames, seed=a.seed, cameras=a.cameras,
                      size=a.size, noise=a.noise, motion=a.motion, thickness=a.thickness,
-                     separated=a.separated, fps=a.fps, margin=a.margin, build=a.build)
+                     separated=a.separated, fps=a.fps, margin=a.margin, build=a.build,
+                     pose=a.pose)
     print(f"wrote {out}: {a.subject}, {a.frames} frames, {a.cameras} cameras ({a.motion})")
     return 0
 
@@ -354,6 +355,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --separated: smallest gap between limbs, in metres (e.g. 3 voxels)")
     s.add_argument("--build", choices=["average", "heavy", "child", "lean", "random"], default=None,
                    help="body subject: proportions (default random, drawn from the seed)")
+    s.add_argument("--pose", default="any",
+                   help="body subject, random poses: one pose family, any (default), feet_out, "
+                        "feet_in, twist, crouch, kneel, one_leg, arms_crossed or lying")
     s.add_argument("--force", "--overwrite", dest="force", action="store_true",
                    help="replace the capture already in OUT (its frames are deleted first)")
     s.set_defaults(func=cmd_synth)

@@ -57,11 +57,17 @@ sys.path.insert(0, str(HERE))
 from _machine import machine, results_dir  # noqa: E402
 
 PAIRS = ("hand", "foot")
-DEV = [(b, f, 8) for b in ("average", "heavy")
-       for f in ("any", "feet_out", "twist", "crouch", "one_leg")]
-HELD = ([(b, f, 8) for b in ("child", "lean")
-         for f in ("any", "feet_in", "kneel", "arms_crossed", "lying")]
-        + [("random", f, 4) for f in ("any", "feet_out", "kneel", "arms_crossed")])
+FAMILIES = ("any", "feet_out", "feet_in", "twist", "crouch", "kneel", "one_leg", "arms_crossed",
+            "lying")
+# (build, pose family, cameras); seeds 100 + i (development), 300 + i (held out)
+DEV = ([(b, f, 8) for b in ("average", "heavy")
+        for f in ("any", "feet_out", "twist", "crouch", "one_leg")]
+       + [(b, f, 8) for b in ("child", "lean")
+          for f in ("any", "feet_in", "kneel", "arms_crossed", "lying")]
+       + [("random", f, 4) for f in ("any", "feet_out", "kneel", "arms_crossed")])
+HELD = ([("random", f, 8) for f in FAMILIES]
+        + [(b, f, 4) for b in ("child", "heavy") for f in ("any", "twist", "crouch", "kneel", "one_leg")]
+        + [("lean", f, 8) for f in ("feet_out", "twist", "crouch", "one_leg", "arms_crossed")])
 
 
 def capture_dir(work, build, family, cams, seed):
@@ -87,7 +93,7 @@ def run_config(work, build, family, cams, seed, frames):
             warnings.simplefilter("ignore")
             cap = load_capture(d)
             run(cap, model="human", resolution=100, output=d / "poses.part.jsonl", progress=False,
-                track=False, sides=False, skeleton=False, consistency=False)
+                track=False, sides=False, skeleton=False, consistency=False, support=True)
         (d / "poses.part.jsonl").rename(out)
     return json.loads((d / "gt.json").read_text()), read_poses(out)
 
@@ -156,7 +162,7 @@ def synthetic(work, frames, quick=False):
     up = np.array([0.0, 0.0, 1.0])
     rows = []
     configs = [("dev", c, 100 + i) for i, c in enumerate(DEV)]
-    configs += [("held", c, 200 + i) for i, c in enumerate(HELD)]
+    configs += [("held", c, 300 + i) for i, c in enumerate(HELD)]
     if quick:
         configs = configs[:2] + configs[len(DEV):len(DEV) + 2]
     for split, (build, family, cams), seed in configs:
@@ -208,11 +214,11 @@ class _LazyMasks(dict):
         return out
 
 
-def child_capture(path, step=10, scale=0.5, volume=((-1.0, -1.0, -0.05), (1.0, 1.0, 1.9))):
+def child_capture(path, step=10, scale=0.5):
     """The child_rope recording as an in-memory capture: ``camXX/cam_par.txt`` (camera name and
     the 12 numbers of P, row-major) decomposed into K, R, t (no distortion); masks
     ``camXX/<i>.png`` read by path when a frame is used, every ``step``-th frame, halved
-    (``scale``); the capture volume given (the child near the origin, +z up, metres)."""
+    (``scale``); the capture volume fitted to the silhouettes (+z up, metres)."""
     import cv2
 
     from topopose.capture.capture import Capture
@@ -235,6 +241,5 @@ def child_capture(path, step=10, scale=0.5, volume=((-1.0, -1.0, -0.05), (1.0, 1
                            cv2.Rodrigues(R)[0].ravel(), t))
     n = len([f for f in folders[0].glob("*.png") if f.stem.isdigit()])
     frames = [str(i) for i in range(0, n, step)]
-    vol = (np.array(volume[0], float), np.array(volume[1], float))
-    return Capture(cams, frames, None, "+z", "m", 25.0, vol, {},
+    return Capture(cams, frames, None, "+z", "m", 25.0, None, {},
                    _LazyMasks(folders, frames, scale)), folders

@@ -179,7 +179,7 @@ def frame_evidence(pose, model, up, options: SideOptions = SIDES) -> dict:
     H = subject_height(pose, u)
     f, strength, agree = facing(pose, model, up, options)
     if f is None:
-        return {i: (0.0, "no facing: no foot direction nor knee bend")
+        return {i: (0.0, "facing weak: no foot direction nor knee bend")
                 for i in range(len(model.mirrors))}
     ff = (1 - np.exp(-strength / (options.facing_scale * H))) * agree
     left = np.cross(u, f)

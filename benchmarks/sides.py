@@ -74,12 +74,30 @@ def capture_dir(work, build, family, cams, seed):
     return Path(work) / f"{build}_{family}_{cams}c_{seed}"
 
 
-def run_config(work, build, family, cams, seed, frames):
-    """The capture (written once) and its per-frame poses (run once, gate on, no sequence
-    stages): (gt, poses)."""
-    from topopose.batch import run
+GATES = ("simple", "fitted")    # the gate decided by default, and the fitted confidence (peer)
+
+
+def estimate_all(cap, gate, out):
+    """Per-frame poses of every frame of ``cap`` (as ``topopose run --no-track --no-sides
+    --no-skeleton``: 100³, the default gate; ``gate="fitted"``: the fitted confidence decides,
+    ``FrameEstimator(gate_rule=False)``), written to ``out`` once and read back after."""
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.pose.pose import read_poses, write_poses
+
+    out = Path(out)
+    if not out.exists():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            est = FrameEstimator(cap, "human", 100, support=True,
+                                 **({"gate_rule": False} if gate == "fitted" else {}))
+            poses = [est.estimate(f) for f in cap.frames]
+        write_poses(out, poses)
+    return read_poses(out)
+
+
+def run_config(work, build, family, cams, seed, frames, gate="simple"):
+    """The capture (written once) and its per-frame poses under ``gate``: (gt, poses)."""
     from topopose.capture import load_capture
-    from topopose.pose.pose import read_poses
     from topopose.synth.capture import synthetic_capture, write_capture
 
     d = capture_dir(work, build, family, cams, seed)
@@ -87,15 +105,10 @@ def run_config(work, build, family, cams, seed, frames):
         cap = synthetic_capture("body", frames=frames, seed=seed, cameras=cams, noise=1,
                                 build=build, pose=family)
         write_capture(cap, d)
-    out = d / "poses.jsonl"
-    if not out.exists():
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            cap = load_capture(d)
-            run(cap, model="human", resolution=100, output=d / "poses.part.jsonl", progress=False,
-                track=False, sides=False, skeleton=False, consistency=False, support=True)
-        (d / "poses.part.jsonl").rename(out)
-    return json.loads((d / "gt.json").read_text()), read_poses(out)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cap = load_capture(d)
+    return cap.gt, estimate_all(cap, gate, d / f"poses_{gate}.jsonl")
 
 
 def claims_synthetic(poses, gt):
@@ -243,3 +256,56 @@ def child_capture(path, step=10, scale=0.5):
     frames = [str(i) for i in range(0, n, step)]
     return Capture(cams, frames, None, "+z", "m", 25.0, None, {},
                    _LazyMasks(folders, frames, scale)), folders
+
+
+COLOURS = {"head": (0, 0, 255), "torso": (255, 255, 255), "crotch": (255, 255, 0),
+           "hand_1": (0, 255, 0), "hand_2": (255, 0, 0), "foot_1": (0, 255, 255),
+           "foot_2": (255, 0, 255)}
+
+
+def contact_sheet(cap, poses, path, views=(0, 5), tile=(150, 190), columns=8, label=None):
+    """One tile per pose: the masks of cameras ``views`` (cropped to the silhouette) with the
+    skeleton curves (grey) and the parts (head red, torso white, crotch cyan, hand_1 green,
+    hand_2 blue, foot_1 yellow, foot_2 magenta) projected, the frame name and ``label(pose)``
+    written on it. Written as a PNG at ``path``."""
+    import cv2
+
+    from topopose.sequence.chirality import numbered
+    from topopose.pose.model import load_model
+
+    model = load_model("human")
+    tw, th = tile
+    rows = (len(poses) + columns - 1) // columns
+    sheet = np.zeros((max(rows, 1) * th, columns * tw * len(views), 3), np.uint8)
+    for k, p in enumerate(poses):
+        p = numbered(p, model)
+        ms = cap.silhouettes(p.frame)
+        for j, v in enumerate(views):
+            cam, m = cap.cameras[v], ms[v]
+            ys, xs = np.nonzero(m)
+            if not len(xs):
+                continue
+            x0, x1, y0, y1 = xs.min(), xs.max(), ys.min(), ys.max()
+            pad = int(0.08 * (y1 - y0)) + 4
+            x0, y0 = max(x0 - pad, 0), max(y0 - pad, 0)
+            x1, y1 = min(x1 + pad, m.shape[1] - 1), min(y1 + pad, m.shape[0] - 1)
+            s = min(tw / (x1 - x0 + 1), (th - 14) / (y1 - y0 + 1))
+            img = cv2.cvtColor((m[y0:y1 + 1, x0:x1 + 1] * 90).astype(np.uint8), cv2.COLOR_GRAY2BGR)
+            img = cv2.resize(img, None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
+
+            def px(X):
+                u = cam.project(np.asarray(X, float).reshape(-1, 3))
+                return np.round((u - [x0, y0]) * s).astype(np.int32)
+            for c in (p.diagnostics.get("curves") or {}).values():
+                cv2.polylines(img, [px(c)], False, (160, 160, 160), 1)
+            for part, col in COLOURS.items():
+                x = p.parts.get(part)
+                if x is not None:
+                    cv2.circle(img, tuple(int(a) for a in px(x)[0]), 3, col, -1)
+            r0, c0 = (k // columns) * th + 14, (k % columns) * tw * len(views) + j * tw
+            h, w = img.shape[:2]
+            sheet[r0:r0 + h, c0:c0 + w] = img[:th - 14, :tw]
+        text = p.frame + ("" if label is None else " " + label(p))
+        cv2.putText(sheet, text, ((k % columns) * tw * len(views) + 2, (k // columns) * th + 11),
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.35, (255, 255, 255), 1)
+    cv2.imwrite(str(path), sheet)

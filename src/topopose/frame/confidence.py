@@ -166,6 +166,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -562,6 +563,70 @@ def passes_gate(status, error, confidence, min_confidence) -> bool:
     if confidence is None or confidence < min_confidence:
         return False
     return status == "matched" or (replaces_threshold() and distance_only(error))
+
+
+@dataclass(frozen=True)
+class GateOptions:
+    """The gate that decides ``matched`` (:func:`gate_decision`): a frame the alignment placed
+    is matched when the placed model explains its silhouettes (``diagnostics["unexplained"]``,
+    :mod:`.support`: at most ``max_unexplained`` of a camera's silhouette left over) and either
+    its AHA distance is within ``max_distance`` × T_d (the thesis' test) or, above it, the
+    silhouettes are explained more strictly (``far_unexplained``) with the arcs in the model's
+    proportions (``confidence_features["shape"]`` at most ``far_shape``: an arc stretched onto
+    a phantom branch or shrunk onto a stump is out of proportion). With 4 cameras the phantom
+    volume's branches put nearly every frame above T_d, right or wrong; the silhouettes and the
+    arcs' proportions do not depend on the camera count. Chosen together on the development
+    generators of ``benchmarks/sides.py`` (builds, pose families, 4 and 8 cameras; the mean over
+    generators of the share of their right frames matched, under precision of ``matched`` ≥
+    0.98 in each camera set-up), checked on held-out generators and the real recordings there.
+
+    Parameters
+    ----------
+    max_distance : the AHA distance over T_d within which a frame needs only ``max_unexplained``
+    max_unexplained : the largest unexplained silhouette share of a matched frame
+    far_unexplained, far_shape : above ``max_distance``, the largest unexplained share and
+        arc-proportion error of a matched frame
+    models : the models it decides for (thresholds measured on the human); other models keep
+        the product confidence's minimum (:func:`judge_frame`)
+    """
+
+    max_distance: float = 1.0
+    max_unexplained: float = 0.25
+    far_unexplained: float = 0.12
+    far_shape: float = 0.15
+    models: tuple = ("human",)
+
+
+#: the default gate (``FrameEstimator(gate_rule=...)``; False there: the fitted confidence)
+GATE = GateOptions()
+
+
+def gate_decision(status, error, diag, options: GateOptions = GATE) -> tuple:
+    """``(status, error)`` of a frame after the gate (:class:`GateOptions`). Only a frame the
+    alignment placed is decided — matched, or rejected for its AHA distance alone
+    (:func:`distance_only`); a failed frame, a split hull or unmatched parts stay as they are.
+    ``diag``: the frame's diagnostics with ``confidence_features`` (:func:`frame_features`)
+    and, when measured, ``unexplained`` (not measured: the distance alone decides). A rejected
+    frame's reason begins with its AHA distance reason, if any, then ``confidence gate: ...``."""
+    if not (status == "matched" or (status == "rejected" and distance_only(error))):
+        return status, error
+    o = options
+    f = diag.get("confidence_features") or {}
+    d, shape, u = f.get("distance", math.inf), f.get("shape", math.inf), diag.get("unexplained")
+    if u is not None and u > o.max_unexplained:
+        why = f"silhouette unexplained {u:.2f} (at most {o.max_unexplained:g})"
+    elif d <= o.max_distance:
+        return "matched", None
+    elif u is None:
+        why = f"AHA distance {d:.2f} T_d, no silhouette support measured"
+    elif u <= o.far_unexplained and shape <= o.far_shape:
+        return "matched", None
+    else:
+        why = (f"AHA distance {d:.2f} T_d above {o.max_distance:g} with the silhouette "
+               f"unexplained {u:.2f} (at most {o.far_unexplained:g}) or the arc proportions off "
+               f"by {shape:.2f} (at most {o.far_shape:g})")
+    why = "confidence gate: " + why
+    return "rejected", (f"{error}; {why}" if status == "rejected" and error else why)
 
 
 def judge_frame(vol, n_vox, data, model, up, distance, threshold, missing, status, error,

@@ -223,9 +223,13 @@ class FrameEstimator:
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
     gate : bool or None
-        ``matched`` also needs the frame's confidence (:mod:`.confidence`) ≥ ``min_confidence``.
-        None (default): :func:`default_gate` (on), off with ``constraints=False`` (the fitted
-        confidence knows upright subjects only).
+        ``matched`` is decided by the gate (``gate_rule``). None (default): :func:`default_gate`
+        (on), off with ``constraints=False`` (the gate was chosen on upright subjects).
+    gate_rule : GateOptions, False or None
+        The gate (:class:`topopose.frame.confidence.GateOptions`, its models only): the AHA
+        distance within T_d, or the silhouettes explained with the arcs in proportion. None
+        (default): :data:`topopose.frame.confidence.GATE`. False: the fitted confidence
+        ≥ ``min_confidence`` instead (with per-part trust and head doubt).
     part_trust : bool or None
         Per-part trust (:func:`topopose.frame.confidence.judge_frame`): a frame the gate alone
         rejects is matched without the one extremity (head, hand, foot) whose removal makes
@@ -266,7 +270,7 @@ class FrameEstimator:
                  short_arm=None, trunk_blend=None, placed_missing=None, part_trust=None,
                  hand_trunk=None, head_ball=None, keep_junctions=None, head_doubt=None,
                  head_axis=None, junction_core=None, support=None, trim=None,
-                 centre=None):
+                 centre=None, gate_rule=None):
         from topopose.match import Matcher
         from topopose.frame.confidence import min_confidence_for
 
@@ -291,6 +295,11 @@ class FrameEstimator:
 
         self.cap = cap
         self.model: Model = load_model(model, constraints=constraints)
+        from topopose.frame.confidence import GATE
+        rule = GATE if gate_rule is None else gate_rule
+        self.gate_rule = rule if self.gate and rule and self.model.name in rule.models else None
+        if support is None and self.gate_rule is not None:
+            self.support = True           # the gate reads the silhouette support
         if self.min_confidence is None and self.model.name == "human":
             # calibrated for the human model only, per number of cameras
             self.min_confidence = min_confidence_for(len(cap.cameras))
@@ -666,10 +675,12 @@ class FrameEstimator:
 
         status, error, extra = judge_frame(
             vol, n_vox, data, self.model, self.up, dist, self.threshold, len(missing), status,
-            error, self.min_share, self.min_confidence if self.gate else None, self.cap.units,
-            al=al, thickness_cost=thick, reach=self.thickness_reach,
+            error, self.min_share,
+            self.min_confidence if self.gate and self.gate_rule is None else None,
+            self.cap.units, al=al, thickness_cost=thick, reach=self.thickness_reach,
             radius_map=radii, missing_cost=mcost, parts=parts,
-            drop_parts=DROP_PARTS if self.part_trust else (), doubt_head=self.head_doubt)
+            drop_parts=DROP_PARTS if self.part_trust and self.gate_rule is None else (),
+            doubt_head=self.head_doubt)
         if extra.get("untrusted"):     # per-part trust: unplaced, its best guess kept
             extra["untrusted_guess"] = np.round(parts[extra["untrusted"]], 6).tolist()
             parts = {**parts, extra["untrusted"]: None}
@@ -768,6 +779,9 @@ class FrameEstimator:
         if self.leaves:      # candidates for a misplaced numbered part (pose.track)
             from topopose.frame.tips import free_leaves
             diag["free_leaves"] = free_leaves(data, al.mapping)
+        if self.gate_rule is not None:   # the gate (topopose.frame.confidence.GateOptions)
+            from topopose.frame.confidence import gate_decision
+            status, error = gate_decision(status, error, diag, self.gate_rule)
         timings["placement"] = (time.perf_counter() - t0) * 1e3
         timings["total"] = (time.perf_counter() - t_all) * 1e3
         pose = Pose(name, status, dist, parts, error, timings, diag)

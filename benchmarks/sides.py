@@ -159,14 +159,16 @@ def aligned(p) -> bool:
     """A frame the alignment placed (matched, or rejected by the gate / the AHA distance only):
     the frames any gate decides on."""
     from topopose.frame.confidence import distance_only
+    from topopose.sequence.consistency import gated
 
-    if p.status == "matched":
-        return True
-    err = str(p.error or "")
-    return p.status == "rejected" and (distance_only(err) or " below " in err)
+    return gated(p) or (p.status == "rejected" and distance_only(p.error))
 
 
 def synthetic(work, frames, quick=False):
+    """Every generator of :data:`DEV` and :data:`HELD` under both gates: per generator, per gate,
+    the frames' rows (right by ground truth, matched, the gate's features) and the side claims
+    of the matched frames — and of every frame the alignment placed (the cue's own precision,
+    whatever gate lets the frame through)."""
     from topopose.batch.quality import TP_CLASSES, evaluate
     from topopose.pose.model import load_model
     from topopose.sequence.chirality import assign_sides
@@ -179,24 +181,35 @@ def synthetic(work, frames, quick=False):
     if quick:
         configs = configs[:2] + configs[len(DEV):len(DEV) + 2]
     for split, (build, family, cams), seed in configs:
-        t0 = time.perf_counter()
-        gt, poses = run_config(work, build, family, cams, seed, frames)
-        ev = evaluate(gt, poses, model=model)
-        right = {f.frame: f.quality in TP_CLASSES for f in ev.frames}
-        sided = assign_sides(poses, model, up, use_time=False)
-        rows.append({"split": split, "build": build, "family": family, "cameras": cams,
-                     "seed": seed, "seconds": round(time.perf_counter() - t0, 1),
-                     "claims": claims_synthetic(sided, gt),
-                     "frames": [frame_row(p, right[p.frame]) for p in poses]})
+        row = {"split": split, "build": build, "family": family, "cameras": cams, "seed": seed}
+        for gate in GATES:
+            gt, poses = run_config(work, build, family, cams, seed, frames, gate)
+            ev = evaluate(gt, poses, model=model)
+            right = {f.frame: f.quality in TP_CLASSES for f in ev.frames}
+            sided = assign_sides(poses, model, up, use_time=False)
+            placed = [replace_status(p) for p in poses if aligned(p)]
+            row[gate] = {"frames": [frame_row(p, right[p.frame]) for p in sided],
+                         "claims": claims_synthetic(sided, gt),
+                         "claims_placed": claims_synthetic(
+                             assign_sides(placed, model, up, use_time=False), gt)}
+        rows.append(row)
     return rows
+
+
+def replace_status(p):
+    from dataclasses import replace
+
+    return replace(p, status="matched", error=None)
 
 
 def frame_row(p, right) -> dict:
     d = p.diagnostics
-    return {"frame": p.frame, "status": p.status, "aligned": aligned(p), "right": bool(right),
-            "distance": p.distance, "confidence": d.get("confidence"),
-            "features": d.get("confidence_features"),
-            "chirality": {k: v.get("why") for k, v in (d.get("chirality") or {}).items()}}
+    f = d.get("confidence_features") or {}
+    return {"frame": p.frame, "matched": p.matched, "aligned": aligned(p), "right": bool(right),
+            "distance": f.get("distance"), "shape": f.get("shape"),
+            "unexplained": d.get("unexplained"), "confidence": d.get("confidence"),
+            "why": sorted({v["why"] for v in (d.get("chirality") or {}).values()
+                           if v.get("why")})}
 
 
 # ----------------------------------------------------------------------------- child_rope
@@ -309,3 +322,296 @@ def contact_sheet(cap, poses, path, views=(0, 5), tile=(150, 190), columns=8, la
         cv2.putText(sheet, text, ((k % columns) * tw * len(views) + 2, (k // columns) * th + 11),
                     cv2.FONT_HERSHEY_SIMPLEX, 0.35, (255, 255, 255), 1)
     cv2.imwrite(str(path), sheet)
+
+
+# ----------------------------------------------------------------------------- Pose2Sim
+def pose2sim(work, recording):
+    """The Pose2Sim balancing trial (``person`` silhouettes, as ``benchmarks/real_motion.py``):
+    per gate, per frame ``matched`` against Pose2Sim's markers (``real.RIGHT``), then the
+    sequence stages as ``topopose run`` runs them and the side claims of the matched frames
+    against Pose2Sim's L/R markers (``real_motion.chirality``)."""
+    import real
+    import real_motion as rm
+
+    import topopose as tp
+    from topopose.pose.model import load_model
+    from topopose.sequence.motion import process_sequence
+
+    recording = Path(recording)
+    if not (recording / "reference" / "pose2sim_3d.trc").exists():
+        return {"absent": f"{recording}: no reference/pose2sim_3d.trc (recording absent)"}
+    try:
+        import mediapipe  # noqa: F401
+    except ImportError:
+        return {"absent": "mediapipe is not installed (pip install topopose[segment])"}
+    model = load_model("human")
+    ref = real.read_trc(recording / "reference" / "pose2sim_3d.trc")
+    d = Path(work) / "pose2sim"
+    if not (d / "capture").exists():
+        real.make_capture(recording, d / "capture", "person", rm.SILHOUETTES)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cap = tp.load_capture(d / "capture")
+    out = {}
+    for gate in GATES:
+        raw = sorted(estimate_all(cap, gate, d / f"poses_{gate}.jsonl"), key=lambda p: p.frame)
+        right = []
+        for i, p in enumerate(raw):
+            e = real.frame_errors(p.parts, ref, i) if p.status != "failed" else None
+            right.append(e is not None and all(v <= real.RIGHT for v in e.values()))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            final = process_sequence(raw, model, cap.up_vector, fps=cap.fps).poses
+        rows = [i for i, p in enumerate(final) if p.matched]
+        out[gate] = {"frames": len(raw), "right": int(sum(right)),
+                     "matched": frame_counts([(p, r) for p, r in zip(raw, right)]),
+                     "matched_as_run": frame_counts([(p, r) for p, r in zip(final, right)]),
+                     "claims_as_run": rm.chirality(final, ref, rows)}
+    return out
+
+
+def frame_counts(pairs) -> dict:
+    """Matched frames and the right ones among them, of (pose, right) pairs."""
+    m = [r for p, r in pairs if p.matched]
+    return {"matched": len(m), "right": int(sum(m))}
+
+
+# ----------------------------------------------------------------------------- child_rope
+def child(work, path, step, out_dir):
+    """The child recording, per gate: frames matched / failed, the share of the matched frames'
+    parts whose projections fall inside every camera's silhouette, and a contact sheet of the
+    matched frames (``sides_child_<gate>.png``) to be judged by eye."""
+    if not Path(path).exists():
+        return {"absent": f"{path}: child_rope recording absent"}
+    cap, _ = child_capture(path, step=step)
+    d = Path(work) / f"child_rope_{step}"
+    d.mkdir(parents=True, exist_ok=True)
+    out = {}
+    for gate in GATES:
+        poses = sorted(estimate_all(cap, gate, d / f"poses_{gate}.jsonl"), key=lambda p: int(p.frame))
+        matched = [p for p in poses if p.matched]
+        inside = []
+        for p in matched:
+            ms = cap.silhouettes(p.frame)
+            for x in p.parts.values():
+                if x is None:
+                    continue
+                ok = True
+                for cam, m in zip(cap.cameras, ms):
+                    u = np.round(cam.project(np.asarray(x, float).reshape(1, 3))[0]).astype(int)
+                    ok &= bool(0 <= u[0] < m.shape[1] and 0 <= u[1] < m.shape[0]
+                               and m[u[1], u[0]])
+                inside.append(ok)
+        sheet = Path(out_dir) / f"sides_child_{gate}.png"
+        if matched:
+            contact_sheet(cap, matched, sheet, columns=6)
+        out[gate] = {"frames": len(poses), "matched": len(matched),
+                     "failed": sum(p.status == "failed" for p in poses),
+                     "matched_frames": [p.frame for p in matched],
+                     "parts_inside_every_silhouette": (round(float(np.mean(inside)), 3)
+                                                       if inside else None),
+                     "sheet": sheet.name if matched else None}
+    return out
+
+
+# ----------------------------------------------------------------------------- choosing
+GRID = {"max_distance": (0.6, 0.8, 1.0, 1.2, 1.4), "max_unexplained": (0.15, 0.2, 0.25, 0.3, 9.0),
+        "far_unexplained": (0.06, 0.08, 0.1, 0.12, 0.15), "far_shape": (0.1, 0.125, 0.15, 0.175, 0.2)}
+
+
+def choose_gate(rows, precision=0.98):
+    """The gate's thresholds from the development generators' frames (their default-gate run:
+    the features of every placed frame): over :data:`GRID`, the largest mean over generators of
+    the share of their right frames matched, with the precision of ``matched`` at least
+    ``precision`` in each camera set-up — no generator, build or pose family weighs more than
+    another. Returns (options dict, mean share) or None."""
+    import itertools
+
+    from topopose.frame.confidence import GateOptions, gate_decision
+
+    gens = []
+    for r in rows:
+        if r["split"] != "dev":
+            continue
+        fr = [f for f in r["simple"]["frames"] if f["aligned"]]
+        gens.append((r["cameras"], sum(f["right"] for f in r["simple"]["frames"]), fr))
+    best = None
+    for vals in itertools.product(*GRID.values()):
+        o = GateOptions(**dict(zip(GRID, vals)))
+        if o.far_unexplained > o.max_unexplained:
+            continue
+        per_setup, shares = {}, []
+        for cams, n_right, fr in gens:
+            m = [f for f in fr if gate_decision("matched", None, {
+                "confidence_features": {"distance": f["distance"], "shape": f["shape"]},
+                **({} if f["unexplained"] is None else {"unexplained": f["unexplained"]})}, o)[0]
+                == "matched"]
+            k = sum(f["right"] for f in m)
+            t = per_setup.setdefault(cams, [0, 0])
+            t[0], t[1] = t[0] + len(m), t[1] + k
+            if n_right:
+                shares.append(k / n_right)
+        if any(n and k / n < precision for n, k in per_setup.values()):
+            continue
+        score = float(np.mean(shares))
+        if best is None or score > best[1] + 1e-12:
+            best = (dict(zip(GRID, vals)), score)
+    return best
+
+
+# ----------------------------------------------------------------------------- report
+def pc(k, n):
+    return f"{k}/{n} ({100 * k / n:.1f} %)" if n else "–"
+
+
+def synthetic_tables(rows) -> list:
+    L = ["## Side claims (synthetic, the default gate's matched frames; no time)", "",
+         "A claim: a mirror pair of a matched frame named left_/right_. Precision = right claims "
+         "/ claims; coverage = claims / (matched frames × 2 pairs); frames: frames with a claim "
+         "whose claims are all right. *Placed*: the same on every frame the alignment placed "
+         "(whatever the gate), the cue's own precision.", "",
+         "| split | build | pose family | cameras | matched | claims right | coverage | frames "
+         "right | placed: claims right | placed coverage |", "|" + "---|" * 10]
+    tot = {}
+    for r in rows:
+        c = claim_counts(r["simple"]["claims"])
+        c2 = claim_counts(r["simple"]["claims_placed"])
+        for key in (r["split"], (r["split"], r["family"]), (r["split"], r["build"]),
+                    (r["split"], f"{r['cameras']} cameras")):
+            t = tot.setdefault(key, ({}, {}))
+            tot[key] = (add(t[0], c), add(t[1], c2))
+        L.append(f"| {r['split']} | {r['build']} | {r['family']} | {r['cameras']} | "
+                 f"{c['frames']} | {pc(c['right'], c['claims'])} | {pc(c['claims'], c['pairs'])} "
+                 f"| {pc(c['frames_right'], c['frames_claimed'])} | {pc(c2['right'], c2['claims'])} "
+                 f"| {pc(c2['claims'], c2['pairs'])} |")
+    L += ["", "Totals (by split, pose family, build, cameras):", "",
+          "| group | claims right | coverage | frames right | placed: claims right | placed coverage |",
+          "|" + "---|" * 6]
+    for key, (c, c2) in sorted(tot.items(), key=lambda kv: str(kv[0])):
+        L.append(f"| {key if isinstance(key, str) else ' / '.join(key)} | {pc(c['right'], c['claims'])} | "
+                 f"{pc(c['claims'], c['pairs'])} | {pc(c['frames_right'], c['frames_claimed'])} | "
+                 f"{pc(c2['right'], c2['claims'])} | {pc(c2['claims'], c2['pairs'])} |")
+    why = {}
+    for r in rows:
+        for f in r["simple"]["frames"]:
+            for w in f["why"]:
+                k = w.split(": ", 1)[-1].split(" (")[0]
+                why[k] = why.get(k, 0) + 1
+    L += ["", "Why numbered names were kept (pairs of matched frames): "
+          + "; ".join(f"{k}: {v}" for k, v in sorted(why.items(), key=lambda kv: -kv[1])), ""]
+    L += ["## matched (synthetic): precision per source and gate", "",
+          "Right = TP of `topopose.batch.quality` (every placed part within 0.1 × height, at most "
+          "one unplaced). *default*: the gate (`frame.confidence.GateOptions`); *fitted*: the "
+          "fitted confidence (`gate_rule=False`, the peer).", "",
+          "| split | cameras | pose family | frames | right | default: matched right | recall | "
+          "fitted: matched right | recall |", "|" + "---|" * 9]
+    groups = {}
+    for r in rows:
+        for key in ((r["split"], r["cameras"], "all"), (r["split"], r["cameras"], r["family"])):
+            g = groups.setdefault(key, {"frames": 0, "right": 0, "simple": [0, 0], "fitted": [0, 0]})
+            fr = r["simple"]["frames"]
+            g["frames"] += len(fr)
+            g["right"] += sum(f["right"] for f in fr)
+            for gate in GATES:
+                m = [f for f in r[gate]["frames"] if f["matched"]]
+                g[gate][0] += len(m)
+                g[gate][1] += sum(f["right"] for f in m)
+    for key, g in sorted(groups.items(), key=lambda kv: (kv[0][0], kv[0][1], kv[0][2] != "all", kv[0][2])):
+        L.append(f"| {key[0]} | {key[1]} | {key[2]} | {g['frames']} | {g['right']} | "
+                 f"{pc(g['simple'][1], g['simple'][0])} | {pc(g['simple'][1], g['right'])} | "
+                 f"{pc(g['fitted'][1], g['fitted'][0])} | {pc(g['fitted'][1], g['right'])} |")
+    return L
+
+
+def report(doc) -> str:
+    L = ["# Side claims and the matched gate on data the cues were not designed on", "",
+         f"`python benchmarks/sides.py {' '.join(doc['argv'])}` — machine: "
+         + ", ".join(f"{k} {v}" for k, v in doc["machine"].items()), "",
+         "Development generators (the side margin and the gate's thresholds chosen on them): "
+         + ", ".join(f"{b}/{f}/{c}" for b, f, c in DEV) + ". Held out: "
+         + ", ".join(f"{b}/{f}/{c}" for b, f, c in HELD) + f". {doc['frames']} frames each, "
+         "seeds 100 + i (development), 300 + i (held out), noise 1, 640×480, 100³.", ""]
+    if doc.get("synthetic"):
+        from dataclasses import asdict
+
+        from topopose.frame.confidence import GATE
+
+        ch = doc.get("chosen_gate")
+        L += [f"The gate's thresholds chosen again on the development frames "
+              f"(`choose_gate`: mean share of each generator's right frames matched, precision "
+              f"≥ 0.98 per camera set-up): {ch[0] if ch else 'none reaches it'}"
+              + (f" (mean share {ch[1]:.3f})" if ch else "")
+              + f"; shipped: {dict((k, v) for k, v in asdict(GATE).items() if k in GRID)}.", ""]
+        L += synthetic_tables(doc["synthetic"])
+    L += ["", "## Pose2Sim balancing trial (4 phone cameras, MediaPipe `person` silhouettes)", ""]
+    ps = doc.get("pose2sim") or {}
+    if "absent" in ps or not ps:
+        L.append(f"Not measured: {ps.get('absent', 'not asked (--pose2sim)')}.")
+    else:
+        L += ["Right frame: head, hands, feet within 0.15 m of Pose2Sim's markers (`real.py`). "
+              "*Per frame*: the gate's decision; *as run*: after the sequence stages (track, "
+              "skeleton, sides, matched with the run's consistency, as `topopose run`). Claims: "
+              "matched frames × pairs, against Pose2Sim's L/R markers.", "",
+              "| gate | frames | right | matched per frame: right | matched as run: right | "
+              "claims as run: right / wrong / numbered |", "|" + "---|" * 6]
+        for gate in GATES:
+            g = ps[gate]
+            c = g["claims_as_run"]
+            L.append(f"| {'default' if gate == 'simple' else 'fitted'} | {g['frames']} | {g['right']} | "
+                     f"{pc(g['matched']['right'], g['matched']['matched'])} | "
+                     f"{pc(g['matched_as_run']['right'], g['matched_as_run']['matched'])} | "
+                     f"{c['right']} / {c['wrong']} / {c['unsure']} |")
+    L += ["", "## child_rope (10 studio cameras, P matrices, real masks; no licence: by path only)", ""]
+    ch = doc.get("child") or {}
+    if "absent" in ch or not ch:
+        L.append(f"Not measured: {ch.get('absent', 'not asked (--child)')}.")
+    else:
+        L += [f"Every {doc['child_step']}th frame, masks halved, the capture volume fitted to the "
+              "silhouettes. No 3D reference: a matched frame is judged by whether its parts project "
+              "inside every camera's silhouette and by eye on the contact sheet (camera 0 and 5, "
+              "parts drawn: head red, torso white, crotch cyan, hand_1 green, hand_2 blue, foot_1 "
+              "yellow, foot_2 magenta).", "",
+              "| gate | frames | failed | matched | parts inside every silhouette | judged right by eye | sheet |",
+              "|" + "---|" * 7]
+        for gate in GATES:
+            g = ch[gate]
+            L.append(f"| {'default' if gate == 'simple' else 'fitted'} | {g['frames']} | {g['failed']} | "
+                     f"{g['matched']} | {g['parts_inside_every_silhouette']} | "
+                     f"{doc.get('child_by_eye', {}).get(gate, 'see the sheet')} | {g['sheet']} |")
+    return "\n".join(L) + "\n"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--work", default=None, help="where captures and per-frame poses are kept")
+    ap.add_argument("--frames", type=int, default=30, help="frames per synthetic generator")
+    ap.add_argument("--pose2sim", default=str(HERE / "data" / "pose2sim_balancing"),
+                    help="the Pose2Sim balancing recording ('' to skip)")
+    ap.add_argument("--child", default="", help="the child_rope recording (by path only)")
+    ap.add_argument("--child-step", type=int, default=5)
+    ap.add_argument("--child-by-eye", default="{}",
+                    help='JSON {"simple": "k of n", "fitted": "..."}: the sheets judged by eye')
+    ap.add_argument("--out", default=str(results_dir()))
+    ap.add_argument("--quick", action="store_true")
+    a = ap.parse_args(argv)
+    import tempfile
+
+    work = Path(a.work or tempfile.mkdtemp(prefix="topopose_sides_"))
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    doc = {"argv": sys.argv[1:] if argv is None else list(argv), "frames": a.frames,
+           "child_step": a.child_step, "child_by_eye": json.loads(a.child_by_eye)}
+    doc["synthetic"] = synthetic(work, a.frames, a.quick)
+    doc["chosen_gate"] = choose_gate(doc["synthetic"])
+    doc["pose2sim"] = pose2sim(work, a.pose2sim) if a.pose2sim else {}
+    doc["child"] = child(work, a.child, a.child_step, out) if a.child else {}
+    doc["machine"] = machine(seconds=round(time.perf_counter() - t0, 1))
+    (out / "sides.json").write_text(json.dumps(doc, indent=1, default=str))
+    (out / "sides.md").write_text(report(doc))
+    print(report(doc))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -156,8 +156,14 @@ minimum (0.85), 8 right of 14 at 0.5, and the 8-camera held-out precision fell t
 
 The confidence is reported for every frame. With the gate on (``FrameEstimator(gate=True)``,
 ``topopose run --confidence-gate on``; the default, :func:`topopose.frame.estimate.default_gate`),
-``matched`` for the human model also needs confidence ≥ ``min_confidence``; rejected frames
-keep their best guess. Everything was fitted on synthetic captures only (capsule human and
+``matched`` for the human model is decided by :class:`GateOptions` (:func:`gate_decision`): the
+AHA distance within T_d with the silhouettes explained, or above T_d the silhouettes explained
+more strictly with the arcs in the model's proportions — three interpretable features chosen
+together on several generators (``benchmarks/sides.py``), where the fitted confidence, fitted to
+one generator's frames, matched 1 of the real recording's 70 right frames. The fitted
+confidence decides only with ``FrameEstimator(gate_rule=False)`` (with per-part trust and head
+doubt): ``matched`` then also needs confidence ≥ ``min_confidence``. Rejected frames keep
+their best guess. Everything was fitted on synthetic captures only (capsule human and
 ``body``, the three camera set-ups, walk and random motion, separated / all poses); the real
 recording is used to check, never to fit.
 """

@@ -32,8 +32,10 @@ L/R markers (``real_motion.chirality``), ``matched`` against its markers (``real
 
 **child_rope** (``--child PATH``, by path only — no licence): 10 cameras, P matrices, masks;
 every ``--child-step``-th frame is run; its matched frames are judged against the masks (the
-share of the parts' projections inside the silhouettes) and drawn on a contact sheet
-(``sides_child_sheet.png``: parts and skeleton curves on camera 0's mask) to be judged by eye.
+share of the parts' projections inside every silhouette) and drawn on a contact sheet per gate
+(``sides_child_<gate>.png`` in ``--sheets``, never in the repository: parts and skeleton curves
+on cameras 0 and 5's masks) to be judged by eye (``--child-by-eye`` writes the verdicts into
+the report).
 
 Writes ``sides.md`` / ``sides.json`` in ``--out`` (default ``benchmarks/results``).
 """
@@ -206,6 +208,7 @@ def frame_row(p, right) -> dict:
     d = p.diagnostics
     f = d.get("confidence_features") or {}
     return {"frame": p.frame, "matched": p.matched, "aligned": aligned(p), "right": bool(right),
+            "unplaced": sum(x is None for x in p.parts.values()),
             "distance": f.get("distance"), "shape": f.get("shape"),
             "unexplained": d.get("unexplained"), "confidence": d.get("confidence"),
             "why": sorted({v["why"] for v in (d.get("chirality") or {}).values()
@@ -444,8 +447,8 @@ def choose_gate(rows, precision=0.98):
         for cams, n_right, fr in gens:
             m = [f for f in fr if gate_decision("matched", None, {
                 "confidence_features": {"distance": f["distance"], "shape": f["shape"]},
-                **({} if f["unexplained"] is None else {"unexplained": f["unexplained"]})}, o)[0]
-                == "matched"]
+                **({} if f["unexplained"] is None else {"unexplained": f["unexplained"]})}, o,
+                f["unplaced"])[0] == "matched"]
             k = sum(f["right"] for f in m)
             t = per_setup.setdefault(cams, [0, 0])
             t[0], t[1] = t[0] + len(m), t[1] + k
@@ -589,6 +592,9 @@ def main(argv=None):
                     help="the Pose2Sim balancing recording ('' to skip)")
     ap.add_argument("--child", default="", help="the child_rope recording (by path only)")
     ap.add_argument("--child-step", type=int, default=5)
+    ap.add_argument("--sheets", default=None,
+                    help="where the child recording's contact sheets go (default: --work; never "
+                         "the repository: the recording has no licence)")
     ap.add_argument("--child-by-eye", default="{}",
                     help='JSON {"simple": "k of n", "fitted": "..."}: the sheets judged by eye')
     ap.add_argument("--out", default=str(results_dir()))
@@ -605,7 +611,7 @@ def main(argv=None):
     doc["synthetic"] = synthetic(work, a.frames, a.quick)
     doc["chosen_gate"] = choose_gate(doc["synthetic"])
     doc["pose2sim"] = pose2sim(work, a.pose2sim) if a.pose2sim else {}
-    doc["child"] = child(work, a.child, a.child_step, out) if a.child else {}
+    doc["child"] = child(work, a.child, a.child_step, Path(a.sheets or work)) if a.child else {}
     doc["machine"] = machine(seconds=round(time.perf_counter() - t0, 1))
     (out / "sides.json").write_text(json.dumps(doc, indent=1, default=str))
     (out / "sides.md").write_text(report(doc))

@@ -547,6 +547,9 @@ def test_the_gate_decides_on_constructed_frames():
     for frame in (("failed", "hull: empty"), ("rejected", "2 parts unmatched (hand_1, foot_2)"),
                   ("rejected", "hull split: the largest component holds 60 %")):
         assert gate_decision(*frame, _diag(0.1, 0.0, 0.0)) == frame
+    st, why = gate_decision("rejected", above, _diag(1.5, 0.0, 0.05), unplaced=4)  # trunk alone
+    assert st == "rejected" and "4 parts without a position" in why
+    assert gate_decision("rejected", above, _diag(1.5, 0.1, 0.05), unplaced=1) == ok
     strict = GateOptions(max_distance=0.5)
     assert gate_decision("matched", None, _diag(0.9, 0.5, 0.05), strict)[0] == "rejected"
     assert gate_decision("matched", None, _diag(0.9, 0.1, 0.05), strict) == ok
@@ -565,6 +568,7 @@ def test_the_gate_is_the_estimators_decision():
     for f in cap.frames:
         p, q = est.estimate(f), ungated.estimate(f)
         assert "unexplained" in p.diagnostics
-        assert (p.status, p.error is None) == (gate_decision(q.status, q.error, q.diagnostics)[0],
-                                               gate_decision(q.status, q.error, q.diagnostics)[1] is None)
+        st, why = gate_decision(q.status, q.error, q.diagnostics, unplaced=sum(
+            x is None for x in q.parts.values()))
+        assert (p.status, p.error is None) == (st, why is None)
     assert FrameEstimator(cap, "human", 60, gate_rule=False).gate_rule is None

@@ -607,19 +607,25 @@ class GateOptions:
 GATE = GateOptions()
 
 
-def gate_decision(status, error, diag, options: GateOptions = GATE) -> tuple:
+def gate_decision(status, error, diag, options: GateOptions = GATE, unplaced=0,
+                  max_missing=1) -> tuple:
     """``(status, error)`` of a frame after the gate (:class:`GateOptions`). Only a frame the
     alignment placed is decided — matched, or rejected for its AHA distance alone
     (:func:`distance_only`); a failed frame, a split hull or unmatched parts stay as they are.
     ``diag``: the frame's diagnostics with ``confidence_features`` (:func:`frame_features`)
-    and, when measured, ``unexplained`` (not measured: the distance alone decides). A rejected
-    frame's reason begins with its AHA distance reason, if any, then ``confidence gate: ...``."""
+    and, when measured, ``unexplained`` (not measured: the distance alone decides);
+    ``unplaced``: its parts without a position, at most ``max_missing`` in a matched frame (the
+    thesis' missing limb; a frame above T_d is not otherwise told its unmatched parts). A
+    rejected frame's reason begins with its AHA distance reason, if any, then ``confidence
+    gate: ...``."""
     if not (status == "matched" or (status == "rejected" and distance_only(error))):
         return status, error
     o = options
     f = diag.get("confidence_features") or {}
     d, shape, u = f.get("distance", math.inf), f.get("shape", math.inf), diag.get("unexplained")
-    if u is not None and u > o.max_unexplained:
+    if unplaced > max_missing:
+        why = f"{unplaced} parts without a position (at most {max_missing})"
+    elif u is not None and u > o.max_unexplained:
         why = f"silhouette unexplained {u:.2f} (at most {o.max_unexplained:g})"
     elif d <= o.max_distance:
         return "matched", None

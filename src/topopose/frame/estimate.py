@@ -781,7 +781,8 @@ class FrameEstimator:
             diag["free_leaves"] = free_leaves(data, al.mapping)
         if self.gate_rule is not None:   # the gate (topopose.frame.confidence.GateOptions)
             from topopose.frame.confidence import gate_decision
-            status, error = gate_decision(status, error, diag, self.gate_rule)
+            status, error = gate_decision(status, error, diag, self.gate_rule,
+                                          sum(x is None for x in parts.values()), self.max_missing)
         timings["placement"] = (time.perf_counter() - t0) * 1e3
         timings["total"] = (time.perf_counter() - t_all) * 1e3
         pose = Pose(name, status, dist, parts, error, timings, diag)

@@ -2,8 +2,9 @@
 
 Per frame, from the skeleton curves of the matched arcs (:mod:`.curves`) alone:
 
-1. **The subject's up** — crotch → torso (:func:`body_up`): a subject lying down, crouching
-   or leaning has its own up; the capture's up when the trunk is not placed.
+1. **The subject's up** — along the model's ``[facing] trunk`` (human: crotch → torso,
+   :func:`body_up`): a subject lying down, crouching or leaning has its own up; the capture's
+   up when the trunk is not placed.
 2. **Facing** — the subject's forward direction, perpendicular to its up. For a model with
    ``[facing] feet`` (human): each foot arc ends in the foot, which points forward *across its
    shin* (the curve's last fifth, ankle → toe, without its component along knee → ankle: a
@@ -61,8 +62,8 @@ class SideOptions:
         numbered names (``diagnostics["chirality"][part]["why"]`` says why)
     facing_scale, separation_scale : f0, s0 of the score, as shares of the subject's height
         (the hull's extent; a planted foot gives 0.05–0.1, shoulders and hips are 0.15–0.2 apart)
-    body_axis : the subject's own up, crotch → torso, instead of the capture's (a subject lying
-        down, crouching or leaning)
+    body_axis : the subject's own up, along the model's ``[facing] trunk`` (crotch → torso),
+        instead of the capture's (a subject lying down, crouching or leaning)
     strong, overrule_min, coherent, coherence_weak : the time rule (module docstring)
     """
 
@@ -90,11 +91,13 @@ def _unit(v):
     return v / n if n > 1e-12 else None
 
 
-def body_up(pose, up, options: SideOptions = SIDES):
-    """The subject's up: crotch → torso (``options.body_axis``), else the capture's ``up``."""
+def body_up(pose, model, up, options: SideOptions = SIDES):
+    """The subject's up: along the model's ``[facing] trunk = [from, to]`` (human: crotch →
+    torso) when ``options.body_axis`` and both parts are placed, else the capture's ``up``."""
     up = np.asarray(up, dtype=float) / np.linalg.norm(up)
-    if options.body_axis:
-        t, c = pose.parts.get("torso"), pose.parts.get("crotch")
+    trunk = model.facing.get("trunk")
+    if options.body_axis and trunk:
+        c, t = (pose.parts.get(x) for x in trunk)
         if t is not None and c is not None:
             u = _unit(np.asarray(t, float) - np.asarray(c, float))
             if u is not None:
@@ -154,7 +157,7 @@ def facing(pose, model, up, options: SideOptions = SIDES):
     """Forward direction (unit, perpendicular to the subject's up, :func:`body_up`), its strength
     (capture units) and the cues' agreement ``|Σ cue| / Σ |cue|`` (1: every cue points the same
     way), or (None, 0, 0)."""
-    u = body_up(pose, up, options)
+    u = body_up(pose, model, up, options)
     cues = facing_cues(pose, model, u)
     f = np.sum(cues, axis=0) if cues else np.zeros(3)
     s = float(np.linalg.norm(f))
@@ -175,7 +178,7 @@ def _proximal(pose, part):
 def frame_evidence(pose, model, up, options: SideOptions = SIDES) -> dict:
     """Per mirror pair (index): (signed score in [-1, 1], why) — > 0: ``parts[0]`` is on the
     subject's left; ``why`` names what weakens the score (None when nothing does)."""
-    u = body_up(pose, up, options)
+    u = body_up(pose, model, up, options)
     H = subject_height(pose, u)
     f, strength, agree = facing(pose, model, up, options)
     if f is None:

@@ -1,20 +1,24 @@
 """Left/right claims and the ``matched`` gate on data the cues were not designed on.
 
-    python benchmarks/sides.py [--work DIR] [--frames N] [--pose2sim RAW.jsonl] [--child PATH]
-                               [--child-step K] [--out DIR] [--quick]
+    python benchmarks/sides.py [--work DIR] [--frames N] [--pose2sim RECORDING] [--child PATH]
+                               [--child-step K] [--sheets DIR] [--child-by-eye JSON]
+                               [--out DIR] [--quick]
 
 **Synthetic** (the MakeHuman ``body``, :func:`topopose.synth.capture.synthetic_capture`, noise 1,
 640×480, 100³, unrelated random poses of one pose family each,
-:data:`topopose.synth.body.POSE_FAMILIES`): each capture is run per frame as ``topopose run
---no-track --no-sides --no-skeleton`` with the defaults (gate on), then the side names are
-given per frame (:func:`topopose.sequence.chirality.assign_sides`, no time: the poses are
-unrelated). The generators are split:
+:data:`topopose.synth.body.POSE_FAMILIES`): each capture is estimated per frame as ``topopose
+run --no-track --no-sides --no-skeleton`` does, twice: with the default gate
+(:class:`topopose.frame.confidence.GateOptions`) and with the fitted confidence
+(``FrameEstimator(gate_rule=False)``, the peer). The side names are then given per frame
+(:func:`topopose.sequence.chirality.assign_sides`, no time: the poses are unrelated). The
+generators (:data:`DEV`, :data:`HELD`: build, pose family, cameras) are split:
 
-- *development* (:data:`DEV`; what the side margin and the gate's thresholds were chosen on):
-  builds ``average`` and ``heavy``, families ``any``, ``feet_out``, ``twist``, ``crouch``,
-  ``one_leg``, 8 cameras;
-- *held out* (:data:`HELD`): builds ``child``, ``lean``, ``random``, families ``feet_in``,
-  ``kneel``, ``arms_crossed``, ``lying``, ``any``, 8 and 4 cameras.
+- *development*: builds ``average``, ``heavy``, ``child``, ``lean`` with 8 cameras (families
+  ``any``, ``feet_out``, ``twist``, ``crouch``, ``one_leg``, ``feet_in``, ``kneel``,
+  ``arms_crossed``, ``lying``) and ``random`` with 4 — what the side cues, their margin and the
+  gate's thresholds (:func:`choose_gate`, run again here) were designed and chosen on;
+- *held out*: ``random`` with 8 cameras in every family, ``child`` and ``heavy`` with 4,
+  ``lean`` with 8, other seeds.
 
 A *claim* is a mirror pair (hands, feet) of a matched frame named ``left_``/``right_``; it is
 right when the named parts are nearer their own side's true limb than the other's (one part
@@ -22,20 +26,20 @@ found: that part), as ``benchmarks/tracking.py`` scores it. Precision = right / 
 coverage = claims / (matched frames × pairs). A frame's claim is right when all its claims are.
 
 **matched**: a matched frame is right when it is a TP of :mod:`topopose.batch.quality` (every
-placed part within 0.1 × height, at most one unplaced); precision of ``matched`` per source, for
-the shipped gate (:mod:`topopose.frame.confidence`) and, offline from the same frames' features,
-the alternatives named in the report.
+placed part within 0.1 × height, at most one unplaced); precision of ``matched`` per source and
+pose family, for both gates.
 
-**Pose2Sim** (``--pose2sim RAW.jsonl``: the per-frame poses ``benchmarks/real_motion.py --raw``
-writes, gates off): the motion stage as ``topopose run`` runs it, the claims against Pose2Sim's
-L/R markers (``real_motion.chirality``), ``matched`` against its markers (``real.RIGHT``).
+**Pose2Sim** (``--pose2sim RECORDING``, default ``benchmarks/data/pose2sim_balancing``; ``person``
+silhouettes, MediaPipe needed): both gates per frame, then the sequence stages as ``topopose
+run`` runs them; ``matched`` against Pose2Sim's markers (``real.RIGHT``), the claims of the
+matched frames against its L/R markers (``real_motion.chirality``).
 
-**child_rope** (``--child PATH``, by path only — no licence): 10 cameras, P matrices, masks;
-every ``--child-step``-th frame is run; its matched frames are judged against the masks (the
-share of the parts' projections inside every silhouette) and drawn on a contact sheet per gate
-(``sides_child_<gate>.png`` in ``--sheets``, never in the repository: parts and skeleton curves
-on cameras 0 and 5's masks) to be judged by eye (``--child-by-eye`` writes the verdicts into
-the report).
+**child_rope** (``--child PATH``, by path only — no licence): 10 cameras, P matrices, masks
+(:func:`child_capture`); every ``--child-step``-th frame is run with both gates; the matched
+frames are judged against the masks (the share of the parts' projections inside every
+silhouette) and drawn on a contact sheet per gate (``sides_child_<gate>.png`` in ``--sheets``,
+never in the repository: parts and skeleton curves on cameras 0 and 5's masks) to be judged by
+eye (``--child-by-eye`` writes the verdicts into the report).
 
 Writes ``sides.md`` / ``sides.json`` in ``--out`` (default ``benchmarks/results``).
 """

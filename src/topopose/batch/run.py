@@ -194,10 +194,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
     on_pose : callable, optional
         Called with each :class:`Pose` as it finishes (e.g. a live viewer).
     gate : bool or None
-        ``matched`` also needs the frame's confidence (:mod:`.confidence`, with the time
-        factors computed over the run at the end) above its minimum; False: the confidence is
-        reported only; None: :func:`~topopose.frame.estimate.default_gate` (on with fewer than
-        6 cameras).
+        ``matched`` is decided by the gate (:class:`topopose.frame.confidence.GateOptions`);
+        False: the confidence is reported only; None:
+        :func:`~topopose.frame.estimate.default_gate` (on).
     thickness : float or None
         Weight of the thickness term of the arc cost (see :class:`FrameEstimator`); 0: off.
     track : bool

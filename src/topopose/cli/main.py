@@ -411,11 +411,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-constraints", action="store_true",
                    help="drop the model's coordinate constraints (acrobatics)")
     s.add_argument("--confidence-gate", choices=["auto", "on", "off"], default="auto",
-                   help="human model: 'matched' also needs the fitted confidence >= its minimum "
-                        "(topopose/pose/confidence_model.json); auto (default): on, off with "
-                        "--no-constraints (the fit knows upright subjects only); measured on "
-                        "held-out synthetic frames, 8 cameras: precision of 'matched' 0.86 -> "
-                        "0.94, keeping 80 %% of the right frames")
+                   help="human model: 'matched' also needs the silhouettes explained and the AHA "
+                        "distance within T_d, or above it the arcs in proportion "
+                        "(topopose.frame.confidence.GateOptions); auto (default): on, off with "
+                        "--no-constraints (chosen on upright subjects); measured by "
+                        "benchmarks/sides.py")
     s.add_argument("--tolerance", type=int, default=None,
                    help="visual hull: keep voxels seen by C-k cameras (default 1 with >= 6 cameras, else 0)")
     s.add_argument("--rerun", metavar="FILE.rrd")

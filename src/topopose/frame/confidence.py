@@ -596,10 +596,10 @@ class GateOptions:
         the product confidence's minimum (:func:`judge_frame`)
     """
 
-    max_distance: float = 1.0
-    max_unexplained: float = 0.25
+    max_distance: float = 0.8
+    max_unexplained: float = 0.2
     far_unexplained: float = 0.12
-    far_shape: float = 0.15
+    far_shape: float = 0.1
     models: tuple = ("human",)
 
 

@@ -532,27 +532,27 @@ def test_the_gate_decides_on_constructed_frames():
 
     above = "AHA distance 0.600 above threshold T_d = 0.4"
     ok = ("matched", None)
-    u_far = GATE.far_unexplained
-    assert gate_decision("matched", None, _diag(0.9, 0.5, GATE.max_unexplained)) == ok  # T_d
-    assert gate_decision("matched", None, _diag(0.9, 0.5, None)) == ok       # T_d, not measured
-    st, why = gate_decision("matched", None, _diag(0.9, 0.1, GATE.max_unexplained + 0.01))
+    u_far, near = GATE.far_unexplained, GATE.max_distance
+    assert gate_decision("matched", None, _diag(near, 0.5, GATE.max_unexplained)) == ok  # T_d
+    assert gate_decision("matched", None, _diag(near, 0.5, None)) == ok      # not measured
+    st, why = gate_decision("matched", None, _diag(near, 0.1, GATE.max_unexplained + 0.01))
     assert st == "rejected" and why.startswith("confidence gate: silhouette unexplained")
-    assert gate_decision("rejected", above, _diag(1.5, 0.1, u_far)) == ok     # explained, in proportion
-    st, why = gate_decision("rejected", above, _diag(1.5, 0.1, u_far + 0.01))
+    assert gate_decision("rejected", above, _diag(1.5, GATE.far_shape, u_far)) == ok  # in proportion
+    st, why = gate_decision("rejected", above, _diag(1.5, 0.05, u_far + 0.01))
     assert st == "rejected" and why.startswith(above + "; confidence gate:") and "unexplained" in why
     st, why = gate_decision("rejected", above, _diag(1.5, GATE.far_shape + 0.01, 0.05))
     assert st == "rejected" and "proportions" in why
-    st, why = gate_decision("rejected", above, _diag(1.5, 0.1, None))          # not measured
+    st, why = gate_decision("rejected", above, _diag(1.5, 0.05, None))         # not measured
     assert st == "rejected" and "no silhouette support" in why
     for frame in (("failed", "hull: empty"), ("rejected", "2 parts unmatched (hand_1, foot_2)"),
                   ("rejected", "hull split: the largest component holds 60 %")):
         assert gate_decision(*frame, _diag(0.1, 0.0, 0.0)) == frame
     st, why = gate_decision("rejected", above, _diag(1.5, 0.0, 0.05), unplaced=4)  # trunk alone
     assert st == "rejected" and "4 parts without a position" in why
-    assert gate_decision("rejected", above, _diag(1.5, 0.1, 0.05), unplaced=1) == ok
-    strict = GateOptions(max_distance=0.5)
-    assert gate_decision("matched", None, _diag(0.9, 0.5, 0.05), strict)[0] == "rejected"
-    assert gate_decision("matched", None, _diag(0.9, 0.1, 0.05), strict) == ok
+    assert gate_decision("rejected", above, _diag(1.5, 0.05, 0.05), unplaced=1) == ok
+    strict = GateOptions(max_distance=0.5, far_shape=0.1)
+    assert gate_decision("matched", None, _diag(0.7, 0.5, 0.05), strict)[0] == "rejected"
+    assert gate_decision("matched", None, _diag(0.7, 0.1, 0.05), strict) == ok
 
 
 def test_the_gate_is_the_estimators_decision():

@@ -41,7 +41,7 @@ silhouette) and drawn on a contact sheet per gate (``sides_child_<gate>.png`` in
 never in the repository: parts and skeleton curves on cameras 0 and 5's masks) to be judged by
 eye (``--child-by-eye`` writes the verdicts into the report).
 
-Writes ``sides.md`` / ``sides.json`` in ``--out`` (default ``benchmarks/results``).
+Writes ``sides.md`` / ``sides.json.gz`` in ``--out`` (default ``benchmarks/results``).
 """
 from __future__ import annotations
 
@@ -617,7 +617,10 @@ def main(argv=None):
     doc["pose2sim"] = pose2sim(work, a.pose2sim) if a.pose2sim else {}
     doc["child"] = child(work, a.child, a.child_step, Path(a.sheets or work)) if a.child else {}
     doc["machine"] = machine(seconds=round(time.perf_counter() - t0, 1))
-    (out / "sides.json").write_text(json.dumps(doc, indent=1, default=str))
+    import gzip
+
+    with gzip.open(out / "sides.json.gz", "wt") as fh:    # every frame's row: large
+        json.dump(doc, fh, default=str)
     (out / "sides.md").write_text(report(doc))
     print(report(doc))
     return 0

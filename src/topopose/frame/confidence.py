@@ -159,8 +159,10 @@ The confidence is reported for every frame. With the gate on (``FrameEstimator(g
 ``matched`` for the human model is decided by :class:`GateOptions` (:func:`gate_decision`): the
 AHA distance within T_d with the silhouettes explained, or above T_d the silhouettes explained
 more strictly with the arcs in the model's proportions — three interpretable features chosen
-together on several generators (``benchmarks/sides.py``), where the fitted confidence, fitted to
-one generator's frames, matched 1 of the real recording's 70 right frames. The fitted
+together on several generators (``benchmarks/sides.py``: precision of ``matched`` 95–99 % on
+the synthetic camera set-ups and the Pose2Sim recording, whose right frames it matches 38 of 70
+where the fitted confidence matches 9; not subjects lying down, whose frames are rarely right;
+the price is recall with 8 cameras, 55 % of the right frames against 91 %). The fitted
 confidence decides only with ``FrameEstimator(gate_rule=False)`` (with per-part trust and head
 doubt): ``matched`` then also needs confidence ≥ ``min_confidence``. Rejected frames keep
 their best guess. Everything was fitted on synthetic captures only (capsule human and

@@ -205,10 +205,17 @@ def test_swapped_head_and_hand_fail_the_gate(clean):
             assert c["confidence"] < est.min_confidence, (pose.frame, hand, f, c)
 
 
-def test_spurious_limb_fails_the_gate(clean):
+def test_spurious_limb_fails_the_fitted_gate(clean):
     """A 0.45 m rod added to the hull at chest height, pointing away from the arms (a limb the
-    subject does not have): the frame is no longer matched, and keeps its best guess."""
-    cap, est, out = clean
+    subject does not have): the fitted confidence no longer matches the frame, which keeps its
+    best guess; the default gate, which reads the silhouettes (the rod is in none), matches it
+    when its parts are right by ground truth (the alignment left the rod out)."""
+    from topopose.batch.quality import evaluate
+    from topopose.frame.confidence import gate_decision
+    from topopose.frame.estimate import FrameEstimator
+
+    cap, default, out = clean
+    est = FrameEstimator(cap, "human", 100, gate=True, gate_rule=False)
     k = next(i for i, (p, _) in enumerate(out) if p.status == "matched")
     frame = cap.frames[k]
     gt = cap.gt["frames"][frame]
@@ -228,6 +235,15 @@ def test_spurious_limb_fails_the_gate(clean):
     # unplaced by the leaf-axis rule, pose/estimate.py LEAF_AXIS)
     assert bad.status == "rejected"
     assert sum(x is not None for x in bad.parts.values()) >= len(bad.parts) - 1
+    hull = default.hull
+    default.hull = lambda name: add_rod(hull(name), torso, d, 0.45)
+    try:
+        p = default.estimate(frame)
+    finally:
+        del default.hull
+    right = evaluate(cap.gt, [p], model=est.model, tolerance=0.08 * cap.gt["height"]).frames[0]
+    assert (p.status == "matched") == (right.quality == "good")
+    assert (p.status, p.error) == gate_decision(p.status, p.error, p.diagnostics)
 
 
 def test_time_factors_are_told_not_applied_to_the_fitted_confidence():
@@ -394,11 +410,11 @@ def test_part_trust_unplaces_the_part_that_explains_the_doubt(clean, monkeypatch
              "mean": [(r1 + r2) / 2], "scale": [(r1 - r2) / 20], "coef": [-1.0],
              "intercept": 0.0, "min_confidence": 0.5, "min_confidence_by_cameras": {}}
     monkeypatch.setattr(C, "CONFIDENCE_MODEL", model)
-    whole = FrameEstimator(cap, "human", 100, gate=True, min_confidence=0.5,
+    whole = FrameEstimator(cap, "human", 100, gate=True, gate_rule=False, min_confidence=0.5,
                            part_trust=False).estimate(cap.frames[0])
     assert whole.status == "rejected" and whole.diagnostics["confidence"] < 0.5
     assert all(x is not None for x in whole.parts.values())
-    trusted = FrameEstimator(cap, "human", 100, gate=True,
+    trusted = FrameEstimator(cap, "human", 100, gate=True, gate_rule=False,
                              min_confidence=0.5).estimate(cap.frames[0])
     assert trusted.status == "matched", trusted.error
     assert trusted.diagnostics["untrusted"] == p1 and trusted.parts[p1] is None
@@ -458,7 +474,7 @@ def test_head_doubt_unplaces_the_head_only_when_a_typical_head_is_trusted(clean,
     monkeypatch.setattr(C, "CONFIDENCE_MODEL", model)
 
     def run(**kw):
-        return FrameEstimator(cap, "human", 100, gate=True, min_confidence=0.5,
+        return FrameEstimator(cap, "human", 100, gate=True, gate_rule=False, min_confidence=0.5,
                               **kw).estimate(cap.frames[0])
 
     off = run(head_doubt=False)
@@ -504,3 +520,60 @@ def test_head_doubt_by_default_for_a_head_the_alignment_left_unmatched(clean, mo
     status, error, diag = judge(True)
     assert status == "matched" and diag["untrusted"] == "head", error
     assert diag["confidence_factors"]["fitted"] == pytest.approx(1 / (1 + math.exp(-10)), abs=1e-4)
+
+
+def _diag(distance, shape, unexplained):
+    d = {"confidence_features": {"distance": distance, "shape": shape}}
+    if unexplained is not None:
+        d["unexplained"] = unexplained
+    return d
+
+
+def test_the_gate_decides_on_constructed_frames():
+    """The gate's rule (``GateOptions``): within T_d matched; above it matched only with the
+    silhouettes explained and the arcs in proportion; frames the alignment did not place are
+    left as they are; a rejection's reason keeps the AHA distance's and names the gate's."""
+    from topopose.frame.confidence import GATE, GateOptions, gate_decision
+
+    above = "AHA distance 0.600 above threshold T_d = 0.4"
+    ok = ("matched", None)
+    u_far, near = GATE.far_unexplained, GATE.max_distance
+    assert gate_decision("matched", None, _diag(near, 0.5, GATE.max_unexplained)) == ok  # T_d
+    assert gate_decision("matched", None, _diag(near, 0.5, None)) == ok      # not measured
+    st, why = gate_decision("matched", None, _diag(near, 0.1, GATE.max_unexplained + 0.01))
+    assert st == "rejected" and why.startswith("confidence gate: silhouette unexplained")
+    assert gate_decision("rejected", above, _diag(1.5, GATE.far_shape, u_far)) == ok  # in proportion
+    st, why = gate_decision("rejected", above, _diag(1.5, 0.05, u_far + 0.01))
+    assert st == "rejected" and why.startswith(above + "; confidence gate:") and "unexplained" in why
+    st, why = gate_decision("rejected", above, _diag(1.5, GATE.far_shape + 0.01, 0.05))
+    assert st == "rejected" and "proportions" in why
+    st, why = gate_decision("rejected", above, _diag(1.5, 0.05, None))         # not measured
+    assert st == "rejected" and "no silhouette support" in why
+    for frame in (("failed", "hull: empty"), ("rejected", "2 parts unmatched (hand_1, foot_2)"),
+                  ("rejected", "hull split: the largest component holds 60 %")):
+        assert gate_decision(*frame, _diag(0.1, 0.0, 0.0)) == frame
+    st, why = gate_decision("rejected", above, _diag(1.5, 0.0, 0.05), unplaced=4)  # trunk alone
+    assert st == "rejected" and "4 parts without a position" in why
+    assert gate_decision("rejected", above, _diag(1.5, 0.05, 0.05), unplaced=1) == ok
+    strict = GateOptions(max_distance=0.5, far_shape=0.1)
+    assert gate_decision("matched", None, _diag(0.7, 0.5, 0.05), strict)[0] == "rejected"
+    assert gate_decision("matched", None, _diag(0.7, 0.1, 0.05), strict) == ok
+
+
+def test_the_gate_is_the_estimators_decision():
+    """A synthetic capsule-human frame: the estimator's status is the gate's decision on its own
+    diagnostics (support measured), and the fitted confidence decides with ``gate_rule=False``."""
+    from topopose.frame.confidence import gate_decision
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.synth.capture import synthetic_capture
+
+    cap = synthetic_capture("human", frames=2, seed=5, cameras=4, noise=1)
+    est = FrameEstimator(cap, "human", 60)
+    ungated = FrameEstimator(cap, "human", 60, gate=False, support=True)
+    for f in cap.frames:
+        p, q = est.estimate(f), ungated.estimate(f)
+        assert "unexplained" in p.diagnostics
+        st, why = gate_decision(q.status, q.error, q.diagnostics, unplaced=sum(
+            x is None for x in q.parts.values()))
+        assert (p.status, p.error is None) == (st, why is None)
+    assert FrameEstimator(cap, "human", 60, gate_rule=False).gate_rule is None

@@ -398,7 +398,8 @@ def _crossed_legs_sequence(n, rng):
 
 
 def test_a_long_tracked_segment_overrules_one_frame_with_crossed_legs():
-    from topopose.sequence.chirality import COHERENT, OVERRULE_MIN
+    from topopose.sequence.chirality import SIDES
+    COHERENT, OVERRULE_MIN = SIDES.coherent, SIDES.overrule_min
     rng = np.random.default_rng(2)
     n = max(OVERRULE_MIN + 1, int(np.ceil(2 / (1 - COHERENT))) + 1)   # coherent despite one
     poses, truth = _crossed_legs_sequence(n, rng)
@@ -1181,3 +1182,98 @@ def test_girdle_places_neck_and_shoulders_as_one_symmetric_rigid_body():
     next(j for j in e["joint"] if j["name"] == "neck")["girdle"] = ["skull", 0.1]
     with pytest.raises(InputError, match="girdle.*'skull'.*1 joints, not a mirror pair"):
         kinematic_tree(model_from_dict(e))
+
+
+def _mirrored(pose):
+    """The frame reflected through the vertical plane y = 0: a body whose left is the original's
+    right (every part and curve mirrored, the numbering kept)."""
+    M = np.diag([1.0, -1.0, 1.0])
+    parts = {k: None if v is None else M @ np.asarray(v, float) for k, v in pose.parts.items()}
+    curves = {k: np.asarray(c, float) @ M for k, c in pose.diagnostics["curves"].items()}
+    return Pose(pose.frame, "matched", 0.1, parts, diagnostics={"curves": curves})
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_mirrored_subject_gets_the_mirrored_claim(seed):
+    rng = np.random.default_rng(40 + seed)
+    parts, curves = _body(rng.uniform(0, 2 * np.pi), rng)
+    pose, m = _numbered_frame("000000", parts, curves, seed % 2 == 1, seed >= 2)
+    ch = assign_sides([pose], HUMAN, UP)[0].diagnostics["chirality"]
+    ch_m = assign_sides([_mirrored(pose)], HUMAN, UP)[0].diagnostics["chirality"]
+    other = {"left_hand": "right_hand", "right_hand": "left_hand",
+             "left_foot": "right_foot", "right_foot": "left_foot"}
+    for side_name, part in m.items():
+        assert ch[part]["name"] == side_name
+        assert ch_m[part]["name"] == other[side_name]
+
+
+def _kneeling(yaw, rng):
+    """Both knees on the floor, the shins behind, the feet lying along the shins (pointing
+    back): body frame x forward, y left, z up. Returns (parts, curves) with side-named truth."""
+    R = _rotz(yaw)
+    o = rng.normal(scale=0.5, size=3) * [1, 1, 0]
+    W = lambda v: R @ np.asarray(v, float) + o                          # noqa: E731
+    torso, crotch, head = W([0, 0, 0.95]), W([0, 0, 0.55]), W([0, 0, 1.35])
+    parts = {"torso": torso, "crotch": crotch, "head": head}
+    curves = {"head": resample([torso, head]), "crotch": resample([torso, crotch])}
+    for side, sg in (("left", 1.0), ("right", -1.0)):
+        sh, hand = W([0, sg * 0.2, 1.0]), W([0.1, sg * 0.3, 0.55])
+        hip, knee = W([0, sg * 0.1, 0.5]), W([0.05, sg * 0.1, 0.05])
+        ankle, toe = W([-0.35, sg * 0.1, 0.05]), W([-0.5, sg * 0.1, 0.03])
+        parts[f"{side}_hand"], parts[f"{side}_foot"] = hand, toe
+        curves[f"{side}_hand"] = resample(resample([torso, sh, hand], 64))
+        curves[f"{side}_foot"] = resample(resample([crotch, hip, knee, ankle, toe], 64))
+    return parts, curves
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_kneeling_feet_point_back_along_the_shins_yet_the_sides_hold(seed):
+    """Oracle: the knees bend forward, the feet lie along the shins pointing back: the foot's
+    direction across its shin carries no facing, so the knees decide (ankle → toe taken as
+    it is would name every side the wrong way)."""
+    rng = np.random.default_rng(60 + seed)
+    parts, curves = _kneeling(rng.uniform(0, 2 * np.pi), rng)
+    pose, m = _numbered_frame("000000", parts, curves, seed == 1, seed == 2)
+    out = assign_sides([pose], HUMAN, UP)[0]
+    for side_name, part in m.items():
+        assert out.diagnostics["chirality"][part]["name"] == side_name
+
+
+def test_a_subject_lying_on_its_side_is_sided_by_its_own_up():
+    """The standing body laid on its left side (rotated 90° about its forward axis): the
+    capture's up is the body's lateral axis, its own up (crotch → torso) is horizontal."""
+    rng = np.random.default_rng(70)
+    parts, curves = _body(0.0, rng)
+    c = np.asarray(parts["crotch"], float)
+    Rx = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])          # z (up) → y, y (left) → -z
+    rot = lambda x: Rx @ (np.asarray(x, float) - c) + c + [0, 0, 0.3]    # noqa: E731
+    parts = {k: rot(v) for k, v in parts.items()}
+    curves = {k: np.array([rot(x) for x in v]) for k, v in curves.items()}
+    pose, m = _numbered_frame("000000", parts, curves, True, False)
+    out = assign_sides([pose], HUMAN, UP)[0]
+    for side_name, part in m.items():
+        assert out.diagnostics["chirality"][part]["name"] == side_name
+
+
+def test_weak_evidence_keeps_the_numbered_names_and_says_why():
+    from topopose.sequence.chirality import SideOptions
+
+    rng = np.random.default_rng(80)
+    parts, curves = _body(0.3, rng, knee=0.0, toe=0.0)              # feet end-on, knees straight
+    pose, _ = _numbered_frame("000000", parts, curves, False, False)
+    ch = assign_sides([pose], HUMAN, UP)[0].diagnostics["chirality"]
+    assert ch["hand_1"]["name"] == "hand_1" and "facing weak" in ch["hand_1"]["why"]
+    # hands side by side along the facing (one in front of the other): not apart
+    parts, curves = _body(0.3, rng)
+    lateral = _rotz(0.3) @ [0, 1.0, 0]
+    for side in ("left", "right"):                  # proximal quarters moved onto the midline
+        c = np.asarray(curves[f"{side}_hand"], float)
+        q = c[int(round(0.25 * (len(c) - 1)))]
+        curves[f"{side}_hand"] = c - np.dot(q - parts["torso"], lateral) * lateral
+    pose, _ = _numbered_frame("000000", parts, curves, False, False)
+    ch = assign_sides([pose], HUMAN, UP)[0].diagnostics["chirality"]
+    assert ch["hand_1"]["name"] == "hand_1" and "not apart" in ch["hand_1"]["why"]
+    assert ch["foot_1"]["name"] == "left_foot" and "why" not in ch["foot_1"]
+    # a margin no frame reaches keeps every pair numbered
+    ch = assign_sides([pose], HUMAN, UP, options=SideOptions(margin=1.01))[0].diagnostics["chirality"]
+    assert all(d["name"] == p and d["why"].startswith("confidence") for p, d in ch.items())

@@ -191,3 +191,40 @@ def test_silhouettes_with_triangles_crossing_the_camera_plane():
         ref = brute_force_silhouette(cam, body.vertices, body.faces)
         assert ref.sum() > 100
         assert np.array_equal(body.render(cam, ray_table(cam)), ref)
+
+
+@pytest.mark.parametrize("family", ["feet_out", "feet_in", "twist", "crouch", "kneel", "one_leg",
+                                    "arms_crossed", "lying"])
+def test_pose_families_pose_what_they_name(family):
+    """Each pose family of the body's random poses (``synthetic_capture(pose=...)``) holds the
+    angles its name promises, re-posable from gt.json; ``lying`` lays the trunk down."""
+    from topopose.errors import InputError
+
+    cap = synthetic_capture("body", frames=3, seed=5, cameras=2, size=(64, 48), build="average",
+                            pose=family)
+    assert cap.gt["synth"]["pose"] == family
+    for name, f in cap.gt["frames"].items():
+        p = f["pose"]
+        if family in ("feet_out", "feet_in"):
+            sg = 1 if family == "feet_out" else -1
+            assert all(0 <= sg * p[f"hip_rot_{s}"] <= 40 for s in "lr")
+        elif family == "twist":
+            assert 30 <= abs(p["spine_twist"]) <= 70
+        elif family == "crouch":
+            assert all(p[f"hip_flex_{s}"] >= 70 and p[f"knee_{s}"] >= 90 for s in "lr")
+        elif family == "kneel":
+            assert any(p[f"knee_{s}"] >= 80 and p[f"hip_flex_{s}"] <= 15 for s in "lr")
+        elif family == "one_leg":
+            assert any(p[f"hip_flex_{s}"] >= 50 or p[f"hip_abd_{s}"] >= 30 for s in "lr")
+        elif family == "arms_crossed":
+            assert all(p[f"sh_rot_{s}"] <= -65 and p[f"elbow_{s}"] >= 100 for s in "lr")
+        else:
+            crotch, torso = (np.asarray(f["parts"][k], float) for k in ("crotch", "torso"))
+            axis = (torso - crotch) / np.linalg.norm(torso - crotch)
+            assert abs(axis[2]) < 0.5                    # the trunk nearer horizontal than upright
+        V, _ = body_mesh(cap.gt, name)
+        assert V[:, 2].min() == pytest.approx(0.0, abs=1e-6)          # grounded
+    with pytest.raises(InputError):
+        synthetic_capture("body", frames=1, cameras=2, size=(64, 48), pose="cartwheel")
+    with pytest.raises(InputError):
+        synthetic_capture("human", frames=1, cameras=2, size=(64, 48), pose="kneel")

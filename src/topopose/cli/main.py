@@ -77,7 +77,8 @@ def cmd_synth(a):
                          "give --force to replace it, or another folder")
     out = synthesize(a.out, subject=a.subject, frames=a.frames, seed=a.seed, cameras=a.cameras,
                      size=a.size, noise=a.noise, motion=a.motion, thickness=a.thickness,
-                     separated=a.separated, fps=a.fps, margin=a.margin, build=a.build)
+                     separated=a.separated, fps=a.fps, margin=a.margin, build=a.build,
+                     pose=a.pose)
     print(f"wrote {out}: {a.subject}, {a.frames} frames, {a.cameras} cameras ({a.motion})")
     return 0
 
@@ -398,6 +399,9 @@ def _add_stage_commands(sub):
                    help="with --separated: smallest gap between limbs, in metres (e.g. 3 voxels)")
     s.add_argument("--build", choices=["average", "heavy", "child", "lean", "random"], default=None,
                    help="body subject: proportions (default random, drawn from the seed)")
+    s.add_argument("--pose", default="any",
+                   help="body subject, random poses: one pose family, any (default), feet_out, "
+                        "feet_in, twist, crouch, kneel, one_leg, arms_crossed or lying")
     s.add_argument("--force", "--overwrite", dest="force", action="store_true",
                    help="replace the capture already in OUT (its frames are deleted first)")
     s.set_defaults(func=cmd_synth)
@@ -454,11 +458,11 @@ def _add_run_command(sub):
     s.add_argument("--no-constraints", action="store_true",
                    help="drop the model's coordinate constraints (acrobatics)")
     s.add_argument("--confidence-gate", choices=["auto", "on", "off"], default="auto",
-                   help="human model: 'matched' also needs the fitted confidence >= its minimum "
-                        "(the shipped confidence model); auto (default): on, off with "
-                        "--no-constraints (the fit knows upright subjects only); measured on "
-                        "held-out synthetic frames, 8 cameras: precision of 'matched' 0.86 -> "
-                        "0.94, keeping 80 %% of the right frames")
+                   help="human model: 'matched' also needs the silhouettes explained and the AHA "
+                        "distance within T_d, or above it the arcs in proportion "
+                        "(topopose.frame.confidence.GateOptions); auto (default): on, off with "
+                        "--no-constraints (chosen on upright subjects); measured by "
+                        "benchmarks/sides.py")
     s.add_argument("--tolerance", type=int, default=None,
                    help="visual hull: keep voxels seen by C-k cameras (default 1 with >= 6 cameras, else 0)")
     s.add_argument("--rerun", metavar="FILE.rrd")

@@ -230,9 +230,13 @@ class FrameEstimator:
         Visual hull on a grid refocused on the subject every frame (``visual_hull(...,
         refocus=True)``, thesis §13.2.2.1).
     gate : bool or None
-        ``matched`` also needs the frame's confidence (:mod:`.confidence`) ≥ ``min_confidence``.
-        None (default): :func:`default_gate` (on), off with ``constraints=False`` (the fitted
-        confidence knows upright subjects only).
+        ``matched`` is decided by the gate (``gate_rule``). None (default): :func:`default_gate`
+        (on), off with ``constraints=False`` (the gate was chosen on upright subjects).
+    gate_rule : GateOptions, False or None
+        The gate (:class:`topopose.frame.confidence.GateOptions`, its models only): the AHA
+        distance within T_d, or the silhouettes explained with the arcs in proportion. None
+        (default): :data:`topopose.frame.confidence.GATE`. False: the fitted confidence
+        ≥ ``min_confidence`` instead (with per-part trust and head doubt).
     part_trust : bool or None
         Per-part trust (:func:`topopose.frame.confidence.judge_frame`): a frame the gate alone
         rejects is matched without the one extremity (head, hand, foot) whose removal makes
@@ -295,6 +299,11 @@ class FrameEstimator:
 
         self.cap = cap
         self.model: Model = load_model(model, constraints=constraints)
+        from topopose.frame.confidence import GATE
+        rule = GATE if co.gate_rule is None else co.gate_rule
+        self.gate_rule = rule if self.gate and rule and self.model.name in rule.models else None
+        if self.gate_rule is not None:
+            self.support = True           # the gate reads the silhouette support
         if self.min_confidence is None and self.model.name == "human":
             # calibrated for the human model only, per number of cameras
             self.min_confidence = min_confidence_for(len(cap.cameras))
@@ -541,6 +550,10 @@ class FrameEstimator:
         if self.leaves:      # candidates for a misplaced numbered part (pose.track)
             from topopose.frame.tips import free_leaves
             diag["free_leaves"] = free_leaves(data, al.mapping)
+        if self.gate_rule is not None:   # the gate (topopose.frame.confidence.GateOptions)
+            from topopose.frame.confidence import gate_decision
+            status, error = gate_decision(status, error, diag, self.gate_rule,
+                                          sum(x is None for x in parts.values()), self.max_missing)
         timings["placement"] = (time.perf_counter() - t0) * 1e3
         timings["total"] = (time.perf_counter() - t_all) * 1e3
         pose = Pose(name, status, dist, parts, error, timings, diag)
@@ -770,8 +783,10 @@ class FrameEstimator:
 
         status, error, extra = judge_frame(
             vol, n_vox, data, self.model, self.up, dist, self.threshold, len(missing), status,
-            error, Gate(self.min_share, self.min_confidence if self.gate else None,
-                        DROP_PARTS if self.part_trust else (), self.head_doubt), self.cap.units,
+            error, Gate(self.min_share,
+                        self.min_confidence if self.gate and self.gate_rule is None else None,
+                        DROP_PARTS if self.part_trust and self.gate_rule is None else (),
+                        self.head_doubt), self.cap.units,
             aligned=Aligned(al, thickness_cost=thick, reach=self.thickness_reach,
                             radius_map=radii, missing_cost=mcost, parts=parts))
         if extra.get("untrusted"):     # per-part trust: unplaced, its best guess kept

@@ -76,10 +76,13 @@ class PlacementOptions:
 @dataclass(frozen=True)
 class ConfidenceOptions:
     """How far to trust the frame: the ``gate`` (None: :func:`~.estimate.default_gate`, off
-    without coordinate constraints), ``min_confidence``, ``min_share``, ``part_trust``,
-    ``head_doubt``."""
+    without coordinate constraints); ``gate_rule`` (:class:`~topopose.frame.confidence.GateOptions`
+    deciding ``matched``; None: :data:`~topopose.frame.confidence.GATE`; False: the fitted
+    confidence ≥ ``min_confidence`` instead, with ``part_trust`` and ``head_doubt``);
+    ``min_share``."""
 
     gate: bool | None = None
+    gate_rule: object = None
     min_confidence: float | None = None
     min_share: float = 0.8
     part_trust: bool | None = None

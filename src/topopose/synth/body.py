@@ -527,3 +527,61 @@ def body_balance(rng) -> dict:
               f"knee_{up}": _u(rng, 0, 30), f"hip_abd_{down}": _u(rng, -5, 10),
               f"hip_flex_{down}": _u(rng, -10, 10), f"knee_{down}": _u(rng, 0, 15)})
     return p
+
+
+#: pose families of the body's random poses (``synthetic_capture(pose=…)``, ``topopose synth
+#: --pose``): ``any`` (:func:`body_random`) or one kind of pose the left/right cues must survive
+POSE_FAMILIES = ("any", "feet_out", "feet_in", "twist", "crouch", "kneel", "one_leg",
+                 "arms_crossed", "lying")
+
+
+def body_family(rng, family="any") -> dict:
+    """Random pose of one family (:data:`POSE_FAMILIES`): :func:`body_random` with
+
+    - ``feet_out`` / ``feet_in``: both legs standing, each foot turned out / in by 0–40°
+      (hip rotation);
+    - ``twist``: the torso twisted 30–70° against the pelvis (either way);
+    - ``crouch``: both legs deeply flexed; ``kneel``: both knees on the floor or one (the
+      other foot planted in front);
+    - ``one_leg``: one leg raised, in front (knee up) or sideways, on the other straight leg;
+    - ``arms_crossed``: both arms folded across the chest, hands past the midline;
+    - ``lying``: any pose, laid on the floor by the placement (the capture's ``_random_frames``).
+    """
+    if family not in POSE_FAMILIES:
+        raise InputError(f"synth: --pose {family!r} must be one of {', '.join(POSE_FAMILIES)}")
+    p = body_random(rng)
+    sides = ("l", "r") if rng.random() < 0.5 else ("r", "l")
+    if family in ("feet_out", "feet_in"):
+        sg = 1.0 if family == "feet_out" else -1.0
+        for s in "lr":
+            p.update({f"hip_flex_{s}": _u(rng, -10, 15), f"knee_{s}": _u(rng, 0, 20),
+                      f"hip_abd_{s}": _u(rng, -5, 15), f"hip_rot_{s}": sg * _u(rng, 0, 40),
+                      f"ankle_{s}": _u(rng, -10, 10)})
+    elif family == "twist":
+        p["spine_twist"] = float(rng.choice([-1.0, 1.0])) * _u(rng, 30, 70)
+    elif family == "crouch":
+        for s in "lr":
+            p.update({f"hip_flex_{s}": _u(rng, 70, 115), f"knee_{s}": _u(rng, 90, 135),
+                      f"ankle_{s}": _u(rng, 15, 35), f"hip_abd_{s}": _u(rng, 5, 30)})
+        p["spine_flex"] = _u(rng, 10, 45)
+    elif family == "kneel":
+        for s in sides[:1 if rng.random() < 0.5 else 2]:       # knee(s) down
+            p.update({f"hip_flex_{s}": _u(rng, -10, 15), f"knee_{s}": _u(rng, 80, 110),
+                      f"ankle_{s}": _u(rng, -40, -20), f"hip_abd_{s}": _u(rng, 0, 15)})
+        if p[f"knee_{sides[1]}"] < 80:                         # the other foot planted in front
+            p.update({f"hip_flex_{sides[1]}": _u(rng, 70, 95), f"knee_{sides[1]}": _u(rng, 80, 100),
+                      f"ankle_{sides[1]}": _u(rng, 0, 15)})
+    elif family == "one_leg":
+        up, down = sides
+        if rng.random() < 0.5:
+            p.update({f"hip_flex_{up}": _u(rng, 50, 100), f"knee_{up}": _u(rng, 40, 110)})
+        else:
+            p.update({f"hip_abd_{up}": _u(rng, 30, 70), f"hip_flex_{up}": _u(rng, -10, 30),
+                      f"knee_{up}": _u(rng, 0, 40)})
+        p.update({f"hip_flex_{down}": _u(rng, -10, 10), f"knee_{down}": _u(rng, 0, 15),
+                  f"hip_abd_{down}": _u(rng, -5, 10)})
+    elif family == "arms_crossed":
+        for s in "lr":
+            p.update({f"sh_flex_{s}": _u(rng, 20, 60), f"sh_abd_{s}": _u(rng, 5, 30),
+                      f"sh_rot_{s}": _u(rng, -95, -65), f"elbow_{s}": _u(rng, 100, 140)})
+    return p

@@ -48,7 +48,8 @@ from topopose.errors import InputError
 from topopose.geometry.camera import Camera
 from topopose.capture.capture import Capture
 from topopose.synth.geometry import ray_table, render
-from topopose.synth.body import MeshBody, body_balance, body_random, make_build, pose_body
+from topopose.synth.body import (MeshBody, body_balance, body_family, body_random, make_build,
+                                 pose_body)
 from topopose.synth.subjects import (BUILD, GAIT, HUMAN_DEFAULT, MOTIONS, PARTS, RANDOM, SUBJECTS,
                              human_walk, rz, ry)
 
@@ -260,10 +261,12 @@ def _set_arm_part(body, vlo, vhi):
 
 
 def _random_frames(subject, n, rng, thickness, separated, vlo, vhi, margin, limb_margin=None,
-                   build=None, lean=0.0):
+                   build=None, lean=0.0, pose="any"):
     build, sample = build or BUILD[subject], RANDOM[subject]
     if lean and subject == "body":
         sample = body_balance
+    elif pose != "any":
+        sample = lambda r: body_family(r, pose)  # noqa: E731
     axes = (0, 1, 2) if subject == "hand" else (0, 1)
     skip = ("forearm",) if subject == "hand" else ()
     bodies = []
@@ -276,6 +279,8 @@ def _random_frames(subject, n, rng, thickness, separated, vlo, vhi, margin, limb
             R = _orientation(subject, rng)
             if lean:            # tilted about a random horizontal axis by lean/3 … lean degrees
                 R = rz(rng.uniform(0, 360)) @ ry(rng.uniform(lean / 3, lean)) @ R
+            if pose == "lying":  # laid down: on the back, a side or the front, head any way
+                R = rz(rng.uniform(0, 360)) @ ry(rng.uniform(80, 100)) @ rz(rng.uniform(0, 360))
             body = _grounded(body.transformed(R, np.zeros(3)), subject)
             lo, hi = body.extent(skip=skip)
             off = _fit_offset(lo, hi, vlo, vhi, margin, rng, axes)
@@ -433,7 +438,7 @@ def _l(x):
 
 def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 480), noise=0,
                       motion="random", thickness=1.0, separated=False, fps=25, out=None, *,
-                      margin=None, build=None, layout="ring", lean=0.0) -> Capture:
+                      margin=None, build=None, layout="ring", lean=0.0, pose="any") -> Capture:
     """Synthetic capture in memory (``masks`` set, ``options["gt"]`` = the gt.json dict,
     ``options["bodies"]`` = the posed :class:`.synth_subjects.Body` of each frame, ``path`` None).
 
@@ -491,8 +496,14 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
         ``lean`` degrees, then grounded (a leaning, balancing subject); the ``body`` then
         stands on one leg with the other lifted sideways (:func:`.synth_body.body_balance`).
         0 (default): upright.
+    pose : str
+        ``body`` random poses only: a pose family of :data:`.synth_body.POSE_FAMILIES`
+        (:func:`.synth_body.body_family`; ``lying``: laid on the floor); ``any`` (default).
     """
     _check_args(subject, frames, cameras, size, noise, motion, thickness, fps, separated)
+    if pose != "any" and (subject != "body" or motion != "random"):
+        raise InputError(f"synth: --pose applies to the body's random poses only (got --subject "
+                         f"{subject} --motion {motion})")
     rng = np.random.default_rng(seed)
     if margin is not None and not float(margin) >= 0:
         raise InputError(f"synth: margin must be a clearance ≥ 0 in metres (got {margin})")
@@ -507,7 +518,7 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
     keys = None
     if motion == "random":
         bodies = _random_frames(subject, int(frames), rng, thickness, separated, vlo, vhi, place,
-                                limb_margin, build=make, lean=float(lean))
+                                limb_margin, build=make, lean=float(lean), pose=pose)
     elif motion == SMOOTH:
         bodies, vlo, vhi, keys = _smooth_frames(subject, int(frames), float(fps), rng, seed,
                                                 thickness, vlo, vhi, place, build=make)
@@ -557,6 +568,8 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
         gt["synth"]["keyframes"] = [int(k) for k in keys]
     if lean:
         gt["synth"]["lean"] = float(lean)
+    if pose != "any":
+        gt["synth"]["pose"] = pose
     if layout != "ring":
         gt["synth"]["layout"] = layout
     cap = Capture(cams, names, None, "+z", "m", float(fps), (vlo.copy(), vhi.copy()),
@@ -568,13 +581,13 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
 
 def synthesize(out, subject="human", frames=10, seed=0, cameras=8, size=(640, 480), noise=0,
                motion="random", thickness=1.0, separated=False, fps=25, *, margin=None,
-               build=None) -> Path:
+               build=None, pose="any") -> Path:
     """Write a synthetic capture folder (DESIGN.md layout + gt.json) and return its path.
 
     Arguments as :func:`synthetic_capture`.
     """
     cap = synthetic_capture(subject, frames, seed, cameras, size, noise, motion, thickness,
-                            separated, fps, margin=margin, build=build)
+                            separated, fps, margin=margin, build=build, pose=pose)
     return write_capture(cap, out)
 
 

@@ -162,7 +162,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         constraints=True, betweenness=True, relation=None, max_missing=1, thinning="d6i1d",
         tolerance=None, refocus=False, on_pose=None, gate=None, thickness=None, track=True,
         sides=True, skeleton=True, smooth=None, bvh=None, consistency=None,
-        support=None, support_test=False, trim=None, centre=None) -> RunResult:
+        support=None, support_test=False, trim=None, centre=None, follow=None) -> RunResult:
     """Estimate the pose in every frame of a capture (thesis §12.1), writing as it goes.
 
     Parameters
@@ -244,6 +244,11 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
         (:func:`topopose.sequence.consistency.judge_support`, ``run --support``); ``"replace"``:
         the test replaces the confidence gate (frames the gate alone rejected are matched when
         they pass). Off by default (``benchmarks/results/applications_detection.md``).
+    follow : FollowOptions, optional
+        Sequences with the skeleton: the subject's capsule body tracked through every frame
+        from the confident ones (:mod:`topopose.sequence.follow`; statuses ``matched``,
+        ``tracked``, ``lost``, every tracked frame's joints and ``fit``); None: the defaults
+        (on); ``FollowOptions(enabled=False)``: off.
 
     Returns
     -------
@@ -382,9 +387,12 @@ def run(capture, model="human", resolution=100, threshold=None, output=None, *, 
                                   skeleton=skeleton, smooth=smooth, consistency=consistency,
                                   trim=trim, fps=cap.fps)
         poses = motion.poses
+        from topopose.sequence.follow import follow_run
+        poses = follow_run(poses, motion, m, cap, resolution, threshold, options, follow)
         if out is not None:
             write_poses(out, poses, header)
-    counts = {s: sum(p.status == s for p in poses) for s in ("matched", "rejected", "failed")}
+    counts = {s: sum(p.status == s for p in poses)
+              for s in ("matched", "tracked", "rejected", "lost", "failed")}
     res = RunResult(poses, out, computed=len(todo), skipped=len(skipped), seconds=seconds,
                     counts=counts)
     units = cap.units
@@ -614,5 +622,6 @@ def summary_text(res: RunResult) -> str:
     if k:                                     # kinematic_fit.despike
         off += (f"; {k} frame{'s' if k > 1 else ''} with a bone far off the frames around, "
                 "replaced by theirs (diagnostics.despiked_joints)")
-    return (f"{n} frames{skipped}: {c.get('matched', 0)} matched, {c.get('rejected', 0)} rejected, "
-            f"{c.get('failed', 0)} failed in {res.seconds:.1f} s{fps}{where}{off}")
+    tracked = "".join(f", {c[k]} {k}" for k in ("tracked", "lost") if c.get(k))
+    return (f"{n} frames{skipped}: {c.get('matched', 0)} matched{tracked}, "
+            f"{c.get('rejected', 0)} rejected, {c.get('failed', 0)} failed in {res.seconds:.1f} s{fps}{where}{off}")

@@ -265,7 +265,8 @@ HELP = {
     ("synth", "--motion"): "random: an unrelated random pose each frame; random-smooth (human, "
                            "body): a continuous motion through random poses, eased between "
                            "keyframes every 0.8-1.5 s; or a smooth gait (walk: human, dog, "
-                           "spider; trot: dog; grasp: hand)",
+                           "spider; trot: dog; grasp: hand); hang, hips, fold, jump, crouch "
+                           "(body): as random-smooth, the limbs touching the body",
     ("hull", "--out"): "volume file to write (.npz)",
     ("skeleton", "volume"): "volume file (.npz) written by `topopose hull`",
     ("skeleton", "--method"): "thinning: d6i1d (curve skeleton, the pipeline's), pkd6, d6u "
@@ -344,7 +345,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--cameras", type=int, default=8)
     s.add_argument("--size", type=_size, default=(640, 480), help="image size WxH")
     s.add_argument("--noise", type=int, default=0, help="silhouette noise level 0-3")
-    s.add_argument("--motion", choices=["random", "random-smooth", "walk", "trot", "grasp"],
+    s.add_argument("--motion", choices=["random", "random-smooth", "walk", "trot", "grasp", "hang",
+                                        "hips", "fold", "jump", "crouch"],
                    default="random")
     s.add_argument("--thickness", type=float, default=1.0, help="limb thickness factor (dress, coat)")
     s.add_argument("--separated", action="store_true",

@@ -177,8 +177,12 @@ def test_run_switch_keeps_the_best_guesses(tmp_path):
 
     cap = synthetic_capture("human", frames=8, seed=1, cameras=4, size=(240, 180),
                             motion="walk")
-    off = run(cap, resolution=48, progress=False, consistency=False)
-    on = run(cap, resolution=48, progress=False, consistency=True, output=tmp_path / "p.jsonl")
+    from topopose.sequence.follow import FollowOptions
+
+    still = FollowOptions(enabled=False)      # the tracker refits the frames it tracks
+    off = run(cap, resolution=48, progress=False, consistency=False, follow=still)
+    on = run(cap, resolution=48, progress=False, consistency=True, output=tmp_path / "p.jsonl",
+             follow=still)
     assert [p.frame for p in on.poses] == [p.frame for p in off.poses]
     for a, b in zip(off.poses, on.poses):
         assert a.parts.keys() == b.parts.keys()
@@ -298,8 +302,11 @@ def test_run_default_is_the_union(tmp_path):
     from topopose.batch import run
     cap = synthetic_capture("human", frames=8, seed=1, cameras=4, size=(240, 180),
                             motion="walk")
-    gate = run(cap, resolution=48, progress=False, consistency=False)
-    union = run(cap, resolution=48, progress=False)
+    from topopose.sequence.follow import FollowOptions
+
+    off = FollowOptions(enabled=False)      # the tracker's statuses are its own (test_tracker)
+    gate = run(cap, resolution=48, progress=False, consistency=False, follow=off)
+    union = run(cap, resolution=48, progress=False, follow=off)
     # the gate reads the silhouette support (frame.confidence.GateOptions): recorded in both
     assert any("unexplained" in p.diagnostics for p in gate.poses)
     assert any("unexplained" in p.diagnostics for p in union.poses)

@@ -73,6 +73,11 @@ class RunOptions:
     sequence : SequenceOptions
         The sequence stage's options; for a sequence (more than one frame) ``track`` rewrites
         the output file with stable identities.
+    follow : FollowOptions or None
+        Sequences with the skeleton: the subject's capsule body tracked through every frame
+        from the confident ones (:mod:`topopose.sequence.follow`; statuses ``matched``,
+        ``tracked``, ``lost``, every tracked frame's joints and ``fit``); None: the defaults
+        (on); ``FollowOptions(enabled=False)``: off.
     """
 
     frames: object = None
@@ -86,6 +91,7 @@ class RunOptions:
     parallel: ParallelOptions = field(default_factory=ParallelOptions)
     estimator: EstimatorOptions = field(default_factory=EstimatorOptions)
     sequence: SequenceOptions = field(default_factory=SequenceOptions)
+    follow: object = None
 
     def with_(self, **flat) -> RunOptions:
         """A copy with options changed by name, whatever group holds them; ``centre`` None:

@@ -328,6 +328,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None,
                 motion = process_sequence(poses, m, cap.up_vector,
                                           replace(seq, consistency=consistency), fps=cap.fps)
                 poses = motion.poses
+                from topopose.sequence.follow import follow_run
+                poses = follow_run(poses, motion, m, cap, resolution, threshold, eo, o.follow)
             if out is not None and (todo or not existed or resume):
                 write_poses(out, poses, header)                   # sorted, atomic replace
             if partial is not None:
@@ -345,7 +347,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None,
                 write_poses(out, results.values(), header)
                 partial.unlink(missing_ok=True)
         raise
-    counts = {s: sum(p.status == s for p in poses) for s in ("matched", "rejected", "failed")}
+    counts = {s: sum(p.status == s for p in poses)
+              for s in ("matched", "tracked", "rejected", "lost", "failed")}
     res = RunResult(poses, out, computed=len(todo), skipped=len(skipped), seconds=seconds,
                     counts=counts, written=written)
     write_exports(exports, poses, motion, m, cap)
@@ -651,5 +654,6 @@ def summary_text(res: RunResult) -> str:
     if k:                                     # kinematic_fit.despike
         off += (f"; {k} frame{'s' if k > 1 else ''} with a bone far off the frames around, "
                 "replaced by theirs (diagnostics.despiked_joints)")
-    return (f"{n} frames{skipped}: {c.get('matched', 0)} matched, {c.get('rejected', 0)} rejected, "
-            f"{c.get('failed', 0)} failed in {res.seconds:.1f} s{fps}{where}{off}")
+    tracked = "".join(f", {c[k]} {k}" for k in ("tracked", "lost") if c.get(k))
+    return (f"{n} frames{skipped}: {c.get('matched', 0)} matched{tracked}, "
+            f"{c.get('rejected', 0)} rejected, {c.get('failed', 0)} failed in {res.seconds:.1f} s{fps}{where}{off}")

@@ -299,7 +299,8 @@ HELP = {
     ("synth", "--motion"): "random: an unrelated random pose each frame; random-smooth (human, "
                            "body): a continuous motion through random poses, eased between "
                            "keyframes every 0.8-1.5 s; or a smooth gait (walk: human, dog, "
-                           "spider; trot: dog; grasp: hand)",
+                           "spider; trot: dog; grasp: hand); hang, hips, fold, jump, crouch "
+                           "(body): as random-smooth, the limbs touching the body",
     ("hull", "--out"): "volume file to write (.npz)",
     ("skeleton", "volume"): "volume file (.npz) written by `topopose hull`",
     ("skeleton", "--method"): "thinning: d6i1d (curve skeleton, the pipeline's), pkd6, d6u "
@@ -389,7 +390,8 @@ def _add_stage_commands(sub):
     s.add_argument("--cameras", type=int, default=8)
     s.add_argument("--size", type=_size, default=(640, 480), help="image size WxH")
     s.add_argument("--noise", type=int, default=0, help="silhouette noise level 0-3")
-    s.add_argument("--motion", choices=["random", "random-smooth", "walk", "trot", "grasp"],
+    s.add_argument("--motion", choices=["random", "random-smooth", "walk", "trot", "grasp", "hang",
+                                        "hips", "fold", "jump", "crouch"],
                    default="random")
     s.add_argument("--thickness", type=float, default=1.0, help="limb thickness factor (dress, coat)")
     s.add_argument("--separated", action="store_true",
@@ -459,10 +461,9 @@ def _add_run_command(sub):
                    help="drop the model's coordinate constraints (acrobatics)")
     s.add_argument("--confidence-gate", choices=["auto", "on", "off"], default="auto",
                    help="human model: 'matched' also needs the silhouettes explained and the AHA "
-                        "distance within T_d, or above it the arcs in proportion "
-                        "(topopose.frame.confidence.GateOptions); auto (default): on, off with "
-                        "--no-constraints (chosen on upright subjects); measured by "
-                        "benchmarks/sides.py")
+                        "distance within T_d, or above it the arcs in the model's proportions; "
+                        "auto (default): on, off with --no-constraints (chosen on upright "
+                        "subjects)")
     s.add_argument("--tolerance", type=int, default=None,
                    help="visual hull: keep voxels seen by C-k cameras (default 1 with >= 6 cameras, else 0)")
     s.add_argument("--rerun", metavar="FILE.rrd")

@@ -89,17 +89,19 @@ def _labels(names, labels):
 
 
 def _matrix(poses, parts):
-    """(n_frames, n_parts, 3) positions, NaN where a part is missing or the frame not matched.
+    """(n_frames, n_parts, 3) positions, NaN where a part is missing or the frame neither
+    matched nor tracked (:mod:`topopose.sequence.follow`).
 
     Joints (:attr:`Pose.joints`) count as parts; interpolated joints are written too (they are
     flagged in the JSON Lines file).
     """
     a = np.full((len(poses), len(parts), 3), np.nan)
     for i, p in enumerate(poses):
-        if p.status != "matched" and not p.joints:
+        placed = p.status in ("matched", "tracked")
+        if not placed and not p.joints:
             continue
         for j, name in enumerate(parts):
-            v = p.parts.get(name) if p.status == "matched" else None
+            v = p.parts.get(name) if placed else None
             if v is None:
                 v = p.joints.get(name)
             if v is not None:

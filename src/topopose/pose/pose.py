@@ -14,7 +14,7 @@ from topopose.match.tree import _jsonable
 from topopose.errors import InputError
 from topopose.frames import sort_frames, sort_poses
 
-STATUSES = ("matched", "rejected", "failed")
+STATUSES = ("matched", "tracked", "rejected", "lost", "failed")
 
 
 @dataclass
@@ -27,7 +27,9 @@ class Pose:
     status : str
         ``"matched"`` (distance ≤ T_d and enough parts), ``"rejected"`` (distance above T_d,
         or too few parts placed: the partial / no-matching classes of §13.2.2 that the method
-        detects itself) or ``"failed"`` (the frame could not be processed; see ``error``).
+        detects itself) or ``"failed"`` (the frame could not be processed; see ``error``);
+        after the tracker (:mod:`topopose.sequence.follow`) also ``"tracked"`` (the subject's
+        body followed into this frame fits it, ``fit`` says how well) and ``"lost"``.
     distance : float or None
         AHA distance between the normalized model and data trees (§12.1.1).
     parts : dict part -> ndarray (3,) or None
@@ -49,6 +51,9 @@ class Pose:
         in ``diagnostics["interpolated_parts"]`` were then interpolated too). A joint listed
         in ``diagnostics["despiked_joints"]`` had its bone's direction, far off the frames
         around it, replaced by theirs before the smoothing.
+    fit : float or None
+        How well the tracked body fits the frame (:mod:`topopose.sequence.follow`: the
+        silhouette IoU of the projected body, or the voxel agreement); None: not tracked.
     """
 
     frame: str
@@ -59,6 +64,7 @@ class Pose:
     timings_ms: dict = field(default_factory=dict)
     diagnostics: dict = field(default_factory=dict)
     joints: dict = field(default_factory=dict)
+    fit: float | None = None
 
     @property
     def matched(self) -> bool:
@@ -72,6 +78,7 @@ class Pose:
                                 else [float(x) for x in np.asarray(v).ravel()])
                        for k, v in self.parts.items()},
              "error": self.error,
+             **({} if self.fit is None else {"fit": float(self.fit)}),
              "timings_ms": {k: round(float(v), 3) for k, v in self.timings_ms.items()}}
         if self.diagnostics:
             d["diagnostics"] = _jsonable(self.diagnostics)
@@ -108,7 +115,8 @@ class Pose:
         return cls(frame=str(d["frame"]), status=d["status"],
                    distance=None if dist is None else float(dist), parts=parts,
                    error=d.get("error"), timings_ms=dict(d.get("timings_ms") or {}),
-                   diagnostics=dict(d.get("diagnostics") or {}), joints=joints)
+                   diagnostics=dict(d.get("diagnostics") or {}), joints=joints,
+                   fit=None if d.get("fit") is None else float(d["fit"]))
 
 
 #: the largest position coordinate a poses file may hold (capture units): far beyond any

@@ -1,1 +1,1 @@
-"""What reads a run of frames: identities, left/right, consistency, the joint skeleton over time."""
+"""Sequence stages: the subject's capsule body tracked through every frame (:mod:`.follow`)."""

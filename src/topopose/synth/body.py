@@ -516,6 +516,48 @@ def body_random(rng) -> dict:
     return p
 
 
+def _arms(rng, lo_hi: dict) -> dict:
+    return {f"{k}_{s}": _u(rng, *v) for s in "lr" for k, v in lo_hi.items()}
+
+
+#: poses whose limbs touch the body (the hull has no branch for them), by motion name: each a
+#: sampler of the joints it sets (degrees) on top of :func:`body_random`'s trunk and head
+TOUCHING = {
+    "hang": lambda rng: {**_arms(rng, {"sh_flex": (-10, 10), "sh_abd": (0, 6),
+                                       "sh_rot": (-20, 20), "elbow": (0, 20)}),
+                         **_arms(rng, {"hip_flex": (-5, 10), "knee": (0, 15), "hip_abd": (0, 8)})},
+    "hips": lambda rng: {**_arms(rng, {"sh_flex": (-25, -5), "sh_abd": (35, 55),
+                                       "sh_rot": (-20, 10), "elbow": (95, 120)}),
+                         **_arms(rng, {"hip_flex": (-5, 10), "knee": (0, 15), "hip_abd": (0, 8)})},
+    "fold": lambda rng: {**_arms(rng, {"sh_flex": (20, 55), "sh_abd": (10, 30),
+                                       "sh_rot": (-75, -40), "elbow": (110, 140)}),
+                         **_arms(rng, {"hip_flex": (-5, 10), "knee": (0, 15), "hip_abd": (0, 8)})},
+    "jump": lambda rng: (lambda f, k: {
+        **_arms(rng, {"sh_flex": (-30, 60), "sh_abd": (5, 20), "elbow": (0, 40)}),
+        **{f"hip_flex_{s}": f for s in "lr"}, **{f"knee_{s}": k for s in "lr"},
+        **{f"hip_abd_{s}": _u(rng, -3, 2) for s in "lr"}, **{f"hip_rot_{s}": 0.0 for s in "lr"}})(
+        _u(rng, 0, 60), _u(rng, 0, 90)),
+    "crouch": lambda rng: {**_arms(rng, {"sh_flex": (-10, 30), "sh_abd": (0, 10),
+                                         "elbow": (0, 40)}),
+                           **_arms(rng, {"hip_flex": (60, 110), "knee": (80, 130),
+                                         "ankle": (15, 35), "hip_abd": (5, 30)}),
+                           "spine_flex": _u(rng, 10, 45)},
+}
+#: the share of a touching motion's keyframes drawn free (:func:`body_random`): the limbs stand
+#: apart now and then, as a subject's do
+FREE_SHARE = 1 / 3
+
+
+def body_touching(kind):
+    """Keyframe sampler of the touching motion ``kind`` (a key of :data:`TOUCHING`): a
+    :func:`body_random` pose with the limbs set by ``TOUCHING[kind]``, or, with probability
+    :data:`FREE_SHARE`, the random pose itself."""
+    def sample(rng) -> dict:
+        p = body_random(rng)
+        return p if rng.random() < FREE_SHARE else {**p, **TOUCHING[kind](rng)}
+    return sample
+
+
 def body_balance(rng) -> dict:
     """Random balancing pose: :func:`body_random` with one leg lifted sideways (hip abduction
     30–80°, knee nearly straight) on the other, straight, leg — as the Pose2Sim balancing trial

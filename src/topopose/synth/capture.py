@@ -48,8 +48,8 @@ from topopose.errors import InputError
 from topopose.geometry.camera import Camera
 from topopose.capture.capture import Capture
 from topopose.synth.geometry import ray_table, render
-from topopose.synth.body import (MeshBody, body_balance, body_family, body_random, make_build,
-                                 pose_body)
+from topopose.synth.body import (TOUCHING, MeshBody, body_balance, body_family, body_random,
+                                 body_touching, make_build, pose_body)
 from topopose.synth.subjects import (BUILD, GAIT, HUMAN_DEFAULT, MOTIONS, PARTS, RANDOM, SUBJECTS,
                              human_walk, rz, ry)
 
@@ -369,7 +369,8 @@ def ease_keyframes(values, keys, n) -> np.ndarray:
     return out
 
 
-def _smooth_frames(subject, n, fps, rng, seed, thickness, vlo, vhi, margin, build=None):
+def _smooth_frames(subject, n, fps, rng, seed, thickness, vlo, vhi, margin, build=None,
+                   sample=None):
     """A continuous motion through random poses (``motion="random-smooth"``, human and body):
     keyframe poses drawn as ``random`` draws them, joint angles, heading and root position
     eased between keyframes (:func:`min_jerk`), the body grounded in every frame. Each
@@ -377,8 +378,8 @@ def _smooth_frames(subject, n, fps, rng, seed, thickness, vlo, vhi, margin, buil
     inside every adjacent frame's feasible box (the positions keeping that frame's posed body
     inside the volume): between two keyframes the root moves on a segment, so every frame
     fits. A pose too wide or too tall for the volume grows it (written to capture.toml), as
-    the walk does."""
-    build, sample = build or BUILD[subject], RANDOM[subject]
+    the walk does. ``sample`` draws the keyframe poses (default: the subject's random poses)."""
+    build, sample = build or BUILD[subject], sample or RANDOM[subject]
     keys = smooth_keyframes(n, fps, rng)
     prng = np.random.default_rng([int(seed), POSE_STREAM])
     kposes = [{**HUMAN_DEFAULT, **sample(prng)} for _ in keys]
@@ -464,6 +465,10 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
         by at most 90° from keyframe to keyframe) and root position (drifting by at most
         0.4 m per axis) eased between keyframes by :func:`min_jerk` (continuous velocities),
         every frame inside the volume (:func:`_smooth_frames`).
+        ``hang``, ``hips``, ``fold``, ``jump``, ``crouch`` (body): the same continuous motion
+        through keyframes whose limbs touch the body (:data:`.synth_body.TOUCHING`: arms
+        hanging, hands on the hips, arms folded, feet together bending and stretching as
+        before a jump — grounded, never in the air — and crouching), one in three free.
         ``walk`` (human, dog, spider), ``trot`` (dog), ``grasp`` (hand): smooth gait at ``fps``,
         moving through the volume (except the hand).
     thickness : float
@@ -519,9 +524,10 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
     if motion == "random":
         bodies = _random_frames(subject, int(frames), rng, thickness, separated, vlo, vhi, place,
                                 limb_margin, build=make, lean=float(lean), pose=pose)
-    elif motion == SMOOTH:
-        bodies, vlo, vhi, keys = _smooth_frames(subject, int(frames), float(fps), rng, seed,
-                                                thickness, vlo, vhi, place, build=make)
+    elif motion == SMOOTH or motion in TOUCHING:
+        bodies, vlo, vhi, keys = _smooth_frames(
+            subject, int(frames), float(fps), rng, seed, thickness, vlo, vhi, place, build=make,
+            sample=body_touching(motion) if motion in TOUCHING else None)
     else:
         bodies, vlo, vhi = _motion_frames(subject, motion, int(frames), float(fps), rng, thickness,
                                           vlo, vhi, place, build=make)

@@ -34,7 +34,8 @@ PARTS = {
 # the motions each subject can perform (besides "random"); "random-smooth": a continuous motion
 # through random poses (:func:`topopose.synth.capture.synthetic_capture`)
 MOTIONS = {"human": ("walk", "random-smooth"), "dog": ("trot", "walk"), "spider": ("walk",),
-           "hand": ("grasp",), "body": ("walk", "random-smooth")}
+           "hand": ("grasp",), "body": ("walk", "random-smooth", "hang", "hips", "fold", "jump",
+                                       "crouch")}
 
 
 def rx(deg):

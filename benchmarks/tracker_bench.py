@@ -1,0 +1,433 @@
+"""Motion on every frame: the subject's capsule body tracked through the sequence
+(:mod:`topopose.sequence`) against the sequence stage before it, in the same run.
+
+    python benchmarks/tracking.py --tracker [--real DIR] [--child-rope DIR] [--frames 40]
+                                            [--dev] [--setups 8,4p] [--out DIR] [--work DIR]
+
+Every sequence runs twice as ``topopose run`` runs it: with the tracker (the default,
+:class:`~topopose.sequence.follow.FollowOptions`) and without it
+(``follow=FollowOptions(enabled=False)``: the sequence stage as it was, the peer).
+
+* **synthetic** ``body`` sequences (100³; ``8``: 8 cameras 640×480 noise 1; ``4p``: 4 portrait
+  phones in facing pairs, noise 2, AHA threshold and gate off as ``tracking.py --setup 4p``):
+  walk, random-smooth and the motions whose limbs touch the body (``hang``, ``hips``, ``fold``,
+  ``jump``, ``crouch``: :data:`topopose.synth.body.TOUCHING`). Held-out seeds
+  (:data:`SEEDS`; ``--dev``: :data:`DEV_SEEDS`, where the constants were chosen). Per sequence:
+  the frames with a skeleton, the MPJPE (neck, shoulders, elbows, wrists, hips, knees, ankles
+  against the rig joints, mirror pairs paired optimally, ``tracking.joint_errors``) over the
+  frames with a skeleton (median and mean of the per-frame mean), the statuses.
+* **the real recording** (``--real``, Pose2Sim's balancing trial) by the README's own route:
+  ``person`` silhouettes, the Qualisys calibration imported (``Calib.qca.txt``), ``size_policy
+  = "pad"``, no other flag; the exported TRC scored as ``real_motion.py`` scores it (14 joints
+  against Pose2Sim's, side names kept): frames with all 14, MPJPE median / p90, left and right
+  swapped per joint pair (the named pair farther from Pose2Sim's than the swapped one).
+* **child_rope** (``--child-rope``, 10 cameras, P matrices, no 3D reference; read by path: a
+  capture folder of links is built in the work folder, frames sorted numerically): frames with
+  a skeleton, the silhouette IoU of the fitted body per camera (median over frames), pictures
+  of 6 frames (3 with a wrist within :data:`TOUCH` of the trunk) with the body drawn over the
+  masks (written to the work folder, not to ``--out``: the recording has no licence to copy).
+* **speed**: the tracker's stages per frame (``timings_ms``: ``track_hull`` carving the hull
+  again, ``track_data`` surface points and silhouette rays, ``track_fit`` the Gauss–Newton fits,
+  ``track_quality`` the silhouette IoU), the mean over the synthetic 8-camera sequences.
+"""
+from __future__ import annotations
+
+import json
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+MOTIONS = ("walk", "random-smooth", "hang", "hips", "fold", "jump", "crouch")
+BUILDS = ("average", "lean", "heavy", "random", "child", "average", "random")
+SEEDS = {m: 81 + k for k, m in enumerate(MOTIONS)}           # held out
+DEV_SEEDS = {m: 61 + k for k, m in enumerate(MOTIONS)}       # the constants chosen here
+TOUCH = 0.12    # m: a wrist this near the trunk's axis (chest → pelvis) touches the body
+
+
+def _numbered(name):
+    if name.startswith("left_"):
+        return name[5:] + "_1"
+    if name.startswith("right_"):
+        return name[6:] + "_2"
+    return name
+
+
+def synthetic_sequence(work, motion, seed, build, frames, setup, model):
+    """One synthetic sequence with and without the tracker: rows of figures."""
+    from tracking import MPJPE_JOINTS, joint_errors, make_sequence
+
+    from topopose.capture import load_capture
+    from topopose.batch import run
+    from topopose.sequence.follow import FollowOptions
+
+    d = make_sequence(work, motion, seed, build, frames, setup)
+    cap = load_capture(d)
+    loose = {} if setup == "8" else {"threshold": 1e9, "gate": False}
+    out = {"motion": motion, "seed": seed, "build": build, "setup": setup, "frames": frames}
+    for key, follow in (("peer", FollowOptions(enabled=False)), ("tracker", None)):
+        t0 = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = run(cap, model=model, resolution=100, progress=False, follow=follow, **loose)
+        errs = []
+        for p in res.poses:
+            if not p.joints:
+                continue
+            names = [_numbered(k) for k in p.joints]
+            e = joint_errors(names, np.array(list(p.joints.values())),
+                             cap.gt["frames"][p.frame]["joints"])
+            v = [x for k, xs in e.items() if k in MPJPE_JOINTS for x in xs]
+            if v:
+                errs.append(float(np.mean(v)))
+        st = {}
+        for p in res.poses:
+            st[p.status] = st.get(p.status, 0) + 1
+        timing = {k: float(np.mean([p.timings_ms.get(k, 0.0) for p in res.poses]))
+                  for k in ("track_hull", "track_data", "track_fit", "track_quality")}
+        out[key] = {"skeleton": len(errs), "mpjpe_median": float(np.median(errs)) if errs else None,
+                    "mpjpe_mean": float(np.mean(errs)) if errs else None,
+                    "per_frame": [round(x, 4) for x in errs], "statuses": st,
+                    "seconds": round(time.perf_counter() - t0, 2), "timings_ms": timing}
+    return out
+
+
+# --------------------------------------------------------------------------- the real recording
+def readme_capture(rec: Path, out: Path):
+    """The README's "Your own recording" capture folder over the recording (videos linked)."""
+    from topopose.capture.calib_import import import_calibration, write_calibration
+
+    out.mkdir(parents=True, exist_ok=True)
+    if not (out / "videos").exists():
+        (out / "videos").symlink_to((rec / "videos").resolve())
+    (out / "capture.toml").write_text('[capture]\nup = "+z"\nsize_policy = "pad"\n\n'
+                                      '[silhouettes]\nmethod = "person"\n')
+    write_calibration(import_calibration([rec / "Calib.qca.txt"], "qualisys"),
+                      out / "calibration.toml")
+
+
+def score_real(poses, cap, ref, work, tag, model):
+    from real_motion import OURS, PAIRED, joint_errors, mpjpe
+
+    from topopose.pose.export import OPENSIM_LABELS, marker_names, read_trc, write_trc
+
+    trc = Path(work) / f"{tag}.trc"
+    write_trc(trc, poses, marker_names(poses, model.parts), fps=cap.fps or 25.0, units=cap.units,
+              up=cap.up, labels=OPENSIM_LABELS)
+    names, _t, a = read_trc(trc)
+    errs, swaps, pairs, full = [], 0, 0, 0
+    for i in range(len(poses)):
+        w = a[i][:, [2, 0, 1]]                          # TRC (X, Y, Z) = world (y, z, x)
+        mk = {nm: w[k] for k, nm in enumerate(names)}
+        e = joint_errors(mk, ref, i)
+        full += sum(len(v) if isinstance(v, list) else 1 for v in e.values()) >= 14
+        if e:
+            errs.append(e)
+        for stem in PAIRED:
+            L, R = ref[f"L{OURS[stem]}"][i], ref[f"R{OURS[stem]}"][i]
+            x, y = mk.get(f"L{OURS[stem]}"), mk.get(f"R{OURS[stem]}")
+            if x is None or y is None or np.isnan(x).any() or np.isnan(y).any():
+                continue
+            pairs += 1
+            swaps += (np.linalg.norm(x - L) + np.linalg.norm(y - R)
+                      > np.linalg.norm(x - R) + np.linalg.norm(y - L))
+    r = mpjpe(errs)
+    st = {}
+    for p in poses:
+        st[p.status] = st.get(p.status, 0) + 1
+    return {"frames": len(poses), "skeleton_14": int(full), "mpjpe_median": r["mpjpe"],
+            "mpjpe_p90": r["mpjpe_p90"], "per_joint": r["per_joint"], "swaps": int(swaps),
+            "pairs": int(pairs), "statuses": st,
+            "fit_median": float(np.median([p.fit for p in poses if p.fit is not None]))
+            if any(p.fit is not None for p in poses) else None}
+
+
+def real_recording(path, work, model):
+    from real import person_recording
+
+    import topopose as tp
+    from topopose.batch import run
+    from topopose.sequence.follow import FollowOptions
+
+    opened = person_recording(path)
+    if isinstance(opened, int):
+        return None
+    rec, ref = opened
+    cdir = Path(work) / "real_capture"
+    readme_capture(rec, cdir)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cap = tp.load_capture(cdir)
+        out = {}
+        for key, follow in (("peer", FollowOptions(enabled=False)), ("tracker", None)):
+            t0 = time.perf_counter()
+            res = run(cap, model=model, progress=False, follow=follow)
+            out[key] = score_real(res.poses, cap, ref, work, key, model)
+            out[key]["seconds"] = round(time.perf_counter() - t0, 1)
+            out[key]["timings_ms"] = {k: float(np.mean([p.timings_ms.get(k, 0.0)
+                                                        for p in res.poses]))
+                                      for k in ("track_hull", "track_data", "track_fit",
+                                                "track_quality")}
+    return out
+
+
+# --------------------------------------------------------------------------- child_rope
+def child_rope_capture(src: Path, out: Path, frames=None) -> Path:
+    """A capture folder over child_rope by path (links, nothing copied): cameras from their
+    projection matrices (``camXX/cam_par.txt``: name, then P row-major; K R t by
+    ``cv2.decomposeProjectionMatrix``), silhouettes ``camXX/N.png`` linked as zero-padded
+    frame names (numeric order)."""
+    import cv2
+
+    from topopose.capture.calib_import import write_calibration
+    from topopose.geometry.camera import Camera
+
+    out.mkdir(parents=True, exist_ok=True)
+    cams = []
+    for cdir in sorted(p for p in src.iterdir() if p.is_dir() and (p / "cam_par.txt").exists()):
+        words = (cdir / "cam_par.txt").read_text().split()
+        P = np.array([float(x) for x in words[-12:]]).reshape(3, 4)
+        K, R, c = cv2.decomposeProjectionMatrix(P)[:3]
+        K = K / K[2, 2]
+        t = -R @ (c[:3, 0] / c[3, 0])
+        h, w = cv2.imread(str(next(cdir.glob("*.png"))), cv2.IMREAD_GRAYSCALE).shape
+        cams.append(Camera(cdir.name, (w, h), K, np.zeros(4), cv2.Rodrigues(R)[0].ravel(), t))
+        nums = sorted(int(f.stem) for f in cdir.glob("*.png") if f.stem.isdigit())
+        if frames is not None:
+            nums = nums[:frames]
+        d = out / "silhouettes" / cdir.name
+        d.mkdir(parents=True, exist_ok=True)
+        for n in nums:
+            link = d / f"{n:06d}.png"
+            if not link.exists():
+                link.symlink_to((cdir / f"{n}.png").resolve())
+    write_calibration(cams, out / "calibration.toml")
+    (out / "capture.toml").write_text('[capture]\nup = "+z"\nunits = "m"\nfps = 25.0\n')
+    return out
+
+
+def child_rope(path, work, model, frames=None, peer=True, pictures=None):
+    import topopose as tp
+    from topopose.batch import run
+    from topopose.sequence.follow import FollowOptions
+
+    src = Path(path)
+    if not (src / "cam00").exists():
+        print(f"child_rope: {src} absent; skipped")
+        return None
+    cap = tp.load_capture(child_rope_capture(src, Path(work) / "child_rope_capture", frames))
+    out = {"frames": len(cap.frames), "cameras": len(cap.cameras)}
+    keys = (("peer", FollowOptions(enabled=False)),) if peer else ()
+    for key, follow in keys + (("tracker", None),):
+        t0 = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = run(cap, model=model, progress=False, follow=follow)
+        st = {}
+        for p in res.poses:
+            st[p.status] = st.get(p.status, 0) + 1
+        full = sum(len(p.joints) >= 20 and p.status in ("matched", "tracked") for p in res.poses)
+        ious = np.array([p.diagnostics.get("fit_cameras") or [np.nan] * len(cap.cameras)
+                         for p in res.poses], dtype=float)
+        out[key] = {"skeleton": int(full), "statuses": st,
+                    "iou_per_camera_median": [None if np.isnan(x) else round(float(x), 3)
+                                              for x in np.nanmedian(ious, axis=0)]
+                    if np.isfinite(ious).any() else None,
+                    "seconds": round(time.perf_counter() - t0, 1),
+                    "timings_ms": {k: float(np.mean([p.timings_ms.get(k, 0.0)
+                                                     for p in res.poses]))
+                                   for k in ("track_hull", "track_data", "track_fit",
+                                             "track_quality")}}
+        if key == "tracker" and pictures is not None:
+            out["pictures"] = child_pictures(cap, res.poses, model, pictures)
+    return out
+
+
+def _touching(p) -> bool:
+    j = p.joints
+    need = ("chest", "pelvis", "left_wrist", "right_wrist")
+    if not all(k in j for k in need):
+        return False
+    a, b = np.asarray(j["chest"]), np.asarray(j["pelvis"])
+    ab = b - a
+    for w in ("left_wrist", "right_wrist"):
+        x = np.asarray(j[w])
+        t = np.clip((x - a) @ ab / (ab @ ab), 0, 1)
+        if np.linalg.norm(x - (a + t * ab)) < TOUCH:
+            return True
+    return False
+
+
+def child_pictures(cap, poses, model, out_dir, n_touch=3, n_other=3):
+    """Pictures of 6 tracked frames (``n_touch`` with a wrist at the trunk): per frame, 3
+    cameras' masks (grey) with the fitted body's silhouette outlined (red)."""
+    import cv2
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from topopose.sequence.body import CapsuleBody
+    from topopose.sequence.silhouette import body_masks, scaled_views
+
+    good = [i for i, p in enumerate(poses) if p.status in ("matched", "tracked") and p.joints]
+    touch = [i for i in good if _touching(poses[i])]
+    other = [i for i in good if i not in touch]
+    pick = ([touch[k] for k in np.linspace(0, len(touch) - 1, min(n_touch, len(touch)))
+             .round().astype(int)] if touch else [])
+    pick += [other[k] for k in np.linspace(0, len(other) - 1, min(n_other, len(other)))
+             .round().astype(int)] if other else []
+    from topopose.sequence.kinematic_fit import kinematic_tree
+    tree = kinematic_tree(model)
+    files = []
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    body_info = poses[good[0]].diagnostics.get("track_body") if good else None
+    for i in pick:
+        p = poses[i]
+        names = [n for n in tree.names]
+        P = np.array([p.joints.get(n, p.joints.get(_side(n), np.full(3, np.nan))) for n in names])
+        radii = np.array([np.nan if x is None else x for x in body_info["radii"]], float) \
+            if body_info else np.full(len(names), 0.05)
+        body = CapsuleBody(tuple(names), np.array(tree.parents), np.full(len(names), 1.0), radii,
+                           tuple(tree.order()))
+        cams, sils = scaled_views(cap.cameras, cap.silhouettes(p.frame), 400)
+        sel = list(range(0, len(cams), max(1, len(cams) // 3)))[:3]
+        drawn = body_masks(body, P, [cams[c] for c in sel], [sils[c].shape for c in sel])
+        fig, axes = plt.subplots(1, len(sel), figsize=(3 * len(sel), 4))
+        for ax, c, d in zip(np.atleast_1d(axes), sel, drawn):
+            ys, xs = np.nonzero(sils[c] | d)
+            if len(ys):                               # the subject, with a margin
+                m = 15
+                y0, y1 = max(ys.min() - m, 0), ys.max() + m
+                x0, x1 = max(xs.min() - m, 0), xs.max() + m
+                sils[c], d = sils[c][y0:y1, x0:x1], d[y0:y1, x0:x1]
+            img = np.dstack([sils[c] * 0.6] * 3)
+            edge = d ^ (cv2.erode(d.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0)
+            img[d & ~edge] = img[d & ~edge] * 0.7 + np.array([0.3, 0.0, 0.0])
+            img[edge] = (1.0, 0.1, 0.1)
+            ax.imshow(np.clip(img, 0, 1))
+            ax.set_axis_off()
+            ax.set_title(f"frame {p.frame} {cams[c].name}  IoU "
+                         f"{(p.diagnostics.get('fit_cameras') or [None] * len(cams))[c]}",
+                         fontsize=8)
+        fig.suptitle(f"{p.status}{' — a wrist at the trunk' if i in touch else ''}", fontsize=9)
+        fig.tight_layout()
+        f = out_dir / f"tracking_child_rope_{p.frame}.png"
+        fig.savefig(f, dpi=80)
+        plt.close(fig)
+        files.append({"frame": p.frame, "touching": i in touch, "file": str(f)})
+    return files
+
+
+def _side(n):
+    base, _, k = n.rpartition("_")
+    return {"1": "left_", "2": "right_"}.get(k, "") + base if k in ("1", "2") else n
+
+
+# --------------------------------------------------------------------------- the report
+def _cm(x):
+    return "–" if x is None else f"{100 * x:.1f}"
+
+
+def report(doc) -> str:
+    m = doc["machine"]
+    lines = ["# Motion on every frame: the tracked capsule body against the sequence stage", "",
+             f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
+             "Peer: the same run without the tracker (`follow=FollowOptions(enabled=False)`).", ""]
+    syn = doc.get("synthetic") or []
+    if syn:
+        lines += ["## Synthetic `body` sequences" + (" (development seeds)" if doc.get("dev")
+                                                     else " (held-out seeds)"), "",
+                  "| set-up | motion | seed | build | frames | skeleton: peer → tracker | "
+                  "MPJPE median cm: peer → tracker | MPJPE mean cm: peer → tracker | tracker "
+                  "statuses |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+        for r in syn:
+            a, b = r["peer"], r["tracker"]
+            lines.append(f"| {r['setup']} | {r['motion']} | {r['seed']} | {r['build']} | "
+                         f"{r['frames']} | {a['skeleton']} → {b['skeleton']} | "
+                         f"{_cm(a['mpjpe_median'])} → {_cm(b['mpjpe_median'])} | "
+                         f"{_cm(a['mpjpe_mean'])} → {_cm(b['mpjpe_mean'])} | "
+                         f"{', '.join(f'{k} {v}' for k, v in sorted(b['statuses'].items()))} |")
+        lines.append("")
+        for st in sorted({r["setup"] for r in syn}):
+            rows = [r for r in syn if r["setup"] == st]
+            for key in ("peer", "tracker"):
+                pf = [x for r in rows for x in r[key]["per_frame"]]
+                n = sum(r["frames"] for r in rows)
+                lines.append(f"- set-up {st}, {key}: a skeleton on {len(pf)} of {n} frames "
+                             f"({100 * len(pf) / max(n, 1):.1f} %), MPJPE over those frames "
+                             f"mean {_cm(float(np.mean(pf)) if pf else None)} cm, median "
+                             f"{_cm(float(np.median(pf)) if pf else None)} cm")
+        t = [r["tracker"]["timings_ms"] for r in syn if r["setup"] == "8"]
+        if t:
+            lines += ["", "Tracker cost a frame (8 cameras, 100³, mean over the sequences, ms): "
+                      + ", ".join(f"{k[6:]} {np.mean([x[k] for x in t]):.1f}" for k in t[0])
+                      + " (hull: carved again; fit: the Gauss–Newton fits, both directions and "
+                      "the confident frames' starts)"]
+        lines.append("")
+    real = doc.get("real")
+    if real:
+        lines += ["## The real recording (README route, no flags)", "",
+                  "| | frames with 14 joints | MPJPE median / p90 cm | L/R swapped pairs | "
+                  "statuses | fit (IoU) median |", "| --- | --- | --- | --- | --- | --- |"]
+        for key in ("peer", "tracker"):
+            r = real[key]
+            lines.append(f"| {key} | {r['skeleton_14']} / {r['frames']} | {_cm(r['mpjpe_median'])}"
+                         f" / {_cm(r['mpjpe_p90'])} | {r['swaps']} / {r['pairs']} | "
+                         f"{', '.join(f'{k} {v}' for k, v in sorted(r['statuses'].items()))} | "
+                         f"{'–' if r['fit_median'] is None else round(r['fit_median'], 3)} |")
+        lines += ["", "Per joint (tracker, cm): " + ", ".join(
+            f"{k} {100 * v:.1f}" for k, v in real["tracker"]["per_joint"].items()),
+            "Tracker cost a frame (ms): " + ", ".join(
+                f"{k[6:]} {v:.1f}" for k, v in real["tracker"]["timings_ms"].items()), ""]
+    ch = doc.get("child_rope")
+    if ch:
+        lines += ["## child_rope (10 cameras, no 3D reference)", ""]
+        for key in ("peer", "tracker"):
+            if key in ch:
+                r = ch[key]
+                lines.append(f"- {key}: a skeleton on {r['skeleton']} of {ch['frames']} frames "
+                             f"({100 * r['skeleton'] / ch['frames']:.1f} %); statuses "
+                             f"{r['statuses']}; silhouette IoU per camera (median over frames) "
+                             f"{r['iou_per_camera_median']}")
+        for f in ch.get("pictures") or []:
+            lines.append(f"  - ![frame {f['frame']}]({f['file']})"
+                         + (" (a wrist at the trunk)" if f["touching"] else ""))
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main(a, model):
+    from _machine import machine
+
+    work = Path(a.work) if a.work else Path(__import__("tempfile").mkdtemp(prefix="tp_tracker_"))
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    seeds = DEV_SEEDS if a.dev else SEEDS
+    motions = [m for m in MOTIONS if not a.motions or m in a.motions.split(",")]
+    doc = {"dev": a.dev, "synthetic": []}
+    for st in a.setups.split(",") if a.setups else ():
+        for k, mo in enumerate(motions):
+            r = synthetic_sequence(work, mo, seeds[mo], BUILDS[MOTIONS.index(mo)], a.frames,
+                                   st, model)
+            doc["synthetic"].append(r)
+            print(json.dumps({k: v for k, v in r.items() if k not in ("peer", "tracker")}
+                             | {x: {kk: r[x][kk] for kk in ("skeleton", "mpjpe_median",
+                                                            "mpjpe_mean")}
+                                for x in ("peer", "tracker")}), flush=True)
+    if a.real:
+        doc["real"] = real_recording(a.real, work, model)
+        print(json.dumps(doc["real"], default=str)[:600], flush=True)
+    if a.child_rope:
+        # the pictures show the recording's masks, which stay out of the repository: the work
+        # folder holds them
+        doc["child_rope"] = child_rope(a.child_rope, work, model, a.child_frames,
+                                       peer=not a.no_child_peer,
+                                       pictures=work / "child_rope_pictures")
+        print(json.dumps(doc["child_rope"], default=str)[:600], flush=True)
+    doc["machine"] = machine(resolution=100)
+    name = "tracking_tracker" + ("_dev" if a.dev else "")
+    (out / f"{name}.json").write_text(json.dumps(doc, indent=1, default=str))
+    (out / f"{name}.md").write_text(report(doc))
+    print(report(doc))

@@ -1,0 +1,292 @@
+"""The tracker on a run's poses: every joint on every frame (:mod:`.tracker`).
+
+:func:`follow` reads the sequence stage's result (the matched frames' fitted skeletons, their
+left and right) and the frames' hulls, learns the subject's capsule body (:mod:`.body`),
+tracks it through the sequence and writes every frame's joints, its ``fit`` (the quality) and
+its status: ``matched`` (the alignment confident and the fit agreeing with it), ``tracked``,
+``lost``.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from topopose.sequence.tracker import TrackOptions, frame_data, track_sequence
+
+
+@dataclass(frozen=True)
+class FollowOptions:
+    """Options of the tracking stage of a run (``run(..., follow=FollowOptions(...))``).
+
+    Attributes
+    ----------
+    enabled : track the body through the sequence (default on)
+    body_frames : at most this many confident frames (evenly spread) learn the body's radii
+    radius_scales : the factors of the radii tried on the same frames' silhouettes, the best
+        silhouette IoU kept (:func:`~topopose.sequence.silhouette.radius_scale`; one: none)
+    calibrate : rounds refining the bone lengths on those frames' hulls
+        (:func:`~topopose.sequence.tracker.calibrate`; 0: the kinematic fit's lengths)
+    silhouette_fit : the frame's ``fit`` is the silhouette IoU of the projected body, mean
+        over the cameras (``diagnostics["fit_cameras"]`` per camera,
+        :func:`~topopose.sequence.silhouette.silhouette_iou`); else (or without silhouettes)
+        the voxel agreement (:func:`~topopose.sequence.tracker.agreement`)
+    min_fit : a frame the track does not match is ``tracked`` when its silhouette ``fit``
+        reaches this, else ``lost``
+    track : the tracker's settings (:class:`~topopose.sequence.tracker.TrackOptions`)
+    """
+
+    enabled: bool = True
+    body_frames: int = 12
+    calibrate: int = 0
+    radius_scales: tuple = (1.0,)
+    silhouette_fit: bool = True
+    min_fit: float = 0.5
+    track: TrackOptions = field(default_factory=TrackOptions)
+
+
+SIDES = "left_", "right_"
+
+
+def _limb_groups(model, tree):
+    """Per mirror pair of the model: the (part_1 joint, part_2 joint) index pairs along its
+    two limbs, and the joint renaming that names part_1's side left."""
+    from topopose.sequence.chirality import joint_renaming
+
+    groups, rename = [], {}
+    for parts, names in model.mirrors:
+        on = [[j for j, arc in enumerate(tree.arc) if parts[k] in arc] for k in (0, 1)]
+        base = [{tree.base[j]: j for j in js} for js in on]
+        pairs = [(base[0][b], base[1][b]) for b in base[0] if b in base[1]]
+        if pairs:
+            groups.append(pairs)
+            rename.update(joint_renaming(model, dict(zip(parts, names)), tree.names))
+    return groups, rename
+
+
+def _canonical(pose, tree, groups, rename):
+    """The pose's joints as an array in the tree's order (part_1's limb = left when sided)
+    and, per group, whether its joints carry side names."""
+    index = {n: j for j, n in enumerate(tree.names)}
+    index.update({v: index[k] for k, v in rename.items()})
+    P = np.full((len(tree.names), 3), np.nan)
+    for k, v in (pose.joints or {}).items():
+        if k in index:
+            P[index[k]] = v
+    sided = [any(str(k).startswith(SIDES) and index.get(k) in {i for pr in g for i in pr}
+                 for k in pose.joints) for g in groups]
+    return P, np.array(sided, dtype=bool)
+
+
+def body_parts(tree, P) -> dict:
+    """The model's parts placed by the skeleton ``P`` (J, 3): a part at an arc's end takes the
+    joint declared there (``at`` 0 or 1: chest → torso, pelvis → crotch, fingertip → hand), or
+    the arc's last bone is extended to the arc's end (skull → head)."""
+    out = {}
+    for j, (u, v) in enumerate(tree.arc):
+        if tree.at[j] == 0.0:
+            out.setdefault(u, P[j])
+        elif tree.at[j] == 1.0:
+            out[v] = P[j]
+    for j, (u, v) in enumerate(tree.arc):
+        last = max((k for k in range(len(tree.arc)) if tree.arc[k] == (u, v)),
+                   key=lambda k: tree.at[k])
+        if v in out or j != last:
+            continue
+        p = tree.parents[j]
+        at_p = tree.at[p] if p >= 0 and tree.arc[p] == (u, v) else 0.0
+        if p >= 0 and tree.at[j] > at_p:
+            out[v] = P[j] + (1.0 - tree.at[j]) / (tree.at[j] - at_p) * (P[j] - P[p])
+    return {k: np.asarray(x, float).copy() for k, x in out.items()}
+
+
+def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = None) -> list:
+    """Track the subject's body through a run's poses (sorted by frame).
+
+    Parameters
+    ----------
+    poses : list of Pose, after the sequence stage (:func:`topopose.sequence.motion.process_sequence`)
+    model : Model
+    tree : KinematicTree, lengths : ndarray
+        The kinematic fit's tree and bone lengths (``Motion.tree``, ``Motion.lengths``).
+    hull : callable frame name → Volume or (Volume, (cameras, silhouettes))
+        The frame's visual hull (as the per-frame estimator carved it), with the silhouettes
+        it was carved from (for the silhouette term and the silhouette IoU).
+    options : FollowOptions
+
+    Returns
+    -------
+    list of Pose: every frame the tracker fitted with ``joints`` (left / right names where the
+    confident frames of its track decided them), ``fit`` and status ``matched`` / ``tracked``
+    / ``lost``; ``diagnostics["track"]`` holds the frame the track started from (``from``)
+    and whether it re-initialized there, ``diagnostics["track_body"]`` the body's radii and
+    bone lengths (per joint, the bone into it). Frames with no hull keep their pose.
+    """
+    from topopose.sequence.body import learn_body
+
+    opts = options or FollowOptions()
+    poses = list(poses)
+    if not poses or tree is None or lengths is None:
+        return poses
+    if np.isnan(np.asarray(lengths)[[j for j, p in enumerate(tree.parents) if p >= 0]]).any():
+        return poses
+    groups, rename = _limb_groups(model, tree)
+    F, J = len(poses), len(tree.names)
+    align = np.full((F, J, 3), np.nan)
+    sided = np.zeros((F, len(groups)), dtype=bool)
+    for i, p in enumerate(poses):
+        if p.matched and p.joints and not p.diagnostics.get("interpolated"):
+            P, s = _canonical(p, tree, groups, rename)
+            if not np.isnan(P).any():
+                align[i], sided[i] = P, s
+    conf = np.flatnonzero(~np.isnan(align).any(axis=(1, 2)))
+    if not len(conf):
+        return poses
+    timings = {"hull": 0.0, "data": 0.0, "quality": 0.0}
+    vols = {}
+
+    def volume(i):
+        if i not in vols:
+            t0 = time.process_time()
+            try:
+                v = hull(poses[i].frame)
+                vols[i] = v if isinstance(v, tuple) else (v, None)
+            except Exception:          # a frame that failed to load: no fit
+                vols[i] = (None, None)
+            timings["hull"] += time.process_time() - t0
+        return vols[i]
+
+    pick = conf[np.linspace(0, len(conf) - 1, min(opts.body_frames, len(conf))).round()
+                .astype(int)]
+    learn = [(volume(i)[0], align[i]) for i in pick if volume(i)[0] is not None]
+    if not learn:
+        return poses
+    body = learn_body(tree, lengths, learn, learn[0][0].voxel_size)
+    rng = np.random.default_rng(0)
+    views = [(volume(i)[1], align[i]) for i in pick if volume(i)[1] is not None]
+    if views and len(opts.radius_scales) > 1:
+        from topopose.sequence.silhouette import radius_scale
+        body = radius_scale(body, views, opts.radius_scales)
+    if opts.calibrate:
+        from topopose.sequence.tracker import calibrate
+        body = calibrate(body, [(frame_data(v, opts.track.points, rng), P) for v, P in learn],
+                         opts.track, rounds=opts.calibrate)
+
+    def data_of(i):
+        v, views = volume(i)
+        if v is None:
+            return None
+        t0 = time.process_time()
+        if views is not None:
+            from topopose.sequence.silhouette import scaled_views
+            views = scaled_views(*views)
+        d = frame_data(v, opts.track.points, rng, views, opts.track.n_rays)
+        timings["data"] += time.process_time() - t0
+        return d
+
+    t0, before = time.process_time(), timings["hull"] + timings["data"]
+    tr = track_sequence(body, data_of, align, opts.track, groups=groups)
+    fit_s = time.process_time() - t0 - (timings["hull"] + timings["data"] - before)
+    if tr is None:
+        return poses
+    # left / right of each track segment: the votes of its confident, sided frames
+    votes = {}
+    for i in range(F):
+        s = tr.segment[i]
+        if s < 0 or np.isnan(align[i]).any():
+            continue
+        for g in range(len(groups)):
+            if sided[i, g]:
+                votes[(s, g)] = votes.get((s, g), 0) + (-1 if tr.swapped[i, g] else 1)
+    from topopose.sequence.silhouette import scaled_views, silhouette_iou
+
+    radii = {"radii": [None if not np.isfinite(x) else round(float(x), 4) for x in body.radii],
+             "lengths": [None if not np.isfinite(x) else round(float(x), 4)
+                         for x in body.lengths]}
+    out = []
+    for i, p in enumerate(poses):
+        if not tr.status[i]:
+            out.append(p)
+            continue
+        names = list(tree.names)
+        side = {}
+        for g, pairs in enumerate(groups):
+            v = votes.get((int(tr.segment[i]), g), 0)
+            if v:
+                mp, mn = model.mirrors[g]
+                side.update(zip(mp, mn if v > 0 else mn[::-1]))
+            for a, b in pairs:
+                if v > 0:
+                    names[a], names[b] = rename[tree.names[a]], rename[tree.names[b]]
+                elif v < 0:
+                    names[a], names[b] = rename[tree.names[b]], rename[tree.names[a]]
+        joints = {n: tr.joints[i, j].copy() for j, n in enumerate(names)}
+        parts = p.parts
+        if tr.status[i] != "matched" or not p.matched:        # the body's own parts
+            parts = {side.get(k, k): v for k, v in body_parts(tree, tr.joints[i]).items()}
+        diag = {**p.diagnostics, "track": {"from": poses[int(tr.segment[i])].frame,
+                                           "reinitialized": bool(i in tr.reinitialized)},
+                "track_body": radii}
+        status, fit, diag_fit = tr.status[i], float(tr.quality[i]), {}
+        views = volume(i)[1]
+        if views is not None and opts.silhouette_fit:
+            t0 = time.process_time()
+            iou = silhouette_iou(body, tr.joints[i], *scaled_views(*views))
+            timings["quality"] += time.process_time() - t0
+            if np.isfinite(iou).any():
+                fit = float(np.nanmean(iou))
+                diag_fit = {"fit_cameras": [None if not np.isfinite(x) else round(float(x), 4)
+                                            for x in iou]}
+                if status != "matched":
+                    status = "tracked" if fit >= opts.min_fit else "lost"
+        if p.status == "failed":
+            status = p.status
+        elif status == "matched" and not p.matched:
+            status = "tracked"
+        out.append(replace(p, status=status, joints=joints, parts=parts, fit=round(fit, 4),
+                           diagnostics={**diag, **diag_fit},
+                           timings_ms=p.timings_ms))
+    per_frame = {k: round(1e3 * v / max(F, 1), 3) for k, v in timings.items()}
+    per_frame["fit"] = round(1e3 * fit_s / max(F, 1), 3)
+    for q in out:       # the stage's mean CPU time (this process) a frame, on every frame
+        q.timings_ms = {**q.timings_ms, **{f"track_{k}": v for k, v in per_frame.items()}}
+    return out
+
+
+def follow_run(poses, motion, model, cap, resolution, threshold, estimator=None,
+               options: FollowOptions | None = None) -> list:
+    """The tracking stage of :func:`topopose.batch.run.run`: :func:`follow` on a run's poses
+    when the sequence stage fitted a skeleton, each frame's hull carved again as the run's
+    estimator carves it (``estimator``: its :class:`~topopose.frame.options.EstimatorOptions`)."""
+    opts = options or FollowOptions()
+    if not opts.enabled or motion is None or motion.tree is None or len(poses) < 3:
+        return poses
+    from topopose.frame.estimate import FrameEstimator
+
+    tree, lengths = motion.tree, motion.lengths
+    if any(p.matched and not p.joints for p in poses):
+        poses, tree, lengths = refit(poses, model, cap.up_vector, cap.fps)
+    est = FrameEstimator(cap, model, resolution, threshold, estimator)
+
+    def hull(frame):
+        vol = est.hull(frame)
+        views = getattr(est, "_silhouettes", None)
+        if views is None:
+            views = (cap.cameras, cap.silhouettes(frame))
+        return vol, views
+
+    return follow(poses, model, tree, lengths, hull, opts)
+
+
+def refit(poses, model, up, fps=None):
+    """The kinematic fit and the sides again on the frames ``matched`` now (the run's
+    consistency decides ``matched`` after them, and may add frames): returns (poses, tree,
+    lengths)."""
+    from topopose.sequence.chirality import assign_sides, numbered
+    from topopose.sequence.kinematic_fit import fit_sequence
+
+    fitted, tree, lengths = fit_sequence([numbered(p, model) for p in poses], model, fps=fps)
+    if model.mirrors and model.facing:
+        fitted = assign_sides(fitted, model, up)
+    return fitted, tree, lengths

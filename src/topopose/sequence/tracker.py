@@ -1,0 +1,669 @@
+"""Motion on every frame: the subject's capsule body tracked through the sequence.
+
+The per-frame alignment places a skeleton only where the limbs stand apart in the hull; the
+thesis takes that result as the *initialization* of a model-based capture (§13.3.1). Here the
+subject's own body (:mod:`.body`) is fitted to every frame's visual hull by articulated ICP
+(Mündermann, Corazza & Andriacchi, CVPR 2007; Corazza et al., IJCV 2010), starting from the
+previous frame's pose moved on at constant velocity:
+
+* **data**: hull surface points, each to the surface of its nearest capsule (robust, Huber);
+* **inside**: points along each bone's axis at least ``depth`` × its radius inside the hull
+  (a limb's capsule where the hull is, also where no surface point pulls at it);
+* **alignment**: where the frame's alignment is confident, its fitted joints;
+* **prediction**: the constant-velocity pose (a weak prior, also the joint limits' stand-in
+  for the bones the data leave free).
+
+Parameters are the root position and one direction per bone (2 degrees of freedom in the
+plane normal to it; the bone lengths are the subject's, constant), solved by Gauss–Newton
+with the analytic Jacobian (:func:`fit_frame`). Over a sequence (:func:`track_sequence`) the
+confident alignments initialize the tracker, and re-initialize it where the fit and the
+alignment disagree by more than ``agree`` and the alignment's own fit explains the frame as
+well; it runs forwards from the first confident frame and backwards from it and from every
+re-initialization, each frame keeping the better fit. Every frame gets a quality
+(:func:`agreement`, or the silhouette IoU of :mod:`.quality`) and a status: ``matched``
+(alignment confident and the fit agrees), ``tracked`` (fit only, quality at least
+``quality``) or ``lost``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from topopose.sequence.body import CapsuleBody, kabsch, joint_positions, snap
+
+
+@dataclass(frozen=True)
+class TrackOptions:
+    """Settings of the tracker (development seeds: ``benchmarks/tracking.py --tracker --dev``).
+
+    Attributes
+    ----------
+    iterations : Gauss–Newton iterations per frame
+    points : hull surface points sampled per frame for the data term
+    huber : robust scale of the data term, in voxels
+    depth : a bone's axis at least this × its radius inside the hull
+    deep : weight (against a bone axis too shallow) of a bone axis deeper than that: 0, the
+        inside term is one-sided; 1, the axis as deep as the radius (the capsule's surface
+        on the hull's), robust (Huber) beyond ``huber``
+    samples : positions along each bone of the inside term's points
+    inside : weight of the inside term (per point, against the data term's mean)
+    rays : weight of the silhouette term (its mean against the data term's): a silhouette
+        pixel's ray farther than its nearest capsule's radius from it pulls the capsule
+    n_rays : silhouette pixels sampled per camera and frame
+    align : weight of the confident alignment's joints (per joint)
+    prior : weight of the constant-velocity prediction (per bone, its end's displacement)
+    velocity : share of the last frame's velocity carried into the prediction
+    agree : m, the largest joint distance within which the fit agrees with the alignment
+    quality : a frame is ``tracked`` when its fit quality reaches this, else ``lost``
+    max_step : radians, the largest turn of a bone in one iteration
+    seeds : confident frames (spread over the sequence) whose starts compete to begin the track
+    """
+
+    iterations: int = 8
+    points: int = 400
+    huber: float = 1.5
+    depth: float = 0.5
+    deep: float = 0.0
+    samples: tuple = (0.15, 0.5, 0.85)
+    inside: float = 1.0
+    rays: float = 10.0
+    n_rays: int = 150
+    align: float = 1.0
+    prior: float = 0.002
+    velocity: float = 0.5
+    agree: float = 0.10
+    quality: float = 0.5
+    max_step: float = 0.35
+    seeds: int = 8
+
+
+# --------------------------------------------------------------------------- a frame's data
+@dataclass
+class FrameData:
+    """One frame's hull as the fit reads it: sampled surface points, and the signed distance
+    to the hull's surface (:meth:`signed_distance`) from all its surface voxels."""
+
+    points: np.ndarray
+    surface: np.ndarray
+    occupancy: np.ndarray
+    origin: np.ndarray
+    voxel_size: float
+    kd: object = field(repr=False, default=None)
+    rays: tuple = None          # (origins (R, 3), unit directions (R, 3)) of silhouette pixels
+
+    def inside(self, x) -> np.ndarray:
+        idx = np.rint((np.asarray(x) - self.origin) / self.voxel_size).astype(np.int64)
+        ok = ((idx >= 0) & (idx < np.array(self.occupancy.shape))).all(axis=1)
+        out = np.zeros(len(idx), dtype=bool)
+        out[ok] = self.occupancy[tuple(idx[ok].T)]
+        return out
+
+    def signed_distance(self, x):
+        """Distance of ``x`` (N, 3) to the nearest surface voxel centre, positive inside the
+        hull, and its gradient (N, 3)."""
+        d, i = self.kd.query(x)
+        s = np.where(self.inside(x), 1.0, -1.0)
+        g = (x - self.surface[i]) / np.maximum(d, 1e-9)[:, None] * s[:, None]
+        return s * d, g
+
+
+def _box(occ, margin=1):
+    """The lower corner and the slices of the object's bounding box grown by ``margin``."""
+    nz = [np.flatnonzero(occ.any(axis=tuple(b for b in range(3) if b != a))) for a in range(3)]
+    if any(len(z) == 0 for z in nz):
+        return np.zeros(3, dtype=np.int64), tuple(slice(0, 0) for _ in range(3))
+    lo = np.array([max(int(z[0]) - margin, 0) for z in nz])
+    hi = [min(int(z[-1]) + margin + 1, n) for z, n in zip(nz, occ.shape)]
+    return lo, tuple(slice(a, b) for a, b in zip(lo, hi))
+
+
+def silhouette_rays(cameras, silhouettes, n, rng) -> tuple:
+    """Rays (origins, unit directions) through ``n`` pixels sampled in each silhouette
+    (lens distortion undone)."""
+    import cv2
+
+    O, U = [], []
+    for cam, m in zip(cameras, silhouettes):
+        yx = np.argwhere(np.asarray(m, bool))
+        if not len(yx):
+            continue
+        yx = yx if len(yx) <= n else yx[rng.choice(len(yx), n, replace=False)]
+        px = yx[:, ::-1].astype(np.float64).reshape(-1, 1, 2)
+        if cam.fisheye:
+            uv = cv2.fisheye.undistortPoints(px, cam.matrix, cam.distortions).reshape(-1, 2)
+        else:
+            uv = cv2.undistortPoints(px, cam.matrix, cam.distortions).reshape(-1, 2)
+        d = np.c_[uv, np.ones(len(uv))] @ cam.R        # camera → world (R.T applied on the right)
+        U.append(d / np.linalg.norm(d, axis=1)[:, None])
+        O.append(np.repeat(cam.center[None], len(uv), axis=0))
+    if not O:
+        return None
+    return np.concatenate(O), np.concatenate(U)
+
+
+def frame_data(volume, n_points, rng=None, views=None, n_rays=0) -> FrameData:
+    """The fit's view of a hull (:class:`FrameData`): its surface voxels (object voxels with a
+    6-neighbour outside), ``n_points`` of them sampled for the data term; with ``views``
+    (cameras, silhouettes), ``n_rays`` pixel rays per camera (:func:`silhouette_rays`)."""
+    from scipy import ndimage
+    from scipy.spatial import cKDTree
+
+    occ = np.asarray(volume.data, dtype=bool)
+    lo, box = _box(occ)
+    surf = occ[box] & ~ndimage.binary_erosion(occ[box])
+    ijk = np.argwhere(surf) + lo
+    X = volume.origin + ijk * float(volume.voxel_size)
+    rng = np.random.default_rng(0) if rng is None else rng
+    pts = X if len(X) <= n_points else X[rng.choice(len(X), n_points, replace=False)]
+    rays = silhouette_rays(*views, n_rays, rng) if views is not None and n_rays else None
+    return FrameData(pts, X, occ, np.asarray(volume.origin, float), float(volume.voxel_size),
+                     cKDTree(X) if len(X) else None, rays)
+
+
+# --------------------------------------------------------------------------- one frame's fit
+def _basis(D):
+    """Two unit vectors normal to each direction (J, 3) and to each other: (J, 3, 2)."""
+    a = np.where((np.abs(D[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    e1 = np.cross(D, a)
+    e1 /= np.maximum(np.linalg.norm(e1, axis=1), 1e-12)[:, None]
+    e2 = np.cross(D, e1)
+    return np.stack([e1, e2], axis=2)
+
+
+def _skew(v):
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def _rotation(w):
+    """Rotation matrix of the rotation vector ``w`` (Rodrigues)."""
+    t = float(np.linalg.norm(w))
+    if t < 1e-12:
+        return np.eye(3)
+    K = _skew(np.asarray(w) / t)
+    return np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * K @ K
+
+
+class _Fitter:
+    """The Gauss–Newton fit of one body (its structure precomputed once per sequence).
+
+    Parameters θ: the root's translation (3), a rotation (3) per rigid group of bones, and a
+    turn (2, in the plane normal to the bone) per other bone."""
+
+    def __init__(self, body: CapsuleBody, opts: TrackOptions):
+        self.body, self.opts = body, opts
+        self.bones = body.bones
+        self.par = body.parents[self.bones]
+        self.anc = body.ancestry()
+        grouped = {int(j): g for g, members in enumerate(body.groups) for j in members}
+        self.blocks, self.col, c = [], {}, 3          # (members, column, width)
+        for g, members in enumerate(body.groups):
+            self.blocks.append((list(members), c, 3))
+            for j in members:
+                self.col[int(j)] = (c, 3)
+            c += 3
+        for j in self.bones:
+            if int(j) not in grouped:
+                self.blocks.append(([int(j)], c, 2))
+                self.col[int(j)] = (c, 2)
+                c += 2
+        self.n = c
+        self.r = body.radii[self.bones]
+        deps = [[0, 1, 2] + sorted({self.col[int(j)][0] + q for j in np.flatnonzero(self.anc[k])
+                                    for q in range(self.col[int(j)][1])})
+                for k in range(len(body.names))]
+        self.cols = np.full((len(deps), max(len(d) for d in deps)), -1, dtype=np.int64)
+        for k, d in enumerate(deps):
+            self.cols[k, :len(d)] = d
+        self.s = np.asarray(opts.samples, float)
+
+    def moves(self, D):
+        """Per bone: d(bone end − bone start)/d(its block's parameters), (3, width)."""
+        E = _basis(D)
+        out = {}
+        for j in self.bones:
+            c, w = self.col[int(j)]
+            L = self.body.lengths[j]
+            out[int(j)] = L * (E[j] if w == 2 else -_skew(D[j]))
+        return out
+
+    def jacobian(self, D):
+        """dP/dθ (J, 3, n) at directions D."""
+        G = np.zeros((len(self.body.names), 3, self.n))
+        G[:, :, :3] = np.eye(3)
+        M = self.moves(D)
+        for j in self.bones:
+            c, w = self.col[int(j)]
+            G[self.anc[:, j], :, c:c + w] += M[int(j)]
+        return G, M
+
+    def terms(self, root, D, data: FrameData, align, pred, G=None, capsules=True, GM=None):
+        """Weighted residuals and their Jacobian rows (``G``: dP/d of other parameters, for
+        the data and inside terms alone; ``capsules`` False: without the data and silhouette
+        terms, which :meth:`fit` adds with :func:`.tracker_kernels.capsule_normal_equations`;
+        ``GM``: :meth:`jacobian` at D if already computed)."""
+        o, b = self.opts, self.body
+        P = joint_positions(b, root, D)
+        if G is None:
+            G, M = self.jacobian(D) if GM is None else GM
+        else:
+            align = pred = None
+        rows, res = [], []
+        A, B = P[self.par], P[self.bones]
+        seg = B - A
+        ll = np.maximum(np.einsum("kc,kc->k", seg, seg), 1e-12)
+        # data: hull surface points to their nearest capsule
+        Q = data.points
+        if len(Q) and capsules:
+            t = np.clip(np.einsum("mkc,kc->mk", Q[:, None] - A[None], seg) / ll, 0.0, 1.0)
+            X = A[None] + t[..., None] * seg[None]
+            dq = np.linalg.norm(Q[:, None] - X, axis=2)
+            k = np.argmin(dq - self.r[None], axis=1)
+            m = np.arange(len(Q))
+            dk, tk = dq[m, k], t[m, k]
+            nq = (Q - X[m, k]) / np.maximum(dk, 1e-9)[:, None]
+            r = dk - self.r[k]
+            h = o.huber * data.voxel_size
+            w = np.sqrt(np.where(np.abs(r) <= h, 1.0, h / np.maximum(np.abs(r), 1e-12)) / len(Q))
+            Jd = -(np.einsum("mc,mcn->mn", nq * (1 - tk)[:, None], G[self.par[k]])
+                   + np.einsum("mc,mcn->mn", nq * tk[:, None], G[self.bones[k]]))
+            rows.append(Jd * w[:, None])
+            res.append(r * w)
+        # silhouettes: every sampled silhouette pixel's ray meets a capsule (one-sided)
+        if data.rays is not None and o.rays > 0 and capsules:
+            C, U = data.rays
+            w0 = A[None] - C[:, None]                                   # (R, nb, 3)
+            bb = np.einsum("kc,rc->rk", seg, U)
+            dd = np.einsum("rkc,kc->rk", w0, seg)
+            ee = np.einsum("rkc,rc->rk", w0, U)
+            den = np.maximum(ll[None] - bb ** 2, 1e-12)
+            t = np.clip((bb * ee - dd) / den, 0.0, 1.0)
+            lam = np.maximum(bb * t + ee, 0.0)
+            Y = C[:, None] + lam[..., None] * U[:, None]                # on the ray
+            X = A[None] + t[..., None] * seg[None]
+            dq = np.linalg.norm(Y - X, axis=2)
+            k = np.argmin(dq - self.r[None], axis=1)
+            m = np.arange(len(C))
+            dk, tk = dq[m, k], t[m, k]
+            r = dk - self.r[k]
+            act = r > 0
+            if act.any():
+                nq = (Y[m, k] - X[m, k]) / np.maximum(dk, 1e-9)[:, None]
+                h = o.huber * data.voxel_size
+                w = np.sqrt(np.where(r <= h, 1.0, h / np.maximum(r, 1e-12)) * o.rays / len(C))
+                w = w * act
+                Jr = -(np.einsum("mc,mcn->mn", nq * (1 - tk)[:, None], G[self.par[k]])
+                       + np.einsum("mc,mcn->mn", nq * tk[:, None], G[self.bones[k]]))
+                rows.append(Jr * w[:, None])
+                res.append(np.where(act, r, 0.0) * w)
+        # inside: bone axis points at least depth × radius inside the hull
+        if data.kd is not None:
+            S = A[:, None] + self.s[None, :, None] * seg[:, None]        # (nb, ns, 3)
+            sd, g = data.signed_distance(S.reshape(-1, 3))
+            need = np.repeat(o.depth * self.r, len(self.s))
+            ri = need - sd
+            h = o.huber * data.voxel_size
+            act = np.where(ri > 0, 1.0, o.deep * np.minimum(1.0, h / np.maximum(-ri, 1e-12)))
+            wi = np.sqrt(o.inside / sd.size)
+            sk = np.tile(self.s, len(self.bones))
+            bk = np.repeat(np.arange(len(self.bones)), len(self.s))
+            Ji = -(np.einsum("mc,mcn->mn", g * (1 - sk)[:, None], G[self.par[bk]])
+                   + np.einsum("mc,mcn->mn", g * sk[:, None], G[self.bones[bk]]))
+            act = np.sqrt(act)
+            rows.append(Ji * (wi * act)[:, None])
+            res.append(ri * wi * act)
+        # the confident alignment's joints
+        if align is not None:
+            ok = ~np.isnan(align).any(axis=1)
+            if ok.any():
+                wa = np.sqrt(o.align / ok.sum())
+                rows.append(G[ok].reshape(-1, self.n) * wa)
+                res.append((P[ok] - align[ok]).ravel() * wa)
+        # the prediction: the root, and each bone's end displaced from its predicted direction
+        if pred is not None:
+            proot, pD = pred
+            wp = np.sqrt(o.prior)
+            Jp = np.zeros((3 + 3 * len(self.bones), self.n))
+            Jp[:3, :3] = np.eye(3) * wp
+            rp = [(root - proot) * wp]
+            for k, j in enumerate(self.bones):
+                c, w = self.col[int(j)]
+                Jp[3 + 3 * k:6 + 3 * k, c:c + w] = M[int(j)] * wp
+                rp.append(b.lengths[j] * wp * (D[j] - pD[j]))
+            rows.append(Jp)
+            res.append(np.concatenate(rp))
+        n = G.shape[2]
+        return (np.concatenate(rows) if rows else np.zeros((0, n)),
+                np.concatenate(res) if res else np.zeros(0))
+
+    def step(self, root, D, x):
+        """The pose moved by the parameter step ``x``."""
+        root = root + x[:3]
+        D = D.copy()
+        E = _basis(D)
+        for members, c, w in self.blocks:
+            a = x[c:c + w]
+            na = float(np.linalg.norm(a))
+            if na > self.opts.max_step:
+                a = a * (self.opts.max_step / na)
+            if w == 3:
+                D[members] = D[members] @ _rotation(a).T
+            else:
+                j = members[0]
+                d = D[j] + E[j] @ a
+                D[j] = d / np.linalg.norm(d)
+        return root, D
+
+    def fit(self, root, D, data, align=None, pred=None):
+        """Gauss–Newton from (root, D); returns the fitted root, directions and joints."""
+        from topopose.sequence.tracker_kernels import capsule_normal_equations as cne
+
+        o = self.opts
+        root, D = np.array(root, float), np.array(D, float)
+        none = np.zeros((0, 3))
+        h = o.huber * data.voxel_size
+        for _ in range(o.iterations):
+            GM = self.jacobian(D)
+            J, r = self.terms(root, D, data, align, pred, capsules=False, GM=GM)
+            H = np.einsum("mi,mj->ij", J, J)       # not BLAS: its threads cost more here
+            g = np.einsum("mi,m->i", J, r)
+            P = joint_positions(self.body, root, D)
+            G = GM[0]
+            A, B = P[self.par], P[self.bones]
+            if len(data.points):
+                cne(data.points, none, A, B, self.r, self.par, self.bones, G, self.cols, h,
+                    1.0 / len(data.points), False, H, g)
+            if data.rays is not None and o.rays > 0:
+                cne(data.rays[0], data.rays[1], A, B, self.r, self.par, self.bones, G,
+                    self.cols, h, o.rays / len(data.rays[0]), True, H, g)
+            H[np.diag_indices_from(H)] += 1e-6 + 1e-3 * np.diag(H)
+            root, D = self.step(root, D, -np.linalg.solve(H, g))
+        return root, D, joint_positions(self.body, root, D)
+
+
+def calibrate(body: CapsuleBody, frames, opts: TrackOptions | None = None, rounds=3,
+              prior=0.05, bounds=(0.75, 1.4)) -> CapsuleBody:
+    """The body's bone lengths refined on the confident frames' hulls (the subject-specific
+    model of Corazza et al., IJCV 2010, from the visual hulls): each round fits every frame
+    from its alignment with the current lengths, then takes one Gauss–Newton step of the
+    lengths shared by all frames (data and inside terms, a weak ``prior`` pulling each length
+    towards the kinematic fit's, bounded to ``bounds`` × it).
+
+    Parameters
+    ----------
+    body : CapsuleBody
+    frames : list of (FrameData, ndarray (J, 3)): the frames' data and alignment joints
+    opts : TrackOptions
+    rounds : fits and steps
+    prior : weight of the kinematic fit's lengths (per bone, squared metres)
+    bounds : (low, high) factors of the kinematic fit's lengths
+    """
+    from dataclasses import replace
+
+    opts = opts or TrackOptions()
+    bones = body.bones
+    L0 = body.lengths.copy()
+    L = L0.copy()
+    for _ in range(rounds):
+        b = replace(body, lengths=L)
+        f = _Fitter(b, opts)
+        H = np.zeros((len(bones), len(bones)))
+        g = np.zeros(len(bones))
+        for data, A in frames:
+            if data is None or data.kd is None:
+                continue
+            root, D, _P = f.fit(*snap(b, A), data, align=A)
+            GL = np.zeros((len(L), 3, len(bones)))
+            for k, j in enumerate(bones):
+                GL[f.anc[:, j], :, k] += D[j]
+            J, r = f.terms(root, D, data, None, None, G=GL)
+            H += np.einsum("mi,mj->ij", J, J)
+            g += np.einsum("mi,m->i", J, r)
+        H[np.diag_indices_from(H)] += prior / max(len(frames), 1) + 1e-9
+        g += prior / max(len(frames), 1) * (L[bones] - L0[bones])
+        L = L.copy()
+        L[bones] = np.clip(L[bones] - np.linalg.solve(H, g), bounds[0] * L0[bones],
+                           bounds[1] * L0[bones])
+    return replace(body, lengths=L)
+
+
+def fit_frame(body: CapsuleBody, data: FrameData, P0, opts: TrackOptions | None = None,
+              align=None, pred=None) -> np.ndarray:
+    """Fit the body to one frame's hull from the joint positions ``P0`` (J, 3); returns the
+    fitted joint positions (bone lengths the body's).
+
+    Parameters
+    ----------
+    body : CapsuleBody
+    data : FrameData (:func:`frame_data`)
+    P0 : ndarray (J, 3), the start (only its root and bone directions are used)
+    opts : TrackOptions
+    align : ndarray (J, 3), optional; the alignment's joints (NaN rows: none)
+    pred : ndarray (J, 3), optional; the predicted pose the fit is weakly held to
+    """
+    f = _Fitter(body, opts or TrackOptions())
+    pr = None if pred is None else snap(body, np.asarray(pred, float))
+    return f.fit(*snap(body, np.asarray(P0, float)), data, align, pr)[2]
+
+
+def agreement(body: CapsuleBody, data: FrameData, P, samples=(0.15, 0.5, 0.85),
+              tolerance=2.0) -> float:
+    """Voxel agreement of a fitted pose: the harmonic mean of the share of the hull's sampled
+    surface points within ``tolerance`` voxels of a capsule's surface (the hull explained)
+    and the share of the bones' axis points inside the hull (the body where the hull is)."""
+    bones = body.bones
+    A, B = P[body.parents[bones]], P[bones]
+    seg = B - A
+    Q = data.points
+    if not len(Q):
+        return 0.0
+    ll = np.maximum(np.einsum("kc,kc->k", seg, seg), 1e-12)
+    t = np.clip(np.einsum("mkc,kc->mk", Q[:, None] - A[None], seg) / ll, 0.0, 1.0)
+    d = np.linalg.norm(Q[:, None] - (A[None] + t[..., None] * seg[None]), axis=2)
+    d = np.min(np.abs(d - body.radii[bones][None]), axis=1)
+    explained = float(np.mean(d <= tolerance * data.voxel_size))
+    s = np.asarray(samples, float)
+    S = (A[:, None] + s[None, :, None] * seg[:, None]).reshape(-1, 3)
+    inside = float(np.mean(data.inside(S)))
+    return 0.0 if explained + inside == 0 else 2 * explained * inside / (explained + inside)
+
+
+# --------------------------------------------------------------------------- the sequence
+def mirror_groups(names) -> list:
+    """Pairs of joint index lists that mirror each other: the joints whose names end ``_1``
+    and ``_2`` on the same base name, grouped by the limb (the numbered part) they follow."""
+    groups = {}
+    for j, n in enumerate(names):
+        base, _, k = str(n).rpartition("_")
+        if base and k in ("1", "2"):
+            groups.setdefault(base, {})[k] = j
+    return [(groups[b]["1"], groups[b]["2"]) for b in groups if len(groups[b]) == 2]
+
+
+def _swap(P, pairs):
+    Q = P.copy()
+    for a, b in pairs:
+        Q[[a, b]] = P[[b, a]]
+    return Q
+
+
+@dataclass
+class Track:
+    """The tracker's result over a sequence of F frames with J joints.
+
+    Attributes
+    ----------
+    joints : ndarray (F, J, 3), NaN where no frame could be fitted
+    quality : ndarray (F,), the fit's agreement (:func:`agreement`), NaN where none
+    status : list of str, ``matched`` / ``tracked`` / ``lost`` / "" (no fit)
+    segment : ndarray (F,) int, the initialization each frame's fit follows from (-1: none)
+    swapped : ndarray (F, G) bool, per mirror group: the confident frame's alignment had the
+        pair the other way round than the track (its identity carried through)
+    reinitialized : list of frame indices where the track was re-initialized
+    """
+
+    joints: np.ndarray
+    quality: np.ndarray
+    status: list
+    segment: np.ndarray
+    swapped: np.ndarray
+    reinitialized: list
+
+
+def _identity(align_i, P, groups):
+    """The alignment's joints with each mirror group's pair ordered as the track's ``P``
+    (the permutation nearest to it), and which groups were swapped."""
+    A = align_i.copy()
+    sw = np.zeros(len(groups), dtype=bool)
+    for g, pairs in enumerate(groups):
+        idx = [i for p in pairs for i in p]
+        if np.isnan(A[idx]).any():
+            continue
+        B = _swap(A, pairs)
+        if np.linalg.norm(B[idx] - P[idx], axis=1).sum() < \
+                np.linalg.norm(A[idx] - P[idx], axis=1).sum():
+            A, sw[g] = B, True
+    return A, sw
+
+
+def _predict(body, fitter, state, v, max_move):
+    """The constant-velocity pose from the last two (root, directions): ``v`` of the last
+    step again — a free bone turned on, a rigid group rotated on as a whole; none after a
+    root's step longer than ``max_move``."""
+    root, D, proot, pD = state
+    if np.linalg.norm(root - proot) > max_move:        # a jump: no velocity to go on with
+        return root, D
+    rp = root + v * (root - proot)
+    Dp = D.copy()
+    for members, _c, w in fitter.blocks:
+        if w == 3:
+            R = kabsch(pD[members], D[members])
+            from scipy.spatial.transform import Rotation
+
+            Dp[members] = D[members] @ Rotation.from_rotvec(
+                v * Rotation.from_matrix(R).as_rotvec()).as_matrix().T
+        else:
+            j = members[0]
+            d = D[j] + v * (D[j] - pD[j])
+            Dp[j] = d / max(float(np.linalg.norm(d)), 1e-12)
+    return rp, Dp
+
+
+def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None = None,
+                   groups=None) -> Track | None:
+    """Track the body through a sequence (see the module docstring).
+
+    Up to ``seeds`` confident frames spread over the sequence are first fitted from their
+    alignments (their *starts*, with their quality); the track starts at the start of best
+    quality and runs forwards to the last frame and
+    backwards to the first. At a confident frame whose alignment the track's fit disagrees
+    with (a joint farther than ``agree``) and whose start fits the frame better, the track
+    is re-initialized there, and also run back the other way from it until the previous
+    confident frame; each frame keeps its best fit.
+
+    Parameters
+    ----------
+    body : CapsuleBody
+    data_of : callable i → FrameData or None (a frame that could not be read: no fit)
+    align : ndarray (F, J, 3)
+        The confident alignments' joints (their initializations), NaN rows elsewhere.
+    opts : TrackOptions
+    groups : list of mirror groups (lists of joint index pairs, :func:`mirror_groups` by
+        limb); default: one group per mirror pair of joints
+
+    Returns
+    -------
+    Track, or None when no frame is confident
+    """
+    opts = opts or TrackOptions()
+    align = np.asarray(align, float)
+    F, J = align.shape[:2]
+    conf = ~np.isnan(align).any(axis=(1, 2))
+    if not conf.any():
+        return None
+    groups = [[p] for p in mirror_groups(body.names)] if groups is None else groups
+    fitter = _Fitter(body, opts)
+    out = Track(np.full((F, J, 3), np.nan), np.full(F, np.nan), [""] * F, np.full(F, -1),
+                np.zeros((F, len(groups)), dtype=bool), [])
+    cache = {}
+    none = np.zeros(len(groups), dtype=bool)
+
+    def data(i):
+        if i not in cache:
+            cache[i] = data_of(i)
+        return cache[i]
+
+    def keep(i, P, q, status, seg, sw):
+        if np.isnan(out.quality[i]) or q > out.quality[i]:
+            out.joints[i], out.quality[i], out.status[i], out.segment[i] = P, q, status, seg
+            out.swapped[i] = sw
+
+    starts = {}
+
+    def start(i):
+        """The fit of confident frame i initialized by its alignment: (root, D, P, quality)."""
+        if i not in starts:
+            d = data(i)
+            if d is None or d.kd is None:
+                starts[i] = None
+            else:
+                root, D, P = fitter.fit(*snap(body, align[i]), d, align=align[i])
+                starts[i] = (root, D, P, agreement(body, d, P))
+        return starts[i]
+
+    def run(i0, state, step, stop, seg):
+        """From the fitted frame i0 (state: its and the frame before's root and directions)
+        towards ``stop`` (exclusive) by ``step``; returns the frames re-initialized."""
+        reinit = []
+        i = i0 + step
+        while i != stop:
+            d = data(i)
+            if d is None or d.kd is None:
+                i += step
+                continue
+            rp, Dp = _predict(body, fitter, state, opts.velocity, opts.agree)
+            A, sw = None, none
+            if conf[i]:
+                A, sw = _identity(align[i], joint_positions(body, rp, Dp), groups)
+            root, D, P = fitter.fit(rp, Dp, d, align=A, pred=(rp, Dp))
+            q = agreement(body, d, P)
+            status = "tracked" if q >= opts.quality else "lost"
+            if A is not None:
+                moved = False
+                if float(np.max(np.linalg.norm(P - A, axis=1))) <= opts.agree:
+                    status = "matched"
+                else:
+                    st = start(i)
+                    if st is not None and st[3] > q:
+                        root, D, P, q = st
+                        status, seg, sw, moved = "matched", i, none, True
+                        reinit.append(i)
+            keep(i, P, q, status, seg, sw)
+            state = (root, D, root, D) if A is not None and moved else \
+                (root, D, state[0], state[1])
+            i += step
+        return reinit
+
+    confs = np.flatnonzero(conf)                  # the seed: the best of a few spread starts
+    spread = confs[np.unique(np.linspace(0, len(confs) - 1, min(opts.seeds, len(confs)))
+                             .round().astype(int))]
+    cands = [int(i) for i in spread if start(int(i)) is not None] or \
+        [int(i) for i in confs if start(int(i)) is not None]
+    if not cands:
+        return None
+    first = max(cands, key=lambda i: starts[i][3])
+    root, D, P, q = starts[first]
+    keep(first, P, q, "matched", first, none)
+    todo = [(first, +1, F), (first, -1, -1)]
+    while todo:
+        i0, step, stop = todo.pop(0)
+        root, D = snap(body, out.joints[i0])
+        for r in run(i0, (root, D, root, D), step, stop, i0):
+            out.reinitialized.append(r)
+            todo.append((r, step, stop))            # on from it, as the track does
+            back = confs[confs < r] if step > 0 else confs[confs > r]
+            end = (int(back[-1]) if len(back) else -1) if step > 0 else \
+                (int(back[0]) if len(back) else F)
+            todo.append((r, -step, end))
+            break                                    # the track goes on from r (above)
+    return out

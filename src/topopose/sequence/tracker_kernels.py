@@ -1,0 +1,92 @@
+"""Numba kernels of the tracker (:mod:`.tracker`)."""
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, one_sided, H,
+                             g):
+    """Add one robust capsule term's normal equations to ``H`` (n, n) and ``g`` (n,).
+
+    Each data point ``Q[m]`` (or, when ``U`` has rows, the ray from ``Q[m]`` along ``U[m]``:
+    its point nearest the capsule) is paired with its nearest capsule surface (bone ``k`` from
+    ``A[k]`` to ``B[k]``, radius ``radii[k]``); the residual is the distance to that surface
+    (``one_sided``: only where positive, outside the capsule), Huber-weighted beyond ``h``,
+    times ``weight``. ``G`` (J, 3, n): the joints' derivatives; ``par[k]`` / ``bone[k]``: the
+    joints at the bone's ends; ``cols[j]``: the parameters joint ``j`` depends on (-1: padding;
+    a bone's child joint depends on every parameter its parent does). Returns the weighted
+    cost.
+    """
+    M = Q.shape[0]
+    nb = A.shape[0]
+    rays = U.shape[0] > 0
+    row = np.empty(cols.shape[1])
+    cost = 0.0
+    for m in range(M):
+        best = 1e300
+        bk = -1
+        bt = 0.0
+        bd = 0.0
+        by = np.zeros(3)
+        bx = np.zeros(3)
+        for k in range(nb):
+            s0 = B[k, 0] - A[k, 0]
+            s1 = B[k, 1] - A[k, 1]
+            s2 = B[k, 2] - A[k, 2]
+            ll = max(s0 * s0 + s1 * s1 + s2 * s2, 1e-12)
+            if rays:
+                w0 = A[k, 0] - Q[m, 0]
+                w1 = A[k, 1] - Q[m, 1]
+                w2 = A[k, 2] - Q[m, 2]
+                bb = s0 * U[m, 0] + s1 * U[m, 1] + s2 * U[m, 2]
+                dd = w0 * s0 + w1 * s1 + w2 * s2
+                ee = w0 * U[m, 0] + w1 * U[m, 1] + w2 * U[m, 2]
+                t = (bb * ee - dd) / max(ll - bb * bb, 1e-12)
+                t = min(max(t, 0.0), 1.0)
+                lam = max(bb * t + ee, 0.0)
+                y0 = Q[m, 0] + lam * U[m, 0]
+                y1 = Q[m, 1] + lam * U[m, 1]
+                y2 = Q[m, 2] + lam * U[m, 2]
+            else:
+                y0 = Q[m, 0]
+                y1 = Q[m, 1]
+                y2 = Q[m, 2]
+                t = ((y0 - A[k, 0]) * s0 + (y1 - A[k, 1]) * s1 + (y2 - A[k, 2]) * s2) / ll
+                t = min(max(t, 0.0), 1.0)
+            x0 = A[k, 0] + t * s0
+            x1 = A[k, 1] + t * s1
+            x2 = A[k, 2] + t * s2
+            d = np.sqrt((y0 - x0) ** 2 + (y1 - x1) ** 2 + (y2 - x2) ** 2)
+            if d - radii[k] < best:
+                best = d - radii[k]
+                bk, bt, bd = k, t, d
+                by[0], by[1], by[2] = y0, y1, y2
+                bx[0], bx[1], bx[2] = x0, x1, x2
+        if bk < 0:
+            continue
+        res = best
+        if one_sided and res <= 0.0:
+            continue
+        a = abs(res)
+        wt = weight * (1.0 if a <= h else h / a)
+        inv = 1.0 / max(bd, 1e-9)
+        n0 = (by[0] - bx[0]) * inv
+        n1 = (by[1] - bx[1]) * inv
+        n2 = (by[2] - bx[2]) * inv
+        p, c = par[bk], bone[bk]
+        nc = 0
+        for q in range(cols.shape[1]):
+            i = cols[c, q]
+            if i < 0:
+                break
+            row[q] = -((n0 * G[p, 0, i] + n1 * G[p, 1, i] + n2 * G[p, 2, i]) * (1.0 - bt)
+                       + (n0 * G[c, 0, i] + n1 * G[c, 1, i] + n2 * G[c, 2, i]) * bt)
+            nc += 1
+        for a in range(nc):
+            i = cols[c, a]
+            wi = wt * row[a]
+            g[i] += wi * res
+            for b in range(nc):
+                H[i, cols[c, b]] += wi * row[b]
+        cost += wt * res * res
+    return cost

@@ -1,0 +1,180 @@
+"""The articulated tracker (topopose.sequence) on synthetic ground truth: a capsule body whose
+true poses are known, its hull voxelized from those capsules."""
+import numpy as np
+import pytest
+
+from topopose.hull.volume import Volume
+from topopose.sequence.body import (CapsuleBody, bone_directions, group_shape, joint_positions,
+                                    kabsch, snap)
+from topopose.sequence.tracker import (TrackOptions, agreement, fit_frame, frame_data,
+                                       mirror_groups, track_sequence)
+
+VOXEL = 0.02
+#: chest (root), pelvis below it, two arms (shoulder, elbow, wrist), two legs (hip, knee)
+NAMES = ("chest", "pelvis", "shoulder_1", "elbow_1", "wrist_1", "shoulder_2", "elbow_2",
+         "wrist_2", "hip_1", "knee_1", "hip_2", "knee_2")
+PARENTS = np.array([-1, 0, 0, 2, 3, 0, 5, 6, 1, 8, 1, 10])
+LENGTHS = np.array([np.nan, 0.45, 0.18, 0.28, 0.25, 0.18, 0.28, 0.25, 0.1, 0.42, 0.1, 0.42])
+RADII = np.array([np.nan, 0.11, 0.06, 0.045, 0.04, 0.06, 0.045, 0.04, 0.07, 0.06, 0.07, 0.06])
+
+
+def _unit(*v):
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v)
+
+
+def make_body() -> CapsuleBody:
+    order = (0, 1, 2, 5, 8, 10, 3, 6, 9, 11, 4, 7)
+    groups = ((2, 5), (1, 8, 10))
+    D = rest_directions()
+    return CapsuleBody(NAMES, PARENTS, LENGTHS.copy(), RADII.copy(), order, groups,
+                       tuple(D[list(g)] for g in groups))
+
+
+def rest_directions():
+    D = np.zeros((len(NAMES), 3))
+    D[1] = (0, 0, -1)
+    D[2], D[5] = (0, 1, 0), (0, -1, 0)
+    D[8], D[10] = _unit(0, 1, -0.3), _unit(0, -1, -0.3)
+    for j in (3, 4):
+        D[j] = _unit(0, 1, -0.2)            # arm 1 out to the side
+    for j in (6, 7):
+        D[j] = (0, 0, -1)                   # arm 2 hanging
+    for j in (9, 11):
+        D[j] = (0, 0, -1)
+    return D
+
+
+def arm_down(D, s):
+    """Arm 1 turned from out to the side (s = 0) down against the trunk (s = 1)."""
+    D = D.copy()
+    out, down = _unit(0, 1, -0.2), _unit(0, 0.05, -1)
+    for j in (3, 4):
+        a = np.arccos(np.clip(out @ down, -1, 1)) * s
+        axis = _unit(*np.cross(out, down))
+        K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+        R = np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * K @ K
+        D[j] = R @ out
+    return D
+
+
+def hull_of(body, P, lo=(-0.6, -0.75, 0.0), hi=(0.7, 0.9, 2.0)) -> Volume:
+    """The union of the body's capsules voxelized (voxel centres within a capsule)."""
+    lo, hi = np.asarray(lo), np.asarray(hi)
+    n = np.round((hi - lo) / VOXEL).astype(int) + 1
+    occ = np.zeros(n, bool)
+    for j in body.bones:
+        A, B, r = P[body.parents[j]], P[j], body.radii[j]
+        a = np.maximum(np.floor((np.minimum(A, B) - r - lo) / VOXEL).astype(int), 0)
+        b = np.minimum(np.ceil((np.maximum(A, B) + r - lo) / VOXEL).astype(int) + 1, n)
+        g = np.stack(np.meshgrid(*[lo[k] + VOXEL * np.arange(a[k], b[k]) for k in range(3)],
+                                 indexing="ij"), axis=-1)
+        ab = B - A
+        t = np.clip((g - A) @ ab / (ab @ ab), 0, 1)
+        occ[a[0]:b[0], a[1]:b[1], a[2]:b[2]] |= \
+            np.linalg.norm(g - (A + t[..., None] * ab), axis=-1) <= r
+    return Volume(occ, lo, VOXEL)
+
+
+def pose(D, root=(0.0, 0.0, 1.3)):
+    return joint_positions(make_body(), np.asarray(root, float), D)
+
+
+def run(truth, conf, opts=None):
+    body = make_body()
+    vols = [hull_of(body, P) for P in truth]
+    align = np.full_like(truth, np.nan)
+    align[conf] = truth[conf]
+    rng = np.random.default_rng(1)
+    return track_sequence(body, lambda i: frame_data(vols[i], 400, rng), align,
+                          opts or TrackOptions(iterations=6))
+
+
+def arm_errors(track, truth, joints=(3, 4)):
+    return np.linalg.norm(track.joints[:, joints] - truth[:, joints], axis=2)
+
+
+def test_rigid_helpers():
+    rng = np.random.default_rng(0)
+    V = rng.normal(size=(4, 3))
+    a = rng.normal(size=3)
+    t = np.linalg.norm(a)
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]]) / t
+    R = np.eye(3) + np.sin(t) * K + (1 - np.cos(t)) * K @ K
+    assert np.allclose(kabsch(V, V @ R.T), R)
+    assert np.allclose(group_shape([V, V @ R.T]), V / np.linalg.norm(V, axis=1)[:, None])
+    body = make_body()
+    P = pose(rest_directions())
+    root, D = snap(body, P)
+    assert np.allclose(joint_positions(body, root, D), P)
+    assert np.allclose(bone_directions(body, P)[1:], rest_directions()[1:])
+
+
+def test_mirror_groups_pair_the_numbered_joints():
+    assert sorted(mirror_groups(NAMES)) == [(2, 5), (3, 6), (4, 7), (8, 10), (9, 11)]
+
+
+def test_fit_recovers_a_perturbed_pose():
+    body = make_body()
+    truth = pose(arm_down(rest_directions(), 0.3))
+    data = frame_data(hull_of(body, truth), 400)
+    D = bone_directions(body, truth)
+    D[3:5] = arm_down(rest_directions(), 0.6)[3:5]       # the arm 25° off
+    start = joint_positions(body, truth[0] + 0.03, D)
+    P = fit_frame(body, data, start, TrackOptions(iterations=10))
+    assert np.linalg.norm(P - truth, axis=1).max() < 0.03
+    assert agreement(body, data, P) > agreement(body, data, start)
+
+
+def test_follows_an_arm_onto_the_body_and_away():
+    n = 24
+    s = np.r_[np.linspace(0, 1, n // 2), np.linspace(1, 0, n // 2)]
+    truth = np.stack([pose(arm_down(rest_directions(), x), (0.01 * i, 0.0, 1.3))
+                      for i, x in enumerate(s)])
+    conf = np.zeros(n, bool)
+    conf[0] = True                      # only the first frame is confident: the rest tracked
+    tr = run(truth, conf)
+    err = arm_errors(tr, truth)
+    assert err.max() < 0.03, err.max(axis=1)
+    assert all(st in ("matched", "tracked") for st in tr.status)
+
+
+def test_reinitializes_after_a_jump():
+    """Between frames 5 and 6 the subject turns round (180°) and raises arm 1: the fit from
+    the previous pose settles with the arms exchanged; the confident frame 8 re-initializes
+    it, and the frames between are tracked back from there."""
+    n = 12
+    turn = np.diag([-1.0, -1.0, 1.0])
+    D = rest_directions()
+    D[3:5] = _unit(0, 0.3, 1)
+    truth = np.stack([pose(rest_directions()) for _ in range(6)]
+                     + [pose(D @ turn.T, (0.3, 0.1, 1.3)) for _ in range(6)])
+    conf = np.zeros(n, bool)
+    conf[[0, 8]] = True
+    tr = run(truth, conf)
+    assert list(tr.reinitialized) == [8]
+    assert tr.status[8] == "matched" and tr.segment[6] == 8
+    assert np.linalg.norm(tr.joints - truth, axis=2).max() < 0.03
+
+
+def test_covers_the_frames_before_the_first_confident_one():
+    n = 34
+    s = 0.5 - 0.5 * np.cos(np.linspace(0, 2 * np.pi, n))
+    truth = np.stack([pose(arm_down(rest_directions(), x), (0.0, 0.008 * i, 1.3))
+                      for i, x in enumerate(s)])
+    conf = np.zeros(n, bool)
+    conf[30] = True
+    tr = run(truth, conf)
+    assert not np.isnan(tr.joints).any()
+    assert np.linalg.norm(tr.joints - truth, axis=2).max() < 0.04
+    assert tr.segment[0] == 30
+
+
+@pytest.mark.parametrize("motion", ["hang", "hips", "fold", "jump", "crouch"])
+def test_touching_motions_are_continuous(motion):
+    from topopose.synth.capture import synthetic_capture
+
+    cap = synthetic_capture("body", frames=4, seed=3, cameras=2, size=(64, 48), motion=motion)
+    J = [np.array(list(cap.gt["frames"][f]["joints"].values())) for f in cap.frames]
+    steps = [np.linalg.norm(b - a, axis=1).max() for a, b in zip(J, J[1:])]
+    assert max(steps) < 0.2                     # 25 frames/s: no joint jumps

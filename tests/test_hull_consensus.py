@@ -14,7 +14,7 @@ from scipy import ndimage
 from _capture_testutils import capsule_masks, ring
 from topopose.capture import Capture
 from topopose.hull import HullCarver, visual_hull
-from topopose.hull.hull import consensus_hull_labels
+from topopose.hull.components import consensus_hull_labels
 
 
 def reference_consensus(cap, frame, resolution, repair=1, max_removed=0.2, masks=None):

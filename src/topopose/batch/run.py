@@ -256,53 +256,14 @@ def run(capture, model="human", resolution=100, threshold=None, output=None,
             fh.write(p.to_json() + "\n")
         fh.flush()
     bar = _progress(len(todo), o.progress and len(todo) > 0, f"{m.name} @ {resolution}³")
-    first = [True]
-
-    def finish(pose: Pose):
-        results[pose.frame] = pose
-        if fh is not None:
-            fh.write(pose.to_json() + "\n")
-            fh.flush()
-        if bar is not None:
-            bar.update(1)
-            if first[0]:        # the ETA counts from the end of the first frame, which pays
-                first[0] = False          # the first run's compilation and tables
-                bar.start_t = bar.last_print_t = bar._time()
-                bar.initial = bar.n
-            bar.set_postfix(status=f"{pose.status:8}", refresh=False)   # whole, fixed width
-        if o.on_pose is not None:
-            o.on_pose(pose)
-
-    def note(message):
-        if bar is not None:
-            bar.set_postfix_str(message)
-
-    from topopose import _notices
-    from topopose.batch import warmup
-
+    finish = _frame_sink(results, fh, bar, o.on_pose)
     complete = False
     written = True
     motion = None
     poses = []
     try:
         try:
-            with _notices.notices(note):
-                if todo and (workers > 1 or scheduler):
-                    _run_dask(cap, m, resolution, threshold, eo, todo, workers, scheduler, finish)
-                elif todo:
-                    from topopose.capture import prefetch
-
-                    warm = warmup.start_warmup()     # first run: a helper process
-                    try:
-                        est = FrameEstimator(cap, m, resolution, threshold, eo)
-                        est.warmup = warm
-                        # decoding + silhouettes run ahead in threads (at the resolution the
-                        # grid needs, when the masks are reduced)
-                        with prefetch(cap, todo, factors=est.mask_factors()):
-                            for f in todo:
-                                finish(est.estimate(f))
-                    finally:
-                        warm.close()
+            _compute_frames(cap, m, resolution, threshold, eo, todo, o.parallel, finish, bar)
         finally:
             if bar is not None:
                 bar.close()
@@ -324,12 +285,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None,
         else:
             # a resume with nothing to do keeps the file
             if (track or sides or skeleton or judged) and todo:
-                from topopose.sequence.motion import process_sequence
-                motion = process_sequence(poses, m, cap.up_vector,
-                                          replace(seq, consistency=consistency), fps=cap.fps)
+                motion = _sequence_stage(poses, m, cap, resolution, threshold, eo,
+                                         replace(seq, consistency=consistency), o.follow)
                 poses = motion.poses
-                from topopose.sequence.follow import follow_run
-                poses = follow_run(poses, motion, m, cap, resolution, threshold, eo, o.follow)
             if out is not None and (todo or not existed or resume):
                 write_poses(out, poses, header)                   # sorted, atomic replace
             if partial is not None:
@@ -353,6 +311,72 @@ def run(capture, model="human", resolution=100, threshold=None, output=None,
                     counts=counts, written=written)
     write_exports(exports, poses, motion, m, cap)
     return res
+
+
+def _frame_sink(results, fh, bar, on_pose):
+    """The callback each finished frame goes through: kept in ``results``, appended (and
+    flushed) to the partial file ``fh``, counted on the progress ``bar``, given to ``on_pose``."""
+    first = [True]
+
+    def finish(pose: Pose):
+        results[pose.frame] = pose
+        if fh is not None:
+            fh.write(pose.to_json() + "\n")
+            fh.flush()
+        if bar is not None:
+            bar.update(1)
+            if first[0]:        # the ETA counts from the end of the first frame, which pays
+                first[0] = False          # the first run's compilation and tables
+                bar.start_t = bar.last_print_t = bar._time()
+                bar.initial = bar.n
+            bar.set_postfix(status=f"{pose.status:8}", refresh=False)   # whole, fixed width
+        if on_pose is not None:
+            on_pose(pose)
+
+    return finish
+
+
+def _compute_frames(cap, m, resolution, threshold, eo, todo, parallel, finish, bar):
+    """Every frame of ``todo`` estimated and given to ``finish``: in worker processes or on a
+    Dask cluster (``parallel``), else here with the first run's warm-up helper and the frames
+    decoded ahead in threads; first-run notices on the progress ``bar``."""
+    from topopose import _notices
+    from topopose.batch import warmup
+
+    def note(message):
+        if bar is not None:
+            bar.set_postfix_str(message)
+
+    workers, scheduler = parallel.workers, parallel.scheduler
+    with _notices.notices(note):
+        if todo and (workers > 1 or scheduler):
+            _run_dask(cap, m, resolution, threshold, eo, todo, workers, scheduler, finish)
+        elif todo:
+            from topopose.capture import prefetch
+
+            warm = warmup.start_warmup()     # first run: a helper process
+            try:
+                est = FrameEstimator(cap, m, resolution, threshold, eo)
+                est.warmup = warm
+                # decoding + silhouettes run ahead in threads (at the resolution the grid
+                # needs, when the masks are reduced)
+                with prefetch(cap, todo, factors=est.mask_factors()):
+                    for f in todo:
+                        finish(est.estimate(f))
+            finally:
+                warm.close()
+
+
+def _sequence_stage(poses, m, cap, resolution, threshold, eo, seq, follow):
+    """The sequence stage of a run (:func:`topopose.sequence.motion.process_sequence`), then
+    the subject's body followed through every frame (:func:`topopose.sequence.follow.follow_run`);
+    the returned motion's ``poses`` are the run's."""
+    from topopose.sequence.follow import follow_run
+    from topopose.sequence.motion import process_sequence
+
+    motion = process_sequence(poses, m, cap.up_vector, seq, fps=cap.fps)
+    motion.poses = follow_run(motion.poses, motion, m, cap, resolution, threshold, eo, follow)
+    return motion
 
 
 def _checked_estimator(eo, cap) -> EstimatorOptions:

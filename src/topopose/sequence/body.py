@@ -161,9 +161,7 @@ def radius_profile(volume, P, parents, samples=PROFILE) -> np.ndarray:
     """
     from scipy import ndimage
 
-    from topopose.sequence.tracker import _box
-
-    lo, box = _box(np.asarray(volume.data, dtype=bool), margin=2)
+    lo, box = bounding_box(np.asarray(volume.data, dtype=bool), margin=2)
     depth = ndimage.distance_transform_edt(volume.data[box]) * float(volume.voxel_size)
     s = np.asarray(samples, float)
     out = np.full((len(P), len(s)), np.nan)
@@ -223,3 +221,13 @@ def bone_directions_of(P, parents) -> np.ndarray:
             d = P[j] - P[p]
             D[j] = d / max(float(np.linalg.norm(d)), 1e-12)
     return D
+
+
+def bounding_box(occ, margin=1):
+    """The lower corner and the slices of the object's bounding box grown by ``margin``."""
+    nz = [np.flatnonzero(occ.any(axis=tuple(b for b in range(3) if b != a))) for a in range(3)]
+    if any(len(z) == 0 for z in nz):
+        return np.zeros(3, dtype=np.int64), tuple(slice(0, 0) for _ in range(3))
+    lo = np.array([max(int(z[0]) - margin, 0) for z in nz])
+    hi = [min(int(z[-1]) + margin + 1, n) for z, n in zip(nz, occ.shape)]
+    return lo, tuple(slice(a, b) for a, b in zip(lo, hi))

@@ -190,15 +190,7 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     fit_s = time.process_time() - t0 - (timings["hull"] + timings["data"] - before)
     if tr is None:
         return poses
-    # left / right of each track segment: the votes of its confident, sided frames
-    votes = {}
-    for i in range(F):
-        s = tr.segment[i]
-        if s < 0 or np.isnan(align[i]).any():
-            continue
-        for g in range(len(groups)):
-            if sided[i, g]:
-                votes[(s, g)] = votes.get((s, g), 0) + (-1 if tr.swapped[i, g] else 1)
+    votes = _segment_votes(tr, align, sided, len(groups))
     from topopose.sequence.silhouette import scaled_views, silhouette_iou
 
     radii = {"radii": [None if not np.isfinite(x) else round(float(x), 4) for x in body.radii],
@@ -209,18 +201,8 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
         if not tr.status[i]:
             out.append(p)
             continue
-        names = list(tree.names)
-        side = {}
-        for g, pairs in enumerate(groups):
-            v = votes.get((int(tr.segment[i]), g), 0)
-            if v:
-                mp, mn = model.mirrors[g]
-                side.update(zip(mp, mn if v > 0 else mn[::-1]))
-            for a, b in pairs:
-                if v > 0:
-                    names[a], names[b] = rename[tree.names[a]], rename[tree.names[b]]
-                elif v < 0:
-                    names[a], names[b] = rename[tree.names[b]], rename[tree.names[a]]
+        names, side = _side_names(model, tree, groups, rename,
+                                  [votes.get((int(tr.segment[i]), g), 0) for g in range(len(groups))])
         joints = {n: tr.joints[i, j].copy() for j, n in enumerate(names)}
         parts = p.parts
         if tr.status[i] != "matched" or not p.matched:        # the body's own parts
@@ -252,6 +234,38 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     for q in out:       # the stage's mean CPU time (this process) a frame, on every frame
         q.timings_ms = {**q.timings_ms, **{f"track_{k}": v for k, v in per_frame.items()}}
     return out
+
+
+def _segment_votes(tr, align, sided, n_groups) -> dict:
+    """Left / right of each track segment: ``(segment, group) → vote``, the sum over its
+    confident, sided frames of +1 (as aligned) or -1 (swapped by the tracker)."""
+    votes = {}
+    for i in range(len(align)):
+        s = tr.segment[i]
+        if s < 0 or np.isnan(align[i]).any():
+            continue
+        for g in range(n_groups):
+            if sided[i, g]:
+                votes[(s, g)] = votes.get((s, g), 0) + (-1 if tr.swapped[i, g] else 1)
+    return votes
+
+
+def _side_names(model, tree, groups, rename, votes) -> tuple:
+    """The joints' names of a frame and its parts' renaming (numbered → left / right) by the
+    votes of its segment, one per mirror group (0: undecided, numbered names kept)."""
+    names = list(tree.names)
+    side = {}
+    for g, pairs in enumerate(groups):
+        v = votes[g]
+        if v:
+            mp, mn = model.mirrors[g]
+            side.update(zip(mp, mn if v > 0 else mn[::-1]))
+        for a, b in pairs:
+            if v > 0:
+                names[a], names[b] = rename[tree.names[a]], rename[tree.names[b]]
+            elif v < 0:
+                names[a], names[b] = rename[tree.names[b]], rename[tree.names[a]]
+    return names, side
 
 
 def follow_run(poses, motion, model, cap, resolution, threshold, estimator=None,

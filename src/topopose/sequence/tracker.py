@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from topopose.sequence.body import CapsuleBody, kabsch, joint_positions, snap
+from topopose.sequence.body import CapsuleBody, bounding_box, joint_positions, kabsch, snap
 
 
 @dataclass(frozen=True)
@@ -108,16 +108,6 @@ class FrameData:
         return s * d, g
 
 
-def _box(occ, margin=1):
-    """The lower corner and the slices of the object's bounding box grown by ``margin``."""
-    nz = [np.flatnonzero(occ.any(axis=tuple(b for b in range(3) if b != a))) for a in range(3)]
-    if any(len(z) == 0 for z in nz):
-        return np.zeros(3, dtype=np.int64), tuple(slice(0, 0) for _ in range(3))
-    lo = np.array([max(int(z[0]) - margin, 0) for z in nz])
-    hi = [min(int(z[-1]) + margin + 1, n) for z, n in zip(nz, occ.shape)]
-    return lo, tuple(slice(a, b) for a, b in zip(lo, hi))
-
-
 def silhouette_rays(cameras, silhouettes, n, rng) -> tuple:
     """Rays (origins, unit directions) through ``n`` pixels sampled in each silhouette
     (lens distortion undone)."""
@@ -150,7 +140,7 @@ def frame_data(volume, n_points, rng=None, views=None, n_rays=0) -> FrameData:
     from scipy.spatial import cKDTree
 
     occ = np.asarray(volume.data, dtype=bool)
-    lo, box = _box(occ)
+    lo, box = bounding_box(occ)
     surf = occ[box] & ~ndimage.binary_erosion(occ[box])
     ijk = np.argwhere(surf) + lo
     X = volume.origin + ijk * float(volume.voxel_size)

@@ -438,7 +438,7 @@ def _l(x):
 
 
 def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 480), noise=0,
-                      motion="random", thickness=1.0, separated=False, fps=25, out=None, *,
+                      motion="random", thickness=1.0, separated=False, fps=25, *,
                       margin=None, build=None, layout="ring", lean=0.0, pose="any") -> Capture:
     """Synthetic capture in memory (``masks`` set, ``options["gt"]`` = the gt.json dict,
     ``options["bodies"]`` = the posed :class:`.synth_subjects.Body` of each frame, ``path`` None).
@@ -486,8 +486,6 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
         larger than the body), so quality studies ask for a few voxels, e.g. ``3 × voxel size``
         (``benchmarks/quality.py``). Recorded in gt.json (``synth.limb_margin``; per frame
         ``limb_gap``, the smallest such clearance).
-    out : path or None
-        When given, the capture is also written there (as :func:`synthesize`).
     build : str or dict, optional
         ``body`` only: its proportions, a preset (``average``, ``heavy``, ``child``, ``lean``),
         ``random`` (the default: height 1.1–2.0 m, lengths and girths drawn from the seed) or a
@@ -580,8 +578,6 @@ def synthetic_capture(subject="human", frames=10, seed=0, cameras=8, size=(640, 
         gt["synth"]["layout"] = layout
     cap = Capture(cams, names, None, "+z", "m", float(fps), (vlo.copy(), vhi.copy()),
                   {"gt": gt, "bodies": bodies}, masks)
-    if out is not None:
-        write_capture(cap, out)
     return cap
 
 

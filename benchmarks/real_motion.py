@@ -340,15 +340,15 @@ def grid_spread(rec: Path, work: Path, ref, resolutions) -> dict:
 
 # peers of the default motion stage, from the same per-frame poses: sequence options
 PEERS = {"the neck and shoulders each on its own target (GIRDLE = False)": {"girdle": False},
-         "the smoothing window 9 frames at 60 frames/s, as before session 33 "
+         "the smoothing window 9 frames at any rate "
          "(smooth = 9)": {"smooth": 9},
-         "temporal outliers kept as fitted, not bridged, as before session 34 (BRIDGE = False)":
+         "temporal outliers kept as fitted, not bridged (BRIDGE = False)":
              {"bridge": False},
-         "one frame's swung bones smoothed with the others, as before session 35 "
+         "one frame's swung bones smoothed with the others "
          "(despike = None)": {"despike": None},
-         "hanging arms' elbows and wrists at their fractions only, as before session 35 "
+         "hanging arms' elbows and wrists at their fractions only "
          "(from_start = {})": {"from_start": set()},
-         "both, as session 34 (despike = None, from_start = {})":
+         "neither despike nor from_start (despike = None, from_start = {})":
              {"despike": None, "from_start": set()}}
 
 

@@ -111,7 +111,7 @@ class ImageSource:
     def sequential(self, frames, cameras=None, needed=None):
         """Yield ``(frame, {camera: image or InputError})`` for ``frames`` in order (of
         ``cameras`` only when given). ``needed``: ignored (every image is read: a missing
-        file is reported as before)."""
+        file is reported)."""
         for f in frames:
             out = {}
             for cam in (self.files if cameras is None else cameras):

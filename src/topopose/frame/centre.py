@@ -47,14 +47,7 @@ MIN_VIEWS = 2                # fewer views observing a sample: it stays (1: move
                              # direction its views constrain)
 STEP = 0.5                   # px along the scan
 PAD = 2.0                    # px of width tolerance (pixel rounding of the contour)
-# Development seeds (studies/centre_dev.py: walks 41–44, random
-# motion 51–53, 40 frames; MPJPE median over the good frames, off → on): 8 cameras 3.63 → 3.43
-# (ITERATIONS 2) / 3.44 (1, half the cost); 4p 10.53 → 10.55 / 10.44; 4pd 8.83 → 8.79 / 8.85.
-# LIMB_RADIUS 0.45: 3.43 / 10.55; HULL_WIDTH 2 with SCAN 5 (seeds 41, 42, 51, 52): 4p 11.22
-# against 11.26, 4pd 8.89 against 8.86;
-# MIN_VIEWS 1: 4p 10.55, 4pd 8.70. Every limb sample moved onto the true bone (an oracle)
-# gives 3.58 / 10.31 / 8.60: with 4 cameras the limbs' curves lie no farther off the limbs'
-# axes than with 8 (median 26 against 24 mm, 19 after centring), their error is elsewhere.
+# The constants' figures: docs/decisions.md (limbs' curves on the silhouettes' centre lines).
 
 
 def tangents(curve) -> np.ndarray:

@@ -59,91 +59,21 @@ whose hull volume departs from the run's median by more than a factor 1.5 get ½
 the run is a coherent sequence (median δ / H over consecutive frames ≤ 0.1). They multiply the
 product confidence; the fitted confidence only reports them in its factors.
 
-**The trunk's junctions** (issue 11): ``crotch_radius``, ``torso_radius``, ``head_torso``,
-``hip_flex``, ``crotch_room`` and the placed head's ``head_placed_offset`` / ``head_placed_bend``
-are fitted too (``benchmarks/confidence.py`` ``JUNCTION_FEATURES``; held-out seeds of the
-calibration, 8 cameras: recall of the right frames at precision 0.95 0.908 → 0.922; body
-benchmark, seeds 21, 22, TP rate / FP per match: separated 0.908 / 0.009 against 0.758 / 0.000
-refitted without them; ``docs/body_accuracy.md``).
-
-**Missing limbs** (issue 11): ``matched_distance`` (the distance without the unmatched leaf
-parts' deletion cost) is a feature of the trees (a logistic refit gave it no weight,
-``benchmarks/results/confidence_refit_matched_distance.md``).
-
-**Per-part trust** (issue 11, :func:`judge_frame` ``drop_parts``; ``FrameEstimator(part_trust=
-False)`` off): a frame with every part placed that only the confidence rejects is matched without
-the one extremity (:data:`DROP_PARTS`) whose removal (:func:`drop_part_features`) makes the
-confidence reach the minimum + ``drop_margin`` (:func:`min_drop_for`, chosen out of fold by
-``benchmarks/confidence.py --fit``; a tie names no part, :func:`untrusted_part`); the part is
-unplaced, its guess kept. Refit of 2026-11-24 on the pipeline with short arm, trunk blend and
-placed missing, rods at weight 0.5, the size guard up to 0.11: held out, 8 cameras, precision /
-recall of the right frames 0.960 / 0.894 (model before) → 0.960 / 0.909 → **0.961 / 0.936** with
-per-part trust; body benchmark (seeds 21, 22, offline) separated 0.908 / 0.000 → 0.950 / 0.009,
-all poses 0.717 / 0.034 → 0.742 / 0.022 (``docs/body_accuracy.md``, "Per-part trust"). Refitted
-again on the merged pipeline (hand on the trunk, head ball, trunk kept; the shipped model,
-minima 0.72 with 8 cameras, 0.91 with 4): held out, 8 cameras, 0.975 / 0.912 (the model before,
-on the new frames) → 0.973 / 0.935; body benchmark (offline) separated 0.958 / 0.009 → 0.967 /
-0.009, all poses 0.725 / 0.022 → 0.767 / 0.021 (``benchmarks/results/confidence.md``).
-Refitted after the junction without its cluster's leaves (``estimate.JUNCTION_CORE``, issue 11
-session 10; the shipped model, minima 0.52 with 8 cameras, 0.92 with 4): held out, 8 cameras,
-with per-part trust 0.973 / 0.938 → 0.958 / 0.970; body benchmark (offline, seeds 21, 22)
-separated 0.983 / 0.017 → 0.975 / 0.008, all poses 0.783 / 0.021 → 0.817 / 0.020.
-
-**Head doubt** (issue 11, :func:`head_doubt`, :func:`judge_frame` ``doubt_head``;
-``FrameEstimator(head_doubt=False)`` off): when no part's removal explains the doubt and the
-alignment left the head unmatched (the head placed from the hull alone), the frame with its
-alignment's head features (:data:`HEAD_FEATURES`) at a right frame's typical values
-(``"typical_head"`` in the model, medians of the calibration's right frames) is scored; reaching
-:func:`min_drop_for`, the frame is matched without its head. For *any* head
-(``head_doubt="any"``, opt-in) it also rescues the right all-pose frames whose alignment put
-the torso on a shoulder junction (head offset 0.18–0.32, bend 0.76–1.2, the placed head and
-torso right; body benchmark, seeds 21, 22, ``quality.py --only body``: separated 0.975 / 0.017
-→ 0.983 / 0.017, all poses 0.775 / 0.021 → 0.800 / 0.020), but it cannot tell them from a torso
-on the junction of a spurious limb: of the deliberate rods the gate rejects it lets through 11
-of 157 held out, 15 of 169 calibration (``confidence.md``) and
-``test_spurious_limb_fails_the_gate``'s rod frame (confidence 0.26 → 0.74, head unplaced). By
-default (an unmatched head only) none of the 414 deliberate rods gets through; held out, 8
-cameras, 0.973 / 0.935 → 0.973 / 0.938; body benchmark separated 0.975 → 0.983, all poses
-0.775 → 0.783 (FP/match 0.017, 0.021 unchanged).
-
-**Not reached** (``confidence_models.md``): with 4 cameras no model reaches precision 0.95 for
-more than a few right frames (held out: 7 of 209 right frames with 4 cameras, none of 131 with
-the 4 portrait cameras; the real recording's 4 phone cameras: none of its ~67 right frames, the
-model replaced: 1): few 4-camera frames are right at all (15–33 %) and the wrong ones score as
-high. After the refits of 2026-11-24 (minimum 0.90, then 0.91 with 4 cameras): held out 15, then
-14 matched of 235–249 right frames (precision 0.93), 4 portrait cameras 1–2 of 151–158; the real
-recording none of its 66–67 right frames — their alignment head features and radius ratios lie outside the synthetic 4-camera
-right frames' (``confidence.md``, last table). Why (``benchmarks/confidence_real_torso.py``,
-``results/confidence_real_torso.md``): (1) the subject leans (trunk 27° from the vertical at
-the median, up to 49°) on one leg, and in half of the right frames (17 of 33) the *alignment's*
-torso vertex sits on another junction, 0.59 m from Pose2Sim's neck (the placed torso, moved back
-onto the spine, 0.14 m): those frames carry head_bend 1.55, head_offset 0.36, torso_radius 0.18,
-head_torso 1.67; the other half 0.37 / 0.15 / 1.0 / 0.36, near the synthetic right frames';
-(2) the radius features are relative to the hull's largest inscribed ball, which on the
-recording is 11 voxels (0.22 m, hull 0.12 m³) against 6 (0.15 m, 0.08–0.11 m³) on synthetic
-4-camera bodies, so a hand's 2 voxels give end_radius 0.18 instead of 0.33; (3) its smooth
-network masks grow fewer spurious branches (5–8 against 12–16 with noise level 2). The
-calibration set-up ``4r`` (``benchmarks/confidence.py``: the portrait phone cameras in two
-facing pairs as the recording's — ``synthetic_capture(layout="pairs")`` —, the volume fitted
-to the silhouettes, and balancing poses tilted up to 45° — ``lean``,
-:func:`topopose.synth.body.body_balance`) reproduces (1) in part (a third of its right
-balancing frames, head_bend 1.1) but not (2): no set-up tried (facing pairs, fitted volume,
-lean, noise level 3) fattens the hull's trunk beyond 0.15 m. Refitted with it (not shipped,
-``results/confidence_refit_4r.md``) the recording still has no right frame at the 4-camera
-minimum (0.85), 8 right of 14 at 0.5, and the 8-camera held-out precision fell to 0.947.
+**Not reached**: with 4 cameras no fitted model reaches precision 0.95 for more than a few
+right frames: few 4-camera frames are right at all, and the wrong ones score as high. The real
+recording's right frames lie outside the synthetic 4-camera right frames' features (a leaning
+subject whose alignment puts the torso on another junction; a fatter hull, so the radius
+features shrink): ``benchmarks/results/confidence_real_torso.md``. Hence the gate below.
 
 The confidence is reported for every frame. With the gate on (``FrameEstimator(gate=True)``,
 ``topopose run --confidence-gate on``; the default, :func:`topopose.frame.rules.default_gate`),
 ``matched`` for the human model is decided by :class:`GateOptions` (:func:`gate_decision`): the
 AHA distance within T_d with the silhouettes explained, or above T_d the silhouettes explained
 more strictly with the arcs in the model's proportions — three interpretable features chosen
-together on several generators (``benchmarks/sides.py``: precision of ``matched`` 95–99 % on
-the synthetic camera set-ups and the Pose2Sim recording, whose right frames it matches 38 of 70
-where the fitted confidence matches 9; not subjects lying down, whose frames are rarely right;
-the price is recall with 8 cameras, 55 % of the right frames against 91 %). The fitted
-confidence decides only with ``FrameEstimator(gate_rule=False)`` (with per-part trust and head
-doubt): ``matched`` then also needs confidence ≥ ``min_confidence``. Rejected frames keep
-their best guess. Everything was fitted on synthetic captures only (capsule human and
+together on several generators (their figures: ``docs/decisions.md``, measured by
+``benchmarks/sides.py``). The fitted confidence decides only with
+``FrameEstimator(gate_rule=False)`` (with per-part trust and head doubt): ``matched`` then also
+needs confidence ≥ ``min_confidence``. Rejected frames keep their best guess. Everything was fitted on synthetic captures only (capsule human and
 ``body``, the three camera set-ups, walk and random motion, separated / all poses); the real
 recording is used to check, never to fit.
 """
@@ -465,13 +395,9 @@ def untrusted_part(confidences: dict, minimum: float):
     return ranked[0][0]
 
 
-# the features that judge the alignment's head alone (its height, bend, offset and reach
-# against the alignment's trunk, its thickness against the torso's): the head's doubt,
-# :func:`head_doubt`. Chosen on the calibration's held-out seeds (benchmarks/confidence.py
-# --rows, 8 cameras, precision / recall of the right frames 0.973 / 0.935 without the head
-# doubt): these five, for any head, 0.971 / 0.938, 4 cameras unchanged (0.929 / 0.052); with
-# the placed head's features too (``head_placed_*``, ``head_radius``) 0.967 / 0.942 but
-# separated limbs' precision 1.0 → 0.967 and 4 cameras 0.90
+# the features that judge the alignment's head alone (its height, bend, offset and reach against the
+# alignment's trunk, its thickness against the torso's): the head's doubt, :func:`head_doubt`. Its
+# figures: docs/decisions.md.
 HEAD_FEATURES = ("head_low", "head_bend", "head_offset", "head_reach", "head_torso")
 
 

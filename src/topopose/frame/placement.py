@@ -175,9 +175,8 @@ def junction_position(al, data, part, v, leaves: bool = True):
     can map the model junction to any of them at the same cost (its co-optimal
     ``alternatives``, §12.2.2). The chosen one is a tie-break; the cluster — the alternatives
     connected to ``v`` through alternatives in the data tree — is the junction, and its centroid
-    the estimate. Measured in ``benchmarks/quality.py`` (spider, 100³, noise 1, 40 frames): the
-    cephalothorax median error 0.053 → 0.020 (tolerance 0.082), misplaced frames 7 → 2; human
-    torso 0.030 → 0.023. ``leaves`` False: the cluster's leaves of the data tree left out
+    the estimate (measured by ``benchmarks/quality.py``; its figures: ``docs/decisions.md``).
+    ``leaves`` False: the cluster's leaves of the data tree left out
     (unless it has nothing else) — the far end of a branch contracted into the junction
     (:data:`JUNCTION_CORE`).
     """

@@ -7,29 +7,17 @@ import math
 
 import numpy as np
 
-# Relative thickness of each part of a built-in model (thesis §12.3 gives lengths only): the
-# hull's inscribed-ball radius (taxicab distance transform on the hull's box, 0.5 ms at 100³;
-# the exact EDT took 9 ms for about the same figures) at the part's data vertex — the largest within
+# Relative thickness of each part of a built-in model (thesis §12.3 gives lengths only): the hull's
+# inscribed-ball radius (taxicab distance transform on the hull's box, 0.5 ms at 100³; the exact EDT
+# took 9 ms for about the same figures) at the part's data vertex — the largest within
 # ±THICKNESS_REACH × resolution voxels (2 at 100³: a skeleton end lies at the crown, the head's
-# centre is a few voxels in) — over the largest radius of the hull (the chest). Ranges
-# (lo, hi) = 5–95 % of the correctly placed parts of `body` frames (5 builds × 2 seeds, 400
-# frames, 100³, noise 1), except the head's lower bound (5 %: 0.44), lowered to 0.30 for the
-# capsule human, whose small head sphere measures 0.33 (at 0.44 it lost one of 40 separated
-# frames to a head/hand swap); inside no cost, outside weight × the log of the excess
-# (thickness_arc_cost). Keys: part name stems. The alignment's distance without the term is
-# what T_d judges. Measured on those 200 separated + 200 all-pose frames (0.08 × height, every
-# part; TP rate / FP per match, separated; all):
-#   no thickness term                         0.85 / 0.128;  0.45  / 0.419
-#   weight 1, reach 2 (default)               0.85 / 0.115;  0.525 / 0.103
-#   the same, head lower bound 0.44           0.86 / 0.104;  0.535 / 0.085
-#   weight 0.3 / 0.6, reach 2, T_d on total   0.86 / 0.104, 0.845 / 0.091;  0.51 / 0.143, 0.515 / 0.104
-#   weight 1, reach 2, T_d on the total       0.835 / 0.092; 0.525 / 0.071
-#   leaves only (no torso, crotch), w 0.3     0.86 / 0.109;  0.51  / 0.164
-#   radius at the vertex only (reach 0), w .3 0.86 / 0.109;  0.505 / 0.263 (w 0.6, 1: worse)
-#   two-sided log cost around the medians    0.855 / 0.100, 0.41 / 0.241 (w 0.05); worse at 0.1
-# The held-out seeds of benchmarks/quality.py (quality_body.md) check it. Capsule human (40
-# frames, noise 1, 100³): separated 1.00 / 0 either way; all poses 0.75 / 0.118 → 0.80 / 0.
-# The dog, the spider and the hand have no profile (term off).
+# centre is a few voxels in) — over the largest radius of the hull (the chest). Ranges (lo, hi) =
+# 5–95 % of the correctly placed parts of `body` frames (5 builds × 2 seeds, 400 frames, 100³, noise
+# 1), except the head's lower bound (5 %: 0.44), lowered to 0.30 for the capsule human, whose small
+# head sphere measures 0.33 (at 0.44 it lost one of 40 separated frames to a head/hand swap); inside
+# no cost, outside weight × the log of the excess (thickness_arc_cost). Keys: part name stems. The
+# alignment's distance without the term is what T_d judges. The dog, the spider and the hand have
+# no profile (term off). Its figures: docs/decisions.md.
 DEFAULT_THICKNESS_WEIGHT = 1.0
 
 

@@ -151,51 +151,19 @@ def extremity_tips(vol, skeleton, data, mapping: dict, leaf_parts, reach: float 
 
 
 #: Leaf parts prolonged away from an anchor part (:func:`extremity_tips` ``anchors``), per model:
-#: ``{leaf: (anchor, max_radii)}``. The head's branch often bends at its end (thinning leaves a
-#: spur towards a cheek or the back of the skull), so its own end direction sends the tip
-#: sideways and 1.5 radii stop short; the direction torso → branch end is the body's axis
-#: through the head (thesis §4.3: the branch ends one inscribed radius inside, the crown is on
-#: the surface beyond it). Used where the head is not placed from the hull (no coordinate
-#: constraints: inverted, acrobatic subjects). Capsule human, development seeds 3–4, without
-#: constraints (benchmarks/applications.py's acrobatic set): head median error to the crown
-#: 6.4 → 4.0 cm, bias along the body axis −4.5 → −1.5 cm; ask-a-question P / R 0.806 / 0.879
-#: → 0.950 / 0.864, hands-up 0.889 / 0.918 → 0.892 / 0.951 (the cap of 3 radii along the
-#: end direction alone: 0.906 / 0.951 and 0.855 / 0.894). Held out (seeds 1–2,
-#: benchmarks/applications.py, peer ``tip_anchor=False`` in the same run): head median error
-#: 6.6 → 4.0 cm; hands-up 0.903 / 0.848 → 0.897 / 0.924, ask-a-question 0.808 / 0.894 → 0.906 /
-#: 0.879, wide-spread-arms 0.842 / 0.941 → 0.865 / 0.941, acrobatic 0.989 / 1.000 either way.
-#: Upright subjects (the head from the hull) are unchanged: the hull places that head.
-#: Without coordinate constraints :data:`HEAD_AXIS` now places the head; this tip is its fallback.
+#: ``{leaf: (anchor, max_radii)}``. The head's branch often bends at its end (thinning leaves a spur
+#: towards a cheek or the back of the skull), so its own end direction sends the tip sideways and
+#: 1.5 radii stop short; the direction torso → branch end is the body's axis through the head
+#: (thesis §4.3: the branch ends one inscribed radius inside, the crown is on the surface beyond
+#: it). Used where the head is not placed from the hull (no coordinate constraints: inverted,
+#: acrobatic subjects). Its figures: docs/decisions.md.
 TIP_ANCHOR = {"human": {"head": ("torso", 3.0)}}
-#: The head from the hull must hold a head-sized ball (:func:`thick_top` ``ball``, ``reach``),
-#: per model: ``(ball, reach, min_voxels, min_cameras)``; ball and reach × the hull's largest
-#: inscribed radius. A raised fist above the
-#: head is as thick as the ``min_fraction`` 0.4 of :data:`topopose.frame.rules.HEAD_FROM_HULL`
-#: and was taken for the head (the commonest wrong head of the ``body`` subject's separated
-#: frames once the head came from the hull). Dev seeds 41, 42, 43 (5 builds × 12 frames, 100³,
-#: noise 1, gate off; frames whose head came from the hull): the largest radius within 1.5 ×
-#: the largest of the thick top is 0.43 for both wrong heads (a fist), 0.49–0.85 for the right
-#: ones (separated; all poses 0.52–); ball 0.45 / 0.47 at reach 1.5: wrong heads 4 → 3
-#: separated, 1 → 0 all poses, TP rate / FP per match 0.922 / 0.051 → 0.928 / 0.046 and 0.833
-#: / 0.062 → 0.839 / 0.056 (ball 0.5: separated unchanged; reach 2 with ball 0.55–0.6: all
-#: poses unchanged). The ball also tells a fist from a head where the thickness alone cannot: on
-#: a coarse grid (the child at 100³, an adult at 50³: 0.4 × the largest radius is below the 1.5
-#: voxels at which :func:`thick_top` gives up) the rule now applies down to ``min_voxels`` 1.2
-#: (the third entry); there the head came from the alignment, which put it on a raised hand or
-#: at the crotch. With the torso re-derived from the new head (TORSO_ON_TRUNK, TRUNK_BLEND),
-#: dev seeds 41–43 at 100³, TP rate / FP per match: separated 0.922 / 0.051 → 0.928 / 0.046
-#: (min_voxels 1.5) → 0.933 / 0.040 (1.2; 1.0 the same), wrong heads 4 → 3 → 1; all poses
-#: 0.833 / 0.062 → 0.839 / 0.056 either way; at 50³ (seeds 41, 42, separated) 0.575 / 0.355 →
-#: 0.575 / 0.355 → 0.625 / 0.299, wrong heads 11 → 11 → 5. Held out (``benchmarks/quality.py``,
-#: quality_body.md, *no-head-ball* rows, with HAND_ON_TRUNK; gate off): separated 0.97 / 0.025
-#: → 0.97 / 0.017 (misplaced 4 → 3 of 120), all poses 0.81 / 0.030 either way; gate on
-#: separated 0.95 / 0.009 → 0.96 / 0.009, all poses 0.74 / 0.022 either way; 50³ separated, both
-#: rules against main's run: good + missing limb 70 → 76 of 120, misplaced 47 → 41.
-#: With few cameras the hull's trunk carries phantom volume and its largest radius grows, so a
-#: real head no longer holds 0.46 of it: on the real recording (4 cameras, ``benchmarks/real.py``,
-#: person silhouettes) the check set the head aside in 2 of 100 frames (head 0.03 → 0.29–0.33 m,
-#: right frames 67 → 65 %). Hence the fourth entry: the check applies from that many cameras on
-#: (``FrameEstimator(head_ball=None)``; an explicit value applies whatever the cameras).
+#: The head from the hull must hold a head-sized ball (:func:`thick_top` ``ball``, ``reach``), per
+#: model: ``(ball, reach, min_voxels, min_cameras)``; ball and reach × the hull's largest inscribed
+#: radius. A raised fist above the head is as thick as the ``min_fraction`` 0.4 of
+#: :data:`topopose.frame.rules.HEAD_FROM_HULL` and was taken for the head (the commonest wrong head
+#: of the ``body`` subject's separated frames once the head came from the hull). Its figures:
+#: docs/decisions.md.
 HEAD_BALL = {"human": (0.46, 1.5, 1.2, 6)}
 
 
@@ -293,8 +261,7 @@ def head_from_hull(vol, up, anchor=None, min_fraction: float = 0.4, max_radii: f
     raised beside a leaning head (and, with few cameras, the phantom volume between them) the
     head merges into the shoulder mass and the alignment puts the head part on the arm or on a
     phantom branch (real recording, frames 28–74: head errors 0.2–0.45 m, no data leaf within
-    0.23 m of the head marker). Measured in :data:`topopose.frame.rules.HEAD_FROM_HULL`: right
-    frames of the real recording 32 → 71 of 100, the body subject's head error 5.6 → 2.1 cm.
+    0.23 m of the head marker). Its figures: ``docs/decisions.md`` ("head from the hull").
     ``edt``: :func:`inscribed_distances` of the hull if already computed; ``ball``: ``(ball,
     reach, min_voxels)`` of :func:`thick_top` (:data:`HEAD_BALL`), None: off."""
     top = thick_top(vol.data, vol.origin, float(vol.voxel_size), up, min_fraction, edt=edt,
@@ -313,25 +280,15 @@ def head_from_hull(vol, up, anchor=None, min_fraction: float = 0.4, max_radii: f
 
 
 #: The head from the hull along the body's own axis, where no "up" is known (a model without
-#: coordinate constraints: acrobatic, inverted subjects), per model: ``(head, anchor, lower
-#: end, min_fraction, max_shift)``: the direction lower end → anchor (crotch → torso, junctions
-#: of the alignment) replaces the up vector of :func:`head_from_hull` — the thick point of the
-#: hull farthest along it, prolonged from the anchor to the hull's border — unless that point
-#: lies more than ``max_shift`` × the hull's largest inscribed radius from the head placed so
-#: far (a torso on the wrong part turns the axis). See :func:`head_along_axis`. Without it the
-#: head is the head branch's tip (:data:`TIP_ANCHOR`), which falls short where the head's data
-#: vertex is no leaf (the head merged with a raised arm: no tip at all) or the branch ends
-#: askew. Capsule human, ``benchmarks/applications.py``'s acrobatic set (half the frames
-#: inverted), development seeds 3–4, 196 matched frames: head error to the crown median 3.7–4.0
-#: → 2.0 cm, p90 6.8–8.1 → 3.1–3.2 cm, beyond 8 cm 19 → 1 frames; hands-up P / R 0.891 / 0.950
-#: → 0.906 / 0.967, ask-a-question 0.950 / 0.864 → 0.922 / 0.881 (the remaining errors: a hand
-#: and the head 1–3 cm apart in height, truth on a knife edge). Without the 6-radius guard two
-#: frames whose torso lay on a foot lost a right head (1.2–1.4 m off); only where the head
-#: vertex is no leaf: 19 → 18 frames beyond 8 cm. Held out (seeds 1–2, applications.md, peer
-#: *no-head-axis* in the same run): head median 3.9 → 1.8–2.0 cm, p90 8.3 → 3.1–3.5 cm;
-#: hands-up 0.896 / 0.923 → 0.953 / 0.938, ask-a-question 0.906 / 0.879 → 0.935 / 0.879,
-#: wide-spread arms 0.840 / 0.926 and acrobatic 0.989 / 1.000 either way. Upright subjects
-#: (coordinate constraints: ``head_from_hull``) are unchanged.
+#: coordinate constraints: acrobatic, inverted subjects), per model: ``(head, anchor, lower end,
+#: min_fraction, max_shift)``: the direction lower end → anchor (crotch → torso, junctions of the
+#: alignment) replaces the up vector of :func:`head_from_hull` — the thick point of the hull
+#: farthest along it, prolonged from the anchor to the hull's border — unless that point lies more
+#: than ``max_shift`` × the hull's largest inscribed radius from the head placed so far (a torso on
+#: the wrong part turns the axis). See :func:`head_along_axis`. Without it the head is the head
+#: branch's tip (:data:`TIP_ANCHOR`), which falls short where the head's data vertex is no leaf (the
+#: head merged with a raised arm: no tip at all) or the branch ends askew. Its figures:
+#: docs/decisions.md.
 HEAD_AXIS = {"human": ("head", "torso", "crotch", 0.4, 6.0)}
 
 

@@ -41,14 +41,8 @@ from topopose.pose.model import part_stem
 STEMS = ("hand",)      # limb ends whose branch is trimmed; the feet too: no better (below)
 SLACK = 1.5            # projected voxels: a disk inside another up to this is inside it
 GAP = 2.0              # voxels along the curve: a point is not explained by its own neighbours
-# SLACK / GAP: a stretch of curve within asin(SLACK / GAP) = 49° of a camera's rays adds no
-# disk in that view. Development seeds 41–50 (studies/phantom.py --effect; right frames of
-# 400, set-ups 4 / 4p / 4r / 8): off 164 / 107 / 83 / 379; (SLACK, GAP) (0.75, 2) 165 / 108 / 84
-# / 379; (1.5, 2) 171 / 112 / 88 / 379; (1.75, 2) 173 / 112 / 91 / 379; (2.5, 2): every tube
-# trimmed, 128 / 72 / 62 / 359; (1.5, 3) 166 / 108 / 86; (2, 3) 170 / 110 / 89; (2.5, 4)
-# 168 / 110 / 88; hands and feet at (1.5, 2) 171 / 112 / 88. The precision of matched and of
-# --consistency never fell (4: matched 4/5 → 5/5); 8 cameras: nothing trimmed. (1.5, 2) kept
-# rather than (1.75, 2): as good within 3 frames, further from the cliff at SLACK = GAP.
+# SLACK / GAP: a stretch of curve within asin(SLACK / GAP) = 49° of a camera's rays adds no disk in
+# that view. Its figures: docs/decisions.md.
 MIN_FRACTION = 0.5     # the end moves back at most to this fraction of its curve
 UPSAMPLE = 4           # curve points per stored sample while walking back
 

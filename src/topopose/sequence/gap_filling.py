@@ -12,20 +12,16 @@ from topopose.sequence.skeleton_fit import KinematicTree, _directions, forward
 
 GAPS = DEFAULT.gaps
 
-# GapOptions.hold_max = 0.15: m, mean move of the seen joints from the last fitted frame
-# GapOptions.hold_frames = 5: the last fitted frame at most this many frames before (3 → 5:
-#                     random motion, development seeds 51–56, MPJPE median 6.21 → 6.12 cm, frames
-#                     holding joints 7.28 → 7.22; 10 / 15 the same as 5: a part lost across 4–5
-#                     unmatched frames took the rest pose; walks 41–46 4.29 → 4.29, unrelated
-#                     random poses 21–32 unchanged: they fail the motion check)
+# GapOptions.hold_max = 0.15: m, mean move of the seen joints from the last fitted frame.
+# GapOptions.hold_frames = 5: the last fitted frame at most this many frames before. Its figures:
+# docs/decisions.md.
 
 
 def _continues(prev, start, dt, gap: GapOptions = GAPS):
     """Whether the last fitted frame ``prev``, ``dt`` frames before, is the same motion:
     ``dt`` at most ``gap.hold_frames`` and the joints seen in both moved (relative to the first
     of them, the root when seen) less than ``gap.hold_max`` on average (unrelated random
-    poses: the hands move 0.5–1.5 m; development seeds 21–33 with ``hold_max · dt``: frames
-    holding joints 8.6 → 8.9 cm)."""
+    poses: the hands move 0.5–1.5 m)."""
     if prev is None or not 1 <= dt <= gap.hold_frames:
         return False
     ok = np.flatnonzero(~np.isnan(start).any(axis=1))
@@ -37,7 +33,7 @@ def _continues(prev, start, dt, gap: GapOptions = GAPS):
 
 def held_gaps(P, held, t, tree: KinematicTree, L, max_gap=5, hold_max=GAPS.hold_max):
     """Fill the joints a frame did not see (``held``) from the frames either side that saw
-    them (issue 15: gap filling of short stretches, flagged, never silent).
+    them: gap filling of short stretches, flagged, never silent.
 
     A run of at most ``max_gap`` consecutive frames holding joint ``j``, between two fitted
     frames ``a`` and ``b`` seeing it, the same motion (consecutive frame numbers, and the
@@ -116,15 +112,7 @@ FOLD = np.radians(130.0)  # an unseen arm's forearm and hand: folded forward and
 
 
 ACROSS = np.radians(30.0)  # by this angle about the trunk axis: a hand merged with the body lies
-                          # against the trunk's front (development seeds 21–28, 8 × 40 random
-                          # poses, gate on, the true unseen arm from its shoulder (down, out,
-                          # forward): elbow (19, 7, 10), wrist (−8, −10, 15) cm; MPJPE median of
-                          # the fit, FOLD / ACROSS: 90° / 0° 6.45, 110° / 0° 6.28, 110° / 30°
-                          # 6.20, 130° / 0° 6.20, 130° / 30° 6.13, 130° / 50° 6.19, 130° / 70°
-                          # 6.26 cm; frames holding joints 7.8 → 7.1 cm; walks 41–45 4.85 cm
-                          # either way: they hold the last frame's arm. Earlier, seeds 31–35
-                          # without ACROSS: 0° 7.14, 60° 7.05, 90° 6.80, 120° 6.85, 150° 7.05 cm;
-                          # the upper arm tilted forward and out: no gain, 6.11–6.29 cm)
+                          # against the trunk's front. Its figures: docs/decisions.md.
 
 
 def _outward(P, tree, j, ax):
@@ -199,18 +187,8 @@ def rest_fill(start, pose, tree: KinematicTree, L, limbs, held_shoulder=GAPS.hel
 
 # GapOptions.hints = True: an unseen arm bent to reach its hand hint's end (:func:`hint_fill`)
 HINT_END = "wrist"  # the hint's end taken as the wrist ("wrist") or the elbow's direction
-                    # ("elbow": the upper arm towards it, the forearm as it was). Development
-                    # seeds 21–28 random, 41–43 walks (gate on, 80 hints): the end lies 18–29 cm
-                    # from the true elbow (median per rule and motion; none within 5 cm) but
-                    # 7–13 cm from the true wrist (the folded forearm's branch runs on to the
-                    # hand); MPJPE median, off → "elbow" → "wrist": random 6.50 → 6.56 → 6.29,
-                    # walks 5.05 → 5.00 → 5.00 cm; the held arms' mean shoulder/elbow/wrist
-                    # error, off → "wrist": random 17.1 → 15.6 (140 arms, 41 hinted), walks
-                    # 14.0 → 9.7 cm (42 arms). Benchmark seeds (tracking.py, gate on, same
-                    # run, without → with): walks MPJPE 4.76 → 4.69 cm, hinted arms 12.1 → 8.8
-                    # cm (101 arms); random 5.84 → 5.86 (mean 6.55 → 6.42; 13 frames better,
-                    # 10 worse), hinted arms 16.6 → 13.5 cm (23 arms). Gating the hint by its
-                    # reach (end beyond 1.0 / 1.2 × the arm, or within 0.3 / 0.5 of it): no gain
+                    # ("elbow": the upper arm towards it, the forearm as it was). Its figures:
+                    # docs/decisions.md.
 
 
 SHOULDER_BLEND = 0.5  # the fraction of the way to the hull's shoulder an unseen arm moves

@@ -164,17 +164,8 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
 
 BEND_DEPTH = 0.2   # a limb's middle joint (elbow, wrist, knee, ankle) at its curve's bend when the
              # bend's depth (the curve's farthest point from the chord between the joints either
-             # side) exceeds this × the chord: 0.2 ≈ a joint angle of 136° (two equal bones).
-             # None / 0: off (the joint at its ``at``). A bent limb's curve cuts the corner and
-             # the fixed relative arc length put the bent elbow 9.0 cm off (initial placement;
-             # 4.4 cm inside and 3.1 cm forward of the true one, median; development seeds 21–32
-             # random, 223 bent arms). Development seeds (``tracking.py --dev``'s sequences:
-             # random 21–32, walks 41–46; the fit on their gate-on per-frame poses, MPJPE median
-             # over frames) off → 0.1 / 0.15 / 0.2 / 0.25: random 5.68 → 6.75 / 6.03 / 5.49 /
-             # 5.49, walks 4.41 → 5.89 / 4.72 / 4.37 / 4.43 cm (below 0.2 a barely bent curve's
-             # farthest point wanders along it and drags the bone lengths and knees off); with
-             # the bone lengths from the placement without it 5.50 / 4.36 (not kept: the same);
-             # the joint pushed out of the corner by 1.5 / 3 cm: 5.52 / 5.61
+             # side) exceeds this × the chord: 0.2 ≈ a joint angle of 136° (two equal bones). None /
+             # 0: off (the joint at its ``at``). Its figures: docs/decisions.md.
 
 
 def bend_joints(out, used, curves, tree: KinematicTree, bend=None) -> np.ndarray:

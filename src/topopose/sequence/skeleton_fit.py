@@ -307,8 +307,7 @@ def chain_residuals(x, p0, L, target, weight, curve=None, curve_weight=1.0, jac=
 
 
 ROOT_STEPS = 1      # root refinements (development seeds 21–33 random poses, MPJPE median of
-                    # the fit: 0 → 1 → 2 steps 7.03 → 6.92 → 6.86 cm; walks 41–46 4.80 →
-                    # 4.78 → 4.78 cm; each step costs one more fit)
+                    # the fit; each step costs one more fit). Its figures: docs/decisions.md.
 
 
 def fit_frame(target, curves, L, tree: KinematicTree, start=None, inner_weight=1.0,

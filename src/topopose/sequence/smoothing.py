@@ -11,21 +11,11 @@ from topopose.sequence.skeleton_fit import KinematicTree
 SMOOTH = 9          # frames: the default Savitzky–Golay window (order 2) over the runs of
                     # continuing motion (:func:`motion_runs`); 0 / None given to fit_sequence as 0:
                     # off. Per-frame fits jitter (each frame's curves alone) while a body moves
-                    # smoothly. Development seeds (random motion 51–56, walks 41–46, unrelated
-                    # random poses 21–32; gate on, HOLD_AGE 8; MPJPE median over the pooled
-                    # matched frames): off 5.91 / 4.29 / 5.60 cm; 7: 5.21 / 3.60; 9: 5.07 /
-                    # 3.59 / 5.60; 11: 5.10 / 3.51; 13: 5.09 / 3.59 cm. Without the motion check
-                    # (SMOOTH_MOVE None) unrelated poses are averaged together: window 5 / 7 / 9
-                    # random poses 36.3 / 46.9 / 51.6 cm
+                    # smoothly. Its figures: docs/decisions.md.
 
 
 SMOOTH_RATE = 25.0  # frames/s SMOOTH was chosen at: at another rate the default window keeps
-                    # its duration, 0.36 s (:func:`smooth_window`). Development motions at 60
-                    # frames/s (benchmarks/fps_dev.py, results/fps_dev.md: walks 41–43, random
-                    # motion 51–53, 1.6 s each, 8 cameras; MPJPE median over the matched frames):
-                    # window 0 / 9 / 15 / 21 / 27 frames: 4.86 / 4.02 / 3.85 / 3.73 / 3.76 cm
-                    # (at 25 frames/s: 4.97 / 4.20 / 4.31 / 4.68 / 4.93): 9 frames at 60 frames/s
-                    # (0.15 s) was too short, 21 (0.35 s) is 9 at 25
+                    # its duration, 0.36 s (:func:`smooth_window`). Its figures: docs/decisions.md.
 
 
 def _apart(a, b) -> float:
@@ -163,7 +153,7 @@ def smooth_window(fps=None) -> int:
     """The default smoothing window (frames) at ``fps`` frames/s: the odd number of frames
     nearest :data:`SMOOTH` / :data:`SMOOTH_RATE` seconds (at least 3); :data:`SMOOTH` itself
     when the rate is unknown, :data:`SMOOTH` is off or :data:`SMOOTH_RATE` is None (the
-    window in frames at any rate, as before session 33).
+    window in frames at any rate).
 
     Examples
     --------
@@ -178,9 +168,9 @@ def smooth_window(fps=None) -> int:
 def bridge_outliers(P, t, tree: KinematicTree, L, dist, max_gap, max_move, M=None, reach=None):
     """``P`` with short stretches of *outlier* frames (a skeleton ``max_move`` or more from its
     neighbours' median, :func:`neighbourhood`) replaced by the interpolation of the frames
-    either side (root position and bone directions, as the gap filling) — the issue's "gap
-    filling of short rejected stretches" for frames the per-frame stage matched but the
-    motion around them rejects (issue 15). A stretch is bridged when
+    either side (root position and bone directions, as the gap filling): gap filling of
+    short rejected stretches, for frames the per-frame stage matched but the motion around
+    them rejects. A stretch is bridged when
 
     * it has at most ``max_gap`` frames, consecutive frame numbers to the two frames either
       side, and those two were judged and are not outliers;

@@ -47,13 +47,9 @@ from topopose.frames import sort_poses
 PER_PART_DIAGNOSTICS = ("curves", "misplaced", "hand_hints", "detect_parts", "trim", "centred",
                         "centred_trim")
 # When fewer than this share of a sequence's frames are usable (matched, or rejected by the
-# confidence gate only), the frames the alignment rejected are observations too: a recording
-# whose every frame misses T_d (the real recording, 4 cameras: 96 of 100 frames above it)
-# would otherwise never be tracked. Real recording (benchmarks/real.py, person silhouettes,
-# frames right as ``run`` writes them): 71 → 73 of 100 (feet held at their prediction in 7
-# frames: a foot put on a low hand or a phantom branch; no right frame lost); feet p90 error
-# 0.094 → 0.084 m. Sequences with more usable frames are tracked as before: every sequence of
-# benchmarks/tracking.py has ≥ 40 % matched frames, its figures are unchanged by construction.
+# confidence gate only), the frames the alignment rejected are observations too: a recording whose
+# every frame misses T_d (4 cameras) would otherwise never be tracked. Its figures:
+# docs/decisions.md.
 FEW_USABLE = 0.25
 
 

@@ -1,4 +1,4 @@
-"""One side of a same-run comparison (``benchmarks/real_child.py``): run with whichever
+"""One side of a same-run comparison (``benchmarks/_real_child.py``): run with whichever
 topopose ``PYTHONPATH`` points at (this branch or the peer's tree), print one JSON line.
 
     python benchmarks/_capture_run.py decode CAPTURE

@@ -67,12 +67,12 @@ def main(argv=None):
     ap.add_argument("--out", default=str(results_dir()))
     ap.add_argument("--child", help="the child_rope recording: compute alone on it (masks in "
                                     "memory, one core, 100³) against --peer, in the same run "
-                                    "(benchmarks/real_child.py)")
+                                    "(benchmarks/_real_child.py)")
     ap.add_argument("--peer", default=str(Path(__file__).resolve().parents[2] / "peer-capture"
                                           / "src"), help="src folder of the peer tree")
     a = ap.parse_args(argv)
     if a.child:
-        import real_child
+        import _real_child as real_child
         rec, peer = Path(a.child), Path(a.peer)
         if not (rec / "cam00" / "cam_par.txt").is_file():
             print(f"{rec}: child_rope recording not found (cam00/cam_par.txt …); pass its path")

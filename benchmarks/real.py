@@ -5,7 +5,7 @@
 
 ``--child``: the 10-camera studio recording as it comes, against the current main in the same
 run, with this recording's ``person`` run and a synthetic accuracy check
-(:mod:`real_child`).
+(:mod:`_real_child`).
 
 RECORDING (default ``benchmarks/data/pose2sim_balancing/``): ``videos/cam01.mp4`` …,
 ``Calib.toml`` (tables ``cam_01`` …), ``reference/pose2sim_3d.trc`` (Pose2Sim's own 3D result,
@@ -563,12 +563,12 @@ def main(argv=None):
     ap.add_argument("--set", action="append", default=[],
                     help="extra [silhouettes] field, e.g. --set occupancy=0.9 (TOML value)")
     ap.add_argument("--child", help="the child_rope studio recording: measured as it comes "
-                                    "against the current main instead (benchmarks/real_child.py;"
+                                    "against the current main instead (benchmarks/_real_child.py;"
                                     " RECORDING gives its Pose2Sim part)")
     ap.add_argument("--peer-src", help="with --child: src folder of the peer tree")
     a = ap.parse_args(argv)
     if a.child:
-        import real_child
+        import _real_child as real_child
         return real_child.main([a.child, "--pose2sim", a.recording, "--synthetic", "40"]
                                + (["--peer", a.peer_src] if a.peer_src else []))
     rec = Path(a.recording)

@@ -7,7 +7,7 @@ right, and the full skeleton against the rig joints of the ground truth.
     python benchmarks/tracking.py --tracker [--setups 8,4p] [--real DIR] [--child-rope DIR]
 
 ``--tracker``: the subject's capsule body tracked through every frame against the sequence
-stage without it, :mod:`tracker_bench` (its docstring says what is measured).
+stage without it, :mod:`_tracker` (its docstring says what is measured).
 
 One per-frame run per sequence (confidence gate on); every figure is then measured twice, with
 the gate on (``tracking.*``) and off (``tracking_nogate.*``: the frames only the gate rejected
@@ -861,7 +861,7 @@ def main(argv=None):
                          "(a Python literal; repeatable): "
                          "the peer of a default, e.g. results/tracking_before.md")
     ap.add_argument("--tracker", action="store_true",
-                    help="the tracked capsule body against the sequence stage (tracker_bench.py): "
+                    help="the tracked capsule body against the sequence stage (_tracker.py): "
                          "synthetic --setups (default 8,4p), --real, --child-rope")
     ap.add_argument("--real", default=None, help="with --tracker: the Pose2Sim balancing trial")
     ap.add_argument("--child-rope", default=None, help="with --tracker: the child_rope folder")
@@ -871,7 +871,7 @@ def main(argv=None):
     ap.add_argument("--motions", default=None, help="with --tracker: only these motions")
     a = ap.parse_args(argv)
     if a.tracker:
-        import tracker_bench
+        import _tracker as tracker_bench
         if a.setups == "8,4p" and a.only:
             a.setups = a.only
         return tracker_bench.main(a, load_model("human"))

@@ -1,7 +1,7 @@
 """Masks read reduced to the resolution the grid needs (``FrameEstimator(mask_resolution=…)``)
 against the full masks, on synthetic captures with ground truth at two image sizes.
 
-    python benchmarks/mask_resolution.py [--frames N] [--out PREFIX]
+    python studies/mask_resolution.py [--frames N] [--out PREFIX]
 
 Per setting: the reduction factors per camera, the frames' quality classes
 (:func:`topopose.batch.quality.evaluate`, gate off), the mean and median part error and the time
@@ -20,6 +20,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(1, str(HERE.parent / "benchmarks"))  # the benchmarks a study builds on
 
 
 def main(argv=None) -> int:

@@ -1,6 +1,6 @@
 """A real 10-camera studio capture as it comes, end to end, against the peer in the same run.
 
-    python benchmarks/real_child.py CHILD_ROPE [--pose2sim RECORDING] [--peer PEER_SRC]
+    python benchmarks/_real_child.py CHILD_ROPE [--pose2sim RECORDING] [--peer PEER_SRC]
                                     [--frames A:B] [--memory-frames N] [--out PREFIX]
 
 CHILD_ROPE: the recording's folder (``cam00`` … ``cam09``, each with ``cam_par.txt`` — the
@@ -31,7 +31,7 @@ Figures, per side:
 
 With ``--pose2sim``: Pose2Sim's balancing trial with ``person`` silhouettes (MediaPipe), end to
 end from the 4 videos (decoding and segmentation included): frames/s, per-stage medians, and
-the two sides' poses compared field by field (``benchmarks/same_poses.py``).
+the two sides' poses compared field by field (``benchmarks/_same_poses.py``).
 
 With ``--synthetic N``: a synthetic capture (human, N frames, smooth random motion, noise 1,
 8 cameras 640×480) run by both sides and scored against its ground truth
@@ -210,7 +210,7 @@ def child(rec: Path, peer: Path, frames, memory_frames: int, out: Path, tmp: Pat
     sheet = out.parent / f"{out.name}_sheet.png"
     doc["contact_sheet"] = {"file": sheet.name,
                             "frames": contact_sheet(cap, tmp / "ours_child.jsonl", sheet)}
-    from same_poses import compare
+    from _same_poses import compare
     c = compare(tmp / "peer_child.jsonl", tmp / "ours_child.jsonl")
     doc["same_as_peer"] = {"identical": c["identical"], "frames": c["frames"]}
     return doc
@@ -262,7 +262,7 @@ def pose2sim(rec: Path, peer: Path, tmp: Path) -> dict:
         r["fps_run"] = round(r["frames"] / r["run_s"], 2)
         doc["sides"][name] = r
         print(name, json.dumps(r))
-    from same_poses import compare
+    from _same_poses import compare
     c = compare(tmp / "peer_p2s.jsonl", tmp / "ours_p2s.jsonl")
     doc["same_as_peer"] = {"identical": c["identical"], "frames": c["frames"],
                            "differ": {f: v[:4] for f, v in list(c["differ"].items())[:5]}}
@@ -308,7 +308,7 @@ def report(doc) -> str:
     m = doc["machine"]
     out = ["# A real studio capture as it comes (child_rope), against the current main", "",
            machine_line(m) + f"; nproc {m['nproc']}; /proc/cpuinfo: {m['cpuinfo']}", "",
-           "Produced by `benchmarks/real_child.py` (also `benchmarks/real.py --child`). Each side "
+           "Produced by `benchmarks/_real_child.py` (also `benchmarks/real.py --child`). Each side "
            "runs in its own process, one after the other, in the same run; a shared machine's "
            "load moves both.", ""]
     ch = doc.get("child")

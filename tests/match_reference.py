@@ -1,4 +1,4 @@
-"""Reference implementations of the tree alignments, for tests and benchmarks only.
+"""Reference implementations of the tree alignments, for the tests only.
 
 * :func:`memo_distance` — a plain memoized-recursion transcription of the
   propositions as the thesis writes them (Prop. 18–24 for η, 25–28 for AHA, the

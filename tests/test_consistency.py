@@ -323,7 +323,7 @@ def test_run_default_is_the_union(tmp_path):
     with pytest.raises(InputError):
         run(cap, resolution=48, progress=False, consistency="sometimes", frames="0:1")
     # every sequence stage off: the per-frame results as the estimator gave them (no trim,
-    # the gate's statuses), what the benchmarks read as the raw per-frame run
+    # the gate's statuses), the raw per-frame run
     raw = run(cap, resolution=48, progress=False, track=False, sides=False, skeleton=False)
     for a, b in zip(gate.poses, raw.poses):
         assert "consistency" not in b.diagnostics

@@ -666,7 +666,7 @@ def test_joint_slide_field_round_trips_and_is_checked():
 def test_an_unseen_arm_with_a_hand_hint_reaches_the_hint_end_with_its_wrist(yaw):
     """A hand the per-frame stage left unplaced, its branch kept as a hint
     (``diagnostics["hand_hints"]``, the per-frame stage's hint ends near the wrist:
-    benchmarks/tracking.py): the fit bends the unseen arm to reach the hint's end — wrist at
+    measured on the body subject): the fit bends the unseen arm to reach the hint's end — wrist at
     the end (here 0.8 × the arm's length from the shoulder, towards the true hand), the elbow a
     bone length from both, bent the way the rest pose bends (down, its upper arm hangs), bone
     lengths kept; an end beyond reach: the arm straight towards it. Without the hint

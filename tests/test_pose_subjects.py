@@ -11,7 +11,7 @@ FRAMES = 4
 
 
 # "limbs separated" as the quality study defines it: distinct limbs at least 3 voxels of the 100³
-# grid apart (benchmarks/quality.py; synthetic_capture(margin=...))
+# grid apart (synthetic_capture(margin=...))
 MARGIN = {"human": 0.075, "dog": 0.054, "spider": 0.027}
 
 

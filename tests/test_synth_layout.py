@@ -1,5 +1,5 @@
 """Synthetic captures like the real recording's: phone cameras in facing pairs and leaning,
-balancing subjects (capture/synth.py ``layout``, ``lean``; benchmarks/confidence.py set-up 4r)."""
+balancing subjects (``topopose.synth.capture`` ``layout``, ``lean``; the confidence benchmark's set-up 4r)."""
 import numpy as np
 
 from topopose.synth.capture import camera_ring, synthetic_capture

@@ -403,6 +403,16 @@ def _stage_table(rows) -> str:
     return "\n".join(lines)
 
 
+def missing_inputs(rec: Path, peer: Path) -> str | None:
+    """What is missing among the child recording ``rec`` and the peer's ``src`` folder, said
+    plainly, or None."""
+    if not (rec / "cam00" / "cam_par.txt").is_file():
+        return f"{rec}: child_rope recording not found (cam00/cam_par.txt …); pass its path"
+    if not (peer / "topopose" / "__init__.py").is_file():
+        return f"{peer}: no peer tree (its src folder holding topopose/); pass --peer"
+    return None
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("child", help="the child_rope recording's folder")
@@ -417,11 +427,9 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=str(HERE / "results" / "real_child"))
     a = ap.parse_args(argv)
     rec, peer = Path(a.child), Path(a.peer)
-    if not (rec / "cam00" / "cam_par.txt").is_file():
-        print(f"{rec}: child_rope recording not found (cam00/cam_par.txt …); pass its path")
-        return 2
-    if not (peer / "topopose" / "__init__.py").is_file():
-        print(f"{peer}: no peer tree (its src folder holding topopose/); pass --peer")
+    bad = missing_inputs(rec, peer)
+    if bad:
+        print(bad)
         return 2
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -74,11 +74,9 @@ def main(argv=None):
     if a.child:
         import _real_child as real_child
         rec, peer = Path(a.child), Path(a.peer)
-        if not (rec / "cam00" / "cam_par.txt").is_file():
-            print(f"{rec}: child_rope recording not found (cam00/cam_par.txt …); pass its path")
-            return 2
-        if not (peer / "topopose" / "__init__.py").is_file():
-            print(f"{peer}: no peer tree (its src folder holding topopose/); pass --peer")
+        bad = real_child.missing_inputs(rec, peer)
+        if bad:
+            print(bad)
             return 2
         return real_child.memory_compare(rec, peer, 6 if a.quick else 40,
                                          Path(a.out) / "pipeline_child")

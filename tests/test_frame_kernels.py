@@ -72,3 +72,17 @@ def test_an_in_memory_capture_keeps_a_decoded_mask_box():
     assert got_plain.dtype == bool and getattr(got_plain, "box", None) is None
     assert got_kept.box == (3, 2, 3, 2) == mask_box(m)
     np.testing.assert_array_equal(got_kept, m)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), fill=st.floats(0.0, 1.0))
+def test_largest_depth_is_the_exact_transforms_largest(seed, fill):
+    from topopose.frame.support import exact_edt, largest_depth
+
+    rng = np.random.default_rng(seed)
+    h, w = rng.integers(1, 70, 2)
+    m = rng.random((h, w)) < fill
+    if rng.random() < 0.5:                     # blobs: larger depths than noise gives
+        from scipy.ndimage import binary_closing
+        m = binary_closing(m, np.ones((5, 5)), border_value=1)
+    assert largest_depth(m) == float(exact_edt(m).max())

@@ -216,7 +216,7 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
         nblock += 1
         for c in range(C):
             if (act >> c) & 1:
-                s = _rect_state(rects, base + c, sflat, soff[c], ws[c], hs[c], stride1,
+                s = _rect_state(rects, base + c, sflat, soff[c], ws[c], hs[c], crop[c, 2] + 1,
                                 fac[c, 0], fac[c, 1], crop[c, 0], crop[c, 1], crop[c, 2],
                                 crop[c, 3])
                 if s == 0:
@@ -287,7 +287,7 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
                                 if pu < 0 or pv < 0 or pu >= crop[c, 2] or pv >= crop[c, 3]:
                                     p = -1              # outside the crop: not subject
                                 else:
-                                    p = pv * (stride1 - 1) + pu
+                                    p = pv * crop[c, 2] + pu
                             if p < 0 or mflat[moff[c] + p] == 0:
                                 m += 1
                                 if m > tolerance:

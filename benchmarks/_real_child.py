@@ -238,6 +238,8 @@ def memory_compare(rec: Path, peer: Path, n: int, out: Path) -> int:
             _row("frames/s (median frame; target ≥ 25)", o["fps_median"], p["fps_median"]),
             _row("frames/s (mean)", o["fps_mean"], p["fps_mean"]),
             _row("median ms/frame", o["median_ms"], p["median_ms"]),
+            _row("median CPU ms/frame (the process' own time)", o.get("cpu_median_ms"),
+                 p.get("cpu_median_ms")),
             _row("first frame (s)", o["setup_s"], p["setup_s"]), "",
             _stage_table([("child_rope in memory (ours)", o["stage_ms"]),
                           ("child_rope in memory (peer)", p["stage_ms"])]), ""]

@@ -1,5 +1,5 @@
-"""The per-frame estimator's compiled kernels against plain NumPy oracles, and the in-memory
-capture keeping a decoded silhouette's bounding box."""
+"""The per-frame estimator's faster paths against the plain NumPy they replace (oracles written
+out here), and the in-memory capture keeping a decoded silhouette's bounding box."""
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -86,3 +86,80 @@ def test_largest_depth_is_the_exact_transforms_largest(seed, fill):
         from scipy.ndimage import binary_closing
         m = binary_closing(m, np.ones((5, 5)), border_value=1)
     assert largest_depth(m) == float(exact_edt(m).max())
+
+
+def project_with_terms(cam, points):
+    """:meth:`Camera.project` with every distortion term written out (zero or not)."""
+    xc = cam.to_camera(points)
+    z = xc[:, 2]
+    a, b = xc[:, 0] / z, xc[:, 1] / z
+    k = np.zeros(5)
+    k[: min(5, cam.distortions.size)] = cam.distortions[:5]
+    r2 = a * a + b * b
+    radial = 1 + k[0] * r2 + k[1] * r2 * r2 + k[4] * r2**3
+    ad = a * radial + 2 * k[2] * a * b + k[3] * (r2 + 2 * a * a)
+    bd = b * radial + k[2] * (r2 + 2 * b * b) + 2 * k[3] * a * b
+    K = cam.matrix
+    out = np.stack([K[0, 0] * ad + K[0, 1] * bd + K[0, 2], K[1, 1] * bd + K[1, 2]], axis=1)
+    out[~(z > 0)] = np.nan
+    return out
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), scale=st.sampled_from([1e-3, 1.0, 10.0, 1e80]),
+       centred=st.booleans())
+def test_projection_without_distortion_equals_the_full_formula_bit_for_bit(seed, scale,
+                                                                            centred):
+    from topopose.geometry.camera import Camera
+
+    rng = np.random.default_rng(seed)
+    K = [[rng.uniform(100, 2000), rng.choice([0.0, 0.5]), 0.0 if centred else 320.0],
+         [0, rng.uniform(100, 2000), 0.0 if centred else 240.0], [0, 0, 1]]
+    cam = Camera("c", (640, 480), K, [0, 0, 0, 0], rng.normal(size=3) * rng.integers(0, 2),
+                 rng.normal(size=3) * rng.integers(0, 2) * rng.choice([1, 5]))
+    P = rng.normal(size=(40, 3)) * scale
+    P[rng.random(40) < 0.2] = cam.center              # z = 0
+    P[rng.random(40) < 0.2, :2] = 0.0                 # on the axis: signed zeros
+    if not cam.rotation.any() and not cam.translation.any():
+        P[:2] = [[1e60, -1e60, 1e-100], [1e10, 0.0, 1e-300]]   # a² + b² overflows: NaN
+    with np.errstate(all="ignore"):
+        got, want = cam.project(P), project_with_terms(cam, P)
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+    fin = ~np.isnan(want)
+    np.testing.assert_array_equal(got[fin], want[fin])
+    np.testing.assert_array_equal(np.signbit(got[fin]), np.signbit(want[fin]))
+
+
+def test_hull_remainder_densifies_each_segment_as_linspace_does():
+    from topopose.frame.unseen import hull_remainder
+    from topopose.hull.volume import Volume
+
+    rng = np.random.default_rng(5)
+    occ = np.zeros((30, 24, 40), bool)
+    occ[5:25, 6:18, 4:36] = True
+    occ[12:18, 2:22, 30:34] = True
+    vol = Volume(occ, np.array([0.1, -0.2, 0.3]), 0.02)
+    curves = {"a": np.array([[0.3, 0.0, 0.4], [0.35, 0.02, 0.6], [0.36, 0.05, 0.9]]),
+              "b": rng.uniform([0.1, -0.2, 0.3], [0.6, 0.26, 1.1], (9, 3)),
+              "c": np.array([[0.4, 0.0, 0.5]])}
+    got = hull_remainder(vol, curves)
+    # the oracle: each segment by np.linspace, then the same test of every sub-sampled voxel
+    from topopose.frame.tips import inscribed_distances
+    dt, lo = inscribed_distances(occ)
+    pts = []
+    for c in curves.values():
+        if len(c) < 2:
+            pts.append(c)
+            continue
+        for a, b in zip(c[:-1], c[1:]):
+            k = max(int(np.ceil(np.linalg.norm(b - a) / vol.voxel_size)), 1)
+            pts.append(a + np.linspace(0.0, 1.0, k, endpoint=False)[:, None] * (b - a))
+        pts.append(c[-1:])
+    S = np.vstack(pts)
+    ijk = np.clip(np.rint((S - vol.origin) / vol.voxel_size).astype(int) - lo + 1, 0,
+                  np.array(dt.shape) - 1)
+    reach = 1.3 * dt[tuple(ijk.T)] * vol.voxel_size + vol.voxel_size
+    X = vol.origin + np.argwhere(occ[::2, ::2, ::2]) * 2 * vol.voxel_size
+    far = np.array([np.all(np.linalg.norm(S - x, axis=1) > reach) for x in X])
+    np.testing.assert_array_equal(got, X[far])
+    assert 0 < len(got) < len(X)

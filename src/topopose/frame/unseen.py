@@ -62,7 +62,7 @@ def hull_remainder(vol, curves: dict, edt=None, stride: int = STRIDE, grow: floa
         k = np.maximum(np.ceil(np.linalg.norm(d, axis=1) / vs).astype(int), 1)
         seg = np.repeat(np.arange(len(k)), k)          # k points a segment, at i / k of it
         i = np.arange(len(seg)) - np.repeat(np.cumsum(k) - k, k)
-        pts.append(c[:-1][seg] + (i * (1.0 / k)[seg])[:, None] * (c[1:] - c[:-1])[seg])
+        pts.append(c[:-1][seg] + (i * (1.0 / k)[seg])[:, None] * d[seg])
         pts.append(c[-1:])
     S = np.vstack(pts)
     ijk = np.clip(np.rint((S - origin) / vs).astype(int) - np.asarray(lo) + 1, 0,

@@ -199,9 +199,12 @@ def hull_shoulders(vol, junction, axis, front, radius):
     f /= np.linalg.norm(f)
     lat = np.cross(ax, f)
     M = np.stack([ax, f, lat])
-    data = np.asarray(vol.data, bool)
-    X = np.asarray(vol.origin, float) + np.stack(np.unravel_index(
-        np.flatnonzero(data), data.shape), axis=1) * float(vol.voxel_size)
+    from topopose.frame.tips import hull_box, skeleton_voxels
+
+    data = np.asarray(vol.data, bool)       # its voxels in index order, read within its box
+    box = hull_box(vol)
+    idx = np.zeros((0, 3), np.intp) if box is None else skeleton_voxels(data, box)
+    X = np.asarray(vol.origin, float) + idx * float(vol.voxel_size)
     Y = (X - np.asarray(junction, float)) @ M.T
     r = float(radius)
     out = []

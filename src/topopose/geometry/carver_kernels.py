@@ -6,9 +6,10 @@ Packed inputs (built by :class:`~topopose.geometry.carver.HullCarver`):
   camera-coordinate steps of +1 voxel along i, j, k (3 × 3).
 - ``intr`` (C, 16): fx, fy, cx, cy, skew, d0..d4 (distortion coefficients), model (0 pinhole,
   1 OpenCV radial-tangential, 2 fisheye), r2max (largest valid squared normalized radius),
-  w, h, S (the row stride of the mask buffers), unused.
-- masks: one flat uint8 array, camera c's mask at ``moff[c]`` with rows of stride S; summed-area
-  tables: one flat int32 array, camera c's table at ``soff[c]`` with rows of stride S + 1.
+  w, h, S (the image row stride of :func:`_pixel`'s flat index), unused.
+- masks: one flat uint8 array, camera c's mask crop at ``moff[c]`` with rows of its width
+  ``crop[c, 2]``; summed-area tables: one flat int32 array, camera c's table at ``soff[c]`` with
+  rows of ``crop[c, 2] + 1``.
 - rects: int32 (n, 4) inclusive pixel rectangles (x0, y0, x1, y1), one per (block, camera), for
   block levels ``lmin..lmax``; level ``l`` block (a, b, c) of camera ``q`` is row
   ``loff[l - lmin] + ((a * dims[.., 1] + b) * dims[.., 2] + c) * C + q``. ``x0 == INVALID``: the
@@ -152,9 +153,9 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
     hull is the one the upsampled mask gives, without building it (:func:`_rect_state`).
 
     ``crop`` (int64, (C, 4)): per camera, the part of its mask (ox, oy, cw, ch, in the mask's
-    own pixels) that the buffers hold (at their top left), outside which the mask is empty:
-    the silhouette's bounding box, so that a frame's buffers and tables cost its subject's
-    pixels, not the image's.
+    own pixels) that the buffers hold (packed, rows of the crop's width), outside which the mask
+    is empty: the silhouette's bounding box, so that a frame's buffers and tables cost its
+    subject's pixels, not the image's.
 
     ``stats`` (int64, 12): block tests, voxel tests, projections, full blocks, empty blocks,
     set voxels, and the bounding box of set voxels is written to ``stats[6:12]`` (imin, jmin, kmin, imax,

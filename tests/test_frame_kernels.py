@@ -163,3 +163,46 @@ def test_hull_remainder_densifies_each_segment_as_linspace_does():
     far = np.array([np.all(np.linalg.norm(S - x, axis=1) > reach) for x in X])
     np.testing.assert_array_equal(got, X[far])
     assert 0 < len(got) < len(X)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(2, 6), tolerance=st.integers(0, 2),
+       distorted=st.booleans(), reduced=st.booleans())
+def test_hierarchical_carve_equals_every_voxel_tested_alone(seed, n, tolerance, distorted,
+                                                            reduced):
+    """The carver's labels (2: every camera, 1: all but ``tolerance`` at most) equal those of
+    each voxel centre looked up in every full-size mask at the pixel the carver's own
+    projection gives (``project_voxels``): bit for bit, blocks, crops and reduced masks
+    included."""
+    import cv2
+    from _capture_testutils import capsule_masks, ring
+
+    from topopose.capture.background import UpsampledMask
+    from topopose.hull import HullCarver
+
+    rng = np.random.default_rng(seed)
+    tolerance = min(tolerance, n - 1)
+    cams = ring(n=n, f=300, size=(120, 96),
+                dist=(-0.2, 0.05, 0.001, -0.002, -0.01) if distorted else (0, 0, 0, 0))
+    a, b = rng.uniform([-0.4, -0.3, 0.4], [0.4, 0.3, 1.4], (2, 3))
+    full = capsule_masks(cams, a, b, rng.uniform(0.05, 0.3))
+    masks = []
+    for q, m in enumerate(full):
+        m = m | (rng.random(m.shape) < 0.01)             # specks: edges everywhere
+        if rng.random() < 0.3:
+            m[rng.integers(0, 96):, :rng.integers(0, 120)] = False
+        if reduced and q % 2:                            # a small mask, read upsampled
+            f = (2, 4)[q % 4 // 2]
+            small = np.ascontiguousarray(m[::f, ::f]).view(np.uint8)
+            m = cv2.resize(small, (120, 96), interpolation=cv2.INTER_NEAREST).view(bool)
+            m = m.view(UpsampledMask)
+            m.small = small
+        masks.append(m)
+    origin, shape = np.array([-0.8, -0.7, 0.1]), tuple(rng.integers(8, 30, 3))
+    carver = HullCarver(cams, origin, rng.uniform(0.03, 0.08), shape)
+    got = carver.carve(masks, tolerance=tolerance, levels=True)
+    pix = carver.project_voxels(np.indices(shape).reshape(3, -1).T)     # row · 120 + column
+    seen = sum((p >= 0) & np.asarray(m, bool).ravel()[np.maximum(p, 0)]
+               for p, m in zip(pix.T, masks))
+    want = np.where(seen == n, 2, np.where(seen >= n - tolerance, 1, 0)).reshape(shape)
+    np.testing.assert_array_equal(got, want)

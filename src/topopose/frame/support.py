@@ -168,7 +168,7 @@ def support_features(curves, parts, cams, masks, occ, origin, voxel_size, edt=No
                 if not firstl[i] and okl[i - 1]:
                     cv2.line(M, uv[i], uv[i - 1], 1, rp[i] + rp[i - 1])
         ns = max(int(Sw.sum()), 1)
-        dS = exact_edt(Sw) if extras else None
+        dS = exact_edt(Sw) if extras else None        # the tips' depths need the whole map
         dm = max(float(dS.max()) if extras else largest_depth(Sw), 1.0)
         d = 2 * max(1, int(round(dilation * dm))) + 1
         Md = cv2.dilate(M, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (d, d))) > 0

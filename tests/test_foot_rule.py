@@ -120,3 +120,29 @@ def test_the_runs_consistency_does_not_match_a_foot_on_an_arm():
         assert consistency.judge_sequence(poses, model, neighbours=2, min_rank=0.0, union=True)
         assert {i: p.status for i, p in enumerate(poses)} == expect
     assert all(poses[i].error.split("; ")[-1].startswith("anatomy: foot_2") for i in (5, 6, 7, 8))
+
+
+def test_a_clean_frame_stays_matched_and_its_foot_put_on_an_arm_is_caught():
+    """A capsule-human frame with its limbs apart, right by ground truth: matched, its feet
+    low for their legs. The same frame with ``foot_2``'s curve running where the alignment
+    would put a foot on an arm's branch (from the crotch's junction up the trunk to the torso's,
+    then along ``hand_1``'s arc) is rejected by the rule."""
+    from topopose.batch.quality import evaluate
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.synth.capture import synthetic_capture
+
+    cap = synthetic_capture("human", frames=1, seed=4, cameras=8, noise=1, separated=True,
+                            margin=0.06)
+    est = FrameEstimator(cap, "human", 100)
+    p = est.estimate(cap.frames[0])
+    ev = evaluate(cap.gt, [p], model=est.model, tolerance=0.08 * cap.gt["height"])
+    assert ev.frames[0].quality == "good" and p.status == "matched", p.error
+    curves = p.diagnostics["curves"]
+    assert foot_rise(curves, cap.up_vector)[1] < 0.2       # standing feet
+    moved = dict(curves)
+    moved["foot_2"] = np.vstack([np.asarray(curves["crotch"], float)[::-1],
+                                 np.asarray(curves["hand_1"], float)]).tolist()
+    diag = {**p.diagnostics, "curves": moved}
+    st, why = gate_decision("matched", None, diag, up=cap.up_vector)
+    assert st == "rejected" and why.startswith("anatomy: foot_2"), why
+    assert gate_decision("matched", None, p.diagnostics, up=cap.up_vector) == ("matched", None)

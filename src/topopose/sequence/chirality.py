@@ -24,8 +24,9 @@ The frame's signed score is ``a (1 - e^{-|f|/f0}) (1 - e^{-|s|/s0})`` with the s
 lateral difference ``s``, ``a`` the cues' agreement and f0, s0 shares of the subject's height
 (:class:`SideOptions`): near 0 when the facing is weak (both feet end-on), its cues disagree
 (the feet of a kneeling subject against its knees) or the pair is side by side along the
-facing; 0 when the cues' agreement is below ``min_agree``. A pair is named when its confidence reaches ``margin``; otherwise it keeps the numbered
-names and ``diagnostics["chirality"][part]["why"]`` says why (facing weak, cues disagreeing,
+facing; 0 when the cues' agreement is below ``min_agree``. A pair is named when its confidence
+reaches ``margin``; otherwise it keeps the numbered names and
+``diagnostics["chirality"][part]["why"]`` says why (facing weak, cues disagreeing,
 the pair not apart, a disagreeing tracking segment). The margin is the smallest whose claims
 are right in ≥ 98 % of the development generators' frames (``benchmarks/sides.py``, which
 reports them per build and pose family against held-out ones and the Pose2Sim recording's

@@ -298,8 +298,8 @@ def report(doc) -> str:
               f"`max_foot_rise` chosen on the development rows (these and the unrelated poses'): "
               f"{doc['chosen_rise']} (the lowest tenth above every right frame's foot rise "
               "there).", "",
-              "| split | build | motion | cameras | frames | rule as run | of right | peer as run | "
-              "of right |", "|" + "---|" * 9]
+              "| split | build | motion | cameras | frames | rule as run | of right | "
+              "peer as run | of right |", "|" + "---|" * 9]
         tot = {}
         for r in syn:
             a, b = r["rule"]["as_run"], r["peer"]["as_run"]

@@ -40,7 +40,8 @@ def test_foot_rise_by_hand():
     lifted = 0.5 + math.hypot(0.3, 0.2)              # the lifted leg's arc
     assert part == "foot_2" and r == pytest.approx(0.3 / lifted)
     part, r = foot_rise(on_arm(), UP)
-    assert part == "foot_2" and r == pytest.approx(0.75 / (math.hypot(0.2, 0.1) + math.hypot(0.05, 0.25)))
+    arm = math.hypot(0.2, 0.1) + math.hypot(0.05, 0.25)     # the hanging arm's arc
+    assert part == "foot_2" and r == pytest.approx(0.75 / arm)
     # the floor is the lowest point of every curve, a hand's too
     c = standing()
     c["hand_1"][-1] = [0, 0.35, -0.1]

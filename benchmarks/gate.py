@@ -67,18 +67,18 @@ DEV = ([(b, m, 8) for b in ("average", "child") for m in MOTIONS]
 HELD = ([(b, m, 8) for b in ("lean", "random") for m in MOTIONS]
         + [("child", m, 4) for m in ("hang", "jump", "crouch")])
 GATES = ("rule", "peer")        # the default gate; the same without its foot rule
-RULE = "; anatomy: "
+ANATOMY = "anatomy: "            # the foot rule's clause (frame.confidence.gate_decision)
 
 
 def without_rule(p):
     """The pose as the gate without the foot rule decided it: the rule's clause taken off (a
     frame only the rule rejected is matched)."""
     e = p.error or ""
-    if p.status != "rejected" or "anatomy: " not in e:
+    if p.status != "rejected" or ANATOMY not in e:
         return p
-    if e.startswith("anatomy: "):
+    if e.startswith(ANATOMY):
         return dataclasses.replace(p, status="matched", error=None)
-    return dataclasses.replace(p, error=e.split(RULE)[0])
+    return dataclasses.replace(p, error=e.split("; " + ANATOMY)[0])
 
 
 def estimate(cap, out):
@@ -200,7 +200,7 @@ def unrelated(sides_work):
         def ruled(p):
             r = foot_rise((p.diagnostics or {}).get("curves"), up)[1]
             if p.matched and r is not None and r > GATE.max_foot_rise:
-                return dataclasses.replace(p, status="rejected", error="anatomy")
+                return dataclasses.replace(p, status="rejected", error=ANATOMY + "foot rise")
             return p
 
         for gate, ps in (("rule", [ruled(p) for p in poses]), ("peer", poses)):

@@ -246,9 +246,28 @@ def pose2sim(work, recording):
     return out
 
 
-def child(work, path, sheets):
+def followed(poses, cap):
+    """``poses`` through the whole sequence stage of ``topopose run``: the sequence stages,
+    then the subject's body followed through every frame
+    (:func:`topopose.sequence.follow.follow_run`; ``matched`` / ``tracked`` / ``lost``)."""
+    from topopose.pose.model import load_model
+    from topopose.sequence.follow import follow_run
+    from topopose.sequence.motion import process_sequence
+
+    model = load_model("human")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        motion = process_sequence([dataclasses.replace(p) for p in poses], model,
+                                  cap.up_vector, fps=cap.fps)
+        return follow_run(motion.poses, motion, model, cap, 100, None)
+
+
+def child(work, path, sheets, tracker=False):
     """The child recording's 410 frames, per gate: matched per frame and as run, the matched
-    frames as run, and their contact sheet (``gate_child_<gate>.png`` in ``sheets``)."""
+    frames as run, and their contact sheet (``gate_child_<gate>.png`` in ``sheets``); with
+    ``tracker``, also the statuses after the tracker (:func:`followed`), the matched frames
+    and the fitted body's silhouette IoU (per frame and per camera, median and 10th
+    percentile)."""
     import _real_child
     import _tracker
 
@@ -276,6 +295,17 @@ def child(work, path, sheets):
                      "matched_per_frame": sum(p.matched for p in raw),
                      "matched": [p.frame for p in final if p.matched],
                      "sheet": str(sheet) if n else None}
+        if tracker:
+            tr = followed(raw, cap)
+            fit = [p.fit for p in tr if p.fit is not None]
+            cams = [x for p in tr for x in (p.diagnostics.get("fit_cameras") or [])
+                    if x is not None]
+            q = lambda v, k: round(float(np.quantile(v, k)), 3) if v else None  # noqa: E731
+            out[gate]["tracker"] = {
+                "statuses": {s: sum(p.status == s for p in tr)
+                             for s in ("matched", "tracked", "lost", "failed")},
+                "matched": [p.frame for p in tr if p.status == "matched"],
+                "fit": [q(fit, 0.5), q(fit, 0.1)], "fit_cameras": [q(cams, 0.5), q(cams, 0.1)]}
     return out
 
 
@@ -352,6 +382,19 @@ def report(doc) -> str:
             L.append(f"| {g} | {c['frames']} | {c['failed']} | {c['matched_per_frame']} | "
                      f"{len(c['matched'])}: {', '.join(str(int(f)) for f in c['matched'])} | "
                      f"{doc.get('child_by_eye', {}).get(g, 'see the sheet')} |")
+        if all("tracker" in ch[g] for g in GATES):
+            L += ["", "After the tracker (`topopose run`'s whole sequence stage): statuses, the "
+                  "matched frames (an initialization of the tracker each), the fitted body's "
+                  "silhouette IoU per frame and per camera (median / 10th percentile).", "",
+                  "| gate | matched / tracked / lost | matched frames | IoU per frame | "
+                  "IoU per camera |", "|---|---|---|---|---|"]
+            for g in GATES:
+                t = ch[g]["tracker"]
+                st = t["statuses"]
+                L.append(f"| {g} | {st['matched']} / {st['tracked']} / {st['lost']} | "
+                         f"{', '.join(str(int(f)) for f in t['matched'])} | "
+                         f"{t['fit'][0]} / {t['fit'][1]} | {t['fit_cameras'][0]} / "
+                         f"{t['fit_cameras'][1]} |")
     return "\n".join(L) + "\n"
 
 
@@ -369,6 +412,9 @@ def main(argv=None):
                          "repository)")
     ap.add_argument("--child-by-eye", default="{}",
                     help='JSON {"rule": "...", "peer": "..."}: verdicts on the sheets')
+    ap.add_argument("--child-tracker", action="store_true",
+                    help="also follow the child's body through every frame (the tracker "
+                         "stage of topopose run; ~2 × 3 min)")
     ap.add_argument("--out", default=str(results_dir()))
     ap.add_argument("--quick", action="store_true", help="one development and one held-out "
                                                          "sequence")
@@ -383,7 +429,8 @@ def main(argv=None):
     doc["unrelated"], unrelated_rows = unrelated(a.sides_work) if a.sides_work else ({}, [])
     doc["chosen_rise"] = choose_rise(doc["synthetic"] + unrelated_rows)
     doc["pose2sim"] = pose2sim(work, a.pose2sim) if a.pose2sim else {}
-    doc["child"] = child(work, a.child, Path(a.sheets or work)) if a.child else {}
+    doc["child"] = (child(work, a.child, Path(a.sheets or work), a.child_tracker)
+                    if a.child else {})
     doc["machine"] = machine()
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)

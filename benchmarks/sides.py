@@ -24,6 +24,8 @@ A *claim* is a mirror pair (hands, feet) of a matched frame named ``left_``/``ri
 right when the named parts are nearer their own side's true limb than the other's (one part
 found: that part), as ``benchmarks/tracking.py`` scores it. Precision = right / claims;
 coverage = claims / (matched frames × pairs). A frame's claim is right when all its claims are.
+The peer of the claims: the same frames named with ``SideOptions(min_agree=0)`` (no minimum
+agreement of the facing cues).
 
 **matched**: a matched frame is right when it is a TP of :mod:`topopose.batch.quality` (every
 placed part within 0.1 × height, at most one unplaced); precision of ``matched`` per source and
@@ -177,10 +179,12 @@ def synthetic(work, frames, quick=False):
     whatever gate lets the frame through)."""
     from topopose.batch.quality import TP_CLASSES, evaluate
     from topopose.pose.model import load_model
-    from topopose.sequence.chirality import assign_sides
+    from topopose.sequence.chirality import SideOptions, assign_sides
 
     model = load_model("human")
     up = np.array([0.0, 0.0, 1.0])
+    # the side claims' peer: the default options without the cues' minimum agreement
+    any_agreement = SideOptions(min_agree=0.0)
     rows = []
     configs = [("dev", c, 100 + i) for i, c in enumerate(DEV)]
     configs += [("held", c, 300 + i) for i, c in enumerate(HELD)]
@@ -196,6 +200,8 @@ def synthetic(work, frames, quick=False):
             placed = [replace_status(p) for p in poses if aligned(p)]
             row[gate] = {"frames": [frame_row(p, right[p.frame]) for p in sided],
                          "claims": claims_synthetic(sided, gt),
+                         "claims_any_agreement": claims_synthetic(assign_sides(
+                             poses, model, up, use_time=False, options=any_agreement), gt),
                          "claims_placed": claims_synthetic(
                              assign_sides(placed, model, up, use_time=False), gt)}
         rows.append(row)
@@ -342,6 +348,7 @@ def pose2sim(work, recording):
 
     import topopose as tp
     from topopose.pose.model import load_model
+    from topopose.sequence.chirality import SideOptions, assign_sides, numbered
     from topopose.sequence.motion import process_sequence
 
     recording = Path(recording)
@@ -374,6 +381,13 @@ def pose2sim(work, recording):
                      "matched": frame_counts([(p, r) for p, r in zip(raw, right)]),
                      "matched_as_run": frame_counts([(p, r) for p, r in zip(final, right)]),
                      "claims_as_run": rm.chirality(final, ref, rows)}
+        # the cues' minimum agreement against none: the run's matched frames named again (the
+        # tracking segments as the run made them), with the default options and without it
+        for key, o in (("claims_again", SideOptions()),
+                       ("claims_again_any_agreement", SideOptions(min_agree=0.0))):
+            again = assign_sides([numbered(p, model) for p in final], model, cap.up_vector,
+                                 options=o)
+            out[gate][key] = rm.chirality(again, ref, rows)
     return out
 
 
@@ -483,21 +497,24 @@ def synthetic_tables(rows) -> list:
     for r in rows:
         c = claim_counts(r["simple"]["claims"])
         c2 = claim_counts(r["simple"]["claims_placed"])
+        c3 = claim_counts(r["simple"].get("claims_any_agreement", {}))
         for key in (r["split"], (r["split"], r["family"]), (r["split"], r["build"]),
                     (r["split"], f"{r['cameras']} cameras")):
-            t = tot.setdefault(key, ({}, {}))
-            tot[key] = (add(t[0], c), add(t[1], c2))
+            t = tot.setdefault(key, ({}, {}, {}))
+            tot[key] = (add(t[0], c), add(t[1], c2), add(t[2], c3))
         L.append(f"| {r['split']} | {r['build']} | {r['family']} | {r['cameras']} | "
                  f"{c['frames']} | {pc(c['right'], c['claims'])} | {pc(c['claims'], c['pairs'])} "
                  f"| {pc(c['frames_right'], c['frames_claimed'])} | {pc(c2['right'], c2['claims'])} "
                  f"| {pc(c2['claims'], c2['pairs'])} |")
-    L += ["", "Totals (by split, pose family, build, cameras):", "",
-          "| group | claims right | coverage | frames right | placed: claims right | placed coverage |",
-          "|" + "---|" * 6]
-    for key, (c, c2) in sorted(tot.items(), key=lambda kv: str(kv[0])):
+    L += ["", "Totals (by split, pose family, build, cameras); *any agreement*: the same matched "
+          "frames with `SideOptions(min_agree=0)` (the peer):", "",
+          "| group | claims right | coverage | frames right | placed: claims right | placed "
+          "coverage | any agreement: claims right | coverage |", "|" + "---|" * 8]
+    for key, (c, c2, c3) in sorted(tot.items(), key=lambda kv: str(kv[0])):
         L.append(f"| {key if isinstance(key, str) else ' / '.join(key)} | {pc(c['right'], c['claims'])} | "
                  f"{pc(c['claims'], c['pairs'])} | {pc(c['frames_right'], c['frames_claimed'])} | "
-                 f"{pc(c2['right'], c2['claims'])} | {pc(c2['claims'], c2['pairs'])} |")
+                 f"{pc(c2['right'], c2['claims'])} | {pc(c2['claims'], c2['pairs'])} | "
+                 f"{pc(c3['right'], c3['claims'])} | {pc(c3['claims'], c3['pairs'])} |")
     why = {}
     for r in rows:
         for f in r["simple"]["frames"]:
@@ -559,15 +576,20 @@ def report(doc) -> str:
               "*Per frame*: the gate's decision; *as run*: after the sequence stages (track, "
               "skeleton, sides, matched with the run's consistency, as `topopose run`). Claims: "
               "matched frames × pairs, against Pose2Sim's L/R markers.", "",
+              "*Named again*: the run's matched frames named once more after the run, with the "
+              "default side options and with `min_agree=0` (the peer).", "",
               "| gate | frames | right | matched per frame: right | matched as run: right | "
-              "claims as run: right / wrong / numbered |", "|" + "---|" * 6]
+              "claims as run: right / wrong / numbered | named again | named again, "
+              "`min_agree=0` |", "|" + "---|" * 8]
         for gate in GATES:
             g = ps[gate]
-            c = g["claims_as_run"]
+            c, c1, c0 = (g.get(k) or {} for k in ("claims_as_run", "claims_again",
+                                                  "claims_again_any_agreement"))
             L.append(f"| {'default' if gate == 'simple' else 'fitted'} | {g['frames']} | {g['right']} | "
                      f"{pc(g['matched']['right'], g['matched']['matched'])} | "
                      f"{pc(g['matched_as_run']['right'], g['matched_as_run']['matched'])} | "
-                     f"{c['right']} / {c['wrong']} / {c['unsure']} |")
+                     + " | ".join(f"{x.get('right')} / {x.get('wrong')} / {x.get('unsure')}"
+                                  for x in (c, c1, c0)) + " |")
     L += ["", "## child_rope (10 studio cameras, P matrices, real masks; no licence: by path only)", ""]
     ch = doc.get("child") or {}
     if "absent" in ch or not ch:

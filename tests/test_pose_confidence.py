@@ -574,6 +574,6 @@ def test_the_gate_is_the_estimators_decision():
         p, q = est.estimate(f), ungated.estimate(f)
         assert "unexplained" in p.diagnostics
         st, why = gate_decision(q.status, q.error, q.diagnostics, unplaced=sum(
-            x is None for x in q.parts.values()))
+            x is None for x in q.parts.values()), up=cap.up_vector)
         assert (p.status, p.error is None) == (st, why is None)
     assert FrameEstimator(cap, "human", 60, gate_rule=False).gate_rule is None

@@ -1277,3 +1277,24 @@ def test_weak_evidence_keeps_the_numbered_names_and_says_why():
     # a margin no frame reaches keeps every pair numbered
     ch = assign_sides([pose], HUMAN, UP, options=SideOptions(margin=1.01))[0].diagnostics["chirality"]
     assert all(d["name"] == p and d["why"].startswith("confidence") for p, d in ch.items())
+
+
+@pytest.mark.parametrize("back, named", [(0.08, False), (0.04, True)])
+def test_feet_pointing_apart_keep_the_numbered_names(back, named):
+    """Knees straight, the left foot pointing 0.2 m forward and the right ``back`` m backward:
+    the cues' agreement is (0.2 − back) / (0.2 + back) — 0.43 below ``min_agree`` (numbered,
+    why: the cues disagree, though the score alone, 0.36, would name them), 0.67 above it
+    (named, and rightly)."""
+    from topopose.sequence.chirality import SIDES
+
+    parts, curves = _body(0.7, np.random.default_rng(81), knee=0.0, toe=0.2)
+    _, back_curves = _body(0.7, np.random.default_rng(81), knee=0.0, toe=-back)
+    curves["right_foot"] = back_curves["right_foot"]
+    assert ((0.2 - back) / (0.2 + back) >= SIDES.min_agree) == named
+    pose, m = _numbered_frame("000000", parts, curves, False, True)
+    ch = assign_sides([pose], HUMAN, UP)[0].diagnostics["chirality"]
+    for side_name, part in m.items():
+        if named:
+            assert ch[part]["name"] == side_name and "why" not in ch[part]
+        else:
+            assert ch[part]["name"] == part and "facing cues disagree" in ch[part]["why"]

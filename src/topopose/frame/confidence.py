@@ -520,12 +520,25 @@ class GateOptions:
     generators of the share of their right frames matched, under precision of ``matched`` ≥
     0.98 in each camera set-up), checked on held-out generators and the real recordings there.
 
+    **A foot on the wrong kind of branch** (``max_foot_rise``, :func:`foot_rise`): whatever the
+    three features say, a frame is rejected when a foot's end lies higher above the subject's
+    lowest skeleton point than ``max_foot_rise`` × its leg's skeleton arc — a foot can rise no
+    higher than its hip without a kick above it, while the foot the alignment puts on a hanging
+    or raised arm (the legs together leave the data tree one leg branch, and the model's second
+    foot takes an arm's) ends near the crotch's height on a short arc. The reason's last clause
+    names the anatomy, not the confidence gate: the run's consistency
+    (:func:`topopose.sequence.consistency.judge_sequence`), which matches a frame the gate alone
+    rejected when its neighbours agree, leaves it rejected — a foot on an arm agrees with its
+    neighbours frame after frame. Chosen on the development generators of ``benchmarks/gate.py``
+    (the lowest tenth above every right frame the alignment placed there).
+
     Parameters
     ----------
     max_distance : the AHA distance over T_d within which a frame needs only ``max_unexplained``
     max_unexplained : the largest unexplained silhouette share of a matched frame
     far_unexplained, far_shape : above ``max_distance``, the largest unexplained share and
         arc-proportion error of a matched frame
+    max_foot_rise : the largest :func:`foot_rise` of a matched frame (None: not checked)
     models : the models it decides for (thresholds measured on the human); other models keep
         the product confidence's minimum (:func:`judge_frame`)
     """
@@ -534,6 +547,7 @@ class GateOptions:
     max_unexplained: float = 0.2
     far_unexplained: float = 0.12
     far_shape: float = 0.1
+    max_foot_rise: float | None = 0.8
     models: tuple = ("human",)
 
 
@@ -541,20 +555,67 @@ class GateOptions:
 GATE = GateOptions()
 
 
+def foot_rise(curves: dict, up) -> tuple:
+    """How high a foot is for its leg: over the feet's skeleton curves (``curves``:
+    ``diagnostics["curves"]``, part → (n, 3) points from the crotch's junction to the foot,
+    :mod:`.curves`), the largest height of a foot's end above the lowest point of all the
+    curves (the subject's ground side along ``up``), over that foot's curve length.
+
+    Standing feet give 0, a knee raised in front or a leg lifted sideways up to ~0.7, a foot
+    at its hip's height ~1 (the arc starts at the crotch's junction, below the hips).
+
+    Returns
+    -------
+    (part, ratio), or (None, None) without a foot's curve.
+    """
+    u = np.asarray(up, float)
+    u = u / np.linalg.norm(u)
+    pts = {p: np.asarray(c, float).reshape(-1, 3) for p, c in (curves or {}).items()}
+    pts = {p: c for p, c in pts.items() if len(c)}
+    if not pts:
+        return None, None
+    low = min(float((c @ u).min()) for c in pts.values())
+    best = (None, None)
+    for p, c in pts.items():
+        if part_stem(p) != "foot" or len(c) < 2:
+            continue
+        length = float(np.linalg.norm(np.diff(c, axis=0), axis=1).sum())
+        if length > 0:
+            r = (float(c[-1] @ u) - low) / length
+            if best[1] is None or r > best[1]:
+                best = (p, r)
+    return best
+
+
 def gate_decision(status, error, diag, options: GateOptions = GATE, unplaced=0,
-                  max_missing=1) -> tuple:
+                  max_missing=1, up=None) -> tuple:
     """``(status, error)`` of a frame after the gate (:class:`GateOptions`). Only a frame the
     alignment placed is decided — matched, or rejected for its AHA distance alone
     (:func:`distance_only`); a failed frame, a split hull or unmatched parts stay as they are.
     ``diag``: the frame's diagnostics with ``confidence_features`` (:func:`frame_features`)
     and, when measured, ``unexplained`` (not measured: the distance alone decides);
     ``unplaced``: its parts without a position, at most ``max_missing`` in a matched frame (the
-    thesis' missing limb; a frame above T_d is not otherwise told its unmatched parts). A
-    rejected frame's reason begins with its AHA distance reason, if any, then ``confidence
-    gate: ...``."""
+    thesis' missing limb; a frame above T_d is not otherwise told its unmatched parts); ``up``:
+    the capture's up vector (None: ``max_foot_rise`` is not checked). A rejected frame's reason
+    begins with its AHA distance reason, if any, then ``confidence gate: ...``, then, when a
+    foot is too high for its leg, ``anatomy: ...`` (which the run's consistency does not
+    override, :class:`GateOptions`)."""
     if not (status == "matched" or (status == "rejected" and distance_only(error))):
         return status, error
-    o = options
+    status, error = _gate_features(status, error, diag, options, unplaced, max_missing)
+    if options.max_foot_rise is None or up is None:
+        return status, error
+    part, rise = foot_rise(diag.get("curves"), up)
+    if rise is None or rise <= options.max_foot_rise:
+        return status, error
+    why = (f"anatomy: {part} {rise:.2f} of its leg's length above the subject's lowest point "
+           f"(at most {options.max_foot_rise:g}: a foot on an arm's branch)")
+    return "rejected", (f"{error}; {why}" if error else why)
+
+
+def _gate_features(status, error, diag, o: GateOptions, unplaced, max_missing) -> tuple:
+    """:func:`gate_decision` by the AHA distance, the unexplained silhouette and the arcs'
+    proportions."""
     f = diag.get("confidence_features") or {}
     d, shape, u = f.get("distance", math.inf), f.get("shape", math.inf), diag.get("unexplained")
     if unplaced > max_missing:

@@ -108,7 +108,8 @@ class FrameEstimator:
         rule = GATE if co.gate_rule is None else co.gate_rule
         self.gate_rule = rule if self.gate and rule and self.model.name in rule.models else None
         if self.gate_rule is not None:
-            self.support = True           # the gate reads the silhouette support
+            self.support = self.curves = True     # the gate reads the silhouette support and
+            #                                       the feet's curves
         if self.min_confidence is None and self.model.name == "human":
             # calibrated for the human model only, per number of cameras
             self.min_confidence = min_confidence_for(len(cap.cameras))
@@ -358,7 +359,8 @@ class FrameEstimator:
         if self.gate_rule is not None:   # the gate (topopose.frame.confidence.GateOptions)
             from topopose.frame.confidence import gate_decision
             status, error = gate_decision(status, error, diag, self.gate_rule,
-                                          sum(x is None for x in parts.values()), self.max_missing)
+                                          sum(x is None for x in parts.values()), self.max_missing,
+                                          self.up)
         timings["placement"] = (time.perf_counter() - t0) * 1e3
         timings["total"] = (time.perf_counter() - t_all) * 1e3
         pose = Pose(name, status, dist, parts, error, timings, diag)

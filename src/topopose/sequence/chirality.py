@@ -24,8 +24,9 @@ The frame's signed score is ``a (1 - e^{-|f|/f0}) (1 - e^{-|s|/s0})`` with the s
 lateral difference ``s``, ``a`` the cues' agreement and f0, s0 shares of the subject's height
 (:class:`SideOptions`): near 0 when the facing is weak (both feet end-on), its cues disagree
 (the feet of a kneeling subject against its knees) or the pair is side by side along the
-facing. A pair is named when its confidence reaches ``margin``; otherwise it keeps the numbered
-names and ``diagnostics["chirality"][part]["why"]`` says why (facing weak, cues disagreeing,
+facing; 0 when the cues' agreement is below ``min_agree``. A pair is named when its confidence
+reaches ``margin``; otherwise it keeps the numbered names and
+``diagnostics["chirality"][part]["why"]`` says why (facing weak, cues disagreeing,
 the pair not apart, a disagreeing tracking segment). The margin is the smallest whose claims
 are right in ≥ 98 % of the development generators' frames (``benchmarks/sides.py``, which
 reports them per build and pose family against held-out ones and the Pose2Sim recording's
@@ -64,6 +65,9 @@ class SideOptions:
         (the hull's extent; a planted foot gives 0.05–0.1, shoulders and hips are 0.15–0.2 apart)
     body_axis : the subject's own up, along the model's ``[facing] trunk`` (crotch → torso),
         instead of the capture's (a subject lying down, crouching or leaning)
+    min_agree : below this agreement of the facing cues (``|Σ cue| / Σ |cue|``, 0.5: the cues
+        for the facing outweigh those against it threefold) the frame names no side (a
+        crouching subject's thighs on its belly bend its leg arcs every way)
     strong, overrule_min, coherent, coherence_weak : the time rule (module docstring)
     """
 
@@ -71,6 +75,7 @@ class SideOptions:
     facing_scale: float = 0.03
     separation_scale: float = 0.03
     body_axis: bool = True
+    min_agree: float = 0.5
     strong: float = 0.5
     overrule_min: int = 5
     coherent: float = 0.8
@@ -184,6 +189,9 @@ def frame_evidence(pose, model, up, options: SideOptions = SIDES) -> dict:
     if f is None:
         return {i: (0.0, "facing weak: no foot direction nor knee bend")
                 for i in range(len(model.mirrors))}
+    if agree < options.min_agree:
+        return {i: (0.0, f"facing cues disagree (agreement {agree:.2f}, at least "
+                         f"{options.min_agree:g})") for i in range(len(model.mirrors))}
     ff = (1 - np.exp(-strength / (options.facing_scale * H))) * agree
     left = np.cross(u, f)
     out = {}

@@ -32,22 +32,33 @@ cameras: a check, never fitted on); ``--real`` to the real recording of ``benchm
 ``--rows results/confidence.json.gz`` reuses the frames of an earlier run, its body-benchmark and
 real-recording frames too (no pipeline run: for trying features and models; the kinds of model
 are compared by ``studies/confidence_models.py``).
+
+``--foot-rule``: the precision of ``matched`` as a run decides it, with the gate's foot rule and
+without it, on synthetic sequences, the unrelated poses of ``benchmarks/sides.py``, Pose2Sim and
+child_rope (:mod:`_gate`, whose options follow it; ``gate.md`` / ``gate.json.gz``)::
+
+    python benchmarks/confidence.py --foot-rule [--quick] [--frames N] [--sides-work DIR] ...
 """
 from __future__ import annotations
 
-import argparse
-import dataclasses
-import gzip
-import itertools
-import json
+import os
 import sys
-from collections import Counter
-from pathlib import Path
 
-import numpy as np
+if "--foot-rule" in sys.argv:   # its sequences run on one Numba thread (_gate.py)
+    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
-from topopose.hull.volume import add_rod
-from topopose.batch.quality import TP_CLASSES
+import argparse  # noqa: E402
+import dataclasses  # noqa: E402
+import gzip  # noqa: E402
+import itertools  # noqa: E402
+import json  # noqa: E402
+from collections import Counter  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from topopose.hull.volume import add_rod  # noqa: E402
+from topopose.batch.quality import TP_CLASSES  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -727,9 +738,17 @@ def fit_features(spec: str) -> tuple:
 
 def main(argv=None):
     global ROD_WEIGHT, DROP_WEIGHT
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if "--foot-rule" in argv:
+        import _gate
+        return _gate.main([x for x in argv if x != "--foot-rule"])
     from _machine import machine, read_rows, results_dir
     from topopose.frame import confidence as C
     ap = argparse.ArgumentParser()
+    ap.add_argument("--foot-rule", action="store_true",
+                    help="instead: the precision of matched with the gate's foot rule and "
+                         "without it (_gate.py; gate.md); the options are then its own: "
+                         "confidence.py --foot-rule --help")
     ap.add_argument("--frames", type=int, default=15)
     ap.add_argument("--seeds", type=int, default=6, help="capsule human seeds")
     ap.add_argument("--body-seeds", type=int, default=20,
@@ -941,4 +960,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

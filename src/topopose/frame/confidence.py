@@ -529,8 +529,9 @@ class GateOptions:
     names the anatomy, not the confidence gate: the run's consistency
     (:func:`topopose.sequence.consistency.judge_sequence`), which matches a frame the gate alone
     rejected when its neighbours agree, leaves it rejected — a foot on an arm agrees with its
-    neighbours frame after frame. Chosen on the development generators of ``benchmarks/gate.py``
-    (the lowest tenth above every right frame the alignment placed there).
+    neighbours frame after frame. Chosen on the development generators of
+    ``benchmarks/confidence.py --foot-rule`` (the lowest tenth above every right frame the
+    alignment placed there).
 
     Parameters
     ----------

@@ -1,8 +1,10 @@
 """Precision of ``matched`` as a run decides it, with the gate's foot rule and without it.
 
-    python benchmarks/gate.py [--work DIR] [--frames N] [--sides-work DIR] [--pose2sim RECORDING]
-                              [--child CHILD_ROPE] [--sheets DIR] [--child-by-eye JSON]
-                              [--out DIR] [--quick]
+    python benchmarks/confidence.py --foot-rule [--work DIR] [--frames N] [--sides-work DIR]
+                                    [--pose2sim RECORDING] [--child CHILD_ROPE] [--sheets DIR]
+                                    [--child-by-eye JSON] [--child-tracker] [--out DIR] [--quick]
+
+The ``--foot-rule`` mode of ``benchmarks/confidence.py``: with it, the options are these.
 
 ``matched`` is decided by the gate (:class:`topopose.frame.confidence.GateOptions`) and then, in
 a sequence, by the run's consistency, which matches a frame the gate alone rejected when its
@@ -317,7 +319,8 @@ def report(doc) -> str:
     m = doc["machine"]
     L = ["# `matched` with the gate's foot rule and without it", "",
          f"Machine: {m['cpu']}, {m['cores']} cores (shared), load {m['load_average']}, "
-         f"{m['threads']}; {m['date']}. `python benchmarks/gate.py {' '.join(doc['argv'])}`.", "",
+         f"{m['threads']}; {m['date']}. `python benchmarks/confidence.py --foot-rule "
+         f"{' '.join(doc['argv'])}`.", "",
          "*rule*: the default gate (`GateOptions`, `max_foot_rise` = "
          f"{doc['max_foot_rise']}); *peer*: the same without the foot rule, same frames. Each "
          "cell: right / matched (precision); *of right*: the right matched frames over the "
@@ -399,7 +402,8 @@ def report(doc) -> str:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="confidence.py --foot-rule",
+                                 description=__doc__.split("\n")[0])
     ap.add_argument("--work", default=None, help="where captures and per-frame poses are kept")
     ap.add_argument("--frames", type=int, default=40, help="frames per synthetic sequence")
     ap.add_argument("--sides-work", default="",

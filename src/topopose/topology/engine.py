@@ -132,7 +132,7 @@ def _bits():
     opp = np.array([nb.bit_of(-o) for o in nb.OFFSETS], dtype=np.int64)
     pk, pkn = nb.all_templates(nb.PKD6_BASE)
     d6, d6n = nb.all_templates(nb.D6I1D_BASE)
-    return opp, {"pkd6": (0, pk, pkn), "d6": (6, d6, d6n)}
+    return opp, {"pkd6": (pk, pkn), "d6": (d6, d6n)}
 
 
 def _bbox(data):
@@ -172,7 +172,13 @@ def thinning(volume, method: str = "d6i1d", keep=None, *, border_list: bool = Tr
     lo, hi, rows_any = _bbox(data)
     if lo[0] > hi[0]:  # no object voxel
         return Thinning(out, kout, method, 0, 0, {"total": (time.perf_counter() - t0) * 1e3})
-    from topopose.topology.thinning_kernels import extract, fill_state_rows
+    from topopose.topology.thinning_kernels import (
+        Ack3Cliques,
+        MaskSet,
+        Neighbourhood,
+        extract,
+        fill_state_rows,
+    )
 
     kin = keep.view(np.uint8) if keep is not None else np.zeros((0, 0, 0), dtype=np.uint8)
     size = int((hi[0] - lo[0] + 3) * (hi[1] - lo[1] + 3) * (hi[2] - lo[2] + 3))
@@ -185,28 +191,26 @@ def thinning(volume, method: str = "d6i1d", keep=None, *, border_list: bool = Tr
     tables = _tables() if lut else _no_tables()
     opp, sets = _bits()
     offs, off6, e_offs, k_offs = _shape_offsets(shape)
+    nbr = Neighbourhood(offs, opp, off6)
     t1 = time.perf_counter()
     if method in _DIRECTIONAL:
         psi, which, fin = _DIRECTIONAL[method]
-        plane0, templates, tcount = sets[which]
+        templates, tcount = sets[which]
         stats = np.zeros(5, dtype=np.int64)
         kernel = _kernel("directional", bool(lut), mode, specialized)
         btab = _byte_table(which) if lut else _no_tables().ravel()
-        iters, deleted = kernel(vf, offs, opp, off6, tables, btab, plane0, templates, tcount, psi,
-                                bool(border_list), fin if complete else 0, stats, bool(lut), mode,
-                                int(n_obj))
+        iters, deleted = kernel(vf, nbr, tables, MaskSet(templates, tcount, btab), psi, bool(border_list),
+                                fin if complete else 0, stats, bool(lut), mode, int(n_obj))
         counters = dict(zip(("visits", "tests", "isthmus_tests", "initial_list", "completion_deleted"),
                             stats.tolist()))
     else:
         ack3_thin = _kernel("ack3", bool(lut), mode, specialized)
         counters = {}
-        (c2_a, c2_b, ns2d, e_f1, e_f2, e_ed, e_u, e_v, e_oth, e_ooff, k_bits, k_pairs,
-         k_off) = nb.ack_bits()
+        cliques = Ack3Cliques(*nb.ack_bits())._replace(e_ooff=e_offs, k_ooff=k_offs)  # flat offsets
         btab = _byte_table("ack3") if lut else _no_tables().ravel()
         etab = _edge_table() if lut else _no_edge_table()
-        iters, deleted = ack3_thin(vf, offs, opp, off6, tables, btab, etab, 1, bool(border_list), c2_a, c2_b,
-                                   ns2d, e_f1, e_f2, e_ed, e_u, e_v, e_oth,
-                                   e_offs, k_bits, k_pairs, k_offs, bool(lut), mode, int(n_obj))
+        iters, deleted = ack3_thin(vf, nbr, tables, btab, etab, 1, bool(border_list), cliques, bool(lut), mode,
+                                   int(n_obj))
     t2 = time.perf_counter()
     extract(vf, shp, lo, out.view(np.uint8), kout.view(np.uint8))  # sparse write-back
     t3 = time.perf_counter()

@@ -209,8 +209,8 @@ def thinning(volume, method: str = "d6i1d", keep=None, *, border_list: bool = Tr
         cliques = Ack3Cliques(*nb.ack_bits())._replace(e_ooff=e_offs, k_ooff=k_offs)  # flat offsets
         btab = _byte_table("ack3") if lut else _no_tables().ravel()
         etab = _edge_table() if lut else _no_edge_table()
-        iters, deleted = ack3_thin(vf, nbr, tables, btab, etab, 1, bool(border_list), cliques, bool(lut), mode,
-                                   int(n_obj))
+        iters, deleted = ack3_thin(vf, nbr, tables, btab, etab, 1, bool(border_list), cliques, bool(lut),
+                                   mode, int(n_obj))
     t2 = time.perf_counter()
     extract(vf, shp, lo, out.view(np.uint8), kout.view(np.uint8))  # sparse write-back
     t3 = time.perf_counter()

@@ -187,8 +187,9 @@ def _init_list(vol, offs, off6, border_list, ccsu, words, n_obj):
 
 
 @njit(cache=True)
-def _delete(vol, dl, ndel, lst, n, offs, opp, off6, border_list, ccsu, words):
+def _delete(vol, dl, ndel, lst, n, nbr, border_list, ccsu, words):
     """Delete the collected voxels at once; update words and the border list. Returns new n."""
+    offs, opp, off6 = nbr
     for j in range(ndel):
         _clear(vol, dl[j])
     for j in range(ndel):
@@ -258,14 +259,14 @@ def sequential_completion(vol, lst, n, offs, tables, lut, keep_end_points):
 
 
 @njit(cache=True, inline="always")
-def _delete_directional(vol, dl, ndel, lst, n, offs, opp, off6, opp6, border_list, ccsu,
-                        words, bk, nbk, d):
+def _delete_directional(vol, dl, ndel, lst, n, nbr, opp6, border_list, ccsu, words, bk, nbk, d):
     """Delete the collected voxels of subiteration ``d`` at once.
 
     Updates the z-triplet bits (and the CCSU words), appends new border voxels to the
     list, and pushes every object 6-neighbour that the deletion exposes in a direction
     still to come in this iteration into that direction's bucket.  Returns the new n.
     """
+    offs, opp, off6 = nbr
     for j in range(ndel):
         _clear(vol, dl[j])
     for j in range(ndel):
@@ -352,7 +353,7 @@ def _directional_body(vol, nbr, tables, masks, psi, border_list, lut, ccsu, fini
     isthmus tests, the initial list size and the voxels deleted by the completion.
     Returns (iterations, deleted voxels).
     """
-    offs, opp, off6 = nbr
+    offs, _, off6 = nbr
     templates, tcount, btab = masks
     words = np.empty(vol.size if ccsu == 2 else 1, dtype=np.uint32)
     lst, n = _init_list(vol, offs, off6, border_list, ccsu, words, n_obj)
@@ -439,8 +440,8 @@ def _directional_body(vol, nbr, tables, masks, psi, border_list, lut, ccsu, fini
                     dl[ndel] = p
                     ndel += ok
             if ndel:
-                n = _delete_directional(vol, dl, ndel, lst, n, offs, opp, off6, opp6,
-                                        border_list, ccsu, words, bk, nbk, d)
+                n = _delete_directional(vol, dl, ndel, lst, n, nbr, opp6, border_list, ccsu, words, bk,
+                                        nbk, d)
                 deleted += ndel
         total += deleted
         if deleted == 0:
@@ -516,7 +517,7 @@ def _ack3_body(vol, nbr, tables, btab, etab, psi, border_list, lut, ccsu, clique
     their voxels are in S.
     Returns (iterations, deleted voxels).
     """
-    offs, opp, off6 = nbr
+    offs, _, off6 = nbr
     c2_a, c2_b, nonsimple2d, e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff, k_bits, k_span, k_ooff = cliques
     words = np.empty(vol.size if ccsu == 2 else 1, dtype=np.uint32)
     lst, n = _init_list(vol, offs, off6, border_list, ccsu, words, n_obj)
@@ -618,7 +619,7 @@ def _ack3_body(vol, nbr, tables, btab, etab, psi, border_list, lut, ccsu, clique
                 ndel += 1
                 vol[p] &= ~np.uint8(INS)
         if ndel:
-            n = _delete(vol, sp, ndel, lst, n, offs, opp, off6, border_list, ccsu, words)
+            n = _delete(vol, sp, ndel, lst, n, nbr, border_list, ccsu, words)
         total += ndel
         if ndel == 0:
             break

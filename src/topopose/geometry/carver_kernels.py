@@ -169,8 +169,8 @@ def _rect_state(rects, row, sflat, soff, w, h, W, fx=1, fy=1, ox=0, oy=0, cw=1 <
 def carve(cams, sil, blocks, tolerance, levels, out, stats):
     """Hierarchical carving of the volumetric visual hull (thesis §2.3.2.2).
 
-    A voxel is set in ``out`` (uint8 (nx, ny, nz), zeroed by the caller) when its centre projects inside the
-    silhouette in at least C − ``tolerance`` cameras: to 1, or with ``levels`` to 2 when all C
+    A voxel is set in ``out`` (uint8, (nx, ny, nz), zeroed by the caller) when its centre
+    projects inside the silhouette in at least C − ``tolerance`` cameras: to 1, or with ``levels`` to 2 when all C
     cameras see it as subject (the strict hull, tolerance 0) and 1 otherwise — the strict and
     the tolerant hull in one pass (an all-inside block's miss count is exact; an undecided
     voxel counts its misses exactly up to the early exit at ``tolerance + 1``). Blocks of 2^l voxels are classified per

@@ -407,9 +407,9 @@ class _Context:
 
     def traceback(self):
         self.full()
-        m, P, D = self.matcher, self.matcher._P, self.D
-        return K.traceback(m.mode, P.node_v.shape[0], D.n, self.FD, self.TD, self.pr, self.dr,
-                           *self.kargs[:2])
+        PA, DA, _ = self.kargs
+        return K.traceback(self.matcher.mode, PA.node_v.shape[0], self.D.n, self.FD, self.TD, self.pr,
+                           self.dr, PA, DA)
 
     def args(self):
         """(pattern, data, tables) as the kernels take them."""

@@ -788,11 +788,8 @@ def resize_matrix(code, p_it_w, d_it_w):
 
 @njit(cache=True)
 def apply_constraints(R, cons, pos, it_up, it_node, node_v):
-    """Resize cost +inf where a data path's end positions violate a constraint (§12.2.1).
-
-    Constraint k of ``cons`` (:class:`Constraints`) covers the pattern items
-    ``items[ptr[k]:ptr[k+1]]`` with ``signs`` (+1: the image of the chain's upper end must be
-    higher along ``up[k]``); ``pos`` (n, 3): the data vertices' positions; ``it_up``,
+    """Resize cost +inf where a data path's end positions violate a constraint of ``cons``
+    (:class:`Constraints`, §12.2.1). ``pos`` (n, 3): the data vertices' positions; ``it_up``,
     ``it_node``, ``node_v``: the data tree's items and nodes (:func:`build_struct`).
     """
     nd = it_up.shape[0]

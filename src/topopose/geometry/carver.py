@@ -303,9 +303,9 @@ class HullCarver:
             raise InputError(f"visual hull: argument tolerance must be in 0..{C - 1}, got {tolerance}")
         out = np.zeros(self.shape, dtype=np.uint8)
         self.stats[:] = 0
-        K.carve(K.Cameras(self.geo, self.intr),
-                K.Silhouettes(self._mflat, self.moff, self._sflat, self.soff, self.fac, self.crop),
-                K.Blocks(self.rects, self.loff, self.ldims, self.lmin, self.lmax),
+        K.carve(tuple(K.Cameras(self.geo, self.intr)),
+                tuple(K.Silhouettes(self._mflat, self.moff, self._sflat, self.soff, self.fac, self.crop)),
+                tuple(K.Blocks(self.rects, self.loff, self.ldims, self.lmin, self.lmax)),
                 tolerance, bool(levels), out, self.stats)
         return out if levels else out.view(bool)
 

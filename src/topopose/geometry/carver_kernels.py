@@ -15,8 +15,9 @@ Packed inputs (built by :class:`~topopose.geometry.carver.HullCarver`):
   block's projection is unknown for that camera (a corner behind it or outside its valid lens
   field), so the camera cannot decide the block.
 
-:func:`carve` takes them as three named tuples (:class:`Cameras`, :class:`Silhouettes`,
-:class:`Blocks`), which Numba compiles as plain structs.
+:func:`carve` takes them as three bundles, :class:`Cameras`, :class:`Silhouettes` and
+:class:`Blocks`, passed as plain tuples in the named tuple's field order (Numba's dispatcher
+types a plain tuple on its fast path).
 """
 from __future__ import annotations
 

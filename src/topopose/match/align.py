@@ -173,11 +173,11 @@ class _Prepared:
         self.delsub, self.delfor = K.deletion_costs(self.ch_ptr, self.ch_idx, self.soff, self.it_ptr,
                                                     self.base, delarc, zero)
 
-    def arrays(self) -> K.TreeArrays:
-        """The tree as the kernels take it."""
-        return K.TreeArrays(self.node_v, self.ch_ptr, self.ch_idx, self.soff, self.it_ptr, self.it_node,
-                            self.it_up, self.it_w, self.item_of, self.base, self.delarc, self.delsub,
-                            self.delfor, self.roots)
+    def arrays(self) -> tuple:
+        """The tree as the kernels take it: the fields of a :class:`~.align_kernels.TreeArrays`."""
+        return tuple(K.TreeArrays(self.node_v, self.ch_ptr, self.ch_idx, self.soff, self.it_ptr, self.it_node,
+                                  self.it_up, self.it_w, self.item_of, self.base, self.delarc, self.delsub,
+                                  self.delfor, self.roots))
 
     def lists(self):
         """Python-list copies of the arrays the traceback details walk (fast scalar access)."""
@@ -392,24 +392,24 @@ class _Context:
         else:
             pos = m._positions(self.tree, ids) if m._cons.ptr.shape[0] > 1 else _NO_POS
             st, D.delarc, D.delsub, D.delfor, R = K.data_side(m.mode, m.cut, m._gcode, n, eu, ev, ew, r,
-                                                              P.it_w, m._cons, pos)
+                                                              P.it_w, tuple(m._cons), pos)
             (D.node_v, D.node_par, D.ch_ptr, D.ch_idx, D.soff, D.it_ptr, D.it_node, D.it_up, D.it_w,
              D.item_of, D.base, D.roots, D.nxt) = st
         if self.arc_cost is not None:
             R = R + arc_cost_matrix(self.arc_cost, P, D)
-        PA, DA = P.arrays(), D.arrays()
+        PA, DA = m._pattern_arrays, D.arrays()
         self.F, self.T, self.FD, self.TD = K.forward(m.mode, PA, DA, R, m._tie(ew))
         self.top, self.pr, self.dr = K.top_value(PA, DA, self.F, m._tie(ew))
         self.R = R
         self.D = D
-        self.kargs = (PA, DA, K.Tables(R, self.F, self.T))
+        self.kargs = (PA, DA, tuple(K.Tables(R, self.F, self.T)))
         return self
 
     def traceback(self):
         self.full()
         PA, DA, _ = self.kargs
-        return K.traceback(self.matcher.mode, PA.node_v.shape[0], self.D.n, self.FD, self.TD, self.pr,
-                           self.dr, PA, DA)
+        return K.traceback(self.matcher.mode, self.matcher._P.node_v.shape[0], self.D.n, self.FD, self.TD,
+                           self.pr, self.dr, PA, DA)
 
     def args(self):
         """(pattern, data, tables) as the kernels take them."""
@@ -665,6 +665,7 @@ class Matcher:
                 delarc = P.delarc.copy()
                 delarc[kept] = np.inf
                 P.set_costs(delarc, False)
+        self._pattern_arrays = P.arrays()
 
     def constrained_junction_arcs(self) -> list:
         """Pattern items (arcs) whose both ends are junctions (degree > 1) and which carry a
@@ -762,10 +763,10 @@ class Matcher:
             events = ctx.traceback()
             top = ctx.top
         else:
-            P = self._P
             pos = self._positions(tree, ids) if self._cons.ptr.shape[0] > 1 else _NO_POS
             top, events = K.align_data(self.mode, self.cut, self._gcode, self._tie(ew), n, eu, ev, ew,
-                                       -1 if root is None else index[root], P.arrays(), self._cons, pos)
+                                       -1 if root is None else index[root], self._pattern_arrays,
+                                       tuple(self._cons), pos)
         if events.shape[0] and events[0, 0] < 0:  # pragma: no cover - the bound in traceback
             raise RuntimeError("align: traceback overflow")
         al = ctx.make(top, events)

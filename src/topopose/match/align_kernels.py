@@ -25,10 +25,12 @@ Tables (all float64):
 
 ``mode``: 0 = α (§8.8), 1 = η (Prop. 18–24), 2 = η⃗ / AHA (Prop. 25–28).
 
-The kernels take each tree as one :class:`TreeArrays` (``P`` the pattern, ``D`` the data),
-the tables as one :class:`Tables` and the constraints as one :class:`Constraints`: named
-tuples, which Numba compiles as plain structs (one type per dtype and layout, so one
-compiled kernel serves every call).
+The kernels take each tree as one bundle of arrays, :class:`TreeArrays` (``p`` the pattern,
+``d`` the data), the tables as one :class:`Tables` and the constraints as one
+:class:`Constraints`. The bundles cross a kernel's boundary as plain tuples in the named
+tuple's field order (Numba types a plain tuple on its dispatcher's fast path, a named tuple
+on a slow one that costs microseconds per call), and each kernel names the fields at its top
+(``P = TreeArrays(*p)``, free at run time).
 """
 from __future__ import annotations
 
@@ -74,17 +76,6 @@ class Tables(NamedTuple):
     T: np.ndarray
 
 
-class Options(NamedTuple):
-    """Buffers of :func:`expand` (:func:`option_buffers`): per option, its cost, its sub-states
-    (nsub, sub[., 2, 5]) and its events (nev, ev[., 3, 3])."""
-
-    cost: np.ndarray
-    nsub: np.ndarray
-    sub: np.ndarray
-    nev: np.ndarray
-    ev: np.ndarray
-
-
 class Constraints(NamedTuple):
     """Coordinate constraints (§12.2.1): constraint k covers the pattern items
     ``items[ptr[k]:ptr[k + 1]]`` with ``signs`` (+1: the image of the chain's upper end must be
@@ -98,14 +89,14 @@ class Constraints(NamedTuple):
 
 @njit(cache=True)
 def tree_arrays(st, delarc, delsub, delfor):
-    """:class:`TreeArrays` of a :func:`build_struct` result and the deletion costs."""
+    """:class:`TreeArrays` (as a plain tuple) of a :func:`build_struct` result and the deletion costs."""
     (node_v, _, ch_ptr, ch_idx, soff, it_ptr, it_node, it_up, it_w, item_of, base, roots, _) = st
-    return TreeArrays(node_v, ch_ptr, ch_idx, soff, it_ptr, it_node, it_up, it_w, item_of, base,
-                      delarc, delsub, delfor, roots)
+    return (node_v, ch_ptr, ch_idx, soff, it_ptr, it_node, it_up, it_w, item_of, base,
+            delarc, delsub, delfor, roots)
 
 
 @njit(cache=True)
-def forward(mode, P, D, R, tie):
+def forward(mode, p, d, R, tie):
     """Fill the forest table F and the pruned-tree table T bottom-up (Alg. 14, 16, 17, 18).
 
     Also returns the decision tables FD, TD (the cheapest option of every cell,
@@ -121,6 +112,7 @@ def forward(mode, P, D, R, tie):
     first — resize before merge before deletion — and not to rounding noise
     (|w − (w + s)| may come out below s).
     """
+    P, D = TreeArrays(*p), TreeArrays(*d)
     pn = P.ch_ptr.shape[0] - 1
     dn = D.ch_ptr.shape[0] - 1
     F = np.empty((P.soff[pn], D.soff[dn]), np.float64)
@@ -243,8 +235,9 @@ def _full(S, k):
 
 
 @njit(cache=True)
-def top_value(P, D, F, tie):
+def top_value(p, d, F, tie):
     """min over the root pairs (Prop. 18, 22, 23, 25); ties (within ``tie``) to the first pair."""
+    P, D = TreeArrays(*p), TreeArrays(*d)
     best = np.inf
     bp = P.roots[0]
     bd = D.roots[0]
@@ -259,15 +252,16 @@ def top_value(P, D, F, tie):
 
 
 @njit(cache=True)
-def expand(state, limit, mode, P, D, tables, out):
+def expand(state, limit, mode, p, d, tables, out):
     """Every option of one state whose cost is <= ``limit``.
 
     ``state`` is (kind, s1, s2, s3, s4): F state (p, A, d, B), T state (pi, di, 0, 0)
-    or the top state. Writes into the buffers ``out`` (:class:`Options`, sized by
-    :func:`max_options`) each option's cost, its sub-states and the events it emits
-    (codes EV_*); returns the number of options. The recurrences are those of
+    or the top state. Writes into the buffers ``out`` = (cost, nsub, sub[., 2, 5], nev,
+    ev[., 3, 3]) — sized by :func:`max_options` — each option's cost, its sub-states and the
+    events it emits (codes EV_*); returns the number of options. The recurrences are those of
     :func:`forward`, term for term.
     """
+    P, D = TreeArrays(*p), TreeArrays(*d)
     kind, s1, s2, s3, s4 = state
     R, F, T = tables
     cost, nsub, sub_, nev, ev = out
@@ -506,8 +500,9 @@ def expand(state, limit, mode, P, D, tables, out):
 
 
 @njit(cache=True)
-def max_options(P, D):
+def max_options(p, d):
     """Buffer size for :func:`expand`: the most options any state can have."""
+    P, D = TreeArrays(*p), TreeArrays(*d)
     mp = 0
     for k in range(P.ch_ptr.shape[0] - 1):
         mp = max(mp, P.ch_ptr[k + 1] - P.ch_ptr[k])
@@ -522,13 +517,14 @@ def max_options(P, D):
 
 @njit(cache=True)
 def option_buffers(maxo):
-    return Options(np.empty(maxo, np.float64), np.zeros(maxo, np.int64), np.zeros((maxo, 2, 5), np.int64),
-                   np.zeros(maxo, np.int64), np.zeros((maxo, 3, 3), np.int64))
+    return (np.empty(maxo, np.float64), np.zeros(maxo, np.int64), np.zeros((maxo, 2, 5), np.int64),
+            np.zeros(maxo, np.int64), np.zeros((maxo, 3, 3), np.int64))
 
 
 @njit(cache=True)
-def state_value(state, P, D, tables, top):
+def state_value(state, p, d, tables, top):
     """The table value of a state (see :func:`expand`)."""
+    P, D = TreeArrays(*p), TreeArrays(*d)
     kind, s1, s2, s3, s4 = state
     _, F, T = tables
     if kind == ST_F:
@@ -539,12 +535,13 @@ def state_value(state, P, D, tables, top):
 
 
 @njit(cache=True)
-def traceback(mode, n_p, n_d, FD, TD, top_pr, top_dr, P, D):
+def traceback(mode, n_p, n_d, FD, TD, top_pr, top_dr, p, d):
     """One optimal alignment, following the decision tables of :func:`forward`.
 
     Returns events[k, 3] (codes EV_*), the same events that :func:`expand`
     emits for the chosen options.
     """
+    P, D = TreeArrays(*p), TreeArrays(*d)
     # every state consumes a pattern or data edge (at most twice each), so these bounds hold
     cap = 8 * (n_p + n_d) + 16
     events = np.empty((2 * cap, 3), np.int64)
@@ -715,7 +712,7 @@ def traceback(mode, n_p, n_d, FD, TD, top_pr, top_dr, P, D):
 
 
 @njit(cache=True)
-def cooptimal_pairs(mode, tol, n_p, n_d, P, D, tables, top):
+def cooptimal_pairs(mode, tol, n_p, n_d, p, d, tables, top):
     """Every (pattern vertex, data vertex) pair that some co-optimal alignment maps.
 
     Walks the graph of states reachable from the top through options whose
@@ -723,12 +720,13 @@ def cooptimal_pairs(mode, tol, n_p, n_d, P, D, tables, top):
     (alt[n_p, n_d] bool, matched[n_p] bool) where ``matched`` marks pattern
     vertices that end a matched arc in the walk.
     """
+    P, D = TreeArrays(*p), TreeArrays(*d)
     _, F, T = tables
     seenF = np.zeros(F.shape, np.bool_)
     seenT = np.zeros(T.shape, np.bool_)
     alt = np.zeros((n_p, n_d), np.bool_)
     matched = np.zeros(n_p, np.bool_)
-    out = option_buffers(max_options(P, D))
+    out = option_buffers(max_options(p, d))
     _, nsub, sub_, nev, ev = out
     cap = F.shape[0] * F.shape[1] + T.shape[0] * T.shape[1] + 2   # every state is pushed once at most
     stack = np.empty((cap, 5), np.int64)
@@ -737,9 +735,9 @@ def cooptimal_pairs(mode, tol, n_p, n_d, P, D, tables, top):
     while sp > 0:
         sp -= 1
         state = (stack[sp, 0], stack[sp, 1], stack[sp, 2], stack[sp, 3], stack[sp, 4])
-        val = state_value(state, P, D, tables, top)
+        val = state_value(state, p, d, tables, top)
         limit = val + tol * max(1.0, abs(val)) if val < np.inf else np.inf
-        nopt = expand(state, limit, mode, P, D, tables, out)
+        nopt = expand(state, limit, mode, p, d, tables, out)
         for o in range(nopt):
             for e in range(nev[o]):
                 if ev[o, e, 0] == EV_MAP:
@@ -792,6 +790,7 @@ def apply_constraints(R, cons, pos, it_up, it_node, node_v):
     (:class:`Constraints`, §12.2.1). ``pos`` (n, 3): the data vertices' positions; ``it_up``,
     ``it_node``, ``node_v``: the data tree's items and nodes (:func:`build_struct`).
     """
+    cons = Constraints(*cons)
     nd = it_up.shape[0]
     for k in range(cons.ptr.shape[0] - 1):
         h = np.empty(pos.shape[0], np.float64)
@@ -816,23 +815,24 @@ def data_side(mode, cut, code, n, eu, ev, ew, root, p_it_w, cons, pos):
         d_delarc[i] = gamma_code(code, 0.0, d_it_w[i])
     d_delsub, d_delfor = deletion_costs(st[2], st[3], st[4], st[5], st[10], d_delarc, cut)
     R = resize_matrix(code, p_it_w, d_it_w)
-    if cons.ptr.shape[0] > 1:
+    if cons[0].shape[0] > 1:
         apply_constraints(R, cons, pos, st[7], st[6], st[0])
     return st, d_delarc, d_delsub, d_delfor, R
 
 
 @njit(cache=True)
-def align_data(mode, cut, code, tie, n, eu, ev, ew, root, P, cons, pos):
+def align_data(mode, cut, code, tie, n, eu, ev, ew, root, p, cons, pos):
     """All the data-dependent work of one alignment in one call (built-in γ): the data tree
     (``n`` vertices, edges ``eu``–``ev`` of weight ``ew``, ``root`` or -1) against the pattern
-    ``P`` (:class:`TreeArrays`) under the constraints ``cons`` (:class:`Constraints`; ``pos``
+    ``p`` (:class:`TreeArrays`) under the constraints ``cons`` (:class:`Constraints`; ``pos``
     the data vertices' positions).
 
     Returns (top, events) — see :func:`traceback`.
     """
+    P = TreeArrays(*p)
     st, delarc, delsub, delfor, R = data_side(mode, cut, code, n, eu, ev, ew, root, P.it_w, cons, pos)
-    D = tree_arrays(st, delarc, delsub, delfor)
-    F, T, FD, TD = forward(mode, P, D, R, tie)
-    top, pr, dr = top_value(P, D, F, tie)
-    events = traceback(mode, P.node_v.shape[0], n, FD, TD, pr, dr, P, D)
+    d = tree_arrays(st, delarc, delsub, delfor)
+    F, T, FD, TD = forward(mode, p, d, R, tie)
+    top, pr, dr = top_value(p, d, F, tie)
+    events = traceback(mode, P.node_v.shape[0], n, FD, TD, pr, dr, p, d)
     return top, events

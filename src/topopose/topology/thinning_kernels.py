@@ -18,6 +18,11 @@ for an object voxel ``p``.  Options (thesis §5.1–5.3):
   deletion, so a configuration is assembled from 9 bytes; 2 ("full", the thesis'
   variant) keeps each listed voxel's whole 26-bit word, updated in its 26
   neighbours at every deletion.
+
+The kernels take the arrays that travel together as one argument each: the
+:class:`Neighbourhood`, a :class:`MaskSet`, ACK3's :class:`Ack3Cliques` — as plain tuples
+in the named tuple's field order (Numba's dispatcher types a plain tuple on its fast path),
+unpacked at the kernel's top.
 """
 from __future__ import annotations
 

@@ -77,9 +77,12 @@ class Capture:
             if len(ms) != len(self.cameras):
                 raise InputError(f"capture: frame {frame!r} has {len(ms)} masks for "
                                  f"{len(self.cameras)} cameras")
+            from topopose.geometry.masks import BoxedMask
+
             out = []
             for cam, m in zip(self.cameras, ms):
-                m = np.asarray(m, dtype=bool)
+                if not (isinstance(m, BoxedMask) and m.dtype == bool):
+                    m = np.asarray(m, dtype=bool)      # (a decoded mask keeps its box)
                 if m.shape != (cam.size[1], cam.size[0]):
                     raise InputError(f"capture: frame {frame!r} camera {cam.name!r}: mask shape "
                                      f"{m.shape} differs from the calibration size "

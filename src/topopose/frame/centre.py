@@ -79,29 +79,17 @@ def scan_widths(mask, uv, normal, half) -> tuple:
     ``(lo, hi)`` (px along ``normal``; NaN when the point is outside the silhouette or a
     crossing lies beyond ``half``). A crossing is halfway between the last inside and the
     first outside sample (steps of :data:`STEP` px)."""
-    m = np.asarray(mask, bool)
-    H, W = m.shape
+    from topopose.frame.centre_kernels import scan_runs
+
     n = len(uv)
     lo = np.full(n, np.nan)
     hi = np.full(n, np.nan)
     if not n:
         return lo, hi
     K = int(np.ceil(np.nanmax(np.where(np.isfinite(half), half, 0)) / STEP)) + 1
-    s = np.arange(K + 1) * STEP                                    # 0 … beyond every half
-    out = []
-    for sign in (1.0, -1.0):
-        xy = uv[:, None, :] + sign * s[None, :, None] * normal[:, None, :]
-        x = np.rint(xy[..., 0])
-        y = np.rint(xy[..., 1])
-        ok = np.isfinite(x) & np.isfinite(y) & (x >= 0) & (y >= 0) & (x < W) & (y < H)
-        xi = np.where(ok, x, 0).astype(int)
-        yi = np.where(ok, y, 0).astype(int)
-        inside = ok & m[yi, xi]
-        first_out = np.argmax(~inside, axis=1)                     # 0 when outside at uv
-        found = ~inside.all(axis=1) & inside[:, 0]
-        d = (first_out - 0.5) * STEP
-        out.append(np.where(found & (d <= half), d, np.nan))
-    return -out[1], out[0]
+    scan_runs(np.asarray(mask, bool).view(np.uint8), np.asarray(uv, float),
+              np.asarray(normal, float), np.asarray(half, float), STEP, K, lo, hi)
+    return lo, hi
 
 
 def centre_offsets(curves, cameras, silhouettes, radius, max_radius, voxel, stems=None,

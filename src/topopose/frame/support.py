@@ -68,6 +68,19 @@ def exact_edt(mask) -> np.ndarray:
     return np.sqrt(np.rint(d.astype(np.float64) ** 2))
 
 
+def largest_depth(mask) -> float:
+    """``exact_edt(mask).max()`` from OpenCV's transform alone: the square root of a rounded
+    square does not decrease, so it maps the largest value of the transform to the largest of
+    :func:`exact_edt`."""
+    import cv2
+
+    m = np.asarray(mask, bool)
+    if m.all():
+        return float(exact_edt(m).max())
+    d = float(cv2.distanceTransform(m.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE).max())
+    return float(np.sqrt(np.rint(np.float64(d) ** 2)))
+
+
 def curve_radii(points, occ, origin, voxel_size, edt=None) -> np.ndarray:
     """The hull's inscribed radius (world units) at ``points`` (N, 3): its distance transform
     at the nearest voxel. ``edt``: :func:`topopose.frame.tips.inscribed_distances` of ``occ``
@@ -147,15 +160,16 @@ def support_features(curves, parts, cams, masks, occ, origin, voxel_size, edt=No
             ok = np.all(np.isfinite(uv), axis=1) & (z > 1e-6)
             uv = np.round(np.where(ok[:, None], uv, 0)).astype(int).tolist()
             rp = np.maximum(1, np.round(f * R / np.where(ok, z, 1.0))).astype(int).tolist()
+            okl, firstl = ok.tolist(), first.tolist()
             for i in range(len(uv)):
-                if not ok[i]:
+                if not okl[i]:
                     continue
                 cv2.circle(M, uv[i], rp[i], 1, -1)
-                if not first[i] and ok[i - 1]:
+                if not firstl[i] and okl[i - 1]:
                     cv2.line(M, uv[i], uv[i - 1], 1, rp[i] + rp[i - 1])
         ns = max(int(Sw.sum()), 1)
-        dS = exact_edt(Sw)
-        dm = max(float(dS.max()), 1.0)
+        dS = exact_edt(Sw) if extras else None        # the tips' depths need the whole map
+        dm = max(float(dS.max()) if extras else largest_depth(Sw), 1.0)
         d = 2 * max(1, int(round(dilation * dm))) + 1
         Md = cv2.dilate(M, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (d, d))) > 0
         unexpl.append(float((Sw & ~Md).sum()) / ns)

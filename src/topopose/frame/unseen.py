@@ -58,10 +58,11 @@ def hull_remainder(vol, curves: dict, edt=None, stride: int = STRIDE, grow: floa
         if len(c) < 2:
             pts.append(c)
             continue
-        seg = np.linalg.norm(np.diff(c, axis=0), axis=1)
-        for a, b, s in zip(c[:-1], c[1:], seg):
-            k = max(int(np.ceil(s / vs)), 1)
-            pts.append(a + np.linspace(0.0, 1.0, k, endpoint=False)[:, None] * (b - a))
+        d = np.diff(c, axis=0)
+        k = np.maximum(np.ceil(np.linalg.norm(d, axis=1) / vs).astype(int), 1)
+        seg = np.repeat(np.arange(len(k)), k)          # k points a segment, at i / k of it
+        i = np.arange(len(seg)) - np.repeat(np.cumsum(k) - k, k)
+        pts.append(c[:-1][seg] + (i * (1.0 / k)[seg])[:, None] * d[seg])
         pts.append(c[-1:])
     S = np.vstack(pts)
     ijk = np.clip(np.rint((S - origin) / vs).astype(int) - np.asarray(lo) + 1, 0,
@@ -198,9 +199,12 @@ def hull_shoulders(vol, junction, axis, front, radius):
     f /= np.linalg.norm(f)
     lat = np.cross(ax, f)
     M = np.stack([ax, f, lat])
-    data = np.asarray(vol.data, bool)
-    X = np.asarray(vol.origin, float) + np.stack(np.unravel_index(
-        np.flatnonzero(data), data.shape), axis=1) * float(vol.voxel_size)
+    from topopose.frame.tips import hull_box, skeleton_voxels
+
+    data = np.asarray(vol.data, bool)       # its voxels in index order, read within its box
+    box = hull_box(vol)
+    idx = np.zeros((0, 3), np.intp) if box is None else skeleton_voxels(data, box)
+    X = np.asarray(vol.origin, float) + idx * float(vol.voxel_size)
     Y = (X - np.asarray(junction, float)) @ M.T
     r = float(radius)
     out = []

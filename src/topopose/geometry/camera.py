@@ -98,9 +98,13 @@ class Camera:
             k = np.zeros(5)
             k[: min(5, d.size)] = d[:5]
             r2 = a * a + b * b
-            radial = 1 + k[0] * r2 + k[1] * r2 * r2 + k[4] * r2**3
-            ad = a * radial + 2 * k[2] * a * b + k[3] * (r2 + 2 * a * a)
-            bd = b * radial + k[2] * (r2 + 2 * b * b) + 2 * k[3] * a * b
+            if k.any():
+                radial = 1 + k[0] * r2 + k[1] * r2 * r2 + k[4] * r2**3
+                ad = a * radial + 2 * k[2] * a * b + k[3] * (r2 + 2 * a * a)
+                bd = b * radial + k[2] * (r2 + 2 * b * b) + 2 * k[3] * a * b
+            else:       # zero coefficients: those terms add +0, or NaN where r2³ overflows
+                zero = 0.0 * r2**3
+                ad, bd = a + zero, b + zero
         K = self.matrix
         u = K[0, 0] * ad + K[0, 1] * bd + K[0, 2]
         v = K[1, 1] * bd + K[1, 2]

@@ -276,8 +276,10 @@ class HullCarver:
                 w = h = 1                 # one empty pixel
             self.crop[q] = x, y, w, h
             m = m[y:y + h, x:x + w]
-            np.copyto(self._masks[q, :h, :w], m)
-            dst = self._sats[q, : h + 1, : w + 1]
+            # packed at the buffers' start, rows of the crop's width: the kernel's reads stay
+            # within the subject's few hundred kilobytes
+            np.copyto(self._mflat[self.moff[q]:self.moff[q] + h * w].reshape(h, w), m)
+            dst = self._sflat[self.soff[q]:self.soff[q] + (h + 1) * (w + 1)].reshape(h + 1, w + 1)
             r = cv2.integral(np.ascontiguousarray(m), dst, cv2.CV_32S)
             if not np.shares_memory(r, dst):
                 dst[...] = r

@@ -6,9 +6,10 @@ Packed inputs (built by :class:`~topopose.geometry.carver.HullCarver`):
   camera-coordinate steps of +1 voxel along i, j, k (3 × 3).
 - ``intr`` (C, 16): fx, fy, cx, cy, skew, d0..d4 (distortion coefficients), model (0 pinhole,
   1 OpenCV radial-tangential, 2 fisheye), r2max (largest valid squared normalized radius),
-  w, h, S (the row stride of the mask buffers), unused.
-- masks: one flat uint8 array, camera c's mask at ``moff[c]`` with rows of stride S; summed-area
-  tables: one flat int32 array, camera c's table at ``soff[c]`` with rows of stride S + 1.
+  w, h, S (the image row stride of :func:`_pixel`'s flat index), unused.
+- masks: one flat uint8 array, camera c's mask crop at ``moff[c]`` with rows of its width
+  ``crop[c, 2]``; summed-area tables: one flat int32 array, camera c's table at ``soff[c]`` with
+  rows of ``crop[c, 2] + 1``.
 - rects: int32 (n, 4) inclusive pixel rectangles (x0, y0, x1, y1), one per (block, camera), for
   block levels ``lmin..lmax``; level ``l`` block (a, b, c) of camera ``q`` is row
   ``loff[l - lmin] + ((a * dims[.., 1] + b) * dims[.., 2] + c) * C + q``. ``x0 == INVALID``: the
@@ -90,25 +91,33 @@ def _distort(a, b, r2, intr, c):
 def _pixel(geo, intr, c, fi, fj, fk):
     """Pixel index (row · S + column) of voxel (fi, fj, fk)'s centre in camera c, or -1 when not
     in the image."""
+    u, v = _pixel_uv(geo, intr, c, fi, fj, fk)
+    return -1 if u < 0 else v * int(intr[c, 14]) + u
+
+
+@njit(cache=True, inline="always")
+def _pixel_uv(geo, intr, c, fi, fj, fk):
+    """Column and row of voxel (fi, fj, fk)'s centre in camera c (:func:`_pixel`'s), or
+    (-1, -1) when not in the image."""
     x = geo[c, 0] + fi * geo[c, 3] + fj * geo[c, 6] + fk * geo[c, 9]
     y = geo[c, 1] + fi * geo[c, 4] + fj * geo[c, 7] + fk * geo[c, 10]
     z = geo[c, 2] + fi * geo[c, 5] + fj * geo[c, 8] + fk * geo[c, 11]
     if not z > 0.0:
-        return -1
+        return -1, -1
     iz = 1.0 / z
     a = x * iz
     b = y * iz
     r2 = a * a + b * b
     if r2 > intr[c, 11]:
-        return -1
+        return -1, -1
     a, b = _distort(a, b, r2, intr, c)
     u = intr[c, 0] * a + intr[c, 4] * b + intr[c, 2] + 0.5
     v = intr[c, 1] * b + intr[c, 3] + 0.5
     w = intr[c, 12]
     h = intr[c, 13]
     if not (u >= 0.0 and u < w and v >= 0.0 and v < h):
-        return -1
-    return int(v) * int(intr[c, 14]) + int(u)
+        return -1, -1
+    return int(u), int(v)
 
 
 @njit(cache=True)
@@ -146,10 +155,13 @@ def _rect_state(rects, row, sflat, soff, w, h, W, fx=1, fy=1, ox=0, oy=0, cw=1 <
     cy1 = min(y1, h - 1)
     if cx0 > cx1 or cy0 > cy1:
         return 0
-    sx0 = cx0 // fx
-    sx1 = cx1 // fx
-    sy0 = cy0 // fy
-    sy1 = cy1 // fy
+    sx0, sx1, sy0, sy1 = cx0, cx1, cy0, cy1
+    if fx != 1:
+        sx0 = cx0 // fx
+        sx1 = cx1 // fx
+    if fy != 1:
+        sy0 = cy0 // fy
+        sy1 = cy1 // fy
     ix0 = max(sx0, ox) - ox
     ix1 = min(sx1, ox + cw - 1) - ox
     iy0 = max(sy0, oy) - oy
@@ -186,9 +198,9 @@ def carve(cams, sil, blocks, tolerance, levels, out, stats):
     hull is the one the upsampled mask gives, without building it (:func:`_rect_state`).
 
     ``sil.crop`` (int64, (C, 4)): per camera, the part of its mask (ox, oy, cw, ch, in the mask's
-    own pixels) that the buffers hold (at their top left), outside which the mask is empty:
-    the silhouette's bounding box, so that a frame's buffers and tables cost its subject's
-    pixels, not the image's.
+    own pixels) that the buffers hold (packed, rows of the crop's width), outside which the mask
+    is empty: the silhouette's bounding box, so that a frame's buffers and tables cost its
+    subject's pixels, not the image's.
 
     ``stats`` (int64, 12): block tests, voxel tests, projections, full blocks, empty blocks,
     set voxels, and the bounding box of set voxels is written to ``stats[6:12]`` (imin, jmin, kmin, imax,
@@ -214,7 +226,6 @@ def carve(cams, sil, blocks, tolerance, levels, out, stats):
     for c in range(C):
         ws[c] = int(intr[c, 12])
         hs[c] = int(intr[c, 13])
-    stride1 = int(intr[0, 14]) + 1
     allcams = (1 << C) - 1
     top = 0
     for a in range(tdims[0]):
@@ -254,7 +265,7 @@ def carve(cams, sil, blocks, tolerance, levels, out, stats):
         nblock += 1
         for c in range(C):
             if (act >> c) & 1:
-                s = _rect_state(rects, base + c, sflat, soff[c], ws[c], hs[c], stride1,
+                s = _rect_state(rects, base + c, sflat, soff[c], ws[c], hs[c], crop[c, 2] + 1,
                                 fac[c, 0], fac[c, 1], crop[c, 0], crop[c, 1], crop[c, 2],
                                 crop[c, 3])
                 if s == 0:
@@ -317,15 +328,17 @@ def carve(cams, sil, blocks, tolerance, levels, out, stats):
                     for c in range(C):
                         if (act >> c) & 1:
                             nproj += 1
-                            p = _pixel(geo, intr, c, float(i), float(j), float(k))
-                            if p >= 0:
-                                pv = p // (stride1 - 1)
-                                pu = (p - pv * (stride1 - 1)) // fac[c, 0] - crop[c, 0]
-                                pv = pv // fac[c, 1] - crop[c, 1]
-                                if pu < 0 or pv < 0 or pu >= crop[c, 2] or pv >= crop[c, 3]:
-                                    p = -1              # outside the crop: not subject
-                                else:
-                                    p = pv * (stride1 - 1) + pu
+                            pu, pv = _pixel_uv(geo, intr, c, float(i), float(j), float(k))
+                            p = -1                      # not in the image, or outside the crop
+                            if pu >= 0:
+                                if fac[c, 0] != 1:
+                                    pu //= fac[c, 0]
+                                if fac[c, 1] != 1:
+                                    pv //= fac[c, 1]
+                                pu -= crop[c, 0]
+                                pv -= crop[c, 1]
+                                if pu >= 0 and pv >= 0 and pu < crop[c, 2] and pv < crop[c, 3]:
+                                    p = pv * crop[c, 2] + pu
                             if p < 0 or mflat[moff[c] + p] == 0:
                                 m += 1
                                 if m > tolerance:

@@ -305,9 +305,10 @@ class HullCarver:
             raise InputError(f"visual hull: argument tolerance must be in 0..{C - 1}, got {tolerance}")
         out = np.zeros(self.shape, dtype=np.uint8)
         self.stats[:] = 0
-        K.carve(self.shape[0], self.shape[1], self.shape[2], self.geo, self.intr, self._mflat,
-                self.moff, self._sflat, self.soff, self.rects, self.loff, self.ldims, self.lmin,
-                self.lmax, tolerance, bool(levels), out, self.stats, self.fac, self.crop)
+        K.carve(tuple(K.Cameras(self.geo, self.intr)),
+                tuple(K.Silhouettes(self._mflat, self.moff, self._sflat, self.soff, self.fac, self.crop)),
+                tuple(K.Blocks(self.rects, self.loff, self.ldims, self.lmin, self.lmax)),
+                tolerance, bool(levels), out, self.stats)
         return out if levels else out.view(bool)
 
     def project_voxels(self, ijk) -> np.ndarray:

@@ -15,15 +15,50 @@ Packed inputs (built by :class:`~topopose.geometry.carver.HullCarver`):
   ``loff[l - lmin] + ((a * dims[.., 1] + b) * dims[.., 2] + c) * C + q``. ``x0 == INVALID``: the
   block's projection is unknown for that camera (a corner behind it or outside its valid lens
   field), so the camera cannot decide the block.
+
+:func:`carve` takes them as three bundles, :class:`Cameras`, :class:`Silhouettes` and
+:class:`Blocks`, passed as plain tuples in the named tuple's field order (Numba's dispatcher
+types a plain tuple on its fast path).
 """
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 INVALID = -(2**31)
+
+
+class Cameras(NamedTuple):
+    """The cameras, packed: ``geo`` (C, 12) and ``intr`` (C, 16)."""
+
+    geo: np.ndarray
+    intr: np.ndarray
+
+
+class Silhouettes(NamedTuple):
+    """One frame's masks and summed-area tables: the flat buffers with each camera's offset,
+    and per camera its mask's reduction factors ``fac`` (C, 2) and crop ``crop`` (C, 4)."""
+
+    mflat: np.ndarray
+    moff: np.ndarray
+    sflat: np.ndarray
+    soff: np.ndarray
+    fac: np.ndarray
+    crop: np.ndarray
+
+
+class Blocks(NamedTuple):
+    """The block rectangles of levels ``lmin..lmax``: ``rects``, each level's first row
+    ``loff`` and its block grid ``ldims`` (levels, 3)."""
+
+    rects: np.ndarray
+    loff: np.ndarray
+    ldims: np.ndarray
+    lmin: int
+    lmax: int
 
 
 @njit(cache=True, inline="always")
@@ -144,12 +179,11 @@ def _rect_state(rects, row, sflat, soff, w, h, W, fx=1, fy=1, ox=0, oy=0, cw=1 <
 
 
 @njit(cache=True)
-def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, lmin, lmax,
-          tolerance, levels, out, stats, fac, crop):
+def carve(cams, sil, blocks, tolerance, levels, out, stats):
     """Hierarchical carving of the volumetric visual hull (thesis §2.3.2.2).
 
-    A voxel is set in ``out`` (uint8, zeroed by the caller) when its centre projects inside the
-    silhouette in at least C − ``tolerance`` cameras: to 1, or with ``levels`` to 2 when all C
+    A voxel is set in ``out`` (uint8, (nx, ny, nz), zeroed by the caller) when its centre
+    projects inside the silhouette in at least C − ``tolerance`` cameras: to 1, or with ``levels`` to 2 when all C
     cameras see it as subject (the strict hull, tolerance 0) and 1 otherwise — the strict and
     the tolerant hull in one pass (an all-inside block's miss count is exact; an undecided
     voxel counts its misses exactly up to the early exit at ``tolerance + 1``). Blocks of 2^l voxels are classified per
@@ -158,12 +192,12 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
     undecided; undecided blocks are split in 8 down to level ``lmin``, whose voxels are tested
     one by one by exact projection (distortion included) with early exit.
 
-    ``fac`` (int64, (C, 2)): per camera, the integer factors (fx, fy) by which its mask and
+    ``sil.fac`` (int64, (C, 2)): per camera, the integer factors (fx, fy) by which its mask and
     table are smaller than its image ((1, 1): full size); the silhouette is the mask's
     nearest-neighbour upsampling, pixel (u, v) reading mask pixel (u // fx, v // fy), so the
     hull is the one the upsampled mask gives, without building it (:func:`_rect_state`).
 
-    ``crop`` (int64, (C, 4)): per camera, the part of its mask (ox, oy, cw, ch, in the mask's
+    ``sil.crop`` (int64, (C, 4)): per camera, the part of its mask (ox, oy, cw, ch, in the mask's
     own pixels) that the buffers hold (packed, rows of the crop's width), outside which the mask
     is empty: the silhouette's bounding box, so that a frame's buffers and tables cost its
     subject's pixels, not the image's.
@@ -172,6 +206,10 @@ def carve(nx, ny, nz, geo, intr, mflat, moff, sflat, soff, rects, loff, ldims, l
     set voxels, and the bounding box of set voxels is written to ``stats[6:12]`` (imin, jmin, kmin, imax,
     jmax, kmax; imin > imax when nothing is set).
     """
+    nx, ny, nz = out.shape
+    geo, intr = cams
+    mflat, moff, sflat, soff, fac, crop = sil
+    rects, loff, ldims, lmin, lmax = blocks
     C = geo.shape[0]
     nlev = lmax - lmin + 1
     tdims = ldims[nlev - 1]

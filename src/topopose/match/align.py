@@ -173,9 +173,11 @@ class _Prepared:
         self.delsub, self.delfor = K.deletion_costs(self.ch_ptr, self.ch_idx, self.soff, self.it_ptr,
                                                     self.base, delarc, zero)
 
-    def kernel_args(self):
-        return (self.node_v, self.ch_ptr, self.ch_idx, self.soff, self.it_ptr, self.it_node, self.it_up,
-                self.item_of, self.base, self.delarc, self.delsub, self.delfor, self.roots)
+    def arrays(self) -> tuple:
+        """The tree as the kernels take it: the fields of a :class:`~.align_kernels.TreeArrays`."""
+        return tuple(K.TreeArrays(self.node_v, self.ch_ptr, self.ch_idx, self.soff, self.it_ptr, self.it_node,
+                                  self.it_up, self.it_w, self.item_of, self.base, self.delarc, self.delsub,
+                                  self.delfor, self.roots))
 
     def lists(self):
         """Python-list copies of the arrays the traceback details walk (fast scalar access)."""
@@ -388,35 +390,30 @@ class _Context:
             D.set_costs(m.gamma(np.zeros_like(D.it_w), D.it_w), m.cut)
             R = m._resize_costs(D, self.tree)
         else:
-            pos = m._positions(self.tree, ids) if m._c_ptr.shape[0] > 1 else _NO_POS
-            st, D.delarc, D.delsub, D.delfor, R = K.data_side(
-                m.mode, m.cut, m._gcode, n, eu, ev, ew, r, P.it_w, m._c_ptr, m._c_items, m._c_signs,
-                m._c_up, pos)
+            pos = m._positions(self.tree, ids) if m._cons.ptr.shape[0] > 1 else _NO_POS
+            st, D.delarc, D.delsub, D.delfor, R = K.data_side(m.mode, m.cut, m._gcode, n, eu, ev, ew, r,
+                                                              P.it_w, tuple(m._cons), pos)
             (D.node_v, D.node_par, D.ch_ptr, D.ch_idx, D.soff, D.it_ptr, D.it_node, D.it_up, D.it_w,
              D.item_of, D.base, D.roots, D.nxt) = st
         if self.arc_cost is not None:
             R = R + arc_cost_matrix(self.arc_cost, P, D)
-        self.F, self.T, self.FD, self.TD = K.forward(
-            m.mode, P.ch_ptr, P.ch_idx, P.soff, P.it_ptr, P.it_up, P.item_of, P.base,
-            P.delarc, P.delsub, P.delfor,
-            D.ch_ptr, D.ch_idx, D.soff, D.it_ptr, D.it_up, D.item_of, D.base, D.delarc, D.delsub, D.delfor, R,
-            m._tie(ew))
-        self.top, self.pr, self.dr = K.top_value(P.ch_ptr, P.soff, P.roots, D.ch_ptr, D.soff, D.roots, self.F,
-                                                 m._tie(ew))
+        PA, DA = m._pattern_arrays, D.arrays()
+        self.F, self.T, self.FD, self.TD = K.forward(m.mode, PA, DA, R, m._tie(ew))
+        self.top, self.pr, self.dr = K.top_value(PA, DA, self.F, m._tie(ew))
         self.R = R
         self.D = D
+        self.kargs = (PA, DA, tuple(K.Tables(R, self.F, self.T)))
         return self
 
     def traceback(self):
         self.full()
-        m, P, D = self.matcher, self.matcher._P, self.D
-        return K.traceback(m.mode, m.cut, P.node_v.shape[0], D.n, self.FD, self.TD, self.pr, self.dr,
-                           P.node_v, P.ch_ptr, P.ch_idx, P.soff, P.it_node, P.it_up, P.item_of, P.base,
-                           D.node_v, D.ch_ptr, D.ch_idx, D.soff, D.it_node, D.it_up, D.item_of, D.base)
+        PA, DA, _ = self.kargs
+        return K.traceback(self.matcher.mode, self.matcher._P.node_v.shape[0], self.D.n, self.FD, self.TD,
+                           self.pr, self.dr, PA, DA)
 
     def args(self):
-        self.full()
-        return (*self.matcher._P.kernel_args(), *self.D.kernel_args(), self.R, self.F, self.T)
+        """(pattern, data, tables) as the kernels take them."""
+        return self.full().kargs
 
     # -------------------------------------------------------------- results
     def make(self, top, events) -> Alignment:
@@ -546,19 +543,16 @@ class _Context:
     # -------------------------------------------------------------- states
     def expand(self, state, limit):
         """Options of a state within ``limit``: list of (cost, substates, events)."""
-        m = self.matcher
-        args = self.args()
-        P, D = m._P, self.D
-        bufs = K.option_buffers(K.max_options(P.ch_ptr, P.roots, D.ch_ptr, D.roots))
-        k = K.expand(state[0], state[1], state[2], state[3], state[4], limit, m.mode, *args, *bufs)
+        PA, DA, tables = self.args()
+        bufs = K.option_buffers(K.max_options(PA, DA))
+        k = K.expand(tuple(state), limit, self.matcher.mode, PA, DA, tables, bufs)
         cost, nsub, sub_, nev, ev = bufs
         return [(float(cost[o]), [tuple(int(x) for x in sub_[o, s]) for s in range(nsub[o])],
                  [tuple(int(x) for x in ev[o, e]) for e in range(nev[o])]) for o in range(k)]
 
     def value(self, state):
-        self.full()
-        return float(K.state_value(state[0], state[1], state[2], state[3], state[4],
-                                   self.matcher._P.soff, self.D.soff, self.F, self.T, self.top))
+        PA, DA, tables = self.args()
+        return float(K.state_value(tuple(state), PA, DA, tables, self.top))
 
 
 # ---------------------------------------------------------------------- matcher
@@ -657,10 +651,11 @@ class Matcher:
         self._wmax = float(pw.max()) if pw.size else 0.0
         self._constraints = self._prepare_constraints(cons)
         cc = [c for c in self._constraints if len(c[0])]
-        self._c_ptr = np.cumsum([0] + [len(c[0]) for c in cc]).astype(np.int64)
-        self._c_items = np.concatenate([c[0] for c in cc]).astype(np.int64) if cc else np.zeros(0, np.int64)
-        self._c_signs = np.concatenate([c[1] for c in cc]).astype(float) if cc else np.zeros(0)
-        self._c_up = np.array([c[2] for c in cc], float).reshape(-1, 3)
+        self._cons = K.Constraints(
+            np.cumsum([0] + [len(c[0]) for c in cc]).astype(np.int64),
+            np.concatenate([c[0] for c in cc]).astype(np.int64) if cc else np.zeros(0, np.int64),
+            np.concatenate([c[1] for c in cc]).astype(float) if cc else np.zeros(0),
+            np.array([c[2] for c in cc], float).reshape(-1, 3))
         self.betweenness = [c for c in cons if getattr(c, "kind", None) == "between"]
         self.contractible = None    # keep_junctions: the thesis' AHA (a fallback)
         if keep_junctions:
@@ -670,6 +665,7 @@ class Matcher:
                 delarc = P.delarc.copy()
                 delarc[kept] = np.inf
                 P.set_costs(delarc, False)
+        self._pattern_arrays = P.arrays()
 
     def constrained_junction_arcs(self) -> list:
         """Pattern items (arcs) whose both ends are junctions (degree > 1) and which carry a
@@ -722,7 +718,7 @@ class Matcher:
     def _resize_costs(self, D, tree):
         P = self._P
         R = self.gamma(P.it_w[:, None], D.it_w[None, :])
-        if self._c_ptr.shape[0] > 1 and len(D.it_w):
+        if self._cons.ptr.shape[0] > 1 and len(D.it_w):
             pos = self._positions(tree, D.ids)
             low = D.node_v[D.it_node]
             for items, signs, upv, _ in self._constraints:
@@ -767,13 +763,10 @@ class Matcher:
             events = ctx.traceback()
             top = ctx.top
         else:
-            P = self._P
-            pos = self._positions(tree, ids) if self._c_ptr.shape[0] > 1 else _NO_POS
-            top, events = K.align_data(
-                self.mode, self.cut, self._gcode, self._tie(ew), n, eu, ev, ew, -1 if root is None else index[root],
-                P.node_v, P.ch_ptr, P.ch_idx, P.soff, P.it_ptr, P.it_node, P.it_up, P.item_of, P.base,
-                P.delarc, P.delsub, P.delfor, P.roots, P.it_w,
-                self._c_ptr, self._c_items, self._c_signs, self._c_up, pos)
+            pos = self._positions(tree, ids) if self._cons.ptr.shape[0] > 1 else _NO_POS
+            top, events = K.align_data(self.mode, self.cut, self._gcode, self._tie(ew), n, eu, ev, ew,
+                                       -1 if root is None else index[root], self._pattern_arrays,
+                                       tuple(self._cons), pos)
         if events.shape[0] and events[0, 0] < 0:  # pragma: no cover - the bound in traceback
             raise RuntimeError("align: traceback overflow")
         al = ctx.make(top, events)

@@ -24,8 +24,17 @@ Tables (all float64):
   ``di`` (Prop. 20 / 27).
 
 ``mode``: 0 = α (§8.8), 1 = η (Prop. 18–24), 2 = η⃗ / AHA (Prop. 25–28).
+
+The kernels take each tree as one bundle of arrays, :class:`TreeArrays` (``p`` the pattern,
+``d`` the data), the tables as one :class:`Tables` and the constraints as one
+:class:`Constraints`. The bundles cross a kernel's boundary as plain tuples in the named
+tuple's field order (Numba types a plain tuple on its dispatcher's fast path, a named tuple
+on a slow one that costs microseconds per call), and each kernel names the fields at its top
+(``P = TreeArrays(*p)``, free at run time).
 """
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -40,11 +49,54 @@ EV_MATCH, EV_PDEL, EV_DDEL, EV_PDELF, EV_DDELF, EV_PARC, EV_DARC, EV_MAP = range
 ST_F, ST_T, ST_TOP = 0, 1, 2
 
 
+class TreeArrays(NamedTuple):
+    """A tree in kernel form (:func:`build_struct`) with its deletion costs (:func:`deletion_costs`)."""
+
+    node_v: np.ndarray      # vertex of each node
+    ch_ptr: np.ndarray      # children of node k: ch_idx[ch_ptr[k]:ch_ptr[k + 1]]
+    ch_idx: np.ndarray
+    soff: np.ndarray        # row (column) of node k's forests in F: soff[k] + subset
+    it_ptr: np.ndarray      # items of node k: it_ptr[k]:it_ptr[k + 1]
+    it_node: np.ndarray     # node of each item
+    it_up: np.ndarray       # upper vertex of each item
+    it_w: np.ndarray        # weight (length) of each item
+    item_of: np.ndarray     # item_of[k, a]: the item of node k with upper vertex a, or -1
+    base: np.ndarray        # the item of node k with its parent as upper vertex
+    delarc: np.ndarray      # cost of deleting each item's arc
+    delsub: np.ndarray      # ... each item's pruned tree
+    delfor: np.ndarray      # ... each forest soff[k] + subset
+    roots: np.ndarray       # the root nodes
+
+
+class Tables(NamedTuple):
+    """The resize costs R and the tables F, T of :func:`forward`."""
+
+    R: np.ndarray
+    F: np.ndarray
+    T: np.ndarray
+
+
+class Constraints(NamedTuple):
+    """Coordinate constraints (§12.2.1): constraint k covers the pattern items
+    ``items[ptr[k]:ptr[k + 1]]`` with ``signs`` (+1: the image of the chain's upper end must be
+    higher along ``up[k]``)."""
+
+    ptr: np.ndarray
+    items: np.ndarray
+    signs: np.ndarray
+    up: np.ndarray
+
+
 @njit(cache=True)
-def forward(mode,
-            p_ch_ptr, p_ch_idx, p_soff, p_it_ptr, p_it_up, p_item_of, p_base, p_delarc, p_delsub, p_delfor,
-            d_ch_ptr, d_ch_idx, d_soff, d_it_ptr, d_it_up, d_item_of, d_base, d_delarc, d_delsub, d_delfor,
-            R, tie):
+def tree_arrays(st, delarc, delsub, delfor):
+    """:class:`TreeArrays` (as a plain tuple) of a :func:`build_struct` result and the deletion costs."""
+    (node_v, _, ch_ptr, ch_idx, soff, it_ptr, it_node, it_up, it_w, item_of, base, roots, _) = st
+    return (node_v, ch_ptr, ch_idx, soff, it_ptr, it_node, it_up, it_w, item_of, base,
+            delarc, delsub, delfor, roots)
+
+
+@njit(cache=True)
+def forward(mode, p, d, R, tie):
     """Fill the forest table F and the pruned-tree table T bottom-up (Alg. 14, 16, 17, 18).
 
     Also returns the decision tables FD, TD (the cheapest option of every cell,
@@ -60,34 +112,35 @@ def forward(mode,
     first — resize before merge before deletion — and not to rounding noise
     (|w − (w + s)| may come out below s).
     """
-    pn = p_ch_ptr.shape[0] - 1
-    dn = d_ch_ptr.shape[0] - 1
-    F = np.empty((p_soff[pn], d_soff[dn]), np.float64)
-    T = np.empty((p_it_ptr[pn], d_it_ptr[dn]), np.float64)
-    FD = np.zeros((p_soff[pn], d_soff[dn]), np.int64)
-    TD = np.zeros((p_it_ptr[pn], d_it_ptr[dn]), np.int64)
+    P, D = TreeArrays(*p), TreeArrays(*d)
+    pn = P.ch_ptr.shape[0] - 1
+    dn = D.ch_ptr.shape[0] - 1
+    F = np.empty((P.soff[pn], D.soff[dn]), np.float64)
+    T = np.empty((P.it_ptr[pn], D.it_ptr[dn]), np.float64)
+    FD = np.zeros((P.soff[pn], D.soff[dn]), np.int64)
+    TD = np.zeros((P.it_ptr[pn], D.it_ptr[dn]), np.int64)
     for p in range(pn):
-        pc0 = p_ch_ptr[p]
-        npc = p_ch_ptr[p + 1] - pc0
-        fp = p_soff[p]
+        pc0 = P.ch_ptr[p]
+        npc = P.ch_ptr[p + 1] - pc0
+        fp = P.soff[p]
         fullA = (np.int64(1) << npc) - 1
         for d in range(dn):
-            dc0 = d_ch_ptr[d]
-            ndc = d_ch_ptr[d + 1] - dc0
-            fd = d_soff[d]
+            dc0 = D.ch_ptr[d]
+            ndc = D.ch_ptr[d + 1] - dc0
+            fd = D.soff[d]
             nB = np.int64(1) << ndc
             fullB = nB - 1
             for B in range(nB):
-                F[fp, fd + B] = d_delfor[fd + B]
+                F[fp, fd + B] = D.delfor[fd + B]
             for A in range(1, fullA + 1):
                 low = A & -A
-                a = p_ch_idx[pc0 + _tz(low)]
+                a = P.ch_idx[pc0 + _tz(low)]
                 arest = A ^ low
-                ai = p_base[a]
-                fa = p_soff[a]
-                full_a = (np.int64(1) << (p_ch_ptr[a + 1] - p_ch_ptr[a])) - 1
-                dela = p_delsub[ai]
-                darc = p_delarc[ai]
+                ai = P.base[a]
+                fa = P.soff[a]
+                full_a = (np.int64(1) << (P.ch_ptr[a + 1] - P.ch_ptr[a])) - 1
+                dela = P.delsub[ai]
+                darc = P.delarc[ai]
                 rowr = fp + arest
                 for B in range(nB):
                     best = np.inf
@@ -96,8 +149,8 @@ def forward(mode,
                     while bb:
                         lb = bb & -bb
                         s = _tz(lb)
-                        b = d_ch_idx[dc0 + s]
-                        bi = d_base[b]
+                        b = D.ch_idx[dc0 + s]
+                        bi = D.base[b]
                         v = F[rowr, fd + (B ^ lb)] + T[ai, bi]          # a aligned with b (line 3)
                         if v < best - tie:
                             best = v
@@ -107,14 +160,14 @@ def forward(mode,
                     while bb:
                         lb = bb & -bb
                         s = _tz(lb)
-                        b = d_ch_idx[dc0 + s]
-                        bi = d_base[b]
+                        b = D.ch_idx[dc0 + s]
+                        bi = D.base[b]
                         bb ^= lb
-                        if d_ch_ptr[b + 1] == d_ch_ptr[b]:
+                        if D.ch_ptr[b + 1] == D.ch_ptr[b]:
                             continue    # b is a leaf: line 5 equals deleting b and A' (lines 1-2)
                         # b's arc deleted, A' ∋ a aligned with F(D, b) (line 5)
-                        fb = d_soff[b] + (np.int64(1) << (d_ch_ptr[b + 1] - d_ch_ptr[b])) - 1
-                        dbarc = d_delarc[bi]
+                        fb = D.soff[b] + (np.int64(1) << (D.ch_ptr[b + 1] - D.ch_ptr[b])) - 1
+                        dbarc = D.delarc[bi]
                         sub = arest
                         while True:
                             v = F[fp + (arest ^ sub), fd + (B ^ lb)] + F[fp + (sub | low), fb] + dbarc
@@ -140,33 +193,33 @@ def forward(mode,
                     FD[fp + A, fd + B] = code
             # pruned trees (Prop. 20 / 27)
             ffull = F[fp + fullA, fd + fullB]
-            for pi in range(p_it_ptr[p], p_it_ptr[p + 1]):
-                pup = p_it_up[pi]
-                for di in range(d_it_ptr[d], d_it_ptr[d + 1]):
+            for pi in range(P.it_ptr[p], P.it_ptr[p + 1]):
+                pup = P.it_up[pi]
+                for di in range(D.it_ptr[d], D.it_ptr[d + 1]):
                     best = R[pi, di] + ffull                            # line 2
                     code = 1
-                    dup = d_it_up[di]
+                    dup = D.it_up[di]
                     for s in range(ndc):                                # line 3
-                        c = d_ch_idx[dc0 + s]
-                        rest = d_delfor[fd + (fullB ^ (np.int64(1) << s))]
+                        c = D.ch_idx[dc0 + s]
+                        rest = D.delfor[fd + (fullB ^ (np.int64(1) << s))]
                         if mode == 0:
-                            v = d_delarc[di] + T[pi, d_base[c]] + rest
+                            v = D.delarc[di] + T[pi, D.base[c]] + rest
                         else:
-                            v = T[pi, d_item_of[c, dup]] + rest
+                            v = T[pi, D.item_of[c, dup]] + rest
                         if v < best - tie:
                             best = v
                             code = 2 | (s << 4)
                     for s in range(npc):                                # line 4
-                        c = p_ch_idx[pc0 + s]
-                        rest = p_delfor[fp + (fullA ^ (np.int64(1) << s))]
+                        c = P.ch_idx[pc0 + s]
+                        rest = P.delfor[fp + (fullA ^ (np.int64(1) << s))]
                         if mode == 1:
-                            v = T[p_item_of[c, pup], di] + rest
+                            v = T[P.item_of[c, pup], di] + rest
                         else:
-                            v = p_delarc[pi] + T[p_base[c], di] + rest
+                            v = P.delarc[pi] + T[P.base[c], di] + rest
                         if v < best - tie:
                             best = v
                             code = 3 | (s << 4)
-                    v = p_delsub[pi] + d_delsub[di]                     # line 1
+                    v = P.delsub[pi] + D.delsub[di]                     # line 1
                     if v < best - tie:
                         best = v
                         code = 4
@@ -176,19 +229,21 @@ def forward(mode,
 
 
 @njit(cache=True)
-def _full(ch_ptr, soff, k):
-    return soff[k] + (np.int64(1) << (ch_ptr[k + 1] - ch_ptr[k])) - 1
+def _full(S, k):
+    """Row or column of F of node k's whole forest of children."""
+    return S.soff[k] + (np.int64(1) << (S.ch_ptr[k + 1] - S.ch_ptr[k])) - 1
 
 
 @njit(cache=True)
-def top_value(p_ch_ptr, p_soff, p_roots, d_ch_ptr, d_soff, d_roots, F, tie):
+def top_value(p, d, F, tie):
     """min over the root pairs (Prop. 18, 22, 23, 25); ties (within ``tie``) to the first pair."""
+    P, D = TreeArrays(*p), TreeArrays(*d)
     best = np.inf
-    bp = p_roots[0]
-    bd = d_roots[0]
-    for pr in p_roots:
-        for dr in d_roots:
-            v = F[_full(p_ch_ptr, p_soff, pr), _full(d_ch_ptr, d_soff, dr)]
+    bp = P.roots[0]
+    bd = D.roots[0]
+    for pr in P.roots:
+        for dr in D.roots:
+            v = F[_full(P, pr), _full(D, dr)]
             if v < best - tie:
                 best = v
                 bp = pr
@@ -197,29 +252,28 @@ def top_value(p_ch_ptr, p_soff, p_roots, d_ch_ptr, d_soff, d_roots, F, tie):
 
 
 @njit(cache=True)
-def expand(kind, s1, s2, s3, s4, limit, mode,
-           p_node_v, p_ch_ptr, p_ch_idx, p_soff, p_it_ptr, p_it_node, p_it_up, p_item_of, p_base,
-           p_delarc, p_delsub, p_delfor, p_roots,
-           d_node_v, d_ch_ptr, d_ch_idx, d_soff, d_it_ptr, d_it_node, d_it_up, d_item_of, d_base,
-           d_delarc, d_delsub, d_delfor, d_roots,
-           R, F, T, cost, nsub, sub_, nev, ev):
+def expand(state, limit, mode, p, d, tables, out):
     """Every option of one state whose cost is <= ``limit``.
 
-    A state is (kind, s1, s2, s3, s4): F state (p, A, d, B), T state (pi, di, 0, 0)
-    or the top state. Writes into the buffers (cost, nsub, sub[., 2, 5], nev,
-    ev[., 3, 3]) — sized by :func:`max_options` — each option's cost, its
-    sub-states and the events it emits (codes EV_*); returns the number of
-    options. The recurrences are those of :func:`forward`, term for term.
+    ``state`` is (kind, s1, s2, s3, s4): F state (p, A, d, B), T state (pi, di, 0, 0)
+    or the top state. Writes into the buffers ``out`` = (cost, nsub, sub[., 2, 5], nev,
+    ev[., 3, 3]) — sized by :func:`max_options` — each option's cost, its sub-states and the
+    events it emits (codes EV_*); returns the number of options. The recurrences are those of
+    :func:`forward`, term for term.
     """
+    P, D = TreeArrays(*p), TreeArrays(*d)
+    kind, s1, s2, s3, s4 = state
+    R, F, T = tables
+    cost, nsub, sub_, nev, ev = out
     nsub[:] = 0
     nev[:] = 0
     m = 0
     if kind == ST_TOP:
-        for pr in p_roots:
-            for dr in d_roots:
-                fa = _full(p_ch_ptr, p_soff, pr) - p_soff[pr]
-                fb = _full(d_ch_ptr, d_soff, dr) - d_soff[dr]
-                v = F[p_soff[pr] + fa, d_soff[dr] + fb]
+        for pr in P.roots:
+            for dr in D.roots:
+                fa = _full(P, pr) - P.soff[pr]
+                fb = _full(D, dr) - D.soff[dr]
+                v = F[P.soff[pr] + fa, D.soff[dr] + fb]
                 if v <= limit:
                     cost[m] = v
                     nsub[m] = 1
@@ -230,8 +284,8 @@ def expand(kind, s1, s2, s3, s4, limit, mode,
                     sub_[m, 0, 4] = fb
                     nev[m] = 1
                     ev[m, 0, 0] = EV_MAP
-                    ev[m, 0, 1] = p_node_v[pr]
-                    ev[m, 0, 2] = d_node_v[dr]
+                    ev[m, 0, 1] = P.node_v[pr]
+                    ev[m, 0, 2] = D.node_v[dr]
                     m += 1
         return m
     if kind == ST_F:
@@ -239,12 +293,12 @@ def expand(kind, s1, s2, s3, s4, limit, mode,
         A = s2
         d = s3
         B = s4
-        fp = p_soff[p]
-        fd = d_soff[d]
-        pc0 = p_ch_ptr[p]
-        dc0 = d_ch_ptr[d]
+        fp = P.soff[p]
+        fd = D.soff[d]
+        pc0 = P.ch_ptr[p]
+        dc0 = D.ch_ptr[d]
         if A == 0:
-            v = d_delfor[fd + B]
+            v = D.delfor[fd + B]
             if v <= limit:
                 cost[m] = v
                 if B != 0:
@@ -255,14 +309,14 @@ def expand(kind, s1, s2, s3, s4, limit, mode,
                 m += 1
             return m
         low = A & -A
-        a = p_ch_idx[pc0 + _tz(low)]
+        a = P.ch_idx[pc0 + _tz(low)]
         arest = A ^ low
-        ai = p_base[a]
-        fa = p_soff[a]
-        full_a = (np.int64(1) << (p_ch_ptr[a + 1] - p_ch_ptr[a])) - 1
+        ai = P.base[a]
+        fa = P.soff[a]
+        full_a = (np.int64(1) << (P.ch_ptr[a + 1] - P.ch_ptr[a])) - 1
         rowr = fp + arest
         # line 2: a deleted
-        v = F[rowr, fd + B] + p_delsub[ai]
+        v = F[rowr, fd + B] + P.delsub[ai]
         if v <= limit:
             cost[m] = v
             nsub[m] = 1
@@ -278,8 +332,8 @@ def expand(kind, s1, s2, s3, s4, limit, mode,
         bb = B
         while bb:
             lb = bb & -bb
-            b = d_ch_idx[dc0 + _tz(lb)]
-            bi = d_base[b]
+            b = D.ch_idx[dc0 + _tz(lb)]
+            bi = D.base[b]
             v = F[rowr, fd + (B ^ lb)] + T[ai, bi]
             if v <= limit:
                 cost[m] = v
@@ -293,10 +347,10 @@ def expand(kind, s1, s2, s3, s4, limit, mode,
                 sub_[m, 1, 1] = ai
                 sub_[m, 1, 2] = bi
                 m += 1
-            fbm = (np.int64(1) << (d_ch_ptr[b + 1] - d_ch_ptr[b])) - 1
+            fbm = (np.int64(1) << (D.ch_ptr[b + 1] - D.ch_ptr[b])) - 1
             sb = arest
             while fbm != 0:     # b a leaf: line 5 equals lines 1-2 (skipped, as in forward)
-                v = F[fp + (arest ^ sb), fd + (B ^ lb)] + F[fp + (sb | low), d_soff[b] + fbm] + d_delarc[bi]
+                v = F[fp + (arest ^ sb), fd + (B ^ lb)] + F[fp + (sb | low), D.soff[b] + fbm] + D.delarc[bi]
                 if v <= limit:
                     cost[m] = v
                     nsub[m] = 2
@@ -320,7 +374,7 @@ def expand(kind, s1, s2, s3, s4, limit, mode,
             bb ^= lb
         sb = B if full_a != 0 else 0
         while sb:
-            v = F[rowr, fd + (B ^ sb)] + F[fa + full_a, fd + sb] + p_delarc[ai]
+            v = F[rowr, fd + (B ^ sb)] + F[fa + full_a, fd + sb] + P.delarc[ai]
             if v <= limit:
                 cost[m] = v
                 nsub[m] = 2
@@ -338,22 +392,22 @@ def expand(kind, s1, s2, s3, s4, limit, mode,
                 ev[m, 0, 0] = EV_PARC
                 ev[m, 0, 1] = ai
                 ev[m, 1, 0] = EV_MAP
-                ev[m, 1, 1] = p_node_v[a]
-                ev[m, 1, 2] = d_node_v[d]
+                ev[m, 1, 1] = P.node_v[a]
+                ev[m, 1, 2] = D.node_v[d]
                 m += 1
             sb = (sb - 1) & B
         return m
     # T state
     pi = s1
     di = s2
-    p = p_it_node[pi]
-    d = d_it_node[di]
-    pc0 = p_ch_ptr[p]
-    npc = p_ch_ptr[p + 1] - pc0
-    dc0 = d_ch_ptr[d]
-    ndc = d_ch_ptr[d + 1] - dc0
-    fp = p_soff[p]
-    fd = d_soff[d]
+    p = P.it_node[pi]
+    d = D.it_node[di]
+    pc0 = P.ch_ptr[p]
+    npc = P.ch_ptr[p + 1] - pc0
+    dc0 = D.ch_ptr[d]
+    ndc = D.ch_ptr[d + 1] - dc0
+    fp = P.soff[p]
+    fd = D.soff[d]
     fullA = (np.int64(1) << npc) - 1
     fullB = (np.int64(1) << ndc) - 1
     v = R[pi, di] + F[fp + fullA, fd + fullB]
@@ -370,20 +424,20 @@ def expand(kind, s1, s2, s3, s4, limit, mode,
         ev[m, 0, 1] = pi
         ev[m, 0, 2] = di
         ev[m, 1, 0] = EV_MAP
-        ev[m, 1, 1] = p_node_v[p]
-        ev[m, 1, 2] = d_node_v[d]
+        ev[m, 1, 1] = P.node_v[p]
+        ev[m, 1, 2] = D.node_v[d]
         m += 1
-    dup = d_it_up[di]
-    pup = p_it_up[pi]
+    dup = D.it_up[di]
+    pup = P.it_up[pi]
     for s in range(ndc):
-        c = d_ch_idx[dc0 + s]
+        c = D.ch_idx[dc0 + s]
         rest = fullB ^ (np.int64(1) << s)
         if mode == 0:
-            tgt = d_base[c]
-            v = d_delarc[di] + T[pi, tgt] + d_delfor[fd + rest]
+            tgt = D.base[c]
+            v = D.delarc[di] + T[pi, tgt] + D.delfor[fd + rest]
         else:
-            tgt = d_item_of[c, dup]
-            v = T[pi, tgt] + d_delfor[fd + rest]
+            tgt = D.item_of[c, dup]
+            v = T[pi, tgt] + D.delfor[fd + rest]
         if v <= limit:
             cost[m] = v
             nsub[m] = 1
@@ -403,14 +457,14 @@ def expand(kind, s1, s2, s3, s4, limit, mode,
             nev[m] = k
             m += 1
     for s in range(npc):
-        c = p_ch_idx[pc0 + s]
+        c = P.ch_idx[pc0 + s]
         rest = fullA ^ (np.int64(1) << s)
         if mode == 1:
-            tgt = p_item_of[c, pup]
-            v = T[tgt, di] + p_delfor[fp + rest]
+            tgt = P.item_of[c, pup]
+            v = T[tgt, di] + P.delfor[fp + rest]
         else:
-            tgt = p_base[c]
-            v = p_delarc[pi] + T[tgt, di] + p_delfor[fp + rest]
+            tgt = P.base[c]
+            v = P.delarc[pi] + T[tgt, di] + P.delfor[fp + rest]
         if v <= limit:
             cost[m] = v
             nsub[m] = 1
@@ -428,12 +482,12 @@ def expand(kind, s1, s2, s3, s4, limit, mode,
                 ev[m, k, 1] = pi
                 k += 1
                 ev[m, k, 0] = EV_MAP
-                ev[m, k, 1] = p_node_v[p]
+                ev[m, k, 1] = P.node_v[p]
                 ev[m, k, 2] = dup
                 k += 1
             nev[m] = k
             m += 1
-    v = p_delsub[pi] + d_delsub[di]
+    v = P.delsub[pi] + D.delsub[di]
     if v <= limit:
         cost[m] = v
         nev[m] = 2
@@ -446,17 +500,18 @@ def expand(kind, s1, s2, s3, s4, limit, mode,
 
 
 @njit(cache=True)
-def max_options(p_ch_ptr, p_roots, d_ch_ptr, d_roots):
+def max_options(p, d):
     """Buffer size for :func:`expand`: the most options any state can have."""
+    P, D = TreeArrays(*p), TreeArrays(*d)
     mp = 0
-    for k in range(p_ch_ptr.shape[0] - 1):
-        mp = max(mp, p_ch_ptr[k + 1] - p_ch_ptr[k])
+    for k in range(P.ch_ptr.shape[0] - 1):
+        mp = max(mp, P.ch_ptr[k + 1] - P.ch_ptr[k])
     md = 0
-    for k in range(d_ch_ptr.shape[0] - 1):
-        md = max(md, d_ch_ptr[k + 1] - d_ch_ptr[k])
+    for k in range(D.ch_ptr.shape[0] - 1):
+        md = max(md, D.ch_ptr[k + 1] - D.ch_ptr[k])
     a = 2 + md + md * (np.int64(1) << max(mp - 1, 0)) + (np.int64(1) << md)
     b = 2 + md + mp
-    c = p_roots.shape[0] * d_roots.shape[0]
+    c = P.roots.shape[0] * D.roots.shape[0]
     return max(a, max(b, c))
 
 
@@ -467,23 +522,26 @@ def option_buffers(maxo):
 
 
 @njit(cache=True)
-def state_value(kind, s1, s2, s3, s4, p_soff, d_soff, F, T, top):
+def state_value(state, p, d, tables, top):
+    """The table value of a state (see :func:`expand`)."""
+    P, D = TreeArrays(*p), TreeArrays(*d)
+    kind, s1, s2, s3, s4 = state
+    _, F, T = tables
     if kind == ST_F:
-        return F[p_soff[s1] + s2, d_soff[s3] + s4]
+        return F[P.soff[s1] + s2, D.soff[s3] + s4]
     if kind == ST_T:
         return T[s1, s2]
     return top
 
 
 @njit(cache=True)
-def traceback(mode, cut, n_p, n_d, FD, TD, top_pr, top_dr,
-              p_node_v, p_ch_ptr, p_ch_idx, p_soff, p_it_node, p_it_up, p_item_of, p_base,
-              d_node_v, d_ch_ptr, d_ch_idx, d_soff, d_it_node, d_it_up, d_item_of, d_base):
+def traceback(mode, n_p, n_d, FD, TD, top_pr, top_dr, p, d):
     """One optimal alignment, following the decision tables of :func:`forward`.
 
     Returns events[k, 3] (codes EV_*), the same events that :func:`expand`
     emits for the chosen options.
     """
+    P, D = TreeArrays(*p), TreeArrays(*d)
     # every state consumes a pattern or data edge (at most twice each), so these bounds hold
     cap = 8 * (n_p + n_d) + 16
     events = np.empty((2 * cap, 3), np.int64)
@@ -491,14 +549,14 @@ def traceback(mode, cut, n_p, n_d, FD, TD, top_pr, top_dr,
     stack = np.empty((cap, 5), np.int64)
     # top: the chosen root pair
     events[0, 0] = EV_MAP
-    events[0, 1] = p_node_v[top_pr]
-    events[0, 2] = d_node_v[top_dr]
+    events[0, 1] = P.node_v[top_pr]
+    events[0, 2] = D.node_v[top_dr]
     ne = 1
     stack[0, 0] = ST_F
     stack[0, 1] = top_pr
-    stack[0, 2] = (np.int64(1) << (p_ch_ptr[top_pr + 1] - p_ch_ptr[top_pr])) - 1
+    stack[0, 2] = (np.int64(1) << (P.ch_ptr[top_pr + 1] - P.ch_ptr[top_pr])) - 1
     stack[0, 3] = top_dr
-    stack[0, 4] = (np.int64(1) << (d_ch_ptr[top_dr + 1] - d_ch_ptr[top_dr])) - 1
+    stack[0, 4] = (np.int64(1) << (D.ch_ptr[top_dr + 1] - D.ch_ptr[top_dr])) - 1
     sp = 1
     while sp > 0:
         if sp + 2 >= cap or ne + 4 >= 2 * cap:
@@ -518,14 +576,14 @@ def traceback(mode, cut, n_p, n_d, FD, TD, top_pr, top_dr,
                     events[ne, 2] = B
                     ne += 1
                 continue
-            code = FD[p_soff[p] + A, d_soff[d] + B]
+            code = FD[P.soff[p] + A, D.soff[d] + B]
             opt = code & 15
             s = (code >> 4) & 15
             sub = code >> 8
             low = A & -A
-            a = p_ch_idx[p_ch_ptr[p] + _tz(low)]
+            a = P.ch_idx[P.ch_ptr[p] + _tz(low)]
             arest = A ^ low
-            ai = p_base[a]
+            ai = P.base[a]
             if opt == 1:
                 stack[sp, 0] = ST_F
                 stack[sp, 1] = p
@@ -538,7 +596,7 @@ def traceback(mode, cut, n_p, n_d, FD, TD, top_pr, top_dr,
                 ne += 1
             elif opt == 2:
                 lb = np.int64(1) << s
-                b = d_ch_idx[d_ch_ptr[d] + s]
+                b = D.ch_idx[D.ch_ptr[d] + s]
                 stack[sp, 0] = ST_F
                 stack[sp, 1] = p
                 stack[sp, 2] = arest
@@ -546,11 +604,11 @@ def traceback(mode, cut, n_p, n_d, FD, TD, top_pr, top_dr,
                 stack[sp, 4] = B ^ lb
                 stack[sp + 1, 0] = ST_T
                 stack[sp + 1, 1] = ai
-                stack[sp + 1, 2] = d_base[b]
+                stack[sp + 1, 2] = D.base[b]
                 sp += 2
             elif opt == 3:
                 lb = np.int64(1) << s
-                b = d_ch_idx[d_ch_ptr[d] + s]
+                b = D.ch_idx[D.ch_ptr[d] + s]
                 stack[sp, 0] = ST_F
                 stack[sp, 1] = p
                 stack[sp, 2] = arest ^ sub
@@ -560,10 +618,10 @@ def traceback(mode, cut, n_p, n_d, FD, TD, top_pr, top_dr,
                 stack[sp + 1, 1] = p
                 stack[sp + 1, 2] = sub | low
                 stack[sp + 1, 3] = b
-                stack[sp + 1, 4] = (np.int64(1) << (d_ch_ptr[b + 1] - d_ch_ptr[b])) - 1
+                stack[sp + 1, 4] = (np.int64(1) << (D.ch_ptr[b + 1] - D.ch_ptr[b])) - 1
                 sp += 2
                 events[ne, 0] = EV_DARC
-                events[ne, 1] = d_base[b]
+                events[ne, 1] = D.base[b]
                 ne += 1
             else:
                 stack[sp, 0] = ST_F
@@ -573,15 +631,15 @@ def traceback(mode, cut, n_p, n_d, FD, TD, top_pr, top_dr,
                 stack[sp, 4] = B ^ sub
                 stack[sp + 1, 0] = ST_F
                 stack[sp + 1, 1] = a
-                stack[sp + 1, 2] = (np.int64(1) << (p_ch_ptr[a + 1] - p_ch_ptr[a])) - 1
+                stack[sp + 1, 2] = (np.int64(1) << (P.ch_ptr[a + 1] - P.ch_ptr[a])) - 1
                 stack[sp + 1, 3] = d
                 stack[sp + 1, 4] = sub
                 sp += 2
                 events[ne, 0] = EV_PARC
                 events[ne, 1] = ai
                 events[ne + 1, 0] = EV_MAP
-                events[ne + 1, 1] = p_node_v[a]
-                events[ne + 1, 2] = d_node_v[d]
+                events[ne + 1, 1] = P.node_v[a]
+                events[ne + 1, 2] = D.node_v[d]
                 ne += 2
         else:
             pi = stack[sp, 1]
@@ -589,10 +647,10 @@ def traceback(mode, cut, n_p, n_d, FD, TD, top_pr, top_dr,
             code = TD[pi, di]
             opt = code & 15
             s = code >> 4
-            p = p_it_node[pi]
-            d = d_it_node[di]
-            npc = p_ch_ptr[p + 1] - p_ch_ptr[p]
-            ndc = d_ch_ptr[d + 1] - d_ch_ptr[d]
+            p = P.it_node[pi]
+            d = D.it_node[di]
+            npc = P.ch_ptr[p + 1] - P.ch_ptr[p]
+            ndc = D.ch_ptr[d + 1] - D.ch_ptr[d]
             fullA = (np.int64(1) << npc) - 1
             fullB = (np.int64(1) << ndc) - 1
             if opt == 1:
@@ -606,15 +664,15 @@ def traceback(mode, cut, n_p, n_d, FD, TD, top_pr, top_dr,
                 events[ne, 1] = pi
                 events[ne, 2] = di
                 events[ne + 1, 0] = EV_MAP
-                events[ne + 1, 1] = p_node_v[p]
-                events[ne + 1, 2] = d_node_v[d]
+                events[ne + 1, 1] = P.node_v[p]
+                events[ne + 1, 2] = D.node_v[d]
                 ne += 2
             elif opt == 2:
-                c = d_ch_idx[d_ch_ptr[d] + s]
+                c = D.ch_idx[D.ch_ptr[d] + s]
                 rest = fullB ^ (np.int64(1) << s)
                 stack[sp, 0] = ST_T
                 stack[sp, 1] = pi
-                stack[sp, 2] = d_base[c] if mode == 0 else d_item_of[c, d_it_up[di]]
+                stack[sp, 2] = D.base[c] if mode == 0 else D.item_of[c, D.it_up[di]]
                 sp += 1
                 if rest != 0:
                     events[ne, 0] = EV_DDELF
@@ -626,10 +684,10 @@ def traceback(mode, cut, n_p, n_d, FD, TD, top_pr, top_dr,
                     events[ne, 1] = di
                     ne += 1
             elif opt == 3:
-                c = p_ch_idx[p_ch_ptr[p] + s]
+                c = P.ch_idx[P.ch_ptr[p] + s]
                 rest = fullA ^ (np.int64(1) << s)
                 stack[sp, 0] = ST_T
-                stack[sp, 1] = p_item_of[c, p_it_up[pi]] if mode == 1 else p_base[c]
+                stack[sp, 1] = P.item_of[c, P.it_up[pi]] if mode == 1 else P.base[c]
                 stack[sp, 2] = di
                 sp += 1
                 if rest != 0:
@@ -641,8 +699,8 @@ def traceback(mode, cut, n_p, n_d, FD, TD, top_pr, top_dr,
                     events[ne, 0] = EV_PARC
                     events[ne, 1] = pi
                     events[ne + 1, 0] = EV_MAP
-                    events[ne + 1, 1] = p_node_v[p]
-                    events[ne + 1, 2] = d_it_up[di]
+                    events[ne + 1, 1] = P.node_v[p]
+                    events[ne + 1, 2] = D.it_up[di]
                     ne += 2
             else:
                 events[ne, 0] = EV_PDEL
@@ -654,12 +712,7 @@ def traceback(mode, cut, n_p, n_d, FD, TD, top_pr, top_dr,
 
 
 @njit(cache=True)
-def cooptimal_pairs(mode, tol, n_p, n_d,
-                    p_node_v, p_ch_ptr, p_ch_idx, p_soff, p_it_ptr, p_it_node, p_it_up, p_item_of, p_base,
-                    p_delarc, p_delsub, p_delfor, p_roots,
-                    d_node_v, d_ch_ptr, d_ch_idx, d_soff, d_it_ptr, d_it_node, d_it_up, d_item_of, d_base,
-                    d_delarc, d_delsub, d_delfor, d_roots,
-                    R, F, T, top):
+def cooptimal_pairs(mode, tol, n_p, n_d, p, d, tables, top):
     """Every (pattern vertex, data vertex) pair that some co-optimal alignment maps.
 
     Walks the graph of states reachable from the top through options whose
@@ -667,43 +720,37 @@ def cooptimal_pairs(mode, tol, n_p, n_d,
     (alt[n_p, n_d] bool, matched[n_p] bool) where ``matched`` marks pattern
     vertices that end a matched arc in the walk.
     """
+    P, D = TreeArrays(*p), TreeArrays(*d)
+    _, F, T = tables
     seenF = np.zeros(F.shape, np.bool_)
     seenT = np.zeros(T.shape, np.bool_)
     alt = np.zeros((n_p, n_d), np.bool_)
     matched = np.zeros(n_p, np.bool_)
-    cost, nsub, sub_, nev, ev = option_buffers(max_options(p_ch_ptr, p_roots, d_ch_ptr, d_roots))
+    out = option_buffers(max_options(p, d))
+    _, nsub, sub_, nev, ev = out
     cap = F.shape[0] * F.shape[1] + T.shape[0] * T.shape[1] + 2   # every state is pushed once at most
     stack = np.empty((cap, 5), np.int64)
     stack[0, 0] = ST_TOP
     sp = 1
     while sp > 0:
         sp -= 1
-        kind = stack[sp, 0]
-        s1 = stack[sp, 1]
-        s2 = stack[sp, 2]
-        s3 = stack[sp, 3]
-        s4 = stack[sp, 4]
-        val = state_value(kind, s1, s2, s3, s4, p_soff, d_soff, F, T, top)
+        state = (stack[sp, 0], stack[sp, 1], stack[sp, 2], stack[sp, 3], stack[sp, 4])
+        val = state_value(state, p, d, tables, top)
         limit = val + tol * max(1.0, abs(val)) if val < np.inf else np.inf
-        nopt = expand(
-            kind, s1, s2, s3, s4, limit, mode,
-            p_node_v, p_ch_ptr, p_ch_idx, p_soff, p_it_ptr, p_it_node, p_it_up, p_item_of, p_base,
-            p_delarc, p_delsub, p_delfor, p_roots,
-            d_node_v, d_ch_ptr, d_ch_idx, d_soff, d_it_ptr, d_it_node, d_it_up, d_item_of, d_base,
-            d_delarc, d_delsub, d_delfor, d_roots, R, F, T, cost, nsub, sub_, nev, ev)
+        nopt = expand(state, limit, mode, p, d, tables, out)
         for o in range(nopt):
             for e in range(nev[o]):
                 if ev[o, e, 0] == EV_MAP:
                     alt[ev[o, e, 1], ev[o, e, 2]] = True
                 elif ev[o, e, 0] == EV_MATCH:
                     pi = ev[o, e, 1]
-                    matched[p_node_v[p_it_node[pi]]] = True
-                    matched[p_it_up[pi]] = True
+                    matched[P.node_v[P.it_node[pi]]] = True
+                    matched[P.it_up[pi]] = True
             for s in range(nsub[o]):
                 k = sub_[o, s, 0]
                 if k == ST_F:
-                    r = p_soff[sub_[o, s, 1]] + sub_[o, s, 2]
-                    c = d_soff[sub_[o, s, 3]] + sub_[o, s, 4]
+                    r = P.soff[sub_[o, s, 1]] + sub_[o, s, 2]
+                    c = D.soff[sub_[o, s, 3]] + sub_[o, s, 4]
                     if seenF[r, c]:
                         continue
                     seenF[r, c] = True
@@ -738,27 +785,27 @@ def resize_matrix(code, p_it_w, d_it_w):
 
 
 @njit(cache=True)
-def apply_constraints(R, c_ptr, c_items, c_signs, c_up, pos, d_it_up, d_it_node, d_node_v):
-    """Resize cost +inf where a data path's end positions violate a constraint (§12.2.1).
-
-    Constraint k covers pattern items c_items[c_ptr[k]:c_ptr[k+1]] with signs
-    c_signs (+1: the image of the chain's upper end must be higher along c_up[k]).
+def apply_constraints(R, cons, pos, it_up, it_node, node_v):
+    """Resize cost +inf where a data path's end positions violate a constraint of ``cons``
+    (:class:`Constraints`, §12.2.1). ``pos`` (n, 3): the data vertices' positions; ``it_up``,
+    ``it_node``, ``node_v``: the data tree's items and nodes (:func:`build_struct`).
     """
-    nd = d_it_up.shape[0]
-    for k in range(c_ptr.shape[0] - 1):
+    cons = Constraints(*cons)
+    nd = it_up.shape[0]
+    for k in range(cons.ptr.shape[0] - 1):
         h = np.empty(pos.shape[0], np.float64)
         for v in range(pos.shape[0]):
-            h[v] = pos[v, 0] * c_up[k, 0] + pos[v, 1] * c_up[k, 1] + pos[v, 2] * c_up[k, 2]
-        for q in range(c_ptr[k], c_ptr[k + 1]):
-            pi = c_items[q]
-            s = c_signs[q]
+            h[v] = pos[v, 0] * cons.up[k, 0] + pos[v, 1] * cons.up[k, 1] + pos[v, 2] * cons.up[k, 2]
+        for q in range(cons.ptr[k], cons.ptr[k + 1]):
+            pi = cons.items[q]
+            s = cons.signs[q]
             for di in range(nd):
-                if s * (h[d_it_up[di]] - h[d_node_v[d_it_node[di]]]) <= 0.0:
+                if s * (h[it_up[di]] - h[node_v[it_node[di]]]) <= 0.0:
                     R[pi, di] = np.inf
 
 
 @njit(cache=True)
-def data_side(mode, cut, code, n, eu, ev, ew, root, p_it_w, c_ptr, c_items, c_signs, c_up, pos):
+def data_side(mode, cut, code, n, eu, ev, ew, root, p_it_w, cons, pos):
     """Data tree structure, deletion costs and resize costs for a built-in γ."""
     st = build_struct(n, eu, ev, ew, root, mode != ALPHA)
     d_it_w = st[8]
@@ -768,30 +815,24 @@ def data_side(mode, cut, code, n, eu, ev, ew, root, p_it_w, c_ptr, c_items, c_si
         d_delarc[i] = gamma_code(code, 0.0, d_it_w[i])
     d_delsub, d_delfor = deletion_costs(st[2], st[3], st[4], st[5], st[10], d_delarc, cut)
     R = resize_matrix(code, p_it_w, d_it_w)
-    if c_ptr.shape[0] > 1:
-        apply_constraints(R, c_ptr, c_items, c_signs, c_up, pos, st[7], st[6], st[0])
+    if cons[0].shape[0] > 1:
+        apply_constraints(R, cons, pos, st[7], st[6], st[0])
     return st, d_delarc, d_delsub, d_delfor, R
 
 
 @njit(cache=True)
-def align_data(mode, cut, code, tie, n, eu, ev, ew, root,
-               p_node_v, p_ch_ptr, p_ch_idx, p_soff, p_it_ptr, p_it_node, p_it_up, p_item_of, p_base,
-               p_delarc, p_delsub, p_delfor, p_roots, p_it_w,
-               c_ptr, c_items, c_signs, c_up, pos):
-    """All the data-dependent work of one alignment in one call (built-in γ).
+def align_data(mode, cut, code, tie, n, eu, ev, ew, root, p, cons, pos):
+    """All the data-dependent work of one alignment in one call (built-in γ): the data tree
+    (``n`` vertices, edges ``eu``–``ev`` of weight ``ew``, ``root`` or -1) against the pattern
+    ``p`` (:class:`TreeArrays`) under the constraints ``cons`` (:class:`Constraints`; ``pos``
+    the data vertices' positions).
 
     Returns (top, events) — see :func:`traceback`.
     """
-    st, d_delarc, d_delsub, d_delfor, R = data_side(mode, cut, code, n, eu, ev, ew, root, p_it_w,
-                                                    c_ptr, c_items, c_signs, c_up, pos)
-    (d_node_v, d_node_par, d_ch_ptr, d_ch_idx, d_soff, d_it_ptr, d_it_node, d_it_up, d_it_w,
-     d_item_of, d_base, d_roots, d_nxt) = st
-    F, T, FD, TD = forward(mode, p_ch_ptr, p_ch_idx, p_soff, p_it_ptr, p_it_up, p_item_of, p_base,
-                           p_delarc, p_delsub, p_delfor,
-                           d_ch_ptr, d_ch_idx, d_soff, d_it_ptr, d_it_up, d_item_of, d_base,
-                           d_delarc, d_delsub, d_delfor, R, tie)
-    top, pr, dr = top_value(p_ch_ptr, p_soff, p_roots, d_ch_ptr, d_soff, d_roots, F, tie)
-    events = traceback(mode, cut, p_node_v.shape[0], n, FD, TD, pr, dr,
-                       p_node_v, p_ch_ptr, p_ch_idx, p_soff, p_it_node, p_it_up, p_item_of, p_base,
-                       d_node_v, d_ch_ptr, d_ch_idx, d_soff, d_it_node, d_it_up, d_item_of, d_base)
+    P = TreeArrays(*p)
+    st, delarc, delsub, delfor, R = data_side(mode, cut, code, n, eu, ev, ew, root, P.it_w, cons, pos)
+    d = tree_arrays(st, delarc, delsub, delfor)
+    F, T, FD, TD = forward(mode, p, d, R, tie)
+    top, pr, dr = top_value(p, d, F, tie)
+    events = traceback(mode, P.node_v.shape[0], n, FD, TD, pr, dr, p, d)
     return top, events

@@ -109,15 +109,20 @@ def _zeros(shape, dtype=bool) -> np.ndarray:
 
 @lru_cache(maxsize=64)
 def _shape_offsets(shape):
-    """Flat offsets for a padded state array of ``shape``: the 26 neighbours then the 9
-    z-rows, the 6 face neighbours, and ACK3's edge and cube voxels (cached per shape:
-    repeated calls on one grid skip this setup; the kernels only read them)."""
+    """The kernels' neighbourhood and ACK3 cliques in a padded state array of ``shape``
+    (:class:`~.thinning_kernels.Neighbourhood`, :class:`~.thinning_kernels.Ack3Cliques`), with
+    flat offsets: the 26 neighbours then the 9 z-rows, the 6 face neighbours, ACK3's edge and
+    cube voxels. Plain tuples (Numba's dispatcher types them on its fast path), cached per
+    shape: repeated calls on one grid skip this setup; the kernels only read them."""
+    from topopose.topology.thinning_kernels import Ack3Cliques, Neighbourhood
+
     rows = [(dx, dy, 0) for dx in (-1, 0, 1) for dy in (-1, 0, 1)]
-    ack = nb.ack_bits()
-    out = (_flat_offsets(np.concatenate([nb.OFFSETS, rows]), shape),
-           _flat_offsets(nb.DIRECTIONS, shape), _flat_offsets(ack[9], shape),
-           _flat_offsets(ack[12], shape))
-    return out
+    opp, _ = _bits()
+    nbr = Neighbourhood(_flat_offsets(np.concatenate([nb.OFFSETS, rows]), shape), opp,
+                        _flat_offsets(nb.DIRECTIONS, shape))
+    ack = Ack3Cliques(*nb.ack_bits())
+    cliques = ack._replace(e_ooff=_flat_offsets(ack.e_ooff, shape), k_ooff=_flat_offsets(ack.k_ooff, shape))
+    return tuple(nbr), tuple(cliques)
 
 
 def _flat_offsets(offsets, shape) -> np.ndarray:
@@ -132,7 +137,7 @@ def _bits():
     opp = np.array([nb.bit_of(-o) for o in nb.OFFSETS], dtype=np.int64)
     pk, pkn = nb.all_templates(nb.PKD6_BASE)
     d6, d6n = nb.all_templates(nb.D6I1D_BASE)
-    return opp, {"pkd6": (0, pk, pkn), "d6": (6, d6, d6n)}
+    return opp, {"pkd6": (pk, pkn), "d6": (d6, d6n)}
 
 
 def _bbox(data):
@@ -172,7 +177,7 @@ def thinning(volume, method: str = "d6i1d", keep=None, *, border_list: bool = Tr
     lo, hi, rows_any = _bbox(data)
     if lo[0] > hi[0]:  # no object voxel
         return Thinning(out, kout, method, 0, 0, {"total": (time.perf_counter() - t0) * 1e3})
-    from topopose.topology.thinning_kernels import extract, fill_state_rows
+    from topopose.topology.thinning_kernels import MaskSet, extract, fill_state_rows
 
     kin = keep.view(np.uint8) if keep is not None else np.zeros((0, 0, 0), dtype=np.uint8)
     size = int((hi[0] - lo[0] + 3) * (hi[1] - lo[1] + 3) * (hi[2] - lo[2] + 3))
@@ -183,30 +188,26 @@ def thinning(volume, method: str = "d6i1d", keep=None, *, border_list: bool = Tr
     vf, shp, n_obj = fill_state_rows(data.view(np.uint8), kin, lo, hi, rows_any, vf)
     shape = tuple(int(v) for v in shp)
     tables = _tables() if lut else _no_tables()
-    opp, sets = _bits()
-    offs, off6, e_offs, k_offs = _shape_offsets(shape)
+    nbr, cliques = _shape_offsets(shape)
     t1 = time.perf_counter()
     if method in _DIRECTIONAL:
         psi, which, fin = _DIRECTIONAL[method]
-        plane0, templates, tcount = sets[which]
+        templates, tcount = _bits()[1][which]
         stats = np.zeros(5, dtype=np.int64)
         kernel = _kernel("directional", bool(lut), mode, specialized)
         btab = _byte_table(which) if lut else _no_tables().ravel()
-        iters, deleted = kernel(vf, offs, opp, off6, tables, btab, plane0, templates, tcount, psi,
-                                bool(border_list), fin if complete else 0, stats, bool(lut), mode,
-                                int(n_obj))
+        masks = tuple(MaskSet(templates, tcount, btab))
+        iters, deleted = kernel(vf, nbr, tables, masks, psi, bool(border_list), fin if complete else 0, stats,
+                                bool(lut), mode, int(n_obj))
         counters = dict(zip(("visits", "tests", "isthmus_tests", "initial_list", "completion_deleted"),
                             stats.tolist()))
     else:
         ack3_thin = _kernel("ack3", bool(lut), mode, specialized)
         counters = {}
-        (c2_a, c2_b, ns2d, e_f1, e_f2, e_ed, e_u, e_v, e_oth, e_ooff, k_bits, k_pairs,
-         k_off) = nb.ack_bits()
         btab = _byte_table("ack3") if lut else _no_tables().ravel()
         etab = _edge_table() if lut else _no_edge_table()
-        iters, deleted = ack3_thin(vf, offs, opp, off6, tables, btab, etab, 1, bool(border_list), c2_a, c2_b,
-                                   ns2d, e_f1, e_f2, e_ed, e_u, e_v, e_oth,
-                                   e_offs, k_bits, k_pairs, k_offs, bool(lut), mode, int(n_obj))
+        iters, deleted = ack3_thin(vf, nbr, tables, btab, etab, 1, bool(border_list), cliques, bool(lut),
+                                   mode, int(n_obj))
     t2 = time.perf_counter()
     extract(vf, shp, lo, out.view(np.uint8), kout.view(np.uint8))  # sparse write-back
     t3 = time.perf_counter()

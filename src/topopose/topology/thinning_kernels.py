@@ -18,8 +18,15 @@ for an object voxel ``p``.  Options (thesis §5.1–5.3):
   deletion, so a configuration is assembled from 9 bytes; 2 ("full", the thesis'
   variant) keeps each listed voxel's whole 26-bit word, updated in its 26
   neighbours at every deletion.
+
+The kernels take the arrays that travel together as one argument each: the
+:class:`Neighbourhood`, a :class:`MaskSet`, ACK3's :class:`Ack3Cliques` — as plain tuples
+in the named tuple's field order (Numba's dispatcher types a plain tuple on its fast path),
+unpacked at the kernel's top.
 """
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -49,6 +56,42 @@ R3 = 5       # bits 5..7: the z-triplet (z-1, z, z+1) of OBJ bits around the vox
 R3_LO = np.uint8(1 << R3)
 R3_MID = np.uint8(2 << R3)
 R3_HI = np.uint8(4 << R3)
+
+
+class Neighbourhood(NamedTuple):
+    """Flat offsets in a padded state array (ALGORITHMS.md §5)."""
+
+    offs: np.ndarray    # the 26 neighbours (configuration bit order), then the 9 z-rows (dx, dy)
+    opp: np.ndarray     # configuration bit of the opposite of each of the 26 neighbours
+    off6: np.ndarray    # the 6 face neighbours (``neighbourhood.DIRECTIONS`` order)
+
+
+class MaskSet(NamedTuple):
+    """A set of deletion masks of the directional thinnings (thesis §6.2): the templates of
+    each direction, (6, nmax, 3), their counts (6,), and the byte table of the set
+    (:func:`topopose.topology.tables.load_byte_table`; read with ``lut`` only)."""
+
+    templates: np.ndarray
+    tcount: np.ndarray
+    btab: np.ndarray
+
+
+class Ack3Cliques(NamedTuple):
+    """Clique geometry of ACK3 (thesis §5.2.1, :func:`topopose.topology.neighbourhood.ack_bits`)."""
+
+    c2_a: np.ndarray        # (6, 8) bits of the column voxels C_i (p's layer) of each direction
+    c2_b: np.ndarray        # (6, 8) ... D_i (the neighbour's layer)
+    nonsimple2d: np.ndarray  # (256,) R non-simple (8/4) for the 8-bit section
+    e_f1: np.ndarray        # (12,) per edge: bits of the two face neighbours around it,
+    e_f2: np.ndarray
+    e_ed: np.ndarray        # the edge neighbour,
+    e_u: np.ndarray         # the masks of U and V,
+    e_v: np.ndarray
+    e_others: np.ndarray    # (12, 3) bits and flat offsets of the other 3 voxels
+    e_ooff: np.ndarray
+    k_bits: np.ndarray      # (8, 7) per cube: bits of the 7 other voxels,
+    k_span: np.ndarray      # (8, 3) masks of the voxels beyond the vertex along x, y, z,
+    k_ooff: np.ndarray      # (8, 7) flat offsets of the 7 others
 
 
 @njit(cache=True, inline="always")
@@ -149,8 +192,9 @@ def _init_list(vol, offs, off6, border_list, ccsu, words, n_obj):
 
 
 @njit(cache=True)
-def _delete(vol, dl, ndel, lst, n, offs, opp, off6, border_list, ccsu, words):
+def _delete(vol, dl, ndel, lst, n, nbr, border_list, ccsu, words):
     """Delete the collected voxels at once; update words and the border list. Returns new n."""
+    offs, opp, off6 = nbr
     for j in range(ndel):
         _clear(vol, dl[j])
     for j in range(ndel):
@@ -220,14 +264,14 @@ def sequential_completion(vol, lst, n, offs, tables, lut, keep_end_points):
 
 
 @njit(cache=True, inline="always")
-def _delete_directional(vol, dl, ndel, lst, n, offs, opp, off6, opp6, border_list, ccsu,
-                        words, bk, nbk, d):
+def _delete_directional(vol, dl, ndel, lst, n, nbr, opp6, border_list, ccsu, words, bk, nbk, d):
     """Delete the collected voxels of subiteration ``d`` at once.
 
     Updates the z-triplet bits (and the CCSU words), appends new border voxels to the
     list, and pushes every object 6-neighbour that the deletion exposes in a direction
     still to come in this iteration into that direction's bucket.  Returns the new n.
     """
+    offs, opp, off6 = nbr
     for j in range(ndel):
         _clear(vol, dl[j])
     for j in range(ndel):
@@ -262,38 +306,37 @@ def make_directional_thin(lut=None, ccsu=None):
     Numba caches each specialization on disk): tested at run time inside the hot
     loops they cost a factor 2–3.  With ``None`` the kernel reads them from its last
     two arguments (one generic kernel serves every combination).  Signature:
-    ``(vol, offs, opp, off6, tables, btab, plane0, templates, tcount, psi, border_list,
-    finish, stats, lut, ccsu, n_obj) -> (iterations, deleted)``; see
-    :func:`_directional_body` (``n_obj``: the object voxels :func:`fill_state_rows` counted).
+    ``(vol, nbr, tables, masks, psi, border_list, finish, stats, lut, ccsu, n_obj) ->
+    (iterations, deleted)``; see :func:`_directional_body` (``n_obj``: the object voxels
+    :func:`fill_state_rows` counted).
     """
     if lut is None or ccsu is None:
         @njit(cache=True)
-        def directional_generic(vol, offs, opp, off6, tables, btab, plane0, templates, tcount,
-                                psi, border_list, finish, stats, lut_, ccsu_, n_obj):
-            return _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tcount,
-                                     psi, border_list, lut_, ccsu_, finish, stats, n_obj)
+        def directional_generic(vol, nbr, tables, masks, psi, border_list, finish, stats, lut_, ccsu_,
+                                n_obj):
+            return _directional_body(vol, nbr, tables, masks, psi, border_list, lut_, ccsu_, finish,
+                                     stats, n_obj)
 
         return directional_generic
     lut = bool(lut)
 
     @njit(cache=True)
-    def directional_thin(vol, offs, opp, off6, tables, btab, plane0, templates, tcount, psi,
-                         border_list, finish, stats, lut_, ccsu_, n_obj):
-        return _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tcount,
-                                 psi, border_list, lut, ccsu, finish, stats, n_obj)
+    def directional_thin(vol, nbr, tables, masks, psi, border_list, finish, stats, lut_, ccsu_, n_obj):
+        return _directional_body(vol, nbr, tables, masks, psi, border_list, lut, ccsu, finish, stats,
+                                 n_obj)
 
     return directional_thin
 
 
 @njit(cache=True, inline="always")
-def _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tcount,
-                      psi, border_list, lut, ccsu, finish, stats, n_obj):
+def _directional_body(vol, nbr, tables, masks, psi, border_list, lut, ccsu, finish, stats, n_obj):
     """6-directional thinning: PKD6 (Alg. 10) or D6I1D/D6U/D6I2D (Alg. 11–12).
 
     ``vol`` is the state array (bit OBJ object, bit KEPT the constraint set K on input;
-    both updated in place).  ``plane0``/``templates`` select the mask sets (PKD6's M_d
-    or the M'_d of §6.2.2); ``psi`` the constraint function: 0 none (PKD6, D6U), 1 the
-    1D isthmuses (D6I1D), 2 the 2D isthmuses (D6I2D).
+    both updated in place); ``nbr`` its :class:`Neighbourhood`.  ``masks``
+    (:class:`MaskSet`) selects the mask sets (PKD6's M_d or the M'_d of §6.2.2); ``psi``
+    the constraint function: 0 none (PKD6, D6U), 1 the 1D isthmuses (D6I1D), 2 the 2D
+    isthmuses (D6I2D).
     Each iteration first passes over the list (dropping deleted voxels, adding the
     isthmuses to K) and sorts the voxels into six buckets by the directions in which
     they are exposed (their neighbour is background); subiteration d then tests only
@@ -305,7 +348,7 @@ def _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tco
     to mispredict, and the indices are unsigned (no wrap-around fix per load).
     ``finish``: 0 none, 1 :func:`sequential_completion` keeping end points (curve
     skeletons), 2 without keeping them (ultimate skeletons).
-    With ``lut`` the tests read ``btab``, the byte table of the mask set
+    With ``lut`` the tests read ``masks.btab``, the byte table of the mask set
     (:func:`topopose.topology.tables.load_byte_table`: bits 0–5 the six directions,
     bit 5 + psi the isthmus test): one read per configuration gives the isthmus test
     and the first subiteration's answer (a later subiteration reads the table again:
@@ -315,6 +358,8 @@ def _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tco
     isthmus tests, the initial list size and the voxels deleted by the completion.
     Returns (iterations, deleted voxels).
     """
+    offs, _, off6 = nbr
+    templates, tcount, btab = masks
     words = np.empty(vol.size if ccsu == 2 else 1, dtype=np.uint32)
     lst, n = _init_list(vol, offs, off6, border_list, ccsu, words, n_obj)
     stats[3] = n
@@ -400,8 +445,8 @@ def _directional_body(vol, offs, opp, off6, tables, btab, plane0, templates, tco
                     dl[ndel] = p
                     ndel += ok
             if ndel:
-                n = _delete_directional(vol, dl, ndel, lst, n, offs, opp, off6, opp6,
-                                        border_list, ccsu, words, bk, nbk, d)
+                n = _delete_directional(vol, dl, ndel, lst, n, nbr, opp6, border_list, ccsu, words, bk,
+                                        nbk, d)
                 deleted += ndel
         total += deleted
         if deleted == 0:
@@ -430,37 +475,25 @@ def _clique_in_s(vol, p, cfg, bits, offs, c, n):
 # ----------------------------------------------------------------------------- ACK3
 def make_ack3_thin(lut=None, ccsu=None):
     """ACK3 kernel specialized for (lut, ccsu), or generic with ``None`` (see
-    :func:`make_directional_thin`); signature ``(vol, offs, opp, off6, tables, btab, etab, psi,
-    border_list, c2_a, c2_b, nonsimple2d, e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff,
-    k_bits, k_span, k_ooff, lut, ccsu, n_obj) -> (iterations, deleted)``."""
+    :func:`make_directional_thin`); signature ``(vol, nbr, tables, btab, etab, psi, border_list,
+    cliques, lut, ccsu, n_obj) -> (iterations, deleted)``; see :func:`_ack3_body`."""
     if lut is None or ccsu is None:
         @njit(cache=True)
-        def ack3_generic(vol, offs, opp, off6, tables, btab, etab, psi, border_list, c2_a, c2_b, nonsimple2d,
-                         e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff, k_bits, k_span, k_ooff,
-                         lut_, ccsu_, n_obj):
-            return _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut_, ccsu_, c2_a,
-                              c2_b, nonsimple2d, e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff,
-                              k_bits, k_span, k_ooff, n_obj)
+        def ack3_generic(vol, nbr, tables, btab, etab, psi, border_list, cliques, lut_, ccsu_, n_obj):
+            return _ack3_body(vol, nbr, tables, btab, etab, psi, border_list, lut_, ccsu_, cliques, n_obj)
 
         return ack3_generic
     lut = bool(lut)
 
     @njit(cache=True)
-    def ack3_thin(vol, offs, opp, off6, tables, btab, etab, psi, border_list, c2_a, c2_b, nonsimple2d,
-                  e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff, k_bits, k_span, k_ooff,
-                  lut_, ccsu_, n_obj):
-        return _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, ccsu, c2_a, c2_b,
-                          nonsimple2d, e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff, k_bits,
-                          k_span, k_ooff, n_obj)
+    def ack3_thin(vol, nbr, tables, btab, etab, psi, border_list, cliques, lut_, ccsu_, n_obj):
+        return _ack3_body(vol, nbr, tables, btab, etab, psi, border_list, lut, ccsu, cliques, n_obj)
 
     return ack3_thin
 
 
 @njit(cache=True, inline="always")
-def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, ccsu,
-               c2_a, c2_b, nonsimple2d,
-               e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff,
-               k_bits, k_span, k_ooff, n_obj):
+def _ack3_body(vol, nbr, tables, btab, etab, psi, border_list, lut, ccsu, cliques, n_obj):
     """Asymmetric critical-kernel thinning ACK3 (thesis Alg. 7 / Alg. 8, §5.2).
 
     Per iteration: K ← K ∪ Ψ(X); S ← simple voxels of X not in K; then, visiting the
@@ -478,12 +511,8 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
     orthogonal face neighbours, all four simple, no crucial 2- or 1-clique) and lets a
     whole component vanish; found by the random-volume tests.
 
-    ``c2_a/c2_b`` (6, 8): bits of the column voxels C_i (p's layer) and D_i (the
-    neighbour's layer) of each direction; ``nonsimple2d`` (256): R non-simple (8/4) for
-    the 8-bit section.  ``e_*`` (12 edges): bits of the two face neighbours and the edge
-    neighbour around the edge, masks of U and V, bits and flat offsets of the other 3
-    voxels.  ``k_*`` (8 cubes): bits of the 7 other voxels, (3,) masks of the voxels
-    beyond the vertex along x, y, z, flat offsets of the 7 others.
+    ``vol`` and ``nbr`` as for :func:`_directional_body`; ``cliques`` (:class:`Ack3Cliques`)
+    the clique geometry.
     With ``lut``, one read of ``btab``, the ACK3 byte table
     (:func:`topopose.topology.tables.load_byte_table`), gives the simple and 1D-isthmus
     tests and the 2-clique geometry towards the six face neighbours (bits 0–5), so the
@@ -493,6 +522,8 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
     their voxels are in S.
     Returns (iterations, deleted voxels).
     """
+    offs, _, off6 = nbr
+    c2_a, c2_b, nonsimple2d, e_f1, e_f2, e_ed, e_u, e_v, e_others, e_ooff, k_bits, k_span, k_ooff = cliques
     words = np.empty(vol.size if ccsu == 2 else 1, dtype=np.uint32)
     lst, n = _init_list(vol, offs, off6, border_list, ccsu, words, n_obj)
     # one block (fewer, larger allocations are reused from call to call, not faulted in)
@@ -593,7 +624,7 @@ def _ack3_body(vol, offs, opp, off6, tables, btab, etab, psi, border_list, lut, 
                 ndel += 1
                 vol[p] &= ~np.uint8(INS)
         if ndel:
-            n = _delete(vol, sp, ndel, lst, n, offs, opp, off6, border_list, ccsu, words)
+            n = _delete(vol, sp, ndel, lst, n, nbr, border_list, ccsu, words)
         total += ndel
         if ndel == 0:
             break

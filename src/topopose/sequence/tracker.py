@@ -82,7 +82,8 @@ class TrackOptions:
 @dataclass
 class FrameData:
     """One frame's hull as the fit reads it: sampled surface points, and the signed distance
-    to the hull's surface (:meth:`signed_distance`) from all its surface voxels."""
+    to the hull's surface (:meth:`signed_distance`) from all its surface voxels.
+    ``occupancy``: the grid's voxels from index ``lo`` on (the hull's bounding box)."""
 
     points: np.ndarray
     surface: np.ndarray
@@ -91,9 +92,10 @@ class FrameData:
     voxel_size: float
     kd: object = field(repr=False, default=None)
     rays: tuple = None          # (origins (R, 3), unit directions (R, 3)) of silhouette pixels
+    lo: np.ndarray = field(default_factory=lambda: np.zeros(3, np.int64))
 
     def inside(self, x) -> np.ndarray:
-        idx = np.rint((np.asarray(x) - self.origin) / self.voxel_size).astype(np.int64)
+        idx = np.rint((np.asarray(x) - self.origin) / self.voxel_size).astype(np.int64) - self.lo
         ok = ((idx >= 0) & (idx < np.array(self.occupancy.shape))).all(axis=1)
         out = np.zeros(len(idx), dtype=bool)
         out[ok] = self.occupancy[tuple(idx[ok].T)]
@@ -147,8 +149,8 @@ def frame_data(volume, n_points, rng=None, views=None, n_rays=0) -> FrameData:
     rng = np.random.default_rng(0) if rng is None else rng
     pts = X if len(X) <= n_points else X[rng.choice(len(X), n_points, replace=False)]
     rays = silhouette_rays(*views, n_rays, rng) if views is not None and n_rays else None
-    return FrameData(pts, X, occ, np.asarray(volume.origin, float), float(volume.voxel_size),
-                     cKDTree(X) if len(X) else None, rays)
+    return FrameData(pts, X, occ[box], np.asarray(volume.origin, float),
+                     float(volume.voxel_size), cKDTree(X) if len(X) else None, rays, lo)
 
 
 # --------------------------------------------------------------------------- one frame's fit

@@ -3,7 +3,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, one_sided, H,
                              g):
     """Add one robust capsule term's normal equations to ``H`` (n, n) and ``g`` (n,).
@@ -22,18 +22,24 @@ def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, o
     rays = U.shape[0] > 0
     row = np.empty(cols.shape[1])
     cost = 0.0
+    S = np.empty((nb, 4))                  # each bone's vector and its squared length
+    for k in range(nb):
+        S[k, 0] = B[k, 0] - A[k, 0]
+        S[k, 1] = B[k, 1] - A[k, 1]
+        S[k, 2] = B[k, 2] - A[k, 2]
+        S[k, 3] = max(S[k, 0] * S[k, 0] + S[k, 1] * S[k, 1] + S[k, 2] * S[k, 2], 1e-12)
+    by = np.zeros(3)
+    bx = np.zeros(3)
     for m in range(M):
         best = 1e300
         bk = -1
         bt = 0.0
         bd = 0.0
-        by = np.zeros(3)
-        bx = np.zeros(3)
         for k in range(nb):
-            s0 = B[k, 0] - A[k, 0]
-            s1 = B[k, 1] - A[k, 1]
-            s2 = B[k, 2] - A[k, 2]
-            ll = max(s0 * s0 + s1 * s1 + s2 * s2, 1e-12)
+            s0 = S[k, 0]
+            s1 = S[k, 1]
+            s2 = S[k, 2]
+            ll = S[k, 3]
             if rays:
                 w0 = A[k, 0] - Q[m, 0]
                 w1 = A[k, 1] - Q[m, 1]

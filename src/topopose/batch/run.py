@@ -391,10 +391,33 @@ def _compute_frames(cap, m, resolution, threshold, eo, todo, parallel, finish, b
                 # decoding + silhouettes run ahead in threads (at the resolution the grid
                 # needs, when the masks are reduced)
                 with prefetch(cap, todo, factors=est.mask_factors()):
-                    for f in todo:
+                    for k, f in enumerate(todo):
                         finish(est.estimate(f))
+                        if k == 0 and kept is not None:
+                            _import_ahead(SEQUENCE_MODULES)
             finally:
                 warm.close()
+
+
+#: what the sequence stage and the tracker import (SciPy's signal module alone takes ~0.5 s),
+#: imported while the frames are computed
+SEQUENCE_MODULES = ("scipy.signal", "scipy.optimize", "topopose.sequence.motion",
+                    "topopose.sequence.follow")
+
+
+def _import_ahead(names):
+    """Import the modules ``names`` in a background thread."""
+    import importlib
+    import threading
+
+    def work():
+        for n in names:
+            try:
+                importlib.import_module(n)
+            except Exception:       # noqa: BLE001  imported again (and raising) where used
+                pass
+
+    threading.Thread(target=work, name="topopose-import-ahead", daemon=True).start()
 
 
 def _sequence_stage(poses, m, cap, resolution, threshold, eo, seq, follow, kept=None):

@@ -133,9 +133,9 @@ class KeepingEstimator(FrameEstimator):
     stage reads (:class:`~topopose.sequence.kept.KeptFrame`, in :attr:`kept` by frame name),
     so that stage carves, decodes and segments nothing again."""
 
-    def __init__(self, *args, **kwargs):
+    def __init__(self, *args, kept=None, **kwargs):
         super().__init__(*args, **kwargs)
-        self.kept = {}
+        self.kept = {} if kept is None else kept
 
     def hull(self, frame):
         from topopose.sequence.follow import estimator_views
@@ -383,10 +383,8 @@ def _compute_frames(cap, m, resolution, threshold, eo, todo, parallel, finish, b
 
             warm = warmup.start_warmup()     # first run: a helper process
             try:
-                est = (FrameEstimator if kept is None else KeepingEstimator)(
-                    cap, m, resolution, threshold, eo)
-                if kept is not None:
-                    est.kept = kept
+                est = (FrameEstimator(cap, m, resolution, threshold, eo) if kept is None else
+                       KeepingEstimator(cap, m, resolution, threshold, eo, kept=kept))
                 est.warmup = warm
                 # decoding + silhouettes run ahead in threads (at the resolution the grid
                 # needs, when the masks are reduced)

@@ -331,7 +331,7 @@ def report(doc) -> str:
                 _row("of the whole run: after the frame loop — sequence stage, tracker, "
                      "output (s)", o["run"].get("after_loop_s"), p["run"].get("after_loop_s")),
                 _row("peak resident memory of the run (MB)", o["run"].get("max_rss_mb"),
-                     p["run"].get("max_rss_mb"), "{:.0f}"),
+                     p["run"].get("max_rss_mb")),
                 _row("first frame from `run` (s, target ≤ 3)", o["run"]["first_frame_s"],
                      p["run"]["first_frame_s"]),
                 _row("first frame from process start (s)", o["run"]["first_frame_since_start_s"],
@@ -377,7 +377,7 @@ def report(doc) -> str:
                      o["fps_run"], p["fps_run"]),
                 _row("frames/s, frame loop", o["fps_frame_loop"], p["fps_frame_loop"]),
                 _row("peak resident memory of the run (MB)", o.get("max_rss_mb"),
-                     p.get("max_rss_mb"), "{:.0f}"),
+                     p.get("max_rss_mb")),
                 _row("after the frame loop — sequence stage, tracker, output (s)",
                      o.get("after_loop_s"), p.get("after_loop_s")),
                 _row("first frame from `run` (s)", o["first_frame_s"], p["first_frame_s"]),

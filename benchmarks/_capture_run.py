@@ -19,6 +19,8 @@ T0 = time.perf_counter()
 
 STAGES = ("hull", "fill", "thinning", "tree", "alignment", "placement", "trim", "centre",
           "support", "total")
+#: the tracking stage's CPU time a frame (its mean over the run, on every frame's pose)
+TRACK = ("track_hull", "track_data", "track_fit", "track_quality")
 
 
 def medians(poses) -> dict:
@@ -26,7 +28,7 @@ def medians(poses) -> dict:
 
     done = [p for p in poses if p.status != "failed"]
     out = {}
-    for k in STAGES:
+    for k in STAGES + TRACK:
         v = [p.timings_ms[k] for p in done if k in p.timings_ms]
         if v:
             out[k] = round(float(np.median(v)), 2)
@@ -48,6 +50,13 @@ def decode(capture) -> dict:
     return {"files": len(files), "seconds": round(time.perf_counter() - t, 3)}
 
 
+def max_rss_mb() -> float:
+    """This process's peak resident memory so far (MB)."""
+    import resource
+
+    return round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
+
+
 def run_capture(capture, out, frames=None) -> dict:
     import topopose
     try:
@@ -66,6 +75,7 @@ def run_capture(capture, out, frames=None) -> dict:
             "first_frame_s": round(first[0], 3) if first else None,
             "first_frame_since_start_s": round(first[0] + t - T0, 3) if first else None,
             "frame_loop_s": round(res.seconds, 3), "run_s": round(wall, 3),
+            "after_loop_s": round(wall - res.seconds, 3), "max_rss_mb": max_rss_mb(),
             "frames": len(poses), "counts": res.counts,
             "failed": {p.frame: p.error for p in poses if p.status == "failed"},
             "beyond": sum(p.diagnostics.get("hull_grid") == "beyond" for p in poses),

@@ -19,8 +19,10 @@ moment; the machine (cores, CPU, load) is recorded.
 Figures, per side:
 
 - the whole run (``topopose run CAPTURE --model human``, resolution 100, as ``run`` does it:
-  its reader decoding ahead, the sequence stages) against one thread's bare ``cv2.imread`` of
-  the same mask files, measured in the same process just before (ratio; target ≤ 1.5);
+  its reader decoding ahead, the sequence stages, the tracker) against one thread's bare
+  ``cv2.imread`` of the same mask files, measured in the same process just before (ratio;
+  target ≤ 1.5); the frame loop and what follows it (sequence stage, tracker, output) apart,
+  and the tracker's CPU time a frame by step;
 - the first frame: from the call of ``run`` to the first pose, caches warm (target ≤ 3 s),
   and from the process start;
 - frames matched, rejected, failed (with the reasons), frames carved beyond the fitted volume;
@@ -345,6 +347,12 @@ def report(doc) -> str:
                      o["decode_s_for_frames_run"], p["decode_s_for_frames_run"]),
                 _row("whole run / decoding (target ≤ 1.5)", o["run_over_decode"],
                      p["run_over_decode"]),
+                _row("of the whole run: the frame loop (s)", o["run"]["frame_loop_s"],
+                     p["run"]["frame_loop_s"]),
+                _row("of the whole run: after the frame loop — sequence stage, tracker, "
+                     "output (s)", o["run"].get("after_loop_s"), p["run"].get("after_loop_s")),
+                _row("peak resident memory of the run (MB)", o["run"].get("max_rss_mb"),
+                     p["run"].get("max_rss_mb")),
                 _row("first frame from `run` (s, target ≤ 3)", o["run"]["first_frame_s"],
                      p["run"]["first_frame_s"]),
                 _row("first frame from process start (s)", o["run"]["first_frame_since_start_s"],
@@ -363,6 +371,9 @@ def report(doc) -> str:
                      p["run"]["beyond"], "{:.0f}"),
                 _row("load average before the side", o["load_before"], p["load_before"]), "",
                 f"Failed frames — ours: {_failed(o['run'])}; peer: {_failed(p['run'])}.", "",
+                f"Poses identical to the peer's, field by field (timings excluded): "
+                f"{ch['same_as_peer']['identical']} of {ch['same_as_peer']['frames']} frames.",
+                "",
                 f"Contact sheet of this branch's {ch['contact_sheet']['frames']} matched frames "
                 f"(cameras cam00 and cam05, the parts as dots, the model's edges as lines): "
                 f"`{ch['contact_sheet']['file']}`.", "",
@@ -371,6 +382,12 @@ def report(doc) -> str:
                               ("child_rope, run (peer)", p["run"]["stage_ms"]),
                               ("child_rope, masks in memory (ours)", o["memory"]["stage_ms"]),
                               ("child_rope, masks in memory (peer)", p["memory"]["stage_ms"])]),
+                "", "The tracking stage, after the frame loop: its CPU time a frame (ms, the "
+                "stage's mean over the run; `track_hull`: the frames' hulls and silhouettes "
+                "read, or carved again; `track_data`: the fit's points and rays; `track_fit`: "
+                "the fits; `track_quality`: the silhouette IoU):", "",
+                _stage_table([("child_rope, run (ours)", o["run"]["stage_ms"]),
+                              ("child_rope, run (peer)", p["run"]["stage_ms"])], TRACK_KEYS),
                 ""]
     ps = doc.get("pose2sim")
     if ps and "sides" in ps:
@@ -380,13 +397,20 @@ def report(doc) -> str:
                 _row("frames/s, whole `run` (decoding, MediaPipe, sequence stages)",
                      o["fps_run"], p["fps_run"]),
                 _row("frames/s, frame loop", o["fps_frame_loop"], p["fps_frame_loop"]),
+                _row("peak resident memory of the run (MB)", o.get("max_rss_mb"),
+                     p.get("max_rss_mb")),
+                _row("after the frame loop — sequence stage, tracker, output (s)",
+                     o.get("after_loop_s"), p.get("after_loop_s")),
                 _row("first frame from `run` (s)", o["first_frame_s"], p["first_frame_s"]),
                 _row("frames matched", o["counts"].get("matched"), p["counts"].get("matched"),
                      "{:.0f}"), "",
                 f"Poses identical to the peer's, field by field (timings excluded): "
                 f"{ps['same_as_peer']['identical']} of {ps['same_as_peer']['frames']} frames.", "",
                 _stage_table([("Pose2Sim person (ours)", o["stage_ms"]),
-                              ("Pose2Sim person (peer)", p["stage_ms"])]), ""]
+                              ("Pose2Sim person (peer)", p["stage_ms"])]), "",
+                "The tracking stage's CPU time a frame (ms):", "",
+                _stage_table([("Pose2Sim person (ours)", o["stage_ms"]),
+                              ("Pose2Sim person (peer)", p["stage_ms"])], TRACK_KEYS), ""]
     elif ps:
         out += ["## Pose2Sim", "", ps["skipped"], ""]
     sy = doc.get("synthetic")
@@ -414,9 +438,11 @@ def _failed(r) -> str:
                      for k, v in reasons.items())
 
 
-def _stage_table(rows) -> str:
-    keys = ("hull", "thinning", "tree", "alignment", "placement", "trim", "centre", "support",
-            "total")
+TRACK_KEYS = ("track_hull", "track_data", "track_fit", "track_quality")
+
+
+def _stage_table(rows, keys=("hull", "thinning", "tree", "alignment", "placement", "trim",
+                             "centre", "support", "total")) -> str:
     lines = ["| recording | " + " | ".join(keys) + " |", "|---" * (len(keys) + 1) + "|"]
     for label, st in rows:
         lines.append(f"| {label} | " + " | ".join(

@@ -110,10 +110,11 @@ def select_frames(cap, frames) -> list:
     return out
 
 
-def _spec(cap, model, resolution, threshold, options):
-    """A small, picklable description from which each worker builds its estimator once."""
+def _spec(cap, model, resolution, threshold, options, keep=False):
+    """A small, picklable description from which each worker builds its estimator once
+    (``keep``: a :class:`KeepingEstimator`)."""
     spec = {"model": model.to_dict(), "resolution": resolution, "threshold": threshold,
-            "options": options}
+            "options": options, "keep": bool(keep)}
     if cap.path is not None and cap.masks is None:
         spec["capture_path"] = str(cap.path)
     else:
@@ -127,17 +128,37 @@ def _key(spec) -> str:
     return json.dumps(d, sort_keys=True, default=str)
 
 
+class KeepingEstimator(FrameEstimator):
+    """The run's :class:`FrameEstimator`, keeping of each frame it carves what the tracking
+    stage reads (:class:`~topopose.sequence.kept.KeptFrame`, in :attr:`kept` by frame name),
+    so that stage carves, decodes and segments nothing again."""
+
+    def __init__(self, *args, kept=None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.kept = {} if kept is None else kept
+
+    def hull(self, frame):
+        from topopose.sequence.follow import estimator_views
+        from topopose.sequence.kept import KeptFrame
+
+        vol = super().hull(frame)
+        self.kept[frame] = KeptFrame.keep(vol, estimator_views(self, frame))
+        return vol
+
+
 def _build(spec) -> FrameEstimator:
     from topopose.capture import load_capture
     from topopose.pose.model import model_from_dict
 
     cap = spec["capture"] if "capture" in spec else load_capture(spec["capture_path"])
     model = model_from_dict(spec["model"], source="model")
-    return FrameEstimator(cap, model, spec["resolution"], spec["threshold"], spec["options"])
+    kind = KeepingEstimator if spec.get("keep") else FrameEstimator
+    return kind(cap, model, spec["resolution"], spec["threshold"], spec["options"])
 
 
-def _worker_estimate(spec_key, spec, frame) -> dict:
-    """Runs on a Dask worker: estimate one frame with the worker's cached estimator."""
+def _worker_estimate(spec_key, spec, frame) -> tuple:
+    """Runs on a Dask worker: estimate one frame with the worker's cached estimator; returns
+    the pose as a dict and what the tracker keeps of the frame (None unless ``spec["keep"]``)."""
     from distributed import get_worker
 
     w = get_worker()
@@ -149,7 +170,8 @@ def _worker_estimate(spec_key, spec, frame) -> dict:
     if est is None:
         cache.clear()
         est = cache[spec_key] = _build(spec)
-    return est.estimate(frame).to_dict()
+    pose = est.estimate(frame).to_dict()
+    return pose, est.kept.pop(pose["frame"], None) if spec.get("keep") else None
 
 
 def _progress(total, enabled, desc):
@@ -243,6 +265,9 @@ def run(capture, model="human", resolution=100, threshold=None, output=None,
     # is left as it was and the frames computed stay in the partial file, which --resume reads;
     # a killed process leaves the existing output as it was (and the partial file beside it)
     results = dict(done)
+    # what the tracking stage reads of each frame, kept as the frames are computed
+    kept = ({} if (o.follow is None or o.follow.enabled) and skeleton and m.joints
+            and len(todo) > 2 else None)
     existed = out is not None and out.exists()
     t0 = time.perf_counter()
     fh = None
@@ -263,7 +288,8 @@ def run(capture, model="human", resolution=100, threshold=None, output=None,
     poses = []
     try:
         try:
-            _compute_frames(cap, m, resolution, threshold, eo, todo, o.parallel, finish, bar)
+            _compute_frames(cap, m, resolution, threshold, eo, todo, o.parallel, finish, bar,
+                            kept)
         finally:
             if bar is not None:
                 bar.close()
@@ -286,7 +312,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None,
             # a resume with nothing to do keeps the file
             if (track or sides or skeleton or judged) and todo:
                 motion = _sequence_stage(poses, m, cap, resolution, threshold, eo,
-                                         replace(seq, consistency=consistency), o.follow)
+                                         replace(seq, consistency=consistency), o.follow, kept)
                 poses = motion.poses
             if out is not None and (todo or not existed or resume):
                 write_poses(out, poses, header)                   # sorted, atomic replace
@@ -336,10 +362,11 @@ def _frame_sink(results, fh, bar, on_pose):
     return finish
 
 
-def _compute_frames(cap, m, resolution, threshold, eo, todo, parallel, finish, bar):
+def _compute_frames(cap, m, resolution, threshold, eo, todo, parallel, finish, bar, kept=None):
     """Every frame of ``todo`` estimated and given to ``finish``: in worker processes or on a
     Dask cluster (``parallel``), else here with the first run's warm-up helper and the frames
-    decoded ahead in threads; first-run notices on the progress ``bar``."""
+    decoded ahead in threads; first-run notices on the progress ``bar``. ``kept``: a dict
+    that receives what the tracking stage reads of each frame (:class:`KeepingEstimator`)."""
     from topopose import _notices
     from topopose.batch import warmup
 
@@ -350,32 +377,57 @@ def _compute_frames(cap, m, resolution, threshold, eo, todo, parallel, finish, b
     workers, scheduler = parallel.workers, parallel.scheduler
     with _notices.notices(note):
         if todo and (workers > 1 or scheduler):
-            _run_dask(cap, m, resolution, threshold, eo, todo, workers, scheduler, finish)
+            _run_dask(cap, m, resolution, threshold, eo, todo, workers, scheduler, finish, kept)
         elif todo:
             from topopose.capture import prefetch
 
             warm = warmup.start_warmup()     # first run: a helper process
             try:
-                est = FrameEstimator(cap, m, resolution, threshold, eo)
+                est = (FrameEstimator(cap, m, resolution, threshold, eo) if kept is None else
+                       KeepingEstimator(cap, m, resolution, threshold, eo, kept=kept))
                 est.warmup = warm
                 # decoding + silhouettes run ahead in threads (at the resolution the grid
                 # needs, when the masks are reduced)
                 with prefetch(cap, todo, factors=est.mask_factors()):
-                    for f in todo:
+                    for k, f in enumerate(todo):
                         finish(est.estimate(f))
+                        if k == 0 and kept is not None:
+                            _import_ahead(SEQUENCE_MODULES)
             finally:
                 warm.close()
 
 
-def _sequence_stage(poses, m, cap, resolution, threshold, eo, seq, follow):
+#: what the sequence stage and the tracker import (SciPy's signal module alone takes ~0.5 s),
+#: imported while the frames are computed
+SEQUENCE_MODULES = ("scipy.signal", "scipy.optimize", "topopose.sequence.motion",
+                    "topopose.sequence.follow")
+
+
+def _import_ahead(names):
+    """Import the modules ``names`` in a background thread."""
+    import importlib
+    import threading
+
+    def work():
+        for n in names:
+            try:
+                importlib.import_module(n)
+            except Exception:       # noqa: BLE001  imported again (and raising) where used
+                pass
+
+    threading.Thread(target=work, name="topopose-import-ahead", daemon=True).start()
+
+
+def _sequence_stage(poses, m, cap, resolution, threshold, eo, seq, follow, kept=None):
     """The sequence stage of a run (:func:`topopose.sequence.motion.process_sequence`), then
-    the subject's body followed through every frame (:func:`topopose.sequence.follow.follow_run`);
-    the returned motion's ``poses`` are the run's."""
+    the subject's body followed through every frame (:func:`topopose.sequence.follow.follow_run`,
+    on the frames ``kept`` by the frame loop); the returned motion's ``poses`` are the run's."""
     from topopose.sequence.follow import follow_run
     from topopose.sequence.motion import process_sequence
 
     motion = process_sequence(poses, m, cap.up_vector, seq, fps=cap.fps)
-    motion.poses = follow_run(motion.poses, motion, m, cap, resolution, threshold, eo, follow)
+    motion.poses = follow_run(motion.poses, motion, m, cap, resolution, threshold, eo, follow,
+                              kept=kept)
     return motion
 
 
@@ -592,10 +644,11 @@ def probe_scheduler(address, timeout: float = SCHEDULER_TIMEOUT) -> None:
         raise InputError(f"--scheduler: {address!r} answered, but is not a Dask scheduler")
 
 
-def _run_dask(cap, model, resolution, threshold, options, todo, workers, scheduler, finish):
+def _run_dask(cap, model, resolution, threshold, options, todo, workers, scheduler, finish,
+              kept=None):
     from dask.distributed import Client, LocalCluster, as_completed
 
-    spec = _spec(cap, model, resolution, threshold, options)
+    spec = _spec(cap, model, resolution, threshold, options, keep=kept is not None)
     key = _key(spec)
     if scheduler:
         try:
@@ -622,7 +675,10 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
         futures = {client.submit(_worker_estimate, key, spec_f, f, pure=False): f for f in todo}
         for fut in as_completed(list(futures)):
             try:
-                pose = Pose.from_dict(fut.result())
+                got, frame_kept = fut.result()
+                pose = Pose.from_dict(got)
+                if kept is not None and frame_kept is not None:
+                    kept[pose.frame] = frame_kept
             except Exception as exc:       # worker died: that frame failed, the run goes on
                 frame = futures[fut]
                 pose = Pose(frame, "failed", None, {p: None for p in model.parts},

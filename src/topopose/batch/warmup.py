@@ -140,7 +140,28 @@ def _warm_main() -> int:
     data = data.normalized()
     model = load_model("human")
     Matcher(model.pattern(), method="aha", cut=False, up=np.array([0.0, 0.0, 1.0])).align(data)
+    _warm_tracker()
     return 0
+
+
+def _warm_tracker():
+    """The kernels of what the frame loop keeps for the tracker and of the tracker's fit, on a
+    two-bone body in a small hull."""
+    import numpy as np
+
+    from topopose.hull.volume import Volume
+    from topopose.sequence.body import CapsuleBody
+    from topopose.sequence.kept import scaled_crop
+    from topopose.sequence.tracker import fit_frame, frame_data
+
+    scaled_crop(np.ones((30, 40), bool), (7, 5))
+    occ = np.zeros((12, 12, 20), bool)
+    occ[4:8, 4:8, 2:18] = True
+    body = CapsuleBody(("a", "b", "c"), np.array([-1, 0, 1]), np.array([np.nan, 0.1, 0.1]),
+                       np.array([np.nan, 0.03, 0.03]), (0, 1, 2))
+    P = np.array([[0.12, 0.12, 0.36], [0.12, 0.12, 0.26], [0.12, 0.12, 0.16]])
+    for n in (50, 10 ** 6):      # points sampled, or all the surface voxels (another layout)
+        fit_frame(body, frame_data(Volume(occ, np.zeros(3), 0.02), n), P)
 
 
 if __name__ == "__main__":

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from topopose.sequence.kept import KeptFrame
 from topopose.sequence.tracker import TrackOptions, frame_data, track_sequence
 
 
@@ -110,9 +111,11 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     model : Model
     tree : KinematicTree, lengths : ndarray
         The kinematic fit's tree and bone lengths (``Motion.tree``, ``Motion.lengths``).
-    hull : callable frame name → Volume or (Volume, (cameras, silhouettes))
+    hull : callable frame name → KeptFrame, Volume or (Volume, (cameras, silhouettes))
         The frame's visual hull (as the per-frame estimator carved it), with the silhouettes
-        it was carved from (for the silhouette term and the silhouette IoU).
+        it was carved from (for the silhouette term and the silhouette IoU); a
+        :class:`~topopose.sequence.kept.KeptFrame` holds both as the tracker reads them.
+        Called once per frame.
     options : FollowOptions
 
     Returns
@@ -144,27 +147,35 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     if not len(conf):
         return poses
     timings = {"hull": 0.0, "data": 0.0, "quality": 0.0}
-    vols = {}
+    kept = {}
 
-    def volume(i):
-        if i not in vols:
+    def record(i):
+        """Frame i's KeptFrame (None: it failed to load), asked of ``hull`` once."""
+        if i not in kept:
             t0 = time.process_time()
             try:
                 v = hull(poses[i].frame)
-                vols[i] = v if isinstance(v, tuple) else (v, None)
+                kept[i] = v if isinstance(v, KeptFrame) else \
+                    KeptFrame.keep(*(v if isinstance(v, tuple) else (v, None)))
             except Exception:          # a frame that failed to load: no fit
-                vols[i] = (None, None)
+                kept[i] = None
             timings["hull"] += time.process_time() - t0
-        return vols[i]
+        return kept[i]
+
+    def volume(i):
+        """(Volume, (cameras, silhouettes) scaled, or None), or (None, None)."""
+        r = record(i)
+        return (None, None) if r is None else r.read()
 
     pick = conf[np.linspace(0, len(conf) - 1, min(opts.body_frames, len(conf))).round()
                 .astype(int)]
-    learn = [(volume(i)[0], align[i]) for i in pick if volume(i)[0] is not None]
+    picked = [(volume(i), align[i]) for i in pick]
+    learn = [(v[0], P) for v, P in picked if v[0] is not None]
     if not learn:
         return poses
     body = learn_body(tree, lengths, learn, learn[0][0].voxel_size)
     rng = np.random.default_rng(0)
-    views = [(volume(i)[1], align[i]) for i in pick if volume(i)[1] is not None]
+    views = [(v[1], P) for v, P in picked if v[1] is not None]
     if views and len(opts.radius_scales) > 1:
         from topopose.sequence.silhouette import radius_scale
         body = radius_scale(body, views, opts.radius_scales)
@@ -178,9 +189,6 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
         if v is None:
             return None
         t0 = time.process_time()
-        if views is not None:
-            from topopose.sequence.silhouette import scaled_views
-            views = scaled_views(*views)
         d = frame_data(v, opts.track.points, rng, views, opts.track.n_rays)
         timings["data"] += time.process_time() - t0
         return d
@@ -191,7 +199,7 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     if tr is None:
         return poses
     votes = _segment_votes(tr, align, sided, len(groups))
-    from topopose.sequence.silhouette import scaled_views, silhouette_iou
+    from topopose.sequence.silhouette import silhouette_iou
 
     radii = {"radii": [None if not np.isfinite(x) else round(float(x), 4) for x in body.radii],
              "lengths": [None if not np.isfinite(x) else round(float(x), 4)
@@ -211,10 +219,10 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
                                            "reinitialized": bool(i in tr.reinitialized)},
                 "track_body": radii}
         status, fit, diag_fit = tr.status[i], float(tr.quality[i]), {}
-        views = volume(i)[1]
-        if views is not None and opts.silhouette_fit:
+        r = record(i)
+        if r is not None and r.views is not None and opts.silhouette_fit:
             t0 = time.process_time()
-            iou = silhouette_iou(body, tr.joints[i], *scaled_views(*views))
+            iou = silhouette_iou(body, tr.joints[i], *r.views.views())
             timings["quality"] += time.process_time() - t0
             if np.isfinite(iou).any():
                 fit = float(np.nanmean(iou))
@@ -269,28 +277,38 @@ def _side_names(model, tree, groups, rename, votes) -> tuple:
 
 
 def follow_run(poses, motion, model, cap, resolution, threshold, estimator=None,
-               options: FollowOptions | None = None) -> list:
+               options: FollowOptions | None = None, kept=None) -> list:
     """The tracking stage of :func:`topopose.batch.run.run`: :func:`follow` on a run's poses
-    when the sequence stage fitted a skeleton, each frame's hull carved again as the run's
-    estimator carves it (``estimator``: its :class:`~topopose.frame.options.EstimatorOptions`)."""
+    when the sequence stage fitted a skeleton. ``kept``: ``{frame: KeptFrame}`` of the frames
+    the run's estimator computed (:class:`~topopose.sequence.kept.KeptFrame`); any other
+    frame's hull is carved again as that estimator carves it (``estimator``: its
+    :class:`~topopose.frame.options.EstimatorOptions`)."""
     opts = options or FollowOptions()
     if not opts.enabled or motion is None or motion.tree is None or len(poses) < 3:
         return poses
-    from topopose.frame.estimate import FrameEstimator
-
     tree, lengths = motion.tree, motion.lengths
     if any(p.matched and not p.joints for p in poses):
         poses, tree, lengths = refit(poses, model, cap.up_vector, cap.fps)
-    est = FrameEstimator(cap, model, resolution, threshold, estimator)
+    kept = kept or {}
+    est = []
 
     def hull(frame):
-        vol = est.hull(frame)
-        views = getattr(est, "_silhouettes", None)
-        if views is None:
-            views = (cap.cameras, cap.silhouettes(frame))
-        return vol, views
+        if frame in kept:
+            return kept[frame]
+        if not est:
+            from topopose.frame.estimate import FrameEstimator
+            est.append(FrameEstimator(cap, model, resolution, threshold, estimator))
+        vol = est[0].hull(frame)
+        return vol, estimator_views(est[0], frame)
 
     return follow(poses, model, tree, lengths, hull, opts)
+
+
+def estimator_views(est, frame) -> tuple:
+    """The cameras and silhouettes the estimator ``est`` carved ``frame``'s hull from (after
+    ``est.hull(frame)``): those it compares its result with, else the capture's."""
+    views = getattr(est, "_silhouettes", None)
+    return views if views is not None else (est.cap.cameras, est.cap.silhouettes(frame))
 
 
 def refit(poses, model, up, fps=None):

@@ -82,7 +82,8 @@ class TrackOptions:
 @dataclass
 class FrameData:
     """One frame's hull as the fit reads it: sampled surface points, and the signed distance
-    to the hull's surface (:meth:`signed_distance`) from all its surface voxels."""
+    to the hull's surface (:meth:`signed_distance`) from all its surface voxels.
+    ``occupancy``: the grid's voxels from index ``lo`` on (the hull's bounding box)."""
 
     points: np.ndarray
     surface: np.ndarray
@@ -91,9 +92,10 @@ class FrameData:
     voxel_size: float
     kd: object = field(repr=False, default=None)
     rays: tuple = None          # (origins (R, 3), unit directions (R, 3)) of silhouette pixels
+    lo: np.ndarray = field(default_factory=lambda: np.zeros(3, np.int64))
 
     def inside(self, x) -> np.ndarray:
-        idx = np.rint((np.asarray(x) - self.origin) / self.voxel_size).astype(np.int64)
+        idx = np.rint((np.asarray(x) - self.origin) / self.voxel_size).astype(np.int64) - self.lo
         ok = ((idx >= 0) & (idx < np.array(self.occupancy.shape))).all(axis=1)
         out = np.zeros(len(idx), dtype=bool)
         out[ok] = self.occupancy[tuple(idx[ok].T)]
@@ -147,18 +149,17 @@ def frame_data(volume, n_points, rng=None, views=None, n_rays=0) -> FrameData:
     rng = np.random.default_rng(0) if rng is None else rng
     pts = X if len(X) <= n_points else X[rng.choice(len(X), n_points, replace=False)]
     rays = silhouette_rays(*views, n_rays, rng) if views is not None and n_rays else None
-    return FrameData(pts, X, occ, np.asarray(volume.origin, float), float(volume.voxel_size),
-                     cKDTree(X) if len(X) else None, rays)
+    return FrameData(pts, X, occ[box], np.asarray(volume.origin, float),
+                     float(volume.voxel_size), cKDTree(X) if len(X) else None, rays, lo)
 
 
 # --------------------------------------------------------------------------- one frame's fit
 def _basis(D):
-    """Two unit vectors normal to each direction (J, 3) and to each other: (J, 3, 2)."""
-    a = np.where((np.abs(D[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
-    e1 = np.cross(D, a)
-    e1 /= np.maximum(np.linalg.norm(e1, axis=1), 1e-12)[:, None]
-    e2 = np.cross(D, e1)
-    return np.stack([e1, e2], axis=2)
+    """Two unit vectors normal to each direction (J, 3) and to each other: (J, 3, 2)
+    (:func:`.tracker_kernels.bone_bases`)."""
+    from topopose.sequence.tracker_kernels import bone_bases
+
+    return bone_bases(np.ascontiguousarray(D, dtype=float))
 
 
 def _skew(v):
@@ -207,25 +208,20 @@ class _Fitter:
             self.cols[k, :len(d)] = d
         self.s = np.asarray(opts.samples, float)
 
-    def moves(self, D):
-        """Per bone: d(bone end − bone start)/d(its block's parameters), (3, width)."""
-        E = _basis(D)
-        out = {}
-        for j in self.bones:
-            c, w = self.col[int(j)]
-            L = self.body.lengths[j]
-            out[int(j)] = L * (E[j] if w == 2 else -_skew(D[j]))
-        return out
-
     def jacobian(self, D):
-        """dP/dθ (J, 3, n) at directions D."""
-        G = np.zeros((len(self.body.names), 3, self.n))
-        G[:, :, :3] = np.eye(3)
-        M = self.moves(D)
-        for j in self.bones:
-            c, w = self.col[int(j)]
-            G[self.anc[:, j], :, c:c + w] += M[int(j)]
-        return G, M
+        """dP/dθ (J, 3, n) at directions D, and per bone d(bone end − bone start)/d(its
+        block's parameters), (3, width) (:func:`.tracker_kernels.joint_jacobian`)."""
+        from topopose.sequence.tracker_kernels import joint_jacobian
+
+        if "_blocks" not in self.__dict__:
+            b = np.asarray(self.bones, dtype=np.int64)
+            self._blocks = (b, np.array([self.col[int(j)][0] for j in b], dtype=np.int64),
+                            np.array([self.col[int(j)][1] for j in b], dtype=np.int64))
+        bones, col, width = self._blocks
+        G, M, _E = joint_jacobian(np.ascontiguousarray(D, dtype=float),
+                                  np.asarray(self.body.lengths, dtype=float), bones, col, width,
+                                  self.anc, self.n)
+        return G, {int(j): M[k, :, :width[k]] for k, j in enumerate(bones)}
 
     def terms(self, root, D, data: FrameData, align, pred, G=None, capsules=True, GM=None):
         """Weighted residuals and their Jacobian rows (``G``: dP/d of other parameters, for

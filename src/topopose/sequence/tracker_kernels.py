@@ -3,7 +3,12 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+#: metres: the margin of the bound that passes a capsule in :func:`capsule_normal_equations`,
+#: far above the rounding of the distances it compares (~1e-14 m)
+BOUND_SLACK = 1e-9
+
+
+@njit(cache=True, nogil=True)
 def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, one_sided, H,
                              g):
     """Add one robust capsule term's normal equations to ``H`` (n, n) and ``g`` (n,).
@@ -22,18 +27,42 @@ def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, o
     rays = U.shape[0] > 0
     row = np.empty(cols.shape[1])
     cost = 0.0
+    S = np.empty((nb, 4))                  # each bone's vector and its squared length
+    C = np.empty((nb, 4))                  # its centre, and half its length plus its radius
+    for k in range(nb):
+        S[k, 0] = B[k, 0] - A[k, 0]
+        S[k, 1] = B[k, 1] - A[k, 1]
+        S[k, 2] = B[k, 2] - A[k, 2]
+        S[k, 3] = max(S[k, 0] * S[k, 0] + S[k, 1] * S[k, 1] + S[k, 2] * S[k, 2], 1e-12)
+        for c in range(3):
+            C[k, c] = A[k, c] + 0.5 * S[k, c]
+        C[k, 3] = 0.5 * np.sqrt(S[k, 3]) + radii[k]
+    by = np.zeros(3)
+    bx = np.zeros(3)
     for m in range(M):
         best = 1e300
         bk = -1
         bt = 0.0
         bd = 0.0
-        by = np.zeros(3)
-        bx = np.zeros(3)
         for k in range(nb):
-            s0 = B[k, 0] - A[k, 0]
-            s1 = B[k, 1] - A[k, 1]
-            s2 = B[k, 2] - A[k, 2]
-            ll = max(s0 * s0 + s1 * s1 + s2 * s2, 1e-12)
+            if bk >= 0:
+                # a bound below the capsule's surface distance from the point (the ray): the
+                # centre's, less half the bone and the radius; a capsule surely farther than
+                # the nearest so far is passed (the nearest stays the same, bit for bit)
+                c0 = C[k, 0] - Q[m, 0]
+                c1 = C[k, 1] - Q[m, 1]
+                c2 = C[k, 2] - Q[m, 2]
+                if rays:
+                    p = max(c0 * U[m, 0] + c1 * U[m, 1] + c2 * U[m, 2], 0.0)
+                    c0 -= p * U[m, 0]
+                    c1 -= p * U[m, 1]
+                    c2 -= p * U[m, 2]
+                if np.sqrt(c0 * c0 + c1 * c1 + c2 * c2) - C[k, 3] > best + BOUND_SLACK:
+                    continue
+            s0 = S[k, 0]
+            s1 = S[k, 1]
+            s2 = S[k, 2]
+            ll = S[k, 3]
             if rays:
                 w0 = A[k, 0] - Q[m, 0]
                 w1 = A[k, 1] - Q[m, 1]
@@ -90,3 +119,64 @@ def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, o
                 H[i, cols[c, b]] += wi * row[b]
         cost += wt * res * res
     return cost
+
+
+@njit(cache=True, nogil=True)
+def bone_bases(D):
+    """Two unit vectors normal to each direction ``D`` (J, 3) and to each other, (J, 3, 2):
+    :func:`.tracker._basis`, the same operations in the same order."""
+    J = D.shape[0]
+    E = np.empty((J, 3, 2))
+    for j in range(J):
+        d0, d1, d2 = D[j, 0], D[j, 1], D[j, 2]
+        if abs(d0) < 0.9:
+            a0, a1, a2 = 1.0, 0.0, 0.0
+        else:
+            a0, a1, a2 = 0.0, 1.0, 0.0
+        e0 = d1 * a2 - d2 * a1
+        e1 = d2 * a0 - d0 * a2
+        e2 = d0 * a1 - d1 * a0
+        nrm = max(np.sqrt(e0 * e0 + e1 * e1 + e2 * e2), 1e-12)
+        e0 /= nrm
+        e1 /= nrm
+        e2 /= nrm
+        E[j, 0, 0], E[j, 1, 0], E[j, 2, 0] = e0, e1, e2
+        E[j, 0, 1] = d1 * e2 - d2 * e1
+        E[j, 1, 1] = d2 * e0 - d0 * e2
+        E[j, 2, 1] = d0 * e1 - d1 * e0
+    return E
+
+
+@njit(cache=True, nogil=True)
+def joint_jacobian(D, lengths, bones, col, width, anc, n):
+    """The joints' derivatives ``G`` (J, 3, n) by the fit's parameters at directions ``D``,
+    each bone's ``M`` (nb, 3, 3: its end's move by its block's ``width[b]`` parameters from
+    column ``col[b]``) and the bones' bases ``E`` (:func:`bone_bases`): :meth:`.tracker._Fitter
+    .jacobian`, the same operations in the same order. ``anc`` (J, J): joint ``k`` moves with
+    bone ``j``."""
+    J = D.shape[0]
+    E = bone_bases(D)
+    G = np.zeros((J, 3, n))
+    for k in range(J):
+        for r in range(3):
+            G[k, r, r] = 1.0
+    M = np.zeros((bones.shape[0], 3, 3))
+    for b in range(bones.shape[0]):
+        j = bones[b]
+        L = lengths[j]
+        if width[b] == 2:
+            for r in range(3):
+                M[b, r, 0] = L * E[j, r, 0]
+                M[b, r, 1] = L * E[j, r, 1]
+        else:                       # L × (−skew(D[j])), its zeros negative as NumPy's
+            v0, v1, v2 = D[j, 0], D[j, 1], D[j, 2]
+            M[b, 0, 0], M[b, 0, 1], M[b, 0, 2] = L * -0.0, L * v2, L * -v1
+            M[b, 1, 0], M[b, 1, 1], M[b, 1, 2] = L * -v2, L * -0.0, L * v0
+            M[b, 2, 0], M[b, 2, 1], M[b, 2, 2] = L * v1, L * -v0, L * -0.0
+        c = col[b]
+        for k in range(J):
+            if anc[k, j]:
+                for r in range(3):
+                    for q in range(width[b]):
+                        G[k, r, c + q] += M[b, r, q]
+    return G, M, E

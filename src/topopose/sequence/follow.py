@@ -32,6 +32,10 @@ class FollowOptions:
         over the cameras (``diagnostics["fit_cameras"]`` per camera,
         :func:`~topopose.sequence.silhouette.silhouette_iou`); else (or without silhouettes)
         the voxel agreement (:func:`~topopose.sequence.tracker.agreement`)
+    trunk_sides : (upper, lower) reach of the capsules down the trunk's sides
+        (:func:`~topopose.sequence.body.trunk_sides`), or None: none
+    tips : capsules on beyond the tip joints where the hull goes on
+        (:func:`~topopose.sequence.body.tip_reach`)
     min_fit : a frame the track does not match is ``tracked`` when its silhouette ``fit``
         reaches this, else ``lost``
     track : the tracker's settings (:class:`~topopose.sequence.tracker.TrackOptions`)
@@ -42,6 +46,8 @@ class FollowOptions:
     calibrate: int = 0
     radius_scales: tuple = (1.0,)
     silhouette_fit: bool = True
+    trunk_sides: tuple | None = (0.6, 1.0)
+    tips: bool = False
     min_fit: float = 0.5
     track: TrackOptions = field(default_factory=TrackOptions)
 
@@ -162,7 +168,8 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     learn = [(volume(i)[0], align[i]) for i in pick if volume(i)[0] is not None]
     if not learn:
         return poses
-    body = learn_body(tree, lengths, learn, learn[0][0].voxel_size)
+    body = learn_body(tree, lengths, learn, learn[0][0].voxel_size, sides=opts.trunk_sides,
+                      tips=opts.tips)
     rng = np.random.default_rng(0)
     views = [(volume(i)[1], align[i]) for i in pick if volume(i)[1] is not None]
     if views and len(opts.radius_scales) > 1:

@@ -289,8 +289,11 @@ def child_pictures(cap, poses, model, out_dir, n_touch=3, n_other=3):
         P = np.array([p.joints.get(n, p.joints.get(_side(n), np.full(3, np.nan))) for n in names])
         radii = np.array([np.nan if x is None else x for x in body_info["radii"]], float) \
             if body_info else np.full(len(names), 0.05)
+        extra = (body_info or {}).get("extra")
         body = CapsuleBody(tuple(names), np.array(tree.parents), np.full(len(names), 1.0), radii,
-                           tuple(tree.order()))
+                           tuple(tree.order()),
+                           ends=None if extra is None else np.array(extra["ends"], float),
+                           extra_radii=None if extra is None else np.array(extra["radii"], float))
         cams, sils = scaled_views(cap.cameras, cap.silhouettes(p.frame), 400)
         sel = list(range(0, len(cams), max(1, len(cams) // 3)))[:3]
         drawn = body_masks(body, P, [cams[c] for c in sel], [sils[c].shape for c in sel])

@@ -207,6 +207,23 @@ def radius_profile(volume, A, B, samples=PROFILE) -> np.ndarray:
                                    cval=0.0).reshape(len(A), len(s))
 
 
+def trunk_junctions(names, parents):
+    """The trunk's two junctions with their mirrored pair of children: ``((root, (a_1,
+    a_2)), (low, (b_1, b_2)))`` — the root (e.g. the chest, with the shoulders) and its child
+    that has such a pair (the pelvis, with the hips) — or None."""
+    parents = np.asarray(parents)
+
+    def pair(u):
+        kids = {str(names[j]).rpartition("_")[::2]: j for j in np.flatnonzero(parents == u)}
+        bases = [b for (b, k) in kids if k == "1" and (b, "2") in kids]
+        return (kids[(bases[0], "1")], kids[(bases[0], "2")]) if bases else None
+
+    root = int(np.flatnonzero(parents < 0)[0])
+    up = pair(root)
+    low = next(((int(j), pair(j)) for j in np.flatnonzero(parents == root) if pair(j)), None)
+    return None if up is None or low is None else ((root, up), low)
+
+
 def trunk_sides(names, parents, reach=(0.6, 1.0)) -> np.ndarray:
     """The ends of a capsule down each side of the trunk, (2, 2, J) weights of the joints:
     from ``reach[0]`` of the way from the upper trunk's junction (the root, e.g. the chest)
@@ -221,18 +238,10 @@ def trunk_sides(names, parents, reach=(0.6, 1.0)) -> np.ndarray:
     parents : sequence of int
     reach : (upper, lower) fractions along the junctions' side bones
     """
-    parents = np.asarray(parents)
-
-    def pair(u):
-        kids = {str(names[j]).rpartition("_")[::2]: j for j in np.flatnonzero(parents == u)}
-        bases = [b for (b, k) in kids if k == "1" and (b, "2") in kids]
-        return (kids[(bases[0], "1")], kids[(bases[0], "2")]) if bases else None
-
-    root = int(np.flatnonzero(parents < 0)[0])
-    up = pair(root)
-    low = next(((int(j), pair(j)) for j in np.flatnonzero(parents == root) if pair(j)), None)
-    if up is None or low is None:
+    junctions = trunk_junctions(names, parents)
+    if junctions is None:
         return None
+    (root, up), low = junctions
     W = np.zeros((2, 2, len(names)))
     for k in range(2):
         W[k, 0, root] += 1.0 - reach[0]

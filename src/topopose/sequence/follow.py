@@ -127,7 +127,8 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     confident frames of its track decided them), ``fit`` and status ``matched`` / ``tracked``
     / ``lost``; ``diagnostics["track"]`` holds the frame the track started from (``from``)
     and whether it re-initialized there, ``diagnostics["track_body"]`` the body's radii and
-    bone lengths (per joint, the bone into it). Frames with no hull keep their pose.
+    bone lengths (per joint, the bone into it) and its extra capsules (``extra``: their ends'
+    weights of the joints and their radii). Frames with no hull keep their pose.
     """
     from topopose.sequence.body import learn_body
 
@@ -203,6 +204,9 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     radii = {"radii": [None if not np.isfinite(x) else round(float(x), 4) for x in body.radii],
              "lengths": [None if not np.isfinite(x) else round(float(x), 4)
                          for x in body.lengths]}
+    if body.n_extra:            # the extra capsules: their ends' joint weights and radii
+        radii["extra"] = {"ends": np.round(body.ends, 4).tolist(),
+                          "radii": [round(float(x), 4) for x in body.extra_radii]}
     out = []
     for i, p in enumerate(poses):
         if not tr.status[i]:

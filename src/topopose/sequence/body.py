@@ -304,7 +304,7 @@ def tip_capsules(parents, lengths, reach, shortest) -> np.ndarray:
 
 
 def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE,
-               sides=(0.6, 1.0), tips=True) -> CapsuleBody:
+               sides=(0.6, 1.0), tips=False) -> CapsuleBody:
     """The subject's capsule body from the confident frames.
 
     Parameters
@@ -331,9 +331,9 @@ def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE,
     parents = np.asarray(tree.parents, dtype=np.int64)
     ends = None if sides is None else trunk_sides(tree.names, parents, sides)
     if tips and frames:
-        with np.errstate(all="ignore"):
-            reach = np.nanmedian([tip_reach(v, np.asarray(P, float), parents)
-                                  for v, P in frames], axis=0)
+        R = np.array([tip_reach(v, np.asarray(P, float), parents) for v, P in frames])
+        reach = np.array([np.median(c[np.isfinite(c)]) if np.isfinite(c).any() else np.nan
+                          for c in R.T])
         T = tip_capsules(parents, np.asarray(lengths, float), reach, float(voxel_size))
         ends = T if ends is None else np.concatenate([ends, T])
         ends = ends if len(ends) else None

@@ -226,3 +226,29 @@ def test_fit_with_extra_capsules_recovers_a_perturbed_pose():
     P = fit_frame(body, data, start, TrackOptions(iterations=10))
     assert np.linalg.norm(P - truth, axis=1).max() < 0.03
     assert agreement(body, data, P) > agreement(body, data, start)
+
+
+def test_extra_capsules_move_with_their_joints():
+    """The extended joints' derivatives (the extra capsules' ends) against finite differences
+    of the fitter's own parameter step, and the kernel's columns cover every parameter they
+    move with."""
+    from dataclasses import replace
+
+    from topopose.sequence.tracker import _Fitter
+
+    body = replace(make_body(), ends=trunk_sides(NAMES, PARENTS, (0.6, 1.0)),
+                   extra_radii=np.array([0.09, 0.09]))
+    f = _Fitter(body, TrackOptions())
+    root, D = np.array([0.1, -0.2, 1.3]), arm_down(rest_directions(), 0.4)
+    G, _M = f.jacobian(D)
+    Pe, Ge = f.extend(joint_positions(body, root, D), G)
+    eps = 1e-6
+    for i in range(f.n):
+        x = np.zeros(f.n)
+        x[i] = eps
+        r1, D1 = f.step(root, D, x)
+        P1, _ = f.extend(joint_positions(body, r1, D1), G)
+        assert np.allclose((P1 - Pe) / eps, Ge[:, :, i], atol=1e-4)
+    for v in range(len(NAMES), len(Pe)):
+        moved = set(np.flatnonzero(np.abs(Ge[v]).max(axis=0) > 0))
+        assert moved <= set(f.cols[v][f.cols[v] >= 0])

@@ -295,7 +295,7 @@ def tip_capsules(parents, lengths, reach, shortest) -> np.ndarray:
     parents = np.asarray(parents)
     out = []
     for j in np.flatnonzero(np.isfinite(reach) & (np.nan_to_num(reach) >= shortest)):
-        f = reach[j] / lengths[j]
+        f = reach[j] / max(float(lengths[j]), 1e-9)
         W = np.zeros((2, len(parents)))
         W[0, j] = 1.0
         W[1, j], W[1, parents[j]] = 1.0 + f, -f

@@ -3,10 +3,13 @@
 
     python benchmarks/tracking.py --tracker [--real DIR] [--child-rope DIR] [--frames 40]
                                             [--dev] [--setups 8,4p] [--out DIR] [--work DIR]
+                                            [--follow NAME=VALUE ...]
 
 Every sequence runs twice as ``topopose run`` runs it: with the tracker (the default,
-:class:`~topopose.sequence.follow.FollowOptions`) and without it
-(``follow=FollowOptions(enabled=False)``: the sequence stage as it was, the peer).
+:class:`~topopose.sequence.follow.FollowOptions`, or those defaults with the ``--follow``
+settings, e.g. ``tips=True``, ``trunk_sides=None``, ``track.prior=0.1``: results written as
+``tracking_tracker_variant``) and without it (``follow=FollowOptions(enabled=False)``: the
+sequence stage as it was, the peer).
 
 * **synthetic** ``body`` sequences (100³; ``8``: 8 cameras 640×480 noise 1; ``4p``: 4 portrait
   phones in facing pairs, noise 2, AHA threshold and gate off as ``tracking.py --setup 4p``):
@@ -54,7 +57,7 @@ def _numbered(name):
     return name
 
 
-def synthetic_sequence(work, motion, seed, build, frames, setup, model):
+def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=None):
     """One synthetic sequence with and without the tracker: rows of figures."""
     from tracking import MPJPE_JOINTS, joint_errors, make_sequence
 
@@ -66,7 +69,7 @@ def synthetic_sequence(work, motion, seed, build, frames, setup, model):
     cap = load_capture(d)
     loose = {} if setup == "8" else {"threshold": 1e9, "gate": False}
     out = {"motion": motion, "seed": seed, "build": build, "setup": setup, "frames": frames}
-    for key, follow in (("peer", FollowOptions(enabled=False)), ("tracker", None)):
+    for key, follow in (("peer", FollowOptions(enabled=False)), ("tracker", tracker)):
         t0 = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -143,7 +146,7 @@ def score_real(poses, cap, ref, work, tag, model):
             if any(p.fit is not None for p in poses) else None}
 
 
-def real_recording(path, work, model):
+def real_recording(path, work, model, tracker=None):
     from real import person_recording
 
     import topopose as tp
@@ -160,7 +163,7 @@ def real_recording(path, work, model):
         warnings.simplefilter("ignore")
         cap = tp.load_capture(cdir)
         out = {}
-        for key, follow in (("peer", FollowOptions(enabled=False)), ("tracker", None)):
+        for key, follow in (("peer", FollowOptions(enabled=False)), ("tracker", tracker)):
             t0 = time.perf_counter()
             res = run(cap, model=model, progress=False, follow=follow)
             out[key] = score_real(res.poses, cap, ref, work, key, model)
@@ -207,7 +210,7 @@ def child_rope_capture(src: Path, out: Path, frames=None) -> Path:
     return out
 
 
-def child_rope(path, work, model, frames=None, peer=True, pictures=None):
+def child_rope(path, work, model, frames=None, peer=True, pictures=None, tracker=None):
     import topopose as tp
     from topopose.batch import run
     from topopose.sequence.follow import FollowOptions
@@ -219,7 +222,7 @@ def child_rope(path, work, model, frames=None, peer=True, pictures=None):
     cap = tp.load_capture(child_rope_capture(src, Path(work) / "child_rope_capture", frames))
     out = {"frames": len(cap.frames), "cameras": len(cap.cameras)}
     keys = (("peer", FollowOptions(enabled=False)),) if peer else ()
-    for key, follow in keys + (("tracker", None),):
+    for key, follow in keys + (("tracker", tracker),):
         t0 = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -289,8 +292,11 @@ def child_pictures(cap, poses, model, out_dir, n_touch=3, n_other=3):
         P = np.array([p.joints.get(n, p.joints.get(_side(n), np.full(3, np.nan))) for n in names])
         radii = np.array([np.nan if x is None else x for x in body_info["radii"]], float) \
             if body_info else np.full(len(names), 0.05)
+        extra = (body_info or {}).get("extra")
         body = CapsuleBody(tuple(names), np.array(tree.parents), np.full(len(names), 1.0), radii,
-                           tuple(tree.order()))
+                           tuple(tree.order()),
+                           ends=None if extra is None else np.array(extra["ends"], float),
+                           extra_radii=None if extra is None else np.array(extra["radii"], float))
         cams, sils = scaled_views(cap.cameras, cap.silhouettes(p.frame), 400)
         sel = list(range(0, len(cams), max(1, len(cams) // 3)))[:3]
         drawn = body_masks(body, P, [cams[c] for c in sel], [sils[c].shape for c in sel])
@@ -334,7 +340,9 @@ def report(doc) -> str:
     m = doc["machine"]
     lines = ["# Motion on every frame: the tracked capsule body against the sequence stage", "",
              f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
-             "Peer: the same run without the tracker (`follow=FollowOptions(enabled=False)`).", ""]
+             "Peer: the same run without the tracker (`follow=FollowOptions(enabled=False)`)."
+             + (f" Tracker settings: {', '.join(doc['follow'])}." if doc.get("follow") else ""),
+             ""]
     syn = doc.get("synthetic") or []
     if syn:
         lines += ["## Synthetic `body` sequences" + (" (development seeds)" if doc.get("dev")
@@ -398,6 +406,26 @@ def report(doc) -> str:
     return "\n".join(lines)
 
 
+def follow_options(settings):
+    """The tracker arm's :class:`~topopose.sequence.follow.FollowOptions` from ``NAME=VALUE``
+    settings (``tips=True``, ``track.prior=0.1``; values as Python literals); None: the
+    defaults."""
+    import ast
+    from dataclasses import replace
+
+    from topopose.sequence.follow import FollowOptions
+
+    if not settings:
+        return None
+    top, track = {}, {}
+    for kv in settings:
+        name, _, value = kv.partition("=")
+        (track if name.startswith("track.") else top)[name.removeprefix("track.")] = \
+            ast.literal_eval(value)
+    opts = replace(FollowOptions(), **top)
+    return replace(opts, track=replace(opts.track, **track))
+
+
 def main(a, model):
     from _machine import machine
 
@@ -406,28 +434,29 @@ def main(a, model):
     out.mkdir(parents=True, exist_ok=True)
     seeds = DEV_SEEDS if a.dev else SEEDS
     motions = [m for m in MOTIONS if not a.motions or m in a.motions.split(",")]
-    doc = {"dev": a.dev, "synthetic": []}
+    tracker = follow_options(a.follow)
+    doc = {"dev": a.dev, "synthetic": [], "follow": a.follow or []}
     for st in a.setups.split(",") if a.setups else ():
         for k, mo in enumerate(motions):
             r = synthetic_sequence(work, mo, seeds[mo], BUILDS[MOTIONS.index(mo)], a.frames,
-                                   st, model)
+                                   st, model, tracker)
             doc["synthetic"].append(r)
             print(json.dumps({k: v for k, v in r.items() if k not in ("peer", "tracker")}
                              | {x: {kk: r[x][kk] for kk in ("skeleton", "mpjpe_median",
                                                             "mpjpe_mean")}
                                 for x in ("peer", "tracker")}), flush=True)
     if a.real:
-        doc["real"] = real_recording(a.real, work, model)
+        doc["real"] = real_recording(a.real, work, model, tracker)
         print(json.dumps(doc["real"], default=str)[:600], flush=True)
     if a.child_rope:
         # the pictures show the recording's masks, which stay out of the repository: the work
         # folder holds them
         doc["child_rope"] = child_rope(a.child_rope, work, model, a.child_frames,
                                        peer=not a.no_child_peer,
-                                       pictures=work / "child_rope_pictures")
+                                       pictures=work / "child_rope_pictures", tracker=tracker)
         print(json.dumps(doc["child_rope"], default=str)[:600], flush=True)
     doc["machine"] = machine(resolution=100)
-    name = "tracking_tracker" + ("_dev" if a.dev else "")
+    name = "tracking_tracker" + ("_dev" if a.dev else "") + ("_variant" if a.follow else "")
     (out / f"{name}.json").write_text(json.dumps(doc, indent=1, default=str))
     (out / f"{name}.md").write_text(report(doc))
     print(report(doc))

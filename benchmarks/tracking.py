@@ -869,6 +869,9 @@ def main(argv=None):
     ap.add_argument("--no-child-peer", action="store_true", help="child_rope without the peer")
     ap.add_argument("--frames", type=int, default=40, help="with --tracker: frames a sequence")
     ap.add_argument("--motions", default=None, help="with --tracker: only these motions")
+    ap.add_argument("--follow", action="append", metavar="NAME=VALUE",
+                    help="with --tracker: a FollowOptions setting of the tracker arm "
+                         "(tips=True, track.prior=0.1; repeatable)")
     a = ap.parse_args(argv)
     if a.tracker:
         import _tracker as tracker_bench

@@ -12,13 +12,24 @@ subject's own (Corazza et al., IJCV 2010: a subject-specific model from the visu
   confident frames (the matched frames, where the fitted skeleton lies inside the limbs), its
   median taken over the profile and the frames.
 
+* the **trunk's sides** (:func:`trunk_sides`): one bone's capsule is a poor trunk, round where
+  the trunk is flat and wide; a capsule down each side of it (from between the chest and a
+  shoulder to between the pelvis and a hip) gives it its width, its radius the hull's depth
+  along it like a bone's.
+
+* the **tips** (:func:`tip_reach`): a bone ending at a tip of the tree (the skull) may end
+  short of the body's end (the top of the head); a capsule on along the bone to where the
+  hull ends there covers the rest, so that the end of the hull does not pull the whole body
+  towards it.
+
 A body is a :class:`CapsuleBody`: joint positions come from a root position and one unit
-direction per bone (:func:`joint_positions`), and the capsule of bone ``j`` joins the joint's
-parent to joint ``j`` with radius ``radii[j]``.
+direction per bone (:func:`joint_positions`); the capsule of bone ``j`` joins the joint's
+parent to joint ``j`` with radius ``radii[j]``, and each extra capsule joins two fixed
+weightings of the joints (:attr:`CapsuleBody.ends`), moving with them.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -50,6 +61,11 @@ class CapsuleBody:
     shapes : tuple of ndarray
         Each group's bone directions (m, 3) in the group's own frame (any rotation of them is
         the group in some pose).
+    ends : ndarray (E, 2, J), optional
+        Extra capsules (:func:`trunk_sides`): the weights of the joints giving each one's two
+        ends (rows summing to 1).
+    extra_radii : ndarray (E,), optional
+        Their radii.
     """
 
     names: tuple
@@ -59,6 +75,8 @@ class CapsuleBody:
     order: tuple
     groups: tuple = ()
     shapes: tuple = ()
+    ends: np.ndarray | None = None
+    extra_radii: np.ndarray | None = None
 
     @property
     def root(self) -> int:
@@ -68,6 +86,24 @@ class CapsuleBody:
     def bones(self) -> np.ndarray:
         """Joint indices that end a bone (every joint but the root), in :attr:`order`."""
         return np.array([j for j in self.order if self.parents[j] >= 0], dtype=np.int64)
+
+    @property
+    def n_extra(self) -> int:
+        return 0 if self.ends is None else len(self.ends)
+
+    def virtual(self) -> np.ndarray:
+        """(2E, J): the weights of the joints giving the extra capsules' ends (first end,
+        second end, per capsule)."""
+        return np.zeros((0, len(self.names))) if self.ends is None else \
+            np.asarray(self.ends, float).reshape(-1, len(self.names))
+
+    def capsules(self, P) -> tuple:
+        """Every capsule at joint positions ``P``: its ends ``A``, ``B`` (K, 3) and radii (K,),
+        the bones' (in :attr:`bones`' order) then the extra ones."""
+        b = self.bones
+        V = self.virtual() @ P
+        r = self.radii[b] if not self.n_extra else np.r_[self.radii[b], self.extra_radii]
+        return np.r_[P[self.parents[b]], V[0::2]], np.r_[P[b], V[1::2]], r
 
     def ancestry(self) -> np.ndarray:
         """(J, J) bool: ``A[k, j]`` when bone ``j`` lies on the path from the root to joint
@@ -147,34 +183,128 @@ def snap(body: CapsuleBody, P):
     return np.asarray(P[body.root], float).copy(), D
 
 
-def radius_profile(volume, P, parents, samples=PROFILE) -> np.ndarray:
+def radius_profile(volume, A, B, samples=PROFILE) -> np.ndarray:
     """The hull's depth (distance transform of its voxels, world units) at ``samples`` along
-    each bone of the joint positions ``P``: (J, len(samples)), NaN for the root.
+    each segment from ``A`` to ``B``: (K, len(samples)).
 
     Parameters
     ----------
     volume : Volume
         The frame's visual hull.
-    P : ndarray (J, 3)
-    parents : sequence of int
-    samples : positions along a bone, 0 at the parent joint, 1 at the child
+    A, B : ndarray (K, 3)
+        The segments' ends (a bone: its parent joint and its joint).
+    samples : positions along a segment, 0 at ``A``, 1 at ``B``
     """
     from scipy import ndimage
 
     lo, box = bounding_box(np.asarray(volume.data, dtype=bool), margin=2)
     depth = ndimage.distance_transform_edt(volume.data[box]) * float(volume.voxel_size)
     s = np.asarray(samples, float)
-    out = np.full((len(P), len(s)), np.nan)
-    for j, p in enumerate(parents):
-        if p < 0:
+    A, B = np.asarray(A, float), np.asarray(B, float)
+    x = A[:, None] + s[None, :, None] * (B - A)[:, None]             # (K, S, 3)
+    idx = (x.reshape(-1, 3) - volume.origin) / volume.voxel_size - lo
+    return ndimage.map_coordinates(depth, idx.T, order=1, mode="constant",
+                                   cval=0.0).reshape(len(A), len(s))
+
+
+def trunk_junctions(names, parents):
+    """The trunk's two junctions with their mirrored pair of children: ``((root, (a_1,
+    a_2)), (low, (b_1, b_2)))`` — the root (e.g. the chest, with the shoulders) and its child
+    that has such a pair (the pelvis, with the hips) — or None."""
+    parents = np.asarray(parents)
+
+    def pair(u):
+        kids = {str(names[j]).rpartition("_")[::2]: j for j in np.flatnonzero(parents == u)}
+        bases = [b for (b, k) in kids if k == "1" and (b, "2") in kids]
+        return (kids[(bases[0], "1")], kids[(bases[0], "2")]) if bases else None
+
+    root = int(np.flatnonzero(parents < 0)[0])
+    up = pair(root)
+    low = next(((int(j), pair(j)) for j in np.flatnonzero(parents == root) if pair(j)), None)
+    return None if up is None or low is None else ((root, up), low)
+
+
+def trunk_sides(names, parents, reach=(0.6, 1.0)) -> np.ndarray:
+    """The ends of a capsule down each side of the trunk, (2, 2, J) weights of the joints:
+    from ``reach[0]`` of the way from the upper trunk's junction (the root, e.g. the chest)
+    to its side's mirrored child (``shoulder_1``) to ``reach[1]`` of the way from the lower
+    junction (the root's child that has a mirrored pair of children, e.g. the pelvis) to its
+    side's child (``hip_1``). None when the tree has no such pair of junctions.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Joint names; mirrored joints end ``_1`` and ``_2`` on the same base name.
+    parents : sequence of int
+    reach : (upper, lower) fractions along the junctions' side bones
+    """
+    junctions = trunk_junctions(names, parents)
+    if junctions is None:
+        return None
+    (root, up), low = junctions
+    W = np.zeros((2, 2, len(names)))
+    for k in range(2):
+        W[k, 0, root] += 1.0 - reach[0]
+        W[k, 0, up[k]] += reach[0]
+        W[k, 1, low[0]] += 1.0 - reach[1]
+        W[k, 1, low[1][k]] += reach[1]
+    return W
+
+
+def tip_reach(volume, P, parents, step=0.5, longest=0.4) -> np.ndarray:
+    """How far the hull goes on beyond each tip joint (a joint with no child) along its bone,
+    less its depth half-way there (the radius of a capsule covering it): (J,), NaN for the
+    other joints.
+
+    Parameters
+    ----------
+    volume : Volume
+    P : ndarray (J, 3)
+    parents : sequence of int
+    step : voxels between the samples along the bone
+    longest : m, the farthest looked
+    """
+    from scipy import ndimage
+
+    parents = np.asarray(parents)
+    lo, box = bounding_box(np.asarray(volume.data, dtype=bool), margin=2)
+    depth = ndimage.distance_transform_edt(volume.data[box]) * float(volume.voxel_size)
+    vs = float(volume.voxel_size)
+    t = np.arange(0.0, longest, step * vs)
+    out = np.full(len(P), np.nan)
+    for j in range(len(P)):
+        p = parents[j]
+        if p < 0 or (parents == j).any():
             continue
-        x = P[p][None] + s[:, None] * (P[j] - P[p])[None]
-        idx = (x - volume.origin) / volume.voxel_size - lo
-        out[j] = ndimage.map_coordinates(depth, idx.T, order=1, mode="constant", cval=0.0)
+        d = P[j] - P[p]
+        d = d / max(float(np.linalg.norm(d)), 1e-12)
+        x = P[j][None] + t[:, None] * d[None]
+        dep = ndimage.map_coordinates(depth, ((x - volume.origin) / vs - lo).T, order=1,
+                                      mode="constant", cval=0.0)
+        if dep[0] <= 0:
+            continue
+        end = t[np.argmax(dep <= 0)] if (dep <= 0).any() else t[-1]
+        half = float(np.interp(0.5 * end, t, dep))
+        out[j] = max(end - half, 0.0)
     return out
 
 
-def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE) -> CapsuleBody:
+def tip_capsules(parents, lengths, reach, shortest) -> np.ndarray:
+    """The ends (E, 2, J) of a capsule from each tip joint on along its bone by ``reach``
+    (tips reaching less than ``shortest`` get none)."""
+    parents = np.asarray(parents)
+    out = []
+    for j in np.flatnonzero(np.isfinite(reach) & (np.nan_to_num(reach) >= shortest)):
+        f = reach[j] / max(float(lengths[j]), 1e-9)
+        W = np.zeros((2, len(parents)))
+        W[0, j] = 1.0
+        W[1, j], W[1, parents[j]] = 1.0 + f, -f
+        out.append(W)
+    return np.array(out).reshape(-1, 2, len(parents))
+
+
+def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE,
+               sides=(0.6, 1.0), tips=False) -> CapsuleBody:
     """The subject's capsule body from the confident frames.
 
     Parameters
@@ -189,27 +319,44 @@ def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE) -> 
         The grid's voxel size (the smallest radius is ``radius_range[0]`` voxels).
     radius_range : (voxels, metres)
         Bounds of a radius: at least that many voxels, at most that many world units.
+    sides : (upper, lower) reach of the trunk's side capsules (:func:`trunk_sides`), or
+        None: none
+    tips : a capsule on from each tip joint where the hull goes on beyond it (the median
+        over the frames of :func:`tip_reach`, at least a voxel)
 
     Returns
     -------
     CapsuleBody
     """
     parents = np.asarray(tree.parents, dtype=np.int64)
-    profiles = [radius_profile(vol, np.asarray(P, float), parents) for vol, P in frames]
-    lo, hi = radius_range[0] * float(voxel_size), float(radius_range[1])
-    radii = np.full(len(parents), np.nan)
-    if profiles:
-        stack = np.concatenate(profiles, axis=1)
-        stack = np.where(stack > 0, stack, np.nan)
-        stack[parents < 0] = lo                        # the root has no bone
-        with np.errstate(all="ignore"):
-            med = np.nanmedian(stack, axis=1)
-        radii = np.where(parents >= 0, np.clip(np.nan_to_num(med, nan=lo), lo, hi), np.nan)
+    ends = None if sides is None else trunk_sides(tree.names, parents, sides)
+    if tips and frames:
+        R = np.array([tip_reach(v, np.asarray(P, float), parents) for v, P in frames])
+        reach = np.array([np.median(c[np.isfinite(c)]) if np.isfinite(c).any() else np.nan
+                          for c in R.T])
+        T = tip_capsules(parents, np.asarray(lengths, float), reach, float(voxel_size))
+        ends = T if ends is None else np.concatenate([ends, T])
+        ends = ends if len(ends) else None
     groups = rigid_groups(tree)
     shapes = tuple(group_shape([bone_directions_of(P, parents)[list(g)] for _v, P in frames])
                    if frames else np.zeros((len(g), 3)) for g in groups)
-    return CapsuleBody(tuple(tree.names), parents, np.asarray(lengths, float).copy(), radii,
-                       tuple(tree.order()), groups, shapes)
+    body = CapsuleBody(tuple(tree.names), parents, np.asarray(lengths, float).copy(),
+                       np.full(len(parents), np.nan), tuple(tree.order()), groups, shapes, ends,
+                       None if ends is None else np.full(len(ends), np.nan))
+    lo, hi = radius_range[0] * float(voxel_size), float(radius_range[1])
+    K = len(body.bones) + body.n_extra
+    profiles = [radius_profile(vol, *body.capsules(np.asarray(P, float))[:2])
+                for vol, P in frames]
+    med = np.full(K, lo)
+    if profiles:
+        stack = np.concatenate(profiles, axis=1)
+        stack = np.where(stack > 0, stack, np.nan)
+        with np.errstate(all="ignore"):
+            med = np.clip(np.nan_to_num(np.nanmedian(stack, axis=1), nan=lo), lo, hi)
+    radii = np.full(len(parents), np.nan)
+    radii[body.bones] = med[:len(body.bones)]
+    return replace(body, radii=radii,
+                   extra_radii=None if ends is None else med[len(body.bones):])
 
 
 def bone_directions_of(P, parents) -> np.ndarray:

@@ -33,6 +33,10 @@ class FollowOptions:
         over the cameras (``diagnostics["fit_cameras"]`` per camera,
         :func:`~topopose.sequence.silhouette.silhouette_iou`); else (or without silhouettes)
         the voxel agreement (:func:`~topopose.sequence.tracker.agreement`)
+    trunk_sides : (upper, lower) reach of the capsules down the trunk's sides
+        (:func:`~topopose.sequence.body.trunk_sides`), or None: none
+    tips : capsules on beyond the tip joints where the hull goes on
+        (:func:`~topopose.sequence.body.tip_reach`)
     min_fit : a frame the track does not match is ``tracked`` when its silhouette ``fit``
         reaches this, else ``lost``
     track : the tracker's settings (:class:`~topopose.sequence.tracker.TrackOptions`)
@@ -43,6 +47,8 @@ class FollowOptions:
     calibrate: int = 0
     radius_scales: tuple = (1.0,)
     silhouette_fit: bool = True
+    trunk_sides: tuple | None = (0.6, 1.0)
+    tips: bool = False
     min_fit: float = 0.5
     track: TrackOptions = field(default_factory=TrackOptions)
 
@@ -124,7 +130,8 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     confident frames of its track decided them), ``fit`` and status ``matched`` / ``tracked``
     / ``lost``; ``diagnostics["track"]`` holds the frame the track started from (``from``)
     and whether it re-initialized there, ``diagnostics["track_body"]`` the body's radii and
-    bone lengths (per joint, the bone into it). Frames with no hull keep their pose.
+    bone lengths (per joint, the bone into it) and its extra capsules (``extra``: their ends'
+    weights of the joints and their radii). Frames with no hull keep their pose.
     """
     from topopose.sequence.body import learn_body
 
@@ -173,7 +180,8 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     learn = [(v[0], P) for v, P in picked if v[0] is not None]
     if not learn:
         return poses
-    body = learn_body(tree, lengths, learn, learn[0][0].voxel_size)
+    body = learn_body(tree, lengths, learn, learn[0][0].voxel_size, sides=opts.trunk_sides,
+                      tips=opts.tips)
     rng = np.random.default_rng(0)
     views = [(v[1], P) for v, P in picked if v[1] is not None]
     if views and len(opts.radius_scales) > 1:
@@ -204,6 +212,9 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     radii = {"radii": [None if not np.isfinite(x) else round(float(x), 4) for x in body.radii],
              "lengths": [None if not np.isfinite(x) else round(float(x), 4)
                          for x in body.lengths]}
+    if body.n_extra:            # the extra capsules: their ends' joint weights and radii
+        radii["extra"] = {"ends": np.round(body.ends, 4).tolist(),
+                          "radii": [round(float(x), 4) for x in body.extra_radii]}
     out = []
     for i, p in enumerate(poses):
         if not tr.status[i]:

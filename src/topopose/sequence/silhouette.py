@@ -18,8 +18,7 @@ def body_masks(body, P, cameras, shapes) -> list:
     (``shapes``: the (h, w) of each image)."""
     import cv2
 
-    bones = body.bones
-    A, B = P[body.parents[bones]], P[bones]
+    A, B, radii = body.capsules(P)
     mid = 0.5 * (A + B)
     out = []
     for cam, (h, w) in zip(cameras, shapes):
@@ -27,10 +26,10 @@ def body_masks(body, P, cameras, shapes) -> list:
         a, b = cam.project(A), cam.project(B)
         z = cam.to_camera(mid)[:, 2]
         f = float(cam.matrix[0, 0])
-        for k in range(len(bones)):
+        for k in range(len(A)):
             if not (np.isfinite(a[k]).all() and np.isfinite(b[k]).all()) or z[k] <= 0:
                 continue
-            t = max(1, int(round(2 * f * body.radii[bones[k]] / z[k])))
+            t = max(1, int(round(2 * f * radii[k] / z[k])))
             p, q = (tuple(int(round(v)) for v in np.clip(x, -1e5, 1e5)) for x in (a[k], b[k]))
             cv2.line(img, p, q, 1, thickness=t)
         out.append(img.astype(bool))

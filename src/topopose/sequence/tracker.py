@@ -199,14 +199,30 @@ class _Fitter:
                 self.col[int(j)] = (c, 2)
                 c += 2
         self.n = c
-        self.r = body.radii[self.bones]
+        # the capsules: the bones', then the extra ones between virtual joints (rows J + 2e,
+        # J + 2e + 1 of the extended joints, :meth:`extend`)
+        self.W = body.virtual()
+        nj, ne = len(body.names), body.n_extra
+        self.cpar = np.r_[self.par, nj + 2 * np.arange(ne)].astype(np.int64)
+        self.cbone = np.r_[self.bones, nj + 2 * np.arange(ne) + 1].astype(np.int64)
+        self.r = np.r_[body.radii[self.bones], body.extra_radii] if ne else body.radii[self.bones]
         deps = [[0, 1, 2] + sorted({self.col[int(j)][0] + q for j in np.flatnonzero(self.anc[k])
                                     for q in range(self.col[int(j)][1])})
-                for k in range(len(body.names))]
+                for k in range(nj)]
+        for e in range(ne):                 # both ends: every parameter either end moves with
+            d = sorted({i for k in np.flatnonzero(self.W[2 * e:2 * e + 2].any(axis=0))
+                        for i in deps[k]})
+            deps += [d, d]
         self.cols = np.full((len(deps), max(len(d) for d in deps)), -1, dtype=np.int64)
         for k, d in enumerate(deps):
             self.cols[k, :len(d)] = d
         self.s = np.asarray(opts.samples, float)
+
+    def extend(self, P, G):
+        """Joint positions and derivatives (J, 3[, n]) with the extra capsules' ends appended."""
+        if not len(self.W):
+            return P, G
+        return np.r_[P, self.W @ P], np.concatenate([G, np.einsum("vj,jcn->vcn", self.W, G)])
 
     def jacobian(self, D):
         """dP/dθ (J, 3, n) at directions D, and per bone d(bone end − bone start)/d(its
@@ -235,7 +251,8 @@ class _Fitter:
         else:
             align = pred = None
         rows, res = [], []
-        A, B = P[self.par], P[self.bones]
+        Pe, Ge = self.extend(P, G)
+        A, B = Pe[self.cpar], Pe[self.cbone]
         seg = B - A
         ll = np.maximum(np.einsum("kc,kc->k", seg, seg), 1e-12)
         # data: hull surface points to their nearest capsule
@@ -251,8 +268,8 @@ class _Fitter:
             r = dk - self.r[k]
             h = o.huber * data.voxel_size
             w = np.sqrt(np.where(np.abs(r) <= h, 1.0, h / np.maximum(np.abs(r), 1e-12)) / len(Q))
-            Jd = -(np.einsum("mc,mcn->mn", nq * (1 - tk)[:, None], G[self.par[k]])
-                   + np.einsum("mc,mcn->mn", nq * tk[:, None], G[self.bones[k]]))
+            Jd = -(np.einsum("mc,mcn->mn", nq * (1 - tk)[:, None], Ge[self.cpar[k]])
+                   + np.einsum("mc,mcn->mn", nq * tk[:, None], Ge[self.cbone[k]]))
             rows.append(Jd * w[:, None])
             res.append(r * w)
         # silhouettes: every sampled silhouette pixel's ray meets a capsule (one-sided)
@@ -278,8 +295,8 @@ class _Fitter:
                 h = o.huber * data.voxel_size
                 w = np.sqrt(np.where(r <= h, 1.0, h / np.maximum(r, 1e-12)) * o.rays / len(C))
                 w = w * act
-                Jr = -(np.einsum("mc,mcn->mn", nq * (1 - tk)[:, None], G[self.par[k]])
-                       + np.einsum("mc,mcn->mn", nq * tk[:, None], G[self.bones[k]]))
+                Jr = -(np.einsum("mc,mcn->mn", nq * (1 - tk)[:, None], Ge[self.cpar[k]])
+                       + np.einsum("mc,mcn->mn", nq * tk[:, None], Ge[self.cbone[k]]))
                 rows.append(Jr * w[:, None])
                 res.append(np.where(act, r, 0.0) * w)
         # inside: bone axis points at least depth × radius inside the hull
@@ -291,10 +308,10 @@ class _Fitter:
             h = o.huber * data.voxel_size
             act = np.where(ri > 0, 1.0, o.deep * np.minimum(1.0, h / np.maximum(-ri, 1e-12)))
             wi = np.sqrt(o.inside / sd.size)
-            sk = np.tile(self.s, len(self.bones))
-            bk = np.repeat(np.arange(len(self.bones)), len(self.s))
-            Ji = -(np.einsum("mc,mcn->mn", g * (1 - sk)[:, None], G[self.par[bk]])
-                   + np.einsum("mc,mcn->mn", g * sk[:, None], G[self.bones[bk]]))
+            sk = np.tile(self.s, len(A))
+            bk = np.repeat(np.arange(len(A)), len(self.s))
+            Ji = -(np.einsum("mc,mcn->mn", g * (1 - sk)[:, None], Ge[self.cpar[bk]])
+                   + np.einsum("mc,mcn->mn", g * sk[:, None], Ge[self.cbone[bk]]))
             act = np.sqrt(act)
             rows.append(Ji * (wi * act)[:, None])
             res.append(ri * wi * act)
@@ -353,14 +370,13 @@ class _Fitter:
             J, r = self.terms(root, D, data, align, pred, capsules=False, GM=GM)
             H = np.einsum("mi,mj->ij", J, J)       # not BLAS: its threads cost more here
             g = np.einsum("mi,m->i", J, r)
-            P = joint_positions(self.body, root, D)
-            G = GM[0]
-            A, B = P[self.par], P[self.bones]
+            P, G = self.extend(joint_positions(self.body, root, D), GM[0])
+            A, B = P[self.cpar], P[self.cbone]
             if len(data.points):
-                cne(data.points, none, A, B, self.r, self.par, self.bones, G, self.cols, h,
+                cne(data.points, none, A, B, self.r, self.cpar, self.cbone, G, self.cols, h,
                     1.0 / len(data.points), False, H, g)
             if data.rays is not None and o.rays > 0:
-                cne(data.rays[0], data.rays[1], A, B, self.r, self.par, self.bones, G,
+                cne(data.rays[0], data.rays[1], A, B, self.r, self.cpar, self.cbone, G,
                     self.cols, h, o.rays / len(data.rays[0]), True, H, g)
             H[np.diag_indices_from(H)] += 1e-6 + 1e-3 * np.diag(H)
             root, D = self.step(root, D, -np.linalg.solve(H, g))
@@ -437,8 +453,7 @@ def agreement(body: CapsuleBody, data: FrameData, P, samples=(0.15, 0.5, 0.85),
     """Voxel agreement of a fitted pose: the harmonic mean of the share of the hull's sampled
     surface points within ``tolerance`` voxels of a capsule's surface (the hull explained)
     and the share of the bones' axis points inside the hull (the body where the hull is)."""
-    bones = body.bones
-    A, B = P[body.parents[bones]], P[bones]
+    A, B, radii = body.capsules(P)
     seg = B - A
     Q = data.points
     if not len(Q):
@@ -446,7 +461,7 @@ def agreement(body: CapsuleBody, data: FrameData, P, samples=(0.15, 0.5, 0.85),
     ll = np.maximum(np.einsum("kc,kc->k", seg, seg), 1e-12)
     t = np.clip(np.einsum("mkc,kc->mk", Q[:, None] - A[None], seg) / ll, 0.0, 1.0)
     d = np.linalg.norm(Q[:, None] - (A[None] + t[..., None] * seg[None]), axis=2)
-    d = np.min(np.abs(d - body.radii[bones][None]), axis=1)
+    d = np.min(np.abs(d - radii[None]), axis=1)
     explained = float(np.mean(d <= tolerance * data.voxel_size))
     s = np.asarray(samples, float)
     S = (A[:, None] + s[None, :, None] * seg[:, None]).reshape(-1, 3)

@@ -241,3 +241,23 @@ def test_demo_writes_what_it_says(tmp_path):
                  "gt.json", "calibration.toml"):
         assert (d / name).exists(), name
     assert list(d.glob("frame_*_typical.png")) and str(d) in text
+
+
+def test_gate_options_recorded_and_resumed(capture_dir, tmp_path):
+    """A gate given as GateOptions is written into the header as its fields; a resume with the
+    same gate continues, with another gate it is refused."""
+    from topopose.errors import InputError
+    from topopose.frame.confidence import GateOptions
+
+    out = tmp_path / "poses.jsonl"
+    gate = GateOptions(max_foot_rise=None)
+    run(capture_dir, "human", resolution=64, output=out, frames="0:1", progress=False,
+        gate_rule=gate)
+    header = json.loads(out.read_text().splitlines()[0])
+    assert header["settings"]["gate_rule"]["max_foot_rise"] is None
+    r = run(capture_dir, "human", resolution=64, output=out, frames="0:2", progress=False,
+            gate_rule=gate, resume=True)
+    assert r.skipped == 1 and r.computed == 1
+    with pytest.raises(InputError, match="another settings"):
+        run(capture_dir, "human", resolution=64, output=out, frames="0:3", progress=False,
+            resume=True)

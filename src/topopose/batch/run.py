@@ -18,7 +18,7 @@ import json
 import math
 import sys
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, is_dataclass, replace
 from pathlib import Path
 
 from topopose.batch.options import RunOptions
@@ -536,8 +536,15 @@ def run_settings(options: EstimatorOptions) -> dict:
     for k, v in options.flat().items():
         if k not in out and k not in ("refocus", "thickness", "support", "centre", "constraints") \
                 and v != default[k]:
-            out[k] = v
+            out[k] = _plain(v)
     return out
+
+
+def _plain(v):
+    """An option's value as the JSON header holds it (a dataclass as its fields)."""
+    if is_dataclass(v) and not isinstance(v, type):
+        return json.loads(json.dumps(asdict(v)))
+    return v
 
 
 def run_header(cap, model, resolution, threshold, options) -> dict:

@@ -203,7 +203,7 @@ def hull_shoulders(vol, junction, axis, front, radius):
 
     data = np.asarray(vol.data, bool)       # its voxels in index order, read within its box
     box = hull_box(vol)
-    idx = np.zeros((0, 3), np.intp) if box is None else skeleton_voxels(data, box)
+    idx = np.argwhere(data) if box is None else skeleton_voxels(data, box)
     X = np.asarray(vol.origin, float) + idx * float(vol.voxel_size)
     Y = (X - np.asarray(junction, float)) @ M.T
     r = float(radius)

@@ -29,9 +29,10 @@ sequence stage as it was, the peer).
   a skeleton, the silhouette IoU of the fitted body per camera (median over frames), pictures
   of 6 frames (3 with a wrist within :data:`TOUCH` of the trunk) with the body drawn over the
   masks (written to the work folder, not to ``--out``: the recording has no licence to copy).
-* **speed**: the tracker's stages per frame (``timings_ms``: ``track_hull`` carving the hull
-  again, ``track_data`` surface points and silhouette rays, ``track_fit`` the Gauss–Newton fits,
-  ``track_quality`` the silhouette IoU), the mean over the synthetic 8-camera sequences.
+* **speed**: the tracker's stages per frame (``timings_ms``: ``track_hull`` reading the
+  hull the frame loop kept, ``track_data`` surface points and silhouette rays, ``track_fit``
+  the Gauss–Newton fits, ``track_quality`` the silhouette IoU), the mean over the synthetic
+  8-camera sequences.
 """
 from __future__ import annotations
 
@@ -371,7 +372,7 @@ def report(doc) -> str:
         if t:
             lines += ["", "Tracker cost a frame (8 cameras, 100³, mean over the sequences, ms): "
                       + ", ".join(f"{k[6:]} {np.mean([x[k] for x in t]):.1f}" for k in t[0])
-                      + " (hull: carved again; fit: the Gauss–Newton fits, both directions and "
+                      + " (hull: the frame loop's kept hull read; fit: the Gauss–Newton fits, both directions and "
                       "the confident frames' starts)"]
         lines.append("")
     real = doc.get("real")

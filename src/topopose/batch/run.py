@@ -270,16 +270,7 @@ def run(capture, model="human", resolution=100, threshold=None, output=None,
             and len(todo) > 2 else None)
     existed = out is not None and out.exists()
     t0 = time.perf_counter()
-    fh = None
-    if partial is not None:
-        try:
-            fh = open(partial, "w")
-        except OSError as exc:
-            raise InputError(f"--output: cannot write beside {out} ({exc.strerror or exc})") from None
-        fh.write(json.dumps(header, separators=(",", ":")) + "\n")
-        for p in sort_poses(done.values()):
-            fh.write(p.to_json() + "\n")
-        fh.flush()
+    fh = _open_partial(partial, out, header, done) if partial is not None else None
     bar = _progress(len(todo), o.progress and len(todo) > 0, f"{m.name} @ {resolution}³")
     finish = _frame_sink(results, fh, bar, o.on_pose)
     complete = False
@@ -337,6 +328,19 @@ def run(capture, model="human", resolution=100, threshold=None, output=None,
                     counts=counts, written=written)
     write_exports(exports, poses, motion, m, cap)
     return res
+
+
+def _open_partial(partial, out, header, done):
+    """The partial file beside ``out``, opened with the header and the resumed frames."""
+    try:
+        fh = open(partial, "w")
+    except OSError as exc:
+        raise InputError(f"--output: cannot write beside {out} ({exc.strerror or exc})") from None
+    fh.write(json.dumps(header, separators=(",", ":")) + "\n")
+    for p in sort_poses(done.values()):
+        fh.write(p.to_json() + "\n")
+    fh.flush()
+    return fh
 
 
 def _frame_sink(results, fh, bar, on_pose):

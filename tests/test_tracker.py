@@ -252,3 +252,39 @@ def test_extra_capsules_move_with_their_joints():
     for v in range(len(NAMES), len(Pe)):
         moved = set(np.flatnonzero(np.abs(Ge[v]).max(axis=0) > 0))
         assert moved <= set(f.cols[v][f.cols[v] >= 0])
+
+
+def test_body_masks_draw_each_capsule_as_wide_as_seen():
+    """Oracle: a camera looking down the z axis (identity rotation, body 2 m in front), each
+    bone's capsule drawn as the band of pixels within f·r/z of its end points' segment; a bone
+    with a non-finite end or behind the camera draws nothing."""
+    from topopose.geometry.camera import Camera
+    from topopose.sequence.silhouette import body_masks
+
+    body = make_body()
+    P = pose(rest_directions(), root=(0.0, 0.0, 0.0))[:, [0, 2, 1]] * [1, 1, 0.1] + [0, 0, 2]
+    f, w, h = 100.0, 200, 200
+    cam = Camera("c", (w, h), [[f, 0, w / 2], [0, f, h / 2], [0, 0, 1]], np.zeros(5),
+                 np.zeros(3), np.zeros(3))
+    m = body_masks(body, P, [cam], [(h, w)])[0]
+    A, B, r = body.capsules(P)
+    a, b = cam.project(A), cam.project(B)
+    z = (0.5 * (A + B))[:, 2]
+    v, u = np.mgrid[0:h, 0:w]
+    pix = np.c_[u.ravel(), v.ravel()].astype(float)
+    inside = np.zeros(len(pix), bool)
+    outside = np.ones(len(pix), bool)
+    for k in range(len(A)):
+        d = b[k] - a[k]
+        s = np.clip(((pix - a[k]) @ d) / max(d @ d, 1e-12), 0, 1)
+        dist = np.linalg.norm(pix - (a[k] + s[:, None] * d), axis=1)
+        half = f * r[k] / z[k]
+        inside |= dist < half - 1.5
+        outside &= dist > half + 1.5
+    assert inside.any() and m.ravel()[inside].all() and not m.ravel()[outside].any()
+    Q = P.copy()
+    Q[:, 2] = -2.0                                     # behind the camera
+    assert not body_masks(body, Q, [cam], [(h, w)])[0].any()
+    Q = P.copy()
+    Q[:] = np.nan
+    assert not body_masks(body, Q, [cam], [(h, w)])[0].any()

@@ -25,14 +25,14 @@ def body_masks(body, P, cameras, shapes) -> list:
         img = np.zeros((h, w), np.uint8)
         a, b = cam.project(A), cam.project(B)
         z = cam.to_camera(mid)[:, 2]
-        f = float(cam.matrix[0, 0])
-        for k in range(len(A)):
-            if not (np.isfinite(a[k]).all() and np.isfinite(b[k]).all()) or z[k] <= 0:
-                continue
-            t = max(1, int(round(2 * f * radii[k] / z[k])))
-            p, q = (tuple(int(round(v)) for v in np.clip(x, -1e5, 1e5)) for x in (a[k], b[k]))
-            cv2.line(img, p, q, 1, thickness=t)
-        out.append(img.astype(bool))
+        ok = np.flatnonzero(np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1) & (z > 0))
+        if len(ok):
+            f = float(cam.matrix[0, 0])
+            t = np.maximum(1, np.rint(2 * f * radii[ok] / z[ok])).astype(np.int64).tolist()
+            p, q = (np.rint(np.clip(x[ok], -1e5, 1e5)).astype(np.int64).tolist() for x in (a, b))
+            for k in range(len(ok)):
+                cv2.line(img, p[k], q[k], 1, thickness=t[k])
+        out.append(img.view(bool))
     return out
 
 

@@ -219,22 +219,10 @@ def pose2sim(work, recording):
     import real
     import real_motion as rm
 
-    import topopose as tp
-
-    recording = Path(recording)
-    if not (recording / "reference" / "pose2sim_3d.trc").exists():
-        return {"absent": f"{recording}: no reference/pose2sim_3d.trc (recording absent)"}
-    try:
-        import mediapipe  # noqa: F401
-    except ImportError:
-        return {"absent": "mediapipe is not installed (pip install topopose[segment])"}
-    ref = real.read_trc(recording / "reference" / "pose2sim_3d.trc")
-    d = Path(work) / "pose2sim"
-    if not (d / "capture").exists():
-        real.make_capture(recording, d / "capture", "person", rm.SILHOUETTES)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cap = tp.load_capture(d / "capture")
+    got = rm.person_capture(recording, work)
+    if "absent" in got:
+        return got
+    cap, ref, d = got["capture"], got["reference"], got["folder"]
     poses = estimate(cap, d / "poses.jsonl")
     right = {}
     for i, p in enumerate(poses):

@@ -278,6 +278,29 @@ def toe_errors(markers, ref, rows) -> dict:
     return {"median": float(np.median(errs)) if errs else None, "n": len(errs)}
 
 
+def person_capture(recording, work):
+    """The recording's ``person`` capture under ``work/pose2sim`` (made once) and Pose2Sim's
+    3D result, or ``{"absent": why}`` when the reference or MediaPipe is missing."""
+    import topopose as tp
+    from real import make_capture, read_trc
+
+    recording = Path(recording)
+    if not (recording / "reference" / "pose2sim_3d.trc").exists():
+        return {"absent": f"{recording}: no reference/pose2sim_3d.trc (recording absent)"}
+    try:
+        import mediapipe  # noqa: F401
+    except ImportError:
+        return {"absent": "mediapipe is not installed (pip install topopose[segment])"}
+    d = Path(work) / "pose2sim"
+    if not (d / "capture").exists():
+        make_capture(recording, d / "capture", "person", SILHOUETTES)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cap = tp.load_capture(d / "capture")
+    return {"capture": cap, "reference": read_trc(recording / "reference" / "pose2sim_3d.trc"),
+            "folder": d}
+
+
 def run_recording(rec: Path, work: Path, raw_path=None, resolution=100, sequence=None):
     """Per-frame run (gates off) and the motion stage; returns raw poses, motion, capture, TRC."""
     import topopose as tp

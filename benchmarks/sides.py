@@ -346,26 +346,15 @@ def pose2sim(work, recording):
     import real
     import real_motion as rm
 
-    import topopose as tp
     from topopose.pose.model import load_model
     from topopose.sequence.chirality import SideOptions, assign_sides, numbered
     from topopose.sequence.motion import process_sequence
 
-    recording = Path(recording)
-    if not (recording / "reference" / "pose2sim_3d.trc").exists():
-        return {"absent": f"{recording}: no reference/pose2sim_3d.trc (recording absent)"}
-    try:
-        import mediapipe  # noqa: F401
-    except ImportError:
-        return {"absent": "mediapipe is not installed (pip install topopose[segment])"}
     model = load_model("human")
-    ref = real.read_trc(recording / "reference" / "pose2sim_3d.trc")
-    d = Path(work) / "pose2sim"
-    if not (d / "capture").exists():
-        real.make_capture(recording, d / "capture", "person", rm.SILHOUETTES)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cap = tp.load_capture(d / "capture")
+    got = rm.person_capture(recording, work)
+    if "absent" in got:
+        return got
+    cap, ref, d = got["capture"], got["reference"], got["folder"]
     out = {}
     for gate in GATES:
         raw = sorted(estimate_all(cap, gate, d / f"poses_{gate}.jsonl"), key=lambda p: p.frame)

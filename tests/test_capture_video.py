@@ -195,7 +195,9 @@ def test_frames_by_time(tmp_path, cams, scene):
         want = [f for i, f in enumerate(cap.frames) if a <= i / FPS + 1e-12 and i / FPS < b - 1e-12]
         assert select_frames(cap, text) == want, text
     assert select_frames(cap, "0s:0.3s:2") == cap.frames[0:8:2]
-    assert select_frames(cap, "2:5") == cap.frames[2:5]
+    assert select_frames(cap, "2:5") == select_frames(cap, slice(2, 5)) == cap.frames[2:5]
+    with pytest.raises(InputError, match="--frames"):
+        select_frames(cap, slice(50, 60))
     cap.fps = None
     with pytest.raises(InputError, match="frame rate"):
         select_frames(cap, "0.1s:0.2s")

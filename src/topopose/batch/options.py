@@ -40,9 +40,9 @@ class RunOptions:
 
     Attributes
     ----------
-    frames : None, list or str
-        The frames: None (all), a list, ``"a:b"`` / ``"0.5s:1.2s"`` / ``"f1,f2"``
-        (:func:`~topopose.batch.run.select_frames`).
+    frames : None, list, slice or str
+        The frames: None (all), a list, a slice of indices, ``"a:b"`` / ``"0.5s:1.2s"`` /
+        ``"f1,f2"`` (:func:`~topopose.batch.run.select_frames`).
     resume : bool
         Skip the frames already in the output (an interrupted run continues).
     progress : bool

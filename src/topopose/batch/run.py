@@ -74,13 +74,16 @@ def _frame_bound(cap, text: str, whole: str):
 
 
 def select_frames(cap, frames) -> list:
-    """Frame names from None (all), a list, or a text: ``"a:b"`` / ``"a:b:s"`` (indices, Python
-    slice rules), ``"0.5s:1.2s"`` (times in seconds: the frames i with 0.5 ≤ i / fps < 1.2; the
-    step, if any, is in frames; times and indices mix, e.g. ``"2s:"``), or ``"f1,f2"``."""
+    """Frame names from None (all), a list, a ``slice`` of indices, or a text: ``"a:b"`` /
+    ``"a:b:s"`` (indices, Python slice rules), ``"0.5s:1.2s"`` (times in seconds: the frames i
+    with 0.5 ≤ i / fps < 1.2; the step, if any, is in frames; times and indices mix, e.g.
+    ``"2s:"``), or ``"f1,f2"``."""
     if frames is None:
         return list(cap.frames)
     given = frames
-    if isinstance(frames, str):
+    if isinstance(frames, slice):
+        frames = list(cap.frames)[frames]
+    elif isinstance(frames, str):
         text = frames.strip()
         if ":" in text:
             bits = text.split(":")

@@ -288,3 +288,33 @@ def test_body_masks_draw_each_capsule_as_wide_as_seen():
     Q = P.copy()
     Q[:] = np.nan
     assert not body_masks(body, Q, [cam], [(h, w)])[0].any()
+
+
+def test_tracked_head_lies_where_the_confident_frames_put_it():
+    """The human tree has no joint at the head's end: the tracker's frames place the head
+    part past the skull as far as the confident frames' alignments put it (the head's top).
+    Oracle: the synthetic body's crown, the skull joint at its rig joint; the skull's bone
+    extended as far as its place on the arc says falls inside the head, 10+ cm short."""
+    from types import SimpleNamespace
+
+    from topopose.pose.model import load_model
+    from topopose.sequence.follow import body_parts, part_reach
+    from topopose.sequence.skeleton_fit import kinematic_tree
+    from topopose.synth.body import BUILDS, body_random, pose_body
+
+    tree = kinematic_tree(load_model("human"))
+    neck, skull = tree.names.index("neck"), tree.names.index("skull")
+    rng = np.random.default_rng(5)
+    frames = []
+    for _ in range(8):
+        b = pose_body(body_random(rng), BUILDS["average"]).joints
+        P = np.full((len(tree.names), 3), np.nan)
+        P[neck], P[skull] = b["Neck_head"], b["Head_head"]
+        frames.append((P, np.asarray(b["crown"])))
+    conf = np.stack([P for P, _c in frames[:5]])
+    poses = [SimpleNamespace(parts={"head": c}) for _P, c in frames[:5]]
+    reach = part_reach(tree, poses, conf)
+    assert set(reach) == {"head"}
+    for P, crown in frames[5:]:
+        assert np.linalg.norm(body_parts(tree, P, reach)["head"] - crown) < 0.03
+        assert np.linalg.norm(body_parts(tree, P)["head"] - crown) > 0.08

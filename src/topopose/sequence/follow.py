@@ -37,6 +37,9 @@ class FollowOptions:
         (:func:`~topopose.sequence.body.trunk_sides`), or None: none
     tips : capsules on beyond the tip joints where the hull goes on
         (:func:`~topopose.sequence.body.tip_reach`)
+    part_reach : the parts no joint places (the head, past the skull) where the confident
+        frames' alignments put them along the last bone (:func:`part_reach`); else the bone
+        extended as far as the joint's place on its arc says
     min_fit : a frame the track does not match is ``tracked`` when its silhouette ``fit``
         reaches this, else ``lost``
     track : the tracker's settings (:class:`~topopose.sequence.tracker.TrackOptions`)
@@ -49,6 +52,7 @@ class FollowOptions:
     silhouette_fit: bool = True
     trunk_sides: tuple | None = (0.6, 1.0)
     tips: bool = False
+    part_reach: bool = True
     min_fit: float = 0.5
     track: TrackOptions = field(default_factory=TrackOptions)
 
@@ -86,26 +90,65 @@ def _canonical(pose, tree, groups, rename):
     return P, np.array(sided, dtype=bool)
 
 
-def body_parts(tree, P) -> dict:
+def body_parts(tree, P, reach=None) -> dict:
     """The model's parts placed by the skeleton ``P`` (J, 3): a part at an arc's end takes the
     joint declared there (``at`` 0 or 1: chest → torso, pelvis → crotch, fingertip → hand), or
-    the arc's last bone is extended to the arc's end (skull → head)."""
+    lies on along the arc's last bone past its joint (skull → head): by ``reach[part]`` (m,
+    :func:`part_reach`), else as far as the joint's place on the arc extends the bone."""
     out = {}
     for j, (u, v) in enumerate(tree.arc):
         if tree.at[j] == 0.0:
             out.setdefault(u, P[j])
         elif tree.at[j] == 1.0:
             out[v] = P[j]
+    for j, p, v in _extended(tree):
+        d = P[j] - P[p]
+        if reach and v in reach and np.isfinite(reach[v]):
+            out[v] = P[j] + reach[v] * d / max(float(np.linalg.norm(d)), 1e-12)
+        else:
+            at_p = tree.at[p] if tree.arc[p] == tree.arc[j] else 0.0
+            out[v] = P[j] + (1.0 - tree.at[j]) / (tree.at[j] - at_p) * d
+    return {k: np.asarray(x, float).copy() for k, x in out.items()}
+
+
+def _extended(tree) -> list:
+    """The parts no joint places, at an arc's end: (the arc's last joint, its parent, the
+    part)."""
+    ends = {v for j, (u, v) in enumerate(tree.arc) if tree.at[j] == 1.0} | \
+        {u for j, (u, v) in enumerate(tree.arc) if tree.at[j] == 0.0}
+    out = []
     for j, (u, v) in enumerate(tree.arc):
         last = max((k for k in range(len(tree.arc)) if tree.arc[k] == (u, v)),
                    key=lambda k: tree.at[k])
-        if v in out or j != last:
+        if v in ends or j != last:
             continue
         p = tree.parents[j]
         at_p = tree.at[p] if p >= 0 and tree.arc[p] == (u, v) else 0.0
         if p >= 0 and tree.at[j] > at_p:
-            out[v] = P[j] + (1.0 - tree.at[j]) / (tree.at[j] - at_p) * (P[j] - P[p])
-    return {k: np.asarray(x, float).copy() for k, x in out.items()}
+            out.append((j, p, v))
+    return out
+
+
+def part_reach(tree, poses, align) -> dict:
+    """How far each part no joint places (:func:`_extended`: the head past the skull) lies
+    past its arc's last joint along that joint's bone where the alignment placed both: the
+    median over the confident frames (``align`` (F, J, 3), NaN elsewhere) of the alignment's
+    part (the head's top, where the hull ends) projected on the bone. The
+    tracker's frames then put the part where the confident frames have it, a constant of the
+    subject's body like its bone lengths."""
+    out = {}
+    for j, p, v in _extended(tree):
+        r = []
+        for i, pose in enumerate(poses):
+            x = (pose.parts or {}).get(v)
+            if x is None or np.isnan(align[i, [j, p]]).any():
+                continue
+            d = align[i, j] - align[i, p]
+            r.append(float(np.dot(np.asarray(x, float) - align[i, j], d))
+                     / max(float(np.linalg.norm(d)), 1e-12))
+        if r:
+            out[v] = float(np.median(r))
+    return out
 
 
 def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = None) -> list:
@@ -207,6 +250,7 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     if tr is None:
         return poses
     votes = _segment_votes(tr, align, sided, len(groups))
+    reach = part_reach(tree, poses, align) if opts.part_reach else None
     from topopose.sequence.silhouette import silhouette_iou
 
     radii = {"radii": [None if not np.isfinite(x) else round(float(x), 4) for x in body.radii],
@@ -225,7 +269,8 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
         joints = {n: tr.joints[i, j].copy() for j, n in enumerate(names)}
         parts = p.parts
         if tr.status[i] != "matched" or not p.matched:        # the body's own parts
-            parts = {side.get(k, k): v for k, v in body_parts(tree, tr.joints[i]).items()}
+            parts = {side.get(k, k): v
+                     for k, v in body_parts(tree, tr.joints[i], reach).items()}
         diag = {**p.diagnostics, "track": {"from": poses[int(tr.segment[i])].frame,
                                            "reinitialized": bool(i in tr.reinitialized)},
                 "track_body": radii}

@@ -288,3 +288,33 @@ def test_body_masks_draw_each_capsule_as_wide_as_seen():
     Q = P.copy()
     Q[:] = np.nan
     assert not body_masks(body, Q, [cam], [(h, w)])[0].any()
+
+
+def test_calibration_lengthens_an_arm_held_against_the_trunk():
+    """The confident frames' bone lengths short (both arms 0.7 × their true length), one arm
+    out to the side, the other pressed into the trunk (its forearm inside the trunk's hull):
+    the follow stage's calibration (``FollowOptions.calibrate`` rounds) lengthens both arms
+    towards the truth, the hidden one by its twin's evidence, as one length."""
+    from dataclasses import replace
+
+    from topopose.sequence.follow import FollowOptions
+    from topopose.sequence.tracker import calibrate
+
+    body = make_body()
+    rng = np.random.default_rng(1)
+    frames = []
+    for s in (0.0, 0.25, 0.5):
+        D = arm_down(rest_directions(), s)
+        D[6] = D[7] = _unit(0, 0.3, -1)               # arm 2 into the trunk
+        P = pose(D)
+        frames.append((frame_data(hull_of(body, P), 400, rng), P))
+    short = LENGTHS.copy()
+    short[[3, 4, 6, 7]] *= 0.7
+    rounds = FollowOptions().calibrate
+    L = calibrate(replace(body, lengths=short), frames, TrackOptions(iterations=6),
+                  rounds=rounds).lengths
+    assert rounds > 0
+    assert np.allclose(L[[3, 4]], L[[6, 7]])                  # mirrored bones: one length
+    gap = LENGTHS[[6, 7]] - short[[6, 7]]
+    assert (L[[6, 7]] - short[[6, 7]] > 0.15 * gap).all()      # the hidden arm lengthened
+    assert (L[[6, 7]] < LENGTHS[[6, 7]] + 0.02).all()

@@ -318,3 +318,33 @@ def test_tracked_head_lies_where_the_confident_frames_put_it():
     for P, crown in frames[5:]:
         assert np.linalg.norm(body_parts(tree, P, reach)["head"] - crown) < 0.03
         assert np.linalg.norm(body_parts(tree, P)["head"] - crown) > 0.08
+
+
+def test_calibration_lengthens_an_arm_held_against_the_trunk():
+    """The confident frames' bone lengths short (both arms 0.7 × their true length), one arm
+    out to the side, the other pressed into the trunk (its forearm inside the trunk's hull):
+    the follow stage's calibration (``FollowOptions.calibrate`` rounds) lengthens both arms
+    towards the truth, the hidden one by its twin's evidence, as one length."""
+    from dataclasses import replace
+
+    from topopose.sequence.follow import FollowOptions
+    from topopose.sequence.tracker import calibrate
+
+    body = make_body()
+    rng = np.random.default_rng(1)
+    frames = []
+    for s in (0.0, 0.25, 0.5):
+        D = arm_down(rest_directions(), s)
+        D[6] = D[7] = _unit(0, 0.3, -1)               # arm 2 into the trunk
+        P = pose(D)
+        frames.append((frame_data(hull_of(body, P), 400, rng), P))
+    short = LENGTHS.copy()
+    short[[3, 4, 6, 7]] *= 0.7
+    rounds = FollowOptions().calibrate
+    L = calibrate(replace(body, lengths=short), frames, TrackOptions(iterations=6),
+                  rounds=rounds).lengths
+    assert rounds > 0
+    assert np.allclose(L[[3, 4]], L[[6, 7]])                  # mirrored bones: one length
+    gap = LENGTHS[[6, 7]] - short[[6, 7]]
+    assert (L[[6, 7]] - short[[6, 7]] > 0.15 * gap).all()      # the hidden arm lengthened
+    assert (L[[6, 7]] < LENGTHS[[6, 7]] + 0.02).all()

@@ -5,7 +5,8 @@ apart; a model-based capture then follows the subject through the others. Its mo
 subject's own (Corazza et al., IJCV 2010: a subject-specific model from the visual hulls):
 
 * the **bone lengths** are the kinematic fit's (:func:`topopose.sequence.kinematic_fit.fit_sequence`,
-  constant over the sequence);
+  constant over the sequence), refined on the confident frames' hulls jointly, mirrored
+  bones sharing one length (:func:`topopose.sequence.tracker.calibrate`);
 * the **rigid groups** (the upper trunk, the pelvis: :func:`rigid_groups`) keep the shape
   the confident frames give them (:func:`group_shape`);
 * each bone's **radius** is the profile of the hull's distance transform along the bone, in the

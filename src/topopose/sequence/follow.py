@@ -27,8 +27,9 @@ class FollowOptions:
     body_frames : at most this many confident frames (evenly spread) learn the body's radii
     radius_scales : the factors of the radii tried on the same frames' silhouettes, the best
         silhouette IoU kept (:func:`~topopose.sequence.silhouette.radius_scale`; one: none)
-    calibrate : rounds refining the bone lengths on those frames' hulls
-        (:func:`~topopose.sequence.tracker.calibrate`; 0: the kinematic fit's lengths)
+    calibrate : rounds refining the bone lengths on those frames' hulls, all frames and
+        mirrored bones jointly (:func:`~topopose.sequence.tracker.calibrate`; 0: the
+        kinematic fit's lengths)
     silhouette_fit : the frame's ``fit`` is the silhouette IoU of the projected body, mean
         over the cameras (``diagnostics["fit_cameras"]`` per camera,
         :func:`~topopose.sequence.silhouette.silhouette_iou`); else (or without silhouettes)
@@ -47,7 +48,7 @@ class FollowOptions:
 
     enabled: bool = True
     body_frames: int = 12
-    calibrate: int = 0
+    calibrate: int = 2
     radius_scales: tuple = (1.0,)
     silhouette_fit: bool = True
     trunk_sides: tuple | None = (0.6, 1.0)

@@ -389,7 +389,9 @@ def calibrate(body: CapsuleBody, frames, opts: TrackOptions | None = None, round
     model of Corazza et al., IJCV 2010, from the visual hulls): each round fits every frame
     from its alignment with the current lengths, then takes one Gauss–Newton step of the
     lengths shared by all frames (data and inside terms, a weak ``prior`` pulling each length
-    towards the kinematic fit's, bounded to ``bounds`` × it).
+    towards the kinematic fit's, bounded to ``bounds`` × it). Mirrored bones (``elbow_1``,
+    ``elbow_2``: :func:`mirror_groups`) share one length, as in the kinematic fit: a limb
+    misplaced in the confident frames is outvoted by its twin's evidence.
 
     Parameters
     ----------
@@ -406,6 +408,14 @@ def calibrate(body: CapsuleBody, frames, opts: TrackOptions | None = None, round
     bones = body.bones
     L0 = body.lengths.copy()
     L = L0.copy()
+    share = np.arange(len(bones))          # each bone's shared length (mirrored bones: one)
+    col = {int(j): k for k, j in enumerate(bones)}
+    for a, b in mirror_groups(body.names):
+        if a in col and b in col:
+            share[col[b]] = share[col[a]]
+    _u, share = np.unique(share, return_inverse=True)
+    S = np.zeros((len(bones), int(share.max()) + 1))
+    S[np.arange(len(bones)), share] = 1.0
     for _ in range(rounds):
         b = replace(body, lengths=L)
         f = _Fitter(b, opts)
@@ -423,8 +433,9 @@ def calibrate(body: CapsuleBody, frames, opts: TrackOptions | None = None, round
             g += np.einsum("mi,m->i", J, r)
         H[np.diag_indices_from(H)] += prior / max(len(frames), 1) + 1e-9
         g += prior / max(len(frames), 1) * (L[bones] - L0[bones])
+        H, g = S.T @ H @ S, S.T @ g
         L = L.copy()
-        L[bones] = np.clip(L[bones] - np.linalg.solve(H, g), bounds[0] * L0[bones],
+        L[bones] = np.clip(L[bones] - S @ np.linalg.solve(H, g), bounds[0] * L0[bones],
                            bounds[1] * L0[bones])
     return replace(body, lengths=L)
 

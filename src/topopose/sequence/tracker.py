@@ -26,6 +26,7 @@ re-initialization, each frame keeping the better fit. Every frame gets a quality
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -168,7 +169,7 @@ def _skew(v):
 
 def _rotation(w):
     """Rotation matrix of the rotation vector ``w`` (Rodrigues)."""
-    t = float(np.linalg.norm(w))
+    t = math.sqrt(w.dot(w))                       # np.linalg.norm's own sum
     if t < 1e-12:
         return np.eye(3)
     K = _skew(np.asarray(w) / t)
@@ -217,6 +218,21 @@ class _Fitter:
         for k, d in enumerate(deps):
             self.cols[k, :len(d)] = d
         self.s = np.asarray(opts.samples, float)
+        # fixed per fitter: the kernels' arrays, the inside term's points' bones and depths,
+        # the prediction term's rows and columns of each bone's block
+        self._chain = (np.asarray(body.parents, dtype=np.int64),
+                       np.array(body.order, dtype=np.int64), body.root,
+                       np.asarray(body.lengths, dtype=float))
+        b = np.asarray(self.bones, dtype=np.int64)
+        self._blocks = (b, np.array([self.col[int(j)][0] for j in b], dtype=np.int64),
+                        np.array([self.col[int(j)][1] for j in b], dtype=np.int64))
+        ns, nk = len(self.s), len(self.cpar)
+        self._need = np.repeat(opts.depth * self.r, ns)
+        self._sk = np.tile(self.s, nk)
+        bk = np.repeat(np.arange(nk), ns)
+        self._ends_in = (self.cpar[bk], self.cbone[bk])
+        self._pred_at = [(3 + 3 * k, self.col[int(j)][0], self.col[int(j)][1], k)
+                         for k, j in enumerate(self.bones)]
 
     def extend(self, P, G):
         """Joint positions and derivatives (J, 3[, n]) with the extra capsules' ends appended."""
@@ -227,31 +243,46 @@ class _Fitter:
     def jacobian(self, D):
         """dP/dθ (J, 3, n) at directions D, and per bone d(bone end − bone start)/d(its
         block's parameters), (3, width) (:func:`.tracker_kernels.joint_jacobian`)."""
-        from topopose.sequence.tracker_kernels import joint_jacobian
-
-        if "_blocks" not in self.__dict__:
-            b = np.asarray(self.bones, dtype=np.int64)
-            self._blocks = (b, np.array([self.col[int(j)][0] for j in b], dtype=np.int64),
-                            np.array([self.col[int(j)][1] for j in b], dtype=np.int64))
-        bones, col, width = self._blocks
-        G, M, _E = joint_jacobian(np.ascontiguousarray(D, dtype=float),
-                                  np.asarray(self.body.lengths, dtype=float), bones, col, width,
-                                  self.anc, self.n)
+        G, M = self._jacobian(D)
+        bones, _col, width = self._blocks
         return G, {int(j): M[k, :, :width[k]] for k, j in enumerate(bones)}
 
-    def terms(self, root, D, data: FrameData, align, pred, G=None, capsules=True, GM=None):
+    def _jacobian(self, D):
+        """:meth:`jacobian` with ``M`` as one array (nb, 3, 3), the bones in :attr:`bones`'
+        order, each block's columns first."""
+        from topopose.sequence.tracker_kernels import joint_jacobian
+
+        bones, col, width = self._blocks
+        G, M, _E = joint_jacobian(np.ascontiguousarray(D, dtype=float), self._chain[3], bones,
+                                  col, width, self.anc, self.n)
+        return G, M
+
+    def at(self, root, D):
+        """Everything the terms read of the pose (root, D), computed once: the joints ``P``,
+        their derivatives ``G`` and the bones' ``M`` (:meth:`_jacobian`), the extended joints
+        and derivatives ``Pe``, ``Ge`` (:meth:`extend`)."""
+        from topopose.sequence.tracker_kernels import chain_positions
+
+        parents, order, r0, lengths = self._chain
+        P = chain_positions(np.asarray(root, float), np.ascontiguousarray(D, dtype=float),
+                            lengths, parents, order, r0)
+        G, M = self._jacobian(D)
+        Pe, Ge = self.extend(P, G)
+        return P, G, M, Pe, Ge
+
+    def terms(self, root, D, data: FrameData, align, pred, G=None, capsules=True, at=None):
         """Weighted residuals and their Jacobian rows (``G``: dP/d of other parameters, for
         the data and inside terms alone; ``capsules`` False: without the data and silhouette
         terms, which :meth:`fit` adds with :func:`.tracker_kernels.capsule_normal_equations`;
-        ``GM``: :meth:`jacobian` at D if already computed)."""
+        ``at``: :meth:`at` of (root, D) if already computed)."""
         o, b = self.opts, self.body
-        P = joint_positions(b, root, D)
         if G is None:
-            G, M = self.jacobian(D) if GM is None else GM
+            P, G, M, Pe, Ge = self.at(root, D) if at is None else at
         else:
             align = pred = None
+            P = joint_positions(b, root, D)
+            Pe, Ge = self.extend(P, G)
         rows, res = [], []
-        Pe, Ge = self.extend(P, G)
         A, B = Pe[self.cpar], Pe[self.cbone]
         seg = B - A
         ll = np.maximum(np.einsum("kc,kc->k", seg, seg), 1e-12)
@@ -303,15 +334,15 @@ class _Fitter:
         if data.kd is not None:
             S = A[:, None] + self.s[None, :, None] * seg[:, None]        # (nb, ns, 3)
             sd, g = data.signed_distance(S.reshape(-1, 3))
-            need = np.repeat(o.depth * self.r, len(self.s))
+            need = self._need                       # depth × each point's bone's radius
             ri = need - sd
             h = o.huber * data.voxel_size
             act = np.where(ri > 0, 1.0, o.deep * np.minimum(1.0, h / np.maximum(-ri, 1e-12)))
             wi = np.sqrt(o.inside / sd.size)
-            sk = np.tile(self.s, len(A))
-            bk = np.repeat(np.arange(len(A)), len(self.s))
-            Ji = -(np.einsum("mc,mcn->mn", g * (1 - sk)[:, None], Ge[self.cpar[bk]])
-                   + np.einsum("mc,mcn->mn", g * sk[:, None], Ge[self.cbone[bk]]))
+            sk = self._sk                           # each point's place along its bone
+            start, end = self._ends_in              # and its bone's ends
+            Ji = -(np.einsum("mc,mcn->mn", g * (1 - sk)[:, None], Ge[start])
+                   + np.einsum("mc,mcn->mn", g * sk[:, None], Ge[end]))
             act = np.sqrt(act)
             rows.append(Ji * (wi * act)[:, None])
             res.append(ri * wi * act)
@@ -328,13 +359,12 @@ class _Fitter:
             wp = np.sqrt(o.prior)
             Jp = np.zeros((3 + 3 * len(self.bones), self.n))
             Jp[:3, :3] = np.eye(3) * wp
-            rp = [(root - proot) * wp]
-            for k, j in enumerate(self.bones):
-                c, w = self.col[int(j)]
-                Jp[3 + 3 * k:6 + 3 * k, c:c + w] = M[int(j)] * wp
-                rp.append(b.lengths[j] * wp * (D[j] - pD[j]))
+            for row, c, w, k in self._pred_at:        # each bone's end, by its block
+                Jp[row:row + 3, c:c + w] = M[k, :, :w] * wp
+            bo = self.bones
+            rp = (b.lengths[bo] * wp)[:, None] * (D[bo] - pD[bo])
             rows.append(Jp)
-            res.append(np.concatenate(rp))
+            res.append(np.concatenate([(root - proot) * wp, rp.ravel()]))
         n = G.shape[2]
         return (np.concatenate(rows) if rows else np.zeros((0, n)),
                 np.concatenate(res) if res else np.zeros(0))
@@ -346,7 +376,7 @@ class _Fitter:
         E = _basis(D)
         for members, c, w in self.blocks:
             a = x[c:c + w]
-            na = float(np.linalg.norm(a))
+            na = math.sqrt(a.dot(a))                # np.linalg.norm's own sum, less its cost
             if na > self.opts.max_step:
                 a = a * (self.opts.max_step / na)
             if w == 3:
@@ -354,7 +384,7 @@ class _Fitter:
             else:
                 j = members[0]
                 d = D[j] + E[j] @ a
-                D[j] = d / np.linalg.norm(d)
+                D[j] = d / math.sqrt(d.dot(d))
         return root, D
 
     def fit(self, root, D, data, align=None, pred=None):
@@ -366,11 +396,11 @@ class _Fitter:
         none = np.zeros((0, 3))
         h = o.huber * data.voxel_size
         for _ in range(o.iterations):
-            GM = self.jacobian(D)
-            J, r = self.terms(root, D, data, align, pred, capsules=False, GM=GM)
+            at = self.at(root, D)
+            J, r = self.terms(root, D, data, align, pred, capsules=False, at=at)
             H = np.einsum("mi,mj->ij", J, J)       # not BLAS: its threads cost more here
             g = np.einsum("mi,m->i", J, r)
-            P, G = self.extend(joint_positions(self.body, root, D), GM[0])
+            _P, _G, _M, P, G = at
             A, B = P[self.cpar], P[self.cbone]
             if len(data.points):
                 cne(data.points, none, A, B, self.r, self.cpar, self.cbone, G, self.cols, h,

@@ -180,3 +180,20 @@ def joint_jacobian(D, lengths, bones, col, width, anc, n):
                     for q in range(width[b]):
                         G[k, r, c + q] += M[b, r, q]
     return G, M, E
+
+
+@njit(cache=True, nogil=True)
+def chain_positions(root, D, lengths, parents, order, r0):
+    """Joint positions (J, 3) from the root's (joint ``r0``) and the bones' directions ``D``
+    (J, 3), joints in ``order`` (parents first): :func:`.body.joint_positions`, the same
+    operations in the same order."""
+    J = D.shape[0]
+    P = np.zeros((J, 3))
+    for c in range(3):
+        P[r0, c] = root[c]
+    for j in order:
+        p = parents[j]
+        if p >= 0:
+            for c in range(3):
+                P[j, c] = P[p, c] + lengths[j] * D[j, c]
+    return P

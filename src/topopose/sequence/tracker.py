@@ -94,6 +94,9 @@ class FrameData:
     kd: object = field(repr=False, default=None)
     rays: tuple = None          # (origins (R, 3), unit directions (R, 3)) of silhouette pixels
     lo: np.ndarray = field(default_factory=lambda: np.zeros(3, np.int64))
+    #: the capsule each point and each ray was paired with at the last fit, tried first at
+    #: the next (:func:`.tracker_kernels.capsule_normal_equations`: less work, the same result)
+    nearest: tuple = field(repr=False, default=None)
 
     def inside(self, x) -> np.ndarray:
         idx = np.rint((np.asarray(x) - self.origin) / self.voxel_size).astype(np.int64) - self.lo
@@ -395,6 +398,9 @@ class _Fitter:
         root, D = np.array(root, float), np.array(D, float)
         none = np.zeros((0, 3))
         h = o.huber * data.voxel_size
+        if data.nearest is None:
+            data.nearest = (np.zeros(len(data.points), np.int64),
+                            np.zeros(0 if data.rays is None else len(data.rays[0]), np.int64))
         for _ in range(o.iterations):
             at = self.at(root, D)
             J, r = self.terms(root, D, data, align, pred, capsules=False, at=at)
@@ -404,10 +410,10 @@ class _Fitter:
             A, B = P[self.cpar], P[self.cbone]
             if len(data.points):
                 cne(data.points, none, A, B, self.r, self.cpar, self.cbone, G, self.cols, h,
-                    1.0 / len(data.points), False, H, g)
+                    1.0 / len(data.points), False, H, g, data.nearest[0])
             if data.rays is not None and o.rays > 0:
                 cne(data.rays[0], data.rays[1], A, B, self.r, self.cpar, self.cbone, G,
-                    self.cols, h, o.rays / len(data.rays[0]), True, H, g)
+                    self.cols, h, o.rays / len(data.rays[0]), True, H, g, data.nearest[1])
             H[np.diag_indices_from(H)] += 1e-6 + 1e-3 * np.diag(H)
             root, D = self.step(root, D, -np.linalg.solve(H, g))
         return root, D, joint_positions(self.body, root, D)

@@ -10,7 +10,7 @@ BOUND_SLACK = 1e-9
 
 @njit(cache=True, nogil=True)
 def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, one_sided, H,
-                             g):
+                             g, first):
     """Add one robust capsule term's normal equations to ``H`` (n, n) and ``g`` (n,).
 
     Each data point ``Q[m]`` (or, when ``U`` has rows, the ray from ``Q[m]`` along ``U[m]``:
@@ -21,6 +21,12 @@ def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, o
     joints at the bone's ends; ``cols[j]``: the parameters joint ``j`` depends on (-1: padding;
     a bone's child joint depends on every parameter its parent does). Returns the weighted
     cost.
+
+    ``first`` (M,): the capsule tried first for each point, set to the one found (its nearest,
+    or, ``one_sided``, the first found holding it: the point adds nothing then). The nearest
+    is the first of least distance in the capsules' order whichever is tried first, so
+    ``first`` changes the work (the last call's on the same points: the other capsules are
+    then mostly passed), never the result.
     """
     M = Q.shape[0]
     nb = A.shape[0]
@@ -44,7 +50,11 @@ def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, o
         bk = -1
         bt = 0.0
         bd = 0.0
-        for k in range(nb):
+        k0 = first[m] if 0 <= first[m] < nb else 0
+        for kk in range(-1, nb):           # k0 first, then the others in order
+            k = k0 if kk < 0 else kk
+            if kk == k0:
+                continue
             if bk >= 0:
                 # a bound below the capsule's surface distance from the point (the ray): the
                 # centre's, less half the bone and the radius; a capsule surely farther than
@@ -86,11 +96,14 @@ def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, o
             x1 = A[k, 1] + t * s1
             x2 = A[k, 2] + t * s2
             d = np.sqrt((y0 - x0) ** 2 + (y1 - x1) ** 2 + (y2 - x2) ** 2)
-            if d - radii[k] < best:
+            if d - radii[k] < best or (d - radii[k] == best and k < bk):
                 best = d - radii[k]
                 bk, bt, bd = k, t, d
                 by[0], by[1], by[2] = y0, y1, y2
                 bx[0], bx[1], bx[2] = x0, x1, x2
+            if one_sided and best <= 0.0:  # inside a capsule: the nearest's residual too
+                break
+        first[m] = bk
         if bk < 0:
             continue
         res = best

@@ -116,12 +116,18 @@ class FrameData:
 
 def silhouette_rays(cameras, silhouettes, n, rng) -> tuple:
     """Rays (origins, unit directions) through ``n`` pixels sampled in each silhouette
-    (lens distortion undone)."""
+    (lens distortion undone). A silhouette is a boolean image, or ``(y0, x0, crop)``: the
+    image's set pixels all in ``crop`` (boolean), whose first pixel is the image's (y0, x0)
+    (:class:`~.kept.CroppedViews`)."""
     import cv2
 
     O, U = [], []
     for cam, m in zip(cameras, silhouettes):
-        yx = np.argwhere(np.asarray(m, bool))
+        if isinstance(m, tuple):
+            yx = np.argwhere(m[2])
+            yx += np.array([m[0], m[1]], dtype=yx.dtype)
+        else:
+            yx = np.argwhere(np.asarray(m, bool))
         if not len(yx):
             continue
         yx = yx if len(yx) <= n else yx[rng.choice(len(yx), n, replace=False)]
@@ -141,20 +147,39 @@ def silhouette_rays(cameras, silhouettes, n, rng) -> tuple:
 def frame_data(volume, n_points, rng=None, views=None, n_rays=0) -> FrameData:
     """The fit's view of a hull (:class:`FrameData`): its surface voxels (object voxels with a
     6-neighbour outside), ``n_points`` of them sampled for the data term; with ``views``
-    (cameras, silhouettes), ``n_rays`` pixel rays per camera (:func:`silhouette_rays`)."""
+    (cameras, silhouettes), ``n_rays`` pixel rays per camera (:func:`silhouette_rays`).
+    ``volume``: a Volume, or the :class:`~.kept.PackedVolume` of one."""
     from scipy import ndimage
     from scipy.spatial import cKDTree
 
-    occ = np.asarray(volume.data, dtype=bool)
-    lo, box = bounding_box(occ)
-    surf = occ[box] & ~ndimage.binary_erosion(occ[box])
+    lo, occ_box = _object_box(volume)
+    surf = occ_box & ~ndimage.binary_erosion(occ_box)
     ijk = np.argwhere(surf) + lo
     X = volume.origin + ijk * float(volume.voxel_size)
     rng = np.random.default_rng(0) if rng is None else rng
     pts = X if len(X) <= n_points else X[rng.choice(len(X), n_points, replace=False)]
     rays = silhouette_rays(*views, n_rays, rng) if views is not None and n_rays else None
-    return FrameData(pts, X, occ[box], np.asarray(volume.origin, float),
+    return FrameData(pts, X, occ_box, np.asarray(volume.origin, float),
                      float(volume.voxel_size), cKDTree(X) if len(X) else None, rays, lo)
+
+
+def _object_box(volume) -> tuple:
+    """The lower corner and the voxels of the hull's bounding box grown by one voxel
+    (:func:`.body.bounding_box`) of a Volume, or of a :class:`~.kept.PackedVolume` unpacked
+    into that box alone."""
+    if not hasattr(volume, "bits"):
+        occ = np.asarray(volume.data, dtype=bool)
+        lo, box = bounding_box(occ)
+        return lo, occ[box]
+    size = int(np.prod(volume.box))
+    if not size:
+        return np.zeros(3, dtype=np.int64), np.zeros((0, 0, 0), bool)
+    lo = np.array([max(a - 1, 0) for a in volume.lo])
+    hi = [min(a + b + 1, n) for a, b, n in zip(volume.lo, volume.box, volume.shape)]
+    occ = np.zeros([b - a for a, b in zip(lo, hi)], bool)
+    at = tuple(slice(a - c, a - c + b) for a, c, b in zip(volume.lo, lo, volume.box))
+    occ[at] = np.unpackbits(volume.bits, count=size).reshape(volume.box).view(bool)
+    return lo, occ
 
 
 # --------------------------------------------------------------------------- one frame's fit

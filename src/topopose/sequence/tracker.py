@@ -149,18 +149,35 @@ def frame_data(volume, n_points, rng=None, views=None, n_rays=0) -> FrameData:
     6-neighbour outside), ``n_points`` of them sampled for the data term; with ``views``
     (cameras, silhouettes), ``n_rays`` pixel rays per camera (:func:`silhouette_rays`).
     ``volume``: a Volume, or the :class:`~.kept.PackedVolume` of one."""
-    from scipy import ndimage
     from scipy.spatial import cKDTree
 
     lo, occ_box = _object_box(volume)
-    surf = occ_box & ~ndimage.binary_erosion(occ_box)
+    surf = occ_box & ~_eroded(occ_box)
     ijk = np.argwhere(surf) + lo
     X = volume.origin + ijk * float(volume.voxel_size)
     rng = np.random.default_rng(0) if rng is None else rng
     pts = X if len(X) <= n_points else X[rng.choice(len(X), n_points, replace=False)]
     rays = silhouette_rays(*views, n_rays, rng) if views is not None and n_rays else None
+    # the tree's shape (sliding midpoint splits) makes no nearest point another
+    kd = cKDTree(X, balanced_tree=False, compact_nodes=False) if len(X) else None
     return FrameData(pts, X, occ_box, np.asarray(volume.origin, float),
-                     float(volume.voxel_size), cKDTree(X) if len(X) else None, rays, lo)
+                     float(volume.voxel_size), kd, rays, lo)
+
+
+def _eroded(occ) -> np.ndarray:
+    """``scipy.ndimage.binary_erosion(occ)`` (3-D, 6-neighbours, outside the array empty):
+    the voxels set with their 6 neighbours."""
+    out = occ.copy()
+    if not out.size:
+        return out
+    for a in range(3):
+        def at(s):
+            return tuple(s if b == a else slice(None) for b in range(3))
+        out[at(slice(1, None))] &= occ[at(slice(None, -1))]
+        out[at(slice(None, -1))] &= occ[at(slice(1, None))]
+        out[at(0)] = False
+        out[at(-1)] = False
+    return out
 
 
 def _object_box(volume) -> tuple:
@@ -514,16 +531,20 @@ def agreement(body: CapsuleBody, data: FrameData, P, samples=(0.15, 0.5, 0.85),
     """Voxel agreement of a fitted pose: the harmonic mean of the share of the hull's sampled
     surface points within ``tolerance`` voxels of a capsule's surface (the hull explained)
     and the share of the bones' axis points inside the hull (the body where the hull is)."""
+    from topopose.sequence.tracker_kernels import near_surface
+
     A, B, radii = body.capsules(P)
     seg = B - A
     Q = data.points
     if not len(Q):
         return 0.0
-    ll = np.maximum(np.einsum("kc,kc->k", seg, seg), 1e-12)
-    t = np.clip(np.einsum("mkc,kc->mk", Q[:, None] - A[None], seg) / ll, 0.0, 1.0)
-    d = np.linalg.norm(Q[:, None] - (A[None] + t[..., None] * seg[None]), axis=2)
-    d = np.min(np.abs(d - radii[None]), axis=1)
-    explained = float(np.mean(d <= tolerance * data.voxel_size))
+    # the share of points within the tolerance of a capsule's surface: the point's distance
+    # to the nearest point of each bone's segment, less its radius
+    #   t = clip((Q − A)·seg / |seg|², 0, 1), d = | |Q − (A + t seg)| − r |
+    # (:func:`.tracker_kernels.near_surface`)
+    near = near_surface(np.ascontiguousarray(Q, dtype=float), A, B, radii,
+                        tolerance * data.voxel_size)
+    explained = near / len(Q)
     s = np.asarray(samples, float)
     S = (A[:, None] + s[None, :, None] * seg[:, None]).reshape(-1, 3)
     inside = float(np.mean(data.inside(S)))

@@ -210,3 +210,30 @@ def chain_positions(root, D, lengths, parents, order, r0):
             for c in range(3):
                 P[j, c] = P[p, c] + lengths[j] * D[j, c]
     return P
+
+
+@njit(cache=True, nogil=True)
+def near_surface(Q, A, B, radii, tolerance):
+    """How many points ``Q`` (M, 3) lie within ``tolerance`` of a capsule's surface (bone
+    ``k`` from ``A[k]`` to ``B[k]``, radius ``radii[k]``): the distance to the nearest point
+    of each segment, less the radius, in :func:`.tracker.agreement`'s operations."""
+    nb = A.shape[0]
+    n = 0
+    for m in range(Q.shape[0]):
+        for k in range(nb):
+            s0 = B[k, 0] - A[k, 0]
+            s1 = B[k, 1] - A[k, 1]
+            s2 = B[k, 2] - A[k, 2]
+            ll = max(s0 * s0 + s1 * s1 + s2 * s2, 1e-12)
+            q0 = Q[m, 0] - A[k, 0]
+            q1 = Q[m, 1] - A[k, 1]
+            q2 = Q[m, 2] - A[k, 2]
+            t = min(max((q0 * s0 + q1 * s1 + q2 * s2) / ll, 0.0), 1.0)
+            x0 = Q[m, 0] - (A[k, 0] + t * s0)
+            x1 = Q[m, 1] - (A[k, 1] + t * s1)
+            x2 = Q[m, 2] - (A[k, 2] + t * s2)
+            d = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+            if abs(d - radii[k]) <= tolerance:
+                n += 1
+                break
+    return n

@@ -682,6 +682,8 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
             out.swapped[i] = sw
 
     starts = {}
+    fits = {}      # (frame, state) → its fit: a run that passes a frame again in the same
+                   # state (from a re-initialization reached twice) finds it there
 
     def start(i):
         """The fit of confident frame i initialized by its alignment: (root, D, P, quality)."""
@@ -704,12 +706,15 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
             if d is None or d.kd is None:
                 i += step
                 continue
-            rp, Dp = _predict(body, fitter, state, opts.velocity, opts.agree)
-            A, sw = None, none
-            if conf[i]:
-                A, sw = _identity(align[i], joint_positions(body, rp, Dp), groups)
-            root, D, P = fitter.fit(rp, Dp, d, align=A, pred=(rp, Dp))
-            q = agreement(body, d, P)
+            key = (i, *(np.asarray(x).tobytes() for x in state))
+            if key not in fits:
+                rp, Dp = _predict(body, fitter, state, opts.velocity, opts.agree)
+                A, sw = None, none
+                if conf[i]:
+                    A, sw = _identity(align[i], joint_positions(body, rp, Dp), groups)
+                root, D, P = fitter.fit(rp, Dp, d, align=A, pred=(rp, Dp))
+                fits[key] = (A, sw, root, D, P, agreement(body, d, P))
+            A, sw, root, D, P, q = fits[key]
             status = "tracked" if q >= opts.quality else "lost"
             if A is not None:
                 moved = False

@@ -9,7 +9,8 @@ import pytest
 from topopose.sequence.body import CapsuleBody, joint_positions
 from topopose.sequence.tracker import FrameData, TrackOptions, _Fitter
 from topopose.sequence.tracker_kernels import (bone_bases, capsule_normal_equations,
-                                               chain_positions, near_surface)
+                                               chain_positions, near_surface,
+                                               normal_equations)
 
 NAMES = ("chest", "pelvis", "shoulder_1", "elbow_1", "shoulder_2", "elbow_2", "hip_1", "knee_1")
 PARENTS = np.array([-1, 0, 0, 2, 0, 4, 1, 6])
@@ -83,6 +84,20 @@ def test_bases_are_orthonormal_to_the_directions():
         assert np.allclose(np.einsum("jc,jc->j", D, E[:, :, k]), 0.0, atol=1e-12)
         assert np.allclose(np.linalg.norm(E[:, :, k], axis=1), 1.0)
     assert np.allclose(np.einsum("jc,jc->j", E[:, :, 0], E[:, :, 1]), 0.0, atol=1e-12)
+
+
+def test_normal_equations_are_numpys_einsums():
+    """JᵀJ and Jᵀr of sparse rows (zeros of both signs), and of the terms' own rows."""
+    rng = np.random.default_rng(8)
+    for _ in range(50):
+        J = rng.normal(size=(120, 20))
+        J[rng.random(J.shape) < 0.6] = 0.0
+        J[rng.random(J.shape) < 0.1] = -0.0
+        r = rng.normal(size=len(J))
+        H, g = normal_equations(J, r)
+        H0, g0 = np.einsum("mi,mj->ij", J, J), np.einsum("mi,m->i", J, r)
+        assert np.allclose(H, H0, rtol=1e-13, atol=0) and np.allclose(g, g0, rtol=1e-13, atol=0)
+        assert np.array_equal(np.signbit(H), np.signbit(H0))
 
 
 def test_positions_are_numpys_bit_for_bit():

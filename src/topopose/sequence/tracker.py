@@ -435,6 +435,7 @@ class _Fitter:
     def fit(self, root, D, data, align=None, pred=None):
         """Gauss–Newton from (root, D); returns the fitted root, directions and joints."""
         from topopose.sequence.tracker_kernels import capsule_normal_equations as cne
+        from topopose.sequence.tracker_kernels import normal_equations
 
         o = self.opts
         root, D = np.array(root, float), np.array(D, float)
@@ -446,8 +447,7 @@ class _Fitter:
         for _ in range(o.iterations):
             at = self.at(root, D)
             J, r = self.terms(root, D, data, align, pred, capsules=False, at=at)
-            H = np.einsum("mi,mj->ij", J, J)       # not BLAS: its threads cost more here
-            g = np.einsum("mi,m->i", J, r)
+            H, g = normal_equations(J, r)          # JᵀJ, Jᵀr (not BLAS: its threads cost more)
             _P, _G, _M, P, G = at
             A, B = P[self.cpar], P[self.cbone]
             if len(data.points):

@@ -237,3 +237,27 @@ def near_surface(Q, A, B, radii, tolerance):
                 n += 1
                 break
     return n
+
+
+@njit(cache=True, nogil=True)
+def normal_equations(J, r):
+    """``H = Jᵀ J`` (n, n) and ``g = Jᵀ r`` (n,) of rows ``J`` (M, n) and residuals ``r``
+    (M,): each entry the sum over the rows in order, as ``np.einsum("mi,mj->ij", J, J)`` and
+    ``np.einsum("mi,m->i", J, r)``, the rows' zeros passed (adding a zero product changes no
+    sum)."""
+    M, n = J.shape
+    H = np.zeros((n, n))
+    g = np.zeros(n)
+    nz = np.empty(n, np.int64)
+    for m in range(M):
+        c = 0
+        for i in range(n):
+            if J[m, i] != 0.0:
+                nz[c] = i
+                c += 1
+        for a in range(c):
+            i = nz[a]
+            for b in range(c):
+                H[i, nz[b]] += J[m, i] * J[m, nz[b]]
+            g[i] += J[m, i] * r[m]
+    return H, g

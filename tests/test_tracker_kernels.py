@@ -1,13 +1,14 @@
 """The tracker's Numba kernels against the NumPy formulas they compute: bit for bit, the
 bones' bases (two unit normals by cross products), the joints' Jacobian (each bone's end
 moved by its own parameters, summed along the path from the root), the joints' positions and
-the count of points near the capsules' surfaces; the capsule terms' normal equations against
-the residuals and Jacobian rows of :meth:`_Fitter.terms`, whichever capsule is tried first."""
+the count of points near the capsules' surfaces, the nearest surface voxels (against
+``scipy.spatial.cKDTree``); the capsule terms' normal equations against the residuals and
+Jacobian rows of :meth:`_Fitter.terms`, whichever capsule is tried first."""
 import numpy as np
 import pytest
 
 from topopose.sequence.body import CapsuleBody, joint_positions
-from topopose.sequence.tracker import FrameData, TrackOptions, _Fitter
+from topopose.sequence.tracker import FrameData, SurfaceGrid, TrackOptions, _Fitter
 from topopose.sequence.tracker_kernels import (bone_bases, capsule_normal_equations,
                                                chain_positions, near_surface,
                                                normal_equations)
@@ -186,3 +187,29 @@ def test_capsule_normal_equations_are_the_terms(rays):
         assert np.allclose(g, J.T @ r, rtol=1e-9, atol=1e-12)
         assert np.isclose(cost, r @ r, rtol=1e-9)
         assert np.abs(g).max() > 0
+
+
+@pytest.mark.parametrize("bucket", [1, 3, 4])
+def test_surface_grid_finds_the_trees_nearest(bucket):
+    """Every point's nearest voxel and distance, bit for bit, as ``cKDTree.query``: points
+    near a random voxel set, deep inside it, far outside the grid; of two voxels at the same
+    distance the first."""
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(9 + bucket)
+    for _ in range(5):
+        ijk = np.argwhere(rng.random(rng.integers(3, 25, 3)) < rng.uniform(0.02, 0.3))
+        if not len(ijk):
+            continue
+        corner, size = rng.normal(size=3), 0.02
+        X = corner + ijk * size
+        grid = SurfaceGrid(X, ijk, corner, size, bucket)
+        x = np.r_[X[rng.integers(0, len(X), 200)] + rng.normal(size=(200, 3)) * 0.05,
+                  X.mean(axis=0) + rng.normal(size=(30, 3)) * 2.0, X[:5]]
+        d, i = grid.query(x)
+        d0, i0 = cKDTree(X).query(x)
+        assert np.array_equal(d, d0) and np.array_equal(i, i0)
+    X = np.array([[0.0, 0.0, 0.0], [0.02, 0.0, 0.0]])
+    d, i = SurfaceGrid(X, np.array([[0, 0, 0], [1, 0, 0]]), np.zeros(3), 0.02).query(
+        np.array([[0.01, 0.3, 0.0]]))
+    assert i[0] == 0 and d[0] == np.sqrt(0.01 ** 2 + 0.3 ** 2)

@@ -149,8 +149,6 @@ def frame_data(volume, n_points, rng=None, views=None, n_rays=0) -> FrameData:
     6-neighbour outside), ``n_points`` of them sampled for the data term; with ``views``
     (cameras, silhouettes), ``n_rays`` pixel rays per camera (:func:`silhouette_rays`).
     ``volume``: a Volume, or the :class:`~.kept.PackedVolume` of one."""
-    from scipy.spatial import cKDTree
-
     lo, occ_box = _object_box(volume)
     surf = occ_box & ~_eroded(occ_box)
     ijk = np.argwhere(surf) + lo
@@ -158,10 +156,40 @@ def frame_data(volume, n_points, rng=None, views=None, n_rays=0) -> FrameData:
     rng = np.random.default_rng(0) if rng is None else rng
     pts = X if len(X) <= n_points else X[rng.choice(len(X), n_points, replace=False)]
     rays = silhouette_rays(*views, n_rays, rng) if views is not None and n_rays else None
-    # the tree's shape (sliding midpoint splits) makes no nearest point another
-    kd = cKDTree(X, balanced_tree=False, compact_nodes=False) if len(X) else None
+    kd = SurfaceGrid(X, np.argwhere(surf), volume.origin + lo * float(volume.voxel_size),
+                     float(volume.voxel_size)) if len(X) else None
     return FrameData(pts, X, occ_box, np.asarray(volume.origin, float),
                      float(volume.voxel_size), kd, rays, lo)
+
+
+class SurfaceGrid:
+    """The nearest surface voxel of points, as ``scipy.spatial.cKDTree(X).query`` finds it
+    (:func:`.tracker_kernels.nearest_voxels`), from the voxels bucketed on their grid.
+
+    Parameters
+    ----------
+    X : ndarray (M, 3), the voxels' centres
+    ijk : ndarray (M, 3) of int ≥ 0, their indices on the grid, ``X ≈ corner + ijk × size``
+    corner : ndarray (3,), size : float
+    bucket : voxels a bucket's side
+    """
+
+    def __init__(self, X, ijk, corner, size, bucket=4):
+        self.X = np.ascontiguousarray(X, dtype=float)
+        self.corner, self.size, self.bucket = np.asarray(corner, float), float(size), bucket
+        b = np.asarray(ijk, np.int64) // bucket
+        self.shape = b.max(axis=0) + 1
+        cell = (b[:, 0] * self.shape[1] + b[:, 1]) * self.shape[2] + b[:, 2]
+        self.items = np.argsort(cell, kind="stable")
+        self.start = np.zeros(int(np.prod(self.shape)) + 1, np.int64)
+        np.cumsum(np.bincount(cell, minlength=len(self.start) - 1), out=self.start[1:])
+
+    def query(self, x):
+        """(distances (N,), rows of X (N,)) of the points ``x`` (N, 3)."""
+        from topopose.sequence.tracker_kernels import nearest_voxels
+
+        return nearest_voxels(np.ascontiguousarray(x, dtype=float), self.X, self.corner,
+                              self.size, self.start, self.items, self.shape, self.bucket)
 
 
 def _eroded(occ) -> np.ndarray:

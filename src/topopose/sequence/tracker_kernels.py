@@ -261,3 +261,72 @@ def normal_equations(J, r):
                 H[i, nz[b]] += J[m, i] * J[m, nz[b]]
             g[i] += J[m, i] * r[m]
     return H, g
+
+
+@njit(cache=True, nogil=True)
+def nearest_voxels(x, X, u0, vs, start, items, shape, size):
+    """Each point of ``x`` (N, 3)'s nearest row of ``X`` (M, 3) and its distance, as
+    ``scipy.spatial.cKDTree(X).query(x)`` gives them (the same distance, bit for bit; of equal
+    distances the first row): (N,) distances, (N,) rows.
+
+    The rows of ``X`` are voxel centres, ``X[m] ≈ u0 + ijk[m] × vs`` (``ijk`` ≥ 0, integer),
+    bucketed by ``ijk // size`` in a grid of ``shape`` buckets: bucket ``b``'s rows are
+    ``items[start[b]:start[b + 1]]`` (``b`` in C order). The buckets are searched in rings
+    around the point's, each passed when surely farther than the nearest so far
+    (:data:`BOUND_SLACK`), until a ring surely is.
+    """
+    n = x.shape[0]
+    dist = np.empty(n)
+    rows = np.empty(n, np.int64)
+    nx, ny, nz = shape[0], shape[1], shape[2]
+    reach = max(nx, max(ny, nz))
+    u = np.empty(3)
+    b = np.empty(3, np.int64)
+    for q in range(n):
+        for a in range(3):
+            u[a] = (x[q, a] - u0[a]) / vs                 # the voxel coordinates
+            b[a] = min(max(int(np.floor(u[a] / size)), 0), shape[a] - 1)
+        best = np.inf
+        bd = np.inf
+        bi = -1
+        for r in range(reach + 1):
+            # a ring r buckets away lies beyond (r - 1) × size voxels of the point
+            if bi >= 0 and (r - 1) * size * vs > bd + BOUND_SLACK:
+                break
+            for c0 in range(max(b[0] - r, 0), min(b[0] + r, nx - 1) + 1):
+                for c1 in range(max(b[1] - r, 0), min(b[1] + r, ny - 1) + 1):
+                    for c2 in range(max(b[2] - r, 0), min(b[2] + r, nz - 1) + 1):
+                        if max(abs(c0 - b[0]), max(abs(c1 - b[1]), abs(c2 - b[2]))) != r:
+                            continue
+                        cell = (c0 * ny + c1) * nz + c2
+                        if start[cell] == start[cell + 1]:
+                            continue
+                        if bi >= 0:                         # the bucket's nearest voxel
+                            g2 = 0.0
+                            lo0 = c0 * size - u[0]
+                            hi0 = u[0] - (c0 * size + size - 1)
+                            lo1 = c1 * size - u[1]
+                            hi1 = u[1] - (c1 * size + size - 1)
+                            lo2 = c2 * size - u[2]
+                            hi2 = u[2] - (c2 * size + size - 1)
+                            g = max(lo0, max(hi0, 0.0))
+                            g2 += g * g
+                            g = max(lo1, max(hi1, 0.0))
+                            g2 += g * g
+                            g = max(lo2, max(hi2, 0.0))
+                            g2 += g * g
+                            if np.sqrt(g2) * vs > bd + BOUND_SLACK:
+                                continue
+                        for t in range(start[cell], start[cell + 1]):
+                            m = items[t]
+                            d0 = x[q, 0] - X[m, 0]
+                            d1 = x[q, 1] - X[m, 1]
+                            d2 = x[q, 2] - X[m, 2]
+                            dd = (d0 * d0 + d1 * d1) + d2 * d2
+                            if dd < best or (dd == best and m < bi):
+                                best = dd
+                                bi = m
+                                bd = np.sqrt(dd)
+        dist[q] = bd
+        rows[q] = bi
+    return dist, rows

@@ -84,7 +84,9 @@ class TrackOptions:
 class FrameData:
     """One frame's hull as the fit reads it: sampled surface points, and the signed distance
     to the hull's surface (:meth:`signed_distance`) from all its surface voxels.
-    ``occupancy``: the grid's voxels from index ``lo`` on (the hull's bounding box)."""
+    ``occupancy``: the grid's voxels from index ``lo`` on (the hull's bounding box); ``kd``:
+    the surface voxels' nearest-point search (``query(x)`` → distances, rows of ``surface``:
+    :class:`SurfaceGrid`, or a ``scipy.spatial.cKDTree``), None without a surface."""
 
     points: np.ndarray
     surface: np.ndarray
@@ -151,12 +153,13 @@ def frame_data(volume, n_points, rng=None, views=None, n_rays=0) -> FrameData:
     ``volume``: a Volume, or the :class:`~.kept.PackedVolume` of one."""
     lo, occ_box = _object_box(volume)
     surf = occ_box & ~_eroded(occ_box)
-    ijk = np.argwhere(surf) + lo
+    at = np.argwhere(surf)                      # in the box
+    ijk = at + lo
     X = volume.origin + ijk * float(volume.voxel_size)
     rng = np.random.default_rng(0) if rng is None else rng
     pts = X if len(X) <= n_points else X[rng.choice(len(X), n_points, replace=False)]
     rays = silhouette_rays(*views, n_rays, rng) if views is not None and n_rays else None
-    kd = SurfaceGrid(X, np.argwhere(surf), volume.origin + lo * float(volume.voxel_size),
+    kd = SurfaceGrid(X, at, volume.origin + lo * float(volume.voxel_size),
                      float(volume.voxel_size)) if len(X) else None
     return FrameData(pts, X, occ_box, np.asarray(volume.origin, float),
                      float(volume.voxel_size), kd, rays, lo)

@@ -213,3 +213,32 @@ def test_surface_grid_finds_the_trees_nearest(bucket):
     d, i = SurfaceGrid(X, np.array([[0, 0, 0], [1, 0, 0]]), np.zeros(3), 0.02).query(
         np.array([[0.01, 0.3, 0.0]]))
     assert i[0] == 0 and d[0] == np.sqrt(0.01 ** 2 + 0.3 ** 2)
+
+
+def test_step_turns_each_block_as_its_own_loop():
+    """The step's bones turned all at once against each block turned on its own (a rigid
+    group by its rotation, another bone in the plane normal to it), steps longer than
+    ``max_step`` shortened."""
+    from topopose.sequence.tracker import _rotation
+
+    f = _Fitter(_body(), TrackOptions())
+    rng = np.random.default_rng(10)
+    for _ in range(100):
+        D = _directions(rng, len(NAMES))
+        root = rng.normal(size=3)
+        x = rng.normal(size=f.n) * rng.choice([0.01, 0.3, 1.0])
+        E = reference_bases(D)
+        want = D.copy()
+        for members, c, w in f.blocks:
+            a = x[c:c + w]
+            na = np.linalg.norm(a)
+            if na > f.opts.max_step:
+                a = a * (f.opts.max_step / na)
+            if w == 3:
+                want[members] = D[members] @ _rotation(a).T
+            else:
+                d = D[members[0]] + E[members[0]] @ a
+                want[members[0]] = d / np.linalg.norm(d)
+        r1, D1 = f.step(root, D, x)
+        assert np.array_equal(r1, root + x[:3])
+        assert np.allclose(D1, want, rtol=0, atol=1e-15)

@@ -239,6 +239,12 @@ def _basis(D):
     return bone_bases(np.ascontiguousarray(D, dtype=float))
 
 
+def _dots(V):
+    """Each row's dot product with itself, (N, M) → (N,), as ``V[i].dot(V[i])`` sums it
+    (NumPy's matmul of stacked vectors is its dot)."""
+    return (V[:, None, :] @ V[:, :, None])[:, 0, 0]
+
+
 def _skew(v):
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
@@ -309,6 +315,11 @@ class _Fitter:
         self._ends_in = (self.cpar[bk], self.cbone[bk])
         self._pred_at = [(3 + 3 * k, self.col[int(j)][0], self.col[int(j)][1], k)
                          for k, j in enumerate(self.bones)]
+        # the step's blocks: the rigid groups, and the other bones with their two columns
+        self.rigid = [blk for blk in self.blocks if blk[2] == 3]
+        turned = [(m[0], c) for m, c, w in self.blocks if w == 2]
+        self.turns = (np.array([j for j, _c in turned], dtype=np.int64),
+                      np.array([[c, c + 1] for _j, c in turned], dtype=np.int64).reshape(-1, 2))
 
     def extend(self, P, G):
         """Joint positions and derivatives (J, 3[, n]) with the extra capsules' ends appended."""
@@ -446,21 +457,27 @@ class _Fitter:
                 np.concatenate(res) if res else np.zeros(0))
 
     def step(self, root, D, x):
-        """The pose moved by the parameter step ``x``."""
+        """The pose moved by the parameter step ``x``: each rigid group turned by its
+        rotation vector, each other bone by its turn in the plane normal to it, each block's
+        step at most ``max_step`` long."""
         root = root + x[:3]
         D = D.copy()
-        E = _basis(D)
-        for members, c, w in self.blocks:
+        top = self.opts.max_step
+        for members, c, w in self.rigid:
             a = x[c:c + w]
             na = math.sqrt(a.dot(a))                # np.linalg.norm's own sum, less its cost
-            if na > self.opts.max_step:
-                a = a * (self.opts.max_step / na)
-            if w == 3:
-                D[members] = D[members] @ _rotation(a).T
-            else:
-                j = members[0]
-                d = D[j] + E[j] @ a
-                D[j] = d / math.sqrt(d.dot(d))
+            if na > top:
+                a = a * (top / na)
+            D[members] = D[members] @ _rotation(a).T
+        j, c = self.turns
+        if len(j):                                  # the other bones, all at once
+            E = _basis(D)
+            a = x[c]                                # (bones, 2)
+            na = np.sqrt(_dots(a))
+            far = na > top
+            a[far] *= (top / na[far])[:, None]
+            d = D[j] + (E[j] @ a[:, :, None])[:, :, 0]
+            D[j] = d / np.sqrt(_dots(d))[:, None]
         return root, D
 
     def fit(self, root, D, data, align=None, pred=None):

@@ -178,22 +178,22 @@ def report(doc) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--peer", help="src folder of the peer tree")
+    ap.add_argument("--peer", required=True, help="src folder of the peer tree")
     ap.add_argument("--child", help="the child_rope recording's folder")
     ap.add_argument("--pose2sim", help="Pose2Sim's balancing trial")
     ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--out", default=str(HERE / "results" / "tracker_speed"))
-    ap.add_argument("--keep", nargs=2, metavar=("CAPTURE", "OUT"), help=argparse.SUPPRESS)
-    ap.add_argument("--time", nargs=2, metavar=("INPUTS", "OUT"), help=argparse.SUPPRESS)
+    ap.add_argument("--out", default=str(Path(os.environ.get("TOPOPOSE_BENCH_RESULTS",
+                                                          HERE / "results")) / "tracker_speed"))
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["--keep"]:                  # a side's process (:func:`side`)
+        keep_inputs(*argv[1:3])
+        return 0
+    if argv[:1] == ["--time"]:
+        time_follow(*argv[1:3])
+        return 0
     a = ap.parse_args(argv)
-    if a.keep:
-        keep_inputs(*a.keep)
-        return 0
-    if a.time:
-        time_follow(*a.time)
-        return 0
     sys.path.insert(0, str(HERE))
-    peer = Path(a.peer or "")
+    peer = Path(a.peer)
     if not (peer / "topopose" / "__init__.py").is_file():
         print(f"{peer}: no peer tree (its src folder holding topopose/); pass --peer")
         return 2

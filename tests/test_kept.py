@@ -149,3 +149,51 @@ def test_kept_frames_track_as_the_carved_again(walk, support):
     assert sum(cap.masks.reads.values()) > sum(before.values())     # carved again
     assert any(p.status == "tracked" for p in kept)
     assert _fields(kept) == _fields(again)
+
+
+def test_frame_data_of_the_kept_frame_is_the_volumes():
+    """The fit's data from the packed hull and the cropped silhouettes: every surface point,
+    sampled point and ray as from the whole grid and images (the same random draws), also
+    for hulls touching the grid's sides and an empty one; the silhouette IoU counted on the
+    crops is the whole images'."""
+    from topopose.sequence.silhouette import silhouette_iou
+    from topopose.sequence.tracker import frame_data
+
+    from test_tracker import NAMES, hull_of, make_body, pose, rest_directions
+
+    rng = np.random.default_rng(4)
+    w, h = 641, 479
+    cams = [_camera(w, h)] * 3
+    body = make_body()
+    P = pose(rest_directions())
+    grids = [hull_of(body, P), hull_of(body, P, lo=(-0.3, -0.5, 0.3), hi=(0.4, 0.5, 1.6))]
+    grids.append(Volume(np.zeros((10, 10, 10), bool), np.zeros(3), 0.02))
+    for vol in grids:
+        masks = [_blob(rng, w, h) for _ in cams]
+        views = scaled_views(cams, masks)
+        kept = KeptFrame.keep(vol, (cams, masks))
+        a = frame_data(vol, 300, np.random.default_rng(1), views, 40)
+        b = frame_data(kept.hull, 300, np.random.default_rng(1),
+                       (kept.views.cameras, kept.views.crops), 40)
+        for x, y in ((a.points, b.points), (a.surface, b.surface), (a.occupancy, b.occupancy),
+                     (a.lo, b.lo), (a.rays[0], b.rays[0]), (a.rays[1], b.rays[1])):
+            assert x.shape == y.shape and np.array_equal(x, y)
+        assert (a.kd is None) == (b.kd is None) == (not vol.data.any())
+        got = silhouette_iou(body, P, kept.views.cameras, kept.views.crops, kept.views.shapes)
+        want = silhouette_iou(body, P, *views)
+        assert np.array_equal(got, want, equal_nan=True) and np.isfinite(want).any()
+    assert len(NAMES) == len(P)
+
+
+def test_surface_voxels_are_the_erosions():
+    """The surface by slicing against :func:`scipy.ndimage.binary_erosion` (the array's sides
+    outside the object), on random grids and thin ones."""
+    from scipy import ndimage
+
+    from topopose.sequence.tracker import _eroded
+
+    rng = np.random.default_rng(2)
+    for shape in ((1, 1, 1), (1, 6, 3), (2, 2, 2), (7, 9, 4), (16, 11, 13), (0, 3, 3)):
+        for p in (0.5, 0.9, 1.0):
+            occ = rng.random(shape) < p
+            assert np.array_equal(_eroded(occ), ndimage.binary_erosion(occ))

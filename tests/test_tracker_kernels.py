@@ -1,11 +1,17 @@
-"""The tracker's Numba kernels against the NumPy formulas they compute, bit for bit: the
-bones' bases (two unit normals by cross products) and the joints' Jacobian (each bone's end
-moved by its own parameters, summed along the path from the root)."""
+"""The tracker's Numba kernels against the NumPy formulas they compute: bit for bit, the
+bones' bases (two unit normals by cross products), the joints' Jacobian (each bone's end
+moved by its own parameters, summed along the path from the root), the joints' positions and
+the count of points near the capsules' surfaces, the nearest surface voxels (against
+``scipy.spatial.cKDTree``); the capsule terms' normal equations against the residuals and
+Jacobian rows of :meth:`_Fitter.terms`, whichever capsule is tried first."""
 import numpy as np
+import pytest
 
-from topopose.sequence.body import CapsuleBody
-from topopose.sequence.tracker import TrackOptions, _Fitter
-from topopose.sequence.tracker_kernels import bone_bases
+from topopose.sequence.body import CapsuleBody, joint_positions
+from topopose.sequence.tracker import FrameData, SurfaceGrid, TrackOptions, _Fitter
+from topopose.sequence.tracker_kernels import (bone_bases, capsule_normal_equations,
+                                               chain_positions, near_surface,
+                                               normal_equations)
 
 NAMES = ("chest", "pelvis", "shoulder_1", "elbow_1", "shoulder_2", "elbow_2", "hip_1", "knee_1")
 PARENTS = np.array([-1, 0, 0, 2, 0, 4, 1, 6])
@@ -79,3 +85,160 @@ def test_bases_are_orthonormal_to_the_directions():
         assert np.allclose(np.einsum("jc,jc->j", D, E[:, :, k]), 0.0, atol=1e-12)
         assert np.allclose(np.linalg.norm(E[:, :, k], axis=1), 1.0)
     assert np.allclose(np.einsum("jc,jc->j", E[:, :, 0], E[:, :, 1]), 0.0, atol=1e-12)
+
+
+def test_normal_equations_are_numpys_einsums():
+    """JᵀJ and Jᵀr of sparse rows (zeros of both signs), and of the terms' own rows."""
+    rng = np.random.default_rng(8)
+    for _ in range(50):
+        J = rng.normal(size=(120, 20))
+        J[rng.random(J.shape) < 0.6] = 0.0
+        J[rng.random(J.shape) < 0.1] = -0.0
+        r = rng.normal(size=len(J))
+        H, g = normal_equations(J, r)
+        H0, g0 = np.einsum("mi,mj->ij", J, J), np.einsum("mi,m->i", J, r)
+        assert np.allclose(H, H0, rtol=1e-13, atol=0) and np.allclose(g, g0, rtol=1e-13, atol=0)
+        assert np.array_equal(np.signbit(H), np.signbit(H0))
+
+
+def test_positions_are_numpys_bit_for_bit():
+    body = _body()
+    f = _Fitter(body, TrackOptions())
+    parents, order, r0, lengths = f._chain
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        D = _directions(rng, len(NAMES))
+        root = rng.normal(size=3)
+        assert np.array_equal(chain_positions(root, D, lengths, parents, order, r0),
+                              joint_positions(body, root, D))
+
+
+def _capsules(rng, f):
+    """A random pose's capsules and the points around them."""
+    D = _directions(rng, len(NAMES))
+    root = rng.normal(size=3) * 0.1
+    P, G, _M, Pe, Ge = f.at(root, D)
+    A, B = Pe[f.cpar], Pe[f.cbone]
+    Q = (A + rng.random((len(A), 1)) * (B - A))[rng.integers(0, len(A), 300)]
+    Q = Q + rng.normal(size=Q.shape) * 0.08
+    return root, D, Pe, Ge, A, B, Q
+
+
+def test_near_surface_counts_as_numpy():
+    """The agreement's explained points: the NumPy formula over every point and capsule."""
+    f = _Fitter(_body(), TrackOptions())
+    rng = np.random.default_rng(6)
+    for _ in range(20):
+        _root, _D, _Pe, _Ge, A, B, Q = _capsules(rng, f)
+        seg = B - A
+        ll = np.maximum(np.einsum("kc,kc->k", seg, seg), 1e-12)
+        t = np.clip(np.einsum("mkc,kc->mk", Q[:, None] - A[None], seg) / ll, 0.0, 1.0)
+        d = np.linalg.norm(Q[:, None] - (A[None] + t[..., None] * seg[None]), axis=2)
+        d = np.min(np.abs(d - f.r[None]), axis=1)
+        for tol in (0.0, 0.01, 0.04, 1.0):
+            assert near_surface(Q, A, B, f.r, tol) == np.count_nonzero(d <= tol)
+
+
+@pytest.mark.parametrize("rays", [False, True])
+def test_capsule_normal_equations_are_the_terms(rays):
+    """The data term (points, two-sided) and the silhouette term (rays, one-sided): the
+    kernel's normal equations are those of :meth:`_Fitter.terms`' rows; the capsule tried
+    first (none, random, out of range, the last call's) changes no bit of them, and the
+    kernel leaves each point's nearest capsule (two-sided) or one holding it (one-sided)."""
+    opts = TrackOptions(rays=0.0 if not rays else 10.0)
+    f = _Fitter(_body(), opts)
+    rng = np.random.default_rng(7 + rays)
+    none = np.zeros((0, 3))
+    for _ in range(10):
+        root, D, Pe, Ge, A, B, Q = _capsules(rng, f)
+        if rays:
+            C = Q + rng.normal(size=Q.shape) * 0.5
+            U = Q - C + rng.normal(size=Q.shape) * 0.05
+            U /= np.linalg.norm(U, axis=1)[:, None]
+            data = FrameData(np.zeros((0, 3)), none, np.zeros((1, 1, 1), bool), np.zeros(3),
+                             0.02, None, (C, U))
+            args = (C, U)
+        else:
+            data = FrameData(Q, none, np.zeros((1, 1, 1), bool), np.zeros(3), 0.02)
+            args = (Q, none)
+        J, r = f.terms(root, D, data, None, None)
+        h = opts.huber * 0.02
+        weight = opts.rays / len(Q) if rays else 1.0 / len(Q)
+        firsts = [np.zeros(len(Q), np.int64), rng.integers(-3, len(A) + 3, len(Q))]
+        got = []
+        for first in firsts + [None]:
+            first = firsts[0] if first is None else first      # the last call's capsules
+            H, g = np.zeros((f.n, f.n)), np.zeros(f.n)
+            cost = capsule_normal_equations(*args, A, B, f.r, f.cpar, f.cbone, Ge, f.cols, h,
+                                            weight, rays, H, g, first)
+            got.append((H, g, cost))
+            assert ((first >= 0) & (first < len(A))).all()
+        if not rays:                                # each point's nearest capsule
+            seg = B - A
+            t = np.clip(np.einsum("mkc,kc->mk", Q[:, None] - A[None], seg)
+                        / np.einsum("kc,kc->k", seg, seg), 0.0, 1.0)
+            dq = np.linalg.norm(Q[:, None] - (A[None] + t[..., None] * seg[None]), axis=2)
+            assert np.array_equal(firsts[0], np.argmin(dq - f.r[None], axis=1))
+        for H, g, cost in got[1:]:
+            assert np.array_equal(H, got[0][0]) and np.array_equal(g, got[0][1])
+            assert cost == got[0][2]
+        H, g, cost = got[0]
+        assert np.allclose(H, J.T @ J, rtol=1e-9, atol=1e-12)
+        assert np.allclose(g, J.T @ r, rtol=1e-9, atol=1e-12)
+        assert np.isclose(cost, r @ r, rtol=1e-9)
+        assert np.abs(g).max() > 0
+
+
+@pytest.mark.parametrize("bucket", [1, 3, 4])
+def test_surface_grid_finds_the_trees_nearest(bucket):
+    """Every point's nearest voxel and distance, bit for bit, as ``cKDTree.query``: points
+    near a random voxel set, deep inside it, far outside the grid; of two voxels at the same
+    distance the first."""
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(9 + bucket)
+    for _ in range(5):
+        ijk = np.argwhere(rng.random(rng.integers(3, 25, 3)) < rng.uniform(0.02, 0.3))
+        if not len(ijk):
+            continue
+        corner, size = rng.normal(size=3), 0.02
+        X = corner + ijk * size
+        grid = SurfaceGrid(X, ijk, corner, size, bucket)
+        x = np.r_[X[rng.integers(0, len(X), 200)] + rng.normal(size=(200, 3)) * 0.05,
+                  X.mean(axis=0) + rng.normal(size=(30, 3)) * 2.0, X[:5]]
+        d, i = grid.query(x)
+        d0, i0 = cKDTree(X).query(x)
+        assert np.array_equal(d, d0) and np.array_equal(i, i0)
+    X = np.array([[0.0, 0.0, 0.0], [0.02, 0.0, 0.0]])
+    d, i = SurfaceGrid(X, np.array([[0, 0, 0], [1, 0, 0]]), np.zeros(3), 0.02).query(
+        np.array([[0.01, 0.3, 0.0]]))
+    assert i[0] == 0 and d[0] == np.sqrt(0.01 ** 2 + 0.3 ** 2)
+
+
+def test_step_turns_each_block_as_its_own_loop():
+    """The step's bones turned all at once against each block turned on its own (a rigid
+    group by its rotation, another bone in the plane normal to it), steps longer than
+    ``max_step`` shortened."""
+    from topopose.sequence.tracker import _rotation
+
+    f = _Fitter(_body(), TrackOptions())
+    rng = np.random.default_rng(10)
+    for _ in range(100):
+        D = _directions(rng, len(NAMES))
+        root = rng.normal(size=3)
+        x = rng.normal(size=f.n) * rng.choice([0.01, 0.3, 1.0])
+        E = reference_bases(D)
+        want = D.copy()
+        for members, c, w in f.blocks:
+            a = x[c:c + w]
+            na = np.linalg.norm(a)
+            if na > f.opts.max_step:
+                a = a * (f.opts.max_step / na)
+            if w == 3:
+                want[members] = D[members] @ _rotation(a).T
+            else:
+                d = D[members[0]] + E[members[0]] @ a
+                want[members[0]] = d / np.linalg.norm(d)
+        r1, D1 = f.step(root, D, x)
+        assert np.array_equal(r1, root + x[:3])
+        assert np.allclose(D1, want, rtol=0, atol=1e-15)

@@ -152,7 +152,7 @@ def _warm_tracker():
     from topopose.hull.volume import Volume
     from topopose.sequence.body import CapsuleBody
     from topopose.sequence.kept import scaled_crop
-    from topopose.sequence.tracker import fit_frame, frame_data
+    from topopose.sequence.tracker import agreement, fit_frame, frame_data
 
     scaled_crop(np.ones((30, 40), bool), (7, 5))
     occ = np.zeros((12, 12, 20), bool)
@@ -161,7 +161,8 @@ def _warm_tracker():
                        np.array([np.nan, 0.03, 0.03]), (0, 1, 2))
     P = np.array([[0.12, 0.12, 0.36], [0.12, 0.12, 0.26], [0.12, 0.12, 0.16]])
     for n in (50, 10 ** 6):      # points sampled, or all the surface voxels (another layout)
-        fit_frame(body, frame_data(Volume(occ, np.zeros(3), 0.02), n), P)
+        data = frame_data(Volume(occ, np.zeros(3), 0.02), n)
+        agreement(body, data, fit_frame(body, data, P))
 
 
 if __name__ == "__main__":

@@ -237,11 +237,12 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
                          opts.track, rounds=opts.calibrate)
 
     def data_of(i):
-        v, views = volume(i)
-        if v is None:
+        r = record(i)
+        if r is None:
             return None
         t0 = time.process_time()
-        d = frame_data(v, opts.track.points, rng, views, opts.track.n_rays)
+        views = None if r.views is None else (r.views.cameras, r.views.crops)
+        d = frame_data(r.hull, opts.track.points, rng, views, opts.track.n_rays)
         timings["data"] += time.process_time() - t0
         return d
 
@@ -279,7 +280,8 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
         r = record(i)
         if r is not None and r.views is not None and opts.silhouette_fit:
             t0 = time.process_time()
-            iou = silhouette_iou(body, tr.joints[i], *r.views.views())
+            iou = silhouette_iou(body, tr.joints[i], r.views.cameras, r.views.crops,
+                                 r.views.shapes)
             timings["quality"] += time.process_time() - t0
             if np.isfinite(iou).any():
                 fit = float(np.nanmean(iou))

@@ -55,15 +55,21 @@ def scaled_views(cameras, silhouettes, max_side=MAX_SIDE) -> tuple:
     return cams, sils
 
 
-def silhouette_iou(body, P, cameras, silhouettes) -> np.ndarray:
+def silhouette_iou(body, P, cameras, silhouettes, shapes=None) -> np.ndarray:
     """Intersection over union of the body's and the frame's silhouette, per camera (NaN for
-    a camera where both are empty)."""
-    drawn = body_masks(body, P, cameras, [m.shape for m in silhouettes])
+    a camera where both are empty). With ``shapes`` (the images' (h, w)), each silhouette is
+    ``(y0, x0, crop)``: its set pixels all in ``crop``, whose first pixel is the image's
+    (y0, x0) (:class:`~.kept.CroppedViews`)."""
+    if shapes is None:
+        shapes = [m.shape for m in silhouettes]
+        silhouettes = [(0, 0, m) for m in silhouettes]
+    drawn = body_masks(body, P, cameras, shapes)
     out = np.full(len(silhouettes), np.nan)
-    for c, (d, m) in enumerate(zip(drawn, silhouettes)):
-        u = np.count_nonzero(d | m)
+    for c, (d, (y0, x0, m)) in enumerate(zip(drawn, silhouettes)):
+        both = np.count_nonzero(d[y0:y0 + m.shape[0], x0:x0 + m.shape[1]] & m)
+        u = np.count_nonzero(d) + np.count_nonzero(m) - both
         if u:
-            out[c] = np.count_nonzero(d & m) / u
+            out[c] = both / u
     return out
 
 

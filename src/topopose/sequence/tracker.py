@@ -26,6 +26,7 @@ re-initialization, each frame keeping the better fit. Every frame gets a quality
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -83,7 +84,9 @@ class TrackOptions:
 class FrameData:
     """One frame's hull as the fit reads it: sampled surface points, and the signed distance
     to the hull's surface (:meth:`signed_distance`) from all its surface voxels.
-    ``occupancy``: the grid's voxels from index ``lo`` on (the hull's bounding box)."""
+    ``occupancy``: the grid's voxels from index ``lo`` on (the hull's bounding box); ``kd``:
+    the surface voxels' nearest-point search (``query(x)`` → distances, rows of ``surface``:
+    :class:`SurfaceGrid`, or a ``scipy.spatial.cKDTree``), None without a surface."""
 
     points: np.ndarray
     surface: np.ndarray
@@ -93,6 +96,9 @@ class FrameData:
     kd: object = field(repr=False, default=None)
     rays: tuple = None          # (origins (R, 3), unit directions (R, 3)) of silhouette pixels
     lo: np.ndarray = field(default_factory=lambda: np.zeros(3, np.int64))
+    #: the capsule each point and each ray was paired with at the last fit, tried first at
+    #: the next (:func:`.tracker_kernels.capsule_normal_equations`: less work, the same result)
+    nearest: tuple = field(repr=False, default=None)
 
     def inside(self, x) -> np.ndarray:
         idx = np.rint((np.asarray(x) - self.origin) / self.voxel_size).astype(np.int64) - self.lo
@@ -112,12 +118,18 @@ class FrameData:
 
 def silhouette_rays(cameras, silhouettes, n, rng) -> tuple:
     """Rays (origins, unit directions) through ``n`` pixels sampled in each silhouette
-    (lens distortion undone)."""
+    (lens distortion undone). A silhouette is a boolean image, or ``(y0, x0, crop)``: the
+    image's set pixels all in ``crop`` (boolean), whose first pixel is the image's (y0, x0)
+    (:class:`~.kept.CroppedViews`)."""
     import cv2
 
     O, U = [], []
     for cam, m in zip(cameras, silhouettes):
-        yx = np.argwhere(np.asarray(m, bool))
+        if isinstance(m, tuple):
+            yx = np.argwhere(m[2])
+            yx += np.array([m[0], m[1]], dtype=yx.dtype)
+        else:
+            yx = np.argwhere(np.asarray(m, bool))
         if not len(yx):
             continue
         yx = yx if len(yx) <= n else yx[rng.choice(len(yx), n, replace=False)]
@@ -137,20 +149,85 @@ def silhouette_rays(cameras, silhouettes, n, rng) -> tuple:
 def frame_data(volume, n_points, rng=None, views=None, n_rays=0) -> FrameData:
     """The fit's view of a hull (:class:`FrameData`): its surface voxels (object voxels with a
     6-neighbour outside), ``n_points`` of them sampled for the data term; with ``views``
-    (cameras, silhouettes), ``n_rays`` pixel rays per camera (:func:`silhouette_rays`)."""
-    from scipy import ndimage
-    from scipy.spatial import cKDTree
-
-    occ = np.asarray(volume.data, dtype=bool)
-    lo, box = bounding_box(occ)
-    surf = occ[box] & ~ndimage.binary_erosion(occ[box])
-    ijk = np.argwhere(surf) + lo
+    (cameras, silhouettes), ``n_rays`` pixel rays per camera (:func:`silhouette_rays`).
+    ``volume``: a Volume, or the :class:`~.kept.PackedVolume` of one."""
+    lo, occ_box = _object_box(volume)
+    surf = occ_box & ~_eroded(occ_box)
+    at = np.argwhere(surf)                      # in the box
+    ijk = at + lo
     X = volume.origin + ijk * float(volume.voxel_size)
     rng = np.random.default_rng(0) if rng is None else rng
     pts = X if len(X) <= n_points else X[rng.choice(len(X), n_points, replace=False)]
     rays = silhouette_rays(*views, n_rays, rng) if views is not None and n_rays else None
-    return FrameData(pts, X, occ[box], np.asarray(volume.origin, float),
-                     float(volume.voxel_size), cKDTree(X) if len(X) else None, rays, lo)
+    kd = SurfaceGrid(X, at, volume.origin + lo * float(volume.voxel_size),
+                     float(volume.voxel_size)) if len(X) else None
+    return FrameData(pts, X, occ_box, np.asarray(volume.origin, float),
+                     float(volume.voxel_size), kd, rays, lo)
+
+
+class SurfaceGrid:
+    """The nearest surface voxel of points, as ``scipy.spatial.cKDTree(X).query`` finds it
+    (:func:`.tracker_kernels.nearest_voxels`), from the voxels bucketed on their grid.
+
+    Parameters
+    ----------
+    X : ndarray (M, 3), the voxels' centres
+    ijk : ndarray (M, 3) of int ≥ 0, their indices on the grid, ``X ≈ corner + ijk × size``
+    corner : ndarray (3,), size : float
+    bucket : voxels a bucket's side
+    """
+
+    def __init__(self, X, ijk, corner, size, bucket=4):
+        self.X = np.ascontiguousarray(X, dtype=float)
+        self.corner, self.size, self.bucket = np.asarray(corner, float), float(size), bucket
+        b = np.asarray(ijk, np.int64) // bucket
+        self.shape = b.max(axis=0) + 1
+        cell = (b[:, 0] * self.shape[1] + b[:, 1]) * self.shape[2] + b[:, 2]
+        self.items = np.argsort(cell, kind="stable")
+        self.start = np.zeros(int(np.prod(self.shape)) + 1, np.int64)
+        np.cumsum(np.bincount(cell, minlength=len(self.start) - 1), out=self.start[1:])
+
+    def query(self, x):
+        """(distances (N,), rows of X (N,)) of the points ``x`` (N, 3)."""
+        from topopose.sequence.tracker_kernels import nearest_voxels
+
+        return nearest_voxels(np.ascontiguousarray(x, dtype=float), self.X, self.corner,
+                              self.size, self.start, self.items, self.shape, self.bucket)
+
+
+def _eroded(occ) -> np.ndarray:
+    """``scipy.ndimage.binary_erosion(occ)`` (3-D, 6-neighbours, outside the array empty):
+    the voxels set with their 6 neighbours."""
+    out = occ.copy()
+    if not out.size:
+        return out
+    for a in range(3):
+        def at(s):
+            return tuple(s if b == a else slice(None) for b in range(3))
+        out[at(slice(1, None))] &= occ[at(slice(None, -1))]
+        out[at(slice(None, -1))] &= occ[at(slice(1, None))]
+        out[at(0)] = False
+        out[at(-1)] = False
+    return out
+
+
+def _object_box(volume) -> tuple:
+    """The lower corner and the voxels of the hull's bounding box grown by one voxel
+    (:func:`.body.bounding_box`) of a Volume, or of a :class:`~.kept.PackedVolume` unpacked
+    into that box alone."""
+    if not hasattr(volume, "bits"):
+        occ = np.asarray(volume.data, dtype=bool)
+        lo, box = bounding_box(occ)
+        return lo, occ[box]
+    size = int(np.prod(volume.box))
+    if not size:
+        return np.zeros(3, dtype=np.int64), np.zeros((0, 0, 0), bool)
+    lo = np.array([max(a - 1, 0) for a in volume.lo])
+    hi = [min(a + b + 1, n) for a, b, n in zip(volume.lo, volume.box, volume.shape)]
+    occ = np.zeros([b - a for a, b in zip(lo, hi)], bool)
+    at = tuple(slice(a - c, a - c + b) for a, c, b in zip(volume.lo, lo, volume.box))
+    occ[at] = np.unpackbits(volume.bits, count=size).reshape(volume.box).view(bool)
+    return lo, occ
 
 
 # --------------------------------------------------------------------------- one frame's fit
@@ -162,13 +239,19 @@ def _basis(D):
     return bone_bases(np.ascontiguousarray(D, dtype=float))
 
 
+def _dots(V):
+    """Each row's dot product with itself, (N, M) → (N,), as ``V[i].dot(V[i])`` sums it
+    (NumPy's matmul of stacked vectors is its dot)."""
+    return (V[:, None, :] @ V[:, :, None])[:, 0, 0]
+
+
 def _skew(v):
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def _rotation(w):
     """Rotation matrix of the rotation vector ``w`` (Rodrigues)."""
-    t = float(np.linalg.norm(w))
+    t = math.sqrt(w.dot(w))                       # np.linalg.norm's own sum
     if t < 1e-12:
         return np.eye(3)
     K = _skew(np.asarray(w) / t)
@@ -217,6 +300,26 @@ class _Fitter:
         for k, d in enumerate(deps):
             self.cols[k, :len(d)] = d
         self.s = np.asarray(opts.samples, float)
+        # fixed per fitter: the kernels' arrays, the inside term's points' bones and depths,
+        # the prediction term's rows and columns of each bone's block
+        self._chain = (np.asarray(body.parents, dtype=np.int64),
+                       np.array(body.order, dtype=np.int64), body.root,
+                       np.asarray(body.lengths, dtype=float))
+        b = np.asarray(self.bones, dtype=np.int64)
+        self._blocks = (b, np.array([self.col[int(j)][0] for j in b], dtype=np.int64),
+                        np.array([self.col[int(j)][1] for j in b], dtype=np.int64))
+        ns, nk = len(self.s), len(self.cpar)
+        self._need = np.repeat(opts.depth * self.r, ns)
+        self._sk = np.tile(self.s, nk)
+        bk = np.repeat(np.arange(nk), ns)
+        self._ends_in = (self.cpar[bk], self.cbone[bk])
+        self._pred_at = [(3 + 3 * k, self.col[int(j)][0], self.col[int(j)][1], k)
+                         for k, j in enumerate(self.bones)]
+        # the step's blocks: the rigid groups, and the other bones with their two columns
+        self.rigid = [blk for blk in self.blocks if blk[2] == 3]
+        turned = [(m[0], c) for m, c, w in self.blocks if w == 2]
+        self.turns = (np.array([j for j, _c in turned], dtype=np.int64),
+                      np.array([[c, c + 1] for _j, c in turned], dtype=np.int64).reshape(-1, 2))
 
     def extend(self, P, G):
         """Joint positions and derivatives (J, 3[, n]) with the extra capsules' ends appended."""
@@ -227,31 +330,46 @@ class _Fitter:
     def jacobian(self, D):
         """dP/dθ (J, 3, n) at directions D, and per bone d(bone end − bone start)/d(its
         block's parameters), (3, width) (:func:`.tracker_kernels.joint_jacobian`)."""
-        from topopose.sequence.tracker_kernels import joint_jacobian
-
-        if "_blocks" not in self.__dict__:
-            b = np.asarray(self.bones, dtype=np.int64)
-            self._blocks = (b, np.array([self.col[int(j)][0] for j in b], dtype=np.int64),
-                            np.array([self.col[int(j)][1] for j in b], dtype=np.int64))
-        bones, col, width = self._blocks
-        G, M, _E = joint_jacobian(np.ascontiguousarray(D, dtype=float),
-                                  np.asarray(self.body.lengths, dtype=float), bones, col, width,
-                                  self.anc, self.n)
+        G, M = self._jacobian(D)
+        bones, _col, width = self._blocks
         return G, {int(j): M[k, :, :width[k]] for k, j in enumerate(bones)}
 
-    def terms(self, root, D, data: FrameData, align, pred, G=None, capsules=True, GM=None):
+    def _jacobian(self, D):
+        """:meth:`jacobian` with ``M`` as one array (nb, 3, 3), the bones in :attr:`bones`'
+        order, each block's columns first."""
+        from topopose.sequence.tracker_kernels import joint_jacobian
+
+        bones, col, width = self._blocks
+        G, M, _E = joint_jacobian(np.ascontiguousarray(D, dtype=float), self._chain[3], bones,
+                                  col, width, self.anc, self.n)
+        return G, M
+
+    def at(self, root, D):
+        """Everything the terms read of the pose (root, D), computed once: the joints ``P``,
+        their derivatives ``G`` and the bones' ``M`` (:meth:`_jacobian`), the extended joints
+        and derivatives ``Pe``, ``Ge`` (:meth:`extend`)."""
+        from topopose.sequence.tracker_kernels import chain_positions
+
+        parents, order, r0, lengths = self._chain
+        P = chain_positions(np.asarray(root, float), np.ascontiguousarray(D, dtype=float),
+                            lengths, parents, order, r0)
+        G, M = self._jacobian(D)
+        Pe, Ge = self.extend(P, G)
+        return P, G, M, Pe, Ge
+
+    def terms(self, root, D, data: FrameData, align, pred, G=None, capsules=True, at=None):
         """Weighted residuals and their Jacobian rows (``G``: dP/d of other parameters, for
         the data and inside terms alone; ``capsules`` False: without the data and silhouette
         terms, which :meth:`fit` adds with :func:`.tracker_kernels.capsule_normal_equations`;
-        ``GM``: :meth:`jacobian` at D if already computed)."""
+        ``at``: :meth:`at` of (root, D) if already computed)."""
         o, b = self.opts, self.body
-        P = joint_positions(b, root, D)
         if G is None:
-            G, M = self.jacobian(D) if GM is None else GM
+            P, G, M, Pe, Ge = self.at(root, D) if at is None else at
         else:
             align = pred = None
+            P = joint_positions(b, root, D)
+            Pe, Ge = self.extend(P, G)
         rows, res = [], []
-        Pe, Ge = self.extend(P, G)
         A, B = Pe[self.cpar], Pe[self.cbone]
         seg = B - A
         ll = np.maximum(np.einsum("kc,kc->k", seg, seg), 1e-12)
@@ -303,15 +421,15 @@ class _Fitter:
         if data.kd is not None:
             S = A[:, None] + self.s[None, :, None] * seg[:, None]        # (nb, ns, 3)
             sd, g = data.signed_distance(S.reshape(-1, 3))
-            need = np.repeat(o.depth * self.r, len(self.s))
+            need = self._need                       # depth × each point's bone's radius
             ri = need - sd
             h = o.huber * data.voxel_size
             act = np.where(ri > 0, 1.0, o.deep * np.minimum(1.0, h / np.maximum(-ri, 1e-12)))
             wi = np.sqrt(o.inside / sd.size)
-            sk = np.tile(self.s, len(A))
-            bk = np.repeat(np.arange(len(A)), len(self.s))
-            Ji = -(np.einsum("mc,mcn->mn", g * (1 - sk)[:, None], Ge[self.cpar[bk]])
-                   + np.einsum("mc,mcn->mn", g * sk[:, None], Ge[self.cbone[bk]]))
+            sk = self._sk                           # each point's place along its bone
+            start, end = self._ends_in              # and its bone's ends
+            Ji = -(np.einsum("mc,mcn->mn", g * (1 - sk)[:, None], Ge[start])
+                   + np.einsum("mc,mcn->mn", g * sk[:, None], Ge[end]))
             act = np.sqrt(act)
             rows.append(Ji * (wi * act)[:, None])
             res.append(ri * wi * act)
@@ -328,56 +446,64 @@ class _Fitter:
             wp = np.sqrt(o.prior)
             Jp = np.zeros((3 + 3 * len(self.bones), self.n))
             Jp[:3, :3] = np.eye(3) * wp
-            rp = [(root - proot) * wp]
-            for k, j in enumerate(self.bones):
-                c, w = self.col[int(j)]
-                Jp[3 + 3 * k:6 + 3 * k, c:c + w] = M[int(j)] * wp
-                rp.append(b.lengths[j] * wp * (D[j] - pD[j]))
+            for row, c, w, k in self._pred_at:        # each bone's end, by its block
+                Jp[row:row + 3, c:c + w] = M[k, :, :w] * wp
+            bo = self.bones
+            rp = (b.lengths[bo] * wp)[:, None] * (D[bo] - pD[bo])
             rows.append(Jp)
-            res.append(np.concatenate(rp))
+            res.append(np.concatenate([(root - proot) * wp, rp.ravel()]))
         n = G.shape[2]
         return (np.concatenate(rows) if rows else np.zeros((0, n)),
                 np.concatenate(res) if res else np.zeros(0))
 
     def step(self, root, D, x):
-        """The pose moved by the parameter step ``x``."""
+        """The pose moved by the parameter step ``x``: each rigid group turned by its
+        rotation vector, each other bone by its turn in the plane normal to it, each block's
+        step at most ``max_step`` long."""
         root = root + x[:3]
         D = D.copy()
-        E = _basis(D)
-        for members, c, w in self.blocks:
+        top = self.opts.max_step
+        for members, c, w in self.rigid:
             a = x[c:c + w]
-            na = float(np.linalg.norm(a))
-            if na > self.opts.max_step:
-                a = a * (self.opts.max_step / na)
-            if w == 3:
-                D[members] = D[members] @ _rotation(a).T
-            else:
-                j = members[0]
-                d = D[j] + E[j] @ a
-                D[j] = d / np.linalg.norm(d)
+            na = math.sqrt(a.dot(a))                # np.linalg.norm's own sum, less its cost
+            if na > top:
+                a = a * (top / na)
+            D[members] = D[members] @ _rotation(a).T
+        j, c = self.turns
+        if len(j):                                  # the other bones, all at once
+            E = _basis(D)
+            a = x[c]                                # (bones, 2)
+            na = np.sqrt(_dots(a))
+            far = na > top
+            a[far] *= (top / na[far])[:, None]
+            d = D[j] + (E[j] @ a[:, :, None])[:, :, 0]
+            D[j] = d / np.sqrt(_dots(d))[:, None]
         return root, D
 
     def fit(self, root, D, data, align=None, pred=None):
         """Gauss–Newton from (root, D); returns the fitted root, directions and joints."""
         from topopose.sequence.tracker_kernels import capsule_normal_equations as cne
+        from topopose.sequence.tracker_kernels import normal_equations
 
         o = self.opts
         root, D = np.array(root, float), np.array(D, float)
         none = np.zeros((0, 3))
         h = o.huber * data.voxel_size
+        if data.nearest is None:
+            data.nearest = (np.zeros(len(data.points), np.int64),
+                            np.zeros(0 if data.rays is None else len(data.rays[0]), np.int64))
         for _ in range(o.iterations):
-            GM = self.jacobian(D)
-            J, r = self.terms(root, D, data, align, pred, capsules=False, GM=GM)
-            H = np.einsum("mi,mj->ij", J, J)       # not BLAS: its threads cost more here
-            g = np.einsum("mi,m->i", J, r)
-            P, G = self.extend(joint_positions(self.body, root, D), GM[0])
+            at = self.at(root, D)
+            J, r = self.terms(root, D, data, align, pred, capsules=False, at=at)
+            H, g = normal_equations(J, r)          # JᵀJ, Jᵀr (not BLAS: its threads cost more)
+            _P, _G, _M, P, G = at
             A, B = P[self.cpar], P[self.cbone]
             if len(data.points):
                 cne(data.points, none, A, B, self.r, self.cpar, self.cbone, G, self.cols, h,
-                    1.0 / len(data.points), False, H, g)
+                    1.0 / len(data.points), False, H, g, data.nearest[0])
             if data.rays is not None and o.rays > 0:
                 cne(data.rays[0], data.rays[1], A, B, self.r, self.cpar, self.cbone, G,
-                    self.cols, h, o.rays / len(data.rays[0]), True, H, g)
+                    self.cols, h, o.rays / len(data.rays[0]), True, H, g, data.nearest[1])
             H[np.diag_indices_from(H)] += 1e-6 + 1e-3 * np.diag(H)
             root, D = self.step(root, D, -np.linalg.solve(H, g))
         return root, D, joint_positions(self.body, root, D)
@@ -464,16 +590,20 @@ def agreement(body: CapsuleBody, data: FrameData, P, samples=(0.15, 0.5, 0.85),
     """Voxel agreement of a fitted pose: the harmonic mean of the share of the hull's sampled
     surface points within ``tolerance`` voxels of a capsule's surface (the hull explained)
     and the share of the bones' axis points inside the hull (the body where the hull is)."""
+    from topopose.sequence.tracker_kernels import near_surface
+
     A, B, radii = body.capsules(P)
     seg = B - A
     Q = data.points
     if not len(Q):
         return 0.0
-    ll = np.maximum(np.einsum("kc,kc->k", seg, seg), 1e-12)
-    t = np.clip(np.einsum("mkc,kc->mk", Q[:, None] - A[None], seg) / ll, 0.0, 1.0)
-    d = np.linalg.norm(Q[:, None] - (A[None] + t[..., None] * seg[None]), axis=2)
-    d = np.min(np.abs(d - radii[None]), axis=1)
-    explained = float(np.mean(d <= tolerance * data.voxel_size))
+    # the share of points within the tolerance of a capsule's surface: the point's distance
+    # to the nearest point of each bone's segment, less its radius
+    #   t = clip((Q − A)·seg / |seg|², 0, 1), d = | |Q − (A + t seg)| − r |
+    # (:func:`.tracker_kernels.near_surface`)
+    near = near_surface(np.ascontiguousarray(Q, dtype=float), A, B, radii,
+                        tolerance * data.voxel_size)
+    explained = near / len(Q)
     s = np.asarray(samples, float)
     S = (A[:, None] + s[None, :, None] * seg[:, None]).reshape(-1, 3)
     inside = float(np.mean(data.inside(S)))
@@ -611,6 +741,8 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
             out.swapped[i] = sw
 
     starts = {}
+    fits = {}      # (frame, state) → its fit: a run that passes a frame again in the same
+                   # state (from a re-initialization reached twice) finds it there
 
     def start(i):
         """The fit of confident frame i initialized by its alignment: (root, D, P, quality)."""
@@ -633,12 +765,15 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
             if d is None or d.kd is None:
                 i += step
                 continue
-            rp, Dp = _predict(body, fitter, state, opts.velocity, opts.agree)
-            A, sw = None, none
-            if conf[i]:
-                A, sw = _identity(align[i], joint_positions(body, rp, Dp), groups)
-            root, D, P = fitter.fit(rp, Dp, d, align=A, pred=(rp, Dp))
-            q = agreement(body, d, P)
+            key = (i, *(np.asarray(x).tobytes() for x in state))
+            if key not in fits:
+                rp, Dp = _predict(body, fitter, state, opts.velocity, opts.agree)
+                A, sw = None, none
+                if conf[i]:
+                    A, sw = _identity(align[i], joint_positions(body, rp, Dp), groups)
+                root, D, P = fitter.fit(rp, Dp, d, align=A, pred=(rp, Dp))
+                fits[key] = (A, sw, root, D, P, agreement(body, d, P))
+            A, sw, root, D, P, q = fits[key]
             status = "tracked" if q >= opts.quality else "lost"
             if A is not None:
                 moved = False

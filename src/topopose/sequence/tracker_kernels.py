@@ -10,7 +10,7 @@ BOUND_SLACK = 1e-9
 
 @njit(cache=True, nogil=True)
 def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, one_sided, H,
-                             g):
+                             g, first):
     """Add one robust capsule term's normal equations to ``H`` (n, n) and ``g`` (n,).
 
     Each data point ``Q[m]`` (or, when ``U`` has rows, the ray from ``Q[m]`` along ``U[m]``:
@@ -21,6 +21,12 @@ def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, o
     joints at the bone's ends; ``cols[j]``: the parameters joint ``j`` depends on (-1: padding;
     a bone's child joint depends on every parameter its parent does). Returns the weighted
     cost.
+
+    ``first`` (M,): the capsule tried first for each point, set to the one found (its nearest,
+    or, ``one_sided``, the first found holding it: the point adds nothing then). The nearest
+    is the first of least distance in the capsules' order whichever is tried first, so
+    ``first`` changes the work (the last call's on the same points: the other capsules are
+    then mostly passed), never the result.
     """
     M = Q.shape[0]
     nb = A.shape[0]
@@ -44,7 +50,11 @@ def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, o
         bk = -1
         bt = 0.0
         bd = 0.0
-        for k in range(nb):
+        k0 = first[m] if 0 <= first[m] < nb else 0
+        for kk in range(-1, nb):           # k0 first, then the others in order
+            k = k0 if kk < 0 else kk
+            if kk == k0:
+                continue
             if bk >= 0:
                 # a bound below the capsule's surface distance from the point (the ray): the
                 # centre's, less half the bone and the radius; a capsule surely farther than
@@ -86,11 +96,14 @@ def capsule_normal_equations(Q, U, A, B, radii, par, bone, G, cols, h, weight, o
             x1 = A[k, 1] + t * s1
             x2 = A[k, 2] + t * s2
             d = np.sqrt((y0 - x0) ** 2 + (y1 - x1) ** 2 + (y2 - x2) ** 2)
-            if d - radii[k] < best:
+            if d - radii[k] < best or (d - radii[k] == best and k < bk):
                 best = d - radii[k]
                 bk, bt, bd = k, t, d
                 by[0], by[1], by[2] = y0, y1, y2
                 bx[0], bx[1], bx[2] = x0, x1, x2
+            if one_sided and best <= 0.0:  # inside a capsule: the nearest's residual too
+                break
+        first[m] = bk
         if bk < 0:
             continue
         res = best
@@ -180,3 +193,140 @@ def joint_jacobian(D, lengths, bones, col, width, anc, n):
                     for q in range(width[b]):
                         G[k, r, c + q] += M[b, r, q]
     return G, M, E
+
+
+@njit(cache=True, nogil=True)
+def chain_positions(root, D, lengths, parents, order, r0):
+    """Joint positions (J, 3) from the root's (joint ``r0``) and the bones' directions ``D``
+    (J, 3), joints in ``order`` (parents first): :func:`.body.joint_positions`, the same
+    operations in the same order."""
+    J = D.shape[0]
+    P = np.zeros((J, 3))
+    for c in range(3):
+        P[r0, c] = root[c]
+    for j in order:
+        p = parents[j]
+        if p >= 0:
+            for c in range(3):
+                P[j, c] = P[p, c] + lengths[j] * D[j, c]
+    return P
+
+
+@njit(cache=True, nogil=True)
+def near_surface(Q, A, B, radii, tolerance):
+    """How many points ``Q`` (M, 3) lie within ``tolerance`` of a capsule's surface (bone
+    ``k`` from ``A[k]`` to ``B[k]``, radius ``radii[k]``): the distance to the nearest point
+    of each segment, less the radius, in :func:`.tracker.agreement`'s operations."""
+    nb = A.shape[0]
+    n = 0
+    for m in range(Q.shape[0]):
+        for k in range(nb):
+            s0 = B[k, 0] - A[k, 0]
+            s1 = B[k, 1] - A[k, 1]
+            s2 = B[k, 2] - A[k, 2]
+            ll = max(s0 * s0 + s1 * s1 + s2 * s2, 1e-12)
+            q0 = Q[m, 0] - A[k, 0]
+            q1 = Q[m, 1] - A[k, 1]
+            q2 = Q[m, 2] - A[k, 2]
+            t = min(max((q0 * s0 + q1 * s1 + q2 * s2) / ll, 0.0), 1.0)
+            x0 = Q[m, 0] - (A[k, 0] + t * s0)
+            x1 = Q[m, 1] - (A[k, 1] + t * s1)
+            x2 = Q[m, 2] - (A[k, 2] + t * s2)
+            d = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+            if abs(d - radii[k]) <= tolerance:
+                n += 1
+                break
+    return n
+
+
+@njit(cache=True, nogil=True)
+def normal_equations(J, r):
+    """``H = Jᵀ J`` (n, n) and ``g = Jᵀ r`` (n,) of rows ``J`` (M, n) and residuals ``r``
+    (M,): each entry the sum over the rows in order, as ``np.einsum("mi,mj->ij", J, J)`` and
+    ``np.einsum("mi,m->i", J, r)``, the rows' zeros passed (adding a zero product changes no
+    sum)."""
+    M, n = J.shape
+    H = np.zeros((n, n))
+    g = np.zeros(n)
+    nz = np.empty(n, np.int64)
+    for m in range(M):
+        c = 0
+        for i in range(n):
+            if J[m, i] != 0.0:
+                nz[c] = i
+                c += 1
+        for a in range(c):
+            i = nz[a]
+            for b in range(c):
+                H[i, nz[b]] += J[m, i] * J[m, nz[b]]
+            g[i] += J[m, i] * r[m]
+    return H, g
+
+
+@njit(cache=True, nogil=True)
+def nearest_voxels(x, X, u0, vs, start, items, shape, size):
+    """Each point of ``x`` (N, 3)'s nearest row of ``X`` (M, 3) and its distance, as
+    ``scipy.spatial.cKDTree(X).query(x)`` gives them (the same distance, bit for bit; of equal
+    distances the first row): (N,) distances, (N,) rows.
+
+    The rows of ``X`` are voxel centres, ``X[m] ≈ u0 + ijk[m] × vs`` (``ijk`` ≥ 0, integer),
+    bucketed by ``ijk // size`` in a grid of ``shape`` buckets: bucket ``b``'s rows are
+    ``items[start[b]:start[b + 1]]`` (``b`` in C order). The buckets are searched in rings
+    around the point's, each passed when surely farther than the nearest so far
+    (:data:`BOUND_SLACK`), until a ring surely is.
+    """
+    n = x.shape[0]
+    dist = np.empty(n)
+    rows = np.empty(n, np.int64)
+    nx, ny, nz = shape[0], shape[1], shape[2]
+    reach = max(nx, max(ny, nz))
+    u = np.empty(3)
+    b = np.empty(3, np.int64)
+    for q in range(n):
+        for a in range(3):
+            u[a] = (x[q, a] - u0[a]) / vs                 # the voxel coordinates
+            b[a] = min(max(int(np.floor(u[a] / size)), 0), shape[a] - 1)
+        best = np.inf
+        bd = np.inf
+        bi = -1
+        for r in range(reach + 1):
+            # a ring r buckets away lies beyond (r - 1) × size voxels of the point
+            if bi >= 0 and (r - 1) * size * vs > bd + BOUND_SLACK:
+                break
+            for c0 in range(max(b[0] - r, 0), min(b[0] + r, nx - 1) + 1):
+                for c1 in range(max(b[1] - r, 0), min(b[1] + r, ny - 1) + 1):
+                    for c2 in range(max(b[2] - r, 0), min(b[2] + r, nz - 1) + 1):
+                        if max(abs(c0 - b[0]), max(abs(c1 - b[1]), abs(c2 - b[2]))) != r:
+                            continue
+                        cell = (c0 * ny + c1) * nz + c2
+                        if start[cell] == start[cell + 1]:
+                            continue
+                        if bi >= 0:                         # the bucket's nearest voxel
+                            g2 = 0.0
+                            lo0 = c0 * size - u[0]
+                            hi0 = u[0] - (c0 * size + size - 1)
+                            lo1 = c1 * size - u[1]
+                            hi1 = u[1] - (c1 * size + size - 1)
+                            lo2 = c2 * size - u[2]
+                            hi2 = u[2] - (c2 * size + size - 1)
+                            g = max(lo0, max(hi0, 0.0))
+                            g2 += g * g
+                            g = max(lo1, max(hi1, 0.0))
+                            g2 += g * g
+                            g = max(lo2, max(hi2, 0.0))
+                            g2 += g * g
+                            if np.sqrt(g2) * vs > bd + BOUND_SLACK:
+                                continue
+                        for t in range(start[cell], start[cell + 1]):
+                            m = items[t]
+                            d0 = x[q, 0] - X[m, 0]
+                            d1 = x[q, 1] - X[m, 1]
+                            d2 = x[q, 2] - X[m, 2]
+                            dd = (d0 * d0 + d1 * d1) + d2 * d2
+                            if dd < best or (dd == best and m < bi):
+                                best = dd
+                                bi = m
+                                bd = np.sqrt(dd)
+        dist[q] = bd
+        rows[q] = bi
+    return dist, rows

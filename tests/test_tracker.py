@@ -170,6 +170,26 @@ def test_covers_the_frames_before_the_first_confident_one():
     assert tr.segment[0] == 30
 
 
+def test_agreement_compares_poses_not_bone_lengths():
+    """The confident frames' skeletons carry the kinematic fit's lengths (here the arms
+    0.7 × the body's) while the tracked body has its own: the track agrees with every
+    alignment (all ``matched``, no restart), since the alignment's pose is compared on the
+    body's lengths (the wrists lie 0.16 m apart)."""
+    n = 8
+    truth = np.stack([pose(arm_down(rest_directions(), 0.1 * i), (0.01 * i, 0.0, 1.3))
+                      for i in range(n)])
+    short = make_body()
+    short.lengths[[3, 4, 6, 7]] *= 0.7
+    align = np.stack([joint_positions(short, P[0], bone_directions(short, P)) for P in truth])
+    assert np.linalg.norm(align - truth, axis=2).max() > TrackOptions().agree
+    body = make_body()
+    vols = [hull_of(body, P) for P in truth]
+    rng = np.random.default_rng(1)
+    tr = track_sequence(body, lambda i: frame_data(vols[i], 400, rng), align,
+                        TrackOptions(iterations=6))
+    assert list(tr.status) == ["matched"] * n and not tr.reinitialized
+
+
 @pytest.mark.parametrize("motion", ["hang", "hips", "fold", "jump", "crouch"])
 def test_touching_motions_are_continuous(motion):
     from topopose.synth.capture import synthetic_capture

@@ -699,7 +699,9 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
     alignments (their *starts*, with their quality); the track starts at the start of best
     quality and runs forwards to the last frame and
     backwards to the first. At a confident frame whose alignment the track's fit disagrees
-    with (a joint farther than ``agree``) and whose start fits the frame better, the track
+    with (a joint farther than ``agree`` from the alignment's pose on the body's bone lengths,
+    :func:`~topopose.sequence.body.snap`: lengths are the body's, only the pose is compared)
+    and whose start fits the frame better, the track
     is re-initialized there, and also run back the other way from it until the previous
     confident frame; each frame keeps its best fit.
 
@@ -777,7 +779,8 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
             status = "tracked" if q >= opts.quality else "lost"
             if A is not None:
                 moved = False
-                if float(np.max(np.linalg.norm(P - A, axis=1))) <= opts.agree:
+                pose_of_A = joint_positions(body, *snap(body, A))    # on the body's lengths
+                if float(np.max(np.linalg.norm(P - pose_of_A, axis=1))) <= opts.agree:
                     status = "matched"
                 else:
                     st = start(i)

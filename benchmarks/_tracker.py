@@ -401,8 +401,9 @@ def report(doc) -> str:
                              f"{r['statuses']}; silhouette IoU per camera (median over frames) "
                              f"{r['iou_per_camera_median']}")
         for f in ch.get("pictures") or []:
-            lines.append(f"  - ![frame {f['frame']}]({f['file']})"
-                         + (" (a wrist at the trunk)" if f["touching"] else ""))
+            lines.append(f"  - frame {f['frame']}: `{Path(f['file']).name}` in the work folder "
+                         "(the recording's masks stay out of the repository)"
+                         + (", a wrist at the trunk" if f["touching"] else ""))
         lines.append("")
     return "\n".join(lines)
 

@@ -547,7 +547,8 @@ def test_a_raised_leg_hip_takes_the_model_width_a_hanging_one_the_hanging_width(
     pose.diagnostics["spine_shift"] = [-r, 0.0, 0.0]    # the body faces +x: back is -x
     ax = np.array([0.0, 0.0, 1.0])
     model_w = next(j.width for j in HUMAN.joints if j.name == "hip")
-    P = kf.initial_placement(pose, tree, spine=0.0)
+    legs = SequenceOptions.of(hip_feet=False).skeleton_fit    # outward: the curve points alone
+    P = kf.initial_placement(pose, tree, spine=0.0, fit=legs)
     on = {k: kf._along(np.asarray(curves[s + "_foot"], float), 0.11)    # the hips' at on
           for k, s in (("1", "left"), ("2", "right"))}                  # their curves
     for k, m in (("1", "2"), ("2", "1")):
@@ -557,10 +558,43 @@ def test_a_raised_leg_hip_takes_the_model_width_a_hanging_one_the_hanging_width(
         want = cr + w_al * r * ax + w_out * r * lat / np.linalg.norm(lat)
         assert np.allclose(x, want, atol=1e-9), (k, x - want)
     P1 = kf.initial_placement(pose, tree, spine=0.0,
-                              fit=SequenceOptions.of(hanging_width=None).skeleton_fit)
+                              fit=SequenceOptions.of(hanging_width=None,
+                                                     hip_feet=False).skeleton_fit)
     lat = (on["2"] - on["1"]) * [1.0, 1.0, 0.0]
     assert np.allclose(P1[tree.names.index("hip_2")],
                        cr + model_w[0] * r * ax + model_w[1] * r * lat / np.linalg.norm(lat))
+
+
+def test_hip_line_turns_half_way_to_the_side_the_feet_tell():
+    """A leg lifted forward turns the line between the legs' curve points (the hips' outward
+    direction from the mate's curve point) away from the pelvis's left–right line (this
+    body's: +y, facing +x); the front the feet tell (the spine shift) does not turn with it.
+    With ``SkeletonFitOptions.hip_feet`` (the default) the hips' line lies half as far from
+    the true left–right line about the vertical, each hip on its own side; both legs hanging,
+    the two directions agree and the hips do not move."""
+    from topopose.sequence import kinematic_fit as kf
+    tree = kinematic_tree(HUMAN)
+    h1, h2 = tree.names.index("hip_1"), tree.names.index("hip_2")
+    legs = SequenceOptions.of(hip_feet=False).skeleton_fit
+
+    def yaw(P):                                 # degrees between the hip line and +y, about z
+        d = P[h1] - P[h2]
+        return float(np.degrees(np.arctan2(abs(d[0]), d[1])))
+
+    parts, curves = _body(0.0, np.random.default_rng(5))
+    pose, _ = _numbered_frame("000000", parts, curves, False, False)
+    pose.diagnostics["spine_shift"] = [-0.14, 0.0, 0.0]   # the body faces +x: back is -x
+    P0, P1 = (kf.initial_placement(pose, tree, spine=0.0, fit=f) for f in (legs, kf.FIT))
+    assert yaw(P0) < 1.0 and np.allclose(P1[[h1, h2]], P0[[h1, h2]], atol=1e-9)
+    cr = parts["crotch"]                        # the left leg lifted forward
+    pts = [cr, cr + [0.05, 0.1, -0.05], cr + [0.45, 0.1, -0.05], cr + [0.85, 0.1, -0.05]]
+    curves["left_foot"], parts["left_foot"] = resample(pts, 64), pts[-1]
+    pose, _ = _numbered_frame("000000", parts, curves, False, False)
+    pose.diagnostics["spine_shift"] = [-0.14, 0.0, 0.0]
+    P0, P1 = (kf.initial_placement(pose, tree, spine=0.0, fit=f) for f in (legs, kf.FIT))
+    assert yaw(P0) > 10.0                        # the curve points' line turned with the leg
+    assert abs(yaw(P1) - 0.5 * yaw(P0)) < 0.5
+    assert P1[h1][1] > cr[1] > P1[h2][1]        # hip_1 (the left foot's) on the left
 
 
 def test_joint_width_field_round_trips_and_is_checked():

@@ -59,6 +59,45 @@ HANG_COS = 0.9     # a limb hangs when its curve (junction → end) lies within 
 HULL_GATE = 0.2    # m: a shoulder from the hull farther than this from the joint's place: unused
 
 
+def lateral_direction(x, mate, ax, shift=None) -> np.ndarray:
+    """The outward direction (unit, across the unit trunk axis ``ax``; zero when none) of a
+    joint at ``x`` from its mirror mate at ``mate``.
+
+    Without ``shift``: from the mate's point to the joint's, across the trunk. With the frame's
+    spine shift ``shift`` (:mod:`topopose.frame.anatomy`: back, against the front the feet
+    tell), the mean of that unit direction and the trunk's side (``ax`` × the front, on the
+    joint's side): the hips' points on the legs' curves turn with a leg lifted forward, the
+    feet with a foot turned out — two estimates of the pelvis's left–right line whose errors
+    do not follow each other.
+
+    Parameters
+    ----------
+    x, mate : (3,) the joint's and its mate's places (on their limbs' curves)
+    ax : (3,) the trunk's unit axis (up)
+    shift : (3,) or None, the frame's ``diagnostics["spine_shift"]``
+
+    Returns
+    -------
+    (3,) array, of length 1 or 0.
+    """
+    lat = np.asarray(x, float) - np.asarray(mate, float)
+    lat = lat - np.dot(lat, ax) * ax
+    n = float(np.linalg.norm(lat))
+    if n <= 0:
+        return np.zeros(3)
+    lat = lat / n
+    if shift is None:
+        return lat
+    side = np.cross(ax, -np.asarray(shift, float))
+    m = float(np.linalg.norm(side))
+    if m <= 0:
+        return lat
+    side = side / m * (1.0 if np.dot(side, lat) >= 0 else -1.0)
+    d = lat + side
+    k = float(np.linalg.norm(d))
+    return d / k if k > 0 else lat
+
+
 def _hangs(c, ax) -> bool:
     """Whether the curve ``c`` (junction → limb end) runs within :data:`HANG_COS` of straight
     down the unit trunk axis ``ax`` (which points up)."""
@@ -75,10 +114,12 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
     ``SkeletonFitOptions.spine``) × the frame's spine shift (:func:`frame_curves`). A joint with a
     ``width`` (hips), when the hull radius is known (``radius``, else the length of the frame's
     spine shift) and its mirror mate placed: at its arc's start (the junction) moved along the
-    trunk and outward (the direction from its mate's curve point to its own, across the trunk)
-    by ``width`` (``SkeletonFitOptions.hanging_width`` when its limb hangs) × the radius — the hull's largest inscribed radius scales with girth, the
-    trunk's length does not (development seeds: half shoulder width / radius 1.16–1.46 over
-    four builds, / trunk length 0.39–0.76); otherwise as its ``offset`` says. A joint with an
+    trunk and outward (:func:`lateral_direction`: from its mate's curve point to its own,
+    across the trunk, with ``SkeletonFitOptions.hip_feet`` turned half-way to the side the
+    feet tell) by ``width`` (``SkeletonFitOptions.hanging_width`` when its limb hangs) × the
+    radius — the hull's largest inscribed radius scales with girth, the trunk's length does
+    not (development seeds: half shoulder width / radius 1.16–1.46 over four builds, / trunk
+    length 0.39–0.76); otherwise as its ``offset`` says. A joint with an
     ``at_raised`` (elbows, wrists) is there instead of ``at`` when its arc's end part lies past
     its first part along the trunk (a hand above the chest junction: the arm's curve runs
     up through the shoulder's mass before the arm leaves it); such a raised arm's joint with
@@ -122,15 +163,13 @@ def initial_placement(pose, tree: KinematicTree, spine=None, radius=None,
             c = curves.get(tree.arc[j][1])
             if (radius and tree.width and any(tree.width[j]) and len(mates) == 1
                     and c is not None and not np.isnan(out[mates[0]]).any()):
-                lat = out[j] - out[mates[0]]
-                lat -= np.dot(lat, ax) * ax
-                n = np.linalg.norm(lat)
-                if n > 0:
+                lat = lateral_direction(out[j], out[mates[0]], ax, s if fit.hip_feet else None)
+                if lat.any():
                     w_al, w_out = tree.width[j]
                     if fit.hanging_width is not None and _hangs(c, ax):
                         w_al, w_out = fit.hanging_width
                     moved[j] = (np.asarray(c, float)[0] + w_al * radius * ax
-                                + w_out * radius * lat / n)
+                                + w_out * radius * lat)
                     continue
             moved[j] = out[j] + along * S * ax
             if fit.raised_shoulder and tree.arc[j][1] in tree.limbs and \

@@ -34,6 +34,10 @@ class SkeletonFitOptions:
     hanging_width : (float, float) or None
         Hull radii (along the trunk, outward): the ``width`` of a joint whose limb hangs
         (None: the model's width).
+    hip_feet : bool
+        A joint with a ``width`` (hips) placed outward along the mean of the direction from
+        its mate's curve point and the trunk's side from the front the feet tell (the spine
+        shift; :func:`.lateral_direction`; False: the curve points' direction alone).
     bend : float or None
         A limb's middle joint at its curve's bend when the bend is deeper than this × the
         chord (:func:`.bend_joints`; None: off, :data:`.BEND_DEPTH` its measured depth).
@@ -76,6 +80,7 @@ class SkeletonFitOptions:
     raised_shoulder: float | None = 0.08
     seen_hull_shoulder: bool = True
     hanging_width: tuple | None = (-0.15, 0.7)
+    hip_feet: bool = True
     bend: float | None = None
     from_end: dict = field(default_factory=lambda: ({("foot", "knee"): 40}))
     from_end_weight: float = 0.5

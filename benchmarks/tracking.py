@@ -5,9 +5,11 @@ right, and the full skeleton against the rig joints of the ground truth.
                                   [--out benchmarks/results] [--work DIR] [--dev]
                                   [--only walk|random-smooth|random]
     python benchmarks/tracking.py --tracker [--setups 8,4p] [--real DIR] [--child-rope DIR]
+    python benchmarks/tracking.py --speed --peer PEER_SRC [--child DIR] [--pose2sim DIR]
 
 ``--tracker``: the subject's capsule body tracked through every frame against the sequence
-stage without it, :mod:`_tracker` (its docstring says what is measured).
+stage without it, :mod:`_tracker` (its docstring says what is measured). ``--speed``: the
+tracking stage alone on real recordings against a peer tree's, :mod:`_tracker_speed`.
 
 One per-frame run per sequence (confidence gate on); every figure is then measured twice, with
 the gate on (``tracking.*``) and off (``tracking_nogate.*``: the frames only the gate rejected
@@ -831,6 +833,10 @@ def frames_of(a, motion):
 
 
 def main(argv=None):
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["--speed"]:
+        import _tracker_speed
+        return _tracker_speed.main(argv[1:])
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--walk-frames", type=int, default=40)
     ap.add_argument("--random-frames", type=int, default=60)

@@ -1,8 +1,8 @@
 """The tracking stage alone (:func:`topopose.sequence.follow.follow`) on real recordings, this
 tree against a peer tree in the same run: CPU time a frame by step, and the poses compared.
 
-    python benchmarks/tracker_speed.py --peer PEER_SRC [--child CHILD_ROPE]
-                                       [--pose2sim RECORDING] [--rounds 3] [--out PREFIX]
+    python benchmarks/tracking.py --speed --peer PEER_SRC [--child CHILD_ROPE]
+                                          [--pose2sim RECORDING] [--rounds 3] [--out PREFIX]
 
 Per recording, ``topopose run CAPTURE --model human`` (100³) of this tree runs once with the
 inputs of its tracking stage kept (the sequence stage's poses, the kinematic tree and lengths,
@@ -153,7 +153,7 @@ def report(doc) -> str:
     m = doc["machine"]
     out = ["# The tracking stage alone on real recordings, against the peer", "",
            machine_line(m) + f"; nproc {m['nproc']}", "",
-           "Produced by `benchmarks/tracker_speed.py`: each recording's tracking-stage inputs "
+           "Produced by `benchmarks/tracking.py --speed`: each recording's tracking-stage inputs "
            "kept from one `topopose run` (100³), then `follow` on them in each side's own "
            f"process, the sides alternating for {doc['rounds']} rounds (the second call in "
            "each process measured). CPU time a frame (ms; the process' own time, mean of the "
@@ -177,7 +177,7 @@ def report(doc) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="tracking.py --speed", description=__doc__.split("\n")[0])
     ap.add_argument("--peer", required=True, help="src folder of the peer tree")
     ap.add_argument("--child", help="the child_rope recording's folder")
     ap.add_argument("--pose2sim", help="Pose2Sim's balancing trial")

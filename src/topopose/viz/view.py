@@ -113,7 +113,8 @@ def render_frame(path, model, pose, detail=None, cap=None, silhouettes=False, up
     ncam = len(cap.cameras) if (silhouettes and cap is not None) else 0
     srows = math.ceil(ncam / 4) if ncam else 0
     fig = plt.figure(figsize=(13, 7 + 2.6 * srows), dpi=100)
-    gs = fig.add_gridspec(1 + srows, 4, height_ratios=[7] + [2.6] * srows)
+    gs = fig.add_gridspec(1 + srows, 4, height_ratios=[7] + [2.6] * srows, left=0.03,
+                          right=0.97, bottom=0.02, top=0.95, wspace=0.15, hspace=0.2)
     ax = fig.add_subplot(gs[0, :3], projection="3d")
     axm = fig.add_subplot(gs[0, 3])
 
@@ -216,7 +217,6 @@ def render_frame(path, model, pose, detail=None, cap=None, silhouettes=False, up
                 a.set_ylim(cy + r, cy - r)
             a.set_title(camera.name, fontsize=8)
             a.axis("off")
-    fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
     return Path(path)

@@ -111,8 +111,10 @@ def readme_capture(rec: Path, out: Path):
                       out / "calibration.toml")
 
 
-def score_real(poses, cap, ref, work, tag, model):
-    from real_motion import OURS, PAIRED, joint_errors, mpjpe
+def score_real(poses, cap, ref, work, tag, model, picture=None):
+    """MPJPE, left/right swaps and statuses of a run's poses against Pose2Sim's 3D result;
+    ``picture``: a PNG of the frames with the largest MPJPE (ours against Pose2Sim's)."""
+    from real_motion import OURS, PAIRED, joint_errors, mpjpe, worst_picture
 
     from topopose.pose.export import OPENSIM_LABELS, marker_names, read_trc, write_trc
 
@@ -120,10 +122,11 @@ def score_real(poses, cap, ref, work, tag, model):
     write_trc(trc, poses, marker_names(poses, model.parts), fps=cap.fps or 25.0, units=cap.units,
               up=cap.up, labels=OPENSIM_LABELS)
     names, _t, a = read_trc(trc)
-    errs, swaps, pairs, full = [], 0, 0, 0
+    errs, swaps, pairs, full, markers = [], 0, 0, 0, []
     for i in range(len(poses)):
         w = a[i][:, [2, 0, 1]]                          # TRC (X, Y, Z) = world (y, z, x)
         mk = {nm: w[k] for k, nm in enumerate(names)}
+        markers.append(mk)
         e = joint_errors(mk, ref, i)
         full += sum(len(v) if isinstance(v, list) else 1 for v in e.values()) >= 14
         if e:
@@ -137,17 +140,20 @@ def score_real(poses, cap, ref, work, tag, model):
             swaps += (np.linalg.norm(x - L) + np.linalg.norm(y - R)
                       > np.linalg.norm(x - R) + np.linalg.norm(y - L))
     r = mpjpe(errs)
+    worst = (worst_picture(picture, markers, ref, [False] * len(poses), poses)
+             if picture is not None else None)
     st = {}
     for p in poses:
         st[p.status] = st.get(p.status, 0) + 1
     return {"frames": len(poses), "skeleton_14": int(full), "mpjpe_median": r["mpjpe"],
             "mpjpe_p90": r["mpjpe_p90"], "per_joint": r["per_joint"], "swaps": int(swaps),
             "pairs": int(pairs), "statuses": st,
+            "worst": None if worst is None else {"file": Path(picture).name, "frames": worst},
             "fit_median": float(np.median([p.fit for p in poses if p.fit is not None]))
             if any(p.fit is not None for p in poses) else None}
 
 
-def real_recording(path, work, model, tracker=None):
+def real_recording(path, work, model, tracker=None, out=None):
     from real import person_recording
 
     import topopose as tp
@@ -163,11 +169,13 @@ def real_recording(path, work, model, tracker=None):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         cap = tp.load_capture(cdir)
-        out = {}
+        out_dir, out = out, {}
         for key, follow in (("peer", FollowOptions(enabled=False)), ("tracker", tracker)):
             t0 = time.perf_counter()
             res = run(cap, model=model, progress=False, follow=follow)
-            out[key] = score_real(res.poses, cap, ref, work, key, model)
+            pic = out_dir / "tracking_tracker_real_worst.png" if (
+                key == "tracker" and out_dir is not None) else None
+            out[key] = score_real(res.poses, cap, ref, work, key, model, pic)
             out[key]["seconds"] = round(time.perf_counter() - t0, 1)
             out[key]["timings_ms"] = {k: float(np.mean([p.timings_ms.get(k, 0.0)
                                                         for p in res.poses]))
@@ -386,6 +394,11 @@ def report(doc) -> str:
                          f" / {_cm(r['mpjpe_p90'])} | {r['swaps']} / {r['pairs']} | "
                          f"{', '.join(f'{k} {v}' for k, v in sorted(r['statuses'].items()))} | "
                          f"{'–' if r['fit_median'] is None else round(r['fit_median'], 3)} |")
+        w = real["tracker"].get("worst")
+        if w:
+            lines += ["", f"The tracker's frames with the largest MPJPE, ours against Pose2Sim's "
+                      f"(`{w['file']}`): " + ", ".join(f"{f} ({100 * e:.0f} cm)"
+                                                      for f, e in w["frames"]) + "."]
         lines += ["", "Per joint (tracker, cm): " + ", ".join(
             f"{k} {100 * v:.1f}" for k, v in real["tracker"]["per_joint"].items()),
             "Tracker cost a frame (ms): " + ", ".join(
@@ -448,7 +461,8 @@ def main(a, model):
                                                             "mpjpe_mean")}
                                 for x in ("peer", "tracker")}), flush=True)
     if a.real:
-        doc["real"] = real_recording(a.real, work, model, tracker)
+        doc["real"] = real_recording(a.real, work, model, tracker,
+                                     None if a.dev or a.follow else out)
         print(json.dumps(doc["real"], default=str)[:600], flush=True)
     if a.child_rope:
         # the pictures show the recording's masks, which stay out of the repository: the work

@@ -75,16 +75,17 @@ def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             res = run(cap, model=model, resolution=100, progress=False, follow=follow, **loose)
-        errs = []
+        errs, drawn = [], []
         for p in res.poses:
             if not p.joints:
                 continue
             names = [_numbered(k) for k in p.joints]
-            e = joint_errors(names, np.array(list(p.joints.values())),
-                             cap.gt["frames"][p.frame]["joints"])
+            gtj = cap.gt["frames"][p.frame]["joints"]
+            e = joint_errors(names, np.array(list(p.joints.values())), gtj)
             v = [x for k, xs in e.items() if k in MPJPE_JOINTS for x in xs]
             if v:
                 errs.append(float(np.mean(v)))
+                drawn.append(_figure(p, names, gtj, errs[-1], motion, seed, setup))
         st = {}
         for p in res.poses:
             st[p.status] = st.get(p.status, 0) + 1
@@ -93,8 +94,73 @@ def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=
         out[key] = {"skeleton": len(errs), "mpjpe_median": float(np.median(errs)) if errs else None,
                     "mpjpe_mean": float(np.mean(errs)) if errs else None,
                     "per_frame": [round(x, 4) for x in errs], "statuses": st,
-                    "seconds": round(time.perf_counter() - t0, 2), "timings_ms": timing}
+                    "seconds": round(time.perf_counter() - t0, 2), "timings_ms": timing,
+                    "worst": sorted(drawn, key=lambda f: -f["mpjpe"])[:3]}
     return out
+
+
+#: the bones drawn (joint base names; sided joints as ``_1`` / ``_2``) and the rig's joint of
+#: each base name (``tracking.RIG``; the pelvis the middle of the hips)
+STICKS = (("skull", "neck"), ("neck", "shoulder"), ("shoulder", "elbow"), ("elbow", "wrist"),
+          ("neck", "pelvis"), ("pelvis", "hip"), ("hip", "knee"), ("knee", "ankle"))
+
+
+def _figure(pose, names, gtj, err, motion, seed, setup) -> dict:
+    """A frame's stick figures, ours and the ground truth's: base name (``elbow_1``) → xyz."""
+    from tracking import RIG
+
+    ours = {n: [round(float(x), 4) for x in v] for n, v in zip(names, pose.joints.values())}
+    truth = {}
+    for base, rig in RIG.items():
+        if base == "pelvis":
+            truth[base] = list(0.5 * (np.asarray(gtj[rig[0]]) + np.asarray(gtj[rig[1]])))
+        elif len(rig) == 1:
+            truth[base] = list(gtj[rig[0]])
+        else:
+            truth[base + "_1"], truth[base + "_2"] = list(gtj[rig[0]]), list(gtj[rig[1]])
+    return {"motion": motion, "seed": seed, "setup": setup, "frame": pose.frame,
+            "status": pose.status, "mpjpe": round(err, 4), "ours": ours,
+            "truth": {k: [round(float(x), 4) for x in v] for k, v in truth.items()}}
+
+
+def worst_synthetic_picture(path, rows, k=8) -> list:
+    """The ``k`` tracked frames with the largest MPJPE over the synthetic sequences ``rows``:
+    stick figures, the ground truth (thick grey) and ours (red: side 1, blue: side 2, black:
+    the trunk), seen along the two horizontal axes. Returns (sequence, frame, MPJPE m)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    picks = sorted((f for r in rows for f in r["tracker"].get("worst") or []),
+                   key=lambda f: -f["mpjpe"])[:k]
+    if not picks:
+        return []
+    fig, axes = plt.subplots(2, len(picks), figsize=(2.3 * len(picks), 6.5), squeeze=False)
+    for c, f in enumerate(picks):
+        for r, horiz in enumerate((0, 1)):
+            ax = axes[r, c]
+            for fig_joints, style in ((f["truth"], dict(color="0.7", lw=4)), (f["ours"], None)):
+                for a, b in STICKS:
+                    for side in ("_1", "_2"):
+                        pa = fig_joints.get(a) or fig_joints.get(a + side)
+                        pb = fig_joints.get(b) or fig_joints.get(b + side)
+                        if pa is None or pb is None:
+                            continue
+                        col = "k" if b in ("neck", "pelvis") else ("tab:red" if side == "_1"
+                                                                   else "tab:blue")
+                        ax.plot([pa[horiz], pb[horiz]], [pa[2], pb[2]],
+                                **(style or dict(color=col, lw=1.2)))
+            ax.set_aspect("equal")
+            ax.axis("off")
+            if r == 0:
+                ax.set_title(f"{f['setup']} {f['motion']} {f['seed']}\nframe {f['frame']} "
+                             f"({f["status"]}): {100 * f["mpjpe"]:.0f} cm", fontsize=6.5)
+    fig.suptitle("The synthetic tracked frames with the largest MPJPE: ground truth (thick "
+                 "grey) and ours (red: side 1, blue: side 2, black: trunk); top: seen along y, "
+                 "bottom: along x", fontsize=8)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return [(f"{f['setup']} {f['motion']} {f['seed']}", f["frame"], f["mpjpe"]) for f in picks]
 
 
 # --------------------------------------------------------------------------- the real recording
@@ -382,6 +448,12 @@ def report(doc) -> str:
                       + ", ".join(f"{k[6:]} {np.mean([x[k] for x in t]):.1f}" for k in t[0])
                       + " (hull: the frame loop's kept hull read; fit: the Gauss–Newton fits, both directions and "
                       "the confident frames' starts)"]
+        for st, picks in (doc.get("synthetic_worst") or {}).items():
+            if picks:
+                lines += ["", f"The tracked frames with the largest MPJPE, set-up {st} "
+                          f"(`tracking_tracker_worst_{st}.png`): " + ", ".join(
+                              f"{seq} frame {fr} ({100 * e:.0f} cm)" for seq, fr, e in picks)
+                          + "."]
         lines.append("")
     real = doc.get("real")
     if real:
@@ -460,6 +532,11 @@ def main(a, model):
                              | {x: {kk: r[x][kk] for kk in ("skeleton", "mpjpe_median",
                                                             "mpjpe_mean")}
                                 for x in ("peer", "tracker")}), flush=True)
+    if doc["synthetic"] and not (a.dev or a.follow):
+        doc["synthetic_worst"] = {
+            st: worst_synthetic_picture(out / f"tracking_tracker_worst_{st}.png",
+                                        [r for r in doc["synthetic"] if r["setup"] == st])
+            for st in a.setups.split(",")}
     if a.real:
         doc["real"] = real_recording(a.real, work, model, tracker,
                                      None if a.dev or a.follow else out)

@@ -154,7 +154,7 @@ def worst_synthetic_picture(path, rows, k=8) -> list:
             ax.axis("off")
             if r == 0:
                 ax.set_title(f"{f['setup']} {f['motion']} {f['seed']}\nframe {f['frame']} "
-                             f"({f["status"]}): {100 * f["mpjpe"]:.0f} cm", fontsize=6.5)
+                             f"({f['status']}): {100 * f['mpjpe']:.0f} cm", fontsize=6.5)
     fig.suptitle("The synthetic tracked frames with the largest MPJPE: ground truth (thick "
                  "grey) and ours (red: side 1, blue: side 2, black: trunk); top: seen along y, "
                  "bottom: along x", fontsize=8)

@@ -3,12 +3,12 @@
 
     python benchmarks/tracking.py --tracker [--real DIR] [--child-rope DIR] [--frames 40]
                                             [--dev] [--setups 8,4p] [--out DIR] [--work DIR]
-                                            [--follow NAME=VALUE ...]
+                                            [--follow NAME=VALUE ...] [--set NAME=VALUE ...]
 
 Every sequence runs twice as ``topopose run`` runs it: with the tracker (the default,
 :class:`~topopose.sequence.follow.FollowOptions`, or those defaults with the ``--follow``
-settings, e.g. ``tips=True``, ``trunk_sides=None``, ``track.prior=0.1``: results written as
-``tracking_tracker_variant``) and without it (``follow=FollowOptions(enabled=False)``: the
+settings, e.g. ``tips=True``, ``trunk_sides=None``, ``track.prior=0.1``, and the ``--set``
+sequence options, e.g. ``hints=False``: results written as ``tracking_tracker_variant``) and without it (``follow=FollowOptions(enabled=False)``: the
 sequence stage as it was, the peer).
 
 * **synthetic** ``body`` sequences (100³; ``8``: 8 cameras 640×480 noise 1; ``4p``: 4 portrait
@@ -58,8 +58,9 @@ def _numbered(name):
     return name
 
 
-def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=None):
-    """One synthetic sequence with and without the tracker: rows of figures."""
+def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=None, flat=None):
+    """One synthetic sequence with and without the tracker (``flat``: sequence options of the
+    tracker arm): rows of figures."""
     from tracking import MPJPE_JOINTS, joint_errors, make_sequence
 
     from topopose.capture import load_capture
@@ -72,9 +73,11 @@ def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=
     out = {"motion": motion, "seed": seed, "build": build, "setup": setup, "frames": frames}
     for key, follow in (("peer", FollowOptions(enabled=False)), ("tracker", tracker)):
         t0 = time.perf_counter()
+        extra = (flat or {}) if key == "tracker" else {}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            res = run(cap, model=model, resolution=100, progress=False, follow=follow, **loose)
+            res = run(cap, model=model, resolution=100, progress=False, follow=follow, **loose,
+                      **extra)
         errs, drawn = [], []
         for p in res.poses:
             if not p.joints:
@@ -219,7 +222,7 @@ def score_real(poses, cap, ref, work, tag, model, picture=None):
             if any(p.fit is not None for p in poses) else None}
 
 
-def real_recording(path, work, model, tracker=None, out=None):
+def real_recording(path, work, model, tracker=None, out=None, flat=None):
     from real import person_recording
 
     import topopose as tp
@@ -238,7 +241,8 @@ def real_recording(path, work, model, tracker=None, out=None):
         out_dir, out = out, {}
         for key, follow in (("peer", FollowOptions(enabled=False)), ("tracker", tracker)):
             t0 = time.perf_counter()
-            res = run(cap, model=model, progress=False, follow=follow)
+            res = run(cap, model=model, progress=False, follow=follow,
+                      **((flat or {}) if key == "tracker" else {}))
             pic = out_dir / "tracking_tracker_real_worst.png" if (
                 key == "tracker" and out_dir is not None) else None
             out[key] = score_real(res.poses, cap, ref, work, key, model, pic)
@@ -285,7 +289,8 @@ def child_rope_capture(src: Path, out: Path, frames=None) -> Path:
     return out
 
 
-def child_rope(path, work, model, frames=None, peer=True, pictures=None, tracker=None):
+def child_rope(path, work, model, frames=None, peer=True, pictures=None, tracker=None,
+               flat=None):
     import topopose as tp
     from topopose.batch import run
     from topopose.sequence.follow import FollowOptions
@@ -301,7 +306,8 @@ def child_rope(path, work, model, frames=None, peer=True, pictures=None, tracker
         t0 = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            res = run(cap, model=model, progress=False, follow=follow)
+            res = run(cap, model=model, progress=False, follow=follow,
+                      **((flat or {}) if key == "tracker" else {}))
         st = {}
         for p in res.poses:
             st[p.status] = st.get(p.status, 0) + 1
@@ -416,7 +422,9 @@ def report(doc) -> str:
     lines = ["# Motion on every frame: the tracked capsule body against the sequence stage", "",
              f"Machine: {m['cpu']}, {m['cores']} cores, load {m['load_average']}, {m['date']}. "
              "Peer: the same run without the tracker (`follow=FollowOptions(enabled=False)`)."
-             + (f" Tracker settings: {', '.join(doc['follow'])}." if doc.get("follow") else ""),
+             + (f" Tracker settings: {', '.join(doc['follow'])}." if doc.get("follow") else "")
+             + (f" The tracker arm's sequence options: {', '.join(doc['set'])}."
+                if doc.get("set") else ""),
              ""]
     syn = doc.get("synthetic") or []
     if syn:
@@ -521,35 +529,40 @@ def main(a, model):
     out.mkdir(parents=True, exist_ok=True)
     seeds = DEV_SEEDS if a.dev else SEEDS
     motions = [m for m in MOTIONS if not a.motions or m in a.motions.split(",")]
+    from _machine import sequence_settings
+
     tracker = follow_options(a.follow)
-    doc = {"dev": a.dev, "synthetic": [], "follow": a.follow or []}
+    flat = sequence_settings(a.set)
+    variant = bool(a.follow or flat)
+    doc = {"dev": a.dev, "synthetic": [], "follow": a.follow or [], "set": a.set or []}
     for st in a.setups.split(",") if a.setups else ():
         for k, mo in enumerate(motions):
             r = synthetic_sequence(work, mo, seeds[mo], BUILDS[MOTIONS.index(mo)], a.frames,
-                                   st, model, tracker)
+                                   st, model, tracker, flat)
             doc["synthetic"].append(r)
             print(json.dumps({k: v for k, v in r.items() if k not in ("peer", "tracker")}
                              | {x: {kk: r[x][kk] for kk in ("skeleton", "mpjpe_median",
                                                             "mpjpe_mean")}
                                 for x in ("peer", "tracker")}), flush=True)
-    if doc["synthetic"] and not (a.dev or a.follow):
+    if doc["synthetic"] and not (a.dev or variant):
         doc["synthetic_worst"] = {
             st: worst_synthetic_picture(out / f"tracking_tracker_worst_{st}.png",
                                         [r for r in doc["synthetic"] if r["setup"] == st])
             for st in a.setups.split(",")}
     if a.real:
         doc["real"] = real_recording(a.real, work, model, tracker,
-                                     None if a.dev or a.follow else out)
+                                     None if a.dev or variant else out, flat)
         print(json.dumps(doc["real"], default=str)[:600], flush=True)
     if a.child_rope:
         # the pictures show the recording's masks, which stay out of the repository: the work
         # folder holds them
         doc["child_rope"] = child_rope(a.child_rope, work, model, a.child_frames,
                                        peer=not a.no_child_peer,
-                                       pictures=work / "child_rope_pictures", tracker=tracker)
+                                       pictures=work / "child_rope_pictures", tracker=tracker,
+                                       flat=flat)
         print(json.dumps(doc["child_rope"], default=str)[:600], flush=True)
     doc["machine"] = machine(resolution=100)
-    name = "tracking_tracker" + ("_dev" if a.dev else "") + ("_variant" if a.follow else "")
+    name = "tracking_tracker" + ("_dev" if a.dev else "") + ("_variant" if variant else "")
     (out / f"{name}.json").write_text(json.dumps(doc, indent=1, default=str))
     (out / f"{name}.md").write_text(report(doc))
     print(report(doc))

@@ -368,3 +368,60 @@ def test_calibration_lengthens_an_arm_held_against_the_trunk():
     gap = LENGTHS[[6, 7]] - short[[6, 7]]
     assert (L[[6, 7]] - short[[6, 7]] > 0.15 * gap).all()      # the hidden arm lengthened
     assert (L[[6, 7]] < LENGTHS[[6, 7]] + 0.02).all()
+
+
+def _twisted(degrees, axis=(0.0, 0.0, 1.0)):
+    """The rest pose's directions with the pelvis group (pelvis, hips) turned about ``axis``."""
+    from topopose.sequence.tracker import _rotation
+
+    D = rest_directions()
+    g = [1, 8, 10]
+    D[g] = D[g] @ _rotation(np.radians(degrees) * _unit(*axis)).T
+    return D
+
+
+def test_twist_row_is_the_derivative_of_its_residual():
+    from topopose.sequence.tracker import _Fitter, twist_pairs, twist_term
+
+    body = make_body()
+    assert twist_pairs(body) == [(2, 5, 8, 10)]            # shoulders against hips
+    rng = np.random.default_rng(3)
+    f = _Fitter(body, TrackOptions())
+    for _ in range(5):
+        D = _twisted(rng.uniform(50, 120), (*rng.normal(0, 0.1, 2), 1.0))
+        D[[2, 5]] = D[[2, 5]] @ kabsch(D[[2, 5]], D[[2, 5]] + rng.normal(0, 0.05, (2, 3))).T
+        root = rng.normal(size=3)
+        P, G = f.at(root, D)[:2]
+        quad = twist_pairs(body)[0]
+        r, row, phi = twist_term(P, G, quad, np.radians(30), 0.01)
+        assert r != 0 and abs(phi) > np.radians(30)
+        flipped = twist_term(P, G, quad[:2] + quad[:1:-1], np.radians(30), 0.01)
+        assert np.isclose(flipped[2], phi) and np.allclose(flipped[1], row)   # lines, not sides
+        h, num = 1e-6, np.zeros(f.n)
+        for k in range(f.n):
+            x = np.zeros(f.n)
+            x[k] = h
+            up, down = (twist_term(joint_positions(body, *f.step(root, D, s * x)), G, quad,
+                                   np.radians(30), 0.01)[0] for s in (1, -1))
+            num[k] = (up - down) / (2 * h)
+        assert np.allclose(row, num, atol=1e-6)
+
+
+def test_twist_limit_turns_the_hips_back_under_the_shoulders():
+    """Started with the hips turned 70° from the shoulders on an untwisted body's hull, the fit
+    without the limit stays in that turn; with it the hips come back within the limit."""
+    from topopose.sequence.tracker import twist_term
+
+    body = make_body()
+    truth = pose(rest_directions())
+    data = frame_data(hull_of(body, truth), 400)
+    start = joint_positions(body, truth[0], _twisted(70))
+
+    def twist(P):
+        return abs(np.degrees(twist_term(P, np.zeros((len(P), 3, 1)), (2, 5, 8, 10), 0, 1)[2]))
+
+    free = fit_frame(body, data, start, TrackOptions(twist=None))
+    held = fit_frame(body, data, start, TrackOptions())
+    assert twist(free) > 45
+    assert twist(held) < 30
+    assert np.linalg.norm(held - truth, axis=1).max() < 0.04

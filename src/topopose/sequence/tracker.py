@@ -11,7 +11,10 @@ previous frame's pose moved on at constant velocity:
   (a limb's capsule where the hull is, also where no surface point pulls at it);
 * **alignment**: where the frame's alignment is confident, its fitted joints;
 * **prediction**: the constant-velocity pose (a weak prior, also the joint limits' stand-in
-  for the bones the data leave free).
+  for the bones the data leave free);
+* **twist**: the trunk's axial rotation, the hips' line turned against the shoulders', held
+  within a joint limit (:func:`twist_term`): the hull of the hips and thighs says little of
+  their turn about the vertical.
 
 Parameters are the root position and one direction per bone (2 degrees of freedom in the
 plane normal to it; the bone lengths are the subject's, constant), solved by Gauss–Newton
@@ -59,6 +62,10 @@ class TrackOptions:
     quality : a frame is ``tracked`` when its fit quality reaches this, else ``lost``
     max_step : radians, the largest turn of a bone in one iteration
     seeds : confident frames (spread over the sequence) whose starts compete to begin the track
+    twist : (degrees, weight) or None: the joint limit on the trunk's axial rotation
+        (:func:`twist_term`): the turn of one rigid group's mirror pair against another's
+        (the hips against the shoulders) about the line between their middles, beyond the
+        degrees, costs weight × its excess² (radians; the data term's units, m²)
     """
 
     iterations: int = 8
@@ -77,6 +84,7 @@ class TrackOptions:
     quality: float = 0.5
     max_step: float = 0.35
     seeds: int = 8
+    twist: tuple | None = (30.0, 0.01)
 
 
 # --------------------------------------------------------------------------- a frame's data
@@ -231,6 +239,74 @@ def _object_box(volume) -> tuple:
 
 
 # --------------------------------------------------------------------------- one frame's fit
+def twist_pairs(body: CapsuleBody) -> list:
+    """The trunk's axial rotations :func:`twist_term` limits: ``(a1, b1, a2, b2)`` for every
+    two rigid groups (:func:`~topopose.sequence.body.rigid_groups`) that each hold a mirror
+    pair (``a``, ``b``: joints ``_1`` and ``_2``), e.g. the shoulders and the hips."""
+    pairs = mirror_groups(body.names)
+    held = [next((p for p in pairs if set(p) <= set(g)), None) for g in body.groups]
+    held = [p for p in held if p is not None]
+    return [(*held[i], *held[k]) for i in range(len(held)) for k in range(i + 1, len(held))]
+
+
+def twist_term(P, G, quad, limit, weight) -> tuple:
+    """The axial rotation of two mirror pairs' lines about the line between their middles
+    (within ±90°: which joint of a pair is which side is not known here), held within
+    ``limit`` (a joint limit, soft): residual ``√weight × (φ − clip(φ, ±limit))``
+    and its row ``dr/dθ`` (``G``: dP/dθ, (J, 3, n)).
+
+    Parameters
+    ----------
+    P : ndarray (J, 3), joints; quad : (a1, b1, a2, b2), joint indices (:func:`twist_pairs`)
+    limit : radians; weight : float
+
+    Returns
+    -------
+    (float, ndarray (n,)), the angle φ too (radians): ``(r, row, φ)``
+
+    Examples
+    --------
+    >>> P = np.array([[-1., 0, 1], [1, 0, 1], [0, -1, 0], [0, 1, 0]])   # lines 90° apart
+    >>> r, row, phi = twist_term(P, np.zeros((4, 3, 1)), (0, 1, 2, 3), np.radians(30), 1.0)
+    >>> round(float(np.degrees(phi)), 1), round(float(r), 4)
+    (90.0, 1.0472)
+    """
+    a1, b1, a2, b2 = quad
+    pa1, pb1, pa2, pb2 = P[a1].tolist(), P[b1].tolist(), P[a2].tolist(), P[b2].tolist()
+    l1 = [y - x for x, y in zip(pa1, pb1)]
+    l2 = [y - x for x, y in zip(pa2, pb2)]
+    m = [(x1 + y1 - x2 - y2) / 2 for x1, y1, x2, y2 in zip(pa1, pb1, pa2, pb2)]
+    nm = max(math.sqrt(_dot(m, m)), 1e-12)
+    n = [x / nm for x in m]
+    c12 = _cross(l1, l2)
+    s = _dot(c12, n)                        # φ = atan2(s, c): l1, l2 projected normal to n
+    c = _dot(l1, l2) - _dot(l1, n) * _dot(l2, n)
+    phi = math.atan2(s, c)
+    if abs(phi) > math.pi / 2:              # lines, not directions: a pair's numbering is no side
+        phi -= math.copysign(math.pi, phi)
+    over = phi - min(max(phi, -limit), limit)
+    w = math.sqrt(weight)
+    if over == 0.0:
+        return 0.0, np.zeros(G.shape[2]), phi
+    l1, l2, n, c12 = np.array(l1), np.array(l2), np.array(n), np.array(c12)
+    q = max(s * s + c * c, 1e-24)
+    d1 = (c * np.cross(l2, n) - s * (l2 - (l2 @ n) * n)) / q      # dφ/dl1
+    d2 = (c * np.cross(n, l1) - s * (l1 - (l1 @ n) * n)) / q      # dφ/dl2
+    dn = (c * c12 + s * ((l2 @ n) * l1 + (l1 @ n) * l2)) / q
+    dm = (dn - (dn @ n) * n) / nm                                   # dφ/dm
+    row = (d1 @ (G[b1] - G[a1]) + d2 @ (G[b2] - G[a2])
+           + dm @ (G[a1] + G[b1] - G[a2] - G[b2]) / 2)
+    return w * over, w * row, phi
+
+
+def _dot(u, v) -> float:
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+
+
+def _cross(u, v) -> list:
+    return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+
+
 def _basis(D):
     """Two unit vectors normal to each direction (J, 3) and to each other: (J, 3, 2)
     (:func:`.tracker_kernels.bone_bases`)."""
@@ -320,6 +396,7 @@ class _Fitter:
         turned = [(m[0], c) for m, c, w in self.blocks if w == 2]
         self.turns = (np.array([j for j, _c in turned], dtype=np.int64),
                       np.array([[c, c + 1] for _j, c in turned], dtype=np.int64).reshape(-1, 2))
+        self.twists = twist_pairs(body) if opts.twist else []
 
     def extend(self, P, G):
         """Joint positions and derivatives (J, 3[, n]) with the extra capsules' ends appended."""
@@ -363,7 +440,8 @@ class _Fitter:
         terms, which :meth:`fit` adds with :func:`.tracker_kernels.capsule_normal_equations`;
         ``at``: :meth:`at` of (root, D) if already computed)."""
         o, b = self.opts, self.body
-        if G is None:
+        pose_terms = G is None          # else the lengths' Jacobian: the hull's terms alone
+        if pose_terms:
             P, G, M, Pe, Ge = self.at(root, D) if at is None else at
         else:
             align = pred = None
@@ -440,6 +518,13 @@ class _Fitter:
                 wa = np.sqrt(o.align / ok.sum())
                 rows.append(G[ok].reshape(-1, self.n) * wa)
                 res.append((P[ok] - align[ok]).ravel() * wa)
+        # the trunk's axial rotation within its limit
+        if pose_terms:
+            for quad in self.twists:
+                r, row, _phi = twist_term(P, G, quad, math.radians(o.twist[0]), o.twist[1])
+                if r:
+                    rows.append(row[None])
+                    res.append(np.array([r]))
         # the prediction: the root, and each bone's end displaced from its predicted direction
         if pred is not None:
             proot, pD = pred

@@ -288,14 +288,17 @@ def twist_term(P, G, quad, limit, weight) -> tuple:
     w = math.sqrt(weight)
     if over == 0.0:
         return 0.0, np.zeros(G.shape[2]), phi
-    l1, l2, n, c12 = np.array(l1), np.array(l2), np.array(n), np.array(c12)
     q = max(s * s + c * c, 1e-24)
-    d1 = (c * np.cross(l2, n) - s * (l2 - (l2 @ n) * n)) / q      # dφ/dl1
-    d2 = (c * np.cross(n, l1) - s * (l1 - (l1 @ n) * n)) / q      # dφ/dl2
-    dn = (c * c12 + s * ((l2 @ n) * l1 + (l1 @ n) * l2)) / q
-    dm = (dn - (dn @ n) * n) / nm                                   # dφ/dm
-    row = (d1 @ (G[b1] - G[a1]) + d2 @ (G[b2] - G[a2])
-           + dm @ (G[a1] + G[b1] - G[a2] - G[b2]) / 2)
+    n1, n2 = _dot(l1, n), _dot(l2, n)
+    x2, x1 = _cross(l2, n), _cross(n, l1)
+    d1 = [(c * x - s * (y - n2 * z)) / q for x, y, z in zip(x2, l2, n)]     # dφ/dl1
+    d2 = [(c * x - s * (y - n1 * z)) / q for x, y, z in zip(x1, l1, n)]     # dφ/dl2
+    dn = [(c * x + s * (n2 * y + n1 * z)) / q for x, y, z in zip(c12, l1, l2)]
+    dnn = _dot(dn, n)
+    dm = [(x - dnn * z) / nm / 2 for x, z in zip(dn, n)]                    # dφ/dP, from m
+    C = np.array([[y - x for x, y in zip(d1, dm)], [x + y for x, y in zip(d1, dm)],
+                  [-x - y for x, y in zip(d2, dm)], [x - y for x, y in zip(d2, dm)]])
+    row = np.tensordot(C, G[[a1, b1, a2, b2]], axes=([0, 1], [0, 1]))
     return w * over, w * row, phi
 
 

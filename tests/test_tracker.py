@@ -425,3 +425,20 @@ def test_twist_limit_turns_the_hips_back_under_the_shoulders():
     assert twist(free) > 45
     assert twist(held) < 30
     assert np.linalg.norm(held - truth, axis=1).max() < 0.04
+
+
+def test_sides_carry_into_segments_no_confident_frame_named():
+    """Segment 0 named its limbs (+1); segment 1 follows with the limbs crossed over, segment 2
+    (only next to segment 1) as segment 1: each inherits through its neighbour, and a group
+    nothing names stays undecided."""
+    from topopose.sequence.follow import inherit_votes
+
+    a, b = np.array([0.0, 0.2, 0.0]), np.array([0.0, -0.2, 0.0])
+    J = np.zeros((6, 4, 3))
+    J[:, 2], J[:, 3] = a + 1, b + 1            # group 1 (joints 2, 3): never named
+    J[:2, 0], J[:2, 1] = a, b
+    J[2:, 0], J[2:, 1] = b + 0.01, a - 0.01    # segment 1 on: the track's limbs swapped
+    segment = np.array([0, 0, 1, 1, 2, 2])
+    votes = inherit_votes(segment, J, {(0, 0): 3}, [[(0, 1)], [(2, 3)]])
+    assert votes[(0, 0)] == 3 and votes[(1, 0)] == -1 and votes[(2, 0)] == -1
+    assert not any(votes.get((s, 1)) for s in range(3))

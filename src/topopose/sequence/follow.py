@@ -251,7 +251,8 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     fit_s = time.process_time() - t0 - (timings["hull"] + timings["data"] - before)
     if tr is None:
         return poses
-    votes = _segment_votes(tr, align, sided, len(groups))
+    votes = inherit_votes(tr.segment, tr.joints, _segment_votes(tr, align, sided, len(groups)),
+                          groups)
     reach = part_reach(tree, poses, align) if opts.part_reach else None
     from topopose.sequence.silhouette import silhouette_iou
 
@@ -314,6 +315,56 @@ def _segment_votes(tr, align, sided, n_groups) -> dict:
         for g in range(n_groups):
             if sided[i, g]:
                 votes[(s, g)] = votes.get((s, g), 0) + (-1 if tr.swapped[i, g] else 1)
+    return votes
+
+
+def inherit_votes(segment, joints, votes, groups) -> dict:
+    """Left / right carried into the track segments none of whose confident frames named a
+    mirror group: from a frame next to one of another segment that did, each limb taking the
+    side of the limb nearer to it there (summed over the group's joints).
+
+    Parameters
+    ----------
+    segment : ndarray (F,) of int, each frame's segment (-1: none)
+    joints : ndarray (F, J, 3)
+    votes : dict, ``(segment, group) → vote`` (:func:`_segment_votes`; 0 or absent: undecided)
+    groups : list of lists of joint index pairs (limb 1, limb 2)
+
+    Returns
+    -------
+    dict, the votes with the undecided ones that a neighbouring frame decides
+
+    Examples
+    --------
+    >>> J = np.array([[[0., 0, 0], [1, 0, 0]], [[1.1, 0, 0], [0.1, 0, 0]]])  # limbs crossed
+    >>> inherit_votes(np.array([0, 1]), J, {(0, 0): 2}, [[(0, 1)]])
+    {(0, 0): 2, (1, 0): -1}
+    """
+    votes = dict(votes)
+    F = len(segment)
+    changed = True
+    while changed:
+        changed = False
+        for i in range(F):
+            for g, pairs in enumerate(groups):
+                s = int(segment[i])
+                if s < 0 or votes.get((s, g)):
+                    continue
+                for k in (i - 1, i + 1):
+                    t = int(segment[k]) if 0 <= k < F else -1
+                    v = votes.get((t, g), 0) if t >= 0 and t != s else 0
+                    if not v:
+                        continue
+                    a = [x for x, _ in pairs]
+                    b = [y for _, y in pairs]
+                    same = np.linalg.norm(joints[i, a] - joints[k, a], axis=1).sum() + \
+                        np.linalg.norm(joints[i, b] - joints[k, b], axis=1).sum()
+                    cross = np.linalg.norm(joints[i, a] - joints[k, b], axis=1).sum() + \
+                        np.linalg.norm(joints[i, b] - joints[k, a], axis=1).sum()
+                    if np.isfinite(same) and np.isfinite(cross):
+                        votes[(s, g)] = int(np.sign(v)) * (1 if same <= cross else -1)
+                        changed = True
+                        break
     return votes
 
 

@@ -262,7 +262,9 @@ def twist_term(P, G, quad, limit, weight) -> tuple:
 
     Returns
     -------
-    (float, ndarray (n,)), the angle φ too (radians): ``(r, row, φ)``
+    r : float, the residual (0 within the limit)
+    row : ndarray (n,), its derivative
+    phi : float, the angle (radians)
 
     Examples
     --------

@@ -8,8 +8,8 @@
 Every sequence runs twice as ``topopose run`` runs it: with the tracker (the default,
 :class:`~topopose.sequence.follow.FollowOptions`, or those defaults with the ``--follow``
 settings, e.g. ``tips=True``, ``trunk_sides=None``, ``track.prior=0.1``, and the ``--set``
-sequence options, e.g. ``hints=False``: results written as ``tracking_tracker_variant``) and without it (``follow=FollowOptions(enabled=False)``: the
-sequence stage as it was, the peer).
+sequence options, e.g. ``hints=False``: results written as ``tracking_tracker_variant``) and
+without it (``follow=FollowOptions(enabled=False)``: the sequence stage as it was, the peer).
 
 * **synthetic** ``body`` sequences (100³; ``8``: 8 cameras 640×480 noise 1; ``4p``: 4 portrait
   phones in facing pairs, noise 2, AHA threshold and gate off as ``tracking.py --setup 4p``):

@@ -865,7 +865,8 @@ def main(argv=None):
     ap.add_argument("--set", action="append", metavar="NAME=VALUE",
                     help="a sequence option (name=value, a SequenceOptions field) for this run "
                          "(a Python literal; repeatable): "
-                         "the peer of a default, e.g. results/tracking_before.md")
+                         "the peer of a default, e.g. results/tracking_before.md; with "
+                         "--tracker: of the tracker arm")
     ap.add_argument("--tracker", action="store_true",
                     help="the tracked capsule body against the sequence stage (_tracker.py): "
                          "synthetic --setups (default 8,4p), --real, --child-rope")

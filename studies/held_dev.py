@@ -1,5 +1,5 @@
 """Development study: the joints of a part not found over time (held from the last
-fitted frame, interpolated between frames that saw them, hand hints) on the development
+fitted frame, hand hints) on the development
 sequences of ``benchmarks/tracking.py`` (walks 41–46, random motion 51–56, unrelated random
 poses 21–32), the per-frame results cached (``--work``), only the sequence stage re-run.
 
@@ -78,23 +78,12 @@ def _with(**options):
     return f
 
 
-def _gaps(g, **options):
-    """A variant: :func:`~topopose.sequence.kinematic_fit.held_gaps` on, runs up to ``g`` frames."""
-    def f(tracked, model):
-        return kf.fit_sequence(tracked, model, max_gap=g, gaps=True, **options)
-    return f
-
-
-# HOLD_FRAMES 3 was the default before these runs; HELD_GAP's max_gap also bounds the unmatched
-# frames interpolated whole (not scored: they are not matched)
+# HOLD_FRAMES 3 was the default before these runs
 VARIANTS["hold3"] = _with(hold_frames=3)
 for _h in (10, 15):
     VARIANTS[f"hold{_h}"] = _with(hold_frames=_h)
-for _g in (5, 10, 15, 30, 60):
-    VARIANTS[f"gap{_g}"] = _gaps(_g)
 VARIANTS["nohint"] = _with(hints=False)
 VARIANTS["hold3_nohint"] = _with(hold_frames=3, hints=False)
-VARIANTS["gap10_nohint"] = _gaps(10, hints=False)
 
 
 def main(argv=None):
@@ -148,7 +137,7 @@ def main(argv=None):
               "21–32; gate on; per-frame results cached, the sequence stage re-run per variant).",
               "", "Variants (kinematic_fit's defaults otherwise): `base` the defaults "
               "(`HOLD_FRAMES` 5, kept from these runs); `holdN` `HOLD_FRAMES` N (`hold3`: the "
-              "default before); `gapN` `HELD_GAP` on, runs up to N frames; `nohint` "
+              "default before); `nohint` "
               "`HAND_HINTS` off.", "",
               "| variant | motion | MPJPE median (cm) | frames holding joints (cm, frames) | "
               "per sequence (cm) |", "|---|---|---|---|---|"] + lines

@@ -1,7 +1,6 @@
 """Joints and frames a frame's curves do not give (sequence stage of the kinematic fit): a joint
 held from the last fitted frame, the rest pose of an unseen limb, an unseen arm bent to its
-hand hint or moved towards the hull's shoulder, held joints and short runs of unfitted frames
-interpolated."""
+hand hint or moved towards the hull's shoulder, short runs of unfitted frames interpolated."""
 from __future__ import annotations
 
 import numpy as np
@@ -29,82 +28,6 @@ def _continues(prev, start, dt, gap: GapOptions = GAPS):
         return False
     d = (start[ok] - start[ok[0]]) - (prev[ok] - prev[ok[0]])
     return float(np.linalg.norm(d, axis=1).mean()) < gap.hold_max
-
-
-def held_gaps(P, held, t, tree: KinematicTree, L, max_gap=5, hold_max=GAPS.hold_max):
-    """Fill the joints a frame did not see (``held``) from the frames either side that saw
-    them: gap filling of short stretches, flagged, never silent.
-
-    A run of at most ``max_gap`` consecutive frames holding joint ``j``, between two fitted
-    frames ``a`` and ``b`` seeing it, the same motion (consecutive frame numbers, and the
-    joints both see moved less than ``hold_max`` per frame relative to the root, as
-    :func:`_continues`): the bone directions of ``j``'s chain held there are interpolated
-    linearly between ``a``'s and ``b``'s, the joints below re-placed with the frame's bone
-    lengths ``L`` (n_frames, n_joints). Unrelated poses (random-motion captures) fail the
-    motion check and keep their fill.
-
-    Parameters
-    ----------
-    P : (n_frames, n_joints, 3) fitted joints (NaN rows: unfitted frames)
-    held : (n_frames, n_joints) bool, the joints each frame did not see
-    t : (n_frames,) frame numbers
-
-    Returns
-    -------
-    P : a copy, filled; filled : (n_frames, n_joints) bool, the joints interpolated.
-    """
-    P = P.copy()
-    n_f = len(P)
-    filled = np.zeros(held.shape, dtype=bool)
-    fitted = ~np.isnan(P).any(axis=(1, 2))
-    seen = fitted[:, None] & ~held
-    order = tree.order()
-    for j in order[1:]:
-        i = 0
-        while i < n_f:
-            if not (fitted[i] and held[i, j]):
-                i += 1
-                continue
-            k = i
-            while k + 1 < n_f and fitted[k + 1] and held[k + 1, j]:
-                k += 1
-            a, b = i - 1, k + 1
-            i = k + 1
-            if a < 0 or b >= n_f or not (seen[a, j] and seen[b, j]) or b - a - 1 > max_gap \
-                    or t[b] - t[a] != b - a or filled[a + 1:b, j].any():
-                continue
-            both = np.flatnonzero(seen[a] & seen[b])
-            both = both[both != tree.root]
-            if len(both) == 0:
-                continue
-            move = np.linalg.norm((P[b, both] - P[b, tree.root]) - (P[a, both] - P[a, tree.root]),
-                                  axis=1).mean()
-            if move >= hold_max * (b - a):
-                continue
-            # the held joints of j's chain from j down (those the frames a and b both saw)
-            sub = [j] + [c for c in order if c != j and _below(tree, c, j)]
-            sub = [c for c in sub if held[a + 1:b, c].all() and seen[a, c] and seen[b, c]]
-            Da, Db = _directions(P[a], tree), _directions(P[b], tree)
-            for f in range(a + 1, b):
-                s = (t[f] - t[a]) / (t[b] - t[a])
-                D = _directions(P[f], tree)
-                D[sub] = (1 - s) * Da[sub] + s * Db[sub]
-                below = [c for c in order if c in sub or any(_below(tree, c, x) for x in sub)]
-                for c in below:
-                    d = D[c] / max(np.linalg.norm(D[c]), 1e-12)
-                    P[f, c] = P[f, tree.parents[c]] + L[f, c] * d
-                filled[f, sub] = True
-    return P, filled
-
-
-def _below(tree, c, j):
-    """Whether joint ``c`` lies below joint ``j`` in the tree."""
-    p = tree.parents[c]
-    while p >= 0:
-        if p == j:
-            return True
-        p = tree.parents[p]
-    return False
 
 
 FOLD = np.radians(130.0)  # an unseen arm's forearm and hand: folded forward and up by this angle

@@ -91,9 +91,8 @@ import numpy as np
 
 from topopose.frames import sort_poses
 from topopose.sequence.gap_filling import (ACROSS, FOLD, HINT_END,  # noqa: F401
-                                           SHOULDER_BLEND, _below, _continues,
-                                           _interpolate, _outward, held_gaps, hint_fill,
-                                           rest_fill, shoulder_fill)
+                                           SHOULDER_BLEND, _continues, _interpolate,
+                                           _outward, hint_fill, rest_fill, shoulder_fill)
 from topopose.sequence.joint_placement import (BEND_DEPTH, HANG_COS, HULL_GATE,  # noqa: F401
                                                REACH_PAST, _arc_position, _hangs, _limb_joints,
                                                _raised, _reach, bend_joints, centred_curves,
@@ -188,12 +187,6 @@ FIT, GAPS, SMOOTHING = DEFAULT.skeleton_fit, DEFAULT.gaps, DEFAULT.smoothing
 # hints, hull shoulders) afresh. None: no limit. Its figures: docs/decisions.md.
 
 
-# GapOptions.gaps = False: an unseen (held) joint between two frames of the same motion that saw it
-# interpolated (:func:`held_gaps`, ``fit_sequence(gaps=True)``); off: the rest pose / last frame's
-# arm of the frame loop. Off by default: no gain measured. Random-motion captures are unrelated
-# poses (the pelvis moves ~1 m between frames): never filled. Its figures: docs/decisions.md.
-
-
 # GapOptions.held_shoulder = np.radians(30.0): an unseen arm's shoulder: from the chest, opposite
 # its mate across the trunk axis, raised by this angle from the plane across the trunk (None: the
 # mate's position turned half about the trunk axis). Its figures: docs/decisions.md.
@@ -251,7 +244,7 @@ def fit_sequence(poses, model, options: SequenceOptions | None = None, fps=None,
         ``smooth`` (an odd Savitzky–Golay window over the runs of continuing motion,
         :func:`motion_runs`; None: :func:`smooth_window` of ``fps``; 0: off), ``inner_weight``,
         ``spine``, ``quantile``, ``slide``, ``hints``, ``evidence``, ``shoulders`` (False: the
-        seen arms' hull shoulders off too), ``gaps``, ... (:mod:`.options`)
+        seen arms' hull shoulders off too), ... (:mod:`.options`)
 
     Returns
     -------
@@ -263,8 +256,7 @@ def fit_sequence(poses, model, options: SequenceOptions | None = None, fps=None,
         ``["temporal_outlier"]`` (that distance ≥ ``SmoothingOptions.move``: a frame off the motion
         around it, most likely wrong; ``["interpolated"]`` too when bridged,
         :func:`bridge_outliers`, and ``["interpolated_parts"]``, the parts it took from the
-        frames either side, :func:`bridged_parts`), ``["held_joints"]`` (not seen by the frame),
-        ``["interpolated_joints"]`` (those of them interpolated, :func:`held_gaps`)
+        frames either side, :func:`bridged_parts`), ``["held_joints"]`` (not seen by the frame)
     tree : KinematicTree
     lengths : ndarray, the bone length of each joint's bone (NaN for the root); a ``slide``
         bone's is its sequence length, used where the frame has none
@@ -291,9 +283,6 @@ def fit_sequence(poses, model, options: SequenceOptions | None = None, fps=None,
     P, Lf, rms, t = _fit_frames(poses, init, tree, L, fit, gap)
     n_f = len(poses)
     held = np.isnan(init).any(axis=2)
-    filled = np.zeros_like(held)
-    if max_gap and gap.gaps:
-        P, filled = held_gaps(P, held, t, tree, Lf, max_gap, gap.hold_max)
     fitted = ~np.isnan(P).any(axis=(1, 2))
     interp = np.zeros(n_f, dtype=bool)
     idx = np.flatnonzero(fitted)
@@ -330,8 +319,8 @@ def fit_sequence(poses, model, options: SequenceOptions | None = None, fps=None,
             for k, i in enumerate(range(a, b)):
                 P[i] = forward(R[k], D[k], Lf[i], tree)
                 smoothed[i] = True
-    out = _annotated(poses, P, tree, t, rms, held, filled, interp, smoothed, spiked, bridged,
-                     apart, move)
+    out = _annotated(poses, P, tree, t, rms, held, interp, smoothed, spiked, bridged, apart,
+                     move)
     return out, tree, L
 
 
@@ -380,8 +369,8 @@ def _fit_frames(poses, init, tree: KinematicTree, L, fit, gap):
     return P, Lf, rms, t
 
 
-def _annotated(poses, P, tree: KinematicTree, t, rms, held, filled, interp, smoothed, spiked,
-               bridged, apart, move) -> list:
+def _annotated(poses, P, tree: KinematicTree, t, rms, held, interp, smoothed, spiked, bridged,
+               apart, move) -> list:
     """The poses with their fitted ``joints`` and the fit's diagnostics (see
     :func:`fit_sequence`)."""
     out = []
@@ -398,8 +387,6 @@ def _annotated(poses, P, tree: KinematicTree, t, rms, held, filled, interp, smoo
         hj = [nm for j, nm in enumerate(tree.names) if held[i, j]]
         if hj and not interp[i]:
             diag["held_joints"] = hj
-        if filled[i].any() and not interp[i]:
-            diag["interpolated_joints"] = [nm for j, nm in enumerate(tree.names) if filled[i, j]]
         if interp[i]:
             diag["interpolated"] = True
         if smoothed[i]:

@@ -111,13 +111,10 @@ class GapOptions:
         frames before, when that frame is the same motion (:func:`._continues`).
     hold_max : float
         Metres: the same motion moved the joints seen in both frames less than this on
-        average (per frame between held gaps' ends, :func:`.held_gaps`).
+        average (:func:`._continues`).
     hold_age : int or None
         Frames: a joint is held from the last fitted frame only when a frame placed it at most
         this many frames before (None: always).
-    gaps : bool
-        The joints a frame did not see, between two frames of the same motion that saw them at
-        most ``max_gap`` frames apart, interpolated (:func:`.held_gaps`).
     held_shoulder : float or None
         Radians: an unseen arm's shoulder raised this much from the plane across the trunk,
         opposite its mate (:func:`.rest_fill`; None: mirrored about the trunk axis).
@@ -135,7 +132,6 @@ class GapOptions:
     hold_frames: int = 5
     hold_max: float = 0.15
     hold_age: int | None = 8
-    gaps: bool = False
     held_shoulder: float | None = float(np.radians(30.0))
     hints: bool = True
     evidence: bool = True

@@ -381,7 +381,8 @@ def _twisted(degrees, axis=(0.0, 0.0, 1.0)):
 
 
 def test_twist_row_is_the_derivative_of_its_residual():
-    from topopose.sequence.tracker import _Fitter, twist_pairs, twist_term
+    from topopose.sequence.joint_limits import twist_term
+    from topopose.sequence.tracker import _Fitter, twist_pairs
 
     body = make_body()
     assert twist_pairs(body) == [(2, 5, 8, 10)]            # shoulders against hips
@@ -410,7 +411,7 @@ def test_twist_row_is_the_derivative_of_its_residual():
 def test_twist_limit_turns_the_hips_back_under_the_shoulders():
     """Started with the hips turned 70° from the shoulders on an untwisted body's hull, the fit
     without the limit stays in that turn; with it the hips come back within the limit."""
-    from topopose.sequence.tracker import twist_term
+    from topopose.sequence.joint_limits import twist_term
 
     body = make_body()
     truth = pose(rest_directions())

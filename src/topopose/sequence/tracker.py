@@ -13,8 +13,8 @@ previous frame's pose moved on at constant velocity:
 * **prediction**: the constant-velocity pose (a weak prior, also the joint limits' stand-in
   for the bones the data leave free);
 * **twist**: the trunk's axial rotation, the hips' line turned against the shoulders', held
-  within a joint limit (:func:`twist_term`): the hull of the hips and thighs says little of
-  their turn about the vertical.
+  within a joint limit (:func:`.joint_limits.twist_term`): the hull of the hips and thighs
+  says little of their turn about the vertical.
 
 Parameters are the root position and one direction per bone (2 degrees of freedom in the
 plane normal to it; the bone lengths are the subject's, constant), solved by Gauss–Newton
@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from topopose.sequence.body import CapsuleBody, bounding_box, joint_positions, kabsch, snap
+from topopose.sequence.joint_limits import twist_term
 
 
 @dataclass(frozen=True)
@@ -63,9 +64,9 @@ class TrackOptions:
     max_step : radians, the largest turn of a bone in one iteration
     seeds : confident frames (spread over the sequence) whose starts compete to begin the track
     twist : (degrees, weight) or None: the joint limit on the trunk's axial rotation
-        (:func:`twist_term`): the turn of one rigid group's mirror pair against another's
-        (the hips against the shoulders) about the line between their middles, beyond the
-        degrees, costs weight × its excess² (radians; the data term's units, m²)
+        (:func:`.joint_limits.twist_term`): the turn of one rigid group's mirror pair against
+        another's (the hips against the shoulders) about the line between their middles,
+        beyond the degrees, costs weight × its excess² (radians; the data term's units, m²)
     """
 
     iterations: int = 8
@@ -240,76 +241,14 @@ def _object_box(volume) -> tuple:
 
 # --------------------------------------------------------------------------- one frame's fit
 def twist_pairs(body: CapsuleBody) -> list:
-    """The trunk's axial rotations :func:`twist_term` limits: ``(a1, b1, a2, b2)`` for every
-    two rigid groups (:func:`~topopose.sequence.body.rigid_groups`) that each hold a mirror
-    pair (``a``, ``b``: joints ``_1`` and ``_2``), e.g. the shoulders and the hips."""
+    """The trunk's axial rotations that :func:`.joint_limits.twist_term` limits:
+    ``(a1, b1, a2, b2)`` for every two rigid groups (:func:`~topopose.sequence.body.rigid_groups`)
+    that each hold a mirror pair (``a``, ``b``: joints ``_1`` and ``_2``), e.g. the shoulders
+    and the hips."""
     pairs = mirror_groups(body.names)
     held = [next((p for p in pairs if set(p) <= set(g)), None) for g in body.groups]
     held = [p for p in held if p is not None]
     return [(*held[i], *held[k]) for i in range(len(held)) for k in range(i + 1, len(held))]
-
-
-def twist_term(P, G, quad, limit, weight) -> tuple:
-    """The axial rotation of two mirror pairs' lines about the line between their middles
-    (within ±90°: which joint of a pair is which side is not known here), held within
-    ``limit`` (a joint limit, soft): residual ``√weight × (φ − clip(φ, ±limit))``
-    and its row ``dr/dθ`` (``G``: dP/dθ, (J, 3, n)).
-
-    Parameters
-    ----------
-    P : ndarray (J, 3), joints; quad : (a1, b1, a2, b2), joint indices (:func:`twist_pairs`)
-    limit : radians; weight : float
-
-    Returns
-    -------
-    r : float, the residual (0 within the limit)
-    row : ndarray (n,), its derivative
-    phi : float, the angle (radians)
-
-    Examples
-    --------
-    >>> P = np.array([[-1., 0, 1], [1, 0, 1], [0, -1, 0], [0, 1, 0]])   # lines 90° apart
-    >>> r, row, phi = twist_term(P, np.zeros((4, 3, 1)), (0, 1, 2, 3), np.radians(30), 1.0)
-    >>> round(float(np.degrees(phi)), 1), round(float(r), 4)
-    (90.0, 1.0472)
-    """
-    a1, b1, a2, b2 = quad
-    pa1, pb1, pa2, pb2 = P[a1].tolist(), P[b1].tolist(), P[a2].tolist(), P[b2].tolist()
-    l1 = [y - x for x, y in zip(pa1, pb1)]
-    l2 = [y - x for x, y in zip(pa2, pb2)]
-    m = [(x1 + y1 - x2 - y2) / 2 for x1, y1, x2, y2 in zip(pa1, pb1, pa2, pb2)]
-    nm = max(math.sqrt(_dot(m, m)), 1e-12)
-    n = [x / nm for x in m]
-    c12 = _cross(l1, l2)
-    s = _dot(c12, n)                        # φ = atan2(s, c): l1, l2 projected normal to n
-    c = _dot(l1, l2) - _dot(l1, n) * _dot(l2, n)
-    phi = math.atan2(s, c)
-    if abs(phi) > math.pi / 2:              # lines, not directions: a pair's numbering is no side
-        phi -= math.copysign(math.pi, phi)
-    over = phi - min(max(phi, -limit), limit)
-    w = math.sqrt(weight)
-    if over == 0.0:
-        return 0.0, np.zeros(G.shape[2]), phi
-    q = max(s * s + c * c, 1e-24)
-    n1, n2 = _dot(l1, n), _dot(l2, n)
-    x2, x1 = _cross(l2, n), _cross(n, l1)
-    d1 = [(c * x - s * (y - n2 * z)) / q for x, y, z in zip(x2, l2, n)]     # dφ/dl1
-    d2 = [(c * x - s * (y - n1 * z)) / q for x, y, z in zip(x1, l1, n)]     # dφ/dl2
-    dn = [(c * x + s * (n2 * y + n1 * z)) / q for x, y, z in zip(c12, l1, l2)]
-    dnn = _dot(dn, n)
-    dm = [(x - dnn * z) / nm / 2 for x, z in zip(dn, n)]                    # dφ/dP, from m
-    C = np.array([[y - x for x, y in zip(d1, dm)], [x + y for x, y in zip(d1, dm)],
-                  [-x - y for x, y in zip(d2, dm)], [x - y for x, y in zip(d2, dm)]])
-    row = np.tensordot(C, G[[a1, b1, a2, b2]], axes=([0, 1], [0, 1]))
-    return w * over, w * row, phi
-
-
-def _dot(u, v) -> float:
-    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
-
-
-def _cross(u, v) -> list:
-    return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
 
 
 def _basis(D):

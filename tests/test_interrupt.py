@@ -35,3 +35,29 @@ def test_ctrl_c_with_workers_is_one_line(tmp_path):
     from topopose.pose import read_poses
 
     assert len(read_poses(out)) >= 1 and not partial.exists()      # nothing computed is lost
+
+
+def test_ctrl_c_is_noted_when_library_code_swallows_it():
+    """Dask's code can catch the KeyboardInterrupt of a Ctrl-C; the run's frame loop still sees
+    it (``_ctrl_c_noted``) and the previous handler comes back."""
+    import os
+    import signal
+
+    from topopose.batch.run import _ctrl_c_noted
+
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        noted, old = _ctrl_c_noted()
+        assert old is signal.default_int_handler and not noted.is_set()
+        raised = False
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):          # the handler runs between bytecodes
+                pass
+        except KeyboardInterrupt:          # swallowed, as library code may
+            raised = True
+        assert raised and noted.is_set()
+        signal.signal(signal.SIGINT, old)
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, before)

@@ -684,10 +684,13 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
         finally:
             signal.signal(signal.SIGINT, old)
         client = Client(cluster)
+    stop, old_sigint = _ctrl_c_noted()
     try:
         spec_f = client.scatter([spec], broadcast=True)[0] if "capture" in spec else spec
         futures = {client.submit(_worker_estimate, key, spec_f, f, pure=False): f for f in todo}
         for fut in as_completed(list(futures)):
+            if stop.is_set():       # a Ctrl-C whose KeyboardInterrupt Dask's code swallowed
+                raise KeyboardInterrupt
             try:
                 got, frame_kept = fut.result()
                 pose = Pose.from_dict(got)
@@ -705,12 +708,37 @@ def _run_dask(cap, model, resolution, threshold, options, todo, workers, schedul
             logging.getLogger(name).setLevel(logging.CRITICAL)
         raise
     finally:
+        if old_sigint is not None:
+            import signal
+
+            signal.signal(signal.SIGINT, old_sigint)
         try:
             client.close()
             if cluster is not None:
                 cluster.close()
         except Exception:       # noqa: BLE001  a cluster closing mid-task may complain
             pass
+
+
+def _ctrl_c_noted() -> tuple:
+    """While Dask runs the frames, SIGINT both raises KeyboardInterrupt (where the main thread
+    is) and is noted, so that the frame loop stops at the next frame even when library code
+    caught the exception. Returns ``(event, previous handler or None)``: only in the main
+    thread, with Python's own SIGINT handler, is the handler changed."""
+    import signal
+    import threading
+
+    noted = threading.Event()
+    if threading.current_thread() is not threading.main_thread() or \
+            signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        return noted, None
+
+    def on_sigint(signum, frame):
+        noted.set()
+        signal.default_int_handler(signum, frame)
+
+    signal.signal(signal.SIGINT, on_sigint)
+    return noted, signal.default_int_handler
 
 
 #: ``topopose run --workers N`` uses N local processes only for at least this many frames per

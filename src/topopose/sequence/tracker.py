@@ -772,8 +772,6 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
             out.swapped[i] = sw
 
     starts = {}
-    fits = {}      # (frame, state) → its fit: a run that passes a frame again in the same
-                   # state (from a re-initialization reached twice) finds it there
 
     def start(i):
         """The fit of confident frame i initialized by its alignment: (root, D, P, quality)."""
@@ -796,15 +794,12 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
             if d is None or d.kd is None:
                 i += step
                 continue
-            key = (i, *(np.asarray(x).tobytes() for x in state))
-            if key not in fits:
-                rp, Dp = _predict(body, fitter, state, opts.velocity, opts.agree)
-                A, sw = None, none
-                if conf[i]:
-                    A, sw = _identity(align[i], joint_positions(body, rp, Dp), groups)
-                root, D, P = fitter.fit(rp, Dp, d, align=A, pred=(rp, Dp))
-                fits[key] = (A, sw, root, D, P, agreement(body, d, P))
-            A, sw, root, D, P, q = fits[key]
+            rp, Dp = _predict(body, fitter, state, opts.velocity, opts.agree)
+            A, sw = None, none
+            if conf[i]:
+                A, sw = _identity(align[i], joint_positions(body, rp, Dp), groups)
+            root, D, P = fitter.fit(rp, Dp, d, align=A, pred=(rp, Dp))
+            q = agreement(body, d, P)
             status = "tracked" if q >= opts.quality else "lost"
             if A is not None:
                 moved = False
@@ -834,15 +829,13 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
     root, D, P, q = starts[first]
     keep(first, P, q, "matched", first, none)
     todo = [(first, +1, F), (first, -1, -1)]
-    while todo:
-        i0, step, stop = todo.pop(0)
-        root, D = snap(body, out.joints[i0])
+    while todo:                 # a run goes on from each frame it re-initializes at; the
+        i0, step, stop = todo.pop(0)         # frames back to the confident frame before
+        root, D = snap(body, out.joints[i0])  # it are then run the other way from there
         for r in run(i0, (root, D, root, D), step, stop, i0):
             out.reinitialized.append(r)
-            todo.append((r, step, stop))            # on from it, as the track does
             back = confs[confs < r] if step > 0 else confs[confs > r]
             end = (int(back[-1]) if len(back) else -1) if step > 0 else \
                 (int(back[0]) if len(back) else F)
             todo.append((r, -step, end))
-            break                                    # the track goes on from r (above)
     return out

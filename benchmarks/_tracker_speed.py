@@ -45,7 +45,7 @@ def keep_inputs(capture, out):
 
     original = follow_module.follow
 
-    def keeping(poses, model, tree, lengths, hull, options=None):
+    def keeping(poses, model, tree, lengths, hull, options=None, fps=None):
         hulls = {}
         for p in poses:
             try:
@@ -54,8 +54,8 @@ def keep_inputs(capture, out):
                 hulls[p.frame] = exc
         with open(out, "wb") as fh:
             pickle.dump(dict(poses=poses, model=model, tree=tree, lengths=lengths, hulls=hulls,
-                             options=options), fh)
-        return original(poses, model, tree, lengths, hull, options)
+                             options=options, fps=fps), fh)
+        return original(poses, model, tree, lengths, hull, options, fps)
 
     follow_module.follow = keeping
     with tempfile.TemporaryDirectory() as tmp:
@@ -65,6 +65,8 @@ def keep_inputs(capture, out):
 def time_follow(inputs, out):
     """``follow`` on the kept inputs twice; the second call's CPU time and steps, its poses
     pickled to ``out``; one JSON line."""
+    import inspect
+
     import numpy as np
 
     from topopose.sequence.follow import follow
@@ -78,9 +80,11 @@ def time_follow(inputs, out):
             raise v
         return v
 
+    rate = {"fps": d.get("fps")} if "fps" in inspect.signature(follow).parameters else {}
     for _ in range(2):
         c = time.process_time()
-        poses = follow(d["poses"], d["model"], d["tree"], d["lengths"], hull, d["options"])
+        poses = follow(d["poses"], d["model"], d["tree"], d["lengths"], hull, d["options"],
+                       **rate)
         cpu = time.process_time() - c
     steps = {k: poses[0].timings_ms.get(k) for k in STEPS} if poses else {}
     keep = [(p.frame, p.status, p.fit,

@@ -152,7 +152,8 @@ def part_reach(tree, poses, align) -> dict:
     return out
 
 
-def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = None) -> list:
+def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = None,
+           fps=None) -> list:
     """Track the subject's body through a run's poses (sorted by frame).
 
     Parameters
@@ -167,6 +168,7 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
         :class:`~topopose.sequence.kept.KeptFrame` holds both as the tracker reads them.
         Called once per frame.
     options : FollowOptions
+    fps : the capture's frame rate (the track's smoothing window, ``TrackOptions.smooth``)
 
     Returns
     -------
@@ -247,7 +249,7 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
         return d
 
     t0, before = time.process_time(), timings["hull"] + timings["data"]
-    tr = track_sequence(body, data_of, align, opts.track, groups=groups)
+    tr = track_sequence(body, data_of, align, opts.track, groups=groups, fps=fps)
     fit_s = time.process_time() - t0 - (timings["hull"] + timings["data"] - before)
     if tr is None:
         return poses
@@ -411,7 +413,7 @@ def follow_run(poses, motion, model, cap, resolution, threshold, estimator=None,
         vol = est[0].hull(frame)
         return vol, estimator_views(est[0], frame)
 
-    return follow(poses, model, tree, lengths, hull, opts)
+    return follow(poses, model, tree, lengths, hull, opts, cap.fps)
 
 
 def estimator_views(est, frame) -> tuple:

@@ -63,6 +63,8 @@ class TrackOptions:
     quality : a frame is ``tracked`` when its fit quality reaches this, else ``lost``
     max_step : radians, the largest turn of a bone in one iteration
     seeds : confident frames (spread over the sequence) whose starts compete to begin the track
+    smooth : seconds, the Savitzky–Golay window (order 2) over each run of frames the track
+        follows from one initialization (:func:`smooth_track`); 0: the fits as they are
     twist : (degrees, weight) or None: the joint limit on the trunk's axial rotation
         (:func:`.joint_limits.twist_term`): the turn of one rigid group's mirror pair against
         another's (the hips against the shoulders) about the line between their middles,
@@ -85,6 +87,7 @@ class TrackOptions:
     quality: float = 0.5
     max_step: float = 0.35
     seeds: int = 8
+    smooth: float = 0.0
     twist: tuple | None = (30.0, 0.01)
 
 
@@ -720,8 +723,43 @@ def _predict(body, fitter, state, v, max_move):
     return rp, Dp
 
 
+def smooth_track(body: CapsuleBody, joints, segment, window) -> np.ndarray:
+    """The tracked joints smoothed in time, each run of consecutive frames that follow from
+    one initialization (the same ``segment``) apart: a Savitzky–Golay filter of order 2 over
+    ``window`` frames (an odd number; a shorter run: its own length, odd, at least 3), each
+    frame then put back on the body's bone lengths (:func:`~.body.snap`).
+
+    Parameters
+    ----------
+    body : CapsuleBody
+    joints : ndarray (F, J, 3), NaN rows where no frame was fitted
+    segment : ndarray (F,) int, :attr:`Track.segment`
+    window : int, frames
+
+    Returns
+    -------
+    ndarray (F, J, 3)
+    """
+    from scipy.signal import savgol_filter
+
+    joints = np.asarray(joints, float)
+    out = joints.copy()
+    ok = ~np.isnan(joints).any(axis=(1, 2))
+    i, F = 0, len(joints)
+    while i < F:
+        j = i + 1
+        while j < F and ok[i] and ok[j] and segment[j] == segment[i]:
+            j += 1
+        w = min(int(window), j - i - (j - i + 1) % 2)
+        if ok[i] and w >= 3:
+            S = savgol_filter(joints[i:j], w, 2, axis=0)
+            out[i:j] = [joint_positions(body, *snap(body, x)) for x in S]
+        i = j
+    return out
+
+
 def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None = None,
-                   groups=None) -> Track | None:
+                   groups=None, fps=None) -> Track | None:
     """Track the body through a sequence (see the module docstring).
 
     Up to ``seeds`` confident frames spread over the sequence are first fitted from their
@@ -743,6 +781,7 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
     opts : TrackOptions
     groups : list of mirror groups (lists of joint index pairs, :func:`mirror_groups` by
         limb); default: one group per mirror pair of joints
+    fps : the capture's frame rate, which turns ``opts.smooth`` into frames (None: 25)
 
     Returns
     -------
@@ -838,4 +877,11 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
             end = (int(back[-1]) if len(back) else -1) if step > 0 else \
                 (int(back[0]) if len(back) else F)
             todo.append((r, -step, end))
+    window = 2 * int(round(opts.smooth * (fps or 25.0) / 2)) + 1
+    if window >= 3:             # the smoothed joints' agreement and status
+        out.joints = smooth_track(body, out.joints, out.segment, window)
+        for i in np.flatnonzero(out.segment >= 0):
+            out.quality[i] = agreement(body, data(i), out.joints[i])
+            if out.status[i] != "matched":
+                out.status[i] = "tracked" if out.quality[i] >= opts.quality else "lost"
     return out

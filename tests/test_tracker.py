@@ -8,7 +8,7 @@ from topopose.sequence.body import (CapsuleBody, bone_directions, group_shape, j
                                     kabsch, radius_profile, snap, tip_capsules, tip_reach,
                                     trunk_sides)
 from topopose.sequence.tracker import (TrackOptions, agreement, fit_frame, frame_data,
-                                       mirror_groups, track_sequence)
+                                       mirror_groups, smooth_track, track_sequence)
 
 VOXEL = 0.02
 #: chest (root), pelvis below it, two arms (shoulder, elbow, wrist), two legs (hip, knee)
@@ -168,6 +168,34 @@ def test_covers_the_frames_before_the_first_confident_one():
     assert not np.isnan(tr.joints).any()
     assert np.linalg.norm(tr.joints - truth, axis=2).max() < 0.04
     assert tr.segment[0] == 30
+
+
+def test_smooth_track_smooths_each_segment_on_the_body_lengths():
+    """A smooth arm motion with jittered directions, in two segments with a jump between
+    them: the smoothed track is nearer the truth, keeps the body's bone lengths, and neither
+    segment reads the other's frames; a NaN frame and a two-frame run stay as they are."""
+    body = make_body()
+    rng = np.random.default_rng(3)
+    n = 30
+    s = np.linspace(0, 1, n)
+    truth = np.stack([pose(arm_down(rest_directions(), x), (0.01 * i, 0.0, 1.3))
+                      for i, x in enumerate(s)])
+    truth[15:] += (0.5, 0.0, 0.0)                   # the second segment jumps away
+    noisy = np.stack([joint_positions(body, *snap(body, P + rng.normal(0, 0.01, P.shape)))
+                      for P in truth])
+    noisy[28] = np.nan
+    segment = np.r_[np.zeros(15, int), np.ones(15, int)]
+    out = smooth_track(body, noisy, segment, 9)
+    ok = np.arange(28)
+    err = lambda P: np.linalg.norm(P[ok] - truth[ok], axis=2).mean()   # noqa: E731
+    assert err(out) < 0.7 * err(noisy)
+    assert np.isnan(out[28]).all() and np.array_equal(out[29], noisy[29])
+    kids = [j for j in range(len(NAMES)) if PARENTS[j] >= 0]
+    bone = np.linalg.norm(out[:28, kids] - out[:28][:, PARENTS[kids]], axis=2)
+    assert np.allclose(bone, LENGTHS[kids], atol=1e-9)
+    alone = smooth_track(body, noisy[:15], segment[:15], 9)
+    assert np.allclose(out[:15], alone)             # the jump does not leak back
+    assert np.array_equal(smooth_track(body, noisy, segment, 1), noisy, equal_nan=True)
 
 
 def test_agreement_compares_poses_not_bone_lengths():

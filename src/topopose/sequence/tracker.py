@@ -87,7 +87,7 @@ class TrackOptions:
     quality: float = 0.5
     max_step: float = 0.35
     seeds: int = 8
-    smooth: float = 0.0
+    smooth: float = 0.36
     twist: tuple | None = (30.0, 0.01)
 
 

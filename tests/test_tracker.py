@@ -139,10 +139,21 @@ def test_follows_an_arm_onto_the_body_and_away():
     assert all(st in ("matched", "tracked") for st in tr.status)
 
 
-def test_reinitializes_after_a_jump():
+def test_reinitializes_after_a_jump(monkeypatch):
     """Between frames 5 and 6 the subject turns round (180°) and raises arm 1: the fit from
     the previous pose settles with the arms exchanged; the confident frame 8 re-initializes
-    it, and the frames between are tracked back from there."""
+    it, and the frames between are tracked back from there. Each run fits a frame once: the
+    run from frame 0 goes on from 8 to the end (frames 1–11), the run back from 8 fits 7–1."""
+    from topopose.sequence import tracker
+
+    fitted = []
+    fit = tracker._Fitter.fit
+
+    def counted(self, root, D, data, align=None, pred=None):
+        fitted.append(pred is not None)         # a run's frame, not a confident frame's start
+        return fit(self, root, D, data, align, pred)
+
+    monkeypatch.setattr(tracker._Fitter, "fit", counted)
     n = 12
     turn = np.diag([-1.0, -1.0, 1.0])
     D = rest_directions()
@@ -153,6 +164,7 @@ def test_reinitializes_after_a_jump():
     conf[[0, 8]] = True
     tr = run(truth, conf)
     assert list(tr.reinitialized) == [8]
+    assert sum(fitted) == 11 + 7
     assert tr.status[8] == "matched" and tr.segment[6] == 8
     assert np.linalg.norm(tr.joints - truth, axis=2).max() < 0.03
 
@@ -173,7 +185,7 @@ def test_covers_the_frames_before_the_first_confident_one():
 def test_smooth_track_smooths_each_segment_on_the_body_lengths():
     """A smooth arm motion with jittered directions, in two segments with a jump between
     them: the smoothed track is nearer the truth, keeps the body's bone lengths, and neither
-    segment reads the other's frames; a NaN frame and a two-frame run stay as they are."""
+    segment reads the other's frames; a NaN frame and the lone frame after it stay as they are."""
     body = make_body()
     rng = np.random.default_rng(3)
     n = 30

@@ -22,7 +22,8 @@ with the analytic Jacobian (:func:`fit_frame`). Over a sequence (:func:`track_se
 confident alignments initialize the tracker, and re-initialize it where the fit and the
 alignment disagree by more than ``agree`` and the alignment's own fit explains the frame as
 well; it runs forwards from the first confident frame and backwards from it and from every
-re-initialization, each frame keeping the better fit. Every frame gets a quality
+re-initialization, each frame keeping the better fit; each run of frames that follow from one
+initialization is then smoothed in time (:func:`smooth_track`). Every frame gets a quality
 (:func:`agreement`, or the silhouette IoU of :mod:`.quality`) and a status: ``matched``
 (alignment confident and the fit agrees), ``tracked`` (fit only, quality at least
 ``quality``) or ``lost``.
@@ -770,7 +771,9 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
     :func:`~topopose.sequence.body.snap`: lengths are the body's, only the pose is compared)
     and whose start fits the frame better, the track
     is re-initialized there, and also run back the other way from it until the previous
-    confident frame; each frame keeps its best fit.
+    confident frame; each frame keeps its best fit. Each run of frames that follow from one
+    initialization is then smoothed over ``opts.smooth`` seconds (:func:`smooth_track`), and
+    its frames' quality and status are taken again.
 
     Parameters
     ----------

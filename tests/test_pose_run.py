@@ -83,6 +83,7 @@ def test_run_good_capture_writes_poses_and_exports(capture_dir, tmp_path, capsys
         assert set(p.timings_ms) >= {"hull", "thinning", "tree", "alignment", "total"}
     printed = capsys.readouterr().out
     assert f"{FRAMES} frames" in printed and "matched" in printed
+    assert "no motion was tracked" not in printed
     names, times, a = read_trc(trc)
     assert names[0] == "Head" and len(times) == FRAMES        # OpenSim marker names
     assert "torso" in names and "Neck" in names               # Neck: the fitted neck joint
@@ -97,6 +98,21 @@ def test_run_good_capture_writes_poses_and_exports(capture_dir, tmp_path, capsys
     assert text.startswith("HIERARCHY\nROOT chest") and f"Frames: {FRAMES}" in text
     assert "JOINT left_elbow" in text
     assert len(csvp.read_text().splitlines()) == FRAMES + 1
+
+
+def test_a_run_with_no_frame_matched_says_why_nothing_was_tracked():
+    """Every frame rejected: the summary says the tracker had nothing to start from and which
+    options accept more frames; one frame matched or tracked, and it does not."""
+    from topopose.batch.run import RunResult, summary_text
+    from topopose.pose import Pose
+
+    poses = [Pose(frame=f"{i:06d}", status="rejected") for i in range(FRAMES)]
+    text = summary_text(RunResult(poses, None, counts={"rejected": len(poses)}))
+    assert "0 matched" in text and "no frame matched, so no motion was tracked" in text
+    assert "--confidence-gate off" in text and "--threshold" in text
+    for k in ("matched", "tracked"):
+        counts = {"rejected": len(poses) - 1, k: 1}
+        assert "no motion" not in summary_text(RunResult(poses, None, counts=counts))
 
 
 def test_bad_input_frames_fail_with_reasons_and_run_completes(broken_dir, tmp_path, capsys):

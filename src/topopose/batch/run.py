@@ -777,5 +777,8 @@ def summary_text(res: RunResult) -> str:
         off += (f"; {k} frame{'s' if k > 1 else ''} with a bone far off the frames around, "
                 "replaced by theirs (diagnostics.despiked_joints)")
     tracked = "".join(f", {c[k]} {k}" for k in ("tracked", "lost") if c.get(k))
+    if c.get("rejected") and not any(c.get(k) for k in ("matched", "tracked", "lost")):
+        off += ("; no frame matched, so no motion was tracked (the body is followed from the "
+                "matched frames; --confidence-gate off and a higher --threshold accept more)")
     return (f"{n} frames{skipped}: {c.get('matched', 0)} matched{tracked}, "
             f"{c.get('rejected', 0)} rejected, {c.get('failed', 0)} failed in {res.seconds:.1f} s{fps}{where}{off}")

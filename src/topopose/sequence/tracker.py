@@ -9,7 +9,8 @@ previous frame's pose moved on at constant velocity:
 * **data**: hull surface points, each to the surface of its nearest capsule (robust, Huber);
 * **inside**: points along each bone's axis at least ``depth`` × its radius inside the hull
   (a limb's capsule where the hull is, also where no surface point pulls at it);
-* **alignment**: where the frame's alignment is confident, its fitted joints;
+* **alignment**: where the frame's alignment is confident and the prediction agrees with it
+  (within ``agree``), its fitted joints;
 * **prediction**: the constant-velocity pose (a weak prior, also the joint limits' stand-in
   for the bones the data leave free);
 * **twist**: the trunk's axial rotation, the hips' line turned against the shoulders', held
@@ -57,7 +58,8 @@ class TrackOptions:
     rays : weight of the silhouette term (its mean against the data term's): a silhouette
         pixel's ray farther than its nearest capsule's radius from it pulls the capsule
     n_rays : silhouette pixels sampled per camera and frame
-    align : weight of the confident alignment's joints (per joint)
+    align : weight of the confident alignment's joints (per joint), where the prediction
+        agrees with them within ``agree`` (elsewhere the alignment can only re-initialize)
     prior : weight of the constant-velocity prediction (per bone, its end's displacement)
     velocity : share of the last frame's velocity carried into the prediction
     agree : m, the largest joint distance within which the fit agrees with the alignment
@@ -701,6 +703,11 @@ def _identity(align_i, P, groups):
     return A, sw
 
 
+def _farthest(P, Q) -> float:
+    """The largest distance between corresponding joints of two poses."""
+    return float(np.max(np.linalg.norm(P - Q, axis=1)))
+
+
 def _predict(body, fitter, state, v, max_move):
     """The constant-velocity pose from the last two (root, directions): ``v`` of the last
     step again — a free bone turned on, a rigid group rotated on as a whole; none after a
@@ -837,16 +844,19 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
                 i += step
                 continue
             rp, Dp = _predict(body, fitter, state, opts.velocity, opts.agree)
-            A, sw = None, none
+            A, sw, pull = None, none, None
             if conf[i]:
-                A, sw = _identity(align[i], joint_positions(body, rp, Dp), groups)
-            root, D, P = fitter.fit(rp, Dp, d, align=A, pred=(rp, Dp))
+                Pp = joint_positions(body, rp, Dp)
+                A, sw = _identity(align[i], Pp, groups)
+                pose_of_A = joint_positions(body, *snap(body, A))    # on the body's lengths
+                if _farthest(Pp, pose_of_A) <= opts.agree:    # else it can only re-initialize
+                    pull = A
+            root, D, P = fitter.fit(rp, Dp, d, align=pull, pred=(rp, Dp))
             q = agreement(body, d, P)
             status = "tracked" if q >= opts.quality else "lost"
             if A is not None:
                 moved = False
-                pose_of_A = joint_positions(body, *snap(body, A))    # on the body's lengths
-                if float(np.max(np.linalg.norm(P - pose_of_A, axis=1))) <= opts.agree:
+                if _farthest(P, pose_of_A) <= opts.agree:
                     status = "matched"
                 else:
                     st = start(i)

@@ -169,6 +169,27 @@ def test_reinitializes_after_a_jump(monkeypatch):
     assert np.linalg.norm(tr.joints - truth, axis=2).max() < 0.03
 
 
+def test_a_wrong_confident_frame_does_not_pull_the_track():
+    """Frame 6's alignment is wrong (arm 1 raised where the hull has it out to the side):
+    the prediction is far from it, so it does not pull the fit; the track stays on the
+    hull's arm and the frame is not ``matched``."""
+    n = 12
+    D = rest_directions()
+    truth = np.stack([pose(D, (0.01 * i, 0.0, 1.3)) for i in range(n)])
+    raised = D.copy()
+    raised[3:5] = _unit(0, 0.2, 1)
+    align = np.full_like(truth, np.nan)
+    align[0] = truth[0]
+    align[6] = pose(raised, (0.06, 0.0, 1.3))
+    body = make_body()
+    vols = [hull_of(body, P) for P in truth]
+    rng = np.random.default_rng(1)
+    tr = track_sequence(body, lambda i: frame_data(vols[i], 400, rng), align,
+                        TrackOptions(iterations=6))
+    assert tr.status[6] != "matched" and not tr.reinitialized
+    assert np.linalg.norm(tr.joints - truth, axis=2).max() < 0.03
+
+
 def test_covers_the_frames_before_the_first_confident_one():
     n = 34
     s = 0.5 - 0.5 * np.cos(np.linspace(0, 2 * np.pi, n))

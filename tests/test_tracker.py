@@ -171,8 +171,8 @@ def test_reinitializes_after_a_jump(monkeypatch):
 
 def test_a_wrong_confident_frame_does_not_pull_the_track():
     """Frame 6's alignment is wrong (arm 1 raised where the hull has it out to the side):
-    the prediction is far from it, so it does not pull the fit; the track stays on the
-    hull's arm and the frame is not ``matched``."""
+    the prediction's arm is far from its arm, which does not pull the fit; the track stays on
+    the hull's arm and the frame is not ``matched``."""
     n = 12
     D = rest_directions()
     truth = np.stack([pose(D, (0.01 * i, 0.0, 1.3)) for i in range(n)])

@@ -9,8 +9,8 @@ previous frame's pose moved on at constant velocity:
 * **data**: hull surface points, each to the surface of its nearest capsule (robust, Huber);
 * **inside**: points along each bone's axis at least ``depth`` × its radius inside the hull
   (a limb's capsule where the hull is, also where no surface point pulls at it);
-* **alignment**: where the frame's alignment is confident and the prediction agrees with it
-  (within ``agree``), its fitted joints;
+* **alignment**: where the frame's alignment is confident, each of its fitted joints that the
+  prediction has within ``agree`` of it;
 * **prediction**: the constant-velocity pose (a weak prior, also the joint limits' stand-in
   for the bones the data leave free);
 * **twist**: the trunk's axial rotation, the hips' line turned against the shoulders', held
@@ -58,8 +58,8 @@ class TrackOptions:
     rays : weight of the silhouette term (its mean against the data term's): a silhouette
         pixel's ray farther than its nearest capsule's radius from it pulls the capsule
     n_rays : silhouette pixels sampled per camera and frame
-    align : weight of the confident alignment's joints (per joint), where the prediction
-        agrees with them within ``agree`` (elsewhere the alignment can only re-initialize)
+    align : weight of the confident alignment's joints (per joint), each where the prediction
+        has it within ``agree`` (elsewhere the alignment can only re-initialize the track)
     prior : weight of the constant-velocity prediction (per bone, its end's displacement)
     velocity : share of the last frame's velocity carried into the prediction
     agree : m, the largest joint distance within which the fit agrees with the alignment
@@ -849,8 +849,8 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
                 Pp = joint_positions(body, rp, Dp)
                 A, sw = _identity(align[i], Pp, groups)
                 pose_of_A = joint_positions(body, *snap(body, A))    # on the body's lengths
-                if _farthest(Pp, pose_of_A) <= opts.agree:    # else it can only re-initialize
-                    pull = A
+                far = np.linalg.norm(Pp - pose_of_A, axis=1) > opts.agree
+                pull = np.where(far[:, None], np.nan, A)      # the joints the prediction has
             root, D, P = fitter.fit(rp, Dp, d, align=pull, pred=(rp, Dp))
             q = agreement(body, d, P)
             status = "tracked" if q >= opts.quality else "lost"

@@ -7,8 +7,9 @@ from topopose.hull.volume import Volume
 from topopose.sequence.body import (CapsuleBody, bone_directions, group_shape, joint_positions,
                                     kabsch, radius_profile, snap, tip_capsules, tip_reach,
                                     trunk_sides)
+from topopose.sequence.smoothing import smooth_track
 from topopose.sequence.tracker import (TrackOptions, agreement, fit_frame, frame_data,
-                                       mirror_groups, smooth_track, track_sequence)
+                                       mirror_groups, track_sequence)
 
 VOXEL = 0.02
 #: chest (root), pelvis below it, two arms (shoulder, elbow, wrist), two legs (hip, knee)

@@ -1,10 +1,11 @@
 """The skeleton's motion over a sequence (sequence stage of the kinematic fit): runs of
 continuing motion, temporal outliers and their bridging, the bones' spikes (a Hampel filter)
-and the Savitzky–Golay window."""
+and the Savitzky–Golay window; the tracked body's joints smoothed the same way."""
 from __future__ import annotations
 
 import numpy as np
 
+from topopose.sequence.body import joint_positions, snap
 from topopose.sequence.gap_filling import _interpolate
 from topopose.sequence.skeleton_fit import KinematicTree
 
@@ -268,3 +269,39 @@ def bridged_parts(poses, t, bridged, i) -> tuple:
     for k in done:
         parts[k] = (1 - s) * np.asarray(pa[k], float) + s * np.asarray(pb[k], float)
     return parts, done
+
+
+def smooth_track(body, joints, segment, window) -> np.ndarray:
+    """The tracked joints smoothed in time, each run of consecutive frames that follow from
+    one initialization (the same ``segment``) apart: a Savitzky–Golay filter of order 2 over
+    ``window`` frames (an odd number; a shorter run: its own length, odd, at least 3), each
+    frame then put back on the body's bone lengths (:func:`~.body.snap`): the tracker's motion
+    (:func:`.tracker.track_sequence`).
+
+    Parameters
+    ----------
+    body : CapsuleBody
+    joints : ndarray (F, J, 3), NaN rows where no frame was fitted
+    segment : ndarray (F,) int, :attr:`.tracker.Track.segment`
+    window : int, frames
+
+    Returns
+    -------
+    ndarray (F, J, 3)
+    """
+    from scipy.signal import savgol_filter
+
+    joints = np.asarray(joints, float)
+    out = joints.copy()
+    ok = ~np.isnan(joints).any(axis=(1, 2))
+    i, F = 0, len(joints)
+    while i < F:
+        j = i + 1
+        while j < F and ok[i] and ok[j] and segment[j] == segment[i]:
+            j += 1
+        w = min(int(window), j - i - (j - i + 1) % 2)
+        if ok[i] and w >= 3:
+            S = savgol_filter(joints[i:j], w, 2, axis=0)
+            out[i:j] = [joint_positions(body, *snap(body, x)) for x in S]
+        i = j
+    return out

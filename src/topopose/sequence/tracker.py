@@ -24,7 +24,7 @@ confident alignments initialize the tracker, and re-initialize it where the fit 
 alignment disagree by more than ``agree`` and the alignment's own fit explains the frame as
 well; it runs forwards from the first confident frame and backwards from it and from every
 re-initialization, each frame keeping the better fit; each run of frames that follow from one
-initialization is then smoothed in time (:func:`smooth_track`). Every frame gets a quality
+initialization is then smoothed in time (:func:`.smoothing.smooth_track`). Every frame gets a quality
 (:func:`agreement`, or the silhouette IoU of :mod:`.quality`) and a status: ``matched``
 (alignment confident and the fit agrees), ``tracked`` (fit only, quality at least
 ``quality``) or ``lost``.
@@ -38,6 +38,7 @@ import numpy as np
 
 from topopose.sequence.body import CapsuleBody, bounding_box, joint_positions, kabsch, snap
 from topopose.sequence.joint_limits import twist_term
+from topopose.sequence.smoothing import smooth_track
 
 
 @dataclass(frozen=True)
@@ -67,7 +68,7 @@ class TrackOptions:
     max_step : radians, the largest turn of a bone in one iteration
     seeds : confident frames (spread over the sequence) whose starts compete to begin the track
     smooth : seconds, the Savitzky–Golay window (order 2) over each run of frames the track
-        follows from one initialization (:func:`smooth_track`); 0: the fits as they are
+        follows from one initialization (:func:`.smoothing.smooth_track`); 0: the fits as they are
     twist : (degrees, weight) or None: the joint limit on the trunk's axial rotation
         (:func:`.joint_limits.twist_term`): the turn of one rigid group's mirror pair against
         another's (the hips against the shoulders) about the line between their middles,
@@ -703,11 +704,6 @@ def _identity(align_i, P, groups):
     return A, sw
 
 
-def _farthest(P, Q) -> float:
-    """The largest distance between corresponding joints of two poses."""
-    return float(np.max(np.linalg.norm(P - Q, axis=1)))
-
-
 def _predict(body, fitter, state, v, max_move):
     """The constant-velocity pose from the last two (root, directions): ``v`` of the last
     step again — a free bone turned on, a rigid group rotated on as a whole; none after a
@@ -731,41 +727,6 @@ def _predict(body, fitter, state, v, max_move):
     return rp, Dp
 
 
-def smooth_track(body: CapsuleBody, joints, segment, window) -> np.ndarray:
-    """The tracked joints smoothed in time, each run of consecutive frames that follow from
-    one initialization (the same ``segment``) apart: a Savitzky–Golay filter of order 2 over
-    ``window`` frames (an odd number; a shorter run: its own length, odd, at least 3), each
-    frame then put back on the body's bone lengths (:func:`~.body.snap`).
-
-    Parameters
-    ----------
-    body : CapsuleBody
-    joints : ndarray (F, J, 3), NaN rows where no frame was fitted
-    segment : ndarray (F,) int, :attr:`Track.segment`
-    window : int, frames
-
-    Returns
-    -------
-    ndarray (F, J, 3)
-    """
-    from scipy.signal import savgol_filter
-
-    joints = np.asarray(joints, float)
-    out = joints.copy()
-    ok = ~np.isnan(joints).any(axis=(1, 2))
-    i, F = 0, len(joints)
-    while i < F:
-        j = i + 1
-        while j < F and ok[i] and ok[j] and segment[j] == segment[i]:
-            j += 1
-        w = min(int(window), j - i - (j - i + 1) % 2)
-        if ok[i] and w >= 3:
-            S = savgol_filter(joints[i:j], w, 2, axis=0)
-            out[i:j] = [joint_positions(body, *snap(body, x)) for x in S]
-        i = j
-    return out
-
-
 def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None = None,
                    groups=None, fps=None) -> Track | None:
     """Track the body through a sequence (see the module docstring).
@@ -779,7 +740,7 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
     and whose start fits the frame better, the track
     is re-initialized there, and also run back the other way from it until the previous
     confident frame; each frame keeps its best fit. Each run of frames that follow from one
-    initialization is then smoothed over ``opts.smooth`` seconds (:func:`smooth_track`), and
+    initialization is then smoothed over ``opts.smooth`` seconds (:func:`.smoothing.smooth_track`), and
     its frames' quality and status are taken again.
 
     Parameters
@@ -850,13 +811,13 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
                 A, sw = _identity(align[i], Pp, groups)
                 pose_of_A = joint_positions(body, *snap(body, A))    # on the body's lengths
                 far = np.linalg.norm(Pp - pose_of_A, axis=1) > opts.agree
-                pull = np.where(far[:, None], np.nan, A)      # the joints the prediction has
+                pull = np.where(far[:, None], np.nan, A)      # where the prediction has it
             root, D, P = fitter.fit(rp, Dp, d, align=pull, pred=(rp, Dp))
             q = agreement(body, d, P)
             status = "tracked" if q >= opts.quality else "lost"
             if A is not None:
                 moved = False
-                if _farthest(P, pose_of_A) <= opts.agree:
+                if float(np.max(np.linalg.norm(P - pose_of_A, axis=1))) <= opts.agree:
                     status = "matched"
                 else:
                     st = start(i)

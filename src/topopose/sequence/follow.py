@@ -43,6 +43,7 @@ class FollowOptions:
         extended as far as the joint's place on its arc says
     min_fit : a frame the track does not match is ``tracked`` when its silhouette ``fit``
         reaches this, else ``lost``
+    seed : the seed of the random sampling of each frame's hull points and silhouette rays
     track : the tracker's settings (:class:`~topopose.sequence.tracker.TrackOptions`)
     """
 
@@ -55,6 +56,7 @@ class FollowOptions:
     tips: bool = False
     part_reach: bool = True
     min_fit: float = 0.5
+    seed: int = 0
     track: TrackOptions = field(default_factory=TrackOptions)
 
 
@@ -228,7 +230,7 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
         return poses
     body = learn_body(tree, lengths, learn, learn[0][0].voxel_size, sides=opts.trunk_sides,
                       tips=opts.tips)
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(opts.seed)
     views = [(v[1], P) for v, P in picked if v[1] is not None]
     if views and len(opts.radius_scales) > 1:
         from topopose.sequence.silhouette import radius_scale

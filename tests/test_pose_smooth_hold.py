@@ -108,6 +108,12 @@ def test_the_default_window_keeps_its_duration_at_the_capture_frame_rate(monkeyp
 
     assert (kf.smooth_window(25), kf.smooth_window(60), kf.smooth_window(None)) == (9, 21, 9)
     assert kf.smooth_window(1) == 3
+    from topopose.sequence.smoothing import odd_window
+    from topopose.sequence.tracker import TrackOptions
+
+    # the tracker's window in seconds is the same one (TrackOptions.smooth)
+    assert [odd_window(TrackOptions().smooth, f) for f in (25, 60, 10)] == [9, 21, 3]
+    assert odd_window(0.0, 60) == 0
     opts = SequenceOptions().with_(tip_turn={}, tip_stretch={})
     rng = np.random.default_rng(1)
     tree = kinematic_tree(HUMAN)

@@ -163,7 +163,21 @@ def smooth_window(fps=None) -> int:
     """
     if not SMOOTH or not fps or not SMOOTH_RATE:
         return SMOOTH or 0
-    return max(3, 2 * int(round((SMOOTH * float(fps) / SMOOTH_RATE - 1) / 2)) + 1)
+    return odd_window(SMOOTH / SMOOTH_RATE, fps)
+
+
+def odd_window(seconds, fps) -> int:
+    """The odd number of frames nearest ``seconds`` at ``fps`` frames/s, at least 3 (0: no
+    time, no window).
+
+    Examples
+    --------
+    >>> odd_window(0.36, 25), odd_window(0.36, 60), odd_window(0.0, 25)
+    (9, 21, 0)
+    """
+    if not seconds:
+        return 0
+    return max(3, 2 * int(round((seconds * float(fps) - 1) / 2)) + 1)
 
 
 def bridge_outliers(P, t, tree: KinematicTree, L, dist, max_gap, max_move, M=None, reach=None):

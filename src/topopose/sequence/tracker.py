@@ -38,7 +38,7 @@ import numpy as np
 
 from topopose.sequence.body import CapsuleBody, bounding_box, joint_positions, kabsch, snap
 from topopose.sequence.joint_limits import twist_term
-from topopose.sequence.smoothing import smooth_track
+from topopose.sequence.smoothing import SMOOTH, SMOOTH_RATE, odd_window, smooth_track
 
 
 @dataclass(frozen=True)
@@ -68,7 +68,8 @@ class TrackOptions:
     max_step : radians, the largest turn of a bone in one iteration
     seeds : confident frames (spread over the sequence) whose starts compete to begin the track
     smooth : seconds, the Savitzky–Golay window (order 2) over each run of frames the track
-        follows from one initialization (:func:`.smoothing.smooth_track`); 0: the fits as they are
+        follows from one initialization (:func:`.smoothing.smooth_track`; default: the sequence
+        stage's, :func:`.smoothing.smooth_window`); 0: the fits as they are
     twist : (degrees, weight) or None: the joint limit on the trunk's axial rotation
         (:func:`.joint_limits.twist_term`): the turn of one rigid group's mirror pair against
         another's (the hips against the shoulders) about the line between their middles,
@@ -91,7 +92,7 @@ class TrackOptions:
     quality: float = 0.5
     max_step: float = 0.35
     seeds: int = 8
-    smooth: float = 0.36
+    smooth: float = SMOOTH / SMOOTH_RATE
     twist: tuple | None = (30.0, 0.01)
 
 
@@ -752,7 +753,8 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
     opts : TrackOptions
     groups : list of mirror groups (lists of joint index pairs, :func:`mirror_groups` by
         limb); default: one group per mirror pair of joints
-    fps : the capture's frame rate, which turns ``opts.smooth`` into frames (None: 25)
+    fps : the capture's frame rate, which turns ``opts.smooth`` into frames (None: 25,
+        :data:`.smoothing.SMOOTH_RATE`)
 
     Returns
     -------
@@ -851,8 +853,8 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
             end = (int(back[-1]) if len(back) else -1) if step > 0 else \
                 (int(back[0]) if len(back) else F)
             todo.append((r, -step, end))
-    window = 2 * int(round(opts.smooth * (fps or 25.0) / 2)) + 1
-    if window >= 3:             # the smoothed joints' agreement and status
+    window = odd_window(opts.smooth, fps or SMOOTH_RATE)
+    if window:                  # the smoothed joints' agreement and status
         out.joints = smooth_track(body, out.joints, out.segment, window)
         for i in np.flatnonzero(out.segment >= 0):
             out.quality[i] = agreement(body, data(i), out.joints[i])

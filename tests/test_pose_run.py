@@ -81,6 +81,9 @@ def test_run_good_capture_writes_poses_and_exports(capture_dir, tmp_path, capsys
     assert all(p.status in ("matched", "rejected") for p in poses)
     for p in poses:
         assert set(p.timings_ms) >= {"hull", "thinning", "tree", "alignment", "total"}
+        if p.matched:     # the identities' track segments, and the followed body's own record
+            assert set(p.diagnostics["track"]) == {"hand", "foot"}
+            assert p.diagnostics["follow"]["confirmed"] is True
     printed = capsys.readouterr().out
     assert f"{FRAMES} frames" in printed and "matched" in printed
     assert "no motion was tracked" not in printed
@@ -98,6 +101,44 @@ def test_run_good_capture_writes_poses_and_exports(capture_dir, tmp_path, capsys
     assert text.startswith("HIERARCHY\nROOT chest") and f"Frames: {FRAMES}" in text
     assert "JOINT left_elbow" in text
     assert len(csvp.read_text().splitlines()) == FRAMES + 1
+
+
+@pytest.mark.parametrize("threshold, reason", [(None, "confidence gate"),
+                                               (0.01, "AHA distance")])
+def test_a_run_no_frame_of_which_passed_the_gate_is_tracked_from_the_rejected_alignments(
+        capture_dir, threshold, reason):
+    """A gate that rejects every frame (and with a tiny threshold, the AHA distance too): the
+    tracker starts from the alignments the run rejected; every frame has a skeleton near the
+    synthetic truth, ``tracked`` (never ``matched``), the reason kept and the track marked
+    unconfirmed; with ``unconfirmed`` off, none."""
+    from topopose.batch.run import summary_text
+    from topopose.frame.confidence import GateOptions
+    from topopose.sequence.follow import FollowOptions
+
+    shut = GateOptions(max_unexplained=-1.0, far_unexplained=-1.0)
+    gt = json.loads((capture_dir / "gt.json").read_text())
+    res = run(capture_dir, model="human", resolution=80, threshold=threshold, progress=False,
+              gate_rule=shut, consistency=False)
+    assert [p.status for p in res.poses] == ["tracked"] * FRAMES
+    errors = []                  # each part from the truth's (the two hands, feet: either way)
+    for p in res.poses:
+        assert p.error.startswith(reason) and len(p.joints) == 20
+        assert p.diagnostics["follow"]["confirmed"] is False
+        truth = gt["frames"][p.frame]["parts"]
+        errors += [np.linalg.norm(np.subtract(p.parts[k], truth[k]))
+                   for k in ("head", "torso", "crotch")]
+        for limb in ("hand", "foot"):
+            ours = [np.asarray(v) for k, v in p.parts.items() if limb in k]
+            theirs = [np.asarray(truth[f"{limb}_{k}"]) for k in (1, 2)]
+            errors += min(([np.linalg.norm(ours[0] - a), np.linalg.norm(ours[1] - b)]
+                           for a, b in (theirs, theirs[::-1])), key=sum)
+    # the gate-on run of this capture: mean 0.046, largest 0.096 × the height (this: 0.032, 0.114)
+    assert np.mean(errors) < 0.06 * gt["height"] and np.max(errors) < 0.15 * gt["height"]
+    assert f"{FRAMES} frames tracked from alignments the run rejected" in summary_text(res)
+    off = run(capture_dir, model="human", resolution=80, threshold=threshold, progress=False,
+              gate_rule=shut, consistency=False, follow=FollowOptions(unconfirmed=False))
+    assert [p.status for p in off.poses] == ["rejected"] * FRAMES
+    assert not any(p.joints for p in off.poses)
 
 
 def test_a_run_with_no_frame_matched_says_why_nothing_was_tracked():

@@ -387,3 +387,21 @@ def test_estimator_records_free_leaves_and_nothing_else_changes():
     assert "free_leaves" not in q.diagnostics and q.status == p.status
     for k, x in p.parts.items():
         assert (x is None and q.parts[k] is None) or np.array_equal(x, q.parts[k])
+
+
+def test_ungated_matches_the_frames_only_the_gate_rejected_then_every_rejected_one():
+    from topopose.sequence.track import ungated
+
+    poses = [Pose(frame="0", status="matched"),
+             Pose(frame="1", status="rejected", error="confidence gate: silhouette unexplained"),
+             Pose(frame="2", status="rejected", error="AHA distance 0.9 above threshold"),
+             Pose(frame="3", status="failed", error="hull: empty"),
+             Pose(frame="4", status="rejected", error="confidence gate: foot on an arm",
+                  diagnostics={"x": 1})]
+    assert [p.status for p in ungated(poses)] == \
+        ["matched", "matched", "rejected", "failed", "matched"]
+    lifted = ungated(poses, threshold=True)
+    assert [p.status for p in lifted] == ["matched", "matched", "matched", "failed", "matched"]
+    assert [p.error for p in lifted] == [None, None, None, "hull: empty", None]
+    lifted[4].diagnostics["x"] = 2                       # copies: the run's poses unchanged
+    assert poses[4].diagnostics == {"x": 1} and poses[1].status == "rejected"

@@ -428,13 +428,39 @@ def _import_ahead(names):
 def _sequence_stage(poses, m, cap, resolution, threshold, eo, seq, follow, kept=None):
     """The sequence stage of a run (:func:`topopose.sequence.motion.process_sequence`), then
     the subject's body followed through every frame (:func:`topopose.sequence.follow.follow_run`,
-    on the frames ``kept`` by the frame loop); the returned motion's ``poses`` are the run's."""
-    from topopose.sequence.follow import follow_run
-    from topopose.sequence.motion import process_sequence
+    on the frames ``kept`` by the frame loop); the returned motion's ``poses`` are the run's.
 
+    When the frames that passed the confidence gate give the tracker no start (none passed,
+    or too few to learn the body from), and ``FollowOptions.unconfirmed``, the stage runs
+    again on the next most trusted alignments (:func:`~topopose.sequence.track.ungated`):
+    those the gate alone rejected, else every rejected one, which then start the track; their
+    frames keep their status, and of that run only the tracker's fits are kept."""
+    from topopose.sequence.follow import FollowOptions, follow_run
+    from topopose.sequence.motion import process_sequence
+    from topopose.sequence.track import gated_only, ungated
+
+    def fitted(ps):
+        return any("track_body" in p.diagnostics for p in ps)
+
+    fo = follow or FollowOptions()
     motion = process_sequence(poses, m, cap.up_vector, seq, fps=cap.fps)
     motion.poses = follow_run(motion.poses, motion, m, cap, resolution, threshold, eo, follow,
                               kept=kept)
+    if fitted(motion.poses) or not (fo.enabled and fo.unconfirmed):
+        return motion
+    strict = {p.frame: p for p in motion.poses}
+    for lift in (False, True):
+        if not any(gated_only(p) or (lift and p.status == "rejected") for p in poses):
+            continue
+        loose = process_sequence(ungated(poses, lift), m, cap.up_vector, seq, fps=cap.fps)
+        back = [replace(q, status=strict[q.frame].status, error=strict[q.frame].error)
+                if q.matched else q for q in loose.poses]
+        back = follow_run(back, loose, m, cap, resolution, threshold, eo, follow, kept=kept,
+                          starts=[q.matched for q in loose.poses])
+        if fitted(back):
+            loose.poses = [q if "track_body" in q.diagnostics else strict[q.frame]
+                           for q in back]
+            return loose
     return motion
 
 
@@ -777,6 +803,11 @@ def summary_text(res: RunResult) -> str:
         off += (f"; {k} frame{'s' if k > 1 else ''} with a bone far off the frames around, "
                 "replaced by theirs (diagnostics.despiked_joints)")
     tracked = "".join(f", {c[k]} {k}" for k in ("tracked", "lost") if c.get(k))
+    k = sum((p.diagnostics.get("follow") or {}).get("confirmed") is False for p in res.poses)
+    if k:                                     # FollowOptions.unconfirmed
+        off += (f"; {k} frame{'s' if k > 1 else ''} tracked from alignments the run "
+                "rejected, as no matched frame could start the track "
+                "(diagnostics.follow.confirmed false)")
     if c.get("rejected") and not any(c.get(k) for k in ("matched", "tracked", "lost")):
         off += ("; no frame matched, so no motion was tracked (the body is followed from the "
                 "matched frames; --confidence-gate off and a higher --threshold accept more)")

@@ -43,6 +43,11 @@ class FollowOptions:
         extended as far as the joint's place on its arc says
     min_fit : a frame the track does not match is ``tracked`` when its silhouette ``fit``
         reaches this, else ``lost``
+    unconfirmed : when the ``matched`` frames give the track no start, start it from the
+        alignments the confidence gate alone rejected
+        (:func:`~topopose.sequence.track.gated_only`), else from every rejected one: their
+        frames are ``tracked`` or ``lost``, never ``matched``, and
+        ``diagnostics["follow"]["confirmed"]`` is false (:func:`topopose.batch.run.run`)
     seed : the seed of the random sampling of each frame's hull points and silhouette rays
     track : the tracker's settings (:class:`~topopose.sequence.tracker.TrackOptions`)
     """
@@ -56,6 +61,7 @@ class FollowOptions:
     tips: bool = False
     part_reach: bool = True
     min_fit: float = 0.5
+    unconfirmed: bool = True
     seed: int = 0
     track: TrackOptions = field(default_factory=TrackOptions)
 
@@ -155,7 +161,7 @@ def part_reach(tree, poses, align) -> dict:
 
 
 def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = None,
-           fps=None) -> list:
+           fps=None, starts=None) -> list:
     """Track the subject's body through a run's poses (sorted by frame).
 
     Parameters
@@ -171,15 +177,19 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
         Called once per frame.
     options : FollowOptions
     fps : the capture's frame rate (the track's smoothing window, ``TrackOptions.smooth``)
+    starts : sequence of bool, optional
+        The frames whose alignments start and guide the track (default: the ``matched``
+        ones); only a ``matched`` frame can stay ``matched``.
 
     Returns
     -------
     list of Pose: every frame the tracker fitted with ``joints`` (left / right names where the
     confident frames of its track decided them), ``fit`` and status ``matched`` / ``tracked``
-    / ``lost``; ``diagnostics["track"]`` holds the frame the track started from (``from``)
-    and whether it re-initialized there, ``diagnostics["track_body"]`` the body's radii and
-    bone lengths (per joint, the bone into it) and its extra capsules (``extra``: their ends'
-    weights of the joints and their radii). Frames with no hull keep their pose.
+    / ``lost``; ``diagnostics["follow"]`` holds the frame the track started from (``from``),
+    whether that frame is ``matched`` (``confirmed``) and whether it re-initialized there,
+    ``diagnostics["track_body"]`` the body's radii and bone lengths (per joint, the bone
+    into it) and its extra capsules (``extra``: their ends' weights of the joints and their
+    radii). Frames with no hull keep their pose.
     """
     from topopose.sequence.body import learn_body
 
@@ -193,8 +203,9 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     F, J = len(poses), len(tree.names)
     align = np.full((F, J, 3), np.nan)
     sided = np.zeros((F, len(groups)), dtype=bool)
+    starts = [p.matched for p in poses] if starts is None else list(starts)
     for i, p in enumerate(poses):
-        if p.matched and p.joints and not p.diagnostics.get("interpolated"):
+        if starts[i] and p.joints and not p.diagnostics.get("interpolated"):
             P, s = _canonical(p, tree, groups, rename)
             if not np.isnan(P).any():
                 align[i], sided[i] = P, s
@@ -278,10 +289,13 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
         if tr.status[i] != "matched" or not p.matched:        # the body's own parts
             parts = {side.get(k, k): v
                      for k, v in body_parts(tree, tr.joints[i], reach).items()}
-        diag = {**p.diagnostics, "track": {"from": poses[int(tr.segment[i])].frame,
-                                           "reinitialized": bool(i in tr.reinitialized)},
+        start = poses[int(tr.segment[i])]
+        diag = {**p.diagnostics, "follow": {"from": start.frame, "confirmed": start.matched,
+                                            "reinitialized": bool(i in tr.reinitialized)},
                 "track_body": radii}
         status, fit, diag_fit = tr.status[i], float(tr.quality[i]), {}
+        if status == "matched" and not p.matched:      # a start the gate rejected
+            status = "tracked"
         r = record(i)
         if r is not None and r.views is not None and opts.silhouette_fit:
             t0 = time.process_time()
@@ -296,8 +310,6 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
                     status = "tracked" if fit >= opts.min_fit else "lost"
         if p.status == "failed":
             status = p.status
-        elif status == "matched" and not p.matched:
-            status = "tracked"
         out.append(replace(p, status=status, joints=joints, parts=parts, fit=round(fit, 4),
                            diagnostics={**diag, **diag_fit},
                            timings_ms=p.timings_ms))
@@ -391,12 +403,12 @@ def _side_names(model, tree, groups, rename, votes) -> tuple:
 
 
 def follow_run(poses, motion, model, cap, resolution, threshold, estimator=None,
-               options: FollowOptions | None = None, kept=None) -> list:
+               options: FollowOptions | None = None, kept=None, starts=None) -> list:
     """The tracking stage of :func:`topopose.batch.run.run`: :func:`follow` on a run's poses
     when the sequence stage fitted a skeleton. ``kept``: ``{frame: KeptFrame}`` of the frames
     the run's estimator computed (:class:`~topopose.sequence.kept.KeptFrame`); any other
     frame's hull is carved again as that estimator carves it (``estimator``: its
-    :class:`~topopose.frame.options.EstimatorOptions`)."""
+    :class:`~topopose.frame.options.EstimatorOptions`); ``starts``: as :func:`follow`'s."""
     opts = options or FollowOptions()
     if not opts.enabled or motion is None or motion.tree is None or len(poses) < 3:
         return poses
@@ -415,7 +427,7 @@ def follow_run(poses, motion, model, cap, resolution, threshold, estimator=None,
         vol = est[0].hull(frame)
         return vol, estimator_views(est[0], frame)
 
-    return follow(poses, model, tree, lengths, hull, opts, cap.fps)
+    return follow(poses, model, tree, lengths, hull, opts, cap.fps, starts)
 
 
 def estimator_views(est, frame) -> tuple:

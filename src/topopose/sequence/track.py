@@ -84,6 +84,18 @@ def gated_only(pose) -> bool:
     return pose.status == "rejected" and str(pose.error or "").startswith("confidence ")
 
 
+def ungated(poses, threshold=False) -> list:
+    """Copies of the poses as with the confidence gate off: the frames only the gate rejected
+    (:func:`gated_only`) are ``matched``; the gate judges a frame after its alignment and
+    changes nothing else. With ``threshold``, every ``rejected`` frame is (its alignment's
+    best guess, kept in ``parts``)."""
+    def lifted(p):
+        return gated_only(p) or (threshold and p.status == "rejected")
+
+    return [replace(p, status="matched", error=None, diagnostics=dict(p.diagnostics))
+            if lifted(p) else replace(p, diagnostics=dict(p.diagnostics)) for p in poses]
+
+
 def body_scale(poses) -> float:
     """Median extent (bounding-box diagonal of the parts) of the matched frames."""
     ext = []

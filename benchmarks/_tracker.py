@@ -12,7 +12,8 @@ sequence options, e.g. ``hints=False``: results written as ``tracking_tracker_va
 without it (``follow=FollowOptions(enabled=False)``: the sequence stage as it was, the peer).
 
 * **synthetic** ``body`` sequences (100³; ``8``: 8 cameras 640×480 noise 1; ``4p``: 4 portrait
-  phones in facing pairs, noise 2, AHA threshold and gate off as ``tracking.py --setup 4p``):
+  phones in facing pairs, noise 2, AHA threshold and gate off as ``tracking.py --setup 4p``;
+  ``--defaults``: both on, as ``topopose run`` with no flag, results ``tracking_tracker_defaults``):
   walk, random-smooth and the motions whose limbs touch the body (``hang``, ``hips``, ``fold``,
   ``jump``, ``crouch``: :data:`topopose.synth.body.TOUCHING`). Held-out seeds
   (:data:`SEEDS`; ``--dev``: :data:`DEV_SEEDS`, where the constants were chosen). Per sequence:
@@ -26,7 +27,9 @@ without it (``follow=FollowOptions(enabled=False)``: the sequence stage as it wa
   swapped per joint pair (the named pair farther from Pose2Sim's than the swapped one).
 * **child_rope** (``--child-rope``, 10 cameras, P matrices, no 3D reference; read by path: a
   capture folder of links is built in the work folder, frames sorted numerically): frames with
-  a skeleton, the silhouette IoU of the fitted body per camera (median over frames), pictures
+  a skeleton, the silhouette IoU of the fitted body per camera (median over frames) beside
+  the hull's own (:func:`hull_silhouette_iou`, every 10th frame: how far the masks agree with
+  each other, which a body inside the hull does not pass by much), pictures
   of 6 frames (3 with a wrist within :data:`TOUCH` of the trunk) with the body drawn over the
   masks (written to the work folder, not to ``--out``: the recording has no licence to copy).
 * **speed**: the tracker's stages per frame (``timings_ms``: ``track_hull`` reading the
@@ -58,9 +61,11 @@ def _numbered(name):
     return name
 
 
-def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=None, flat=None):
+def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=None, flat=None,
+                       defaults=False):
     """One synthetic sequence with and without the tracker (``flat``: sequence options of the
-    tracker arm): rows of figures."""
+    tracker arm; ``defaults``: the gate and the AHA threshold on with any set-up): rows of
+    figures."""
     from tracking import MPJPE_JOINTS, joint_errors, make_sequence
 
     from topopose.capture import load_capture
@@ -69,7 +74,7 @@ def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=
 
     d = make_sequence(work, motion, seed, build, frames, setup)
     cap = load_capture(d)
-    loose = {} if setup == "8" else {"threshold": 1e9, "gate": False}
+    loose = {} if setup == "8" or defaults else {"threshold": 1e9, "gate": False}
     out = {"motion": motion, "seed": seed, "build": build, "setup": setup, "frames": frames}
     for key, follow in (("peer", FollowOptions(enabled=False)), ("tracker", tracker)):
         t0 = time.perf_counter()
@@ -289,6 +294,42 @@ def child_rope_capture(src: Path, out: Path, frames=None) -> Path:
     return out
 
 
+def hull_silhouette_iou(volume, views) -> list:
+    """The visual hull's own silhouette IoU per camera, measured as the tracker's ``fit``
+    (``views``: :class:`~topopose.sequence.kept.CroppedViews`, the silhouettes it reads):
+    each surface voxel drawn as 4³ points over its cube, the inner voxels as their centres."""
+    from scipy import ndimage
+
+    q = np.array([-0.375, -0.125, 0.125, 0.375])
+    off = np.stack(np.meshgrid(q, q, q, indexing="ij"), -1).reshape(-1, 3)
+    surface = np.argwhere(volume.data & ~ndimage.binary_erosion(volume.data))
+    X = np.concatenate([(volume.world(surface)[:, None] + off * volume.voxel_size)
+                        .reshape(-1, 3), volume.world(np.argwhere(volume.data))])
+    out = []
+    for cam, (y0, x0, m), (h, w) in zip(views.cameras, views.crops, views.shapes):
+        uv = np.rint(cam.project(X)).astype(np.int64)
+        ok = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+        img = np.zeros((h, w), bool)
+        img[uv[ok, 1], uv[ok, 0]] = True
+        both = np.count_nonzero(img[y0:y0 + m.shape[0], x0:x0 + m.shape[1]] & m)
+        union = np.count_nonzero(img) + np.count_nonzero(m) - both
+        out.append(both / union if union else np.nan)
+    return out
+
+
+def hull_iou(cap, model, frames) -> list:
+    """:func:`hull_silhouette_iou` per camera, median over ``frames``, the hulls carved as
+    ``run`` carves them."""
+    from topopose.frame.estimate import FrameEstimator
+    from topopose.sequence.follow import estimator_views
+    from topopose.sequence.kept import CroppedViews
+
+    est = FrameEstimator(cap, model, 100, None, None)
+    rows = [hull_silhouette_iou(est.hull(f), CroppedViews.scaled(*estimator_views(est, f)))
+            for f in frames]
+    return [round(float(x), 3) for x in np.nanmedian(np.array(rows, float), axis=0)]
+
+
 def child_rope(path, work, model, frames=None, peer=True, pictures=None, tracker=None,
                flat=None):
     import topopose as tp
@@ -325,6 +366,7 @@ def child_rope(path, work, model, frames=None, peer=True, pictures=None, tracker
                                              "track_quality")}}
         if key == "tracker" and pictures is not None:
             out["pictures"] = child_pictures(cap, res.poses, model, pictures)
+    out["hull_iou_per_camera_median"] = hull_iou(cap, model, cap.frames[::10])
     return out
 
 
@@ -424,7 +466,9 @@ def report(doc) -> str:
              "Peer: the same run without the tracker (`follow=FollowOptions(enabled=False)`)."
              + (f" Tracker settings: {', '.join(doc['follow'])}." if doc.get("follow") else "")
              + (f" The tracker arm's sequence options: {', '.join(doc['set'])}."
-                if doc.get("set") else ""),
+                if doc.get("set") else "")
+             + (" Set-up 4p" if doc.get("defaults") else " Set-up 4p with the AHA threshold and "
+                "the gate off, 8") + " with `run`'s defaults.",
              ""]
     syn = doc.get("synthetic") or []
     if syn:
@@ -493,6 +537,10 @@ def report(doc) -> str:
                              f"({100 * r['skeleton'] / ch['frames']:.1f} %); statuses "
                              f"{r['statuses']}; silhouette IoU per camera (median over frames) "
                              f"{r['iou_per_camera_median']}")
+        if ch.get("hull_iou_per_camera_median"):
+            lines.append("- the hull's own silhouette IoU per camera (median over every 10th "
+                         "frame; how far the masks agree with each other): "
+                         f"{ch['hull_iou_per_camera_median']}")
         for f in ch.get("pictures") or []:
             lines.append(f"  - frame {f['frame']}: `{Path(f['file']).name}` in the work folder "
                          "(the recording's masks stay out of the repository)"
@@ -534,17 +582,18 @@ def main(a, model):
     tracker = follow_options(a.follow)
     flat = sequence_settings(a.set)
     variant = bool(a.follow or flat)
-    doc = {"dev": a.dev, "synthetic": [], "follow": a.follow or [], "set": a.set or []}
+    doc = {"dev": a.dev, "synthetic": [], "follow": a.follow or [], "set": a.set or [],
+           "defaults": a.defaults}
     for st in a.setups.split(",") if a.setups else ():
         for k, mo in enumerate(motions):
             r = synthetic_sequence(work, mo, seeds[mo], BUILDS[MOTIONS.index(mo)], a.frames,
-                                   st, model, tracker, flat)
+                                   st, model, tracker, flat, a.defaults)
             doc["synthetic"].append(r)
             print(json.dumps({k: v for k, v in r.items() if k not in ("peer", "tracker")}
                              | {x: {kk: r[x][kk] for kk in ("skeleton", "mpjpe_median",
                                                             "mpjpe_mean")}
                                 for x in ("peer", "tracker")}), flush=True)
-    if doc["synthetic"] and not (a.dev or variant):
+    if doc["synthetic"] and not (a.dev or variant or a.defaults):
         doc["synthetic_worst"] = {
             st: worst_synthetic_picture(out / f"tracking_tracker_worst_{st}.png",
                                         [r for r in doc["synthetic"] if r["setup"] == st])
@@ -562,7 +611,8 @@ def main(a, model):
                                        flat=flat)
         print(json.dumps(doc["child_rope"], default=str)[:600], flush=True)
     doc["machine"] = machine(resolution=100)
-    name = "tracking_tracker" + ("_dev" if a.dev else "") + ("_variant" if variant else "")
+    name = "tracking_tracker" + ("_dev" if a.dev else "") + ("_variant" if variant else "") + \
+        ("_defaults" if a.defaults else "")
     (out / f"{name}.json").write_text(json.dumps(doc, indent=1, default=str))
     (out / f"{name}.md").write_text(report(doc))
     print(report(doc))

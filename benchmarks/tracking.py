@@ -106,7 +106,7 @@ from topopose.sequence.kinematic_fit import initial_placement  # noqa: E402
 from topopose.sequence.options import SkeletonFitOptions  # noqa: E402
 from topopose.pose.model import load_model  # noqa: E402
 from topopose.batch.quality import evaluate, point_segment_distance  # noqa: E402
-from topopose.sequence.track import gated_only, track  # noqa: E402
+from topopose.sequence.track import track, ungated  # noqa: E402
 
 # Walking sequences are short: the synthetic walk goes straight (≈ 1.3 m/s) and the capture
 # volume holds the whole path, so a 200-frame walk (≈ 10 m) would get 10 cm voxels at 100³;
@@ -511,14 +511,6 @@ def fit_without_girdle(tracked, model):
     return fit_sequence(tracked, model, girdle=False)
 
 
-def ungated(poses):
-    """The poses as with the confidence gate off: frames only the gate rejected are matched
-    (the gate judges a frame after its alignment; it changes nothing else)."""
-    from dataclasses import replace
-
-    return [replace(p, status="matched", error=None) if gated_only(p) else p for p in poses]
-
-
 def make_sequence(work, motion, seed, build, frames, setup=None):
     """The capture folder of one sequence (written once): ``setup`` (:data:`SETUPS` key, default
     ``"8"``) says its cameras."""
@@ -876,6 +868,8 @@ def main(argv=None):
     ap.add_argument("--no-child-peer", action="store_true", help="child_rope without the peer")
     ap.add_argument("--frames", type=int, default=40, help="with --tracker: frames a sequence")
     ap.add_argument("--motions", default=None, help="with --tracker: only these motions")
+    ap.add_argument("--defaults", action="store_true",
+                    help="with --tracker: every set-up with the gate and AHA threshold on")
     ap.add_argument("--follow", action="append", metavar="NAME=VALUE",
                     help="with --tracker: a FollowOptions setting of the tracker arm "
                          "(tips=True, track.prior=0.1; repeatable)")

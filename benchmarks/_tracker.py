@@ -19,7 +19,8 @@ without it (``follow=FollowOptions(enabled=False)``: the sequence stage as it wa
   (:data:`SEEDS`; ``--dev``: :data:`DEV_SEEDS`, where the constants were chosen). Per sequence:
   the frames with a skeleton, the MPJPE (neck, shoulders, elbows, wrists, hips, knees, ankles
   against the rig joints, mirror pairs paired optimally, ``tracking.joint_errors``) over the
-  frames with a skeleton (median and mean of the per-frame mean), the statuses.
+  frames with a skeleton (those ``matched`` or ``tracked``, whose joints the exports hold;
+  median and mean of the per-frame mean), the statuses.
 * **the real recording** (``--real``, Pose2Sim's balancing trial) by the README's own route:
   ``person`` silhouettes, the Qualisys calibration imported (``Calib.qca.txt``), ``size_policy
   = "pad"``, no other flag; the exported TRC scored as ``real_motion.py`` scores it (14 joints
@@ -85,7 +86,7 @@ def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=
                       **extra)
         errs, drawn = [], []
         for p in res.poses:
-            if not p.joints:
+            if not p.joints or p.status not in ("matched", "tracked"):   # as exported
                 continue
             names = [_numbered(k) for k in p.joints]
             gtj = cap.gt["frames"][p.frame]["joints"]

@@ -141,6 +141,25 @@ def test_a_run_no_frame_of_which_passed_the_gate_is_tracked_from_the_rejected_al
     assert not any(p.joints for p in off.poses)
 
 
+def test_a_run_without_a_skeleton_runs_its_sequence_stage_once(capture_dir, monkeypatch):
+    """Nothing to track without the kinematic skeleton: no frame matched, and the sequence
+    stage is not run again on the rejected alignments."""
+    import topopose.sequence.motion as motion
+    from topopose.frame.confidence import GateOptions
+
+    calls = []
+    real = motion.process_sequence
+    monkeypatch.setattr(motion, "process_sequence",
+                        lambda *a, **k: calls.append(1) or real(*a, **k))
+    shut = GateOptions(max_unexplained=-1.0, far_unexplained=-1.0)
+    res = run(capture_dir, model="human", resolution=80, progress=False, gate_rule=shut,
+              consistency=False, skeleton=False, track=True)
+    assert len(calls) == 1 and {p.status for p in res.poses} == {"rejected"}
+    run(capture_dir, model="human", resolution=80, progress=False, gate_rule=shut,
+        consistency=False)
+    assert len(calls) == 3                  # with the skeleton: once more, on those alignments
+
+
 def test_a_run_with_no_frame_matched_says_why_nothing_was_tracked():
     """Every frame rejected: the summary says the tracker had nothing to start from and which
     options accept more frames; one frame matched or tracked, and it does not."""

@@ -446,7 +446,8 @@ def _sequence_stage(poses, m, cap, resolution, threshold, eo, seq, follow, kept=
     motion = process_sequence(poses, m, cap.up_vector, seq, fps=cap.fps)
     motion.poses = follow_run(motion.poses, motion, m, cap, resolution, threshold, eo, follow,
                               kept=kept)
-    if fitted(motion.poses) or not (fo.enabled and fo.unconfirmed):
+    if fitted(motion.poses) or not (fo.enabled and fo.unconfirmed) or motion.tree is None \
+            or len(poses) < 3:          # tracked, or nothing to track with
         return motion
     strict = {p.frame: p for p in motion.poses}
     for lift in (False, True):

@@ -437,7 +437,7 @@ def _sequence_stage(poses, m, cap, resolution, threshold, eo, seq, follow, kept=
     frames keep their status, and of that run only the tracker's fits are kept."""
     from topopose.sequence.follow import FollowOptions, follow_run
     from topopose.sequence.motion import process_sequence
-    from topopose.sequence.track import gated_only, ungated
+    from topopose.sequence.track import ungated
 
     def fitted(ps):
         return any("track_body" in p.diagnostics for p in ps)
@@ -449,11 +449,14 @@ def _sequence_stage(poses, m, cap, resolution, threshold, eo, seq, follow, kept=
     if fitted(motion.poses) or not (fo.enabled and fo.unconfirmed) or motion.tree is None \
             or len(poses) < 3:          # tracked, or nothing to track with
         return motion
-    strict = {p.frame: p for p in motion.poses}
+    strict, tried = {p.frame: p for p in motion.poses}, None
     for lift in (False, True):
-        if not any(gated_only(p) or (lift and p.status == "rejected") for p in poses):
-            continue
-        loose = process_sequence(ungated(poses, lift), m, cap.up_vector, seq, fps=cap.fps)
+        lifted = ungated(poses, lift)
+        more = [q.matched for q in lifted]
+        if more == tried or not any(q.matched and not p.matched for p, q in zip(poses, lifted)):
+            continue                    # no alignment more to start from
+        tried = more
+        loose = process_sequence(lifted, m, cap.up_vector, seq, fps=cap.fps)
         back = [replace(q, status=strict[q.frame].status, error=strict[q.frame].error)
                 if q.matched else q for q in loose.poses]
         back = follow_run(back, loose, m, cap, resolution, threshold, eo, follow, kept=kept,

@@ -45,7 +45,7 @@ def keep_inputs(capture, out):
 
     original = follow_module.follow
 
-    def keeping(poses, model, tree, lengths, hull, options=None, fps=None):
+    def keeping(poses, model, tree, lengths, hull, options=None, fps=None, *rest):
         hulls = {}
         for p in poses:
             try:
@@ -55,7 +55,7 @@ def keep_inputs(capture, out):
         with open(out, "wb") as fh:
             pickle.dump(dict(poses=poses, model=model, tree=tree, lengths=lengths, hulls=hulls,
                              options=options, fps=fps), fh)
-        return original(poses, model, tree, lengths, hull, options, fps)
+        return original(poses, model, tree, lengths, hull, options, fps, *rest)
 
     follow_module.follow = keeping
     with tempfile.TemporaryDirectory() as tmp:
@@ -90,12 +90,20 @@ def time_follow(inputs, out):
     keep = [(p.frame, p.status, p.fit,
              {k: np.asarray(v) for k, v in (p.joints or {}).items()},
              {k: None if v is None else np.asarray(v) for k, v in (p.parts or {}).items()},
-             {k: p.diagnostics.get(k) for k in ("track", "track_body", "fit_cameras")})
+             {"follow": _followed(p.diagnostics),
+              **{k: p.diagnostics.get(k) for k in ("track_body", "fit_cameras")}})
             for p in poses]
     with open(out, "wb") as fh:
         pickle.dump(keep, fh)
     print(json.dumps({"frames": len(poses), "cpu_s": round(cpu, 3),
                       "cpu_ms_frame": round(1e3 * cpu / max(len(poses), 1), 3), **steps}))
+
+
+def _followed(diagnostics) -> dict:
+    """The followed body's start frame and re-initialization (``diagnostics.follow``; a tree
+    before it kept them in ``diagnostics.track``)."""
+    rec = diagnostics.get("follow") or diagnostics.get("track") or {}
+    return {k: rec.get(k) for k in ("from", "reinitialized")}
 
 
 # --------------------------------------------------------------------------- the comparison

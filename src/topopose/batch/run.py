@@ -439,15 +439,15 @@ def _sequence_stage(poses, m, cap, resolution, threshold, eo, seq, follow, kept=
     from topopose.sequence.motion import process_sequence
     from topopose.sequence.track import ungated
 
-    def fitted(ps):
-        return any("track_body" in p.diagnostics for p in ps)
+    def followed(p):                    # a frame the tracker fitted
+        return "track_body" in p.diagnostics
 
     fo = follow or FollowOptions()
     motion = process_sequence(poses, m, cap.up_vector, seq, fps=cap.fps)
     motion.poses = follow_run(motion.poses, motion, m, cap, resolution, threshold, eo, follow,
                               kept=kept)
-    if fitted(motion.poses) or not (fo.enabled and fo.unconfirmed) or motion.tree is None \
-            or len(poses) < 3:          # tracked, or nothing to track with
+    if any(map(followed, motion.poses)) or not (fo.enabled and fo.unconfirmed) \
+            or motion.tree is None or len(poses) < 3:    # tracked, or nothing to track with
         return motion
     strict, tried = {p.frame: p for p in motion.poses}, None
     for lift in (False, True):
@@ -461,9 +461,8 @@ def _sequence_stage(poses, m, cap, resolution, threshold, eo, seq, follow, kept=
                 if q.matched else q for q in loose.poses]
         back = follow_run(back, loose, m, cap, resolution, threshold, eo, follow, kept=kept,
                           starts=[q.matched for q in loose.poses])
-        if fitted(back):
-            loose.poses = [q if "track_body" in q.diagnostics else strict[q.frame]
-                           for q in back]
+        if any(map(followed, back)):
+            loose.poses = [q if followed(q) else strict[q.frame] for q in back]
             return loose
     return motion
 

@@ -24,8 +24,8 @@ confident alignments initialize the tracker, and re-initialize it where the fit 
 alignment disagree by more than ``agree`` and the alignment's own fit explains the frame as
 well; it runs forwards from the first confident frame and backwards from it and from every
 re-initialization, each frame keeping the better fit; each run of frames that follow from one
-initialization is then smoothed in time (:func:`.smoothing.smooth_track`). Every frame gets a quality
-(:func:`agreement`, or the silhouette IoU of :mod:`.quality`) and a status: ``matched``
+initialization is then smoothed in time (:func:`.smoothing.smooth_track`). Every frame gets a
+quality (:func:`agreement`, or the silhouette IoU of :mod:`.silhouette`) and a status: ``matched``
 (alignment confident and the fit agrees), ``tracked`` (fit only, quality at least
 ``quality``) or ``lost``.
 """
@@ -741,8 +741,8 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
     and whose start fits the frame better, the track
     is re-initialized there, and also run back the other way from it until the previous
     confident frame; each frame keeps its best fit. Each run of frames that follow from one
-    initialization is then smoothed over ``opts.smooth`` seconds (:func:`.smoothing.smooth_track`), and
-    its frames' quality and status are taken again.
+    initialization is then smoothed over ``opts.smooth`` seconds
+    (:func:`.smoothing.smooth_track`), and its frames' quality and status are taken again.
 
     Parameters
     ----------

@@ -20,7 +20,8 @@ without it (``follow=FollowOptions(enabled=False)``: the sequence stage as it wa
   the frames with a skeleton, the MPJPE (neck, shoulders, elbows, wrists, hips, knees, ankles
   against the rig joints, mirror pairs paired optimally, ``tracking.joint_errors``) over the
   frames with a skeleton (those ``matched`` or ``tracked``, whose joints the exports hold;
-  median and mean of the per-frame mean), the statuses.
+  median and mean of the per-frame mean), the statuses, the tracker's fit (:func:`fit_spread`:
+  the median silhouette IoU of a sequence, its lowest frame's share of it).
 * **the real recording** (``--real``, Pose2Sim's balancing trial) by the README's own route:
   ``person`` silhouettes, the Qualisys calibration imported (``Calib.qca.txt``), ``size_policy
   = "pad"``, no other flag; the exported TRC scored as ``real_motion.py`` scores it (14 joints
@@ -60,6 +61,17 @@ def _numbered(name):
     if name.startswith("right_"):
         return name[6:] + "_2"
     return name
+
+
+def fit_spread(poses) -> dict | None:
+    """The silhouette fits of the frames the tracker followed (``matched``, ``tracked``,
+    ``lost``): their median, and the lowest as a share of it (how far a frame falls below its
+    own run, :func:`topopose.sequence.follow.lost_frames`)."""
+    f = [p.fit for p in poses if p.fit is not None and p.status in ("matched", "tracked", "lost")]
+    if not f:
+        return None
+    med = float(np.median(f))
+    return {"median": round(med, 4), "lowest_share": round(min(f) / med, 4) if med else None}
 
 
 def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=None, flat=None,
@@ -103,7 +115,7 @@ def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=
         out[key] = {"skeleton": len(errs), "mpjpe_median": float(np.median(errs)) if errs else None,
                     "mpjpe_mean": float(np.mean(errs)) if errs else None,
                     "per_frame": [round(x, 4) for x in errs], "statuses": st,
-                    "seconds": round(time.perf_counter() - t0, 2), "timings_ms": timing,
+                    "fit": fit_spread(res.poses), "seconds": round(time.perf_counter() - t0, 2), "timings_ms": timing,
                     "worst": sorted(drawn, key=lambda f: -f["mpjpe"])[:3]}
     return out
 
@@ -225,7 +237,7 @@ def score_real(poses, cap, ref, work, tag, model, picture=None):
             "pairs": int(pairs), "statuses": st,
             "worst": None if worst is None else {"file": Path(picture).name, "frames": worst},
             "fit_median": float(np.median([p.fit for p in poses if p.fit is not None]))
-            if any(p.fit is not None for p in poses) else None}
+            if any(p.fit is not None for p in poses) else None, "fit": fit_spread(poses)}
 
 
 def real_recording(path, work, model, tracker=None, out=None, flat=None):
@@ -356,7 +368,7 @@ def child_rope(path, work, model, frames=None, peer=True, pictures=None, tracker
         full = sum(len(p.joints) >= 20 and p.status in ("matched", "tracked") for p in res.poses)
         ious = np.array([p.diagnostics.get("fit_cameras") or [np.nan] * len(cap.cameras)
                          for p in res.poses], dtype=float)
-        out[key] = {"skeleton": int(full), "statuses": st,
+        out[key] = {"skeleton": int(full), "statuses": st, "fit": fit_spread(res.poses),
                     "iou_per_camera_median": [None if np.isnan(x) else round(float(x), 3)
                                               for x in np.nanmedian(ious, axis=0)]
                     if np.isfinite(ious).any() else None,
@@ -460,6 +472,13 @@ def _cm(x):
     return "–" if x is None else f"{100 * x:.1f}"
 
 
+def _fit_line(fit) -> str:
+    if not fit:
+        return "The tracker's fit: none"
+    return (f"The tracker's fit (silhouette IoU): median {fit['median']:.2f}, the lowest frame "
+            f"at {fit['lowest_share']:.2f} of it")
+
+
 def report(doc) -> str:
     m = doc["machine"]
     lines = ["# Motion on every frame: the tracked capsule body against the sequence stage", "",
@@ -495,6 +514,15 @@ def report(doc) -> str:
                              f"({100 * len(pf) / max(n, 1):.1f} %), MPJPE over those frames "
                              f"mean {_cm(float(np.mean(pf)) if pf else None)} cm, median "
                              f"{_cm(float(np.median(pf)) if pf else None)} cm")
+        for st in sorted({r["setup"] for r in syn}):
+            fits = [r["tracker"].get("fit") for r in syn if r["setup"] == st]
+            fits = [f for f in fits if f]
+            if fits:
+                lines.append(f"- set-up {st}, the tracker's fit (silhouette IoU): median over a "
+                             f"sequence {min(f['median'] for f in fits):.2f}–"
+                             f"{max(f['median'] for f in fits):.2f}; the lowest frame at "
+                             f"{min(f['lowest_share'] for f in fits):.2f} of its sequence's "
+                             "median (`lost` below `FollowOptions.min_fit` of it)")
         t = [r["tracker"]["timings_ms"] for r in syn if r["setup"] == "8"]
         if t:
             lines += ["", "Tracker cost a frame (8 cameras, 100³, mean over the sequences, ms): "
@@ -526,6 +554,7 @@ def report(doc) -> str:
                                                       for f, e in w["frames"]) + "."]
         lines += ["", "Per joint (tracker, cm): " + ", ".join(
             f"{k} {100 * v:.1f}" for k, v in real["tracker"]["per_joint"].items()),
+            _fit_line(real["tracker"].get("fit")),
             "Tracker cost a frame (ms): " + ", ".join(
                 f"{k[6:]} {v:.1f}" for k, v in real["tracker"]["timings_ms"].items()), ""]
     ch = doc.get("child_rope")
@@ -538,6 +567,8 @@ def report(doc) -> str:
                              f"({100 * r['skeleton'] / ch['frames']:.1f} %); statuses "
                              f"{r['statuses']}; silhouette IoU per camera (median over frames) "
                              f"{r['iou_per_camera_median']}")
+        if ch.get("tracker", {}).get("fit"):
+            lines.append("- " + _fit_line(ch["tracker"]["fit"]))
         if ch.get("hull_iou_per_camera_median"):
             lines.append("- the hull's own silhouette IoU per camera (median over every 10th "
                          "frame; how far the masks agree with each other): "

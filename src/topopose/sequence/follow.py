@@ -41,8 +41,11 @@ class FollowOptions:
     part_reach : the parts no joint places (the head, past the skull) where the confident
         frames' alignments put them along the last bone (:func:`part_reach`); else the bone
         extended as far as the joint's place on its arc says
-    min_fit : a frame the track does not match is ``tracked`` when its silhouette ``fit``
-        reaches this, else ``lost``
+    min_fit : a frame the track does not match is ``lost`` when its ``fit`` is below this
+        share of the median ``fit`` of the frames the track fitted, else ``tracked``: the
+        silhouette IoU a right fit reaches is the set-up's (the cameras, the images' size, the
+        segmentation, the subject's size in the images), so a frame is judged against the
+        same run's frames (:func:`lost_frames`)
     unconfirmed : when the ``matched`` frames give the track no start, start it from the
         alignments the confidence gate alone rejected
         (:func:`~topopose.sequence.track.gated_only`), else from every rejected one: their
@@ -60,7 +63,7 @@ class FollowOptions:
     trunk_sides: tuple | None = (0.6, 1.0)
     tips: bool = False
     part_reach: bool = True
-    min_fit: float = 0.5
+    min_fit: float = 0.75
     unconfirmed: bool = True
     seed: int = 0
     track: TrackOptions = field(default_factory=TrackOptions)
@@ -277,6 +280,19 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     if body.n_extra:            # the extra capsules: their ends' joint weights and radii
         radii["extra"] = {"ends": np.round(body.ends, 4).tolist(),
                           "radii": [round(float(x), 4) for x in body.extra_radii]}
+    ious = {}                   # each fitted frame's silhouette IoU per camera
+    for i in np.flatnonzero(np.array([bool(s) for s in tr.status])):
+        r = record(i)
+        if r is not None and r.views is not None and opts.silhouette_fit:
+            t0 = time.process_time()
+            iou = silhouette_iou(body, tr.joints[i], r.views.cameras, r.views.crops,
+                                 r.views.shapes)
+            timings["quality"] += time.process_time() - t0
+            if np.isfinite(iou).any():
+                ious[i] = iou
+    fits = {i: float(np.nanmean(iou)) for i, iou in ious.items()} or \
+        {int(i): float(tr.quality[i]) for i in np.flatnonzero(np.isfinite(tr.quality))}
+    lost = lost_frames(fits, opts.min_fit)
     out = []
     for i, p in enumerate(poses):
         if not tr.status[i]:
@@ -296,18 +312,12 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
         status, fit, diag_fit = tr.status[i], float(tr.quality[i]), {}
         if status == "matched" and not p.matched:      # a start the gate rejected
             status = "tracked"
-        r = record(i)
-        if r is not None and r.views is not None and opts.silhouette_fit:
-            t0 = time.process_time()
-            iou = silhouette_iou(body, tr.joints[i], r.views.cameras, r.views.crops,
-                                 r.views.shapes)
-            timings["quality"] += time.process_time() - t0
-            if np.isfinite(iou).any():
-                fit = float(np.nanmean(iou))
-                diag_fit = {"fit_cameras": [None if not np.isfinite(x) else round(float(x), 4)
-                                            for x in iou]}
-                if status != "matched":
-                    status = "tracked" if fit >= opts.min_fit else "lost"
+        if i in ious:
+            fit = fits[i]
+            diag_fit = {"fit_cameras": [None if not np.isfinite(x) else round(float(x), 4)
+                                        for x in ious[i]]}
+        if status != "matched":
+            status = "lost" if i in lost else "tracked"
         if p.status == "failed":
             status = p.status
         out.append(replace(p, status=status, joints=joints, parts=parts, fit=round(fit, 4),
@@ -318,6 +328,22 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     for q in out:       # the stage's mean CPU time (this process) a frame, on every frame
         q.timings_ms = {**q.timings_ms, **{f"track_{k}": v for k, v in per_frame.items()}}
     return out
+
+
+def lost_frames(fits, share) -> set:
+    """The frames whose fit is below ``share`` of the median fit: ``fits`` maps a frame to
+    its fit (the silhouette IoU of the fitted body, :func:`~topopose.sequence.silhouette
+    .silhouette_iou`, mean over the cameras).
+
+    Examples
+    --------
+    >>> sorted(lost_frames({0: 0.62, 1: 0.6, 2: 0.3, 3: 0.58}, 0.75))
+    [2]
+    """
+    if not fits:
+        return set()
+    floor = share * float(np.median(list(fits.values())))
+    return {i for i, f in fits.items() if f < floor}
 
 
 def _segment_votes(tr, align, sided, n_groups) -> dict:

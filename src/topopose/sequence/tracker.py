@@ -25,9 +25,9 @@ alignment disagree by more than ``agree`` and the alignment's own fit explains t
 well; it runs forwards from the first confident frame and backwards from it and from every
 re-initialization, each frame keeping the better fit; each run of frames that follow from one
 initialization is then smoothed in time (:func:`.smoothing.smooth_track`). Every frame gets a
-quality (:func:`agreement`, or the silhouette IoU of :mod:`.silhouette`) and a status: ``matched``
-(alignment confident and the fit agrees), ``tracked`` (fit only, quality at least
-``quality``) or ``lost``.
+quality (:func:`agreement`) and a status: ``matched`` (alignment confident and the fit agrees)
+or ``tracked`` (fit only; :func:`.follow.lost_frames` then tells the ``lost`` ones by the
+run's own fits).
 """
 from __future__ import annotations
 
@@ -64,7 +64,6 @@ class TrackOptions:
     prior : weight of the constant-velocity prediction (per bone, its end's displacement)
     velocity : share of the last frame's velocity carried into the prediction
     agree : m, the largest joint distance within which the fit agrees with the alignment
-    quality : a frame is ``tracked`` when its fit quality reaches this, else ``lost``
     max_step : radians, the largest turn of a bone in one iteration
     seeds : confident frames (spread over the sequence) whose starts compete to begin the track
     smooth : seconds, the Savitzky–Golay window (order 2) over each run of frames the track
@@ -89,7 +88,6 @@ class TrackOptions:
     prior: float = 0.002
     velocity: float = 0.5
     agree: float = 0.10
-    quality: float = 0.5
     max_step: float = 0.35
     seeds: int = 8
     smooth: float = SMOOTH / SMOOTH_RATE
@@ -674,7 +672,7 @@ class Track:
     ----------
     joints : ndarray (F, J, 3), NaN where no frame could be fitted
     quality : ndarray (F,), the fit's agreement (:func:`agreement`), NaN where none
-    status : list of str, ``matched`` / ``tracked`` / ``lost`` / "" (no fit)
+    status : list of str, ``matched`` / ``tracked`` / "" (no fit)
     segment : ndarray (F,) int, the initialization each frame's fit follows from (-1: none)
     swapped : ndarray (F, G) bool, per mirror group: the confident frame's alignment had the
         pair the other way round than the track (its identity carried through)
@@ -816,7 +814,7 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
                 pull = np.where(far[:, None], np.nan, A)      # where the prediction has it
             root, D, P = fitter.fit(rp, Dp, d, align=pull, pred=(rp, Dp))
             q = agreement(body, d, P)
-            status = "tracked" if q >= opts.quality else "lost"
+            status = "tracked"
             if A is not None:
                 moved = False
                 if float(np.max(np.linalg.norm(P - pose_of_A, axis=1))) <= opts.agree:
@@ -854,10 +852,8 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
                 (int(back[0]) if len(back) else F)
             todo.append((r, -step, end))
     window = odd_window(opts.smooth, fps or SMOOTH_RATE)
-    if window:                  # the smoothed joints' agreement and status
+    if window:                  # the smoothed joints' agreement
         out.joints = smooth_track(body, out.joints, out.segment, window)
         for i in np.flatnonzero(out.segment >= 0):
             out.quality[i] = agreement(body, data(i), out.joints[i])
-            if out.status[i] != "matched":
-                out.status[i] = "tracked" if out.quality[i] >= opts.quality else "lost"
     return out

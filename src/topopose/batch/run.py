@@ -811,6 +811,13 @@ def summary_text(res: RunResult) -> str:
         off += (f"; {k} frame{'s' if k > 1 else ''} tracked from alignments the run "
                 "rejected, as no matched frame could start the track "
                 "(diagnostics.follow.confirmed false)")
+    kept = [p for p in res.poses if p.status != "failed"
+            and (p.diagnostics.get("follow") or {}).get("before") == "failed"]
+    if kept:                                  # the tracker fitted the hull a failed frame kept
+        k = len(kept)
+        off += (f"; {k} frame{'s' if k > 1 else ''} the per-frame stage failed, followed in "
+                f"the hull {'they' if k > 1 else 'it'} kept (first {kept[0].frame}: "
+                f"{kept[0].error})")
     if c.get("rejected") and not any(c.get(k) for k in ("matched", "tracked", "lost")):
         off += ("; no frame matched, so no motion was tracked (the body is followed from the "
                 "matched frames; --confidence-gate off and a higher --threshold accept more)")

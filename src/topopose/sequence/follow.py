@@ -189,10 +189,12 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     list of Pose: every frame the tracker fitted with ``joints`` (left / right names where the
     confident frames of its track decided them), ``fit`` and status ``matched`` / ``tracked``
     / ``lost``; ``diagnostics["follow"]`` holds the frame the track started from (``from``),
-    whether that frame is ``matched`` (``confirmed``) and whether it re-initialized there,
+    whether that frame is ``matched`` (``confirmed``), whether it re-initialized there and
+    the frame's status before (``before``: ``matched``, ``rejected`` or ``failed``),
     ``diagnostics["track_body"]`` the body's radii and bone lengths (per joint, the bone
     into it) and its extra capsules (``extra``: their ends' weights of the joints and their
-    radii). Frames with no hull keep their pose.
+    radii). A frame the per-frame stage rejected or failed keeps its reason (``error``);
+    frames with no hull keep their pose.
     """
     from topopose.sequence.body import learn_body
 
@@ -307,7 +309,8 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
                      for k, v in body_parts(tree, tr.joints[i], reach).items()}
         start = poses[int(tr.segment[i])]
         diag = {**p.diagnostics, "follow": {"from": start.frame, "confirmed": start.matched,
-                                            "reinitialized": bool(i in tr.reinitialized)},
+                                            "reinitialized": bool(i in tr.reinitialized),
+                                            "before": p.status},
                 "track_body": radii}
         status, fit, diag_fit = tr.status[i], float(tr.quality[i]), {}
         if status == "matched" and not p.matched:      # a start the gate rejected
@@ -318,8 +321,6 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
                                         for x in ious[i]]}
         if status != "matched":
             status = "lost" if i in lost else "tracked"
-        if p.status == "failed":
-            status = p.status
         out.append(replace(p, status=status, joints=joints, parts=parts, fit=round(fit, 4),
                            diagnostics={**diag, **diag_fit},
                            timings_ms=p.timings_ms))

@@ -115,7 +115,8 @@ def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=
         out[key] = {"skeleton": len(errs), "mpjpe_median": float(np.median(errs)) if errs else None,
                     "mpjpe_mean": float(np.mean(errs)) if errs else None,
                     "per_frame": [round(x, 4) for x in errs], "statuses": st,
-                    "fit": fit_spread(res.poses), "seconds": round(time.perf_counter() - t0, 2), "timings_ms": timing,
+                    "fit": fit_spread(res.poses), "seconds": round(time.perf_counter() - t0, 2),
+                    "timings_ms": timing,
                     "worst": sorted(drawn, key=lambda f: -f["mpjpe"])[:3]}
     return out
 

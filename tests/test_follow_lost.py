@@ -40,11 +40,12 @@ def walk():
 @pytest.mark.parametrize("share, silhouettes", [(None, True), (0.95, True), (None, False)])
 def test_a_frame_whose_silhouettes_are_far_wider_than_the_subject_is_lost(walk, share,
                                                                          silhouettes):
-    """Frame 5's masks dilated by 12 px in every camera (the capture volume reaching below the
-    floor, which the wider hull crosses): the body fitted there covers a small share of them,
-    so that frame is ``lost``; every followed frame's status is the rule's on the run's own
-    fits, with the default share and with one close to 1 (an absolute bound that high would
-    lose every frame), and without silhouettes (the fit is the voxel agreement)."""
+    """Frame 5's masks dilated by 12 px in every camera (the capture volume reaching well below
+    the floor, so that the wider hull stays inside it): the body fitted there covers a small
+    share of them, so that frame is ``lost``; every followed frame's status is the rule's on
+    the run's own fits, with the default share and with one close to 1 (an absolute bound
+    that high would lose every frame), and without silhouettes (the fit is the voxel
+    agreement)."""
     from dataclasses import replace
 
     from topopose.batch.run import run

@@ -333,8 +333,9 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
 
 def lost_frames(fits, share) -> set:
     """The frames whose fit is below ``share`` of the median fit: ``fits`` maps a frame to
-    its fit (the silhouette IoU of the fitted body, :func:`~topopose.sequence.silhouette
-    .silhouette_iou`, mean over the cameras).
+    its fit (the silhouette IoU of the fitted body, mean over the cameras,
+    :func:`~topopose.sequence.silhouette.silhouette_iou`; or its voxel agreement,
+    :func:`~topopose.sequence.tracker.agreement`).
 
     Examples
     --------

@@ -390,18 +390,28 @@ def test_estimator_records_free_leaves_and_nothing_else_changes():
 
 
 def test_ungated_matches_the_frames_only_the_gate_rejected_then_every_rejected_one():
+    """Level 1 lifts the frames whose every reason is the gate's: not one rejected for its AHA
+    distance, nor one whose foot lies on an arm's branch (the anatomy clause, alone or after
+    the gate's); level 2 lifts every rejected frame."""
     from topopose.sequence.track import ungated
 
+    foot = ("anatomy: foot_1 0.62 of its leg's length above the subject's lowest point (at "
+            "most 0.5: a foot on an arm's branch)")
     poses = [Pose(frame="0", status="matched"),
              Pose(frame="1", status="rejected", error="confidence gate: silhouette unexplained"),
              Pose(frame="2", status="rejected", error="AHA distance 0.9 above threshold"),
              Pose(frame="3", status="failed", error="hull: empty"),
-             Pose(frame="4", status="rejected", error="confidence gate: foot on an arm",
-                  diagnostics={"x": 1})]
+             Pose(frame="4", status="rejected",
+                  error="confidence gate: silhouette unexplained 0.30 (at most 0.2)",
+                  diagnostics={"x": 1}),
+             Pose(frame="5", status="rejected",
+                  error=f"confidence gate: silhouette unexplained 0.30 (at most 0.2); {foot}"),
+             Pose(frame="6", status="rejected", error=foot)]
     assert [p.status for p in ungated(poses)] == \
-        ["matched", "matched", "rejected", "failed", "matched"]
+        ["matched", "matched", "rejected", "failed", "matched", "rejected", "rejected"]
     lifted = ungated(poses, threshold=True)
-    assert [p.status for p in lifted] == ["matched", "matched", "matched", "failed", "matched"]
-    assert [p.error for p in lifted] == [None, None, None, "hull: empty", None]
+    assert [p.status for p in lifted] == ["matched", "matched", "matched", "failed", "matched",
+                                          "matched", "matched"]
+    assert [p.error for p in lifted] == [None, None, None, "hull: empty", None, None, None]
     lifted[4].diagnostics["x"] = 2                       # copies: the run's poses unchanged
     assert poses[4].diagnostics == {"x": 1} and poses[1].status == "rejected"

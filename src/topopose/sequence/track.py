@@ -80,8 +80,11 @@ def relabel(pose, mapping: dict):
 
 def gated_only(pose) -> bool:
     """A frame the alignment accepted but the confidence gate rejected
-    (:mod:`topopose.frame.confidence`)."""
-    return pose.status == "rejected" and str(pose.error or "").startswith("confidence ")
+    (:mod:`topopose.frame.confidence`): every clause of its reason is the gate's (none for the
+    AHA distance before it, none for the anatomy after it, which the gate's features do not
+    decide: :class:`~topopose.frame.confidence.GateOptions` ``max_foot_rise``)."""
+    return pose.status == "rejected" and all(
+        c.startswith("confidence ") for c in str(pose.error or "").split("; "))
 
 
 def ungated(poses, threshold=False) -> list:

@@ -237,8 +237,7 @@ def score_real(poses, cap, ref, work, tag, model, picture=None):
             "mpjpe_p90": r["mpjpe_p90"], "per_joint": r["per_joint"], "swaps": int(swaps),
             "pairs": int(pairs), "statuses": st,
             "worst": None if worst is None else {"file": Path(picture).name, "frames": worst},
-            "fit_median": float(np.median([p.fit for p in poses if p.fit is not None]))
-            if any(p.fit is not None for p in poses) else None, "fit": fit_spread(poses)}
+            "fit": fit_spread(poses)}
 
 
 def real_recording(path, work, model, tracker=None, out=None, flat=None):
@@ -547,7 +546,7 @@ def report(doc) -> str:
             lines.append(f"| {key} | {r['skeleton_14']} / {r['frames']} | {_cm(r['mpjpe_median'])}"
                          f" / {_cm(r['mpjpe_p90'])} | {r['swaps']} / {r['pairs']} | "
                          f"{', '.join(f'{k} {v}' for k, v in sorted(r['statuses'].items()))} | "
-                         f"{'–' if r['fit_median'] is None else round(r['fit_median'], 3)} |")
+                         f"{'–' if r['fit'] is None else round(r['fit']['median'], 3)} |")
         w = real["tracker"].get("worst")
         if w:
             lines += ["", f"The tracker's frames with the largest MPJPE, ours against Pose2Sim's "

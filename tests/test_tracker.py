@@ -9,7 +9,7 @@ from topopose.sequence.body import (CapsuleBody, bone_directions, group_shape, j
                                     trunk_sides)
 from topopose.sequence.smoothing import smooth_track
 from topopose.sequence.tracker import (TrackOptions, agreement, fit_frame, frame_data,
-                                       mirror_groups, track_sequence)
+                                       limb_pairs, limb_starts, mirror_groups, track_sequence)
 
 VOXEL = 0.02
 #: chest (root), pelvis below it, two arms (shoulder, elbow, wrist), two legs (hip, knee)
@@ -30,7 +30,7 @@ def make_body() -> CapsuleBody:
     groups = ((2, 5), (1, 8, 10))
     D = rest_directions()
     return CapsuleBody(NAMES, PARENTS, LENGTHS.copy(), RADII.copy(), order, groups,
-                       tuple(D[list(g)] for g in groups))
+                       tuple(D[list(g)] for g in groups), trunk=1)
 
 
 def rest_directions():
@@ -143,8 +143,9 @@ def test_follows_an_arm_onto_the_body_and_away():
 def test_reinitializes_after_a_jump(monkeypatch):
     """Between frames 5 and 6 the subject turns round (180°) and raises arm 1: the fit from
     the previous pose settles with the arms exchanged; the confident frame 8 re-initializes
-    it, and the frames between are tracked back from there. Each run fits a frame once: the
-    run from frame 0 goes on from 8 to the end (frames 1–11), the run back from 8 fits 7–1."""
+    it, and the frames between are tracked back from there. Each run fits a frame once (no
+    refit of a lost frame): the run from frame 0 goes on from 8 to the end (frames 1–11), the
+    run back from 8 fits 7–1."""
     from topopose.sequence import tracker
 
     fitted = []
@@ -163,7 +164,7 @@ def test_reinitializes_after_a_jump(monkeypatch):
                      + [pose(D @ turn.T, (0.3, 0.1, 1.3)) for _ in range(6)])
     conf = np.zeros(n, bool)
     conf[[0, 8]] = True
-    tr = run(truth, conf)
+    tr = run(truth, conf, TrackOptions(iterations=6, recover=0.0))
     assert list(tr.reinitialized) == [8]
     assert sum(fitted) == 11 + 7
     assert tr.status[8] == "matched" and tr.segment[6] == 8
@@ -202,6 +203,37 @@ def test_covers_the_frames_before_the_first_confident_one():
     assert not np.isnan(tr.joints).any()
     assert np.linalg.norm(tr.joints - truth, axis=2).max() < 0.04
     assert tr.segment[0] == 30
+
+
+def test_limb_starts_hang_along_the_trunk_and_mirror_the_twin():
+    """The arms and the legs are the mirrored pairs; an arm's starts hang it along the
+    trunk (chest → pelvis, straight down here) with its twin, or alone, or mirror its twin
+    across the plane between the shoulders (arm 2 hangs: arm 1 hangs on its side too)."""
+    body = make_body()
+    assert limb_pairs(body) == [((2, 5), ([3, 4], [6, 7])), ((8, 10), ([9], [11]))]
+    D = rest_directions()
+    both, one, two, mirror_one, mirror_two = limb_starts(body, D, pose(D), limb_pairs(body)[0])
+    down = np.array([0.0, 0.0, -1.0])
+    assert np.allclose(both[[3, 4, 6, 7]], down) and np.allclose(both[8:], D[8:])
+    assert np.allclose(one[[3, 4]], down) and np.allclose(one[[6, 7]], D[[6, 7]])
+    assert np.allclose(two[[6, 7]], down) and np.allclose(two[[3, 4]], D[[3, 4]])
+    assert np.allclose(mirror_one[[3, 4]], down)
+    assert np.allclose(mirror_two[[6, 7]], _unit(0, -1, -0.2))      # arm 1 seen from side 2
+
+
+def test_a_lost_arm_is_found_again():
+    """Between frames 5 and 6 arm 1 drops from raised to hanging against the trunk, too far
+    for the fit from the prediction: without a refit of a lost frame the arm stays lost
+    (0.5 m off); the refit from the limbs' starts finds it and the track goes on with it."""
+    raised = rest_directions()
+    raised[3:5] = _unit(0, 0.3, 1)
+    truth = np.stack([pose(raised)] * 6 + [pose(arm_down(rest_directions(), 1.0))] * 6)
+    conf = np.zeros(len(truth), bool)
+    conf[0] = True
+    lost = arm_errors(run(truth, conf, TrackOptions(iterations=6, recover=0.0, smooth=0)), truth)
+    found = arm_errors(run(truth, conf, TrackOptions(iterations=6, smooth=0)), truth)
+    assert lost[6:].max(axis=1).min() > 0.3
+    assert found.max() < 0.03, found.max(axis=1)
 
 
 def test_smooth_track_smooths_each_segment_on_the_body_lengths():

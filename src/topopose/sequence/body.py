@@ -67,6 +67,9 @@ class CapsuleBody:
         ends (rows summing to 1).
     extra_radii : ndarray (E,), optional
         Their radii.
+    trunk : int
+        The joint at the trunk's far end from the root (the human's pelvis): a limb hangs
+        along the trunk from the root towards it (:func:`.tracker.limb_starts`); -1: none.
     """
 
     names: tuple
@@ -78,6 +81,7 @@ class CapsuleBody:
     shapes: tuple = ()
     ends: np.ndarray | None = None
     extra_radii: np.ndarray | None = None
+    trunk: int = -1
 
     @property
     def root(self) -> int:
@@ -341,9 +345,11 @@ def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE,
     groups = rigid_groups(tree)
     shapes = tuple(group_shape([bone_directions_of(P, parents)[list(g)] for _v, P in frames])
                    if frames else np.zeros((len(g), 3)) for g in groups)
+    on_trunk = [j for j, a in enumerate(tree.arc) if tree.trunk and set(a) == set(tree.trunk)]
     body = CapsuleBody(tuple(tree.names), parents, np.asarray(lengths, float).copy(),
                        np.full(len(parents), np.nan), tuple(tree.order()), groups, shapes, ends,
-                       None if ends is None else np.full(len(ends), np.nan))
+                       None if ends is None else np.full(len(ends), np.nan),
+                       max(on_trunk, key=lambda j: tree.at[j]) if on_trunk else -1)
     lo, hi = radius_range[0] * float(voxel_size), float(radius_range[1])
     K = len(body.bones) + body.n_extra
     profiles = [radius_profile(vol, *body.capsules(np.asarray(P, float))[:2])

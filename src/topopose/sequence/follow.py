@@ -33,7 +33,8 @@ class FollowOptions:
     silhouette_fit : the frame's ``fit`` is the silhouette IoU of the projected body, mean
         over the cameras (``diagnostics["fit_cameras"]`` per camera,
         :func:`~topopose.sequence.silhouette.silhouette_iou`); else (or without silhouettes)
-        the voxel agreement (:func:`~topopose.sequence.tracker.agreement`)
+        the voxel agreement (:func:`~topopose.sequence.tracker.agreement`); the track
+        chooses between a frame's fits by it
     trunk_sides : (upper, lower) reach of the capsules down the trunk's sides
         (:func:`~topopose.sequence.body.trunk_sides`), or None: none
     tips : capsules on beyond the tip joints where the hull goes on
@@ -266,15 +267,38 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
         timings["data"] += time.process_time() - t0
         return d
 
-    t0, before = time.process_time(), timings["hull"] + timings["data"]
-    tr = track_sequence(body, data_of, align, opts.track, groups=groups, fps=fps)
-    fit_s = time.process_time() - t0 - (timings["hull"] + timings["data"] - before)
+    from topopose.sequence.silhouette import silhouette_iou
+    from topopose.sequence.tracker import agreement
+
+    last = {}                   # each frame's last silhouette IoU per camera, and its pose
+
+    def cameras_fit(i, P):
+        """Frame i's silhouette IoU per camera of the body at ``P``, or None (no
+        silhouettes, or ``silhouette_fit`` off)."""
+        r = record(i)
+        if r is None or r.views is None or not opts.silhouette_fit:
+            return None
+        if i not in last or not np.array_equal(last[i][0], P):
+            t0 = time.process_time()
+            last[i] = (np.array(P), silhouette_iou(body, P, r.views.cameras, r.views.crops,
+                                                   r.views.shapes))
+            timings["quality"] += time.process_time() - t0
+        return last[i][1] if np.isfinite(last[i][1]).any() else None
+
+    def quality(i, d, P):
+        """The fit's quality the track chooses by: the frame's ``fit``."""
+        iou = cameras_fit(i, P)
+        return agreement(body, d, P) if iou is None else float(np.nanmean(iou))
+
+    t0, before = time.process_time(), sum(timings.values())
+    tr = track_sequence(body, data_of, align, opts.track, groups=groups, fps=fps,
+                        quality=quality)
+    fit_s = time.process_time() - t0 - (sum(timings.values()) - before)
     if tr is None:
         return poses
     votes = inherit_votes(tr.segment, tr.joints, _segment_votes(tr, align, sided, len(groups)),
                           groups)
     reach = part_reach(tree, poses, align) if opts.part_reach else None
-    from topopose.sequence.silhouette import silhouette_iou
 
     radii = {"radii": [None if not np.isfinite(x) else round(float(x), 4) for x in body.radii],
              "lengths": [None if not np.isfinite(x) else round(float(x), 4)
@@ -284,14 +308,9 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
                           "radii": [round(float(x), 4) for x in body.extra_radii]}
     ious = {}                   # each fitted frame's silhouette IoU per camera
     for i in np.flatnonzero(np.array([bool(s) for s in tr.status])):
-        r = record(i)
-        if r is not None and r.views is not None and opts.silhouette_fit:
-            t0 = time.process_time()
-            iou = silhouette_iou(body, tr.joints[i], r.views.cameras, r.views.crops,
-                                 r.views.shapes)
-            timings["quality"] += time.process_time() - t0
-            if np.isfinite(iou).any():
-                ious[i] = iou
+        iou = cameras_fit(i, tr.joints[i])
+        if iou is not None:
+            ious[i] = iou
     fits = {i: float(np.nanmean(iou)) for i, iou in ious.items()} or \
         {int(i): float(tr.quality[i]) for i in np.flatnonzero(np.isfinite(tr.quality))}
     lost = lost_frames(fits, opts.min_fit)

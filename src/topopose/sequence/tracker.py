@@ -23,9 +23,12 @@ with the analytic Jacobian (:func:`fit_frame`). Over a sequence (:func:`track_se
 confident alignments initialize the tracker, and re-initialize it where the fit and the
 alignment disagree by more than ``agree`` and the alignment's own fit explains the frame as
 well; it runs forwards from the first confident frame and backwards from it and from every
-re-initialization, each frame keeping the better fit; each run of frames that follow from one
-initialization is then smoothed in time (:func:`.smoothing.smooth_track`). Every frame gets a
-quality (:func:`agreement`) and a status: ``matched`` (alignment confident and the fit agrees)
+re-initialization, each frame keeping the better fit; a frame whose fit falls well below its
+run's is fitted again from the run's last good frame and from its limbs' other starts
+(:func:`limb_starts`); each run of frames that follow from one initialization is then
+smoothed in time (:func:`.smoothing.smooth_track`). Every frame gets a quality (the silhouette
+IoU of the fitted body where the silhouettes are known, :mod:`.silhouette`, else
+:func:`agreement`) and a status: ``matched`` (alignment confident and the fit agrees)
 or ``tracked`` (fit only; :func:`.follow.lost_frames` then tells the ``lost`` ones by the
 run's own fits).
 """
@@ -69,6 +72,10 @@ class TrackOptions:
     smooth : seconds, the Savitzky–Golay window (order 2) over each run of frames the track
         follows from one initialization (:func:`.smoothing.smooth_track`; default: the sequence
         stage's, :func:`.smoothing.smooth_window`); 0: the fits as they are
+    recover : a frame whose quality falls below this share of the median quality of the
+        frames its run fitted before it is fitted again from the last of them at or above that
+        share and from its limbs' other starts (:func:`limb_starts`), the best fit kept (0:
+        never)
     twist : (degrees, weight) or None: the joint limit on the trunk's axial rotation
         (:func:`.joint_limits.twist_term`): the turn of one rigid group's mirror pair against
         another's (the hips against the shoulders) about the line between their middles,
@@ -92,6 +99,7 @@ class TrackOptions:
     seeds: int = 8
     smooth: float = SMOOTH / SMOOTH_RATE
     twist: tuple | None = (30.0, 0.01)
+    recover: float = 0.9
 
 
 # --------------------------------------------------------------------------- a frame's data
@@ -657,6 +665,46 @@ def mirror_groups(names) -> list:
     return [(groups[b]["1"], groups[b]["2"]) for b in groups if len(groups[b]) == 2]
 
 
+def limb_pairs(body: CapsuleBody) -> list:
+    """The body's mirrored limbs: per pair of mirror joints (:func:`mirror_groups`) whose
+    parent is none (the shoulders, the hips), ``((a, b), (bones of a, bones of b))``: each
+    limb's bones that turn (its joint's and those below it, outside a rigid group)."""
+    pairs = mirror_groups(body.names)
+    mirrored = {j for p in pairs for j in p}
+    grouped = {int(j) for g in body.groups for j in g}
+    below = body.ancestry()
+    return [((a, b), tuple([k for k in range(len(body.names)) if below[k, s] and k not in grouped]
+                           for s in (a, b)))
+            for a, b in pairs if body.parents[a] not in mirrored]
+
+
+def limb_starts(body: CapsuleBody, D, P, pair) -> list:
+    """Other starts for one pair of mirrored limbs (:func:`limb_pairs`) of the pose (root,
+    ``D``) at joints ``P``: both limbs, and each alone, hanging straight along the trunk (from
+    the root towards ``body.trunk``); each limb alone as its twin mirrored across the plane
+    midway between their first joints (a limb the track lost is where the other one is seen,
+    or hangs). Returns the directions of each start."""
+    (a, b), bones = pair
+    twin = {j: k for p in mirror_groups(body.names) for j, k in (p, p[::-1])}
+    n = P[b] - P[a]
+    n = n / max(float(np.linalg.norm(n)), 1e-12)
+    out = []
+    if body.trunk >= 0:
+        t = P[body.trunk] - P[body.root]
+        t = t / max(float(np.linalg.norm(t)), 1e-12)
+        for limbs in (bones[0] + bones[1], bones[0], bones[1]):
+            E = D.copy()
+            E[limbs] = t
+            out.append(E)
+    for limb in bones:
+        limb = [j for j in limb if j in twin]
+        E = D.copy()
+        v = D[[twin[j] for j in limb]]
+        E[limb] = v - 2.0 * (v @ n)[:, None] * n
+        out.append(E)
+    return out
+
+
 def _swap(P, pairs):
     Q = P.copy()
     for a, b in pairs:
@@ -671,7 +719,8 @@ class Track:
     Attributes
     ----------
     joints : ndarray (F, J, 3), NaN where no frame could be fitted
-    quality : ndarray (F,), the fit's agreement (:func:`agreement`), NaN where none
+    quality : ndarray (F,), the fit's quality (``track_sequence``'s ``quality``), NaN where
+        none
     status : list of str, ``matched`` / ``tracked`` / "" (no fit)
     segment : ndarray (F,) int, the initialization each frame's fit follows from (-1: none)
     swapped : ndarray (F, G) bool, per mirror group: the confident frame's alignment had the
@@ -727,7 +776,7 @@ def _predict(body, fitter, state, v, max_move):
 
 
 def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None = None,
-                   groups=None, fps=None) -> Track | None:
+                   groups=None, fps=None, quality=None) -> Track | None:
     """Track the body through a sequence (see the module docstring).
 
     Up to ``seeds`` confident frames spread over the sequence are first fitted from their
@@ -753,6 +802,9 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
         limb); default: one group per mirror pair of joints
     fps : the capture's frame rate, which turns ``opts.smooth`` into frames (None: 25,
         :data:`.smoothing.SMOOTH_RATE`)
+    quality : callable (i, FrameData, P) → float, optional
+        A fit's quality, higher better, by which the track chooses between fits of a frame
+        (default: :func:`agreement`; :func:`.follow.follow`: the silhouette IoU)
 
     Returns
     -------
@@ -782,6 +834,20 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
             out.swapped[i] = sw
 
     starts = {}
+    if quality is None:
+        def quality(_i, d, P):
+            return agreement(body, d, P)
+    pairs = limb_pairs(body)
+
+    def refit(i, d, fit):
+        """The best by quality of ``fit`` (root, D, P, quality) and of the fits from each
+        mirrored pair's limb starts (:func:`limb_starts`), pair after pair."""
+        for pair in pairs:
+            fits = [fitter.fit(fit[0], E, d) for E in limb_starts(body, fit[1], fit[2], pair)]
+            q, k = max(((quality(i, d, f[2]), k) for k, f in enumerate(fits)), default=(-1, 0))
+            if q > fit[3]:
+                fit = (*fits[k], q)
+        return fit
 
     def start(i):
         """The fit of confident frame i initialized by its alignment: (root, D, P, quality)."""
@@ -791,7 +857,7 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
                 starts[i] = None
             else:
                 root, D, P = fitter.fit(*snap(body, align[i]), d, align=align[i])
-                starts[i] = (root, D, P, agreement(body, d, P))
+                starts[i] = (root, D, P, quality(i, d, P))
         return starts[i]
 
     def run(i0, state, step, stop, seg):
@@ -799,6 +865,7 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
         towards ``stop`` (exclusive) by ``step``; returns the frames re-initialized."""
         reinit = []
         i = i0 + step
+        seen, good = [], state[:2]         # the run's qualities, its last good frame's pose
         while i != stop:
             d = data(i)
             if d is None or d.kd is None:
@@ -813,7 +880,17 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
                 far = np.linalg.norm(Pp - pose_of_A, axis=1) > opts.agree
                 pull = np.where(far[:, None], np.nan, A)      # where the prediction has it
             root, D, P = fitter.fit(rp, Dp, d, align=pull, pred=(rp, Dp))
-            q = agreement(body, d, P)
+            q = quality(i, d, P)
+            # lost below ``recover`` × the median of the run's fits so far (once it has five)
+            low = opts.recover * np.median(seen) if len(seen) >= 5 else -np.inf
+            if q < low:                     # from the last good pose, and the limbs' starts
+                again = fitter.fit(*good, d, align=pull, pred=(rp, Dp))
+                fit = max([(root, D, P, q), (*again, quality(i, d, again[2]))],
+                          key=lambda f: f[3])
+                root, D, P, q = refit(i, d, fit)
+            if q >= low:
+                good = (root, D)
+            seen.append(q)
             status = "tracked"
             if A is not None:
                 moved = False
@@ -852,8 +929,8 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
                 (int(back[0]) if len(back) else F)
             todo.append((r, -step, end))
     window = odd_window(opts.smooth, fps or SMOOTH_RATE)
-    if window:                  # the smoothed joints' agreement
+    if window:                  # the smoothed joints' quality
         out.joints = smooth_track(body, out.joints, out.segment, window)
         for i in np.flatnonzero(out.segment >= 0):
-            out.quality[i] = agreement(body, data(i), out.joints[i])
+            out.quality[i] = quality(i, data(i), out.joints[i])
     return out

@@ -8,8 +8,9 @@ from topopose.sequence.body import (CapsuleBody, bone_directions, group_shape, j
                                     kabsch, radius_profile, snap, tip_capsules, tip_reach,
                                     trunk_sides)
 from topopose.sequence.smoothing import smooth_track
+from topopose.sequence.limbs import limb_pairs, limb_starts, mirror_groups
 from topopose.sequence.tracker import (TrackOptions, agreement, fit_frame, frame_data,
-                                       limb_pairs, limb_starts, mirror_groups, track_sequence)
+                                       track_sequence)
 
 VOXEL = 0.02
 #: chest (root), pelvis below it, two arms (shoulder, elbow, wrist), two legs (hip, knee)

@@ -69,7 +69,7 @@ class CapsuleBody:
         Their radii.
     trunk : int
         The joint at the trunk's far end from the root (the human's pelvis): a limb hangs
-        along the trunk from the root towards it (:func:`.tracker.limb_starts`); -1: none.
+        along the trunk from the root towards it (:func:`.limbs.limb_starts`); -1: none.
     """
 
     names: tuple

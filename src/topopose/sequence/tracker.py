@@ -25,7 +25,7 @@ alignment disagree by more than ``agree`` and the alignment's own fit explains t
 well; it runs forwards from the first confident frame and backwards from it and from every
 re-initialization, each frame keeping the better fit; a frame whose fit falls well below its
 run's is fitted again from the run's last good frame and from its limbs' other starts
-(:func:`limb_starts`); each run of frames that follow from one initialization is then
+(:func:`.limbs.limb_starts`); each run of frames that follow from one initialization is then
 smoothed in time (:func:`.smoothing.smooth_track`). Every frame gets a quality (the silhouette
 IoU of the fitted body where the silhouettes are known, :mod:`.silhouette`, else
 :func:`agreement`) and a status: ``matched`` (alignment confident and the fit agrees)
@@ -41,6 +41,7 @@ import numpy as np
 
 from topopose.sequence.body import CapsuleBody, bounding_box, joint_positions, kabsch, snap
 from topopose.sequence.joint_limits import twist_term
+from topopose.sequence.limbs import limb_pairs, limb_starts, mirror_groups
 from topopose.sequence.smoothing import SMOOTH, SMOOTH_RATE, odd_window, smooth_track
 
 
@@ -74,8 +75,8 @@ class TrackOptions:
         stage's, :func:`.smoothing.smooth_window`); 0: the fits as they are
     recover : a frame whose quality falls below this share of the median quality of the
         frames its run fitted before it is fitted again from the last of them at or above that
-        share and from its limbs' other starts (:func:`limb_starts`), the best fit kept (0:
-        never)
+        share and from its limbs' other starts (:func:`.limbs.limb_starts`), the best fit
+        kept (0: never)
     twist : (degrees, weight) or None: the joint limit on the trunk's axial rotation
         (:func:`.joint_limits.twist_term`): the turn of one rigid group's mirror pair against
         another's (the hips against the shoulders) about the line between their middles,
@@ -654,57 +655,6 @@ def agreement(body: CapsuleBody, data: FrameData, P, samples=(0.15, 0.5, 0.85),
 
 
 # --------------------------------------------------------------------------- the sequence
-def mirror_groups(names) -> list:
-    """Pairs of joint index lists that mirror each other: the joints whose names end ``_1``
-    and ``_2`` on the same base name, grouped by the limb (the numbered part) they follow."""
-    groups = {}
-    for j, n in enumerate(names):
-        base, _, k = str(n).rpartition("_")
-        if base and k in ("1", "2"):
-            groups.setdefault(base, {})[k] = j
-    return [(groups[b]["1"], groups[b]["2"]) for b in groups if len(groups[b]) == 2]
-
-
-def limb_pairs(body: CapsuleBody) -> list:
-    """The body's mirrored limbs: per pair of mirror joints (:func:`mirror_groups`) whose
-    parent is none (the shoulders, the hips), ``((a, b), (bones of a, bones of b))``: each
-    limb's bones that turn (its joint's and those below it, outside a rigid group)."""
-    pairs = mirror_groups(body.names)
-    mirrored = {j for p in pairs for j in p}
-    grouped = {int(j) for g in body.groups for j in g}
-    below = body.ancestry()
-    return [((a, b), tuple([k for k in range(len(body.names)) if below[k, s] and k not in grouped]
-                           for s in (a, b)))
-            for a, b in pairs if body.parents[a] not in mirrored]
-
-
-def limb_starts(body: CapsuleBody, D, P, pair) -> list:
-    """Other starts for one pair of mirrored limbs (:func:`limb_pairs`) of the pose (root,
-    ``D``) at joints ``P``: both limbs, and each alone, hanging straight along the trunk (from
-    the root towards ``body.trunk``); each limb alone as its twin mirrored across the plane
-    midway between their first joints (a limb the track lost is where the other one is seen,
-    or hangs). Returns the directions of each start."""
-    (a, b), bones = pair
-    twin = {j: k for p in mirror_groups(body.names) for j, k in (p, p[::-1])}
-    n = P[b] - P[a]
-    n = n / max(float(np.linalg.norm(n)), 1e-12)
-    out = []
-    if body.trunk >= 0:
-        t = P[body.trunk] - P[body.root]
-        t = t / max(float(np.linalg.norm(t)), 1e-12)
-        for limbs in (bones[0] + bones[1], bones[0], bones[1]):
-            E = D.copy()
-            E[limbs] = t
-            out.append(E)
-    for limb in bones:
-        limb = [j for j in limb if j in twin]
-        E = D.copy()
-        v = D[[twin[j] for j in limb]]
-        E[limb] = v - 2.0 * (v @ n)[:, None] * n
-        out.append(E)
-    return out
-
-
 def _swap(P, pairs):
     Q = P.copy()
     for a, b in pairs:
@@ -841,7 +791,7 @@ def track_sequence(body: CapsuleBody, data_of, align, opts: TrackOptions | None 
 
     def refit(i, d, fit):
         """The best by quality of ``fit`` (root, D, P, quality) and of the fits from each
-        mirrored pair's limb starts (:func:`limb_starts`), pair after pair."""
+        mirrored pair's limb starts (:func:`.limbs.limb_starts`), pair after pair."""
         for pair in pairs:
             fits = [fitter.fit(fit[0], E, d) for E in limb_starts(body, fit[1], fit[2], pair)]
             q, k = max(((quality(i, d, f[2]), k) for k, f in enumerate(fits)), default=(-1, 0))

@@ -4,6 +4,7 @@
     python benchmarks/tracking.py --tracker [--real DIR] [--child-rope DIR] [--frames 40]
                                             [--dev] [--setups 8,4p] [--out DIR] [--work DIR]
                                             [--follow NAME=VALUE ...] [--set NAME=VALUE ...]
+                                            [--rng-seeds 3]
 
 Every sequence runs twice as ``topopose run`` runs it: with the tracker (the default,
 :class:`~topopose.sequence.follow.FollowOptions`, or those defaults with the ``--follow``
@@ -34,6 +35,10 @@ without it (``follow=FollowOptions(enabled=False)``: the sequence stage as it wa
   each other, which a body inside the hull does not pass by much), pictures
   of 6 frames (3 with a wrist within :data:`TOUCH` of the trunk) with the body drawn over the
   masks (written to the work folder, not to ``--out``: the recording has no licence to copy).
+* **sampling seeds** (``--rng-seeds N``): the tracker draws each frame's hull points and
+  silhouette rays at random (``FollowOptions.seed``), and a track's choices between fits
+  follow small differences in them; the tracker arm runs again with seeds 1..N-1 on the
+  synthetic sequences and the real recording, each seed's figures reported and averaged.
 * **speed**: the tracker's stages per frame (``timings_ms``: ``track_hull`` reading the
   hull the frame loop kept, ``track_data`` surface points and silhouette rays, ``track_fit``
   the Gauss–Newton fits, ``track_quality`` the silhouette IoU), the mean over the synthetic
@@ -74,10 +79,21 @@ def fit_spread(poses) -> dict | None:
     return {"median": round(med, 4), "lowest_share": round(min(f) / med, 4) if med else None}
 
 
+def _sampled(tracker, seed):
+    """The tracker arm's options drawing its hull points and silhouette rays with ``seed``
+    (``FollowOptions.seed``)."""
+    from dataclasses import replace
+
+    from topopose.sequence.follow import FollowOptions
+
+    return replace(tracker or FollowOptions(), seed=seed)
+
+
 def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=None, flat=None,
-                       defaults=False):
+                       defaults=False, rng_seeds=1):
     """One synthetic sequence with and without the tracker (``flat``: sequence options of the
-    tracker arm; ``defaults``: the gate and the AHA threshold on with any set-up): rows of
+    tracker arm; ``defaults``: the gate and the AHA threshold on with any set-up; the tracker
+    run again with each sampling seed below ``rng_seeds``: ``tracker_seeds``): rows of
     figures."""
     from tracking import MPJPE_JOINTS, joint_errors, make_sequence
 
@@ -89,9 +105,11 @@ def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=
     cap = load_capture(d)
     loose = {} if setup == "8" or defaults else {"threshold": 1e9, "gate": False}
     out = {"motion": motion, "seed": seed, "build": build, "setup": setup, "frames": frames}
-    for key, follow in (("peer", FollowOptions(enabled=False)), ("tracker", tracker)):
+    arms = [("peer", FollowOptions(enabled=False)), ("tracker", tracker)] + \
+        [(f"seed {k}", _sampled(tracker, k)) for k in range(1, rng_seeds)]
+    for key, follow in arms:
         t0 = time.perf_counter()
-        extra = (flat or {}) if key == "tracker" else {}
+        extra = (flat or {}) if key != "peer" else {}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             res = run(cap, model=model, resolution=100, progress=False, follow=follow, **loose,
@@ -107,14 +125,18 @@ def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=
             if v:
                 errs.append(float(np.mean(v)))
                 drawn.append(_figure(p, names, gtj, errs[-1], motion, seed, setup))
+        figures = {"skeleton": len(errs),
+                   "mpjpe_median": float(np.median(errs)) if errs else None,
+                   "mpjpe_mean": float(np.mean(errs)) if errs else None}
+        if key.startswith("seed"):
+            out.setdefault("tracker_seeds", []).append(figures)
+            continue
         st = {}
         for p in res.poses:
             st[p.status] = st.get(p.status, 0) + 1
         timing = {k: float(np.mean([p.timings_ms.get(k, 0.0) for p in res.poses]))
                   for k in ("track_hull", "track_data", "track_fit", "track_quality")}
-        out[key] = {"skeleton": len(errs), "mpjpe_median": float(np.median(errs)) if errs else None,
-                    "mpjpe_mean": float(np.mean(errs)) if errs else None,
-                    "per_frame": [round(x, 4) for x in errs], "statuses": st,
+        out[key] = {**figures, "per_frame": [round(x, 4) for x in errs], "statuses": st,
                     "fit": fit_spread(res.poses), "seconds": round(time.perf_counter() - t0, 2),
                     "timings_ms": timing,
                     "worst": sorted(drawn, key=lambda f: -f["mpjpe"])[:3]}
@@ -240,7 +262,7 @@ def score_real(poses, cap, ref, work, tag, model, picture=None):
             "fit": fit_spread(poses)}
 
 
-def real_recording(path, work, model, tracker=None, out=None, flat=None):
+def real_recording(path, work, model, tracker=None, out=None, flat=None, rng_seeds=1):
     from real import person_recording
 
     import topopose as tp
@@ -257,13 +279,20 @@ def real_recording(path, work, model, tracker=None, out=None, flat=None):
         warnings.simplefilter("ignore")
         cap = tp.load_capture(cdir)
         out_dir, out = out, {}
-        for key, follow in (("peer", FollowOptions(enabled=False)), ("tracker", tracker)):
+        arms = [("peer", FollowOptions(enabled=False)), ("tracker", tracker)] + \
+            [(f"seed {k}", _sampled(tracker, k)) for k in range(1, rng_seeds)]
+        for key, follow in arms:
             t0 = time.perf_counter()
             res = run(cap, model=model, progress=False, follow=follow,
-                      **((flat or {}) if key == "tracker" else {}))
+                      **((flat or {}) if key != "peer" else {}))
             pic = out_dir / "tracking_tracker_real_worst.png" if (
                 key == "tracker" and out_dir is not None) else None
-            out[key] = score_real(res.poses, cap, ref, work, key, model, pic)
+            r = score_real(res.poses, cap, ref, work, key.replace(" ", "_"), model, pic)
+            if key.startswith("seed"):
+                out.setdefault("tracker_seeds", []).append(
+                    {k: r[k] for k in ("skeleton_14", "mpjpe_median", "mpjpe_p90", "swaps")})
+                continue
+            out[key] = r
             out[key]["seconds"] = round(time.perf_counter() - t0, 1)
             out[key]["timings_ms"] = {k: float(np.mean([p.timings_ms.get(k, 0.0)
                                                         for p in res.poses]))
@@ -515,6 +544,18 @@ def report(doc) -> str:
                              f"mean {_cm(float(np.mean(pf)) if pf else None)} cm, median "
                              f"{_cm(float(np.median(pf)) if pf else None)} cm")
         for st in sorted({r["setup"] for r in syn}):
+            rows = [r for r in syn if r["setup"] == st and r.get("tracker_seeds")]
+            if rows:
+                k = len(rows[0]["tracker_seeds"]) + 1
+                means = [float(np.mean([x for r in rows for x in r["tracker"]["per_frame"]]))]
+                means += [float(np.mean([r["tracker_seeds"][s]["mpjpe_mean"] for r in rows]))
+                          for s in range(k - 1)]
+                lines.append(f"- set-up {st}, tracker, sampling seeds 0–{k - 1} "
+                             "(`FollowOptions.seed`: the hull points and silhouette rays drawn): "
+                             "MPJPE mean of the sequences' means " +
+                             " / ".join(_cm(x) for x in means) +
+                             f" cm, over the seeds {_cm(float(np.mean(means)))} cm")
+        for st in sorted({r["setup"] for r in syn}):
             fits = [r["tracker"].get("fit") for r in syn if r["setup"] == st]
             fits = [f for f in fits if f]
             if fits:
@@ -547,6 +588,14 @@ def report(doc) -> str:
                          f" / {_cm(r['mpjpe_p90'])} | {r['swaps']} / {r['pairs']} | "
                          f"{', '.join(f'{k} {v}' for k, v in sorted(r['statuses'].items()))} | "
                          f"{'–' if r['fit'] is None else round(r['fit']['median'], 3)} |")
+        if real.get("tracker_seeds"):
+            runs = [real["tracker"]] + real["tracker_seeds"]
+            lines += ["", f"The tracker with sampling seeds 0–{len(runs) - 1}: MPJPE median / "
+                      "p90 " + ", ".join(f"{_cm(r['mpjpe_median'])} / {_cm(r['mpjpe_p90'])}"
+                                  for r in runs) + " cm; over the seeds "
+                      f"{_cm(float(np.mean([r['mpjpe_median'] for r in runs])))} / "
+                      f"{_cm(float(np.mean([r['mpjpe_p90'] for r in runs])))} cm; L/R swaps "
+                      + ", ".join(str(r["swaps"]) for r in runs)]
         w = real["tracker"].get("worst")
         if w:
             lines += ["", f"The tracker's frames with the largest MPJPE, ours against Pose2Sim's "
@@ -619,7 +668,7 @@ def main(a, model):
     for st in a.setups.split(",") if a.setups else ():
         for k, mo in enumerate(motions):
             r = synthetic_sequence(work, mo, seeds[mo], BUILDS[MOTIONS.index(mo)], a.frames,
-                                   st, model, tracker, flat, a.defaults)
+                                   st, model, tracker, flat, a.defaults, a.rng_seeds)
             doc["synthetic"].append(r)
             print(json.dumps({k: v for k, v in r.items() if k not in ("peer", "tracker")}
                              | {x: {kk: r[x][kk] for kk in ("skeleton", "mpjpe_median",
@@ -632,7 +681,7 @@ def main(a, model):
             for st in a.setups.split(",")}
     if a.real:
         doc["real"] = real_recording(a.real, work, model, tracker,
-                                     None if a.dev or variant else out, flat)
+                                     None if a.dev or variant else out, flat, a.rng_seeds)
         print(json.dumps(doc["real"], default=str)[:600], flush=True)
     if a.child_rope:
         # the pictures show the recording's masks, which stay out of the repository: the work

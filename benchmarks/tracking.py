@@ -870,6 +870,9 @@ def main(argv=None):
     ap.add_argument("--motions", default=None, help="with --tracker: only these motions")
     ap.add_argument("--defaults", action="store_true",
                     help="with --tracker: every set-up with the gate and AHA threshold on")
+    ap.add_argument("--rng-seeds", type=int, default=3,
+                    help="with --tracker: the tracker arm run with sampling seeds 0..N-1 "
+                         "(FollowOptions.seed), synthetic and real, each reported and averaged")
     ap.add_argument("--follow", action="append", metavar="NAME=VALUE",
                     help="with --tracker: a FollowOptions setting of the tracker arm "
                          "(tips=True, track.prior=0.1; repeatable)")

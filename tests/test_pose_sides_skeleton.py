@@ -608,6 +608,17 @@ def test_joint_width_field_round_trips_and_is_checked():
         model_from_dict(d)
 
 
+def test_joint_heel_field_round_trips_and_is_checked():
+    """The human model's ankles are heels (the tracked body's capsule behind them)."""
+    tree = kinematic_tree(model_from_dict(HUMAN.to_dict()))
+    assert sorted(n for n, h in zip(tree.names, tree.heel) if h) == ["ankle_1", "ankle_2"]
+    d = HUMAN.to_dict()
+    d["joint"] = [dict(j) for j in d["joint"]]
+    next(j for j in d["joint"] if j["name"] == "knee")["heel"] = 1
+    with pytest.raises(InputError, match="heel"):
+        model_from_dict(d)
+
+
 def test_raised_arm_joints_at_their_raised_fraction():
     """A hand above the chest junction (along the trunk): the elbow and wrist at their
     ``at_raised`` of the arm's curve; a hand below it: at their ``at``."""

@@ -5,7 +5,7 @@ import pytest
 
 from topopose.hull.volume import Volume
 from topopose.sequence.body import (CapsuleBody, bone_directions, group_shape, joint_positions,
-                                    kabsch, radius_profile, snap, tip_capsules, tip_reach,
+                                    kabsch, radius_profile, snap, beyond_capsules, reach_beyond,
                                     trunk_sides)
 from topopose.sequence.smoothing import smooth_track
 from topopose.sequence.limbs import limb_pairs, limb_starts, mirror_groups
@@ -305,7 +305,7 @@ def test_trunk_sides_join_the_trunks_junctions():
     assert trunk_sides(("a", "b", "c"), [-1, 0, 1]) is None
 
 
-def test_tip_reach_finds_where_the_hull_ends():
+def test_reach_beyond_finds_where_the_hull_ends():
     """A limb's hull goes on 0.2 m beyond the skeleton's tip joint: the reach is the rest
     of its capsule's axis (the hull's end less the radius)."""
     names, parents = ("a", "b"), np.array([-1, 0])
@@ -315,12 +315,40 @@ def test_tip_reach_finds_where_the_hull_ends():
     P = np.array([[0.0, 0.0, 0.6], [0.0, 0.0, 1.1]])
     vol = hull_of(full, P)
     tip = P[0] + 0.3 * (P[1] - P[0]) / 0.5
-    reach = tip_reach(vol, np.array([P[0], tip]), parents)
+    reach = reach_beyond(vol, np.array([P[0], tip]), parents, [0, 1])
     assert np.isnan(reach[0]) and abs(reach[1] - 0.2) < 1.5 * VOXEL
-    W = tip_capsules(parents, lengths, reach, VOXEL)
+    W = beyond_capsules(parents, lengths, reach, VOXEL)
     assert np.allclose(W[0, 1] @ np.array([P[0], tip]), tip + reach[1] * np.array([0, 0, 1]))
     depth = radius_profile(vol, W[:, 0] @ np.array([P[0], tip]), W[:, 1] @ np.array([P[0], tip]))
     assert abs(np.median(depth) - radius) < 1.5 * VOXEL
+
+
+def test_reach_beyond_a_heel():
+    """A shank, a foot at a right angle and a heel 0.08 m on behind the ankle along the
+    shank: the ankle (a joint with a child) reaches the heel's axis; the toe, not asked, none."""
+    names, parents = ("knee", "ankle", "toe"), np.array([-1, 0, 1])
+    P = np.array([[0.0, 0.0, 0.6], [0.0, 0.0, 0.2], [0.18, 0.0, 0.2]])
+    heel = np.zeros((1, 2, 3))
+    heel[0, 0, 1], heel[0, 1, 1], heel[0, 1, 0] = 1.0, 1.2, -0.2      # 0.2 × the shank: 0.08 m
+    truth = CapsuleBody(names, parents, np.array([np.nan, 0.4, 0.18]),
+                        np.array([np.nan, 0.05, 0.04]), (0, 1, 2), ends=heel,
+                        extra_radii=np.array([0.04]))
+    reach = reach_beyond(hull_of(truth, P), P, parents, [1])
+    assert np.isnan(reach[[0, 2]]).all() and abs(reach[1] - 0.08) < 1.5 * VOXEL
+    W = beyond_capsules(parents, truth.lengths, reach, VOXEL)
+    assert np.allclose(W[0, 1] @ P, P[1] + reach[1] * np.array([0, 0, -1]))
+    from topopose.sequence.body import learn_body
+    from topopose.sequence.skeleton_fit import KinematicTree
+
+    tree = KinematicTree(list(names), list(names), [-1, 0, 1], [("a", "b")] * 3, [0.0, 0.5, 1.0],
+                         heel=[False, True, False])
+    frames = [(hull_of(truth, P), P)]
+    body = learn_body(tree, truth.lengths, frames, VOXEL, sides=None)
+    A, B, r = body.capsules(P)
+    assert body.n_extra == 1 and np.allclose(A[-1], P[1])
+    assert abs(np.linalg.norm(B[-1] - P[1]) - 0.08) < 1.5 * VOXEL and B[-1][2] < P[1][2]
+    assert abs(r[-1] - 0.04) < 1.5 * VOXEL
+    assert learn_body(tree, truth.lengths, frames, VOXEL, sides=None, heels=False).n_extra == 0
 
 
 def test_fit_with_extra_capsules_recovers_a_perturbed_pose():
@@ -330,7 +358,7 @@ def test_fit_with_extra_capsules_recovers_a_perturbed_pose():
 
     base = make_body()
     ends = np.concatenate([trunk_sides(NAMES, PARENTS, (0.6, 1.0)),
-                           tip_capsules(PARENTS, LENGTHS, np.r_[[np.nan] * 7, 0.1,
+                           beyond_capsules(PARENTS, LENGTHS, np.r_[[np.nan] * 7, 0.1,
                                                                 [np.nan] * 4], VOXEL)])
     body = replace(base, ends=ends, extra_radii=np.array([0.09, 0.09, 0.04]))
     truth = joint_positions(body, np.array([0.0, 0.0, 1.3]), arm_down(rest_directions(), 0.3))

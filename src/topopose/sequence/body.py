@@ -18,10 +18,11 @@ subject's own (Corazza et al., IJCV 2010: a subject-specific model from the visu
   shoulder to between the pelvis and a hip) gives it its width, its radius the hull's depth
   along it like a bone's.
 
-* the **tips** (:func:`tip_reach`): a bone ending at a tip of the tree (the skull) may end
-  short of the body's end (the top of the head); a capsule on along the bone to where the
-  hull ends there covers the rest, so that the end of the hull does not pull the whole body
-  towards it.
+* the **tips** and **heels** (:func:`reach_beyond`): a bone ending at a tip of the tree (the
+  skull) may end short of the body's end (the top of the head), and the body goes on behind
+  a joint whose child leaves it at a right angle (the heel behind the ankle); a capsule on
+  along the bone to where the hull ends there covers the rest, so that the end of the hull
+  does not pull the joint towards it.
 
 A body is a :class:`CapsuleBody`: joint positions come from a root position and one unit
 direction per bone (:func:`joint_positions`); the capsule of bone ``j`` joins the joint's
@@ -256,16 +257,18 @@ def trunk_sides(names, parents, reach=(0.6, 1.0)) -> np.ndarray:
     return W
 
 
-def tip_reach(volume, P, parents, step=0.5, longest=0.4) -> np.ndarray:
-    """How far the hull goes on beyond each tip joint (a joint with no child) along its bone,
-    less its depth half-way there (the radius of a capsule covering it): (J,), NaN for the
-    other joints.
+def reach_beyond(volume, P, parents, joints, step=0.5, longest=0.4) -> np.ndarray:
+    """How far the hull goes on beyond each of ``joints`` along the bone into it, less its
+    depth half-way there (the radius of a capsule covering it): (J,), NaN for the other
+    joints and where the joint lies outside the hull.
 
     Parameters
     ----------
     volume : Volume
     P : ndarray (J, 3)
     parents : sequence of int
+    joints : sequence of int
+        The joints looked beyond (a tip of the tree: the skull; a heel: the ankle).
     step : voxels between the samples along the bone
     longest : m, the farthest looked
     """
@@ -277,9 +280,9 @@ def tip_reach(volume, P, parents, step=0.5, longest=0.4) -> np.ndarray:
     vs = float(volume.voxel_size)
     t = np.arange(0.0, longest, step * vs)
     out = np.full(len(P), np.nan)
-    for j in range(len(P)):
+    for j in joints:
         p = parents[j]
-        if p < 0 or (parents == j).any():
+        if p < 0:
             continue
         d = P[j] - P[p]
         d = d / max(float(np.linalg.norm(d)), 1e-12)
@@ -294,9 +297,9 @@ def tip_reach(volume, P, parents, step=0.5, longest=0.4) -> np.ndarray:
     return out
 
 
-def tip_capsules(parents, lengths, reach, shortest) -> np.ndarray:
-    """The ends (E, 2, J) of a capsule from each tip joint on along its bone by ``reach``
-    (tips reaching less than ``shortest`` get none)."""
+def beyond_capsules(parents, lengths, reach, shortest) -> np.ndarray:
+    """The ends (E, 2, J) of a capsule from each joint on along its bone by ``reach``
+    (joints reaching less than ``shortest`` get none)."""
     parents = np.asarray(parents)
     out = []
     for j in np.flatnonzero(np.isfinite(reach) & (np.nan_to_num(reach) >= shortest)):
@@ -309,7 +312,7 @@ def tip_capsules(parents, lengths, reach, shortest) -> np.ndarray:
 
 
 def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE,
-               sides=(0.6, 1.0), tips=False) -> CapsuleBody:
+               sides=(0.6, 1.0), tips=False, heels=True) -> CapsuleBody:
     """The subject's capsule body from the confident frames.
 
     Parameters
@@ -327,7 +330,10 @@ def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE,
     sides : (upper, lower) reach of the trunk's side capsules (:func:`trunk_sides`), or
         None: none
     tips : a capsule on from each tip joint where the hull goes on beyond it (the median
-        over the frames of :func:`tip_reach`, at least a voxel)
+        of :func:`reach_beyond` over the frames and the joints of one base name, mirrored
+        joints reaching as far; at least a voxel)
+    heels : the same beyond each joint the model marks ``heel`` (``tree.heel``: the
+        human's ankles, the heel behind them)
 
     Returns
     -------
@@ -335,11 +341,17 @@ def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE,
     """
     parents = np.asarray(tree.parents, dtype=np.int64)
     ends = None if sides is None else trunk_sides(tree.names, parents, sides)
-    if tips and frames:
-        R = np.array([tip_reach(v, np.asarray(P, float), parents) for v, P in frames])
-        reach = np.array([np.median(c[np.isfinite(c)]) if np.isfinite(c).any() else np.nan
-                          for c in R.T])
-        T = tip_capsules(parents, np.asarray(lengths, float), reach, float(voxel_size))
+    heel = (heels and tree.heel) or [False] * len(parents)
+    beyond = [j for j in range(len(parents)) if parents[j] >= 0
+              and (heel[j] or (tips and not (parents == j).any()))]
+    if beyond and frames:
+        R = np.array([reach_beyond(v, np.asarray(P, float), parents, beyond) for v, P in frames])
+        reach = np.full(len(parents), np.nan)
+        for j in beyond:            # mirrored joints (one base name) reach as far
+            c = R[:, [k for k in beyond if tree.base[k] == tree.base[j]]]
+            c = c[np.isfinite(c)]
+            reach[j] = np.median(c) if len(c) else np.nan
+        T = beyond_capsules(parents, np.asarray(lengths, float), reach, float(voxel_size))
         ends = T if ends is None else np.concatenate([ends, T])
         ends = ends if len(ends) else None
     groups = rigid_groups(tree)

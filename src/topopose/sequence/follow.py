@@ -38,7 +38,9 @@ class FollowOptions:
     trunk_sides : (upper, lower) reach of the capsules down the trunk's sides
         (:func:`~topopose.sequence.body.trunk_sides`), or None: none
     tips : capsules on beyond the tip joints where the hull goes on
-        (:func:`~topopose.sequence.body.tip_reach`)
+        (:func:`~topopose.sequence.body.reach_beyond`)
+    heels : a capsule on beyond each joint the model marks ``heel`` (the human's ankles: the
+        heel behind them) where the hull goes on (opt-in: ``docs/decisions.md``)
     part_reach : the parts no joint places (the head, past the skull) where the confident
         frames' alignments put them along the last bone (:func:`part_reach`); else the bone
         extended as far as the joint's place on its arc says
@@ -63,6 +65,7 @@ class FollowOptions:
     silhouette_fit: bool = True
     trunk_sides: tuple | None = (0.6, 1.0)
     tips: bool = False
+    heels: bool = False
     part_reach: bool = True
     min_fit: float = 0.75
     unconfirmed: bool = True
@@ -246,7 +249,7 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     if not learn:
         return poses
     body = learn_body(tree, lengths, learn, learn[0][0].voxel_size, sides=opts.trunk_sides,
-                      tips=opts.tips)
+                      tips=opts.tips, heels=opts.heels)
     rng = np.random.default_rng(opts.seed)
     views = [(v[1], P) for v, P in picked if v[1] is not None]
     if views and len(opts.radius_scales) > 1:

@@ -79,14 +79,16 @@ def fit_spread(poses) -> dict | None:
     return {"median": round(med, 4), "lowest_share": round(min(f) / med, 4) if med else None}
 
 
-def _sampled(tracker, seed):
-    """The tracker arm's options drawing its hull points and silhouette rays with ``seed``
+def _arms(tracker, rng_seeds):
+    """The runs compared: the peer (no tracker), the tracker arm, and the tracker arm drawing
+    its hull points and silhouette rays with each sampling seed 1..``rng_seeds``-1
     (``FollowOptions.seed``)."""
     from dataclasses import replace
 
     from topopose.sequence.follow import FollowOptions
 
-    return replace(tracker or FollowOptions(), seed=seed)
+    return [("peer", FollowOptions(enabled=False)), ("tracker", tracker)] + \
+        [(f"seed {k}", replace(tracker or FollowOptions(), seed=k)) for k in range(1, rng_seeds)]
 
 
 def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=None, flat=None,
@@ -99,15 +101,12 @@ def synthetic_sequence(work, motion, seed, build, frames, setup, model, tracker=
 
     from topopose.capture import load_capture
     from topopose.batch import run
-    from topopose.sequence.follow import FollowOptions
 
     d = make_sequence(work, motion, seed, build, frames, setup)
     cap = load_capture(d)
     loose = {} if setup == "8" or defaults else {"threshold": 1e9, "gate": False}
     out = {"motion": motion, "seed": seed, "build": build, "setup": setup, "frames": frames}
-    arms = [("peer", FollowOptions(enabled=False)), ("tracker", tracker)] + \
-        [(f"seed {k}", _sampled(tracker, k)) for k in range(1, rng_seeds)]
-    for key, follow in arms:
+    for key, follow in _arms(tracker, rng_seeds):
         t0 = time.perf_counter()
         extra = (flat or {}) if key != "peer" else {}
         with warnings.catch_warnings():
@@ -267,7 +266,6 @@ def real_recording(path, work, model, tracker=None, out=None, flat=None, rng_see
 
     import topopose as tp
     from topopose.batch import run
-    from topopose.sequence.follow import FollowOptions
 
     opened = person_recording(path)
     if isinstance(opened, int):
@@ -279,9 +277,7 @@ def real_recording(path, work, model, tracker=None, out=None, flat=None, rng_see
         warnings.simplefilter("ignore")
         cap = tp.load_capture(cdir)
         out_dir, out = out, {}
-        arms = [("peer", FollowOptions(enabled=False)), ("tracker", tracker)] + \
-            [(f"seed {k}", _sampled(tracker, k)) for k in range(1, rng_seeds)]
-        for key, follow in arms:
+        for key, follow in _arms(tracker, rng_seeds):
             t0 = time.perf_counter()
             res = run(cap, model=model, progress=False, follow=follow,
                       **((flat or {}) if key != "peer" else {}))
@@ -547,7 +543,7 @@ def report(doc) -> str:
             rows = [r for r in syn if r["setup"] == st and r.get("tracker_seeds")]
             if rows:
                 k = len(rows[0]["tracker_seeds"]) + 1
-                means = [float(np.mean([x for r in rows for x in r["tracker"]["per_frame"]]))]
+                means = [float(np.mean([r["tracker"]["mpjpe_mean"] for r in rows]))]
                 means += [float(np.mean([r["tracker_seeds"][s]["mpjpe_mean"] for r in rows]))
                           for s in range(k - 1)]
                 lines.append(f"- set-up {st}, tracker, sampling seeds 0–{k - 1} "

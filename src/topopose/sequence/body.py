@@ -312,7 +312,7 @@ def beyond_capsules(parents, lengths, reach, shortest) -> np.ndarray:
 
 
 def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE,
-               sides=(0.6, 1.0), tips=False, heels=True) -> CapsuleBody:
+               sides=(0.6, 1.0), tips=False, heels=False) -> CapsuleBody:
     """The subject's capsule body from the confident frames.
 
     Parameters

@@ -8,7 +8,7 @@
 
 Every sequence runs twice as ``topopose run`` runs it: with the tracker (the default,
 :class:`~topopose.sequence.follow.FollowOptions`, or those defaults with the ``--follow``
-settings, e.g. ``tips=True``, ``trunk_sides=None``, ``track.prior=0.1``, and the ``--set``
+settings, e.g. ``extends=False``, ``trunk_sides=None``, ``track.prior=0.1``, and the ``--set``
 sequence options, e.g. ``hints=False``: results written as ``tracking_tracker_variant``) and
 without it (``follow=FollowOptions(enabled=False)``: the sequence stage as it was, the peer).
 
@@ -628,7 +628,7 @@ def report(doc) -> str:
 
 def follow_options(settings):
     """The tracker arm's :class:`~topopose.sequence.follow.FollowOptions` from ``NAME=VALUE``
-    settings (``tips=True``, ``track.prior=0.1``; values as Python literals); None: the
+    settings (``extends=False``, ``track.prior=0.1``; values as Python literals); None: the
     defaults."""
     import ast
     from dataclasses import replace

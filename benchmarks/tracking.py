@@ -875,7 +875,7 @@ def main(argv=None):
                          "(FollowOptions.seed), synthetic and real, each reported and averaged")
     ap.add_argument("--follow", action="append", metavar="NAME=VALUE",
                     help="with --tracker: a FollowOptions setting of the tracker arm "
-                         "(tips=True, track.prior=0.1; repeatable)")
+                         "(extends=False, track.prior=0.1; repeatable)")
     a = ap.parse_args(argv)
     if a.tracker:
         import _tracker as tracker_bench

@@ -608,14 +608,15 @@ def test_joint_width_field_round_trips_and_is_checked():
         model_from_dict(d)
 
 
-def test_joint_heel_field_round_trips_and_is_checked():
-    """The human model's ankles are heels (the tracked body's capsule behind them)."""
+def test_joint_extends_field_round_trips_and_is_checked():
+    """The human body goes on past its skull and ankles (the tracked body's capsules there)."""
     tree = kinematic_tree(model_from_dict(HUMAN.to_dict()))
-    assert sorted(n for n, h in zip(tree.names, tree.heel) if h) == ["ankle_1", "ankle_2"]
+    assert sorted(n for n, e in zip(tree.names, tree.extends) if e) == \
+        ["ankle_1", "ankle_2", "skull"]
     d = HUMAN.to_dict()
     d["joint"] = [dict(j) for j in d["joint"]]
-    next(j for j in d["joint"] if j["name"] == "knee")["heel"] = 1
-    with pytest.raises(InputError, match="heel"):
+    next(j for j in d["joint"] if j["name"] == "knee")["extends"] = 1
+    with pytest.raises(InputError, match="extends"):
         model_from_dict(d)
 
 

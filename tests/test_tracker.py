@@ -341,14 +341,14 @@ def test_reach_beyond_a_heel():
     from topopose.sequence.skeleton_fit import KinematicTree
 
     tree = KinematicTree(list(names), list(names), [-1, 0, 1], [("a", "b")] * 3, [0.0, 0.5, 1.0],
-                         heel=[False, True, False])
+                         extends=[False, True, False])
     frames = [(hull_of(truth, P), P)]
-    body = learn_body(tree, truth.lengths, frames, VOXEL, sides=None, heels=True)
+    body = learn_body(tree, truth.lengths, frames, VOXEL, sides=None)
     A, B, r = body.capsules(P)
     assert body.n_extra == 1 and np.allclose(A[-1], P[1])
     assert abs(np.linalg.norm(B[-1] - P[1]) - 0.08) < 1.5 * VOXEL and B[-1][2] < P[1][2]
     assert abs(r[-1] - 0.04) < 1.5 * VOXEL
-    assert learn_body(tree, truth.lengths, frames, VOXEL, sides=None).n_extra == 0
+    assert learn_body(tree, truth.lengths, frames, VOXEL, sides=None, extends=False).n_extra == 0
 
 
 def test_fit_with_extra_capsules_recovers_a_perturbed_pose():

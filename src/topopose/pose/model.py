@@ -57,9 +57,10 @@ File format (TOML, DESIGN.md "Model tree file")::
                             # the pair's joint name) are one symmetric rigid body, this joint
                             # on its mid-plane, past the pair's midpoint by the number × the
                             # pair's width; e.g. the neck and the shoulders
-    heel = true             # optional: the body goes on beyond the joint along the bone into
-                            # it (the heel behind the ankle): the tracked body has a capsule
-                            # there, as far as the confident frames' hulls go on
+    extends = true          # optional: the body goes on past the joint along the bone into
+                            # it (the top of the head past the skull, the heel behind the
+                            # ankle): the tracked body has a capsule there, as far as the
+                            # confident frames' hulls go on
 
 Mirror pairs: once :mod:`.chirality` knows the subject's left, ``parts[0]`` (the one on the
 subject's left) is output as ``names[0]`` and ``parts[1]`` as ``names[1]``; the numbered
@@ -92,7 +93,7 @@ _CONSTRAINT_KEYS = {"kind", "parts", "axis", "relation"}
 _MIRROR_KEYS = {"parts", "names"}
 _FACING_KEYS = {"feet", "axis", "trunk"}
 _JOINT_KEYS = {"name", "arc", "at", "offset", "beyond", "width", "at_raised", "slide",
-               "girdle", "heel"}
+               "girdle", "extends"}
 
 
 @dataclass(frozen=True)
@@ -112,7 +113,7 @@ class JointSpec:
     slide: bool = False            # the bone from its parent: the frame's length, not constant
     girdle: tuple = None           # (pair's joint name, height × the pair's width): this joint
                                    # and that mirror pair, one symmetric rigid body
-    heel: bool = False             # the body goes on beyond the joint along its bone
+    extends: bool = False          # the body goes on past the joint along its bone
 
 
 @dataclass
@@ -238,7 +239,7 @@ class Model:
                             | ({"slide": True} if j.slide else {})
                             | ({"girdle": [j.girdle[0], float(j.girdle[1])]} if j.girdle
                                else {})
-                            | ({"heel": True} if j.heel else {})
+                            | ({"extends": True} if j.extends else {})
                             for j in self.joints]
         return out
 
@@ -338,8 +339,8 @@ def validate_model(m: Model) -> None:
                              f"trunk = [from, to]; got {j.at_raised!r}")
         if not isinstance(j.slide, bool):
             raise InputError(f"{jw}: field 'slide' must be true or false, got {j.slide!r}")
-        if not isinstance(j.heel, bool):
-            raise InputError(f"{jw}: field 'heel' must be true or false, got {j.heel!r}")
+        if not isinstance(j.extends, bool):
+            raise InputError(f"{jw}: field 'extends' must be true or false, got {j.extends!r}")
         if j.girdle is not None and (
                 not isinstance(j.girdle, (list, tuple)) or len(j.girdle) != 2
                 or not isinstance(j.girdle[0], str) or isinstance(j.girdle[1], bool)
@@ -499,7 +500,7 @@ def model_from_dict(d: dict, source: str = "model") -> Model:
     for i, j in enumerate(d.get("joint") or []):
         if not isinstance(j, dict) or not {"name", "arc", "at"} <= set(j) <= _JOINT_KEYS:
             raise InputError(f"{source}: joint[{i}]: expected a table with name, arc, at "
-                             "(and optional offset, beyond, width, at_raised, slide, girdle, heel)")
+                             "(and optional offset, beyond, width, at_raised, slide, girdle, extends)")
         off = j.get("offset", (0.0, 0.0))
         joints.append(JointSpec(j["name"], tuple(j["arc"]) if isinstance(j["arc"], list)
                                 else j["arc"], j["at"],
@@ -509,7 +510,7 @@ def model_from_dict(d: dict, source: str = "model") -> Model:
                                 else j.get("width", (0.0, 0.0)), j.get("at_raised"),
                                 j.get("slide", False),
                                 tuple(j["girdle"]) if isinstance(j.get("girdle"), list)
-                                else j.get("girdle"), j.get("heel", False)))
+                                else j.get("girdle"), j.get("extends", False)))
     return Model(name=name, tree=tree, root=meta.get("root"), complete=complete,
                  threshold=meta.get("threshold"), description=meta.get("description", ""),
                  source=source, mirrors=mirrors, facing=dict(facing), joints=joints)

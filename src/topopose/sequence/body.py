@@ -18,11 +18,11 @@ subject's own (Corazza et al., IJCV 2010: a subject-specific model from the visu
   shoulder to between the pelvis and a hip) gives it its width, its radius the hull's depth
   along it like a bone's.
 
-* the **tips** and **heels** (:func:`reach_beyond`): a bone ending at a tip of the tree (the
-  skull) may end short of the body's end (the top of the head), and the body goes on behind
-  a joint whose child leaves it at a right angle (the heel behind the ankle); a capsule on
-  along the bone to where the hull ends there covers the rest, so that the end of the hull
-  does not pull the joint towards it.
+* the body **past a joint** (:func:`reach_beyond`): where the model says the body goes on past
+  a joint along its bone (``extends``: the top of the head past the skull, the heel behind the
+  ankle, whose child leaves it at a right angle), a capsule on along the bone to where the
+  hull ends there covers the rest, so that the end of the hull does not pull the joint
+  towards it.
 
 A body is a :class:`CapsuleBody`: joint positions come from a root position and one unit
 direction per bone (:func:`joint_positions`); the capsule of bone ``j`` joins the joint's
@@ -268,7 +268,7 @@ def reach_beyond(volume, P, parents, joints, step=0.5, longest=0.4) -> np.ndarra
     P : ndarray (J, 3)
     parents : sequence of int
     joints : sequence of int
-        The joints looked beyond (a tip of the tree: the skull; a heel: the ankle).
+        The joints looked beyond (the skull, the ankles: ``KinematicTree.extends``).
     step : voxels between the samples along the bone
     longest : m, the farthest looked
     """
@@ -312,7 +312,7 @@ def beyond_capsules(parents, lengths, reach, shortest) -> np.ndarray:
 
 
 def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE,
-               sides=(0.6, 1.0), tips=False, heels=False) -> CapsuleBody:
+               sides=(0.6, 1.0), extends=True) -> CapsuleBody:
     """The subject's capsule body from the confident frames.
 
     Parameters
@@ -329,11 +329,10 @@ def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE,
         Bounds of a radius: at least that many voxels, at most that many world units.
     sides : (upper, lower) reach of the trunk's side capsules (:func:`trunk_sides`), or
         None: none
-    tips : a capsule on from each tip joint where the hull goes on beyond it (the median
-        of :func:`reach_beyond` over the frames and the joints of one base name, mirrored
-        joints reaching as far; at least a voxel)
-    heels : the same beyond each joint the model marks ``heel`` (``tree.heel``: the
-        human's ankles, the heel behind them)
+    extends : a capsule on past each joint the model marks ``extends`` (``tree.extends``:
+        the human's skull and ankles) where the hull goes on beyond it (the median of
+        :func:`reach_beyond` over the frames and the joints of one base name, mirrored joints
+        reaching as far; at least a voxel)
 
     Returns
     -------
@@ -341,9 +340,8 @@ def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE,
     """
     parents = np.asarray(tree.parents, dtype=np.int64)
     ends = None if sides is None else trunk_sides(tree.names, parents, sides)
-    heel = (heels and tree.heel) or [False] * len(parents)
-    beyond = [j for j in range(len(parents)) if parents[j] >= 0
-              and (heel[j] or (tips and not (parents == j).any()))]
+    marked = (extends and tree.extends) or [False] * len(parents)
+    beyond = [j for j in range(len(parents)) if parents[j] >= 0 and marked[j]]
     if beyond and frames:
         R = np.array([reach_beyond(v, np.asarray(P, float), parents, beyond) for v, P in frames])
         reach = np.full(len(parents), np.nan)

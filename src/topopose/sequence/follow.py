@@ -37,10 +37,9 @@ class FollowOptions:
         chooses between a frame's fits by it
     trunk_sides : (upper, lower) reach of the capsules down the trunk's sides
         (:func:`~topopose.sequence.body.trunk_sides`), or None: none
-    tips : capsules on beyond the tip joints where the hull goes on
+    extends : a capsule on past each joint the model marks ``extends`` (the human's skull and
+        ankles: the top of the head, the heels) as far as the hull goes on
         (:func:`~topopose.sequence.body.reach_beyond`)
-    heels : a capsule on beyond each joint the model marks ``heel`` (the human's ankles: the
-        heel behind them) where the hull goes on (opt-in: ``docs/decisions.md``)
     part_reach : the parts no joint places (the head, past the skull) where the confident
         frames' alignments put them along the last bone (:func:`part_reach`); else the bone
         extended as far as the joint's place on its arc says
@@ -64,8 +63,7 @@ class FollowOptions:
     radius_scales: tuple = (1.0,)
     silhouette_fit: bool = True
     trunk_sides: tuple | None = (0.6, 1.0)
-    tips: bool = False
-    heels: bool = False
+    extends: bool = True
     part_reach: bool = True
     min_fit: float = 0.75
     unconfirmed: bool = True
@@ -249,7 +247,7 @@ def follow(poses, model, tree, lengths, hull, options: FollowOptions | None = No
     if not learn:
         return poses
     body = learn_body(tree, lengths, learn, learn[0][0].voxel_size, sides=opts.trunk_sides,
-                      tips=opts.tips, heels=opts.heels)
+                      extends=opts.extends)
     rng = np.random.default_rng(opts.seed)
     views = [(v[1], P) for v, P in picked if v[1] is not None]
     if views and len(opts.radius_scales) > 1:

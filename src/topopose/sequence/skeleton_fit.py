@@ -34,7 +34,7 @@ class KinematicTree:
     at_raised: list = None         # at when the arc's end part is past its start along the trunk
     slide: list = None             # the bone from its parent takes the frame's length (slide)
     girdle: list = None            # (pair's joint name, height) or None: one rigid body with it
-    heel: list = None              # the body goes on beyond the joint along its bone
+    extends: list = None           # the body goes on past the joint along its bone
 
     @property
     def root(self) -> int:
@@ -68,7 +68,7 @@ def kinematic_tree(model) -> KinematicTree:
     if not model.joints:
         raise InputError(f"model {model.name!r}: no [[joint]] declared; the full skeleton needs "
                          "joints along the arcs (see topopose.pose.model)")
-    names, base, arc, at, offset, beyond, width, raised, slide, girdle, heel = \
+    names, base, arc, at, offset, beyond, width, raised, slide, girdle, extends = \
         ([] for _ in range(11))
     arcs = model_arcs(model)
     for u, v in arcs:
@@ -92,7 +92,7 @@ def kinematic_tree(model) -> KinematicTree:
             width.append(tuple(float(x) for x in js.width))
             raised.append(r)
             slide.append(bool(js.slide))
-            heel.append(bool(js.heel))
+            extends.append(bool(js.extends))
             girdle.append(None if js.girdle is None else (str(js.girdle[0]),
                                                           float(js.girdle[1])))
             beyond.append(float(js.beyond) if t == 1.0 else 0.0)
@@ -140,7 +140,7 @@ def kinematic_tree(model) -> KinematicTree:
     return KinematicTree(names, base, parents, arc, at, offset,
                          tuple(model.facing.get("trunk", ())), beyond,
                          frozenset(x for parts, _names in model.mirrors for x in parts), width,
-                         raised, slide, girdle, heel)
+                         raised, slide, girdle, extends)
 
 
 TIP_DIRECTION = 0.1      # the tip direction: along the curve's last 10 % (see _along)

@@ -189,7 +189,26 @@ def snap(body: CapsuleBody, P):
     return np.asarray(P[body.root], float).copy(), D
 
 
-def radius_profile(volume, A, B, samples=PROFILE) -> np.ndarray:
+def hull_depth(volume) -> tuple:
+    """The hull's depth: the distance transform of its voxels (world units) on its bounding
+    box grown by 2 voxels, and the box's lower corner: ``(lo, depth)``."""
+    from scipy import ndimage
+
+    lo, box = bounding_box(np.asarray(volume.data, dtype=bool), margin=2)
+    return lo, ndimage.distance_transform_edt(volume.data[box]) * float(volume.voxel_size)
+
+
+def depth_at(volume, x, depth=None) -> np.ndarray:
+    """The hull's depth at points ``x`` (N, 3), interpolated; 0 outside it (``depth``:
+    :func:`hull_depth` of ``volume`` if already computed)."""
+    from scipy import ndimage
+
+    lo, d = hull_depth(volume) if depth is None else depth
+    idx = (np.asarray(x, float) - volume.origin) / float(volume.voxel_size) - lo
+    return ndimage.map_coordinates(d, idx.T, order=1, mode="constant", cval=0.0)
+
+
+def radius_profile(volume, A, B, samples=PROFILE, depth=None) -> np.ndarray:
     """The hull's depth (distance transform of its voxels, world units) at ``samples`` along
     each segment from ``A`` to ``B``: (K, len(samples)).
 
@@ -200,17 +219,12 @@ def radius_profile(volume, A, B, samples=PROFILE) -> np.ndarray:
     A, B : ndarray (K, 3)
         The segments' ends (a bone: its parent joint and its joint).
     samples : positions along a segment, 0 at ``A``, 1 at ``B``
+    depth : :func:`hull_depth` of ``volume`` if already computed
     """
-    from scipy import ndimage
-
-    lo, box = bounding_box(np.asarray(volume.data, dtype=bool), margin=2)
-    depth = ndimage.distance_transform_edt(volume.data[box]) * float(volume.voxel_size)
     s = np.asarray(samples, float)
     A, B = np.asarray(A, float), np.asarray(B, float)
     x = A[:, None] + s[None, :, None] * (B - A)[:, None]             # (K, S, 3)
-    idx = (x.reshape(-1, 3) - volume.origin) / volume.voxel_size - lo
-    return ndimage.map_coordinates(depth, idx.T, order=1, mode="constant",
-                                   cval=0.0).reshape(len(A), len(s))
+    return depth_at(volume, x.reshape(-1, 3), depth).reshape(len(A), len(s))
 
 
 def trunk_junctions(names, parents):
@@ -257,7 +271,7 @@ def trunk_sides(names, parents, reach=(0.6, 1.0)) -> np.ndarray:
     return W
 
 
-def reach_beyond(volume, P, parents, joints, step=0.5, longest=0.4) -> np.ndarray:
+def reach_beyond(volume, P, parents, joints, step=0.5, longest=0.4, depth=None) -> np.ndarray:
     """How far the hull goes on beyond each of ``joints`` along the bone into it, less its
     depth half-way there (the radius of a capsule covering it): (J,), NaN for the other
     joints and where the joint lies outside the hull.
@@ -271,12 +285,10 @@ def reach_beyond(volume, P, parents, joints, step=0.5, longest=0.4) -> np.ndarra
         The joints looked beyond (the skull, the ankles: ``KinematicTree.extends``).
     step : voxels between the samples along the bone
     longest : m, the farthest looked
+    depth : :func:`hull_depth` of ``volume`` if already computed
     """
-    from scipy import ndimage
-
     parents = np.asarray(parents)
-    lo, box = bounding_box(np.asarray(volume.data, dtype=bool), margin=2)
-    depth = ndimage.distance_transform_edt(volume.data[box]) * float(volume.voxel_size)
+    depth = hull_depth(volume) if depth is None else depth
     vs = float(volume.voxel_size)
     t = np.arange(0.0, longest, step * vs)
     out = np.full(len(P), np.nan)
@@ -286,9 +298,7 @@ def reach_beyond(volume, P, parents, joints, step=0.5, longest=0.4) -> np.ndarra
             continue
         d = P[j] - P[p]
         d = d / max(float(np.linalg.norm(d)), 1e-12)
-        x = P[j][None] + t[:, None] * d[None]
-        dep = ndimage.map_coordinates(depth, ((x - volume.origin) / vs - lo).T, order=1,
-                                      mode="constant", cval=0.0)
+        dep = depth_at(volume, P[j][None] + t[:, None] * d[None], depth)
         if dep[0] <= 0:
             continue
         end = t[np.argmax(dep <= 0)] if (dep <= 0).any() else t[-1]
@@ -342,8 +352,10 @@ def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE,
     ends = None if sides is None else trunk_sides(tree.names, parents, sides)
     marked = (extends and tree.extends) or [False] * len(parents)
     beyond = [j for j in range(len(parents)) if parents[j] >= 0 and marked[j]]
+    depths = [hull_depth(v) for v, _P in frames]
     if beyond and frames:
-        R = np.array([reach_beyond(v, np.asarray(P, float), parents, beyond) for v, P in frames])
+        R = np.array([reach_beyond(v, np.asarray(P, float), parents, beyond, depth=dep)
+                      for (v, P), dep in zip(frames, depths)])
         reach = np.full(len(parents), np.nan)
         for j in beyond:            # mirrored joints (one base name) reach as far
             c = R[:, [k for k in beyond if tree.base[k] == tree.base[j]]]
@@ -362,8 +374,8 @@ def learn_body(tree, lengths, frames, voxel_size, radius_range=RADIUS_RANGE,
                        max(on_trunk, key=lambda j: tree.at[j]) if on_trunk else -1)
     lo, hi = radius_range[0] * float(voxel_size), float(radius_range[1])
     K = len(body.bones) + body.n_extra
-    profiles = [radius_profile(vol, *body.capsules(np.asarray(P, float))[:2])
-                for vol, P in frames]
+    profiles = [radius_profile(vol, *body.capsules(np.asarray(P, float))[:2], depth=dep)
+                for (vol, P), dep in zip(frames, depths)]
     med = np.full(K, lo)
     if profiles:
         stack = np.concatenate(profiles, axis=1)

@@ -10,7 +10,7 @@ import pytest
 from topopose.sequence.body import CapsuleBody, joint_positions
 from topopose.sequence.tracker import FrameData, SurfaceGrid, TrackOptions, _Fitter
 from topopose.sequence.tracker_kernels import (bone_bases, capsule_normal_equations,
-                                               chain_positions, near_surface,
+                                               chain_positions, inside_rows, near_surface,
                                                normal_equations)
 
 NAMES = ("chest", "pelvis", "shoulder_1", "elbow_1", "shoulder_2", "elbow_2", "hip_1", "knee_1")
@@ -213,6 +213,56 @@ def test_surface_grid_finds_the_trees_nearest(bucket):
     d, i = SurfaceGrid(X, np.array([[0, 0, 0], [1, 0, 0]]), np.zeros(3), 0.02).query(
         np.array([[0.01, 0.3, 0.0]]))
     assert i[0] == 0 and d[0] == np.sqrt(0.01 ** 2 + 0.3 ** 2)
+
+
+def reference_inside(S, dist, near, surface, origin, voxel, lo, occ, need, sk, start, end, G,
+                     h, deep, w):
+    """The inside term's rows and residuals as NumPy expressions."""
+    idx = np.rint((S - origin) / voxel).astype(np.int64) - lo
+    ok = ((idx >= 0) & (idx < np.array(occ.shape))).all(axis=1)
+    held = np.zeros(len(S), bool)
+    held[ok] = occ[tuple(idx[ok].T)]
+    s = np.where(held, 1.0, -1.0)
+    g = (S - surface[near]) / np.maximum(dist, 1e-9)[:, None] * s[:, None]
+    ri = need - s * dist
+    act = np.where(ri > 0, 1.0, deep * np.minimum(1.0, h / np.maximum(-ri, 1e-12)))
+    Ji = -(np.einsum("mc,mcn->mn", g * (1 - sk)[:, None], G[start])
+           + np.einsum("mc,mcn->mn", g * sk[:, None], G[end]))
+    act = np.sqrt(act)
+    return Ji * (w * act)[:, None], ri * w * act
+
+
+@pytest.mark.parametrize("deep", [0.0, 0.5])
+def test_inside_rows_are_numpys_bit_for_bit(deep):
+    """Points inside and outside a ball and beyond its grid; both sides of the one-sided
+    residual."""
+    from scipy.ndimage import binary_erosion
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(11)
+    for _ in range(5):
+        ijk = np.indices((14, 12, 16)).transpose(1, 2, 3, 0)
+        occ = np.linalg.norm(ijk - (7, 6, 8), axis=-1) < rng.uniform(4, 6)
+        surf = np.argwhere(occ & ~binary_erosion(occ))
+        lo, voxel = rng.integers(0, 5, 3), 0.02
+        origin = rng.normal(size=3)
+        surface = origin + (surf + lo) * voxel
+        S = np.r_[origin + (lo + rng.uniform(-3, 18, (60, 3))) * voxel,
+                  origin + (lo + (7, 6, 8) + rng.normal(size=(30, 3))) * voxel,
+                  surface[:5] + 1e-4]
+        dist, near = cKDTree(surface).query(S)
+        M, n = len(S), 17
+        need = rng.uniform(0.0, 0.06, M)
+        sk = rng.random(M)
+        start, end = rng.integers(0, 6, M), rng.integers(0, 6, M)
+        G = rng.normal(size=(6, 3, n))
+        G[rng.random(G.shape) < 0.3] = 0.0
+        args = (S, dist, near, surface, origin, voxel, lo, occ, need, sk, start, end, G,
+                0.03, deep, 0.37)
+        rows, res = inside_rows(*args)
+        rows0, res0 = reference_inside(*args)
+        assert np.array_equal(rows, rows0) and np.array_equal(res, res0)
+        assert (res > 0).any() and (res0 <= 0).any()
 
 
 def test_step_turns_each_block_as_its_own_loop():

@@ -107,7 +107,8 @@ class TrackOptions:
 @dataclass
 class FrameData:
     """One frame's hull as the fit reads it: sampled surface points, and the signed distance
-    to the hull's surface (:meth:`signed_distance`) from all its surface voxels.
+    to the hull's surface from all its surface voxels (the inside term:
+    :func:`.tracker_kernels.inside_rows`).
     ``occupancy``: the grid's voxels from index ``lo`` on (the hull's bounding box); ``kd``:
     the surface voxels' nearest-point search (``query(x)`` → distances, rows of ``surface``:
     :class:`SurfaceGrid`, or a ``scipy.spatial.cKDTree``), None without a surface."""
@@ -125,19 +126,12 @@ class FrameData:
     nearest: tuple = field(repr=False, default=None)
 
     def inside(self, x) -> np.ndarray:
+        """Whether each point of ``x`` (N, 3) lies in a hull voxel."""
         idx = np.rint((np.asarray(x) - self.origin) / self.voxel_size).astype(np.int64) - self.lo
         ok = ((idx >= 0) & (idx < np.array(self.occupancy.shape))).all(axis=1)
         out = np.zeros(len(idx), dtype=bool)
         out[ok] = self.occupancy[tuple(idx[ok].T)]
         return out
-
-    def signed_distance(self, x):
-        """Distance of ``x`` (N, 3) to the nearest surface voxel centre, positive inside the
-        hull, and its gradient (N, 3)."""
-        d, i = self.kd.query(x)
-        s = np.where(self.inside(x), 1.0, -1.0)
-        g = (x - self.surface[i]) / np.maximum(d, 1e-9)[:, None] * s[:, None]
-        return s * d, g
 
 
 def silhouette_rays(cameras, silhouettes, n, rng) -> tuple:
@@ -348,8 +342,11 @@ class _Fitter:
         self._sk = np.tile(self.s, nk)
         bk = np.repeat(np.arange(nk), ns)
         self._ends_in = (self.cpar[bk], self.cbone[bk])
-        self._pred_at = [(3 + 3 * k, self.col[int(j)][0], self.col[int(j)][1], k)
-                         for k, j in enumerate(self.bones)]
+        # the prediction term's entries: row 3 + 3k + r, column c + q of bone k's block ←
+        # M[k, r, q] (q below the block's width)
+        self._pred_at = tuple(np.array(v, dtype=np.int64) for v in zip(*[
+            (3 + 3 * k + r, self.col[int(j)][0] + q, k, r, q) for k, j in enumerate(self.bones)
+            for r in range(3) for q in range(self.col[int(j)][1])]))
         # the step's blocks: the rigid groups, and the other bones with their two columns
         self.rigid = [blk for blk in self.blocks if blk[2] == 3]
         turned = [(m[0], c) for m, c, w in self.blocks if w == 2]
@@ -456,20 +453,18 @@ class _Fitter:
                 res.append(np.where(act, r, 0.0) * w)
         # inside: bone axis points at least depth × radius inside the hull
         if data.kd is not None:
-            S = A[:, None] + self.s[None, :, None] * seg[:, None]        # (nb, ns, 3)
-            sd, g = data.signed_distance(S.reshape(-1, 3))
-            need = self._need                       # depth × each point's bone's radius
-            ri = need - sd
-            h = o.huber * data.voxel_size
-            act = np.where(ri > 0, 1.0, o.deep * np.minimum(1.0, h / np.maximum(-ri, 1e-12)))
-            wi = np.sqrt(o.inside / sd.size)
-            sk = self._sk                           # each point's place along its bone
-            start, end = self._ends_in              # and its bone's ends
-            Ji = -(np.einsum("mc,mcn->mn", g * (1 - sk)[:, None], Ge[start])
-                   + np.einsum("mc,mcn->mn", g * sk[:, None], Ge[end]))
-            act = np.sqrt(act)
-            rows.append(Ji * (wi * act)[:, None])
-            res.append(ri * wi * act)
+            from topopose.sequence.tracker_kernels import inside_rows
+
+            S = (A[:, None] + self.s[None, :, None] * seg[:, None]).reshape(-1, 3)
+            dist, near = data.kd.query(S)
+            start, end = self._ends_in              # each point's bone's ends
+            Ji, ri = inside_rows(S, dist, np.asarray(near, np.int64), data.surface,
+                                 data.origin, data.voxel_size, data.lo, data.occupancy,
+                                 self._need, self._sk, start, end, Ge,
+                                 o.huber * data.voxel_size, o.deep,
+                                 math.sqrt(o.inside / len(S)))
+            rows.append(Ji)
+            res.append(ri)
         # the confident alignment's joints
         if align is not None:
             ok = ~np.isnan(align).any(axis=1)
@@ -490,8 +485,8 @@ class _Fitter:
             wp = np.sqrt(o.prior)
             Jp = np.zeros((3 + 3 * len(self.bones), self.n))
             Jp[:3, :3] = np.eye(3) * wp
-            for row, c, w, k in self._pred_at:        # each bone's end, by its block
-                Jp[row:row + 3, c:c + w] = M[k, :, :w] * wp
+            row, col, k, r, q = self._pred_at       # each bone's end, by its block
+            Jp[row, col] = M[k, r, q] * wp
             bo = self.bones
             rp = (b.lengths[bo] * wp)[:, None] * (D[bo] - pD[bo])
             rows.append(Jp)

@@ -330,3 +330,50 @@ def nearest_voxels(x, X, u0, vs, start, items, shape, size):
         dist[q] = bd
         rows[q] = bi
     return dist, rows
+
+
+@njit(cache=True, nogil=True)
+def inside_rows(S, dist, near, surface, origin, voxel, lo, occupancy, need, sk, start, end, G,
+                h, deep, w):
+    """The inside term's weighted rows (M, n) and residuals (M,) (:meth:`.tracker._Fitter.terms`)
+    of the bones' axis points ``S`` (M, 3), each ``need[m]`` inside the hull: the signed
+    distance ``sd`` (``dist``, the distance to the nearest surface voxel ``surface[near]``,
+    positive where ``occupancy`` — the grid's voxels from ``lo`` on, of size ``voxel`` from
+    ``origin`` — holds the point), ``r = need − sd``, one-sided (``deep`` × Huber at ``h``
+    below zero), its row through the point's bone's ends (``G[start]``, ``G[end]``, dP/dθ, at
+    ``sk`` along it), all × ``w`` — as the NumPy expressions in that method give them, bit
+    for bit."""
+    M, n = S.shape[0], G.shape[2]
+    rows = np.empty((M, n))
+    res = np.empty(M)
+    shape = occupancy.shape
+    for m in range(M):
+        held = True
+        i0 = np.int64(np.rint((S[m, 0] - origin[0]) / voxel)) - lo[0]
+        i1 = np.int64(np.rint((S[m, 1] - origin[1]) / voxel)) - lo[1]
+        i2 = np.int64(np.rint((S[m, 2] - origin[2]) / voxel)) - lo[2]
+        if i0 < 0 or i0 >= shape[0] or i1 < 0 or i1 >= shape[1] or i2 < 0 or i2 >= shape[2]:
+            held = False
+        else:
+            held = occupancy[i0, i1, i2]
+        s = 1.0 if held else -1.0
+        d = dist[m]
+        den = max(d, 1e-9)
+        q = near[m]
+        g0 = (S[m, 0] - surface[q, 0]) / den * s
+        g1 = (S[m, 1] - surface[q, 1]) / den * s
+        g2 = (S[m, 2] - surface[q, 2]) / den * s
+        r = need[m] - s * d
+        act = 1.0 if r > 0 else deep * min(1.0, h / max(-r, 1e-12))
+        act = np.sqrt(act)
+        t = sk[m]
+        a0, a1, a2 = g0 * (1 - t), g1 * (1 - t), g2 * (1 - t)
+        b0, b1, b2 = g0 * t, g1 * t, g2 * t
+        p, e = start[m], end[m]
+        wa = w * act
+        for j in range(n):
+            x = a0 * G[p, 0, j] + a1 * G[p, 1, j] + a2 * G[p, 2, j]
+            y = b0 * G[e, 0, j] + b1 * G[e, 1, j] + b2 * G[e, 2, j]
+            rows[m, j] = -(x + y) * wa
+        res[m] = r * w * act
+    return rows, res

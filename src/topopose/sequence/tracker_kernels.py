@@ -348,7 +348,6 @@ def inside_rows(S, dist, near, surface, origin, voxel, lo, occupancy, need, sk, 
     res = np.empty(M)
     shape = occupancy.shape
     for m in range(M):
-        held = True
         i0 = np.int64(np.rint((S[m, 0] - origin[0]) / voxel)) - lo[0]
         i1 = np.int64(np.rint((S[m, 1] - origin[1]) / voxel)) - lo[1]
         i2 = np.int64(np.rint((S[m, 2] - origin[2]) / voxel)) - lo[2]

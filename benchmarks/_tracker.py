@@ -402,6 +402,9 @@ def child_rope(path, work, model, frames=None, peer=True, pictures=None, tracker
                                                      for p in res.poses]))
                                    for k in ("track_hull", "track_data", "track_fit",
                                              "track_quality")}}
+        if key == "tracker":
+            out[key]["iou_native_per_camera_median"] = native_iou(cap, res.poses, model,
+                                                                  cap.frames[::10])
         if key == "tracker" and pictures is not None:
             out["pictures"] = child_pictures(cap, res.poses, model, pictures)
     out["hull_iou_per_camera_median"] = hull_iou(cap, model, cap.frames[::10])
@@ -423,6 +426,44 @@ def _touching(p) -> bool:
     return False
 
 
+def tracked_body(poses, model):
+    """The tracked body as ``poses`` record it (``diagnostics["track_body"]``: radii, extra
+    capsules) and a function giving a pose's joints (J, 3) in the body's order."""
+    from topopose.sequence.body import CapsuleBody
+    from topopose.sequence.kinematic_fit import kinematic_tree
+
+    tree = kinematic_tree(model)
+    names = list(tree.names)
+    info = next((p.diagnostics["track_body"] for p in poses
+                 if p.diagnostics.get("track_body")), None)
+    radii = np.array([np.nan if x is None else x for x in info["radii"]], float) \
+        if info else np.full(len(names), 0.05)
+    extra = (info or {}).get("extra")
+    body = CapsuleBody(tuple(names), np.array(tree.parents), np.full(len(names), 1.0), radii,
+                       tuple(tree.order()),
+                       ends=None if extra is None else np.array(extra["ends"], float),
+                       extra_radii=None if extra is None else np.array(extra["radii"], float))
+
+    def joints(p):
+        return np.array([p.joints.get(n, p.joints.get(_side(n), np.full(3, np.nan)))
+                         for n in names], float)
+    return body, joints
+
+
+def native_iou(cap, poses, model, frames) -> list:
+    """The tracked body's silhouette IoU per camera at the images' own resolution (the
+    tracker judges its fits at :data:`~topopose.sequence.silhouette.MAX_SIDE`), median over
+    the tracked frames among ``frames``."""
+    from topopose.sequence.silhouette import silhouette_iou
+
+    body, joints = tracked_body(poses, model)
+    by_frame = {p.frame: p for p in poses if p.status in ("matched", "tracked") and p.joints}
+    rows = [silhouette_iou(body, joints(by_frame[f]), cap.cameras, cap.silhouettes(f))
+            for f in frames if f in by_frame]
+    return [round(float(x), 3) for x in np.nanmedian(np.array(rows, float), axis=0)] \
+        if rows else None
+
+
 def child_pictures(cap, poses, model, out_dir, n_touch=3, n_other=3):
     """Pictures of 6 tracked frames (``n_touch`` with a wrist at the trunk): per frame, 3
     cameras' masks (grey) with the fitted body's silhouette outlined (red)."""
@@ -431,7 +472,6 @@ def child_pictures(cap, poses, model, out_dir, n_touch=3, n_other=3):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from topopose.sequence.body import CapsuleBody
     from topopose.sequence.silhouette import body_masks, scaled_views
 
     good = [i for i, p in enumerate(poses) if p.status in ("matched", "tracked") and p.joints]
@@ -441,23 +481,13 @@ def child_pictures(cap, poses, model, out_dir, n_touch=3, n_other=3):
              .round().astype(int)] if touch else [])
     pick += [other[k] for k in np.linspace(0, len(other) - 1, min(n_other, len(other)))
              .round().astype(int)] if other else []
-    from topopose.sequence.kinematic_fit import kinematic_tree
-    tree = kinematic_tree(model)
     files = []
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    body_info = poses[good[0]].diagnostics.get("track_body") if good else None
+    body, pose_joints = tracked_body(poses, model)
     for i in pick:
         p = poses[i]
-        names = [n for n in tree.names]
-        P = np.array([p.joints.get(n, p.joints.get(_side(n), np.full(3, np.nan))) for n in names])
-        radii = np.array([np.nan if x is None else x for x in body_info["radii"]], float) \
-            if body_info else np.full(len(names), 0.05)
-        extra = (body_info or {}).get("extra")
-        body = CapsuleBody(tuple(names), np.array(tree.parents), np.full(len(names), 1.0), radii,
-                           tuple(tree.order()),
-                           ends=None if extra is None else np.array(extra["ends"], float),
-                           extra_radii=None if extra is None else np.array(extra["radii"], float))
+        P = pose_joints(p)
         cams, sils = scaled_views(cap.cameras, cap.silhouettes(p.frame), 400)
         sel = list(range(0, len(cams), max(1, len(cams) // 3)))[:3]
         drawn = body_masks(body, P, [cams[c] for c in sel], [sils[c].shape for c in sel])
@@ -612,6 +642,11 @@ def report(doc) -> str:
                              f"({100 * r['skeleton'] / ch['frames']:.1f} %); statuses "
                              f"{r['statuses']}; silhouette IoU per camera (median over frames) "
                              f"{r['iou_per_camera_median']}")
+        if ch.get("tracker", {}).get("iou_native_per_camera_median"):
+            lines.append("- the tracker's silhouette IoU per camera at the images' own "
+                         "resolution (median over every 10th frame; above: the longest side "
+                         "scaled to 320 pixels, as the tracker judges its fits): "
+                         f"{ch['tracker']['iou_native_per_camera_median']}")
         if ch.get("tracker", {}).get("fit"):
             lines.append("- " + _fit_line(ch["tracker"]["fit"]))
         if ch.get("hull_iou_per_camera_median"):

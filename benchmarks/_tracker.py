@@ -405,8 +405,8 @@ def child_rope(path, work, model, frames=None, peer=True, pictures=None, tracker
         if key == "tracker":
             out[key]["iou_native_per_camera_median"] = native_iou(cap, res.poses, model,
                                                                   cap.frames[::10])
-        if key == "tracker" and pictures is not None:
-            out["pictures"] = child_pictures(cap, res.poses, model, pictures)
+            if pictures is not None:
+                out["pictures"] = child_pictures(cap, res.poses, model, pictures)
     out["hull_iou_per_camera_median"] = hull_iou(cap, model, cap.frames[::10])
     return out
 
